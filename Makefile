@@ -1,0 +1,43 @@
+# Two commands on a fresh machine: `make demo` and `make test`. Both create .venv when it is missing.
+SHELL := /bin/bash
+VENV  := .venv
+PY    := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+export MUJOCO_GL ?= egl
+export HF_HUB_OFFLINE ?= 1
+export TOKENIZERS_PARALLELISM ?= false
+
+.PHONY: demo test test-all lint clean-venv
+
+# Find a Python 3.12 interpreter: pyenv's, then python3.12 on PATH, then a pyenv install dir.
+PYTHON312 := $(shell (command -v pyenv >/dev/null 2>&1 && pyenv which python3.12 2>/dev/null) \
+	|| command -v python3.12 2>/dev/null \
+	|| ls -d $$HOME/.pyenv/versions/3.12*/bin/python3.12 2>/dev/null | tail -n 1)
+
+$(PY):
+	@if [ -z "$(PYTHON312)" ]; then \
+	  echo "error: Python 3.12 not found; install it (e.g. 'pyenv install 3.12' or your OS package python3.12) and re-run make" >&2; \
+	  exit 1; fi
+	@echo "creating $(VENV) with $(PYTHON312)"
+	@$(PYTHON312) -m venv $(VENV)
+
+$(STAMP): $(PY) pyproject.toml
+	@echo "installing indgen-vla and its stack into $(VENV) (first time: several minutes)"
+	@$(PY) -m pip install -q --upgrade pip
+	@$(PY) -m pip install -q -e ".[dev,ray]"
+	@touch $(STAMP)
+
+demo: $(STAMP)
+	@bash scripts/demo.sh
+
+test: $(STAMP)
+	@$(PY) -m pytest -q
+
+test-all: $(STAMP)
+	@$(PY) -m pytest -q -m ""
+
+lint: $(STAMP)
+	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+
+clean-venv:
+	rm -rf $(VENV)

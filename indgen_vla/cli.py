@@ -1,0 +1,206 @@
+"""The ``indgen`` command line: argparse front end that dispatches to lazily imported capabilities.
+
+Every subcommand handler is ``"package.module:function"`` taking the parsed ``argparse.Namespace`` and
+returning an exit code, so ``indgen --help`` never imports torch, robosuite or lerobot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Sequence
+
+from indgen_vla import __version__
+from indgen_vla.errors import IndgenError, NotBuiltYetError
+
+# subcommand -> (handler, capability that brings it)
+HANDLERS: dict[str, tuple[str, str]] = {
+    "evaluate": (
+        "indgen_vla.engine.cli:evaluate_main",
+        "the rollout engine (issue: Rollout engine and `indgen evaluate`)",
+    ),
+    "certify": ("scenes.certify:certify_main", "the scenes capability (issue: Scenes)"),
+    "report": ("indgen_vla.report:report_main", "the protocol core"),
+    "compare": ("indgen_vla.compare:compare_main", "the data-regimes capability (issue: Data regimes)"),
+    "serve": ("policy_wrappers.serve:serve_main", "the policy wrappers (issue: Policy wrappers)"),
+    "scenes": ("scenes.catalog:scenes_main", "the scenes capability (issue: Scenes)"),
+    "axes": ("scenes.catalog:axes_main", "the scenes capability (issue: Scenes)"),
+    "policies": ("policy_wrappers.registry:policies_main", "the policy wrappers (issue: Policy wrappers)"),
+    "blockenv": ("indgen_vla.blockenv.cli:blockenv_main", "BlockEnv (issue: BlockEnv)"),
+    "demos": ("indgen_vla.regimes.demos:demos_main", "the data-regimes capability (issue: Data regimes)"),
+    "mimicgen": (
+        "indgen_vla.regimes.mimicgen:mimicgen_main",
+        "the data-regimes capability (issue: Data regimes)",
+    ),
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that suggests the closest subcommand or choice on a typo, in one line."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        import difflib
+        import re
+
+        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if m:
+            choices = re.findall(r"'([^']*)'", m.group(2)) or [c.strip() for c in m.group(2).split(",")]
+            close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.5)
+            if close:
+                message += f"; did you mean {close[0]!r}?"
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _add_evaluate(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
+    p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
+    p.add_argument("--scene", help="scene name (see 'indgen scenes')")
+    p.add_argument(
+        "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
+    )
+    p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
+    p.add_argument(
+        "--levels",
+        default=None,
+        help="inclusive range like -3:3 or list like 0,1,2 (default: the axis range)",
+    )
+    p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
+    p.add_argument("--episodes", type=int, default=None, help="episodes per level (default 50)")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
+    p.add_argument("--backend", choices=["local", "ray"], default=None)
+    p.add_argument("--seed", type=int, default=None, help="run seed (default 0)")
+    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
+    p.add_argument(
+        "--replan-steps", type=int, default=None, help="actions executed per chunk (default: the policy's)"
+    )
+    p.add_argument(
+        "--image-size", type=int, default=None, help="rendered image side in pixels (default: the policy's)"
+    )
+    p.add_argument("--video", action="store_true", help="write mp4 videos of episodes")
+    p.add_argument(
+        "--video-per-level", type=int, default=None, help="videos per level when --video (default 1)"
+    )
+    p.add_argument(
+        "--data-regime", default=None, help="label of the training data regime, e.g. h-only or h+mg"
+    )
+    p.add_argument("--gamma", type=float, default=None, help="break threshold for the report (default 0.2)")
+    p.add_argument(
+        "--allow-infeasible", action="store_true", help="evaluate levels the oracle did not certify"
+    )
+    p.add_argument(
+        "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
+    )
+    p.add_argument("--config", default=None, help="YAML preset (configs/paper/*.yaml); flags override it")
+    p.add_argument("--out", help="run directory (re-run the same command to resume)")
+
+
+def _add_certify(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
+    p.add_argument("--scene", required=True)
+    p.add_argument("--task", default=None)
+    p.add_argument("--axis", required=True)
+    p.add_argument("--levels", default=None)
+    p.add_argument("--step", type=float, default=None)
+    p.add_argument("--episodes", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-steps", type=int, default=None)
+    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--out", required=True)
+
+
+def _add_report(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("report", help="summary.json, report.md and plots for one or more run directories")
+    p.add_argument("runs", nargs="+", metavar="RUN_DIR")
+    p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
+    p.add_argument("--ci", choices=["wilson", "clopper-pearson"], default="wilson")
+    p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
+
+
+def _add_compare(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("compare", help="per-level exact tests between two runs, Holm-corrected")
+    p.add_argument("run_a", metavar="RUN_A")
+    p.add_argument("run_b", metavar="RUN_B")
+    p.add_argument("--test", choices=["barnard", "boschloo"], default="boschloo")
+    p.add_argument("--gamma", type=float, default=0.2)
+    p.add_argument("--alpha", type=float, default=0.05)
+    p.add_argument("--out", default=None)
+
+
+def _add_serve(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("serve", help="serve any policy over openpi's websocket protocol")
+    p.add_argument("--policy", required=True)
+    p.add_argument("--host", default="127.0.0.1")
+    p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--api-key", default=None, help="require 'Authorization: Api-Key KEY' from clients")
+    p.add_argument("--trust-remote-code", action="store_true")
+
+
+def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argparse.ArgumentParser:
+    p = sp.add_parser(name, help=help_)
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    return p
+
+
+def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
+    p = sp.add_parser(name, help=help_, add_help=False)
+    p.add_argument("rest", nargs=argparse.REMAINDER)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="indgen",
+        description="Measure inductive generalization of robot policies: move a task one atomic step at a "
+        "time along one axis, run the policy, report success per level and the break level k*.",
+    )
+    parser.add_argument("--version", action="version", version=f"indgen-vla {__version__}")
+    sp = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    _add_evaluate(sp)
+    _add_certify(sp)
+    _add_report(sp)
+    _add_compare(sp)
+    _add_serve(sp)
+    _add_simple(sp, "scenes", "list registered scenes and their tasks")
+    _add_simple(sp, "axes", "list registered axes with step, level range and description")
+    _add_simple(sp, "policies", "list policy spec families and stand-ins")
+    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
+    _add_passthrough(sp, "demos", "record T0 demonstrations as a LeRobotDataset")
+    _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of T0 demonstrations")
+    return parser
+
+
+def _resolve(command: str):
+    target, capability = HANDLERS[command]
+    module, _, func = target.partition(":")
+    try:
+        mod = importlib.import_module(module)
+    except ModuleNotFoundError as e:
+        if e.name and (module == e.name or module.startswith(e.name + ".")):
+            raise NotBuiltYetError(
+                f"'indgen {command}' is not available yet; it arrives with {capability}"
+            ) from None
+        raise
+    return getattr(mod, func)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``indgen`` console script."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 2
+    try:
+        return int(_resolve(args.command)(args) or 0)
+    except IndgenError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return e.exit_code
+    except KeyboardInterrupt:
+        print("interrupted: finished episodes are saved; re-run the same command to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,49 @@
+"""A small exception hierarchy: every user-facing failure is an ``IndgenError`` with one clear line."""
+
+from __future__ import annotations
+
+
+class IndgenError(Exception):
+    """Base class; the CLI prints ``error: <message>`` and exits non-zero instead of a traceback."""
+
+    exit_code = 2
+
+
+class ConfigError(IndgenError, ValueError):
+    """A bad argument, preset or level range: the message names the value and the fix."""
+
+
+class UnknownNameError(ConfigError, KeyError):
+    """An unregistered scene, axis, policy or task; carries close matches for "did you mean"."""
+
+    def __init__(self, kind: str, name: str, choices: list[str] | tuple[str, ...]):
+        import difflib
+
+        self.kind, self.name, self.choices = kind, name, sorted(choices)
+        close = difflib.get_close_matches(name, self.choices, n=3, cutoff=0.5)
+        hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+        listing = f"known: {', '.join(self.choices)}" if self.choices else "none registered"
+        super().__init__(f"unknown {kind} {name!r}; {hint + ' ' if hint else ''}({listing})")
+
+    def __str__(self) -> str:  # KeyError would otherwise repr() the message
+        return self.args[0]
+
+
+class RunDirError(IndgenError):
+    """A run directory that is missing, corrupt, unwritable or made by a different plan."""
+
+
+class PolicyError(IndgenError):
+    """A policy that cannot be loaded, reached, or returned a malformed action."""
+
+
+class SceneError(IndgenError):
+    """A scene that cannot be built or stepped."""
+
+
+class InfeasibleLevelError(IndgenError):
+    """A level the privileged oracle does not certify (Assumption 2 of the paper)."""
+
+
+class NotBuiltYetError(IndgenError):
+    """A registered subcommand whose capability has not landed yet."""

@@ -1,0 +1,233 @@
+"""Run directories: the manifest, append-safe ``episodes.parquet`` and the resume API (DESIGN.md)."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.errors import RunDirError
+
+MANIFEST = "manifest.json"
+EPISODES = "episodes.parquet"
+SUMMARY = "summary.json"
+REPORT = "report.md"
+
+COLUMNS = (
+    "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",
+    "episode", "seed", "success", "steps", "status", "error", "wall_s", "video",
+)  # fmt: skip
+KEY = ("task", "axis", "level", "episode")
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """One finished episode, exactly one row of ``episodes.parquet``."""
+
+    run_id: str
+    policy: str
+    data_regime: str
+    scene: str
+    task: str
+    axis: str
+    level: int
+    param: float
+    episode: int
+    seed: int
+    success: bool
+    steps: int
+    status: str = "ok"
+    error: str = ""
+    wall_s: float = 0.0
+    video: str = ""
+
+    def __post_init__(self) -> None:
+        assert self.status in ("ok", "error"), self.status
+
+    @property
+    def key(self) -> tuple[str, str, int, int]:
+        return (self.task, self.axis, int(self.level), int(self.episode))
+
+
+assert tuple(f.name for f in fields(EpisodeRecord)) == COLUMNS
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write to a temp file in the same directory, fsync, then rename over ``path``."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    dir_fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(dir_fd)
+    finally:
+        os.close(dir_fd)
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    _atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False, default=str) + "\n").encode())
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    _atomic_write_bytes(Path(path), text.encode())
+
+
+def _schema():
+    import pyarrow as pa
+
+    return pa.schema([
+        ("run_id", pa.string()), ("policy", pa.string()), ("data_regime", pa.string()),
+        ("scene", pa.string()), ("task", pa.string()), ("axis", pa.string()),
+        ("level", pa.int64()), ("param", pa.float64()), ("episode", pa.int64()), ("seed", pa.int64()),
+        ("success", pa.bool_()), ("steps", pa.int64()), ("status", pa.string()), ("error", pa.string()),
+        ("wall_s", pa.float64()), ("video", pa.string()),
+    ])  # fmt: skip
+
+
+class RunDir:
+    """A run directory; every write is atomic, so a SIGKILL never corrupts what was already written.
+
+    ``episodes.parquet`` is rewritten whole through a temp file and ``os.replace`` after each append:
+    readers always see a complete Parquet file with one row per finished episode.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]):
+        self.path = Path(path)
+        self._rows: dict[tuple[str, str, int, int], dict[str, Any]] | None = None
+
+    # ----------------------------------------------------------------- creation / opening
+    @classmethod
+    def create_or_resume(cls, path: str | os.PathLike[str], manifest: Mapping[str, Any]) -> RunDir:
+        """Start a new run, or resume one whose manifest has the same ``plan``; refuse a different plan."""
+        run = cls(path)
+        try:
+            run.path.mkdir(parents=True, exist_ok=True)
+            probe = run.path / ".write_probe"
+            probe.write_bytes(b"")
+            probe.unlink()
+        except OSError as e:
+            raise RunDirError(
+                f"cannot write to output directory {run.path}: {e.strerror}; choose another --out"
+            ) from None
+        for stale in run.path.glob(".*.parquet.*"):  # temp files of a writer killed mid-write
+            stale.unlink(missing_ok=True)
+        for stale in run.path.glob(".*.json.*"):
+            stale.unlink(missing_ok=True)
+        mpath = run.path / MANIFEST
+        if mpath.exists():
+            old = run.manifest
+            if old.get("plan") != manifest.get("plan"):
+                diff = sorted(
+                    k
+                    for k in set(old.get("plan", {})) | set(manifest.get("plan", {}))
+                    if old.get("plan", {}).get(k) != manifest.get("plan", {}).get(k)
+                )
+                raise RunDirError(
+                    f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}); "
+                    "use a new --out or repeat the original command to resume"
+                )
+        else:
+            atomic_write_json(mpath, dict(manifest))
+        return run
+
+    @classmethod
+    def open(cls, path: str | os.PathLike[str]) -> RunDir:
+        """Open an existing run for reading; raise ``RunDirError`` if it is missing or corrupt."""
+        run = cls(path)
+        if not run.path.is_dir():
+            raise RunDirError(
+                f"run directory {run.path} does not exist; pass the --out of an 'indgen evaluate' run"
+            )
+        if not (run.path / MANIFEST).exists():
+            raise RunDirError(
+                f"{run.path} has no {MANIFEST}; it is not a run directory written by 'indgen evaluate'"
+            )
+        run.manifest  # noqa: B018 - validates the JSON
+        run.episodes()
+        return run
+
+    @property
+    def manifest(self) -> dict[str, Any]:
+        try:
+            data = json.loads((self.path / MANIFEST).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise RunDirError(
+                f"{self.path / MANIFEST} is unreadable or corrupt ({e}); re-run evaluate into a new --out"
+            ) from None
+        if not isinstance(data, dict):
+            raise RunDirError(
+                f"{self.path / MANIFEST} is not a JSON object; re-run evaluate into a new --out"
+            )
+        return data
+
+    # ----------------------------------------------------------------- episodes
+    def _load(self) -> dict[tuple[str, str, int, int], dict[str, Any]]:
+        if self._rows is None:
+            self._rows = {}
+            p = self.path / EPISODES
+            if p.exists():
+                import pyarrow.parquet as pq
+
+                try:
+                    table = pq.read_table(p)
+                except Exception as e:  # pyarrow raises several types for a damaged file
+                    raise RunDirError(
+                        f"{p} is corrupt ({type(e).__name__}); move it away to restart the run"
+                    ) from None
+                missing = set(COLUMNS) - set(table.column_names)
+                if missing:
+                    raise RunDirError(f"{p} lacks columns {sorted(missing)}; it was not written by indgen")
+                for row in table.select(list(COLUMNS)).to_pylist():
+                    self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
+        return self._rows
+
+    def done_keys(self, include_errors: bool = False) -> set[tuple[str, str, int, int]]:
+        """Keys ``(task, axis, level, episode)`` already finished; error rows are retried unless asked."""
+        return {k for k, r in self._load().items() if include_errors or r["status"] == "ok"}
+
+    def append(self, records: Iterable[EpisodeRecord]) -> None:
+        """Add finished episodes (an error row for the same key is replaced) and persist atomically."""
+        rows = self._load()
+        new = list(records)
+        if not new:
+            return
+        for rec in new:
+            old = rows.get(rec.key)
+            if old is not None and old["status"] == "ok":
+                raise RunDirError(
+                    f"episode {rec.key} is already recorded in {self.path}; refusing to duplicate it"
+                )
+            rows[rec.key] = asdict(rec)
+        self._flush()
+
+    def _flush(self) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        rows = self._load()
+        ordered = [rows[k] for k in sorted(rows, key=lambda k: (k[1], k[0], k[2], k[3]))]
+        table = pa.Table.from_pylist(ordered, schema=_schema())
+        sink = pa.BufferOutputStream()
+        pq.write_table(table, sink)
+        _atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
+
+    def episodes(self):
+        """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
+        import pandas as pd
+
+        rows = list(self._load().values())
+        df = pd.DataFrame(rows, columns=list(COLUMNS))
+        return df.astype(
+            {"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64", "success": "bool"}
+        )
