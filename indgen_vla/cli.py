@@ -23,7 +23,7 @@ HANDLERS: dict[str, tuple[str, str]] = {
     ),
     "certify": ("scenes.certify:certify_main", "the scenes capability (issue: Scenes)"),
     "report": ("indgen_vla.report:report_main", "the protocol core"),
-    "compare": ("indgen_vla.compare:compare_main", "the data-regimes capability (issue: Data regimes)"),
+    "compare": ("indgen_vla.compare:compare_main", "the protocol core"),
     "serve": ("policy_wrappers.serve:serve_main", "the policy wrappers (issue: Policy wrappers)"),
     "scenes": ("scenes.catalog:scenes_main", "the scenes capability (issue: Scenes)"),
     "axes": ("scenes.catalog:axes_main", "the scenes capability (issue: Scenes)"),

@@ -33,6 +33,7 @@ class AxisSpec:
         unit: ``m``, ``fraction``, ``objects``...
         signed: levels are -K..K when True, 0..K otherwise.
         max_level: K, the largest |level| evaluated by default.
+        base: the parameter's value at level 0 (e.g. 1.0 for a scale factor).
     """
 
     name: str
@@ -42,6 +43,7 @@ class AxisSpec:
     unit: str
     signed: bool
     max_level: int
+    base: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.name or not self.name.replace("_", "").replace("+", "").isalnum():
@@ -61,9 +63,9 @@ class AxisSpec:
     def with_step(self, step: float) -> AxisSpec:
         return dataclasses.replace(self, step=step)
 
-    def param(self, level: int, base: float = 0.0) -> float:
-        """The axis parameter at ``level``: base plus level atomic steps."""
-        return base + level * self.step
+    def param(self, level: int) -> float:
+        """The axis parameter at ``level``: its level-0 value plus ``level`` atomic steps."""
+        return self.base + level * self.step
 
 
 def parse_levels(text: str | Sequence[int] | None, axis: AxisSpec) -> list[int]:

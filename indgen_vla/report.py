@@ -197,11 +197,11 @@ def report_main(args: argparse.Namespace) -> int:
             curves = [(lbl, s["axes"][axis]) for lbl, s in results if axis in s["axes"]]
             plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")
         print(f"overlay: {out / REPORT}, {out / 'plots'}/")
-    _print_table(results)
+    print_tables(results)
     return 0
 
 
-def _print_table(results: list[tuple[str, dict]]) -> None:
+def print_tables(results: list[tuple[str, dict]]) -> None:
     from rich.console import Console
     from rich.table import Table
 

@@ -7,8 +7,10 @@ from indgen_vla.cli import HANDLERS, build_parser, main
 
 
 def test_import_is_light():
-    code = "import sys, indgen_vla, indgen_vla.cli, indgen_vla.metrics, indgen_vla.records, indgen_vla.report; " \
-           "print(sorted(m for m in ('torch', 'robosuite', 'lerobot', 'mujoco') if m in sys.modules))"
+    code = (
+        "import sys, indgen_vla, indgen_vla.cli, indgen_vla.metrics, indgen_vla.records, indgen_vla.report; "
+        "print(sorted(m for m in ('torch', 'robosuite', 'lerobot', 'mujoco') if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 
@@ -32,5 +34,7 @@ def test_typo_suggests(capsys):
 
 
 def test_console_script_runs():
-    exe = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "--version"], capture_output=True, text=True)
+    exe = subprocess.run(
+        [sys.executable, "-m", "indgen_vla.cli", "--version"], capture_output=True, text=True
+    )
     assert exe.returncode == 0 and "indgen-vla" in exe.stdout

@@ -39,7 +39,7 @@ def test_cis_match_scipy(k, n):
 def test_clopper_pearson_edges_hand():
     # 0/10: upper = 1 - 0.025**(1/10) = 0.30850
     lo, hi = clopper_pearson_ci(0, 10)
-    assert lo == 0.0 and hi == pytest.approx(1 - 0.025 ** 0.1, abs=1e-12)
+    assert lo == 0.0 and hi == pytest.approx(1 - 0.025**0.1, abs=1e-12)
     assert clopper_pearson_ci(10, 10)[1] == 1.0
 
 

@@ -6,7 +6,6 @@ import pytest
 from indgen_vla.cli import main
 from indgen_vla.records import RunDir
 from indgen_vla.report import summarize
-
 from tests.indgen_vla.test_records import rec
 
 

@@ -1,0 +1,247 @@
+"""``indgen evaluate``: resolve the config, plan every episode, run it resumably, then report."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime as _dt
+import json
+import subprocess
+import sys
+import uuid
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.engine.config import EvalConfig, config_from_args, plan_episodes
+from indgen_vla.errors import ConfigError, InfeasibleLevelError, UnknownNameError
+from indgen_vla.progression import AxisSpec, parse_levels
+from indgen_vla.records import RunDir
+
+VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
+
+
+def package_versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for name in VERSIONED:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+def git_sha() -> str:
+    try:
+        here = Path(__file__).resolve().parent
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5)
+        return r.stdout.strip() if r.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+@dataclasses.dataclass(frozen=True)
+class ResolvedPlan:
+    """Scene-side facts the plan needs, resolved once in the main process."""
+
+    tasks: list[str]
+    axes: dict[str, AxisSpec]
+    levels: dict[str, list[int]]
+
+
+def resolve(cfg: EvalConfig) -> ResolvedPlan:
+    """Check scene, tasks, axes and levels against the registries; one clear error for each mistake."""
+    import scenes
+
+    names = scenes.scene_names()
+    if cfg.scene not in names:
+        raise UnknownNameError("scene", cfg.scene, names)
+    all_tasks = list(scenes.tasks(cfg.scene))
+    if cfg.task in (None, ""):
+        tasks = all_tasks[:1]
+    elif cfg.task == "all":
+        tasks = all_tasks
+    elif cfg.task in all_tasks:
+        tasks = [cfg.task]
+    else:
+        raise UnknownNameError(f"task of scene {cfg.scene}", cfg.task, all_tasks + ["all"])
+    supported = list(scenes.axes_for(cfg.scene))
+    axes, levels = {}, {}
+    for name in cfg.axes:
+        spec = scenes.get_axis(name, step=cfg.step)
+        parts = name.split("+")
+        missing = [p for p in parts if p not in supported]
+        if missing:
+            raise ConfigError(
+                f"axis {missing[0]} does not apply to scene {cfg.scene}; its axes are: {', '.join(supported)}"
+            )
+        axes[name] = spec
+        levels[name] = parse_levels(cfg.levels, spec)
+    return ResolvedPlan(tasks, axes, levels)
+
+
+def check_feasible(cfg: EvalConfig, plan: ResolvedPlan) -> list[str]:
+    """Refuse levels the oracle did not certify (Assumption 2) unless --allow-infeasible; return warnings."""
+    try:
+        from scenes.certify import find_certification, infeasible_levels
+    except ImportError:
+        return ["feasibility not checked: the scenes package has no certification support"]
+    warnings = []
+    for name, spec in plan.axes.items():
+        cert = find_certification(cfg.scene, name, cfg.step)
+        if cert is None:
+            warnings.append(
+                f"axis {name} at step {spec.step:g} has no oracle certification; run 'indgen certify'"
+            )
+            continue
+        bad = sorted(set(infeasible_levels(cert)) & set(plan.levels[name]))
+        if bad and not cfg.allow_infeasible:
+            raise InfeasibleLevelError(
+                f"levels {bad} of {cfg.scene}/{name} are not solvable by the oracle (< 95 %); drop them from "
+                "--levels or pass --allow-infeasible"
+            )
+        if bad:
+            warnings.append(f"evaluating infeasible levels {bad} of {name} (--allow-infeasible)")
+    return warnings
+
+
+def build_manifest(cfg: EvalConfig, plan: ResolvedPlan, run_id: str) -> dict[str, Any]:
+    return {
+        "run_id": run_id,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "policy": cfg.policy,
+        "data_regime": cfg.data_regime,
+        "scene": cfg.scene,
+        "seed": cfg.seed,
+        "plan": cfg.plan_dict(plan.tasks, plan.levels, cfg.max_steps),
+        "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
+        "config": dataclasses.asdict(cfg),
+        "versions": package_versions(),
+        "git_sha": git_sha(),
+        "command": " ".join(["indgen", *sys.argv[1:]]) if sys.argv and "indgen" in sys.argv[0] else "",
+    }
+
+
+def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
+    """Run (or resume) an evaluation and write its report; returns the run directory."""
+    from rich.console import Console
+
+    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.report import write_run_report
+
+    console = Console(stderr=True, quiet=quiet)
+    plan = resolve(cfg)
+    for w in check_feasible(cfg, plan):
+        console.print(f"[yellow]warning:[/] {w}")
+    out = Path(cfg.out)
+    existing = RunDir(out)
+    run_id = (
+        existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
+    ) or uuid.uuid4().hex[:12]
+    run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
+    params = {(a, k): plan.axes[a].param(k) for a in cfg.axes for k in plan.levels[a]}
+    jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
+    done = run.done_keys()
+    todo = [j for j in jobs if j.key not in done]
+    if todo:
+        from policy_wrappers.registry import load_policy
+
+        def make_policy():
+            return load_policy(cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device)
+
+        probe = make_policy()
+        spec = probe.spec
+        replan = cfg.replan_steps or spec.replan_steps
+        if replan > spec.chunk_size:
+            raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
+        side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
+        runner_cfg = RunnerConfig(
+            scene=cfg.scene, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
+            step=cfg.step, privileged=spec.privileged, warmup_steps=cfg.warmup_steps,
+            video_dir=str(out / "videos") if cfg.video else None,
+        )  # fmt: skip
+        meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
+        _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console)
+    elif not quiet:
+        console.print(f"all {len(jobs)} planned episodes are already in {out}; writing the report")
+    write_run_report(run, cfg.gamma)
+    return out
+
+
+def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
+    for _, r in run.episodes().iterrows():
+        if r["status"] == "ok":
+            stats[(r["axis"], int(r["level"]))][0] += int(r["success"])
+            stats[(r["axis"], int(r["level"]))][1] += 1
+    errors = [0]
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+               TextColumn("eta"), TimeRemainingColumn())  # fmt: skip
+    with Progress(*columns, console=console, transient=False) as progress:
+        bar = progress.add_task(_describe_stats(stats, cfg), total=len(jobs), completed=len(jobs) - len(todo))
+
+        def on_record(rec) -> None:
+            run.append([rec])
+            if rec.status == "ok":
+                stats[(rec.axis, rec.level)][0] += int(rec.success)
+                stats[(rec.axis, rec.level)][1] += 1
+            else:
+                errors[0] += 1
+            progress.update(bar, advance=1, description=_describe_stats(stats, cfg, errors[0]))
+
+        first = [probe]
+
+        def policy_factory():  # hand the already loaded probe to the first consumer
+            return first.pop() if first else make_policy()
+
+        if cfg.backend == "ray":
+            from indgen_vla.engine.ray_backend import run_ray
+
+            run_ray(todo, runner_cfg, cfg, meta, on_record, replan)
+        else:
+            from indgen_vla.engine.local import run_local
+
+            run_local(todo, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries)
+        if first:  # the ray backend loads its own policies in its actors
+            probe.close()
+
+
+def _describe_stats(stats, cfg: EvalConfig, errors: int = 0) -> str:
+    parts = []
+    for axis in cfg.axes:
+        levels = sorted((k for a, k in stats if a == axis), key=lambda k: (abs(k), k))
+        cells = [f"L{k} {stats[(axis, k)][0]}/{stats[(axis, k)][1]}" for k in levels]
+        if cells:
+            parts.append(f"{axis}: " + " ".join(cells))
+    text = " | ".join(parts) or "starting"
+    return text + (f" | errors {errors}" if errors else "")
+
+
+def evaluate_main(args: argparse.Namespace) -> int:
+    """CLI handler for ``indgen evaluate``."""
+    cfg = config_from_args(args)
+    out = evaluate(cfg)
+
+    from indgen_vla.records import RunDir as _RD
+    from indgen_vla.report import _print_table, run_label
+
+    run = _RD.open(out)
+    summary = json.loads((out / "summary.json").read_text())
+    _print_table([(run_label(run), summary)])
+    print(f"report: {out / 'report.md'}\nplots:  {out / 'plots'}/\nepisodes: {out / 'episodes.parquet'}")
+    n_err = int((run.episodes()["status"] == "error").sum())
+    if n_err:
+        print(f"warning: {n_err} episode(s) ended with errors (see the 'error' column); re-run to retry them",
+              file=sys.stderr)  # fmt: skip
+    return 0

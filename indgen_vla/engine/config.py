@@ -1,0 +1,177 @@
+"""Evaluation configs: a frozen, validated ``EvalConfig``, YAML presets, and the deterministic episode plan."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.errors import ConfigError
+from indgen_vla.seeding import episode_seed
+
+DEFAULT_EPISODES = 50
+PRESET_DIR = Path(__file__).resolve().parents[2] / "configs" / "paper"
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """Everything ``indgen evaluate`` needs; validated on construction, never rewritten silently."""
+
+    policy: str
+    scene: str
+    axes: tuple[str, ...]
+    out: str
+    task: str | None = None
+    levels: str | None = None
+    step: float | None = None
+    episodes: int = DEFAULT_EPISODES
+    workers: int = 1
+    backend: str = "local"
+    seed: int = 0
+    max_steps: int | None = None
+    replan_steps: int | None = None
+    warmup_steps: int = 0
+    image_size: int | None = None
+    video: bool = False
+    video_per_level: int = 1
+    data_regime: str = ""
+    gamma: float = 0.2
+    allow_infeasible: bool = False
+    trust_remote_code: bool = False
+    max_retries: int = 2
+    device: str = "cpu"
+
+    def __post_init__(self) -> None:
+        if not self.policy:
+            raise ConfigError("--policy is required, e.g. --policy standin:oracle or --policy lerobot:HUB_ID")
+        if not self.scene:
+            raise ConfigError("--scene is required; list scenes with 'indgen scenes'")
+        if not self.axes or not all(self.axes):
+            raise ConfigError(
+                "--axis is required, e.g. --axis pick_y or --axis pick_y,scale; see 'indgen axes'"
+            )
+        if not self.out:
+            raise ConfigError("--out is required: the run directory (re-run the same command to resume)")
+        if self.episodes < 1:
+            raise ConfigError(f"--episodes must be >= 1, got {self.episodes}")
+        if self.workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {self.workers}")
+        if self.backend not in ("local", "ray"):
+            raise ConfigError(f"--backend must be 'local' or 'ray', got {self.backend!r}")
+        for name in ("max_steps", "replan_steps", "image_size"):
+            v = getattr(self, name)
+            if v is not None and v < 1:
+                raise ConfigError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
+        if self.step is not None and not self.step > 0:
+            raise ConfigError(f"--step must be positive, got {self.step}")
+        if self.warmup_steps < 0 or self.max_retries < 0 or self.video_per_level < 0:
+            raise ConfigError("warmup_steps, max_retries and video_per_level must be >= 0")
+        if not 0 < self.gamma <= 1:
+            raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
+
+    def plan_dict(
+        self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None
+    ) -> dict[str, Any]:
+        """The part of the config that fixes which episodes exist and how they run (resume must match)."""
+        return {
+            "policy": self.policy, "scene": self.scene, "tasks": tasks, "axes": list(self.axes),
+            "levels": {a: levels[a] for a in self.axes}, "step": self.step, "episodes": self.episodes,
+            "seed": self.seed, "max_steps": max_steps, "replan_steps": self.replan_steps,
+            "warmup_steps": self.warmup_steps, "image_size": self.image_size, "data_regime": self.data_regime,
+        }  # fmt: skip
+
+
+FLAG_FIELDS = {f.name for f in dataclasses.fields(EvalConfig)}
+
+
+def load_preset(path: str) -> dict[str, Any]:
+    """Read a YAML preset; a bare name like ``libero_object`` is looked up in configs/paper/."""
+    import yaml
+
+    p = Path(path)
+    if not p.exists() and not p.suffix and (PRESET_DIR / f"{path}.yaml").exists():
+        p = PRESET_DIR / f"{path}.yaml"
+    if not p.exists():
+        known = sorted(x.stem for x in PRESET_DIR.glob("*.yaml")) if PRESET_DIR.exists() else []
+        raise ConfigError(f"--config {path}: no such file; presets shipped: {', '.join(known) or 'none'}")
+    try:
+        data = yaml.safe_load(p.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise ConfigError(f"--config {p}: invalid YAML ({e.__class__.__name__}); fix the file") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"--config {p}: expected a mapping of option: value")
+    data = {k.replace("-", "_"): v for k, v in data.items()}
+    if "axis" in data:
+        data["axes"] = data.pop("axis")
+    unknown = sorted(set(data) - FLAG_FIELDS)
+    if unknown:
+        import difflib
+
+        hints = [f"{u} (did you mean {m[0]}?)" if (m := difflib.get_close_matches(u, FLAG_FIELDS, 1)) else u
+                 for u in unknown]  # fmt: skip
+        raise ConfigError(f"--config {p}: unknown option(s) {', '.join(hints)}")
+    return data
+
+
+def config_from_args(args: argparse.Namespace) -> EvalConfig:
+    """Merge a YAML preset (if any) with the flags; flags given on the command line win."""
+    values: dict[str, Any] = load_preset(args.config) if getattr(args, "config", None) else {}
+    flag_map = {"axis": "axes"}
+    for key, value in vars(args).items():
+        name = flag_map.get(key, key)
+        if name in FLAG_FIELDS and value is not None and value is not False:
+            values[name] = value
+    axes = values.get("axes")
+    if isinstance(axes, str):
+        values["axes"] = tuple(a.strip() for a in axes.split(",") if a.strip())
+    elif isinstance(axes, list):
+        values["axes"] = tuple(axes)
+    if isinstance(values.get("levels"), list):
+        values["levels"] = ",".join(str(x) for x in values["levels"])
+    values.setdefault("workers", os.cpu_count() or 1)
+    for name in ("policy", "scene", "out"):
+        values.setdefault(name, "")
+    values.setdefault("axes", ())
+    return EvalConfig(**values)
+
+
+@dataclass(frozen=True)
+class EpisodeJob:
+    """One planned episode; its seed depends only on the plan, never on workers or order."""
+
+    task: str
+    axis: str
+    level: int
+    episode: int
+    seed: int
+    param: float
+    video: bool = False
+    attempt: int = 0
+    extras: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def key(self) -> tuple[str, str, int, int]:
+        return (self.task, self.axis, self.level, self.episode)
+
+
+def plan_episodes(
+    cfg: EvalConfig, tasks: list[str], levels: dict[str, list[int]], params: dict[tuple[str, int], float]
+) -> list[EpisodeJob]:
+    """Every episode of the run in a fixed order (axis, task, level by |k|, episode).
+
+    The seed depends on (run seed, scene, task, episode) but not on the axis or level: episode i sees
+    the same random draws at every level, so levels differ only in the axis parameter (common random
+    numbers, a paired design that also makes level 0 identical across axes).
+    """
+    jobs = []
+    for axis in cfg.axes:
+        for task in tasks:
+            for level in sorted(levels[axis], key=lambda k: (abs(k), k)):
+                for ep in range(cfg.episodes):
+                    seed = episode_seed(cfg.seed, cfg.scene, task, ep)
+                    video = cfg.video and ep < cfg.video_per_level
+                    jobs.append(EpisodeJob(task, axis, level, ep, seed, params[(axis, level)], video))
+    return jobs

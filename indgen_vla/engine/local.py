@@ -1,0 +1,240 @@
+"""The local backend: W worker processes own scene instances; the main process holds the policy and
+serves one batched forward per round across every environment that is waiting for actions."""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from multiprocessing.connection import wait
+
+import numpy as np
+
+from indgen_vla.engine.config import EpisodeJob
+from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, _describe, make_record
+from indgen_vla.interface import validate_chunk
+from indgen_vla.records import EpisodeRecord
+
+
+def _handle(runner: EnvRunner, msg: tuple) -> Transition:
+    op, arg = msg
+    if op == "reset":
+        return runner.reset(arg)
+    if op == "step":
+        return runner.execute(arg)
+    raise ValueError(f"unknown worker op {op!r}")
+
+
+def _worker_main(conn, cfg: RunnerConfig) -> None:
+    """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
+    import os
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process handles Ctrl-C and closes us
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    logging.getLogger("robosuite").setLevel(logging.ERROR)
+    runner = EnvRunner(cfg)
+    try:
+        while True:
+            try:
+                msg = conn.recv()
+            except (EOFError, OSError):
+                break
+            if msg[0] == "close":
+                break
+            conn.send(_handle(runner, msg))
+    finally:
+        runner.close()
+
+
+class _InProcessWorker:
+    """W = 1: the same request/reply protocol without a subprocess (cheaper start, easier debugging)."""
+
+    def __init__(self, cfg: RunnerConfig):
+        self.runner = EnvRunner(cfg)
+        self._reply: Transition | None = None
+
+    def send(self, msg: tuple) -> None:
+        self._reply = _handle(self.runner, msg)
+
+    def poll(self) -> bool:
+        return self._reply is not None
+
+    def recv(self) -> Transition:
+        reply, self._reply = self._reply, None
+        assert reply is not None
+        return reply
+
+    def close(self) -> None:
+        self.runner.close()
+
+
+class _ProcessWorker:
+    def __init__(self, ctx, cfg: RunnerConfig):
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker_main, args=(child, cfg), daemon=True)
+        self.proc.start()
+        child.close()
+
+    def send(self, msg: tuple) -> None:
+        self.conn.send(msg)
+
+    def poll(self) -> bool:
+        return self.conn.poll()
+
+    def recv(self) -> Transition:
+        try:
+            return self.conn.recv()
+        except (EOFError, OSError):
+            raise RuntimeError(
+                f"worker process {self.proc.pid} died (exit code {self.proc.exitcode})"
+            ) from None
+
+    def close(self) -> None:
+        try:
+            self.conn.send(("close", None))
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(timeout=10)
+        if self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(timeout=5)
+
+
+@dataclass
+class _Slot:
+    job: EpisodeJob
+    attempt: int = 0
+    fresh: bool = True
+    last_error: str = ""
+
+
+def run_local(
+    jobs: Sequence[EpisodeJob],
+    runner_cfg: RunnerConfig,
+    make_policy: Callable[[], object],
+    meta: RunMeta,
+    on_record: Callable[[EpisodeRecord], None],
+    workers: int = 1,
+    replan_steps: int = 1,
+    max_retries: int = 2,
+) -> None:
+    """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
+
+    Batched policies get one ``act`` per round over all waiting environments; per-episode-stateful
+    policies get one instance per worker (remote ones are called concurrently from threads).
+    """
+    n = max(1, min(workers, len(jobs)))
+    if not jobs:
+        return
+    first = make_policy()
+    spec = first.spec
+    policies = [first] if spec.batched else [first] + [make_policy() for _ in range(n - 1)]
+    ctx = mp.get_context("spawn")
+    pool: list = []
+    threads = ThreadPoolExecutor(max_workers=n) if not spec.batched and n > 1 else None
+    try:
+        pool = (
+            [_InProcessWorker(runner_cfg)] if n == 1 else [_ProcessWorker(ctx, runner_cfg) for _ in range(n)]
+        )
+        queue = deque(jobs)
+        slots: dict[int, _Slot] = {}
+
+        def start(i: int, slot: _Slot | None = None) -> None:
+            if slot is None:
+                if not queue:
+                    slots.pop(i, None)
+                    return
+                slot = _Slot(queue.popleft())
+            slot.fresh = True
+            slots[i] = slot
+            pool[i].send(("reset", slot.job))
+
+        def fail(i: int, error: str, t: Transition | None = None) -> None:
+            slot = slots[i]
+            slot.attempt += 1
+            slot.last_error = f"attempt {slot.attempt}: {error}"
+            if slot.attempt <= max_retries:
+                start(i, slot)
+            else:
+                on_record(
+                    make_record(meta, slot.job, t or Transition(slot.job.key, None), "error", slot.last_error)
+                )
+                start(i)
+
+        for i in range(n):
+            start(i)
+        while slots:
+            busy = list(slots)
+            ready = [i for i in busy if pool[i].poll()]
+            if not ready:
+                conns = {pool[i].conn: i for i in busy}
+                ready = [conns[c] for c in wait(list(conns))]
+            waiting: list[tuple[int, Transition]] = []
+            for i in ready:
+                t = pool[i].recv()
+                slot = slots[i]
+                if t.error:
+                    fail(i, t.error, t)
+                elif t.done:
+                    on_record(make_record(meta, slot.job, t))
+                    start(i)
+                else:
+                    waiting.append((i, t))
+            if not waiting:
+                continue
+            for i, t in waiting:  # a new episode (or a retry) resets the policy it will use
+                if slots[i].fresh:
+                    policy = policies[0] if spec.batched else policies[i]
+                    try:
+                        policy.reset(t.obs.instruction, seed=slots[i].job.seed)
+                    except Exception as e:
+                        fail(i, _describe(e))
+                        continue
+                    slots[i].fresh = False
+            waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
+            for i, result in _act(policies, spec, waiting, meta.policy, threads):
+                if isinstance(result, str):
+                    fail(i, result)
+                else:
+                    pool[i].send(("step", result[:replan_steps]))
+    finally:
+        if threads is not None:
+            threads.shutdown(wait=False, cancel_futures=True)
+        for w in pool:
+            w.close()
+        for p in policies:
+            close = getattr(p, "close", None)
+            if close is not None:
+                try:
+                    close()
+                except Exception:  # closing must not mask the run's own outcome
+                    logging.getLogger(__name__).debug("policy close failed", exc_info=True)
+
+
+def _act(policies, spec, waiting, who: str, threads) -> list[tuple[int, np.ndarray | str]]:
+    """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, error message)."""
+    if not waiting:
+        return []
+    if spec.batched:
+        try:
+            chunks = validate_chunk(policies[0].act([t.obs for _, t in waiting]), len(waiting), who)
+        except Exception as e:
+            return [(i, _describe(e)) for i, _ in waiting]
+        return [(i, chunks[j]) for j, (i, _) in enumerate(waiting)]
+
+    def one(item):
+        i, t = item
+        try:
+            return i, validate_chunk(policies[i].act([t.obs]), 1, who)[0]
+        except Exception as e:
+            return i, _describe(e)
+
+    return (
+        list(threads.map(one, waiting))
+        if threads is not None and len(waiting) > 1
+        else [one(x) for x in waiting]
+    )

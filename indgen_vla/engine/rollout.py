@@ -1,0 +1,198 @@
+"""Scene-side rollout: an ``EnvRunner`` owns scene instances and executes action chunks; ``run_episode``
+is the plain single-episode loop (used by the Ray backend and by tests as the reference)."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from indgen_vla.engine.config import EpisodeJob
+from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
+from indgen_vla.records import EpisodeRecord
+
+WARMUP_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32)  # openpi's LIBERO client waits like this
+
+
+@dataclass(frozen=True)
+class RunnerConfig:
+    """How a worker builds scenes: identical in every worker so outcomes do not depend on placement."""
+
+    scene: str
+    cameras: tuple[str, ...]
+    image_size: tuple[int, int]
+    max_steps: int | None
+    step: float | None
+    privileged: bool
+    warmup_steps: int = 0
+    video_dir: str | None = None
+    video_size: tuple[int, int] = (256, 256)
+
+
+@dataclass
+class Transition:
+    """What a worker reports after a reset or an executed chunk."""
+
+    key: tuple[str, str, int, int]
+    obs: Observation | None
+    done: bool = False
+    success: bool = False
+    steps: int = 0
+    error: str = ""
+    video: str = ""
+    wall_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """Run-level fields copied into every episode record."""
+
+    run_id: str
+    policy: str
+    data_regime: str
+    scene: str
+
+
+class EnvRunner:
+    """Owns the scene instance of the current (task, axis, level) and steps it chunk by chunk."""
+
+    def __init__(self, cfg: RunnerConfig):
+        self.cfg = cfg
+        self._env: Any = None
+        self._env_key: tuple | None = None
+        self._job: EpisodeJob | None = None
+        self._steps = 0
+        self._t0 = 0.0
+        self._frames: list[np.ndarray] = []
+
+    def _env_for(self, job: EpisodeJob):
+        key = (job.task, job.axis, job.level)
+        if key != self._env_key:
+            import scenes
+
+            self.close()
+            cams = tuple(self.cfg.cameras)
+            self._env = scenes.make_env(
+                self.cfg.scene, task=job.task, axis=job.axis, level=job.level, step=self.cfg.step,
+                cameras=cams, image_size=self.cfg.image_size, max_steps=self.cfg.max_steps,
+            )  # fmt: skip
+            self._env_key = key
+        return self._env
+
+    def _observe(self, obs: Observation) -> Observation:
+        """Attach privileged state for oracles only; learned policies never see it."""
+        if self.cfg.privileged:
+            extras = dict(obs.extras)
+            extras["privileged"] = self._env.privileged_state()
+            obs = dataclasses.replace(obs, extras=extras)
+        return obs
+
+    def _record_frame(self) -> None:
+        if self._job is not None and self._job.video:
+            self._frames.append(self._env.render_frame("agentview", self.cfg.video_size))
+
+    def reset(self, job: EpisodeJob) -> Transition:
+        """Start ``job``'s episode from its seed; warm-up no-op steps do not count as policy steps."""
+        self._t0 = time.perf_counter()
+        self._job, self._steps, self._frames = job, 0, []
+        try:
+            env = self._env_for(job)
+            obs, _ = env.reset(seed=job.seed)
+            for _ in range(self.cfg.warmup_steps):
+                obs, _, _, _, _ = env.step(WARMUP_ACTION)
+            self._record_frame()
+            return Transition(job.key, self._observe(obs))
+        except Exception as e:  # a simulator failure becomes an episode error, retried by the engine
+            self._env_key = None
+            return Transition(job.key, None, done=True, error=_describe(e))
+
+    def execute(self, actions: np.ndarray) -> Transition:
+        """Execute a (n, 7) slice of a chunk; stop early on success or the step limit."""
+        job = self._job
+        assert job is not None, "execute() before reset()"
+        try:
+            env = self._env
+            obs, done, success = None, False, False
+            for a in np.asarray(actions, dtype=np.float32).reshape(-1, ACTION_DIM):
+                obs, _, terminated, truncated, info = env.step(a)
+                self._steps += 1
+                success = bool(info.get("success", False))
+                self._record_frame()
+                if terminated or truncated or success:
+                    done = True
+                    break
+            t = Transition(job.key, None if done else self._observe(obs), done, success, self._steps)
+        except Exception as e:
+            return Transition(job.key, None, done=True, error=_describe(e), steps=self._steps)
+        if done:
+            t.video = self._write_video(job, success)
+            t.wall_s = time.perf_counter() - self._t0
+        return t
+
+    def _write_video(self, job: EpisodeJob, success: bool) -> str:
+        if not job.video or not self._frames or not self.cfg.video_dir:
+            return ""
+        from scenes.video import write_mp4
+
+        name = f"{job.axis}_L{job.level}_{job.task}_ep{job.episode}_{'success' if success else 'fail'}.mp4"
+        path = Path(self.cfg.video_dir) / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_mp4(self._frames, path, fps=20)
+        self._frames = []
+        return str(Path("videos") / name)
+
+    def close(self) -> None:
+        if self._env is not None:
+            try:
+                self._env.close()
+            finally:
+                self._env, self._env_key = None, None
+
+
+def _describe(e: BaseException) -> str:
+    """One line for the ``error`` column: exception type, message and where it was raised."""
+    tb = traceback.extract_tb(e.__traceback__)
+    where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
+    msg = str(e).strip().splitlines()[0] if str(e).strip() else ""
+    return f"{type(e).__name__}: {msg}{where}"
+
+
+def make_record(
+    meta: RunMeta, job: EpisodeJob, t: Transition, status: str = "ok", error: str = ""
+) -> EpisodeRecord:
+    return EpisodeRecord(
+        run_id=meta.run_id, policy=meta.policy, data_regime=meta.data_regime, scene=meta.scene, task=job.task,
+        axis=job.axis, level=job.level, param=job.param, episode=job.episode, seed=job.seed,
+        success=bool(t.success) and status == "ok", steps=int(t.steps), status=status, error=error,
+        wall_s=float(t.wall_s), video=t.video,
+    )  # fmt: skip
+
+
+def run_episode(
+    runner: EnvRunner, policy, job: EpisodeJob, meta: RunMeta, replan_steps: int, max_retries: int = 2
+):
+    """The reference loop: reset, then act → execute ``replan_steps`` of each chunk until done.
+
+    A policy or simulator failure retries the episode from its seed up to ``max_retries`` times, then
+    returns a record with status "error" and the message (never a silent failure).
+    """
+    last_error = ""
+    for attempt in range(max_retries + 1):
+        t = runner.reset(job)
+        try:
+            if not t.error:
+                policy.reset(t.obs.instruction, seed=job.seed)
+            while not t.done and not t.error:
+                chunk = validate_chunk(policy.act([t.obs]), 1, meta.policy)
+                t = runner.execute(chunk[0, :replan_steps])
+        except Exception as e:  # PolicyError and anything the model raises
+            t = Transition(job.key, None, done=True, error=_describe(e))
+        if not t.error:
+            return make_record(meta, job, t)
+        last_error = f"attempt {attempt + 1}: {t.error}"
+    return make_record(meta, job, t, status="error", error=last_error)
