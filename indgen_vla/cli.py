@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 from collections.abc import Sequence
 
@@ -38,11 +39,15 @@ HANDLERS: dict[str, tuple[str, str]] = {
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that suggests the closest subcommand or choice on a typo, in one line."""
+    """argparse that suggests the closest subcommand or choice on a typo, in one line, and reads
+    level ranges such as ``--levels -3:3`` or ``--levels -2,0,2`` as values, not as options."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\d+(\.\d+)?$|^-\d+:-?\d+$|^-\d+(,-?\d+)+$")
 
     def error(self, message: str) -> None:  # type: ignore[override]
         import difflib
-        import re
 
         m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
         if m:

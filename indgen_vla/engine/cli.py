@@ -16,7 +16,7 @@ from typing import Any
 from indgen_vla.engine.config import EvalConfig, config_from_args, plan_episodes
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, UnknownNameError
 from indgen_vla.progression import AxisSpec, parse_levels
-from indgen_vla.records import RunDir
+from indgen_vla.records import SUMMARY, RunDir
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
 
@@ -171,34 +171,39 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
 
 
 def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    """Run the remaining episodes under a live display: one row per (axis, level) with its success so
+    far, and a total row with the ETA."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0])
-    for _, r in run.episodes().iterrows():
-        if r["status"] == "ok":
-            stats[(r["axis"], int(r["level"]))][0] += int(r["success"])
-            stats[(r["axis"], int(r["level"]))][1] += 1
-    errors = [0]
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-               TextColumn("eta"), TimeRemainingColumn())  # fmt: skip
+    planned: dict[tuple[str, int], int] = defaultdict(int)
+    for j in jobs:
+        planned[(j.axis, j.level)] += 1
+    stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
+    for r in run.episodes().itertuples():
+        stats[(r.axis, int(r.level))][0 if r.status == "ok" else 2] += (
+            int(r.success) if r.status == "ok" else 1
+        )
+        stats[(r.axis, int(r.level))][1] += int(r.status == "ok")
+    columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
+               TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
     with Progress(*columns, console=console, transient=False) as progress:
-        bar = progress.add_task(_describe_stats(stats, cfg), total=len(jobs), completed=len(jobs) - len(todo))
+        total = progress.add_task("all episodes", total=len(jobs), completed=len(jobs) - len(todo), info="")
+        rows = {}
+        for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
+            s = stats[key]
+            rows[key] = progress.add_task(f"{key[0]} L{key[1]:+d}", total=planned[key], completed=s[1] + s[2],
+                                          info=_level_info(s))  # fmt: skip
 
         def on_record(rec) -> None:
             run.append([rec])
+            s = stats[(rec.axis, rec.level)]
             if rec.status == "ok":
-                stats[(rec.axis, rec.level)][0] += int(rec.success)
-                stats[(rec.axis, rec.level)][1] += 1
+                s[0] += int(rec.success)
+                s[1] += 1
             else:
-                errors[0] += 1
-            progress.update(bar, advance=1, description=_describe_stats(stats, cfg, errors[0]))
+                s[2] += 1
+            progress.update(rows[(rec.axis, rec.level)], advance=1, info=_level_info(s))
+            progress.update(total, advance=1)
 
         first = [probe]
 
@@ -217,28 +222,20 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
             probe.close()
 
 
-def _describe_stats(stats, cfg: EvalConfig, errors: int = 0) -> str:
-    parts = []
-    for axis in cfg.axes:
-        levels = sorted((k for a, k in stats if a == axis), key=lambda k: (abs(k), k))
-        cells = [f"L{k} {stats[(axis, k)][0]}/{stats[(axis, k)][1]}" for k in levels]
-        if cells:
-            parts.append(f"{axis}: " + " ".join(cells))
-    text = " | ".join(parts) or "starting"
-    return text + (f" | errors {errors}" if errors else "")
+def _level_info(s: list[int]) -> str:
+    """Success so far at one level, e.g. ``success 3/4`` (+ errors when any)."""
+    text = f"success {s[0]}/{s[1]}" if s[1] else ""
+    return text + (f" [red]errors {s[2]}[/]" if s[2] else "")
 
 
 def evaluate_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen evaluate``."""
     cfg = config_from_args(args)
     out = evaluate(cfg)
+    from indgen_vla.report import print_tables, run_label
 
-    from indgen_vla.records import RunDir as _RD
-    from indgen_vla.report import _print_table, run_label
-
-    run = _RD.open(out)
-    summary = json.loads((out / "summary.json").read_text())
-    _print_table([(run_label(run), summary)])
+    run = RunDir.open(out)
+    print_tables([(run_label(run), json.loads((out / SUMMARY).read_text()))])
     print(f"report: {out / 'report.md'}\nplots:  {out / 'plots'}/\nepisodes: {out / 'episodes.parquet'}")
     n_err = int((run.episodes()["status"] == "error").sum())
     if n_err:

@@ -38,3 +38,10 @@ def test_console_script_runs():
         [sys.executable, "-m", "indgen_vla.cli", "--version"], capture_output=True, text=True
     )
     assert exe.returncode == 0 and "indgen-vla" in exe.stdout
+
+
+def test_negative_level_ranges_parse():
+    ns = build_parser().parse_args(["evaluate", "--levels", "-3:3", "--axis", "pick_y"])
+    assert ns.levels == "-3:3"
+    assert build_parser().parse_args(["evaluate", "--levels", "-2,0,2"]).levels == "-2,0,2"
+    assert build_parser().parse_args(["evaluate", "--levels", "-1"]).levels == "-1"
