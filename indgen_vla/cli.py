@@ -148,9 +148,11 @@ def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argpar
     return p
 
 
+PASSTHROUGH = {"blockenv", "demos", "mimicgen"}  # subcommands that parse their own arguments
+
+
 def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
-    p = sp.add_parser(name, help=help_, add_help=False)
-    p.add_argument("rest", nargs=argparse.REMAINDER)
+    sp.add_parser(name, help=help_, add_help=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -193,7 +195,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``indgen`` console script."""
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if args.command in PASSTHROUGH:
+        args.rest = extra
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     if not args.command:
         parser.print_help()
         return 2

@@ -45,3 +45,9 @@ def test_negative_level_ranges_parse():
     assert ns.levels == "-3:3"
     assert build_parser().parse_args(["evaluate", "--levels", "-2,0,2"]).levels == "-2,0,2"
     assert build_parser().parse_args(["evaluate", "--levels", "-1"]).levels == "-1"
+
+
+def test_passthrough_and_unknown_flags(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["report", "x", "--bogus"])
+    assert e.value.code == 2 and "unrecognized arguments: --bogus" in capsys.readouterr().err

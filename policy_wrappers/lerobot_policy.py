@@ -1,0 +1,290 @@
+"""``lerobot:<hub id or local dir>`` — any LeRobot ``PreTrainedPolicy`` with its saved pre/post processors.
+
+Loading follows lerobot's own eval path (``scripts/lerobot_eval.py``, ``rollout/context.py``):
+``PreTrainedConfig.from_pretrained`` -> ``get_policy_class(type).from_pretrained(path, config=cfg)`` ->
+``make_pre_post_processors(cfg, pretrained_path=path, preprocessor_overrides={"device_processor": ...})``.
+Acting mirrors ``envs/utils.py:preprocess_observation`` (uint8 HWC -> float CHW in [0, 1]) plus LIBERO's
+env processor (180° flip), then ``predict_action_chunk`` and the postprocessor (unnormalise) on the chunk.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from indgen_vla.errors import ConfigError, PolicyError
+from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation, validate_chunk
+from policy_wrappers.base import PolicySpec
+
+IMAGE_PREFIX = "observation.images."
+# Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).
+DEFAULT_CAMERA_MAP = {
+    "agentview": "agentview", "wrist": "wrist", "image": "agentview", "image2": "wrist", "wrist_image": "wrist",
+    "front": "agentview", "base_0_rgb": "agentview", "left_wrist_0_rgb": "wrist", "agentview_image": "agentview",
+    "robot0_eye_in_hand_image": "wrist", "eye_in_hand": "wrist", "main": "agentview",
+}
+LIBERO_CAMERA_NAMES = {"image", "image2"}  # lerobot's LIBERO env: these checkpoints were trained on flipped images
+ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
+
+
+@dataclass(frozen=True)
+class LeRobotConfig:
+    """Which checkpoint to load and how our Observation maps onto its input features."""
+
+    path: str
+    device: str = "cpu"
+    revision: str | None = None
+    camera_map: tuple[tuple[str, str], ...] = ()  # (feature name after observation.images., our camera | zeros)
+    flip_180: bool | None = None  # None: flip iff the checkpoint uses LIBERO's camera names
+    replan_steps: int | None = None  # None: the checkpoint's n_action_steps
+    vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
+    tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
+
+    def __post_init__(self) -> None:
+        for feature, cam in self.camera_map:
+            if cam not in (*CAMERAS, ZEROS):
+                raise ConfigError(f"lerobot {self.path}: camera {cam!r} for feature {feature!r} must be one of "
+                                  f"{[*CAMERAS, ZEROS]}")
+        if self.replan_steps is not None and self.replan_steps < 1:
+            raise ConfigError(f"lerobot {self.path}: replan must be >= 1, got {self.replan_steps}")
+
+
+def parse_camera_map(text: str | None) -> tuple[tuple[str, str], ...]:
+    """``"image:agentview,image2:wrist"`` -> pairs; features may be given with or without their prefix."""
+    if not text:
+        return ()
+    pairs = []
+    for item in text.split(","):
+        feature, sep, cam = item.strip().rpartition(":")
+        if not sep or not feature:
+            raise ConfigError(f"bad camera mapping {item!r}; write cameras=FEATURE:agentview,FEATURE2:wrist")
+        pairs.append((feature.removeprefix(IMAGE_PREFIX), cam))
+    return tuple(pairs)
+
+
+class LeRobotPolicy:
+    """A LeRobot policy in-process; batched when it needs no observation history (n_obs_steps == 1)."""
+
+    def __init__(self, name: str, config: LeRobotConfig, family: str = "lerobot"):
+        self.config = config
+        self._name = name
+        self._load()
+        self._cams = self._resolve_cameras()
+        cams = tuple(c for c in CAMERAS if c in {cam for _, cam, _ in self._cams})
+        flip = config.flip_180
+        if flip is None:
+            flip = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
+        self._flip = bool(flip)
+        sizes = {shape[1:] for _, cam, shape in self._cams if cam != ZEROS}
+        image_size = max(sizes) if sizes else None
+        chunk, replan = self._chunking()
+        self.n_obs_steps = int(getattr(self.cfg, "n_obs_steps", 1) or 1)
+        self.spec = PolicySpec(family, name, chunk_size=chunk, replan_steps=replan, cameras=cams,
+                               image_size=image_size, batched=self.n_obs_steps == 1, flip_180=self._flip)
+        self._history: deque = deque(maxlen=self.n_obs_steps)
+
+    def _fail(self, what: str, err: BaseException) -> PolicyError:
+        detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        return PolicyError(f"policy {self._name}: cannot load {what} from {self.config.path!r}: {detail}")
+
+    def _load(self) -> None:
+        import torch
+        from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        path, rev = self.config.path, self.config.revision
+        local = Path(path).expanduser()
+        if local.exists():
+            if not (local / "config.json").is_file():
+                raise PolicyError(f"policy {self._name}: {str(local)!r} has no config.json; point at the "
+                                  "pretrained_model directory of a LeRobot checkpoint")
+            path = str(local)
+        elif path.startswith(("/", ".", "~")) or path.count("/") > 1:
+            raise PolicyError(f"policy {self._name}: no such checkpoint directory {path!r} (and it is not a Hub "
+                              "id of the form org/name)")
+        try:
+            cfg = PreTrainedConfig.from_pretrained(path, revision=rev)
+        except Exception as e:
+            hint = " (HF_HUB_OFFLINE is set and it is not in the local cache)" if _offline() else ""
+            raise self._fail("the policy config" + hint, e) from None
+        cfg.device = self.config.device
+        overrides: dict = {"device_processor": {"device": self.config.device}}
+        if self.config.vlm:
+            if not hasattr(cfg, "vlm_model_name"):
+                raise ConfigError(f"policy {self._name}: vlm= applies to VLM-backed policies (e.g. smolvla), not {cfg.type!r}")
+            cfg.vlm_model_name = self.config.vlm
+        tokenizer = self.config.tokenizer or self.config.vlm
+        if tokenizer and _has_step(path, rev, "tokenizer_processor"):
+            overrides["tokenizer_processor"] = {"tokenizer_name": tokenizer}
+        try:
+            policy_cls = get_policy_class(cfg.type)
+            policy = policy_cls.from_pretrained(path, config=cfg, revision=rev)
+        except Exception as e:
+            raise self._fail(f"the {cfg.type!r} weights", e) from None
+        policy.eval()
+        try:
+            pre, post = make_pre_post_processors(
+                cfg, pretrained_path=path, pretrained_revision=rev, preprocessor_overrides=overrides,
+            )
+        except Exception as e:
+            raise PolicyError(f"policy {self._name}: cannot load policy_preprocessor/policy_postprocessor from "
+                              f"{path!r} ({type(e).__name__}: {str(e)[:200]}); checkpoints saved before lerobot 0.4 "
+                              "need lerobot's migrate_policy_normalization first") from None
+        self.cfg, self.policy, self.pre, self.post, self._torch = cfg, policy, pre, post, torch
+        action = cfg.action_feature
+        if action is None or tuple(action.shape) != (ACTION_DIM,):
+            got = None if action is None else tuple(action.shape)
+            raise PolicyError(f"policy {self._name}: checkpoint outputs actions of shape {got}; indgen scenes take "
+                              f"({ACTION_DIM},) delta-EEF actions (OSC_POSE)")
+        state = cfg.robot_state_feature
+        if state is not None and tuple(state.shape) != (STATE_DIM,):
+            raise PolicyError(f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
+                              f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos")
+        if cfg.env_state_feature is not None:
+            raise PolicyError(f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
+                              "simulator state), which learned policies never get here")
+
+    def _resolve_cameras(self) -> list[tuple[str, str, tuple[int, ...]]]:
+        """[(feature name, our camera or 'zeros', (C, H, W))] for every visual input feature."""
+        explicit = dict(self.config.camera_map)
+        features = {k.removeprefix(IMAGE_PREFIX): tuple(f.shape) for k, f in self.cfg.image_features.items()}
+        unknown = sorted(set(explicit) - set(features))
+        if unknown:
+            raise ConfigError(f"policy {self._name}: cameras= names feature {unknown[0]!r}, which the checkpoint "
+                              f"lacks; its image features are {sorted(features)}")
+        out = []
+        for feat, shape in features.items():
+            cam = explicit.get(feat) or DEFAULT_CAMERA_MAP.get(feat)
+            if cam is None and feat.startswith("empty_camera_"):
+                cam = ZEROS
+            if cam is None:
+                raise ConfigError(f"policy {self._name}: don't know which camera feeds image feature {feat!r}; "
+                                  f"add ?cameras={feat}:agentview (or :wrist, :zeros) — features: {sorted(features)}")
+            if len(shape) != 3 or shape[0] != 3:
+                raise PolicyError(f"policy {self._name}: image feature {feat!r} has shape {shape}; expected (3, H, W)")
+            out.append((feat, cam, shape))
+        return out
+
+    def _chunking(self) -> tuple[int, int]:
+        cfg = self.cfg
+        n_action = getattr(cfg, "n_action_steps", None)
+        if cfg.type == "diffusion":  # generate_actions returns n_action_steps actions
+            chunk = int(n_action)
+        else:
+            chunk = int(getattr(cfg, "chunk_size", None) or n_action or 1)
+        replan = self.config.replan_steps or int(n_action or chunk)
+        if replan > chunk:
+            raise ConfigError(f"policy {self._name}: replan={replan} exceeds the chunk of {chunk} actions")
+        return chunk, replan
+
+    def reset(self, instruction: str, seed: int | None = None) -> None:
+        self._history.clear()
+        self.policy.reset()
+        if seed is not None:  # flow-matching / diffusion noise is drawn from torch's global generator
+            self._torch.manual_seed(int(seed))
+
+    def to_batch(self, observations: Sequence[Observation]) -> dict:
+        """Our observations -> lerobot's raw batch (float CHW images in [0, 1] at the declared size, state, task)."""
+        torch = self._torch
+        import torch.nn.functional as F  # noqa: N812
+
+        batch: dict = {}
+        for feat, cam, (_, h, w) in self._cams:
+            if cam == ZEROS:
+                batch[IMAGE_PREFIX + feat] = torch.zeros((len(observations), 3, h, w))
+                continue
+            try:
+                imgs = np.stack([obs.images[cam] for obs in observations])
+            except KeyError:
+                raise PolicyError(f"policy {self._name} needs camera {cam!r}; observation has "
+                                  f"{sorted(observations[0].images)}") from None
+            if self._flip:
+                imgs = imgs[:, ::-1, ::-1]
+            t = torch.from_numpy(np.ascontiguousarray(imgs)).permute(0, 3, 1, 2).float().div_(255.0)
+            if t.shape[-2:] != (h, w):
+                t = F.interpolate(t, size=(h, w), mode="bilinear", align_corners=False, antialias=True).clamp_(0, 1)
+            batch[IMAGE_PREFIX + feat] = t
+        if self.cfg.robot_state_feature is not None:
+            batch["observation.state"] = torch.from_numpy(np.stack([o.state for o in observations]).astype(np.float32))
+        batch["task"] = [o.instruction for o in observations]
+        return batch
+
+    def _with_history(self, batch: dict) -> dict:
+        """Stack the last n_obs_steps preprocessed observations along dim 1 (lerobot's populate_queues)."""
+        keys = [IMAGE_PREFIX + feat for feat, _, _ in self._cams]
+        keys += ["observation.state"] if "observation.state" in batch else []
+        if self._history and next(iter(self._history))[keys[0]].shape[0] != batch[keys[0]].shape[0]:
+            self._history.clear()
+        if not self._history:
+            for _ in range(self.n_obs_steps - 1):
+                self._history.append({k: batch[k] for k in keys})
+        self._history.append({k: batch[k] for k in keys})
+        out = dict(batch)
+        for k in keys:
+            out[k] = self._torch.stack([h[k] for h in self._history], dim=1)
+        return out
+
+    def act(self, observations: Sequence[Observation]) -> np.ndarray:
+        torch = self._torch
+        with torch.inference_mode():
+            batch = self.pre(self.to_batch(observations))
+            if self.n_obs_steps > 1:
+                batch = self._with_history(batch)
+            try:
+                actions = self.policy.predict_action_chunk(batch)
+            except Exception as e:
+                first = (str(e).strip().splitlines() or [""])[0][:300]
+                raise PolicyError(f"policy {self._name} failed to act: {type(e).__name__}: {first}") from e
+            if actions.ndim == 2:
+                actions = actions[:, None]
+            actions = self.post(actions)
+        chunk = actions.detach().to("cpu", torch.float32).numpy()
+        return validate_chunk(chunk, len(observations), self._name)
+
+    def close(self) -> None:
+        self.policy = self.pre = self.post = None
+
+
+def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
+    """Whether the saved policy_preprocessor.json has a step registered as ``registry_name``."""
+    import json
+
+    local = Path(path) / "policy_preprocessor.json"
+    try:
+        if not local.is_file():
+            from huggingface_hub import hf_hub_download
+
+            local = Path(hf_hub_download(path, "policy_preprocessor.json", revision=revision))
+        steps = json.loads(local.read_text()).get("steps", [])
+    except Exception:
+        return False
+    return any(step.get("registry_name") == registry_name for step in steps)
+
+
+def _offline() -> bool:
+    import os
+
+    return os.environ.get("HF_HUB_OFFLINE", "").lower() in ("1", "true", "yes", "on")
+
+
+def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot"):
+    """``lerobot:<hub id or dir>[?cameras=feat:agentview,..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR]``.
+
+    LeRobot policies are plain PyTorch modules loaded from safetensors: no Hub code is executed, so
+    ``trust_remote_code`` has nothing to enable here.
+    """
+    config = LeRobotConfig(
+        path=parsed.target,
+        device=options.str("device", device),
+        revision=options.str("revision"),
+        camera_map=parse_camera_map(options.str("cameras")),
+        flip_180=options.bool("flip", None),
+        replan_steps=options.int("replan"),
+        vlm=options.str("vlm"),
+        tokenizer=options.str("tokenizer"),
+    )
+    return LeRobotPolicy(parsed.spec, config, family=family)

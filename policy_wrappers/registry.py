@@ -1,0 +1,193 @@
+"""Policy spec strings (``family:target[?options]``) -> loaded ``Policy``; ``indgen policies`` listing.
+
+Importing this module is cheap: each family's module (and torch/lerobot) loads only when its spec is used.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl
+
+from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
+from indgen_vla.registry import Registry
+
+FAMILIES: Registry = Registry("policy family")
+FAMILIES.register("lerobot", "policy_wrappers.lerobot_policy:load", "any LeRobot PreTrainedPolicy (Hub id or local dir), in-process")
+FAMILIES.register("openpi", "policy_wrappers.openpi:load", "pi0 / pi0.5 behind openpi's websocket server (ws://HOST:PORT)")
+FAMILIES.register("openvla-oft", "policy_wrappers.openvla:load", "OpenVLA-OFT / OpenVLA deploy server (http://HOST:PORT, POST /act)")
+FAMILIES.register("groot", "policy_wrappers.groot:load", "Isaac-GR00T N1.5/N1.6 ZMQ inference service (tcp://HOST:PORT)")
+FAMILIES.register("standin", "policy_wrappers.standin:load", "CPU stand-ins: oracle, random, noop, or a tiny checkpoint dir")
+
+STANDINS: Registry = Registry("stand-in policy")
+STANDINS.register("oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle from the scenes package")
+STANDINS.register("random", "policy_wrappers.standin:RandomPolicy", "uniform random deltas, reproducible from the episode seed")
+STANDINS.register("noop", "policy_wrappers.standin:NoopPolicy", "zero motion, gripper open")
+
+EXAMPLES = {
+    "lerobot": "lerobot:lerobot/smolvla_libero  or  lerobot:./outputs/checkpoints/last/pretrained_model",
+    "openpi": "openpi:ws://gpu-box:8000?replan=5",
+    "openvla-oft": "openvla-oft:http://gpu-box:8777  or  openvla-oft:http://gpu-box:8000?variant=openvla&unnorm_key=libero_spatial",
+    "groot": "groot:tcp://gpu-box:5555?api=n1.5",
+    "standin": "standin:oracle | standin:random | standin:noop | standin:PATH_TO_CHECKPOINT",
+}
+
+
+@dataclass(frozen=True)
+class ParsedSpec:
+    """A spec string split into family, target (URL, Hub id, path or name) and ``?key=value`` options."""
+
+    spec: str
+    family: str
+    target: str
+    options: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.target:
+            raise ConfigError(f"policy spec {self.spec!r} has nothing after '{self.family}:'; e.g. {EXAMPLES[self.family]}")
+
+
+def parse_spec(spec: str) -> ParsedSpec:
+    """Split ``family:target[?k=v&...]``; raise ``ConfigError`` / ``UnknownNameError`` with the fix."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise ConfigError("empty policy spec; use FAMILY:TARGET, e.g. standin:oracle or openpi:ws://HOST:PORT")
+    spec = spec.strip()
+    family, sep, rest = spec.partition(":")
+    if not sep:
+        if family in STANDINS:
+            raise ConfigError(f"policy spec {spec!r} lacks a family; did you mean 'standin:{family}'?")
+        raise ConfigError(f"policy spec {spec!r} lacks a family; use one of {', '.join(f + ':' for f in FAMILIES.names())}")
+    if family not in FAMILIES:
+        raise UnknownNameError("policy family", family, FAMILIES.names())
+    target, _, query = rest.partition("?")
+    try:
+        options = dict(parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query)))
+    except ValueError:
+        raise ConfigError(f"policy spec {spec!r}: bad options {query!r}; write ?key=value&key2=value2") from None
+    return ParsedSpec(spec, family, target.strip(), options)
+
+
+class Options:
+    """Typed access to a spec's options that rejects unknown keys with a did-you-mean."""
+
+    def __init__(self, spec: str, options: Mapping[str, object]):
+        self.spec, self._raw, self._used = spec, dict(options), set()
+
+    def _get(self, key: str) -> object | None:
+        self._used.add(key)
+        return self._raw.get(key)
+
+    def str(self, key: str, default: str | None = None) -> str | None:
+        value = self._get(key)
+        return default if value is None else str(value)
+
+    def int(self, key: str, default: int | None = None) -> int | None:
+        value = self._get(key)
+        if value is None:
+            return default
+        try:
+            return int(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"policy {self.spec}: option {key}={value!r} must be an integer") from None
+
+    def float(self, key: str, default: float) -> float:
+        value = self._get(key)
+        if value is None:
+            return default
+        try:
+            return float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"policy {self.spec}: option {key}={value!r} must be a number") from None
+
+    def bool(self, key: str, default: bool | None) -> bool | None:
+        value = self._get(key)
+        if value is None or value == "auto":
+            return default
+        if isinstance(value, bool):
+            return value
+        text = str(value).lower()
+        if text in ("1", "true", "yes", "on"):
+            return True
+        if text in ("0", "false", "no", "off"):
+            return False
+        raise ConfigError(f"policy {self.spec}: option {key}={value!r} must be 0/1 (or true/false)")
+
+    def choice(self, key: str, choices: tuple[str, ...], default: str) -> str:
+        value = self.str(key, default)
+        if value not in choices:
+            raise UnknownNameError(f"value for option {key!r} of policy {self.spec}", str(value), list(choices))
+        return value
+
+    def finish(self) -> None:
+        """Raise on any option nobody asked for (a typo would otherwise be silently ignored)."""
+        unknown = sorted(set(self._raw) - self._used)
+        if unknown:
+            raise UnknownNameError(f"option of policy {self.spec}", unknown[0], sorted(self._used))
+
+
+def check_url(spec: str, target: str, schemes: tuple[str, ...], default_port: int) -> tuple[str, str, int]:
+    """Parse ``scheme://host:port`` for a remote family; return (scheme, host, port)."""
+    from urllib.parse import urlsplit
+
+    example = f"{schemes[0]}://127.0.0.1:{default_port}"
+    parts = urlsplit(target)
+    if parts.scheme not in schemes:
+        got = f"scheme {parts.scheme + '://'!r}" if parts.scheme else "no scheme"
+        raise ConfigError(f"policy spec {spec!r}: {got}; this family takes {' or '.join(s + '://' for s in schemes)}, e.g. {example}")
+    try:
+        port = parts.port or default_port
+    except ValueError:
+        raise ConfigError(f"policy spec {spec!r}: bad port in {target!r}; e.g. {example}") from None
+    if not parts.hostname:
+        raise ConfigError(f"policy spec {spec!r}: no host in {target!r}; e.g. {example}")
+    if parts.path not in ("", "/"):
+        raise ConfigError(f"policy spec {spec!r}: unexpected path {parts.path!r}; give only {schemes[0]}://HOST:PORT")
+    return parts.scheme, parts.hostname, port
+
+
+def join_url(scheme: str, host: str, port: int) -> str:
+    """``scheme://host:port`` with IPv6 hosts bracketed."""
+    return f"{scheme}://[{host}]:{port}" if ":" in host else f"{scheme}://{host}:{port}"
+
+
+def load_policy(spec: str, *, trust_remote_code: bool = False, device: str = "cpu", **kw: object):
+    """Load the policy a spec string names (the engine's and ``indgen serve``'s entry point).
+
+    Extra keyword arguments are spec options (the same as ``?key=value``) and override them.
+    """
+    parsed = parse_spec(spec)
+    loader = FAMILIES.load(parsed.family)
+    options = Options(parsed.spec, {**parsed.options, **kw})
+    policy = loader(parsed, options, trust_remote_code=trust_remote_code, device=device)
+    try:
+        options.finish()
+    except Exception:
+        policy.close()
+        raise
+    if not hasattr(policy, "spec") or not hasattr(policy, "act"):
+        raise PolicyError(f"policy {spec}: loader returned {type(policy).__name__}, which lacks spec/act")
+    return policy
+
+
+def catalog() -> dict[str, list[dict[str, str]]]:
+    """Families and stand-ins with descriptions and examples (what ``indgen policies`` prints)."""
+    families = [{"name": e.name, "description": e.description, "example": EXAMPLES[e.name]} for e in FAMILIES]
+    standins = [{"name": f"standin:{e.name}", "description": e.description} for e in STANDINS]
+    return {"families": families, "standins": standins}
+
+
+def policies_main(args) -> int:
+    """``indgen policies [--json]``: list spec families and stand-ins."""
+    data = catalog()
+    if getattr(args, "json", False):
+        print(json.dumps(data, indent=2))
+        return 0
+    print("Policy spec families (--policy FAMILY:TARGET[?key=value&...]):")
+    for row in data["families"]:
+        print(f"  {row['name'] + ':':<13} {row['description']}")
+        print(f"  {'':<13} e.g. {row['example']}")
+    print("Stand-ins:")
+    for row in data["standins"]:
+        print(f"  {row['name']:<16} {row['description']}")
+    return 0

@@ -1,0 +1,167 @@
+"""``indgen serve``: any policy spec behind openpi's websocket protocol (+ ``/healthz``), so openpi clients work.
+
+Requests use the keys of openpi's LIBERO example: images arrive rotated 180° (the client's training-time
+convention), so the server rotates them back to the simulator's raw orientation before the wrapped policy
+applies its own conventions. Replies are ``{"actions": (T, 7) float32, "server_timing": {...}}``.
+One policy instance serves all connections, one request at a time; a new prompt (or our client's
+``indgen/reset`` hint) calls ``reset``, so stateful (non-batched) policies should serve one simulator each.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import http
+import logging
+import threading
+import time
+import traceback
+
+import numpy as np
+
+from indgen_vla.errors import ConfigError
+from indgen_vla.interface import Observation
+from policy_wrappers import msgpack_numpy
+from policy_wrappers.image_tools import flip_180
+from policy_wrappers.openpi import INDGEN_SERVER
+
+log = logging.getLogger(__name__)
+
+
+def observation_from_request(request: dict, unflip: bool = True) -> Observation:
+    """openpi LIBERO request dict -> our ``Observation`` (images back to raw orientation)."""
+    if not isinstance(request, dict):
+        raise ValueError(f"request must be a dict, got {type(request).__name__}")
+    missing = [k for k in ("observation/image", "observation/state") if k not in request]
+    if missing:
+        raise KeyError(f"request lacks {missing}; send openpi's LIBERO keys observation/image, "
+                       "observation/wrist_image, observation/state, prompt")
+    images = {}
+    for key, cam in (("observation/image", "agentview"), ("observation/wrist_image", "wrist")):
+        if key in request:
+            img = np.asarray(request[key])
+            if img.dtype != np.uint8:
+                img = (255 * img).astype(np.uint8) if np.issubdtype(img.dtype, np.floating) else img.astype(np.uint8)
+            if img.ndim == 3 and img.shape[0] == 3 and img.shape[-1] != 3:
+                img = np.transpose(img, (1, 2, 0))
+            images[cam] = flip_180(img) if unflip else np.ascontiguousarray(img)
+    state = np.asarray(request["observation/state"], dtype=np.float32).reshape(-1)
+    return Observation(images=images, state=state, instruction=str(request.get("prompt", "")))
+
+
+class PolicyServer:
+    """Serves one ``Policy`` over openpi's websocket protocol; acting runs in a worker thread under a lock."""
+
+    def __init__(self, policy, host: str = "127.0.0.1", port: int = 8000, api_key: str | None = None,
+                 unflip: bool = True):
+        self.policy, self.host, self.port, self.api_key, self.unflip = policy, host, port, api_key, unflip
+        spec = policy.spec
+        self.metadata = {
+            "server": INDGEN_SERVER, "policy": spec.name, "family": spec.family, "chunk_size": spec.chunk_size,
+            "replan_steps": spec.replan_steps, "cameras": list(spec.cameras), "flip_180": spec.flip_180,
+            "image_size": list(spec.image_size) if spec.image_size else None,
+        }
+        self._lock: asyncio.Lock | None = None
+        self._server = None
+        self.bound_port: int | None = None
+        self._ready = threading.Event()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+
+    def _process_request(self, connection, request):
+        if request.path == "/healthz":
+            return connection.respond(http.HTTPStatus.OK, "OK\n")
+        if self.api_key and request.headers.get("Authorization") != f"Api-Key {self.api_key}":
+            return connection.respond(http.HTTPStatus.UNAUTHORIZED, "missing or wrong 'Authorization: Api-Key ...'\n")
+        return None
+
+    def _act(self, request: dict, state: dict) -> np.ndarray:
+        obs = observation_from_request(request, self.unflip)
+        hint = request.get("indgen/reset")
+        if isinstance(hint, dict):
+            seed = int(hint.get("seed", -1))
+            self.policy.reset(str(hint.get("instruction", obs.instruction)), None if seed < 0 else seed)
+            state["prompt"] = obs.instruction
+        elif state.get("prompt") != obs.instruction:
+            self.policy.reset(obs.instruction, None)
+            state["prompt"] = obs.instruction
+        return np.asarray(self.policy.act([obs])[0], dtype=np.float32)
+
+    async def _handler(self, websocket) -> None:
+        import websockets
+
+        await websocket.send(msgpack_numpy.packb(self.metadata))
+        state: dict = {}
+        prev_total = None
+        while True:
+            try:
+                start = time.monotonic()
+                request = msgpack_numpy.unpackb(await websocket.recv())
+                infer_start = time.monotonic()
+                async with self._lock:
+                    actions = await asyncio.to_thread(self._act, request, state)
+                timing = {"infer_ms": (time.monotonic() - infer_start) * 1000}
+                if prev_total is not None:
+                    timing["prev_total_ms"] = prev_total * 1000
+                await websocket.send(msgpack_numpy.packb({"actions": actions, "server_timing": timing}))
+                prev_total = time.monotonic() - start
+            except websockets.ConnectionClosed:
+                break
+            except Exception:
+                log.exception("request failed")
+                try:
+                    await websocket.send(traceback.format_exc())
+                    await websocket.close(code=1011, reason="Internal server error. Traceback included in previous frame.")
+                except websockets.ConnectionClosed:
+                    pass
+                break
+
+    async def run(self) -> None:
+        from websockets.asyncio.server import serve
+
+        self._lock = asyncio.Lock()
+        self._loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        async with serve(self._handler, self.host, self.port, compression=None, max_size=None,
+                         process_request=self._process_request) as server:
+            self.bound_port = server.sockets[0].getsockname()[1] if server.sockets else self.port
+            self._ready.set()
+            await self._stop.wait()
+
+    def start_background(self, timeout_s: float = 10.0) -> int:
+        """Run in a daemon thread (tests, benchmark); return the bound port (pass port=0 for an ephemeral one)."""
+        thread = threading.Thread(target=lambda: asyncio.run(self.run()), daemon=True, name="indgen-serve")
+        thread.start()
+        if not self._ready.wait(timeout_s):
+            raise RuntimeError("policy server did not start")
+        self._thread = thread
+        return int(self.bound_port)
+
+    def stop(self) -> None:
+        """Stop a server started with ``start_background``."""
+        if self._loop is not None and self._stop is not None:
+            self._loop.call_soon_threadsafe(self._stop.set)
+            getattr(self, "_thread", None) and self._thread.join(timeout=5)
+
+
+def serve_main(args) -> int:
+    """``indgen serve --policy SPEC [--host 127.0.0.1] [--port 8000] [--api-key KEY] [--trust-remote-code]``."""
+    from policy_wrappers.registry import load_policy
+
+    if not 0 <= int(args.port) <= 65535:
+        raise ConfigError(f"--port must be in 0..65535, got {args.port}")
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
+    policy = load_policy(args.policy, trust_remote_code=bool(getattr(args, "trust_remote_code", False)))
+    server = PolicyServer(policy, host=args.host, port=int(args.port), api_key=getattr(args, "api_key", None))
+    if args.host not in ("127.0.0.1", "localhost", "::1") and not server.api_key:
+        log.warning("serving on %s without --api-key: anyone who can reach this port can drive the policy", args.host)
+    print(f"serving {policy.spec.name} on ws://{args.host}:{args.port} (health: http://{args.host}:{args.port}/healthz)",
+          flush=True)
+    try:
+        asyncio.run(server.run())
+    except KeyboardInterrupt:
+        pass
+    except OSError as e:
+        raise ConfigError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+    finally:
+        policy.close()
+    return 0

@@ -1,0 +1,167 @@
+"""The GR00T client against loopback ZMQ REP servers shaped like Isaac-GR00T's N1.5 and N1.6 services."""
+
+from __future__ import annotations
+
+import io
+import re
+import threading
+
+import msgpack
+import numpy as np
+import pytest
+
+from indgen_vla.errors import PolicyError
+from policy_wrappers.image_tools import flip_180
+from policy_wrappers.registry import load_policy
+
+zmq = pytest.importorskip("zmq")
+pytestmark = pytest.mark.timeout(60)
+KEYS = ("x", "y", "z", "roll", "pitch", "yaw", "gripper")
+
+
+def decode(obj):  # gr00t MsgSerializer.decode_custom_classes, written out independently
+    if isinstance(obj, dict) and "__ndarray_class__" in obj:
+        return np.load(io.BytesIO(obj["as_npy"]), allow_pickle=False)
+    return obj
+
+
+def encode(obj):  # gr00t MsgSerializer.encode_custom_classes
+    if isinstance(obj, np.ndarray):
+        buf = io.BytesIO()
+        np.save(buf, obj, allow_pickle=False)
+        return {"__ndarray_class__": True, "as_npy": buf.getvalue()}
+    return obj
+
+
+class GrootServer:
+    """A REP socket loop like gr00t's PolicyServer: ping, kill, get_modality_config, reset, get_action."""
+
+    def __init__(self, get_action, modality=None, token=None, silent=False):
+        self.get_action, self.modality, self.token, self.silent = get_action, modality or {}, token, silent
+        self.requests = []
+        self.ctx = zmq.Context()
+        self.sock = self.ctx.socket(zmq.REP)
+        self.port = self.sock.bind_to_random_port("tcp://127.0.0.1")
+        self.running = True
+
+    def _loop(self):
+        while self.running:
+            if not self.sock.poll(50):
+                continue
+            request = msgpack.unpackb(self.sock.recv(), object_hook=decode)
+            self.requests.append(request)
+            if self.silent:
+                self.running = False
+                break
+            if self.token and request.get("api_token") != self.token:
+                result = {"error": "Unauthorized: Invalid API token"}
+            else:
+                endpoint = request.get("endpoint", "get_action")
+                try:
+                    result = {"ping": lambda d: {"status": "ok", "message": "Server is running"},
+                              "get_modality_config": lambda d: self.modality,
+                              "reset": lambda d: {},
+                              "get_action": self.get_action}[endpoint](request.get("data"))
+                except Exception as e:  # gr00t replies {"error": str(e)}
+                    result = {"error": str(e)}
+            self.sock.send(msgpack.packb(result, default=encode))
+
+    def __enter__(self):
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.running = False
+        self.thread.join(2)
+        self.sock.close(linger=0)
+        self.ctx.term()
+
+
+def n15_reply(data):
+    if "observation" in data:  # what a real N1.5 Gr00tPolicy does with an N1.6-shaped request
+        raise KeyError("video.image")
+    assert data["video.image"].dtype == np.uint8 and data["video.image"].shape == (1, 256, 256, 3)
+    assert data["video.wrist_image"].shape == (1, 256, 256, 3)
+    for key in KEYS[:-1]:
+        assert data[f"state.{key}"].shape == (1, 1) and data[f"state.{key}"].dtype == np.float64
+    assert data["state.gripper"].shape == (1, 2)
+    assert isinstance(data["annotation.human.action.task_description"], list)
+    return {f"action.{k}": np.full((16, 1) if k != "x" else (16,), 0.9 if k == "gripper" else 0.1, np.float32)
+            for k in KEYS}
+
+
+def test_n15_flat_keys(obs_factory):
+    with GrootServer(n15_reply) as srv:
+        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?api=n1.5")
+        assert not policy.spec.batched and (policy.spec.chunk_size, policy.spec.replan_steps) == (16, 1)
+        obs = obs_factory(1)
+        chunk = policy.act([obs, obs_factory(2)])
+        policy.close()
+    assert chunk.shape == (2, 16, 7) and np.allclose(chunk[..., :6], 0.1) and np.all(chunk[..., 6] == 1.0)
+    data = srv.requests[-2]["data"]  # first get_action (after ping and get_modality_config)
+    assert srv.requests[0] == {"endpoint": "ping"} and srv.requests[1] == {"endpoint": "get_modality_config"}
+    assert np.array_equal(data["video.image"][0], flip_180(obs.images["agentview"]))
+    assert np.allclose(np.concatenate([data[f"state.{k}"][0] for k in KEYS]), obs.state)
+    assert data["annotation.human.action.task_description"] == [obs.instruction]
+
+
+def test_n16_batched_with_reset_and_modality_config(obs_factory):
+    modality = {"video": {"__ModalityConfig_class__": True, "as_json": {"delta_indices": [0], "modality_keys": ["image", "wrist_image"]}},
+                "language": {"__ModalityConfig_class__": True, "as_json": {"delta_indices": [0], "modality_keys": ["annotation.human.task_description"]}}}
+
+    def reply(data):
+        obs = data["observation"]
+        assert set(data) == {"observation", "options"} and data["options"] is None
+        assert obs["video.image"].shape == (3, 1, 256, 256, 3) and obs["state.gripper"].shape == (3, 1, 2)
+        assert obs["state.x"].dtype == np.float32 and obs["annotation.human.task_description"] == ["a", "b", "c"]
+        return [{f"action.{k}": np.full((3, 16, 2 if k == "gripper" else 1), 0.2, np.float32) for k in KEYS}, {}]
+
+    def gripper_two(data):  # a wrong action dimension must be refused
+        return [{f"action.{k}": np.zeros((1, 16, 2), np.float32) for k in KEYS}, {}]
+
+    with GrootServer(reply, modality=_raw(modality), token="t") as srv:
+        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?api_token=t")
+        assert policy.spec.batched and policy.spec.replan_steps == 8
+        policy.reset("a", seed=0)
+        with pytest.raises(PolicyError, match=re.escape("shape (3, 16, 8)")):
+            policy.act([obs_factory(i, instruction=s) for i, s in enumerate("abc")])
+        assert srv.requests[2] == {"endpoint": "reset", "data": {"options": None}, "api_token": "t"}
+    with GrootServer(gripper_two) as srv:
+        with pytest.raises(PolicyError, match="expected"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}").act([obs_factory()])
+
+
+def _raw(modality):
+    """The server sends ModalityConfig as the custom class marker (decoded by our client into dicts)."""
+    return {k: dict(v) for k, v in modality.items()}
+
+
+def test_n16_good_reply(obs_factory):
+    def reply(data):
+        n = len(data["observation"]["annotation.human.action.task_description"])
+        return [{f"action.{k}": np.full((n, 16, 1), 0.3, np.float32) for k in KEYS}, {}]
+
+    with GrootServer(reply) as srv:
+        chunk = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?gripper=raw").act([obs_factory(0), obs_factory(1)])
+    assert chunk.shape == (2, 16, 7) and np.allclose(chunk, 0.3)
+
+
+def test_errors(obs_factory):
+    with GrootServer(lambda d: (_ for _ in ()).throw(ValueError("bad video key"))) as srv:
+        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}")
+        with pytest.raises(PolicyError, match="server error: bad video key"):
+            policy.act([obs_factory()])
+    with GrootServer(n15_reply, token="t") as srv:
+        with pytest.raises(PolicyError, match="Unauthorized"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}?api=n1.5")
+    with GrootServer(n15_reply) as srv:  # an N1.5 server asked the N1.6 way
+        with pytest.raises(PolicyError, match=r"api=n1.5"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}").act([obs_factory()])
+    modality = {"video": {"delta_indices": [0], "modality_keys": ["video.ego_view"]}}
+    with GrootServer(n15_reply, modality=modality) as srv:
+        with pytest.raises(PolicyError, match="ego_view"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}?api=n1.5")
+    with GrootServer(n15_reply, silent=True) as srv:
+        with pytest.raises(PolicyError, match="no reply .* within 0.3s"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}?connect_timeout=0.3")

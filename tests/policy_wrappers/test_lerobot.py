@@ -1,0 +1,141 @@
+"""The lerobot adapter on tiny random ACT / Diffusion checkpoints, loaded offline like a Hub id."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from indgen_vla.errors import ConfigError, PolicyError
+from policy_wrappers.registry import load_policy
+
+pytest.importorskip("lerobot")
+pytestmark = pytest.mark.timeout(120)
+
+
+@pytest.fixture
+def hub_cache(tmp_path, monkeypatch):
+    """An offline Hugging Face cache; ``put(dir, repo_id)`` lays a checkpoint out as a downloaded snapshot."""
+    import huggingface_hub.constants as hf_constants
+
+    monkeypatch.setattr(hf_constants, "HF_HUB_CACHE", str(tmp_path))
+    monkeypatch.setattr(hf_constants, "HF_HUB_OFFLINE", True)
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+
+    def put(src: str, repo_id: str) -> None:
+        repo = tmp_path / ("models--" + repo_id.replace("/", "--"))
+        rev = "0123456789abcdef0123456789abcdef01234567"
+        (repo / "refs").mkdir(parents=True)
+        (repo / "refs" / "main").write_text(rev)
+        shutil.copytree(src, repo / "snapshots" / rev)
+
+    return put
+
+
+def test_act_loads_by_hub_id_offline_and_acts(tiny_act, hub_cache, obs_factory):
+    hub_cache(tiny_act, "indgen-test/tiny-act")
+    policy = load_policy("lerobot:indgen-test/tiny-act")
+    spec = policy.spec
+    assert (spec.chunk_size, spec.replan_steps, spec.image_size, spec.batched) == (10, 10, (32, 32), True)
+    assert spec.cameras == ("agentview", "wrist") and spec.flip_180  # LIBERO names image/image2
+    policy.reset("put the bowl on the plate", seed=0)
+    obs = [obs_factory(i) for i in range(3)]  # 256x256 renders, resized to the declared 32x32
+    chunk = policy.act(obs)
+    assert chunk.shape == (3, 10, 7) and chunk.dtype == np.float32 and np.all(np.isfinite(chunk))
+    one_by_one = np.concatenate([policy.act([o]) for o in obs])
+    assert np.allclose(chunk, one_by_one, atol=1e-5)
+    with pytest.raises(PolicyError, match="not in the local cache"):
+        load_policy("lerobot:indgen-test/not-there")
+
+
+def test_to_batch_matches_lerobot_env_pipeline(tiny_act, obs_factory):
+    """Our conversion == lerobot's preprocess_observation + LIBERO env processor (flip H and W)."""
+    import torch
+    from lerobot.envs.utils import preprocess_observation
+
+    policy = load_policy(f"lerobot:{tiny_act}")
+    obs = [obs_factory(i, size=32) for i in range(2)]
+    ours = policy.to_batch(obs)
+    env_obs = {"pixels": {"image": np.stack([o.images["agentview"] for o in obs]),
+                          "image2": np.stack([o.images["wrist"] for o in obs])},
+               "agent_pos": np.stack([o.state for o in obs])}
+    ref = preprocess_observation(env_obs)
+    for key in ("observation.images.image", "observation.images.image2"):
+        assert torch.equal(ours[key], torch.flip(ref[key], dims=[2, 3]))
+    assert torch.equal(ours["observation.state"], ref["observation.state"])
+    assert ours["task"] == [o.instruction for o in obs]
+
+
+def test_act_chunk_matches_select_action(tiny_act, obs_factory):
+    """The chunk we return starts with what lerobot's own select_action would execute."""
+    import torch
+
+    policy = load_policy(f"lerobot:{tiny_act}")
+    obs = [obs_factory(7, size=32)]
+    chunk = policy.act(obs)
+    policy.reset(obs[0].instruction)
+    with torch.inference_mode():
+        first = policy.post(policy.policy.select_action(policy.pre(policy.to_batch(obs))))
+    assert np.allclose(chunk[:, 0], first.numpy(), atol=1e-5)
+
+
+def test_diffusion_history_and_seed_match_select_action(tiny_diffusion, obs_factory):
+    pytest.importorskip("diffusers")
+    import torch
+
+    policy = load_policy(f"lerobot:{tiny_diffusion}")
+    assert not policy.spec.batched and policy.n_obs_steps == 2
+    assert (policy.spec.chunk_size, policy.spec.replan_steps) == (4, 4)
+    obs = [obs_factory(1, size=32)]
+    policy.reset("x", seed=3)
+    chunk = policy.act(obs)
+    policy.reset("x", seed=3)
+    assert np.array_equal(chunk, policy.act(obs))  # the episode seed fixes the diffusion noise
+    policy.reset("x", seed=3)
+    with torch.inference_mode():
+        batch = policy.pre(policy.to_batch(obs))
+        first = policy.post(policy.policy.select_action(batch))  # queues filled with copies of obs, as ours
+    assert np.allclose(chunk[:, 0], first.numpy(), atol=1e-5)
+
+
+def test_camera_map_and_errors(tmp_path, obs_factory):
+    from conftest import build_tiny_checkpoint
+
+    ckpt = build_tiny_checkpoint("act", tmp_path / "cams", cameras=("top", "gripper"), size=16)
+    with pytest.raises(ConfigError, match=r"\?cameras=top:agentview"):
+        load_policy(f"lerobot:{ckpt}")
+    policy = load_policy(f"lerobot:{ckpt}?cameras=gripper:wrist,top:agentview&flip=0&replan=4")
+    assert not policy.spec.flip_180 and policy.spec.replan_steps == 4 and policy.spec.image_size == (16, 16)
+    assert policy.act([obs_factory(0)]).shape == (1, 10, 7)
+    with pytest.raises(ConfigError, match="lacks"):
+        load_policy(f"lerobot:{ckpt}?cameras=front:agentview,gripper:wrist")
+    with pytest.raises(PolicyError, match="no such checkpoint directory"):
+        load_policy(f"lerobot:{tmp_path}/missing")
+    with pytest.raises(PolicyError, match="no config.json"):
+        load_policy(f"lerobot:{tmp_path}")
+    with pytest.raises(ConfigError, match="exceeds"):
+        load_policy(f"lerobot:{ckpt}?cameras=gripper:wrist,top:agentview&replan=11")
+
+
+def test_standin_checkpoint_dir_delegates(tiny_act, obs_factory):
+    policy = load_policy(f"standin:{tiny_act}")
+    assert policy.spec.family == "standin" and policy.act([obs_factory()]).shape == (1, 10, 7)
+
+
+def test_tiny_smolvla_with_local_backbone(tmp_path, hub_cache, obs_factory):
+    """SmolVLA through the Hub-id path, its VLM config + tokenizer from a local dir (``?vlm=`` relocates it)."""
+    pytest.importorskip("num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])")
+    from policy_wrappers.tiny import build_tiny_smolvla, build_tiny_vlm_dir
+
+    vlm = build_tiny_vlm_dir(tmp_path / "vlm")
+    hub_cache(build_tiny_smolvla(tmp_path / "smolvla", vlm), "indgen-test/tiny-smolvla")
+    moved = shutil.move(vlm, tmp_path / "vlm-moved")
+    with pytest.raises(PolicyError, match="cannot load"):
+        load_policy("lerobot:indgen-test/tiny-smolvla")  # the saved vlm_model_name no longer exists
+    policy = load_policy(f"lerobot:indgen-test/tiny-smolvla?vlm={moved}")
+    assert (policy.spec.chunk_size, policy.spec.replan_steps, policy.spec.batched) == (10, 5, True)
+    policy.reset("pick up the bowl", seed=0)
+    chunk = policy.act([obs_factory(0), obs_factory(1)])
+    policy.reset("pick up the bowl", seed=0)
+    assert chunk.shape == (2, 10, 7) and np.array_equal(chunk, policy.act([obs_factory(0), obs_factory(1)]))

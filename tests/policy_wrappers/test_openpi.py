@@ -1,0 +1,107 @@
+"""The openpi client against a loopback server that speaks openpi's websocket protocol and checks requests."""
+
+from __future__ import annotations
+
+import asyncio
+import re
+
+import numpy as np
+import pytest
+from loopback import WebsocketServer
+
+from indgen_vla.errors import PolicyError
+from policy_wrappers import msgpack_numpy
+from policy_wrappers.image_tools import flip_180, resize_with_pad
+from policy_wrappers.registry import load_policy
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def openpi_server(reply, seen: list, headers: list | None = None):
+    """A server shaped like openpi's WebsocketPolicyServer: metadata frame, then request -> reply."""
+    async def handler(ws):
+        if headers is not None:
+            headers.append(ws.request.headers.get("Authorization"))
+        await ws.send(msgpack_numpy.packb({"action_horizon": 10}))
+        async for message in ws:
+            assert isinstance(message, bytes)
+            obs = msgpack_numpy.unpackb(message)
+            seen.append(obs)
+            out = reply(obs)
+            if out == "hang":
+                await asyncio.sleep(1)
+                continue
+            if isinstance(out, str):  # openpi sends the traceback as text, then closes with 1011
+                await ws.send(out)
+                await ws.close(code=1011, reason="Internal server error")
+                return
+            await ws.send(msgpack_numpy.packb(out))
+    return WebsocketServer(handler)
+
+
+def test_request_matches_openpi_libero_example(obs_factory):
+    seen, headers = [], []
+    actions = np.linspace(-1, 1, 70, dtype=np.float32).reshape(10, 7)
+    with openpi_server(lambda obs: {"actions": actions, "server_timing": {"infer_ms": 1.0}}, seen, headers) as srv:
+        policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}?api_key=secret")
+        assert policy.metadata == {"action_horizon": 10}
+        assert (policy.spec.chunk_size, policy.spec.replan_steps, policy.spec.flip_180) == (10, 5, True)
+        obs = obs_factory(3)
+        policy.reset(obs.instruction, seed=1)
+        chunk = policy.act([obs, obs_factory(4)])
+        policy.close()
+    assert headers[0] == "Api-Key secret"
+    assert chunk.shape == (2, 10, 7) and chunk.dtype == np.float32 and np.allclose(chunk[0], actions)
+    req = seen[0]
+    assert set(req) == {"observation/image", "observation/wrist_image", "observation/state", "prompt"}
+    for key, cam in (("observation/image", "agentview"), ("observation/wrist_image", "wrist")):
+        assert req[key].dtype == np.uint8 and req[key].shape == (224, 224, 3)
+        assert np.array_equal(req[key], resize_with_pad(flip_180(obs.images[cam]), 224, 224))
+    assert req["observation/image"][-10:].mean() > 250  # the bright top band is now at the bottom
+    assert req["observation/state"].shape == (8,) and np.allclose(req["observation/state"], obs.state)
+    assert req["prompt"] == obs.instruction
+
+
+def test_resize_with_pad_matches_openpi_semantics():
+    img = np.full((100, 200, 3), 200, np.uint8)
+    out = resize_with_pad(img, 224, 224)
+    assert out.shape == (224, 224, 3)
+    assert out[:55].max() == 0 and out[-55:].max() == 0 and out[112, 112, 0] == 200  # letterboxed with zeros
+
+
+def test_server_error_frame_then_reconnect(obs_factory):
+    seen = []
+    calls = iter(["Traceback (most recent call last):\nValueError: bad prompt", {"actions": np.zeros((10, 7))}])
+    with openpi_server(lambda obs: next(calls), seen) as srv:
+        policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}")
+        with pytest.raises(PolicyError, match="server error: ValueError: bad prompt") as err:
+            policy.act([obs_factory()])
+        assert srv.port and str(srv.port) in str(err.value)
+        assert policy.act([obs_factory()]).shape == (1, 10, 7)  # the engine's retry reconnects
+
+
+@pytest.mark.parametrize(
+    "reply, fragment",
+    [
+        ({"actions": np.zeros((10, 8))}, "shape (10, 8)"),
+        ({"actions": np.zeros((3, 7))}, "returned 3 actions"),
+        ({"actions": np.full((10, 7), np.nan)}, "non-finite"),
+        ({"nope": 1}, "no 'actions'"),
+    ],
+)
+def test_bad_replies_become_policy_errors(obs_factory, reply, fragment):
+    with openpi_server(lambda obs: reply, []) as srv:
+        policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}")
+        with pytest.raises(PolicyError, match=re.escape(fragment)) as err:
+            policy.act([obs_factory()])
+        assert f"openpi:ws://127.0.0.1:{srv.port}" in str(err.value)
+
+
+def test_timeout_and_refused(obs_factory):
+    with openpi_server(lambda obs: "hang", []) as srv:
+        policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}?timeout=0.3")
+        with pytest.raises(PolicyError, match="no reply .* within 0.3s"):
+            policy.act([obs_factory()])
+        port = srv.port
+    with pytest.raises(PolicyError, match="connection refused"):
+        load_policy(f"openpi:ws://127.0.0.1:{port}")
