@@ -83,6 +83,12 @@ class LeRobotPolicy:
         image_size = max(sizes) if sizes else None
         chunk, replan = self._chunking()
         self.n_obs_steps = int(getattr(self.cfg, "n_obs_steps", 1) or 1)
+        # A policy with an observation history must see every step, as lerobot's select_action does: it is
+        # asked each step (replan 1) and answers from its own queue, predicting a new chunk only when empty.
+        self._replan_inside = replan if self.n_obs_steps > 1 else 0
+        if self._replan_inside:
+            replan = 1
+        self._queue: deque = deque()
         self.spec = PolicySpec(family, name, chunk_size=chunk, replan_steps=replan, cameras=cams,
                                image_size=image_size, batched=self.n_obs_steps == 1, flip_180=self._flip)
         self._history: deque = deque(maxlen=self.n_obs_steps)
@@ -183,6 +189,7 @@ class LeRobotPolicy:
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
         self._history.clear()
+        self._queue.clear()
         self.policy.reset()
         if seed is not None:  # flow-matching / diffusion noise is drawn from torch's global generator
             self._torch.manual_seed(int(seed))
@@ -229,6 +236,20 @@ class LeRobotPolicy:
         return out
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
+        if not self._replan_inside:
+            return self._predict(observations)
+        # history policies (not batched): record this step, replan from the queue like select_action
+        if self._queue:
+            with self._torch.inference_mode():
+                self._with_history(self.pre(self.to_batch(observations)))
+        else:
+            chunk = self._predict(observations)[0]
+            self._queue.extend(chunk[: self._replan_inside])
+        out = np.stack(list(self._queue))[None]
+        self._queue.popleft()
+        return out
+
+    def _predict(self, observations: Sequence[Observation]) -> np.ndarray:
         torch = self._torch
         with torch.inference_mode():
             batch = self.pre(self.to_batch(observations))

@@ -81,22 +81,24 @@ def test_act_chunk_matches_select_action(tiny_act, obs_factory):
 
 
 def test_diffusion_history_and_seed_match_select_action(tiny_diffusion, obs_factory):
+    """A history policy is asked every step and follows lerobot's select_action step for step."""
     pytest.importorskip("diffusers")
     import torch
 
     policy = load_policy(f"lerobot:{tiny_diffusion}")
     assert not policy.spec.batched and policy.n_obs_steps == 2
-    assert (policy.spec.chunk_size, policy.spec.replan_steps) == (4, 4)
-    obs = [obs_factory(1, size=32)]
+    assert (policy.spec.chunk_size, policy.spec.replan_steps) == (4, 1)
+    seq = [[obs_factory(i, size=32)] for i in range(6)]  # six different consecutive observations
     policy.reset("x", seed=3)
-    chunk = policy.act(obs)
+    ours = [policy.act(o) for o in seq]
+    assert [c.shape[1] for c in ours] == [4, 3, 2, 1, 4, 3]  # the remaining queue, replanned when empty
     policy.reset("x", seed=3)
-    assert np.array_equal(chunk, policy.act(obs))  # the episode seed fixes the diffusion noise
+    assert np.array_equal(ours[0], policy.act(seq[0]))  # the episode seed fixes the diffusion noise
     policy.reset("x", seed=3)
     with torch.inference_mode():
-        batch = policy.pre(policy.to_batch(obs))
-        first = policy.post(policy.policy.select_action(batch))  # queues filled with copies of obs, as ours
-    assert np.allclose(chunk[:, 0], first.numpy(), atol=1e-5)
+        theirs = [policy.post(policy.policy.select_action(policy.pre(policy.to_batch(o)))).numpy() for o in seq]
+    for c, t in zip(ours, theirs, strict=True):
+        assert np.allclose(c[:, 0], t, atol=1e-5)
 
 
 def test_camera_map_and_errors(tmp_path, obs_factory):
