@@ -61,10 +61,10 @@ def batched_gain(batch: int, reps: int) -> float:
 
     from indgen_vla.interface import Observation
     from policy_wrappers.registry import load_policy
-    from scripts.tiny_checkpoints import save_tiny_act
+    from policy_wrappers.tiny import build_tiny_checkpoint
 
     with tempfile.TemporaryDirectory() as d:
-        path = save_tiny_act(d)
+        path = build_tiny_checkpoint("act", d, cameras=("agentview", "wrist"), size=64)
         policy = load_policy(f"lerobot:{path}")
         h, w = policy.spec.image_size or (64, 64)
         rng = np.random.default_rng(0)
@@ -96,7 +96,7 @@ def main() -> None:
     torch.set_num_threads(1)
     from indgen_vla.engine.config import EvalConfig, plan_episodes
 
-    episodes, max_steps = (4, 40) if args.quick else (12, 120)
+    episodes, max_steps = (4, 40) if args.quick else (16, 200)
     cfg = EvalConfig(policy=args.policy, scene=args.scene, axes=("pick_y",), out="-", episodes=episodes)
     import scenes
 
@@ -106,6 +106,7 @@ def main() -> None:
 
     policy = load_policy(args.policy)
     replan = policy.spec.replan_steps
+    scenes.make_env(args.scene, task=task, cameras=()).close()  # warm-up: imports and first model build
     steps = len(jobs) * max_steps
     t_bare = bare_loop(jobs, args.scene, policy, replan, max_steps)
     t_eng1 = engine_run(jobs, args.scene, args.policy, replan, max_steps, workers=1)

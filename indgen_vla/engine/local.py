@@ -104,6 +104,14 @@ class _ProcessWorker:
             self.proc.join(timeout=5)
 
 
+def _context():
+    """A forkserver that has imported the simulator once, so W workers start fast and clean
+    (no threads inherited from the main process, no EGL context shared across processes)."""
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["indgen_vla.engine.local", "scenes.env", "robosuite", "mujoco"])
+    return ctx
+
+
 @dataclass
 class _Slot:
     job: EpisodeJob
@@ -133,7 +141,7 @@ def run_local(
     first = make_policy()
     spec = first.spec
     policies = [first] if spec.batched else [first] + [make_policy() for _ in range(n - 1)]
-    ctx = mp.get_context("spawn")
+    ctx = _context()
     pool: list = []
     threads = ThreadPoolExecutor(max_workers=n) if not spec.batched and n > 1 else None
     try:
