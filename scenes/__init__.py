@@ -1,0 +1,56 @@
+"""Scenes: frozen specs, inductive axes (successors), robosuite builders, the oracle and certification.
+
+Importing this package is cheap: robosuite and MuJoCo load only when ``make_env`` builds an env.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from indgen_vla.interface import CAMERAS
+from indgen_vla.progression import AxisSpec
+from scenes.axes import get_axis as _get_axis
+from scenes.axes import get_successor
+from scenes.catalog import SCENES, check_axis_supported, get_scene, resolve_task
+
+if TYPE_CHECKING:
+    from scenes.env import SceneEnv
+
+DEFAULT_AXIS = {"pick_place": "pick_y", "stack": "stack", "cabinet_pick": "clutter"}
+
+__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis"]
+
+
+def scene_names() -> list[str]:
+    """Registered scene names."""
+    return list(SCENES)
+
+
+def tasks(scene: str) -> list[str]:
+    """Tasks of ``scene`` (the first is the default)."""
+    return list(get_scene(scene).tasks)
+
+
+def axes_for(scene: str) -> list[str]:
+    """Single axes ``scene`` supports (any '+'-composition of them works too)."""
+    return list(get_scene(scene).axes)
+
+
+def get_axis(name: str, step: float | None = None) -> AxisSpec:
+    """The ``AxisSpec`` of an axis or composition such as ``pick_y+distractor``; ``step`` overrides its step."""
+    return _get_axis(name, step)
+
+
+def make_env(scene: str, *, task: str | None = None, axis: str | None = None, level: int = 0,
+             step: float | None = None, cameras: Sequence[str] = CAMERAS,
+             image_size: tuple[int, int] = (128, 128), max_steps: int | None = None) -> SceneEnv:
+    """Build one level of one task: the scene's T0 moved ``level`` atomic steps along ``axis``."""
+    sdef = get_scene(scene)
+    task = resolve_task(sdef, task)
+    axis = axis or DEFAULT_AXIS[scene]
+    check_axis_supported(sdef, axis)
+    successor = get_successor(axis, step)
+    from scenes.env import SceneEnv
+
+    return SceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

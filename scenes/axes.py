@@ -1,0 +1,241 @@
+"""Inductive axes of the built-in scenes: atomic successors over ``SceneSpec`` and their compositions.
+
+Each axis owns one spec field and a step (the paper's defaults, DESIGN.md's table). A successor is a
+small frozen object: calling it returns a new spec with that field moved one step, nothing else.
+Compositions such as ``pick_y+distractor`` apply every component once per level (one-sided
+components always step forwards, so level -k of ``pick_y+distractor`` has k distractors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.errors import ConfigError, UnknownNameError
+from indgen_vla.progression import AxisSpec, apply_level
+from scenes.spec import SceneSpec
+
+# name -> (description, field, step, unit, signed, max_level)
+_AXIS_TABLE: dict[str, tuple[str, str, float, str, bool, int]] = {
+    "pick_y": ("translate the pick object along the table's y axis", "pick.y", 0.025, "m", True, 3),
+    "goal_y": ("translate the goal receptacle along the table's y axis", "goal.y", 0.0367, "m", True, 3),
+    "scale": ("uniformly scale the pick object (additive fraction of its size)", "pick.scale", 0.0667,
+              "fraction", True, 3),
+    "pick_x": ("translate the pick object along x by 1/5 of its valid region (0.20 m)", "pick.x", 0.04,
+               "m", False, 5),
+    "fixture_x": ("slide the goal fixture (cabinet) along its own x axis, the counter direction",
+                  "fixture_x", 0.125, "m", False, 3),
+    "horizon": ("move the robot base back from the table: a longer reach and horizon", "robot_back", 0.125,
+                "m", False, 2),
+    "clutter": ("add one clutter object to the receptacle/cabinet", "clutter", 1.0, "objects", False, 4),
+    "stack": ("raise the target block by one 0.25 in riser: a taller target stack", "stack_in", 0.25, "in",
+              False, 4),
+    "distractor": ("add one visual-only distractor (no collision)", "distractors", 1.0, "objects", False, 4),
+}
+
+# Axes that translate a jittered item: their support at level k is param +- spec.jitter.
+JITTERED_FIELDS = ("pick.x", "pick.y", "goal.y")
+INTEGER_FIELDS = ("clutter", "distractors")
+
+
+def base_axis_names() -> list[str]:
+    return sorted(_AXIS_TABLE)
+
+
+def _base_axis(name: str) -> AxisSpec:
+    if name not in _AXIS_TABLE:
+        raise UnknownNameError("axis", name, list(_AXIS_TABLE))
+    desc, fld, step, unit, signed, max_level = _AXIS_TABLE[name]
+    return AxisSpec(name, desc, fld, step, unit, signed, max_level)
+
+
+def get_path(spec: Any, path: str) -> Any:
+    """Read a dotted field path of a nested frozen dataclass."""
+    obj = spec
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def set_path(spec: Any, path: str, value: Any) -> Any:
+    """A copy of ``spec`` with one dotted field replaced (the frozen originals are untouched)."""
+    head, _, rest = path.partition(".")
+    if not rest:
+        return dataclasses.replace(spec, **{head: value})
+    return dataclasses.replace(spec, **{head: set_path(getattr(spec, head), rest, value)})
+
+
+@dataclass(frozen=True)
+class Shift:
+    """The atomic successor of a single axis: move its one field by ``direction`` steps."""
+
+    axis: AxisSpec
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        return (self.axis.field,)
+
+    def __call__(self, spec: SceneSpec, direction: int = 1) -> SceneSpec:
+        if direction not in (1, -1):
+            raise ConfigError(f"axis {self.axis.name}: a successor step is +1 or -1, got {direction}")
+        if direction < 0 and not self.axis.signed:
+            raise ConfigError(f"axis {self.axis.name} is one-sided: levels run 0..{self.axis.max_level}")
+        old = get_path(spec, self.axis.field)
+        if self.axis.field in INTEGER_FIELDS:
+            new: float | int = int(old) + direction * int(round(self.axis.step))
+        else:
+            new = round(float(old) + direction * self.axis.step, 9)
+        return set_path(spec, self.axis.field, new)
+
+
+@dataclass(frozen=True)
+class Composite:
+    """Several axes stepped together: level k applies each component k steps (|k| if one-sided)."""
+
+    axis: AxisSpec
+    parts: tuple[Shift, ...]
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        return tuple(p.axis.field for p in self.parts)
+
+    def __call__(self, spec: SceneSpec, direction: int = 1) -> SceneSpec:
+        for part in self.parts:
+            spec = part(spec, direction if part.axis.signed else 1)
+        return spec
+
+
+Successor = Shift | Composite
+
+
+def _validate_step(axis: AxisSpec, step: float) -> None:
+    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
+        raise ConfigError(f"axis {axis.name}: step must be a positive number, got {step!r}")
+    if axis.field in INTEGER_FIELDS and float(step) != round(step):
+        raise ConfigError(f"axis {axis.name} counts {axis.unit}; its step must be a whole number, got {step}")
+
+
+def get_successor(name: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None) -> Successor:
+    """The successor for ``name`` (``a+b`` for a composition), with an optional step override.
+
+    ``overrides`` maps axis names to ``{"step": s, "max_level": K}`` (a YAML preset's ``axes``).
+    ``step`` overrides a single axis's step; a composition's components take steps from presets only.
+    """
+    overrides = overrides or {}
+    names = name.split("+")
+    if any(not n for n in names):
+        raise ConfigError(f"axis {name!r}: write compositions as 'pick_y+distractor'")
+    if len(set(names)) != len(names):
+        raise ConfigError(f"axis {name!r} repeats a component")
+    parts = []
+    for n in names:
+        axis = _base_axis(n)
+        ov = dict(overrides.get(n, {}))
+        if "step" in ov:
+            _validate_step(axis, ov["step"])
+        axis = dataclasses.replace(axis, step=float(ov.get("step", axis.step)),
+                                   max_level=int(ov.get("max_level", axis.max_level)))
+        parts.append(Shift(axis))
+    if len(parts) == 1:
+        if step is not None:
+            _validate_step(parts[0].axis, step)
+            return Shift(parts[0].axis.with_step(float(step)))
+        return parts[0]
+    if step is not None:
+        raise ConfigError(f"axis {name!r} is a composition; set component steps in a configs/axes preset, not --step")
+    signed = any(p.axis.signed for p in parts)
+    comp = AxisSpec(
+        name=name,
+        description="composition: " + "; ".join(f"{p.axis.name} ({p.axis.step:g} {p.axis.unit})" for p in parts),
+        field="+".join(p.axis.field for p in parts),
+        step=1.0,
+        unit="level",
+        signed=signed,
+        max_level=min(p.axis.max_level for p in parts),
+    )
+    return Composite(comp, tuple(parts))
+
+
+def get_axis(name: str, step: float | None = None, preset: str | Path | None = None) -> AxisSpec:
+    """The ``AxisSpec`` of a single axis or a composition, with optional step / preset overrides."""
+    overrides = load_preset(preset) if preset is not None else None
+    return get_successor(name, step, overrides).axis
+
+
+def spec_at_level(base: SceneSpec, successor: Successor, level: int) -> SceneSpec:
+    """T_k: the successor applied |k| times to the base spec, after checking k is in range."""
+    axis = successor.axis
+    if not axis.min_level <= level <= axis.max_level:
+        raise ConfigError(
+            f"level {level} is outside axis {axis.name}'s range {axis.min_level}..{axis.max_level}"
+        )
+    return apply_level(base, successor, level)
+
+
+def axis_param(spec: SceneSpec, successor: Successor, level: int) -> float:
+    """The axis parameter of a level: the field's value (a composition reports its level)."""
+    if isinstance(successor, Composite):
+        return float(level)
+    return float(get_path(spec, successor.axis.field))
+
+
+def level_support(spec: SceneSpec, successor: Successor, level: int) -> tuple[float, float]:
+    """The closed interval the axis parameter can take at this level, T0 jitter included."""
+    p = axis_param(spec, successor, level)
+    if isinstance(successor, Shift) and successor.axis.field in JITTERED_FIELDS:
+        return (p - spec.jitter, p + spec.jitter)
+    return (p, p)
+
+
+def presets_dir() -> Path:
+    return Path(__file__).resolve().parent.parent / "configs" / "axes"
+
+
+def preset_names() -> list[str]:
+    d = presets_dir()
+    return sorted(p.stem for p in d.glob("*.yaml")) if d.is_dir() else []
+
+
+def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
+    """Read a ``configs/axes`` preset (a name or a path): ``{axis: {"step": s, "max_level": K}}``."""
+    import yaml
+
+    path = Path(preset)
+    if not path.suffix:
+        path = presets_dir() / f"{preset}.yaml"
+        if not path.is_file():
+            raise UnknownNameError("axis preset", str(preset), preset_names())
+    if not path.is_file():
+        raise ConfigError(f"axis preset {str(path)!r} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise ConfigError(f"axis preset {path}: invalid YAML ({e.__class__.__name__})") from None
+    axes = data.get("axes") if isinstance(data, dict) else None
+    if not isinstance(axes, dict):
+        raise ConfigError(f"axis preset {path}: expected a top-level 'axes:' mapping of axis -> {{step, max_level}}")
+    out: dict[str, dict[str, float]] = {}
+    for name, body in axes.items():
+        axis = _base_axis(str(name))
+        if not isinstance(body, dict) or not set(body) <= {"step", "max_level"}:
+            raise ConfigError(f"axis preset {path}: axis {name} takes only 'step' and 'max_level'")
+        if "step" in body:
+            _validate_step(axis, body["step"])
+        if "max_level" in body and (not isinstance(body["max_level"], int) or body["max_level"] < 1):
+            raise ConfigError(f"axis preset {path}: {name}.max_level must be an integer >= 1")
+        out[axis.name] = dict(body)
+    return out
+
+
+def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[float, float]]:
+    """Condition 2 (strict: disjoint supports) over the axis's default range, T0 jitter included."""
+    from indgen_vla.progression import check_strictly_harder
+
+    axis = successor.axis
+    supports = {k: level_support(spec_at_level(base, successor, k), successor, k) for k in axis.default_levels()}
+    check_strictly_harder(supports, axis.name)
+    return supports

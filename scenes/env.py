@@ -1,0 +1,181 @@
+"""``SceneEnv``: the gymnasium-compatible scene every policy and the rollout engine talk to.
+
+It owns one robosuite env built for one (scene, task, axis, level), renders only the requested
+cameras (MuJoCo's own offscreen renderer, images kept in robosuite's raw upside-down orientation),
+and judges success with the scene's single success predicate.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+
+import gymnasium as gym
+import numpy as np
+
+from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
+from scenes.axes import Successor, axis_param, check_progression, spec_at_level
+from scenes.catalog import SceneDef
+from scenes.predicates import SUCCESS_PREDICATES
+from scenes.sim import CAMERA_NAMES, IndgenRobosuiteEnv
+
+
+def _check_size(size: tuple[int, int], what: str) -> tuple[int, int]:
+    try:
+        h, w = (int(size[0]), int(size[1]))
+    except (TypeError, ValueError, IndexError):
+        raise ConfigError(f"{what} must be (height, width), got {size!r}") from None
+    if not (8 <= h <= 2048 and 8 <= w <= 2048):
+        raise ConfigError(f"{what} {size!r} must lie in 8..2048 pixels per side")
+    return h, w
+
+
+class SceneEnv(gym.Env):
+    """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(self, scene: SceneDef, task: str, successor: Successor, level: int,
+                 cameras: Sequence[str] = CAMERAS, image_size: tuple[int, int] = (128, 128),
+                 max_steps: int | None = None):
+        cams = tuple(cameras)
+        bad = [c for c in cams if c not in CAMERAS]
+        if bad:
+            raise ConfigError(f"unknown camera(s) {bad}; cameras are {list(CAMERAS)}")
+        if max_steps is not None and int(max_steps) < 1:
+            raise ConfigError(f"max_steps must be >= 1, got {max_steps}")
+        self.scene, self.task, self.level = scene.name, task, int(level)
+        self.axis = successor.axis
+        self.cameras = cams
+        self.image_size = _check_size(image_size, "image_size")
+        self.max_steps = int(max_steps) if max_steps is not None else scene.max_steps
+        self.instruction = scene.instruction(task)
+        base = scene.base(task)
+        check_progression(base, successor)  # a step below the T0 jitter would not leave the easier levels' support
+        self.spec = spec_at_level(base, successor, self.level)  # the frozen scene spec of this level
+        self.axis_param = axis_param(self.spec, successor, self.level)
+        self.success_predicate = SUCCESS_PREDICATES[scene.name]
+        module, _, func = scene.builder.partition(":")
+        layout = getattr(importlib.import_module(module), func)(self.spec)
+        try:
+            self._rs = IndgenRobosuiteEnv(layout)
+        except Exception as e:  # robosuite raises bare assertions and mujoco errors
+            raise SceneError(f"scene {scene.name}/{task} level {level} failed to build: {e}") from e
+        self._renderers: dict[tuple[int, int], object] = {}
+        self._scene_option = None
+        self._t = 0
+        self._done = True
+        self.episode_seed: int | None = None
+        h, w = self.image_size
+        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cams}
+        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+        self.observation_space = gym.spaces.Dict(spaces)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+
+    def __repr__(self) -> str:
+        return f"<SceneEnv {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
+
+    __str__ = __repr__
+
+    # ---- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Observation, dict]:
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.episode_seed = int(seed)
+        self._rs.seed_placement(self.episode_seed)
+        self._rs.reset()
+        self._t, self._done = 0, False
+        return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
+
+    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
+        if self._done:
+            raise SceneError("step() after the episode ended; call reset() first")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
+            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
+        self._rs.step(np.clip(a, -1.0, 1.0))
+        self._t += 1
+        success = bool(self.success_predicate(self._rs.privileged_state()))
+        terminated = success
+        truncated = (not success) and self._t >= self.max_steps
+        self._done = terminated or truncated
+        return self._observation(), float(success), terminated, truncated, {"success": success, "step": self._t}
+
+    def render(self) -> np.ndarray:
+        return self.render_frame()
+
+    def close(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()
+        if getattr(self, "_rs", None) is not None:
+            self._rs.close()
+            self._rs = None
+
+    # ---- extras for the engine and the oracle ----------------------------------------------------
+    def privileged_state(self) -> dict:
+        """Object/receptacle poses, contacts and placement targets (for oracles only)."""
+        return self._rs.privileged_state()
+
+    def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
+        """One upright (human-viewable) uint8 HxWx3 frame from ``camera`` for videos, whatever ``cameras`` is.
+
+        Unlike observation images (raw simulator orientation, upside down), video frames are flipped upright.
+        """
+        if camera not in CAMERA_NAMES:
+            raise ConfigError(f"unknown camera {camera!r}; cameras are {list(CAMERA_NAMES)}")
+        return np.ascontiguousarray(self._render(camera, _check_size(size, "frame size"))[::-1])
+
+    @property
+    def steps(self) -> int:
+        return self._t
+
+    def _render(self, camera: str, size: tuple[int, int]) -> np.ndarray:
+        import mujoco
+
+        renderer = self._renderers.get(size)
+        if renderer is None:
+            model = self._rs.sim.model._model
+            model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[1])
+            model.vis.global_.offheight = max(model.vis.global_.offheight, size[0])
+            renderer = mujoco.Renderer(model, height=size[0], width=size[1])
+            self._renderers[size] = renderer
+        if self._scene_option is None:
+            self._scene_option = mujoco.MjvOption()
+            self._scene_option.geomgroup[0] = 0  # like robosuite: draw visual meshes, not collision geoms
+        renderer.update_scene(self._rs.sim.data._data, camera=CAMERA_NAMES[camera], scene_option=self._scene_option)
+        return np.ascontiguousarray(renderer.render()[::-1])  # robosuite's raw (OpenGL, upside-down) orientation
+
+    def _observation(self) -> Observation:
+        images = {c: self._render(c, self.image_size) for c in self.cameras}
+        return Observation(images=images, state=self._rs.robot_state(), instruction=self.instruction,
+                           extras={"step": self._t})
+
+
+class GymDictEnv(gym.Env):
+    """A plain-gymnasium view of a ``SceneEnv`` (dict observations) for ``gymnasium.utils.env_checker``."""
+
+    metadata = SceneEnv.metadata
+
+    def __init__(self, env: SceneEnv):
+        self.env = env
+        self.observation_space = env.observation_space
+        self.action_space = env.action_space
+
+    @staticmethod
+    def _dict(obs: Observation) -> dict:
+        return {**obs.images, "state": obs.state}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        obs, info = self.env.reset(seed=seed if seed is not None else int(self.np_random.integers(0, 2**31 - 1)))
+        return self._dict(obs), info
+
+    def step(self, action):
+        obs, r, term, trunc, info = self.env.step(action)
+        return self._dict(obs), r, term, trunc, info
+
+    def close(self) -> None:
+        self.env.close()

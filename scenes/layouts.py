@@ -1,0 +1,139 @@
+"""Scene builders: a frozen ``SceneSpec`` in, a simulator ``Layout`` (objects, poses, facts) out.
+
+Each builder reads only the spec, so the layout of a level is a pure function of its spec; the seeded
+T0 jitter is applied by the simulator at reset.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scenes import objects as O
+from scenes.sim import TABLE_TOP, FreeObject, Layout
+from scenes.spec import PICK_OBJECTS, SceneSpec
+
+DISTRACTOR_SLOTS = {
+    "pick_place": [(0.22, 0.02), (-0.16, 0.32), (0.26, -0.18), (-0.2, -0.34)],
+    "stack": [(0.2, -0.02), (-0.16, 0.3), (0.24, -0.22), (0.22, 0.26)],
+    "cabinet_pick": [(-0.2, 0.3), (-0.2, -0.34), (0.32, 0.38), (0.32, -0.4)],
+}
+CLUTTER_SLOTS = [(-0.045, 0.10), (0.045, -0.10), (0.045, 0.10), (-0.045, -0.10)]  # relative to the compartment
+CAB_X, CAB_Y0 = 0.14, -0.19
+
+
+def _grasp_frac(kind: str) -> float:
+    return PICK_OBJECTS[kind][1] if kind in PICK_OBJECTS else 0.5
+
+
+def _grasp_z(s: dict, frac: float) -> float:
+    bottom, top = s["pick_bottom"], s["pick_top"]
+    z = bottom + frac * (top - bottom)
+    # the Panda hand sits ~2.7 cm above the grip site: never let the object's top reach it
+    return float(max(min(z, top - 0.012), top - 0.02, bottom + 0.01))
+
+
+def _distractors(spec: SceneSpec) -> list[tuple[object, tuple[float, float, float]]]:
+    slots = DISTRACTOR_SLOTS[spec.scene]
+    if spec.distractors > len(slots):
+        from indgen_vla.errors import InfeasibleLevelError
+
+        raise InfeasibleLevelError(
+            f"scene {spec.scene} has {len(slots)} distractor slots; level asks for {spec.distractors}"
+        )
+    out = []
+    for i in range(spec.distractors):
+        kind = O.DISTRACTOR_KINDS[i % len(O.DISTRACTOR_KINDS)]
+        obj = O.make_object(kind, f"distractor{i}", visual=True)
+        x, y = slots[i]
+        out.append((obj, (x, y, TABLE_TOP - float(obj.bottom_offset[2]) + 0.001)))
+    return out
+
+
+def pick_place_layout(spec: SceneSpec) -> Layout:
+    """LIBERO-Object style: the pick object, a basket, two dressing objects, visual distractors."""
+    frac = _grasp_frac(spec.pick.kind)
+    free = [
+        FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), spec.pick.x, spec.pick.y,
+                   TABLE_TOP, spec.pick.yaw, jitter="pick"),
+        FreeObject("goal", O.basket("basket"), spec.goal.x, spec.goal.y, TABLE_TOP, spec.goal.yaw, jitter="goal"),
+    ]
+    for i, item in enumerate(spec.dressing):
+        free.append(FreeObject(f"dress{i}", O.make_object(item.kind, f"dress{i}", item.scale), item.x, item.y,
+                               TABLE_TOP, item.yaw))
+    floor_off = -O.BASKET_WALL_H + 2 * O.BASKET_T
+
+    def privileged(s: dict) -> dict:
+        floor = float(s["goal_pos"][2] + floor_off)
+        return {
+            "receptacle_floor_z": floor,
+            "place_xy": np.array(s["goal_pos"][:2]),
+            "place_bottom": floor + 0.012,
+            "clear_z": float(s["goal_top"]),
+            "grasp_z": _grasp_z(s, frac),
+        }
+
+    return Layout(free=free, static=_distractors(spec), pick="pick", goal="goal", robot_back=spec.robot_back,
+                  jitter=spec.jitter, facts={"receptacle_inner": O.BASKET_INNER}, privileged=privileged)
+
+
+def stack_layout(spec: SceneSpec) -> Layout:
+    """Stack: a pick block and a target block raised by ``stack_in`` inches of riser plates."""
+    n_plates = int(round(spec.stack_in / 0.25))
+    if abs(n_plates * 0.25 - spec.stack_in) > 1e-6:
+        raise ValueError(f"stack height {spec.stack_in} in is not a whole number of 0.25 in plates")
+    colour = spec.goal.kind.removeprefix("block_")
+    free = [
+        FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), spec.pick.x, spec.pick.y,
+                   TABLE_TOP, spec.pick.yaw, jitter="pick"),
+        FreeObject("goal", O.target_block(colour, "target"), spec.goal.x, spec.goal.y, TABLE_TOP + spec.stack_m,
+                   spec.goal.yaw, jitter="goal"),
+    ]
+    if n_plates:
+        free.append(FreeObject("riser", O.riser_stack(n_plates, "riser"), spec.goal.x, spec.goal.y, TABLE_TOP,
+                               spec.goal.yaw, jitter="goal"))
+
+    def privileged(s: dict) -> dict:
+        return {
+            "place_xy": np.array(s["goal_pos"][:2]),
+            "place_bottom": float(s["goal_top"]) + 0.004,
+            "clear_z": float(s["goal_top"]),
+            "grasp_z": _grasp_z(s, 0.5),
+        }
+
+    return Layout(free=free, static=_distractors(spec), pick="pick", goal="goal", robot_back=spec.robot_back,
+                  jitter=spec.jitter, facts={"stack_height_m": spec.stack_m}, privileged=privileged)
+
+
+def cabinet_layout(spec: SceneSpec) -> Layout:
+    """RoboCasa style: an object in a cabinet compartment (with clutter) to be put on the table."""
+    if spec.clutter > len(CLUTTER_SLOTS):
+        from indgen_vla.errors import InfeasibleLevelError
+
+        raise InfeasibleLevelError(f"the cabinet holds {len(CLUTTER_SLOTS)} clutter objects; asked for {spec.clutter}")
+    cab_y = CAB_Y0 + spec.fixture_x
+    cab = O.cabinet("cabinet")
+    half_h = (O.CAB_FLOOR + O.CAB_WALL) / 2
+    floor = TABLE_TOP + O.CAB_FLOOR
+    free = [FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), CAB_X + spec.pick.x,
+                       cab_y + spec.pick.y, floor, spec.pick.yaw, jitter="pick")]
+    for i in range(spec.clutter):
+        dx, dy = CLUTTER_SLOTS[i]
+        free.append(FreeObject(f"clutter{i}", O.clutter_object(i, f"clutter{i}"), CAB_X + dx, cab_y + dy, floor))
+    frac = _grasp_frac(spec.pick.kind)
+    centre = np.array([CAB_X, cab_y])
+    half = (O.CAB_INNER[0] + 2 * O.CAB_T, O.CAB_INNER[1] + 2 * O.CAB_T)
+    wall_top = TABLE_TOP + O.CAB_FLOOR + O.CAB_WALL
+    place = np.array([spec.goal.x, cab_y + spec.goal.y])
+
+    def privileged(s: dict) -> dict:
+        return {
+            "place_xy": place,
+            "place_bottom": TABLE_TOP + 0.004,
+            "clear_z": wall_top,
+            "grasp_z": _grasp_z(s, frac),
+        }
+
+    static = [(cab, (CAB_X, cab_y, TABLE_TOP + half_h))] + _distractors(spec)
+    facts = {"fixture_centre": centre, "fixture_half": half, "cabinet_floor_z": floor}
+    return Layout(free=free, static=static, pick="pick", goal=None, robot_back=spec.robot_back, jitter=spec.jitter,
+                  facts=facts, privileged=privileged)

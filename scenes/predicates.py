@@ -1,0 +1,75 @@
+"""Success predicates: one frozen object per scene, evaluated on ``privileged_state()`` at every level.
+
+The same instance judges every level of every axis (the paper's semantics-preservation condition);
+anything level-dependent (where the basket is, how tall the target stack is) is read from the state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def _released_and_still(s: dict, max_speed: float) -> bool:
+    return (not s["pick_touching_gripper"]) and float(np.linalg.norm(s["pick_linvel"])) < max_speed
+
+
+def _in_frame(point_xy: np.ndarray, centre: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:
+    """``point_xy`` in the yaw frame of a body at ``centre`` with orientation ``quat_wxyz``."""
+    w, x, y, z = quat_wxyz
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    c, s = np.cos(-yaw), np.sin(-yaw)
+    d = np.asarray(point_xy) - np.asarray(centre)[:2]
+    return np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]])
+
+
+@dataclass(frozen=True)
+class InReceptacle:
+    """The pick object rests inside the receptacle: within its walls, below its rim, released and still."""
+
+    margin: float = 0.003
+    max_speed: float = 0.05
+
+    def __call__(self, s: dict) -> bool:
+        rel = _in_frame(s["pick_pos"][:2], s["goal_pos"], s["goal_quat_wxyz"])
+        ix, iy = s["receptacle_inner"]
+        inside = abs(rel[0]) <= ix - self.margin and abs(rel[1]) <= iy - self.margin
+        low = s["receptacle_floor_z"] - 0.01 <= s["pick_bottom"] <= s["goal_top"]
+        return bool(inside and low and _released_and_still(s, self.max_speed))
+
+
+@dataclass(frozen=True)
+class OnTarget:
+    """The pick block rests on top of the target block, released and still."""
+
+    xy_tol: float = 0.02
+    z_tol: float = 0.01
+    max_speed: float = 0.05
+
+    def __call__(self, s: dict) -> bool:
+        rel = _in_frame(s["pick_pos"][:2], s["goal_pos"], s["goal_quat_wxyz"])
+        on_top = abs(rel[0]) <= self.xy_tol and abs(rel[1]) <= self.xy_tol
+        touching = abs(s["pick_bottom"] - s["goal_top"]) <= self.z_tol
+        return bool(on_top and touching and _released_and_still(s, self.max_speed))
+
+
+@dataclass(frozen=True)
+class OnTableOutside:
+    """The pick object rests on the table top outside the fixture's footprint, released and still."""
+
+    z_tol: float = 0.012
+    max_speed: float = 0.05
+
+    def __call__(self, s: dict) -> bool:
+        on_table = s["pick_bottom"] <= s["table_top"] + self.z_tol
+        rel = np.abs(np.asarray(s["pick_pos"][:2]) - np.asarray(s["fixture_centre"][:2]))
+        hx, hy = s["fixture_half"]
+        outside = rel[0] > hx or rel[1] > hy
+        return bool(on_table and outside and _released_and_still(s, self.max_speed))
+
+
+PICK_PLACE_SUCCESS = InReceptacle()
+STACK_SUCCESS = OnTarget()
+CABINET_SUCCESS = OnTableOutside()
+SUCCESS_PREDICATES = {"pick_place": PICK_PLACE_SUCCESS, "stack": STACK_SUCCESS, "cabinet_pick": CABINET_SUCCESS}
