@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 DEFAULT_AXIS = {"pick_place": "pick_y", "stack": "stack", "cabinet_pick": "clutter"}
 
-__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis"]
+__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param"]
 
 
 def scene_names() -> list[str]:
@@ -40,6 +40,17 @@ def axes_for(scene: str) -> list[str]:
 def get_axis(name: str, step: float | None = None) -> AxisSpec:
     """The ``AxisSpec`` of an axis or composition such as ``pick_y+distractor``; ``step`` overrides its step."""
     return _get_axis(name, step)
+
+
+def level_param(scene: str, task: str | None, axis: str, level: int, step: float | None = None) -> float:
+    """The axis parameter at ``level`` exactly as the built env reports it (``env.axis_param``), without
+    building the simulator: e.g. 1.2 for ``scale`` at level 3, or the pick object's y in metres."""
+    from scenes.axes import axis_param, spec_at_level
+
+    sdef = get_scene(scene)
+    successor = get_successor(axis, step)
+    spec = spec_at_level(sdef.base(resolve_task(sdef, task)), successor, level)
+    return axis_param(spec, successor, level)
 
 
 def make_env(scene: str, *, task: str | None = None, axis: str | None = None, level: int = 0,

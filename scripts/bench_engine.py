@@ -101,7 +101,7 @@ def main() -> None:
     import scenes
 
     task = scenes.tasks(args.scene)[0]
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {("pick_y", 0): 0.0})
+    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(t, "pick_y", 0): 0.0 for t in [task]})
     from policy_wrappers.registry import load_policy
 
     policy = load_policy(args.policy)

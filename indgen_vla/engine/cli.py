@@ -141,7 +141,10 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
     ) or uuid.uuid4().hex[:12]
     run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
-    params = {(a, k): plan.axes[a].param(k) for a in cfg.axes for k in plan.levels[a]}
+    import scenes
+
+    params = {(t, a, k): scenes.level_param(cfg.scene, t, a, k, cfg.step) for t in plan.tasks for a in cfg.axes
+              for k in plan.levels[a]}  # fmt: skip
     jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
     done = run.done_keys()
     todo = [j for j in jobs if j.key not in done]

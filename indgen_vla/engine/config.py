@@ -158,7 +158,7 @@ class EpisodeJob:
 
 
 def plan_episodes(
-    cfg: EvalConfig, tasks: list[str], levels: dict[str, list[int]], params: dict[tuple[str, int], float]
+    cfg: EvalConfig, tasks: list[str], levels: dict[str, list[int]], params: dict[tuple[str, str, int], float]
 ) -> list[EpisodeJob]:
     """Every episode of the run in a fixed order (axis, task, level by |k|, episode).
 
@@ -173,5 +173,5 @@ def plan_episodes(
                 for ep in range(cfg.episodes):
                     seed = episode_seed(cfg.seed, cfg.scene, task, ep)
                     video = cfg.video and ep < cfg.video_per_level
-                    jobs.append(EpisodeJob(task, axis, level, ep, seed, params[(axis, level)], video))
+                    jobs.append(EpisodeJob(task, axis, level, ep, seed, params[(task, axis, level)], video))
     return jobs

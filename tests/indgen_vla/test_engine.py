@@ -122,7 +122,7 @@ class FlakyPolicy:
 
 def test_retry_then_error_rows(tmp_path):
     c = cfg(tmp_path, levels="0", episodes=3)
-    jobs = plan_episodes(c, _first_task(), {"pick_y": [0]}, {("pick_y", 0): 0.0})
+    jobs = plan_episodes(c, _first_task(), {"pick_y": [0]}, {(t, "pick_y", 0): 0.0 for t in _first_task()})
     stubborn = jobs[1].seed
     policy = FlakyPolicy(always_fail_seeds={stubborn})
     records = []
