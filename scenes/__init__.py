@@ -17,14 +17,24 @@ from scenes.catalog import SCENES, check_axis_supported, get_scene, resolve_task
 if TYPE_CHECKING:
     from scenes.env import SceneEnv
 
-DEFAULT_AXIS = {"pick_place": "pick_y", "stack": "stack", "cabinet_pick": "clutter"}
+DEFAULT_AXIS = {"pick_place": "pick_y", "stack": "stack", "cabinet_pick": "clutter", "libero_object": "pick_y"}
 
-__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param"]
+__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param", "check_ready"]
 
 
 def scene_names() -> list[str]:
-    """Registered scene names."""
-    return list(SCENES)
+    """Registered scene names (the LIBERO suites too when hf-libero is installed)."""
+    from scenes.catalog import all_scenes
+
+    return list(all_scenes())
+
+
+def check_ready(scene: str) -> None:
+    """Fail fast, in one line, when a scene's external assets are missing (LIBERO's Hub download)."""
+    if scene not in SCENES:
+        from scenes.libero import check_ready as libero_ready
+
+        libero_ready(scene)
 
 
 def tasks(scene: str) -> list[str]:
@@ -62,6 +72,11 @@ def make_env(scene: str, *, task: str | None = None, axis: str | None = None, le
     axis = axis or DEFAULT_AXIS[scene]
     check_axis_supported(sdef, axis)
     successor = get_successor(axis, step)
+    if scene not in SCENES:  # a LIBERO suite
+        from scenes.libero.env import LiberoSceneEnv
+
+        return LiberoSceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size,
+                              max_steps=max_steps)
     from scenes.env import SceneEnv
 
     return SceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

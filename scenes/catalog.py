@@ -109,11 +109,19 @@ SCENES: dict[str, SceneDef] = {
 }
 
 
+def all_scenes() -> dict[str, SceneDef]:
+    """Built-in scenes plus the LIBERO suites (registered when hf-libero is installed)."""
+    from scenes.libero import scene_defs
+
+    return {**SCENES, **scene_defs()}
+
+
 def get_scene(name: str) -> SceneDef:
+    scenes = SCENES if name in SCENES else all_scenes()
     try:
-        return SCENES[name]
+        return scenes[name]
     except KeyError:
-        raise UnknownNameError("scene", name, list(SCENES)) from None
+        raise UnknownNameError("scene", name, list(scenes)) from None
 
 
 def resolve_task(scene: SceneDef, task: str | None) -> str:

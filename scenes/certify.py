@@ -19,9 +19,9 @@ from indgen_vla.seeding import episode_seed
 FEASIBLE_RATE = 0.95
 
 
-def run_oracle_episode(env, policy, seed: int) -> tuple[bool, int]:
+def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tuple[bool, int]:
     """One oracle episode, passing privileged state the way the engine does; returns (success, steps)."""
-    obs, _ = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed, options=None if episode is None else {"episode": episode})
     policy.reset(env.instruction, seed)
     info = {"success": False}
     for _ in range(env.max_steps):
@@ -42,7 +42,7 @@ def certify_level(scene: str, task: str, axis: str, level: int, step: float | No
     env = scenes.make_env(scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps)
     try:
         policy = OraclePolicy()
-        results = [run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i))
+        results = [run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
                    for i in range(episodes)]
         param = env.axis_param
     finally:
@@ -67,6 +67,7 @@ def certify(scene: str, axis: str, *, task: str | None = None, levels: str | lis
     sdef = get_scene(scene)
     task = resolve_task(sdef, task)
     check_axis_supported(sdef, axis)
+    scenes.check_ready(scene)
     spec = scenes.get_axis(axis, step)
     lv = parse_levels(levels, spec)
     if episodes < 1:

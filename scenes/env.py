@@ -31,6 +31,17 @@ def _check_size(size: tuple[int, int], what: str) -> tuple[int, int]:
     return h, w
 
 
+def check_env_args(cameras: Sequence[str], max_steps: int | None) -> tuple[str, ...]:
+    """Validate the camera names and step limit every scene env accepts; returns the cameras as a tuple."""
+    cams = tuple(cameras)
+    bad = [c for c in cams if c not in CAMERAS]
+    if bad:
+        raise ConfigError(f"unknown camera(s) {bad}; cameras are {list(CAMERAS)}")
+    if max_steps is not None and int(max_steps) < 1:
+        raise ConfigError(f"max_steps must be >= 1, got {max_steps}")
+    return cams
+
+
 class SceneEnv(gym.Env):
     """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
 
@@ -39,12 +50,7 @@ class SceneEnv(gym.Env):
     def __init__(self, scene: SceneDef, task: str, successor: Successor, level: int,
                  cameras: Sequence[str] = CAMERAS, image_size: tuple[int, int] = (128, 128),
                  max_steps: int | None = None):
-        cams = tuple(cameras)
-        bad = [c for c in cams if c not in CAMERAS]
-        if bad:
-            raise ConfigError(f"unknown camera(s) {bad}; cameras are {list(CAMERAS)}")
-        if max_steps is not None and int(max_steps) < 1:
-            raise ConfigError(f"max_steps must be >= 1, got {max_steps}")
+        cams = check_env_args(cameras, max_steps)
         self.scene, self.task, self.level = scene.name, task, int(level)
         self.axis = successor.axis
         self.cameras = cams

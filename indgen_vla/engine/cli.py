@@ -58,6 +58,7 @@ def resolve(cfg: EvalConfig) -> ResolvedPlan:
     names = scenes.scene_names()
     if cfg.scene not in names:
         raise UnknownNameError("scene", cfg.scene, names)
+    scenes.check_ready(cfg.scene)  # e.g. LIBERO's assets: one line saying how to get them
     all_tasks = list(scenes.tasks(cfg.scene))
     if cfg.task in (None, ""):
         tasks = all_tasks[:1]

@@ -102,7 +102,7 @@ class EnvRunner:
         self._job, self._steps, self._frames = job, 0, []
         try:
             env = self._env_for(job)
-            obs, _ = env.reset(seed=job.seed)
+            obs, _ = env.reset(seed=job.seed, options={"episode": job.episode})  # LIBERO: fixed init state
             for _ in range(self.cfg.warmup_steps):
                 obs, _, _, _, _ = env.step(WARMUP_ACTION)
             self._record_frame()

@@ -1,0 +1,434 @@
+"""``LiberoSceneEnv``: one level of one LIBERO task, built from hf-libero's env classes, behind SceneEnv's interface.
+
+Level 0 builds LIBERO's own ``OffScreenRenderEnv`` (``ControlEnv`` when no camera is rendered) from the task's
+BDDL file with lerobot's settings (Panda, OSC_POSE, 20 Hz, hard resets, agentview + eye-in-hand cameras in
+robosuite's raw orientation), restores fixed initial state ``episode % 50`` and settles 10 no-op steps. Other
+levels build the same problem class from an edited BDDL (moved init regions, distractor fixtures) with the
+pick object's XML scaled, and start from the same initial state with the moved object translated alike.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
+from indgen_vla.progression import check_strictly_harder
+from scenes.axes import Successor, axis_param, spec_at_level
+from scenes.catalog import SceneDef
+from scenes.env import _check_size, check_env_args
+from scenes.libero import DISTRACTOR_SLOTS, NUM_STEPS_WAIT, base_spec, task_info
+from scenes.libero.assets import config_dir, find_assets, import_libero
+from scenes.libero.bddl import add_fixtures, shift_region
+
+CAMERA_NAMES = {"agentview": "agentview", "wrist": "robot0_eye_in_hand"}
+DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
+DISTRACTOR_PREFIX = "indgen_distractor_"
+
+
+@dataclass(frozen=True)
+class BddlGoal:
+    """The one success predicate at every level: LIBERO's own BDDL goal check (``env.check_success()``)."""
+
+    def __call__(self, s: dict) -> bool:
+        return bool(s["success"])
+
+
+LIBERO_SUCCESS = BddlGoal()
+
+
+def _scale_xml(obj, s: float) -> None:
+    """Scale a robosuite ``MujocoXMLObject`` uniformly about its origin: geoms, sites, bodies and meshes."""
+    def mul(el, attr: str) -> None:
+        if el.get(attr) is not None:
+            el.set(attr, " ".join(f"{float(v) * s:.6g}" for v in el.get(attr).split()))
+
+    for root in (obj.get_obj(), obj.worldbody):
+        for el in root.iter():
+            if el.tag in ("geom", "site", "body") and el is not obj.get_obj():
+                mul(el, "pos")
+            if el.tag == "site" or (el.tag == "geom" and el.get("type") != "mesh"):
+                mul(el, "size")
+    for mesh in obj.asset.iter("mesh"):
+        mesh.set("scale", mesh.get("scale", "1 1 1"))
+        mul(mesh, "scale")
+
+
+def level_problem(base_cls, pick: str, scale: float, distractors: tuple[tuple[str, str, tuple], ...]):
+    """A subclass of LIBERO's problem class (same name, so its BDDL problem check passes) that scales the pick
+    object's XML and loads ``distractors`` (instance, category, (x, y)) as visual-only, joint-less fixtures."""
+    from libero.libero.envs.objects import get_object_fn
+    from libero.libero.envs.regions import get_region_samplers
+    from robosuite.models.objects import MujocoXMLObject
+
+    names = {d[0] for d in distractors}
+
+    class Level(base_cls):
+        def _load_objects_in_arena(self, mujoco_arena):
+            super()._load_objects_in_arena(mujoco_arena)
+            if scale != 1.0:
+                _scale_xml(self.objects_dict[pick], scale)
+
+        def _load_fixtures_in_arena(self, mujoco_arena):
+            fixtures = self.parsed_problem["fixtures"]
+            self.parsed_problem["fixtures"] = {c: [i for i in v if i not in names] for c, v in fixtures.items()}
+            try:
+                super()._load_fixtures_in_arena(mujoco_arena)
+            finally:
+                self.parsed_problem["fixtures"] = fixtures
+            for inst, cat, (x, y) in distractors:
+                proto = get_object_fn(cat)(name=inst)  # LIBERO's object: its XML file and resting rotation
+                obj = MujocoXMLObject(proto.file, name=inst, joints=None, obj_type="visual",
+                                      duplicate_collision_geoms=False)
+                sampler = get_region_samplers(self.parsed_problem["problem_name"], "floor")(
+                    inst, proto, x_ranges=[[x, x]], y_ranges=[[y, y]], rotation=proto.rotation,
+                    rotation_axis=proto.rotation_axis, ensure_object_boundary_in_range=False,
+                    ensure_valid_placement=False, reference_pos=self.workspace_offset)
+                pos, quat, _ = sampler.sample()[inst]
+                obj.get_obj().set("pos", " ".join(f"{v:.6f}" for v in pos))
+                obj.get_obj().set("quat", " ".join(f"{v:.6f}" for v in quat))
+                obj.category_name = cat
+                obj.object_properties = {"vis_site_names": {}}
+                self.fixtures_dict[inst] = obj
+
+    Level.__name__ = Level.__qualname__ = base_cls.__name__
+    return Level
+
+
+@contextlib.contextmanager
+def _problem_class(problem_name: str, cls):
+    """Let LIBERO's ``ControlEnv`` construct ``cls`` for ``problem_name`` (restored afterwards)."""
+    from libero.libero.envs.bddl_base_domain import TASK_MAPPING
+
+    old = TASK_MAPPING[problem_name]
+    TASK_MAPPING[problem_name] = cls
+    try:
+        yield
+    finally:
+        TASK_MAPPING[problem_name] = old
+
+
+@dataclass(frozen=True)
+class Support:
+    """Where T0 puts the moved objects: min/max of their x, y over LIBERO's fixed initial states."""
+
+    pick_y: tuple[float, float]
+    goal_y: tuple[float, float]
+
+
+class LiberoSceneEnv(gym.Env):
+    """One level of one LIBERO task; ``reset(seed=, options={"episode": i})`` starts from fixed init state i."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+
+    def __init__(self, scene: SceneDef, task: str, successor: Successor, level: int,
+                 cameras: Sequence[str] = CAMERAS, image_size: tuple[int, int] = (128, 128),
+                 max_steps: int | None = None):
+        cams = check_env_args(cameras, max_steps)
+        self.scene, self.task, self.level, self.axis = scene.name, task, int(level), successor.axis
+        self.cameras, self.image_size = cams, _check_size(image_size, "image_size")
+        self.max_steps = int(max_steps) if max_steps is not None else scene.max_steps
+        self.info = task_info(scene.name, task)
+        self.instruction = self.info.language
+        self.base = base_spec(scene.name, task)
+        self.spec = spec_at_level(self.base, successor, self.level)
+        self.axis_param = axis_param(self.spec, successor, self.level)
+        self.success_predicate = LIBERO_SUCCESS
+        self._successor = successor
+        self.assets = find_assets()
+        import_libero(self.assets)
+        self.bddl_file = self._level_bddl()
+        self._env = self._build()
+        self._renderers: dict = {}
+        self._t, self._done = 0, True
+        self.episode_seed: int | None = None
+        self.init_index: int | None = None
+        self._setup_indices()
+        self.support = self._support()
+        self._check_progression()
+        h, w = self.image_size
+        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cams}
+        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+        self.observation_space = gym.spaces.Dict(spaces)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+
+    def __repr__(self) -> str:
+        return f"<LiberoSceneEnv {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
+
+    # ---- building ------------------------------------------------------------------------------
+    @property
+    def shift(self) -> tuple[float, float]:
+        """(pick dy, basket dy) of this level relative to LIBERO's own layout."""
+        return (round(self.spec.pick.y - self.base.pick.y, 9), round(self.spec.goal.y - self.base.goal.y, 9))
+
+    @property
+    def distractors(self) -> tuple[tuple[str, str, tuple[float, float]], ...]:
+        present = {c for _, c in self.info.objects}
+        from scenes.libero.miniature import HOPE_OBJECTS
+
+        pool = [c for c in HOPE_OBJECTS if c not in present]
+        if self.spec.distractors > len(pool):
+            raise SceneError(f"{self.scene}/{self.task}: only {len(pool)} distractor objects are available")
+        return tuple((f"{DISTRACTOR_PREFIX}{i + 1}", pool[i], DISTRACTOR_SLOTS[i]) for i in range(self.spec.distractors))
+
+    def _level_bddl(self) -> Path:
+        """LIBERO's BDDL file at level 0; otherwise an edited copy (cached by content)."""
+        dpick, dgoal = self.shift
+        if not (dpick or dgoal or self.spec.distractors):
+            return self.info.bddl_path
+        text = self.info.bddl_path.read_text()
+        if dpick:
+            text = shift_region(text, self.info.pick_region, 0.0, dpick)
+        if dgoal:
+            text = shift_region(text, self.info.goal_region, 0.0, dgoal)
+        text = add_fixtures(text, [(i, c) for i, c, _ in self.distractors])
+        digest = hashlib.sha1(text.encode()).hexdigest()[:12]
+        path = config_dir() / "bddl" / self.info.suite / f"{self.info.file}__{digest}.bddl"
+        if not path.is_file():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(text)
+            tmp.replace(path)
+        return path
+
+    def _build(self):
+        from libero.libero.envs import OffScreenRenderEnv
+        from libero.libero.envs.bddl_base_domain import TASK_MAPPING
+        from libero.libero.envs.bddl_utils import get_problem_info
+        from libero.libero.envs.env_wrapper import ControlEnv
+
+        h, w = self.image_size
+        kwargs = dict(bddl_file_name=str(self.bddl_file), camera_heights=h, camera_widths=w, control_freq=20,
+                      hard_reset=True)
+        if self.cameras:
+            kwargs["camera_names"] = [CAMERA_NAMES[c] for c in self.cameras]
+            cls = OffScreenRenderEnv
+        else:
+            kwargs.update(use_camera_obs=False, has_offscreen_renderer=False, camera_names=[], camera_heights=[],
+                          camera_widths=[])
+            cls = ControlEnv
+        problem = get_problem_info(str(self.bddl_file))["problem_name"]
+        try:
+            if self.spec.pick.scale == 1.0 and not self.spec.distractors:
+                return cls(**kwargs)
+            sub = level_problem(TASK_MAPPING[problem], self.info.pick, self.spec.pick.scale, self.distractors)
+            with _problem_class(problem, sub):
+                return cls(**kwargs)
+        except SceneError:
+            raise
+        except Exception as e:  # robosuite/LIBERO raise bare assertions, mujoco errors, missing files
+            msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise SceneError(f"LIBERO scene {self.scene}/{self.task} level {self.level} failed to build: {msg}") from e
+
+    def _setup_indices(self) -> None:
+        import torch
+
+        sim = self._env.sim
+        self._states = np.asarray(torch.load(str(self.info.init_path), weights_only=False))
+        n = 1 + sim.model.nq + sim.model.nv
+        if self._states.ndim != 2 or self._states.shape[1] != n:
+            raise SceneError(f"LIBERO init states {self.info.init_path} have shape {self._states.shape}, the model "
+                             f"needs (N, {n}); the asset tree at {self.assets} does not match this task")
+        objs = self._env.env.objects_dict
+        self._qpos = {k: sim.model.get_joint_qpos_addr(objs[k].joints[-1])[0] for k in (self.info.pick, self.info.goal)}
+        m = sim.model._model
+        root = m.body_rootid
+
+        def geoms(inst: str) -> np.ndarray:
+            b = sim.model.body_name2id(objs[inst].root_body)
+            return np.array([g for g in range(m.ngeom) if root[m.geom_bodyid[g]] == b
+                             and (m.geom_contype[g] or m.geom_conaffinity[g])], dtype=int)
+
+        self._pick_body = sim.model.body_name2id(objs[self.info.pick].root_body)
+        self._goal_body = sim.model.body_name2id(objs[self.info.goal].root_body)
+        self._pick_geoms, self._goal_geoms = geoms(self.info.pick), geoms(self.info.goal)
+        gripper = self._env.robots[0].gripper
+        self._finger_geoms = np.array([sim.model.geom_name2id(g) for g in gripper.contact_geoms], dtype=int)
+        site = f"{self.info.goal}_contain_region"
+        self._contain_site = sim.model.site_name2id(site) if site in sim.model.site_names else None
+
+    def _support(self) -> Support:
+        p, g = 1 + self._qpos[self.info.pick] + 1, 1 + self._qpos[self.info.goal] + 1
+        dp, dg = self.shift
+        return Support((float(self._states[:, p].min() + dp), float(self._states[:, p].max() + dp)),
+                       (float(self._states[:, g].min() + dg), float(self._states[:, g].max() + dg)))
+
+    def _check_progression(self) -> None:
+        """Condition 2 against T0's actual support (LIBERO's fixed states), for pick_y and goal_y components."""
+        parts = getattr(self._successor, "parts", (self._successor,))
+        for part in parts:
+            name = part.axis.name
+            if name not in ("pick_y", "goal_y"):
+                continue
+            lo, hi = self._states_support(self.info.pick if name == "pick_y" else self.info.goal)
+            step = part.axis.step
+            supports = {k: (lo + k * step, hi + k * step) for k in part.axis.default_levels()}
+            check_strictly_harder(supports, name)
+
+    def _states_support(self, inst: str) -> tuple[float, float]:
+        col = self._states[:, 1 + self._qpos[inst] + 1]
+        return (float(col.min()), float(col.max()))
+
+    # ---- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Observation, dict]:
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**31 - 1))
+        episode = (options or {}).get("episode")
+        self.episode_seed = int(seed)
+        self.init_index = int(episode if episode is not None else seed) % len(self._states)
+        self._renderers.clear()  # hard resets rebuild the MuJoCo model
+        self._reset_sim(self.episode_seed)
+        raw = self._env.set_init_state(self._level_state(self.init_index))
+        if self.spec.pick.scale != 1.0:
+            raw = self._env.set_init_state(self._rest_scaled_pick(self._level_state(self.init_index)))
+        for _ in range(NUM_STEPS_WAIT):
+            raw, _, _, _ = self._env.step(DUMMY_ACTION)
+        for robot in self._env.robots:
+            robot.controller.use_delta = True
+        self._raw, self._t, self._done = raw, 0, False
+        return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed,
+                                     "init_state": self.init_index}
+
+    def _reset_sim(self, seed: int, tries: int = 20) -> None:
+        from robosuite.utils.errors import RandomizationError
+
+        self._env.seed(seed)
+        for _ in range(tries):
+            try:
+                self._env.env.reset()
+                return
+            except RandomizationError:
+                continue
+        raise SceneError(f"{self.scene}/{self.task} level {self.level}: LIBERO could not place the objects in "
+                         f"the moved regions ({tries} tries); use a smaller level")
+
+    def _level_state(self, i: int) -> np.ndarray:
+        """LIBERO's fixed initial state ``i`` with the pick object and basket translated like their regions."""
+        state = np.array(self._states[i], dtype=np.float64)
+        dpick, dgoal = self.shift
+        state[1 + self._qpos[self.info.pick] + 1] += dpick
+        state[1 + self._qpos[self.info.goal] + 1] += dgoal
+        return state
+
+    def _rest_scaled_pick(self, state: np.ndarray) -> np.ndarray:
+        """Raise/lower the scaled pick object so its lowest point is where the unscaled object's was."""
+        s = self.spec.pick.scale
+        z = float(self._env.sim.data.body_xpos[self._pick_body][2])
+        d = self._lowest(self._pick_geoms) - z
+        state[1 + self._qpos[self.info.pick] + 2] += -d * (1.0 - 1.0 / s)
+        return state
+
+    def _lowest(self, geoms: np.ndarray) -> float:
+        return float(self._extent(geoms)[0][2])
+
+    def _extent(self, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World AABB (min, max corners) of ``geoms``."""
+        m, d = self._env.sim.model._model, self._env.sim.data._data
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        pts = [d.geom_xpos[g] + (d.geom_xmat[g].reshape(3, 3) @ (m.geom_aabb[g][:3] + signs * m.geom_aabb[g][3:]).T).T
+               for g in geoms]
+        allp = np.concatenate(pts)
+        return allp.min(axis=0), allp.max(axis=0)
+
+    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
+        if self._done:
+            raise SceneError("step() after the episode ended; call reset() first")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
+            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
+        self._raw, _, _, _ = self._env.step(np.clip(a, -1.0, 1.0))
+        self._t += 1
+        success = bool(self._env.check_success())
+        truncated = (not success) and self._t >= self.max_steps
+        self._done = success or truncated
+        return self._observation(), float(success), success, truncated, {"success": success, "step": self._t}
+
+    def render(self) -> np.ndarray:
+        return self.render_frame()
+
+    def close(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()
+        if getattr(self, "_env", None) is not None:
+            self._env.close()
+            self._env = None
+
+    @property
+    def steps(self) -> int:
+        return self._t
+
+    # ---- observations, privileged state, video -------------------------------------------------
+    def _observation(self) -> Observation:
+        from robosuite.utils.transform_utils import quat2axisangle
+
+        raw = self._raw
+        images = {c: np.ascontiguousarray(raw[f"{CAMERA_NAMES[c]}_image"], dtype=np.uint8) for c in self.cameras}
+        state = np.concatenate([raw["robot0_eef_pos"], quat2axisangle(np.array(raw["robot0_eef_quat"])),
+                                raw["robot0_gripper_qpos"]]).astype(np.float32)
+        return Observation(images=images, state=state, instruction=self.instruction,
+                           extras={"step": self._t, "init_state": self.init_index})
+
+    def _touching(self, a: np.ndarray, b: np.ndarray) -> bool:
+        d = self._env.sim.data._data
+        if d.ncon == 0:
+            return False
+        g = d.contact.geom[: d.ncon]
+        return bool(np.any((np.isin(g[:, 0], a) & np.isin(g[:, 1], b)) | (np.isin(g[:, 1], a) & np.isin(g[:, 0], b))))
+
+    def privileged_state(self) -> dict:
+        """Poses, extents and contacts for the oracle (never shown to learned policies)."""
+        sim = self._env.sim
+        d = sim.data
+        robot = self._env.robots[0]
+        lo, hi = self._extent(self._pick_geoms)
+        glo, ghi = self._extent(self._goal_geoms)
+        pick_pos = np.array(d.body_xpos[self._pick_body])
+        goal_pos = np.array(d.body_xpos[self._goal_body])
+        qv = sim.model.get_joint_qvel_addr(self._env.env.objects_dict[self.info.pick].joints[-1])[0]
+        if self._contain_site is not None:
+            c = np.array(d.site_xpos[self._contain_site])
+            floor = float(c[2] - sim.model.site_size[self._contain_site][2])
+            place_xy = c[:2]
+        else:
+            floor, place_xy = float(ghi[2]), goal_pos[:2]
+        bottom, top = float(lo[2]), float(hi[2])
+        grasp = max(min(bottom + 0.5 * (top - bottom), top - 0.012), top - 0.02, bottom + 0.01)
+        return {
+            "eef_pos": np.array(d.site_xpos[robot.eef_site_id]),
+            "eef_mat": np.array(d.site_xmat[robot.eef_site_id]).reshape(3, 3),
+            "gripper_qpos": np.array(d.qpos[robot._ref_gripper_joint_pos_indexes]),
+            "pick_pos": pick_pos, "pick_quat_wxyz": np.array(d.body_xquat[self._pick_body]),
+            "pick_linvel": np.array(d.qvel[qv:qv + 3]), "pick_bottom": bottom, "pick_top": top,
+            "pick_half_width": float(max(hi[:2] - lo[:2]) / 2),
+            "pick_touching_gripper": self._touching(self._finger_geoms, self._pick_geoms),
+            "goal_pos": goal_pos, "goal_quat_wxyz": np.array(d.body_xquat[self._goal_body]),
+            "goal_top": float(ghi[2]), "place_xy": np.array(place_xy), "place_bottom": floor + 0.012,
+            "clear_z": float(ghi[2]), "grasp_z": float(grasp), "success": bool(self._env.check_success()),
+        }
+
+    def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
+        """One upright uint8 HxWx3 frame from ``camera`` for videos (observations stay in raw orientation)."""
+        import mujoco
+
+        if camera not in CAMERA_NAMES:
+            raise ConfigError(f"unknown camera {camera!r}; cameras are {list(CAMERA_NAMES)}")
+        size = _check_size(size, "frame size")
+        model = self._env.sim.model._model
+        renderer = self._renderers.get(size)
+        if renderer is None:
+            model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[1])
+            model.vis.global_.offheight = max(model.vis.global_.offheight, size[0])
+            renderer = self._renderers[size] = mujoco.Renderer(model, height=size[0], width=size[1])
+        opt = mujoco.MjvOption()
+        opt.geomgroup[0] = 0
+        renderer.update_scene(self._env.sim.data._data, camera=CAMERA_NAMES[camera], scene_option=opt)
+        return np.ascontiguousarray(renderer.render())

@@ -1,0 +1,204 @@
+"""The LIBERO-Object adapter on a miniature asset tree: registry, BDDL edits, level-0 fidelity to lerobot's
+LiberoEnv, the axes, the oracle, certify/evaluate and the missing-assets error."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("libero")
+
+import scenes  # noqa: E402
+from indgen_vla.errors import SceneError  # noqa: E402
+from scenes.libero.bddl import add_fixtures, load_task, parse_regions, shift_region  # noqa: E402
+from scenes.libero.miniature import write_miniature_assets  # noqa: E402
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+SCENE = "libero_object"
+
+
+@pytest.fixture(scope="module")
+def mini(tmp_path_factory):
+    """Point the adapter at a freshly generated miniature asset tree (and a private LIBERO config dir)."""
+    root = write_miniature_assets(tmp_path_factory.mktemp("libero_assets"))
+    cache = tmp_path_factory.mktemp("indgen_cache")
+    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
+    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
+    os.environ.pop("LIBERO_CONFIG_PATH", None)
+    yield root
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+def _env(axis="pick_y", level=0, **kw):
+    kw.setdefault("cameras", ())
+    return scenes.make_env(SCENE, axis=axis, level=level, **kw)
+
+
+def test_registry_without_simulator():
+    assert SCENE in scenes.scene_names()
+    tasks = scenes.tasks(SCENE)
+    assert len(tasks) == 10 and tasks[0] == "alphabet_soup" and tasks[-1] == "orange_juice"  # lerobot task_id order
+    assert set(scenes.axes_for(SCENE)) == {"pick_y", "goal_y", "scale", "distractor"}
+    assert scenes.level_param(SCENE, None, "pick_y", 2) == pytest.approx(-0.24 + 0.05)
+    assert scenes.level_param(SCENE, "milk", "goal_y", -3) == pytest.approx(0.26 - 3 * 0.0367)
+    assert scenes.level_param(SCENE, None, "scale", 3) == pytest.approx(1.2001)
+    t = load_task(SCENE, "alphabet_soup")
+    assert (t.pick, t.goal, t.pick_region, t.goal_region) == ("alphabet_soup_1", "basket_1", "target_object_region",
+                                                              "bin_region")
+    assert t.language == "pick up the alphabet soup and place it in the basket"
+
+
+def test_bddl_edits_touch_only_their_region():
+    text = load_task(SCENE, "ketchup").bddl_path.read_text()
+    moved = shift_region(text, "bin_region", 0.0, 0.0367)
+    a, b = parse_regions(text), parse_regions(moved)
+    assert {k for k in a if a[k] != b[k]} == {"bin_region"}
+    assert b["bin_region"][1][1] == pytest.approx(a["bin_region"][1][1] + 0.0367)
+    assert "indgen_distractor_1 - milk" in add_fixtures(text, [("indgen_distractor_1", "milk")])
+
+
+def test_missing_assets_is_one_line(tmp_path, monkeypatch):
+    monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
+    with pytest.raises(SceneError, match="INDGEN_LIBERO_ASSETS") as e:
+        scenes.check_ready(SCENE)
+    assert "\n" not in str(e.value) and "hf download lerobot/libero-assets" in str(e.value)
+    r = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", "standin:noop", "--scene",
+                        SCENE, "--axis", "pick_y", "--out", str(tmp_path / "run")], capture_output=True, text=True,
+                       env={**os.environ, "INDGEN_LIBERO_ASSETS": str(tmp_path)}, timeout=120)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
+    assert r.returncode != 0 and len(lines) == 1 and "LIBERO's assets" in lines[0], r.stderr[-2000:]
+
+
+def test_level0_matches_lerobot_libero_env(mini):
+    """Level 0 is LIBERO's own task as lerobot runs it: same BDDL, init state, settle steps, images and state."""
+    from scenes.libero.assets import import_libero
+    from scenes.libero.env import LiberoSceneEnv
+
+    import_libero()  # writes LIBERO's config.yaml first: lerobot's module imports libero (which would prompt)
+    from lerobot.envs.libero import LiberoEnv, _get_suite
+
+    env = _env(cameras=("agentview", "wrist"), image_size=(32, 32))
+    ref = LiberoEnv(_get_suite(SCENE), 0, SCENE, obs_type="pixels_agent_pos", observation_width=32,
+                    observation_height=32, episode_index=3)
+    try:
+        assert isinstance(env, LiberoSceneEnv) and env.bddl_file == load_task(SCENE, "alphabet_soup").bddl_path
+        assert env.max_steps == ref._max_episode_steps == 280 and env.instruction == ref.task_description
+        obs, info = env.reset(seed=11, options={"episode": 3})
+        robs, _ = ref.reset(seed=11)
+        assert info["init_state"] == 3
+        np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
+        np.testing.assert_array_equal(obs.images["wrist"], robs["pixels"]["image2"])
+        from robosuite.utils.transform_utils import quat2axisangle
+
+        eef, grip = robs["robot_state"]["eef"], robs["robot_state"]["gripper"]["qpos"]
+        want = np.concatenate([eef["pos"], quat2axisangle(eef["quat"]), grip]).astype(np.float32)
+        np.testing.assert_allclose(obs.state, want, atol=1e-6)
+        a = np.array([0.3, -0.2, 0.1, 0.0, 0.0, 0.1, 1.0], dtype=np.float32)
+        for _ in range(3):
+            obs, *_ = env.step(a)
+            robs, *_ = ref.step(a)
+        np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
+    finally:
+        env.close()
+        ref.close()
+
+
+@pytest.mark.parametrize(("axis", "level"), [("pick_y", 3), ("goal_y", -3), ("scale", 3), ("distractor", 4),
+                                             ("pick_y+distractor", -3)])
+def test_axes_build_step_and_change_one_thing(mini, axis, level):
+    from indgen_vla.progression import check_single_axis
+
+    env, base = _env(axis, level, max_steps=2), _env(axis, 0)
+    try:
+        fields = [p.axis.field for p in getattr(scenes.get_successor(axis), "parts", [scenes.get_successor(axis)])]
+        check_single_axis(base.spec, env.spec, fields, axis)
+        assert env.success_predicate is base.success_predicate
+        env.reset(seed=1, options={"episode": 5})
+        base.reset(seed=1, options={"episode": 5})
+        s, s0 = env.privileged_state(), base.privileged_state()
+        diff = np.flatnonzero(env._level_state(5) != base._level_state(5))
+        dpick, dgoal = env.shift
+        if axis.startswith("pick_y"):
+            assert s["pick_pos"][1] - s0["pick_pos"][1] == pytest.approx(dpick, abs=2e-3) and dpick == pytest.approx(0.025 * level)
+            assert list(diff) == [1 + env._qpos[env.info.pick] + 1]
+        if axis == "goal_y":
+            assert s["goal_pos"][1] - s0["goal_pos"][1] == pytest.approx(dgoal, abs=2e-3)
+            assert list(diff) == [1 + env._qpos[env.info.goal] + 1]
+        if axis == "scale":
+            assert s["pick_bottom"] == pytest.approx(s0["pick_bottom"], abs=2e-3)
+            assert (s["pick_top"] - s["pick_bottom"]) / (s0["pick_top"] - s0["pick_bottom"]) == pytest.approx(1.2, abs=0.01)
+        if "distractor" in axis:
+            names = [n for n in env._env.sim.model.body_names if n.startswith("indgen_distractor_")]
+            assert len({n.split("_main")[0] for n in names}) == abs(level)
+        for _ in range(2):
+            obs, r, term, trunc, info = env.step(np.zeros(7))
+        assert trunc and not term and obs.state.shape == (8,)
+        with pytest.raises(SceneError, match="reset"):
+            env.step(np.zeros(7))
+    finally:
+        env.close()
+        base.close()
+
+
+def test_episode_index_fixes_the_initial_state(mini):
+    env = _env("goal_y", 1)
+    try:
+        env.reset(seed=1, options={"episode": 7})
+        a = env.privileged_state()["goal_pos"]
+        env.reset(seed=99, options={"episode": 7})
+        b = env.privileged_state()["goal_pos"]
+        env.reset(seed=1, options={"episode": 8})
+        c = env.privileged_state()["goal_pos"]
+        np.testing.assert_allclose(a, b, atol=1e-9)
+        assert np.abs(a - c).max() > 1e-4
+        lo, hi = env.support.goal_y
+        assert lo - 1e-9 <= env._level_state(7)[1 + env._qpos[env.info.goal] + 1] <= hi + 1e-9
+    finally:
+        env.close()
+
+
+def test_oracle_certifies_extreme_levels(mini):
+    from scenes.certify import certify
+
+    cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=1)
+    assert [r["feasible"] for r in cert["levels"]] == [True, True, True], cert
+    cert = certify(SCENE, "goal_y+distractor", levels=[3], episodes=1)
+    assert cert["levels"][0]["feasible"], cert
+
+
+def test_evaluate_cli_with_oracle(mini, tmp_path):
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", "standin:oracle", "--scene",
+                        SCENE, "--axis", "scale", "--levels", "-3,3", "--episodes", "1", "--out", str(out)],
+                       capture_output=True, text=True, env=dict(os.environ), timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    import pandas as pd
+
+    eps = pd.read_parquet(out / "episodes.parquet")
+    assert list(eps["success"]) == [True, True] and set(eps["status"]) == {"ok"}
+
+
+@pytest.mark.real_assets
+@pytest.mark.skipif(not (os.environ.get("INDGEN_LIBERO_ASSETS") or os.environ.get("LIBERO_ASSETS")),
+                    reason="set INDGEN_LIBERO_ASSETS to LIBERO's real asset folder")
+def test_real_assets_level0_and_oracle():
+    """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""
+    from scenes.certify import certify
+
+    env = _env(cameras=("agentview", "wrist"), image_size=(128, 128))
+    try:
+        obs, _ = env.reset(seed=0, options={"episode": 0})
+        assert obs.images["agentview"].std() > 5 and obs.state.shape == (8,)
+    finally:
+        env.close()
+    cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=2)
+    print(cert)
+    assert all(r["feasible"] for r in cert["levels"]), cert
