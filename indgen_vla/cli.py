@@ -35,6 +35,7 @@ HANDLERS: dict[str, tuple[str, str]] = {
         "indgen_vla.regimes.mimicgen:mimicgen_main",
         "the data-regimes capability (issue: Data regimes)",
     ),
+    "train": ("indgen_vla.regimes.train:train_main", "the data-regimes capability (issue: Data regimes)"),
 }
 
 
@@ -148,7 +149,7 @@ def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argpar
     return p
 
 
-PASSTHROUGH = {"blockenv", "demos", "mimicgen"}  # subcommands that parse their own arguments
+PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train"}  # subcommands that parse their own arguments
 
 
 def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
@@ -174,6 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
     _add_passthrough(sp, "demos", "record T0 demonstrations as a LeRobotDataset")
     _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of T0 demonstrations")
+    _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     return parser
 
 

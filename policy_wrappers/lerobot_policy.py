@@ -29,6 +29,8 @@ DEFAULT_CAMERA_MAP = {
 }
 LIBERO_CAMERA_NAMES = {"image", "image2"}  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
+# indgen's state-only checkpoints feed proprioception as lerobot's environment state (policy_wrappers.lerobot_steps)
+PROPRIO_STEP_CLASS = "policy_wrappers.lerobot_steps.ProprioAsEnvStateStep"
 
 
 @dataclass(frozen=True)
@@ -150,7 +152,7 @@ class LeRobotPolicy:
         if state is not None and tuple(state.shape) != (STATE_DIM,):
             raise PolicyError(f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
                               f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos")
-        if cfg.env_state_feature is not None:
+        if cfg.env_state_feature is not None and not _has_step(path, rev, PROPRIO_STEP_CLASS):
             raise PolicyError(f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
                               "simulator state), which learned policies never get here")
 
@@ -271,7 +273,7 @@ class LeRobotPolicy:
 
 
 def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
-    """Whether the saved policy_preprocessor.json has a step registered as ``registry_name``."""
+    """Whether the saved policy_preprocessor.json has a step registered as (or with class path) ``registry_name``."""
     import json
 
     local = Path(path) / "policy_preprocessor.json"
@@ -283,7 +285,7 @@ def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
         steps = json.loads(local.read_text()).get("steps", [])
     except Exception:
         return False
-    return any(step.get("registry_name") == registry_name for step in steps)
+    return any(registry_name in (step.get("registry_name"), step.get("class")) for step in steps)
 
 
 def _offline() -> bool:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -19,6 +20,8 @@ from indgen_vla.seeding import episode_seed
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]
 ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
+# per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
+EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,38 @@ def _with_privileged(env, obs: Observation) -> Observation:
     return dataclasses.replace(obs, extras={**obs.extras, "privileged": env.privileged_state()})
 
 
+def object_poses(priv: dict) -> dict[str, list[float]]:
+    """World poses [x, y, z, qw, qx, qy, qz] of the pick object and the receptacle from a privileged state.
+
+    Scenes without a free receptacle body (e.g. ``cabinet_pick``) use the placement target, unrotated.
+    """
+    poses = {}
+    if "pick_pos" in priv:
+        poses["pick"] = [*map(float, priv["pick_pos"]), *map(float, priv.get("pick_quat_wxyz", (1, 0, 0, 0)))]
+    if "goal_pos" in priv:
+        poses["goal"] = [*map(float, priv["goal_pos"]), *map(float, priv.get("goal_quat_wxyz", (1, 0, 0, 0)))]
+    elif "place_xy" in priv:
+        x, y = (float(v) for v in priv["place_xy"])
+        poses["goal"] = [x, y, float(priv.get("place_bottom", 0.0)), 1.0, 0.0, 0.0, 0.0]
+    return poses
+
+
+def append_episode_sidecar(root: Path, record: dict) -> None:
+    """Append one episode's record (seed, task, per-frame object poses) to the dataset's sidecar."""
+    path = Path(root) / EPISODES_SIDECAR
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as f:
+        f.write(json.dumps(record, separators=(",", ":")) + "\n")
+
+
+def read_episode_sidecar(root: Path) -> list[dict]:
+    """The sidecar records of a dataset written by ``indgen demos`` or ``indgen mimicgen`` ([] if absent)."""
+    path = Path(root) / EPISODES_SIDECAR
+    if not path.is_file():
+        return []
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
 def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Observation, np.ndarray, dict]]:
     """Yield (observation, executed action, info) for one episode of the noisy oracle, seeded."""
     from scenes.oracle import OraclePolicy
@@ -69,7 +104,8 @@ def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Ob
     oracle.reset(obs.instruction, seed=seed)
     pause = 0
     for _ in range(env.max_steps):
-        a = oracle.act([_with_privileged(env, obs)])[0, 0].astype(np.float64)
+        obs = _with_privileged(env, obs)  # yielded too, so recorders can keep object poses
+        a = oracle.act([obs])[0, 0].astype(np.float64)
         if pause == 0 and rng.random() < noise.pause_prob:
             pause = int(rng.integers(noise.pause_steps[0], noise.pause_steps[1] + 1))
         if pause > 0:
@@ -127,12 +163,18 @@ def record_demos(
                         success = bool(info.get("success", False))
                     if not success:
                         continue  # keep only successful demonstrations, like a human operator's keepers
+                    poses = [object_poses(obs.extras["privileged"]) for obs, _ in frames]
                     for obs, a in frames:
                         frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
                         frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
                                       "task": obs.instruction})  # fmt: skip
                         ds.add_frame(frame)
                     ds.save_episode()
+                    append_episode_sidecar(out, {
+                        "episode_index": ds.num_episodes - 1, "regime": "demos", "scene": scene, "task": t,
+                        "seed": ep_seed, "level": 0, "frames": len(frames),
+                        "object_poses": {k: [[round(v, 6) for v in p[k]] for p in poses] for k in poses[0]},
+                    })  # fmt: skip
                     kept += 1
                     stats["frames"] += len(frames)
                     if progress is not None:

@@ -1,0 +1,440 @@
+"""``indgen mimicgen``: MimicGen-style augmentation of T0 demonstrations (Mandlekar et al., 2023).
+
+Each source demonstration is split into object-centric subtask segments: the grasp (approach, close, lift)
+relative to the pick object and the place (transport, lower, release) relative to the receptacle. For a fresh
+T0 initial state every segment's end-effector target poses are moved rigidly with their reference object
+(``T_new_obj @ inv(T_src_obj) @ T_eef``), joined by a linear + slerp interpolation from the current pose,
+and driven with robosuite OSC_POSE delta actions; only episodes the scene's success predicate accepts are
+kept. The output is a LeRobotDataset with exactly the features, fps, cameras and task strings of the source.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import time
+import warnings
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from indgen_vla.errors import ConfigError
+from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.regimes.demos import (
+    EPISODES_SIDECAR,
+    FPS,
+    append_episode_sidecar,
+    features,
+    object_poses,
+    read_episode_sidecar,
+)
+from indgen_vla.seeding import episode_seed
+
+SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
+SELECTIONS = ("nearest", "random")
+STATS_FILE = "mimicgen_stats.json"
+
+
+def _scales() -> tuple[float, float]:
+    """robosuite OSC_POSE action scaling (metres, radians per unit action), shared with the oracle."""
+    from scenes.oracle import POS_SCALE, ROT_SCALE
+
+    return POS_SCALE, ROT_SCALE
+
+
+# ---- SE(3) math: pure functions on 4x4 homogeneous matrices ------------------------------------------------
+def pose_matrix(pos, rot: Rotation) -> np.ndarray:
+    """4x4 pose from a position and a scipy ``Rotation``."""
+    t = np.eye(4)
+    t[:3, :3] = rot.as_matrix()
+    t[:3, 3] = np.asarray(pos, dtype=float)
+    return t
+
+
+def pose_from_pq(pq) -> np.ndarray:
+    """4x4 pose from [x, y, z, qw, qx, qy, qz] (MuJoCo's scalar-first quaternion)."""
+    pq = np.asarray(pq, dtype=float)
+    return pose_matrix(pq[:3], Rotation.from_quat(pq[[4, 5, 6, 3]]))
+
+
+def pose_from_state(state) -> np.ndarray:
+    """4x4 end-effector pose from the 8-d LIBERO state (position + axis-angle + gripper)."""
+    state = np.asarray(state, dtype=float)
+    return pose_matrix(state[:3], Rotation.from_rotvec(state[3:6]))
+
+
+def invert_pose(t: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform: (R, p)^-1 = (R^T, -R^T p)."""
+    inv = np.eye(4)
+    inv[:3, :3] = t[:3, :3].T
+    inv[:3, 3] = -t[:3, :3].T @ t[:3, 3]
+    return inv
+
+
+def transform_segment(poses: np.ndarray, src_obj: np.ndarray, new_obj: np.ndarray) -> np.ndarray:
+    """Move eef poses (N, 4, 4) rigidly with their reference object: ``new_obj @ inv(src_obj) @ pose``."""
+    return (new_obj @ invert_pose(src_obj))[None] @ np.asarray(poses)
+
+
+def interpolate_poses(start: np.ndarray, end: np.ndarray, n: int) -> np.ndarray:
+    """``n`` poses from just after ``start`` to ``end`` inclusive: linear in position, slerp in rotation."""
+    if n < 1:
+        return np.zeros((0, 4, 4))
+    fr = np.arange(1, n + 1) / n
+    rots = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], end[:3, :3]])))(fr)
+    out = np.tile(np.eye(4), (n, 1, 1))
+    out[:, :3, :3] = rots.as_matrix()
+    out[:, :3, 3] = start[:3, 3] + fr[:, None] * (end[:3, 3] - start[:3, 3])
+    return out
+
+
+def target_poses(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """The absolute goal poses robosuite's delta OSC_POSE controller set for each recorded step.
+
+    The controller's goal is ``p + POS_SCALE * a[:3]`` and ``Rot(ROT_SCALE * a[3:6]) @ R`` (world frame).
+    """
+    pos_scale, rot_scale = _scales()
+    states, actions = np.asarray(states, dtype=float), np.asarray(actions, dtype=float)
+    rots = Rotation.from_rotvec(rot_scale * actions[:, 3:6]) * Rotation.from_rotvec(states[:, 3:6])
+    out = np.tile(np.eye(4), (len(states), 1, 1))
+    out[:, :3, :3] = rots.as_matrix()
+    out[:, :3, 3] = states[:, :3] + pos_scale * actions[:, :3]
+    return out
+
+
+def pose_to_action(target: np.ndarray, current: np.ndarray, gripper: float) -> np.ndarray:
+    """The 7-d OSC_POSE delta action that sets the controller's goal to ``target`` from ``current`` (clipped)."""
+    pos_scale, rot_scale = _scales()
+    a = np.zeros(ACTION_DIM)
+    a[:3] = (target[:3, 3] - current[:3, 3]) / pos_scale
+    a[3:6] = Rotation.from_matrix(target[:3, :3] @ current[:3, :3].T).as_rotvec() / rot_scale
+    a[6] = gripper
+    return np.clip(a, -1.0, 1.0)
+
+
+def split_subtasks(states: np.ndarray, actions: np.ndarray, lift_frac: float = 0.9) -> list[tuple[int, int]] | None:
+    """Frame ranges of the grasp and place segments, or None when the demo has no single grasp and release.
+
+    The grasp segment runs from the start through the gripper closing to ``lift_frac`` of the lift height
+    (so the switch to the receptacle frame happens in the air); the place segment runs to the end.
+    """
+    closed = np.asarray(actions)[:, -1] > 0
+    closes = np.flatnonzero(closed & ~np.concatenate([[False], closed[:-1]]))
+    if len(closes) != 1:
+        return None
+    c = int(closes[0])
+    opens = np.flatnonzero(~closed[c:])
+    if len(opens) == 0:
+        return None
+    r = c + int(opens[0])
+    z = np.asarray(states)[:, 2]
+    top = z[c:r].max()
+    above = np.flatnonzero(z[c + 1:r] >= z[c] + lift_frac * (top - z[c]) - 1e-9)
+    e = c + 1 + int(above[0]) if len(above) else r
+    return [(0, e), (e, len(states))]
+
+
+# ---- sources --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SourceDemo:
+    """One source demonstration with its subtask split and the reference-object poses it was recorded with."""
+
+    index: int
+    scene: str
+    task: str
+    seed: int
+    targets: np.ndarray  # (T, 4, 4) controller goal poses
+    gripper: np.ndarray  # (T,) gripper actions
+    refs: dict[str, np.ndarray]  # object name -> (T, 7) per-frame world pose
+    bounds: tuple[tuple[int, int], ...]
+
+    def segment(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(targets, gripper actions, reference object pose at the segment start) of subtask ``k``."""
+        lo, hi = self.bounds[k]
+        return self.targets[lo:hi], self.gripper[lo:hi], pose_from_pq(self.refs[SUBTASKS[k][1]][lo])
+
+
+def load_sources(root: Path, lift_frac: float = 0.9) -> tuple[dict, list[SourceDemo], int]:
+    """(lerobot info.json, usable source demos, number skipped) of a dataset written by ``indgen demos``."""
+    info = json.loads((root / "meta" / "info.json").read_text())
+    feats = info.get("features", {})
+    if feats.get("observation.state", {}).get("shape") not in ([STATE_DIM], (STATE_DIM,)) or \
+            feats.get("action", {}).get("shape") not in ([ACTION_DIM], (ACTION_DIM,)):
+        raise ConfigError(f"--source {root} lacks the {STATE_DIM}-d observation.state and {ACTION_DIM}-d action "
+                          "of `indgen demos` datasets; record one with `indgen demos`")  # fmt: skip
+    records = {r["episode_index"]: r for r in read_episode_sidecar(root)}
+    if not records or not all("object_poses" in r for r in records.values()):
+        raise ConfigError(f"--source {root} has no {EPISODES_SIDECAR} with per-episode seeds and object poses; "
+                          "record the source with `indgen demos` (this version or newer)")  # fmt: skip
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    # only parquet columns are read: pyav spares the torchcodec probe (and its warning) when FFmpeg is missing
+    ds = LeRobotDataset(info.get("repo_id", "local/indgen_demos"), root=root, video_backend="pyav")
+    cols = ds.hf_dataset.select_columns(["observation.state", "action", "episode_index"]).with_format("numpy")
+    ep_idx = np.asarray(cols["episode_index"]).reshape(-1)
+    states, actions = np.stack(cols["observation.state"]), np.stack(cols["action"])
+    demos, skipped = [], 0
+    for i in sorted(set(ep_idx.tolist())):
+        rec = records.get(int(i))
+        rows = np.flatnonzero(ep_idx == i)
+        if rec is None or any(len(rec["object_poses"].get(k, ())) != len(rows) for _, k in SUBTASKS):
+            skipped += 1
+            continue
+        s, a = states[rows], actions[rows]
+        bounds = split_subtasks(s, a, lift_frac)
+        if bounds is None or any(hi - lo < 2 for lo, hi in bounds):
+            skipped += 1  # regrasps or no release: no clean object-centric split
+            continue
+        refs = {k: np.asarray(v, dtype=float) for k, v in rec["object_poses"].items()}
+        demos.append(SourceDemo(int(i), rec["scene"], rec["task"], int(rec["seed"]), target_poses(s, a),
+                                a[:, -1].astype(float), refs, tuple(bounds)))  # fmt: skip
+    return info, demos, skipped
+
+
+def select_source(demos: list[SourceDemo], k: int, new_ref: np.ndarray, rng: np.random.Generator,
+                  strategy: str = "nearest", nn_k: int = 3) -> SourceDemo:  # fmt: skip
+    """MimicGen's per-subtask source choice: uniform, or uniform among the ``nn_k`` nearest reference poses."""
+    if strategy == "random" or len(demos) == 1:
+        return demos[int(rng.integers(len(demos)))]
+    d = []
+    for demo in demos:
+        src = demo.segment(k)[2]
+        angle = np.linalg.norm(Rotation.from_matrix(src[:3, :3].T @ new_ref[:3, :3]).as_rotvec())
+        d.append(np.linalg.norm(src[:3, 3] - new_ref[:3, 3]) + 0.05 * angle)  # 5 cm per radian
+    return demos[int(rng.choice(np.argsort(d, kind="stable")[:nn_k]))]
+
+
+# ---- configuration and execution ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MimicGenConfig:
+    """What ``indgen mimicgen`` generates and how.
+
+    Attributes:
+        source: a LeRobotDataset written by ``indgen demos`` (with its per-episode sidecar).
+        out: the new dataset's root (must not exist or be empty).
+        n: attempts per task; with ``guarantee`` the number of successful episodes per task instead.
+        seed: generation seed (new T0 initial states, source choice, action noise).
+        guarantee: keep attempting until ``n`` successes per task (at most ``max_attempts``).
+        max_attempts: cap on attempts per task in ``guarantee`` mode (default 5 n).
+        selection: per-subtask source choice, ``nearest`` (reference pose) or ``random``.
+        nn_k: ``nearest`` picks uniformly among this many nearest sources.
+        interp_steps: minimum interpolation steps before each segment.
+        max_step_m: interpolation moves at most this far per step (metres), so the arm can follow.
+        action_noise: std of Gaussian noise on the 6 motion dims of executed actions (MimicGen's 0.05).
+        lift_frac: the grasp segment ends at this fraction of the source's lift height.
+        settle_steps: steps holding the last pose after the plan, for the object to come to rest.
+    """
+
+    source: Path
+    out: Path
+    n: int
+    seed: int = 0
+    guarantee: bool = False
+    max_attempts: int | None = None
+    selection: str = "nearest"
+    nn_k: int = 3
+    interp_steps: int = 5
+    max_step_m: float = 0.02
+    action_noise: float = 0.05
+    lift_frac: float = 0.9
+    settle_steps: int = 25
+    repo_id: str = "local/indgen_mimicgen"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "source", Path(self.source))
+        object.__setattr__(self, "out", Path(self.out))
+        if self.n < 1:
+            raise ConfigError(f"--n must be >= 1, got {self.n}")
+        if self.max_attempts is not None and self.max_attempts < self.n:
+            raise ConfigError(f"--max-attempts ({self.max_attempts}) must be >= --n ({self.n})")
+        if self.selection not in SELECTIONS:
+            raise ConfigError(f"--selection must be one of {', '.join(SELECTIONS)}, got {self.selection!r}")
+        if self.nn_k < 1 or self.interp_steps < 1 or self.settle_steps < 0 or self.max_step_m <= 0:
+            raise ConfigError("nn_k and interp_steps must be >= 1, settle_steps >= 0 and max_step_m > 0")
+        if self.action_noise < 0 or not 0 < self.lift_frac <= 1:
+            raise ConfigError(f"action_noise must be >= 0 and lift_frac in (0, 1]; got {self.action_noise}, "
+                              f"{self.lift_frac}")  # fmt: skip
+        if not (self.source / "meta" / "info.json").is_file():
+            raise ConfigError(f"--source {self.source} is not a LeRobotDataset (no meta/info.json); point it at "
+                              "the output of `indgen demos`")  # fmt: skip
+        if self.out.exists() and (not self.out.is_dir() or any(self.out.iterdir())):
+            raise ConfigError(f"--out {self.out} already exists and is not empty; choose a new directory")
+        if self.out.resolve() == self.source.resolve():
+            raise ConfigError("--out must differ from --source")
+
+
+def _n_interp(start: np.ndarray, end: np.ndarray, cfg: MimicGenConfig) -> int:
+    dist = float(np.linalg.norm(end[:3, 3] - start[:3, 3]))
+    angle = float(np.linalg.norm(Rotation.from_matrix(end[:3, :3] @ start[:3, :3].T).as_rotvec()))
+    return max(cfg.interp_steps, math.ceil(dist / cfg.max_step_m), math.ceil(angle / 0.2))
+
+
+def generate_episode(env, demos: list[SourceDemo], seed: int, rng: np.random.Generator, cfg: MimicGenConfig,
+                     used: list[int]) -> Iterator[tuple[Observation, np.ndarray, dict, dict]]:  # fmt: skip
+    """Yield (observation, executed action, info, object poses) of one generated episode from T0 seed ``seed``.
+
+    The source demo chosen for each subtask is appended to ``used``.
+    """
+    obs, _ = env.reset(seed=seed)
+    priv = env.privileged_state()
+    last, grip = pose_from_state(obs.state), float(demos[0].gripper[0])
+    for k, (_, ref) in enumerate(SUBTASKS):
+        new_ref = pose_from_pq(object_poses(priv)[ref])  # the reference object's pose now, at the segment start
+        demo = select_source(demos, k, new_ref, rng, cfg.selection, cfg.nn_k)
+        used.append(demo.index)
+        targets, grips, src_ref = demo.segment(k)
+        seg = transform_segment(targets, src_ref, new_ref)
+        path = interpolate_poses(last, seg[0], _n_interp(last, seg[0], cfg))
+        plan = [(p, grip) for p in path] + list(zip(seg, grips, strict=True))
+        for target, g in plan:
+            a = pose_to_action(target, pose_from_state(obs.state), g)
+            if cfg.action_noise > 0:
+                a[:6] = np.clip(a[:6] + rng.normal(0.0, cfg.action_noise, 6), -1.0, 1.0)
+            a = a.astype(np.float32)
+            next_obs, _, terminated, truncated, info = env.step(a)
+            yield obs, a, info, object_poses(priv)
+            obs, priv = next_obs, env.privileged_state()
+            if terminated or truncated:
+                return
+        last, grip = seg[-1], float(grips[-1])
+    for _ in range(cfg.settle_steps):
+        a = pose_to_action(last, pose_from_state(obs.state), grip).astype(np.float32)
+        next_obs, _, terminated, truncated, info = env.step(a)
+        yield obs, a, info, object_poses(priv)
+        obs, priv = next_obs, env.privileged_state()
+        if terminated or truncated:
+            return
+
+
+def _new_seed(cfg: MimicGenConfig, scene: str, task: str, attempt: int, taken: set[int]) -> int:
+    """A fresh T0 seed for one attempt, never one of the source's seeds."""
+    bump = 0
+    while (s := episode_seed(cfg.seed, "mimicgen", scene, task, attempt, bump)) in taken:
+        bump += 1
+    return s
+
+
+def generate(cfg: MimicGenConfig, progress=None) -> dict:
+    """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    import scenes
+
+    t0 = time.perf_counter()
+    info, demos, skipped = load_sources(cfg.source, cfg.lift_frac)
+    if not demos:
+        raise ConfigError(f"--source {cfg.source} has no demo with one clean grasp and release to split; "
+                          "record more with `indgen demos`")  # fmt: skip
+    feats = info["features"]
+    cams = tuple(k.removeprefix("observation.images.") for k in feats if k.startswith("observation.images."))
+    shape = feats[f"observation.images.{cams[0]}"]["shape"] if cams else [96, 96, 3]
+    size = (int(shape[0]), int(shape[1]))
+    use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
+    by_task: dict[tuple[str, str], list[SourceDemo]] = {}
+    for d in demos:
+        by_task.setdefault((d.scene, d.task), []).append(d)
+    taken = {d.seed for d in demos} | {int(r["seed"]) for r in read_episode_sidecar(cfg.source)}
+    per_task = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
+    if cfg.out.exists():
+        cfg.out.rmdir()
+    cfg.out.parent.mkdir(parents=True, exist_ok=True)
+    ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=cfg.out,
+                               features=features(cams, size, use_videos), robot_type=info.get("robot_type", "panda"),
+                               use_videos=use_videos, video_backend="pyav")  # fmt: skip
+    stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": 0, "successes": 0,
+             "frames": 0, "source_demos": len(demos), "source_skipped": skipped, "tasks": {}}  # fmt: skip
+    try:
+        for (scene, task), pool in by_task.items():
+            # the scene's own episode budget: a generated episode must succeed within the evaluation horizon
+            env = scenes.make_env(scene, task=task, level=0, cameras=cams, image_size=size)
+            ok = attempt = 0
+            try:
+                while attempt < per_task and not (cfg.guarantee and ok >= cfg.n):
+                    seed = _new_seed(cfg, scene, task, attempt, taken)
+                    rng = np.random.default_rng(episode_seed(cfg.seed, "mimicgen-rng", scene, task, attempt))
+                    attempt += 1
+                    used: list[int] = []
+                    frames, success = [], False
+                    for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, cfg, used):
+                        frames.append((obs, a, poses))
+                        success = bool(step_info.get("success", False))
+                    if success:
+                        for obs, a, _ in frames:
+                            frame = {f"observation.images.{c}": obs.images[c] for c in cams}
+                            frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
+                                          "task": obs.instruction})  # fmt: skip
+                            ds.add_frame(frame)
+                        ds.save_episode()
+                        append_episode_sidecar(cfg.out, {
+                            "episode_index": ds.num_episodes - 1, "regime": "mimicgen", "scene": scene, "task": task,
+                            "seed": seed, "level": 0, "frames": len(frames), "source_episodes": used,
+                            "object_poses": {k: [[round(v, 6) for v in p[k]] for _, _, p in frames]
+                                             for k in frames[0][2]},
+                        })  # fmt: skip
+                        ok += 1
+                        stats["frames"] += len(frames)
+                    if progress is not None:
+                        progress(task, ok, attempt, per_task)
+            finally:
+                env.close()
+            stats["tasks"][task] = {"attempts": attempt, "successes": ok, "rate": ok / max(attempt, 1)}
+            stats["attempts"] += attempt
+            stats["successes"] += ok
+    except BaseException:
+        ds.finalize()
+        raise
+    ds.finalize()
+    stats["rate"] = stats["successes"] / max(stats["attempts"], 1)
+    stats["wall_s"] = round(time.perf_counter() - t0, 2)
+    stats["config"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()}
+    (cfg.out / STATS_FILE).write_text(json.dumps(stats, indent=2) + "\n")
+    return stats
+
+
+def mimicgen_main(args: argparse.Namespace) -> int:
+    """CLI handler for ``indgen mimicgen`` (its own parser over the passthrough arguments)."""
+    p = argparse.ArgumentParser(prog="indgen mimicgen",
+                                description="MimicGen-style augmentation of T0 demonstrations (LeRobotDataset)")
+    p.add_argument("--source", required=True, help="dataset written by `indgen demos`")
+    p.add_argument("--n", type=int, required=True, help="generation attempts per task (successes with --guarantee)")
+    p.add_argument("--out", required=True, help="new dataset root directory (must not exist)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task")
+    p.add_argument("--max-attempts", type=int, default=None, help="attempt cap per task with --guarantee (5 n)")
+    p.add_argument("--selection", choices=SELECTIONS, default="nearest", help="per-subtask source choice")
+    p.add_argument("--action-noise", type=float, default=0.05, help="std of motion noise on executed actions")
+    p.add_argument("--repo-id", default="local/indgen_mimicgen")
+    a = p.parse_args(args.rest)
+    cfg = MimicGenConfig(source=a.source, out=a.out, n=a.n, seed=a.seed, guarantee=a.guarantee,
+                         max_attempts=a.max_attempts, selection=a.selection, action_noise=a.action_noise,
+                         repo_id=a.repo_id)  # fmt: skip
+    # lerobot re-enables `datasets` progress bars after each save; only the env var (read at import) wins
+    os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
+    warnings.filterwarnings("ignore", message="Cannot enable progress bars")
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    console = Console(stderr=True)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    try:
+        with Progress(*columns, console=console, transient=True) as bar:
+            bars: dict[str, object] = {}
+
+            def progress(task, ok, attempt, total):
+                if task not in bars:
+                    bars[task] = bar.add_task(task, total=total)
+                bar.update(bars[task], completed=attempt, description=f"{task}: {ok} ok")
+
+            stats = generate(cfg, progress)
+    except KeyboardInterrupt:
+        shutil.rmtree(cfg.out, ignore_errors=True)
+        raise
+    console.print(f"generated {stats['successes']}/{stats['attempts']} attempts succeeded "
+                  f"({100 * stats['rate']:.1f} %) → {cfg.out}")  # fmt: skip
+    return 0 if stats["successes"] else 1

@@ -1,0 +1,148 @@
+"""MimicGen augmentation: SE(3) segment transforms on hand-computed poses, subtask splits, config errors,
+and a generated dataset's round trip through lerobot's ``LeRobotDataset``."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from indgen_vla.errors import ConfigError
+from indgen_vla.regimes.mimicgen import (
+    MimicGenConfig,
+    _new_seed,
+    interpolate_poses,
+    invert_pose,
+    load_sources,
+    pose_from_pq,
+    pose_from_state,
+    pose_matrix,
+    pose_to_action,
+    split_subtasks,
+    target_poses,
+    transform_segment,
+)
+
+R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+RZ90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _pose(pos, rot):
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, pos
+    return t
+
+
+def test_pose_constructors_and_inverse():
+    s = np.sqrt(0.5)
+    assert np.allclose(pose_from_pq([0.2, 0.1, 0.8, s, 0, 0, s]), _pose([0.2, 0.1, 0.8], RZ90))  # wxyz, 90° about z
+    state = np.array([0.1, 0.2, 1.0, *Rotation.from_matrix(R_DOWN).as_rotvec(), 0.04, -0.04])
+    assert np.allclose(pose_from_state(state), _pose([0.1, 0.2, 1.0], R_DOWN))
+    t = _pose([1.0, 2.0, 3.0], RZ90)
+    assert np.allclose(invert_pose(t), _pose([-2.0, 1.0, -3.0], RZ90.T))  # -R^T p = -(2, -1, 3)
+    assert np.allclose(invert_pose(t) @ t, np.eye(4))
+
+
+def test_segment_transform_translation_only():
+    poses = np.stack([_pose([0.15, 0.0, 0.9], R_DOWN), _pose([0.1, -0.05, 0.85], R_DOWN)])
+    out = transform_segment(poses, _pose([0.1, 0.0, 0.8], np.eye(3)), _pose([0.13, -0.02, 0.8], np.eye(3)))
+    assert np.allclose(out[0], _pose([0.18, -0.02, 0.9], R_DOWN))
+    assert np.allclose(out[1], _pose([0.13, -0.07, 0.85], R_DOWN))
+
+
+def test_segment_transform_with_rotation_by_hand():
+    # eef 5 cm in front of (+x) and 10 cm above the object; the object moves to (0.2, 0.1) and turns 90° about z:
+    # the offset turns to +y, i.e. (0.2, 0.15, 0.9), and the gripper turns with it: RZ90 @ R_DOWN
+    src_obj, new_obj = _pose([0.1, 0.0, 0.8], np.eye(3)), pose_from_pq([0.2, 0.1, 0.8, np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
+    out = transform_segment(_pose([0.15, 0.0, 0.9], R_DOWN)[None], src_obj, new_obj)[0]
+    assert np.allclose(out[:3, 3], [0.2, 0.15, 0.9])
+    assert np.allclose(out[:3, :3], [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
+    # the eef stays fixed in the object's frame
+    assert np.allclose(invert_pose(new_obj) @ out, invert_pose(src_obj) @ _pose([0.15, 0.0, 0.9], R_DOWN))
+
+
+def test_interpolation_is_linear_and_slerp():
+    start, end = np.eye(4), _pose([0.1, 0.0, -0.02], RZ90)
+    path = interpolate_poses(start, end, 2)
+    assert path.shape == (2, 4, 4) and np.allclose(path[-1], end)
+    assert np.allclose(path[0][:3, 3], [0.05, 0.0, -0.01])
+    assert np.allclose(path[0][:3, :3], Rotation.from_euler("z", 45, degrees=True).as_matrix())
+    assert interpolate_poses(start, end, 0).shape == (0, 4, 4)
+
+
+def test_action_to_target_and_back():
+    # OSC_POSE: goal = p + 0.05 a[:3], Rot(0.5 a[3:6]) @ R (world frame)
+    state = np.array([0.1, 0.2, 1.0, *Rotation.from_matrix(R_DOWN).as_rotvec(), 0.04, -0.04])
+    action = np.array([0.2, -0.4, 1.0, 0.1, 0.0, -0.2, 1.0])
+    target = target_poses(state[None], action[None])[0]
+    assert np.allclose(target[:3, 3], [0.11, 0.18, 1.05])
+    assert np.allclose(target[:3, :3], Rotation.from_rotvec([0.05, 0.0, -0.1]).as_matrix() @ R_DOWN)
+    assert np.allclose(pose_to_action(target, pose_from_state(state), 1.0), action)
+    # by hand: 1 cm along x and 0.1 rad about z from the identity -> (0.2, 0, 0, 0, 0, 0.2); 10 cm clips to 1
+    cur = _pose([0.0, 0.0, 1.0], np.eye(3))
+    tgt = pose_matrix([0.01, 0.0, 1.0], Rotation.from_rotvec([0.0, 0.0, 0.1]))
+    assert np.allclose(pose_to_action(tgt, cur, -1.0), [0.2, 0, 0, 0, 0, 0.2, -1.0])
+    assert pose_to_action(_pose([0.1, 0.0, 1.0], np.eye(3)), cur, -1.0)[0] == 1.0
+
+
+def test_split_subtasks_at_the_lift():
+    t = np.arange(20)
+    states = np.zeros((20, 8))
+    states[:, 2] = 0.9 + 0.01 * np.clip(t - 7, 0, 5)  # lifts 5 cm over steps 8..12
+    actions = np.zeros((20, 7))
+    actions[:, -1] = np.where((t >= 5) & (t < 15), 1.0, -1.0)  # closes at 5, releases at 15
+    assert split_subtasks(states, actions, lift_frac=0.9) == [(0, 12), (12, 20)]  # 0.95 >= 0.9 + 0.9 * 0.05
+    assert split_subtasks(states, actions, lift_frac=0.1)[0] == (0, 8)
+    regrasp = actions.copy()
+    regrasp[8, -1] = -1.0
+    assert split_subtasks(states, regrasp) is None
+    assert split_subtasks(states, np.where(t[:, None] >= 5, 1.0, -1.0) * np.ones((20, 7))) is None  # no release
+
+
+def test_config_errors(tmp_path):
+    with pytest.raises(ConfigError, match="not a LeRobotDataset"):
+        MimicGenConfig(source=tmp_path / "nope", out=tmp_path / "out", n=3)
+    (tmp_path / "src" / "meta").mkdir(parents=True)
+    feats = {"observation.state": {"dtype": "float32", "shape": [8]}, "action": {"dtype": "float32", "shape": [7]}}
+    (tmp_path / "src" / "meta" / "info.json").write_text(json.dumps({"features": feats}))
+    with pytest.raises(ConfigError, match="--n must be >= 1"):
+        MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=0)
+    with pytest.raises(ConfigError, match="--selection"):
+        MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=1, selection="best")
+    with pytest.raises(ConfigError, match="already exists"):
+        MimicGenConfig(source=tmp_path / "src", out=tmp_path / "src", n=1)
+    with pytest.raises(ConfigError, match="indgen_episodes.jsonl"):
+        load_sources(tmp_path / "src")
+
+
+def test_new_seeds_are_deterministic_and_avoid_source_seeds():
+    cfg = MimicGenConfig.__new__(MimicGenConfig)
+    object.__setattr__(cfg, "seed", 7)
+    a = [_new_seed(cfg, "pick_place", "lemon", i, set()) for i in range(5)]
+    assert a == [_new_seed(cfg, "pick_place", "lemon", i, set()) for i in range(5)] and len(set(a)) == 5
+    assert _new_seed(cfg, "pick_place", "lemon", 0, {a[0]}) != a[0]
+
+
+def test_mimicgen_round_trip_through_lerobot(tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from indgen_vla.regimes.demos import read_episode_sidecar, record_demos
+    from indgen_vla.regimes.mimicgen import generate
+
+    src, out = tmp_path / "src", tmp_path / "gen"
+    record_demos("pick_place", src, n=1, image_size=24, seed=3, repo_id="local/src")
+    rec = read_episode_sidecar(src)
+    assert len(rec) == 1 and rec[0]["episode_index"] == 0 and len(rec[0]["object_poses"]["pick"]) == rec[0]["frames"]
+    stats = generate(MimicGenConfig(source=src, out=out, n=1, seed=1, guarantee=True, max_attempts=3))
+    assert stats["successes"] == 1 and 1 <= stats["attempts"] <= 3
+    saved = json.loads((out / "mimicgen_stats.json").read_text())
+    assert saved["successes"] == 1 and saved["source"] == str(src) and saved["seed"] == 1
+    a, b = LeRobotDataset("local/src", root=src), LeRobotDataset("local/indgen_mimicgen", root=out)
+    assert b.num_episodes == 1 and len(b) == stats["frames"] and b.fps == a.fps
+    assert a.features == b.features and list(a.meta.tasks.index) == list(b.meta.tasks.index)
+    item = b[0]
+    assert tuple(item["observation.images.wrist"].shape) == (3, 24, 24) and item["task"] == a[0]["task"]
+    actions = np.stack([b[i]["action"].numpy() for i in range(len(b))])
+    assert np.all(np.abs(actions) <= 1.0) and actions[:, -1].max() == 1.0 and actions[-1, -1] == -1.0
+    gen = read_episode_sidecar(out)
+    assert gen[0]["regime"] == "mimicgen" and gen[0]["seed"] != rec[0]["seed"] and gen[0]["source_episodes"] == [0, 0]
