@@ -41,9 +41,10 @@ def main() -> int:
     py, indgen = sys.executable, str(Path(sys.executable).with_name("indgen"))
     start = time.perf_counter()
     quick = ["--quick"] if a.quick else []
+    n_mg = 2 if a.quick else a.mimicgen
     ckpts = {"h-only": work / "ckpt_h_only", "h+mg": work / "ckpt_h_mg"}
     _run([py, "scripts/build_standin.py", "--out", str(ckpts["h-only"]), "--work", str(work / "h_only"), *quick])
-    _run([py, "scripts/build_standin.py", "--mimicgen", str(2 if a.quick else a.mimicgen),
+    _run([py, "scripts/build_standin.py", "--mimicgen", str(n_mg),
           "--out", str(ckpts["h+mg"]), "--work", str(work / "h_mg"), *quick])  # fmt: skip
     episodes = 1 if a.quick else a.episodes
     sections = []
@@ -62,7 +63,7 @@ def main() -> int:
     text = "\n".join([
         "# Data regimes: human-only vs human+MimicGen (pick_place, state-only ACT)", "",
         f"`scripts/study_data_regimes.py`, {time.strftime('%Y-%m-%d')}, wall time {wall / 60:.1f} min, "
-        f"{episodes} episodes per level, MimicGen episodes added: {a.mimicgen}. Training set sizes: "
+        f"{episodes} episodes per level, MimicGen episodes added: {n_mg}. Training set sizes: "
         + ", ".join(f"{r}: {c.get('episodes')} episodes" for r, c in cards.items()) + ".", "",
         *sections,
     ])  # fmt: skip
