@@ -110,9 +110,15 @@ class BlockEnv:
     def __init__(self, cfg: BlockEnvConfig | None = None):
         self.cfg = cfg or BlockEnvConfig()
 
-    def reset(self, levels, rng: np.random.Generator) -> np.ndarray:
+    def reset(self, levels, rng: np.random.Generator | None = None, grids: np.ndarray | None = None) -> np.ndarray:
+        """Start one episode per level, from ``grids`` when given (fixed initial states), else sampled with ``rng``."""
         self.levels = np.asarray(levels, dtype=np.int64)
-        self.grids = sample_grids(self.levels, self.cfg, rng)
+        if grids is None:
+            if rng is None:
+                raise ValueError("BlockEnv.reset needs rng or grids")
+            grids = sample_grids(self.levels, self.cfg, rng)
+        assert grids.shape == (len(self.levels), self.cfg.grid_size, self.cfg.grid_size)
+        self.grids = np.array(grids, copy=True)
         self.initial = self.grids.copy()
         n = len(self.levels)
         self.steps = np.zeros(n, np.int64)

@@ -37,8 +37,7 @@ def rollout(model, method: str, level: int, episodes: int, cfg: BlockEnvConfig, 
     from torch.func import functional_call
 
     env = BlockEnv(cfg)
-    env.reset(np.full(episodes, level), np.random.default_rng(0))
-    env.grids = initial_grids(level, episodes, cfg, seed)
+    env.reset(np.full(episodes, level), grids=initial_grids(level, episodes, cfg, seed))
     lv = torch.full((episodes,), level)
     history, prev = [], [np.zeros((episodes, 3), np.int64)]
     with torch.no_grad():
@@ -56,8 +55,7 @@ def rollout(model, method: str, level: int, episodes: int, cfg: BlockEnvConfig, 
 
 def oracle_rollout(level: int, episodes: int, cfg: BlockEnvConfig, seed: int) -> np.ndarray:
     env = BlockEnv(cfg)
-    env.reset(np.full(episodes, level), np.random.default_rng(0))
-    env.grids = initial_grids(level, episodes, cfg, seed)
+    env.reset(np.full(episodes, level), grids=initial_grids(level, episodes, cfg, seed))
     arms = np.random.default_rng([seed, level, 99]).integers(0, 2, episodes)
     while not env.done.all():
         env.step(oracle_actions(env.grids, arms))
