@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 import scenes  # noqa: E402
+from scenes.catalog import SCENES  # noqa: E402  (built-in scenes: the bare-robosuite baseline needs them)
 from scenes.sim import CAMERA_NAMES  # noqa: E402
 
 CAMS = ("agentview", "wrist")
@@ -99,7 +100,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--scenes", default=",".join(scenes.scene_names()))
+    ap.add_argument("--scenes", default=",".join(SCENES))
     args = ap.parse_args()
     rows = [bench_scene(s, args.steps, args.repeats) for s in args.scenes.split(",")]
     print("| scene | physics steps/s (wrapper / bare) | overhead | frames/s 2x128² (wrapper / bare) | overhead |")
