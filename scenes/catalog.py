@@ -141,22 +141,47 @@ def check_axis_supported(scene: SceneDef, axis: str) -> None:
             raise UnknownNameError(f"axis of scene {scene.name}", part, list(scene.axes))
 
 
+def scene_rows() -> list[dict]:
+    """One row per scene for ``indgen scenes``: the built-ins, then the LIBERO suites (assets not required)."""
+    from scenes.libero import listing
+
+    rows = [
+        {
+            "name": s.name,
+            "description": s.description,
+            "tasks": list(s.tasks),
+            "axes": list(s.axes),
+            "max_steps": s.max_steps,
+            "needs": None,
+        }
+        for s in SCENES.values()
+    ]
+    return rows + listing()
+
+
 def _axis_rows() -> list[dict]:
+    scenes = scene_rows()
     rows = []
     for name in base_axis_names() + ["pick_y+distractor"]:
         ax = get_successor(name).axis
-        rows.append({
-            "name": ax.name, "step": ax.step, "unit": ax.unit, "levels": f"{ax.min_level}..{ax.max_level}",
-            "signed": ax.signed, "field": ax.field, "description": ax.description,
-            "scenes": [s.name for s in SCENES.values() if all(p in s.axes for p in name.split("+"))],
-        })
+        rows.append(
+            {
+                "name": ax.name,
+                "step": ax.step,
+                "unit": ax.unit,
+                "levels": f"{ax.min_level}..{ax.max_level}",
+                "signed": ax.signed,
+                "field": ax.field,
+                "description": ax.description,
+                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in name.split("+"))],
+            }
+        )
     return rows
 
 
 def scenes_main(args) -> int:
-    """``indgen scenes``: every scene with its tasks, axes and episode length."""
-    rows = [{"name": s.name, "description": s.description, "tasks": list(s.tasks), "axes": list(s.axes),
-             "max_steps": s.max_steps} for s in SCENES.values()]
+    """``indgen scenes``: every scene with its tasks, axes, episode length and what it needs beyond the venv."""
+    rows = scene_rows()
     if getattr(args, "json", False):
         print(json.dumps(rows, indent=2))
         return 0
@@ -167,7 +192,10 @@ def scenes_main(args) -> int:
     for col in ("scene", "tasks", "axes", "max steps", "description"):
         table.add_column(col)
     for r in rows:
-        table.add_row(r["name"], ", ".join(r["tasks"]), ", ".join(r["axes"]), str(r["max_steps"]), r["description"])
+        desc = r["description"] + (f"; needs {r['needs']}" if r["needs"] else "")
+        table.add_row(
+            r["name"], ", ".join(r["tasks"]) or "-", ", ".join(r["axes"]), str(r["max_steps"]), desc
+        )
     Console().print(table)
     return 0
 
@@ -185,6 +213,8 @@ def axes_main(args) -> int:
     for col in ("axis", "step", "levels", "scenes", "description"):
         table.add_column(col)
     for r in rows:
-        table.add_row(r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["scenes"]), r["description"])
+        table.add_row(
+            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["scenes"]), r["description"]
+        )
     Console().print(table)
     return 0

@@ -42,47 +42,151 @@ def check_env_args(cameras: Sequence[str], max_steps: int | None) -> tuple[str, 
     return cams
 
 
-class SceneEnv(gym.Env):
-    """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
+class BaseSceneEnv(gym.Env):
+    """The gym plumbing every scene env shares: arguments, spaces, the step contract, video frames, closing."""
+
+    # A backend implements _load (build the level; put its simulator env, anything with .sim and .close(),
+    # in _sim_env), reset (setting _t/_done), _advance (one simulator step; returns success) and _observation.
+
+    _sim_env = None  # the backend's robosuite-style env; None before it is built and once closed
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
-    def __init__(self, scene: SceneDef, task: str, successor: Successor, level: int,
-                 cameras: Sequence[str] = CAMERAS, image_size: tuple[int, int] = (128, 128),
-                 max_steps: int | None = None):
-        cams = check_env_args(cameras, max_steps)
+    def __init__(
+        self,
+        scene: SceneDef,
+        task: str,
+        successor: Successor,
+        level: int,
+        cameras: Sequence[str] = CAMERAS,
+        image_size: tuple[int, int] = (128, 128),
+        max_steps: int | None = None,
+    ):
+        self.cameras = check_env_args(cameras, max_steps)
         self.scene, self.task, self.level = scene.name, task, int(level)
         self.axis = successor.axis
-        self.cameras = cams
         self.image_size = _check_size(image_size, "image_size")
         self.max_steps = int(max_steps) if max_steps is not None else scene.max_steps
+        self._renderers: dict[tuple[int, int], object] = {}
+        self._scene_option = None
+        self._t = 0
+        self._done = True
+        self.episode_seed: int | None = None
+        self._load(scene, task, successor)
+        h, w = self.image_size
+        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in self.cameras}
+        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+        self.observation_space = gym.spaces.Dict(spaces)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
+
+    __str__ = __repr__
+
+    # ---- gymnasium API -------------------------------------------------------------------------
+    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
+        if self._done:
+            raise SceneError("step() after the episode ended; call reset() first")
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
+            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
+        success = self._advance(np.clip(a, -1.0, 1.0))
+        self._t += 1
+        terminated = success
+        truncated = (not success) and self._t >= self.max_steps
+        self._done = terminated or truncated
+        return (
+            self._observation(),
+            float(success),
+            terminated,
+            truncated,
+            {"success": success, "step": self._t},
+        )
+
+    def render(self) -> np.ndarray:
+        return self.render_frame()
+
+    def close(self) -> None:
+        renderers = getattr(self, "_renderers", {})
+        for r in renderers.values():
+            r.close()
+        renderers.clear()
+        if self._sim_env is not None:
+            self._sim_env.close()
+            self._sim_env = None
+
+    @property
+    def steps(self) -> int:
+        return self._t
+
+    def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
+        """One upright (human-viewable) uint8 HxWx3 frame from ``camera`` for videos, whatever ``cameras`` is.
+
+        Unlike observation images (raw simulator orientation, upside down), video frames are flipped upright.
+        """
+        names = self._camera_names()
+        if camera not in names:
+            raise ConfigError(f"unknown camera {camera!r}; cameras are {list(names)}")
+        return np.ascontiguousarray(self._render(names[camera], _check_size(size, "frame size"))[::-1])
+
+    def _render(self, camera: str, size: tuple[int, int]) -> np.ndarray:
+        """MuJoCo camera ``camera`` at ``size`` in robosuite's raw (OpenGL, upside-down) orientation."""
+        import mujoco
+
+        renderer = self._renderers.get(size)
+        if renderer is None:
+            model = self._mj_model()
+            model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[1])
+            model.vis.global_.offheight = max(model.vis.global_.offheight, size[0])
+            renderer = mujoco.Renderer(model, height=size[0], width=size[1])
+            self._renderers[size] = renderer
+        if self._scene_option is None:
+            self._scene_option = mujoco.MjvOption()
+            self._scene_option.geomgroup[0] = 0  # like robosuite: draw visual meshes, not collision geoms
+        renderer.update_scene(self._mj_data(), camera=camera, scene_option=self._scene_option)
+        return np.ascontiguousarray(renderer.render()[::-1])
+
+    # ---- what a backend provides ---------------------------------------------------------------
+    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
+        """Build this level's simulator into ``_sim_env`` (and whatever else the backend needs)."""
+        raise NotImplementedError
+
+    def _camera_names(self) -> dict[str, str]:
+        """Interface camera name -> MuJoCo camera name."""
+        return CAMERA_NAMES
+
+    def _advance(self, action: np.ndarray) -> bool:
+        """Apply one clipped action to the simulator; return the success predicate after it."""
+        raise NotImplementedError
+
+    def _observation(self) -> Observation:
+        raise NotImplementedError
+
+    def _mj_model(self):
+        return self._sim_env.sim.model._model
+
+    def _mj_data(self):
+        return self._sim_env.sim.data._data
+
+
+class SceneEnv(BaseSceneEnv):
+    """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
+
+    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
         self.instruction = scene.instruction(task)
         base = scene.base(task)
-        check_progression(base, successor)  # a step below the T0 jitter would not leave the easier levels' support
+        # a step below the T0 jitter would not leave the easier levels' support
+        check_progression(base, successor)
         self.spec = spec_at_level(base, successor, self.level)  # the frozen scene spec of this level
         self.axis_param = axis_param(self.spec, successor, self.level)
         self.success_predicate = SUCCESS_PREDICATES[scene.name]
         module, _, func = scene.builder.partition(":")
         layout = getattr(importlib.import_module(module), func)(self.spec)
         try:
-            self._rs = IndgenRobosuiteEnv(layout)
+            self._sim_env = IndgenRobosuiteEnv(layout)
         except Exception as e:  # robosuite raises bare assertions and mujoco errors
-            raise SceneError(f"scene {scene.name}/{task} level {level} failed to build: {e}") from e
-        self._renderers: dict[tuple[int, int], object] = {}
-        self._scene_option = None
-        self._t = 0
-        self._done = True
-        self.episode_seed: int | None = None
-        h, w = self.image_size
-        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cams}
-        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
-        self.observation_space = gym.spaces.Dict(spaces)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
-
-    def __repr__(self) -> str:
-        return f"<SceneEnv {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
-
-    __str__ = __repr__
+            raise SceneError(f"scene {scene.name}/{task} level {self.level} failed to build: {e}") from e
 
     # ---- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Observation, dict]:
@@ -95,75 +199,35 @@ class SceneEnv(gym.Env):
         self._t, self._done = 0, False
         return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
 
-    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
-        if self._done:
-            raise SceneError("step() after the episode ended; call reset() first")
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
-            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
-        self._rs.step(np.clip(a, -1.0, 1.0))
-        self._t += 1
-        success = bool(self.success_predicate(self._rs.privileged_state()))
-        terminated = success
-        truncated = (not success) and self._t >= self.max_steps
-        self._done = terminated or truncated
-        return self._observation(), float(success), terminated, truncated, {"success": success, "step": self._t}
-
-    def render(self) -> np.ndarray:
-        return self.render_frame()
-
-    def close(self) -> None:
-        for r in self._renderers.values():
-            r.close()
-        self._renderers.clear()
-        if getattr(self, "_rs", None) is not None:
-            self._rs.close()
-            self._rs = None
-
     # ---- extras for the engine and the oracle ----------------------------------------------------
     def privileged_state(self) -> dict:
         """Object/receptacle poses, contacts and placement targets (for oracles only)."""
         return self._rs.privileged_state()
 
-    def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
-        """One upright (human-viewable) uint8 HxWx3 frame from ``camera`` for videos, whatever ``cameras`` is.
-
-        Unlike observation images (raw simulator orientation, upside down), video frames are flipped upright.
-        """
-        if camera not in CAMERA_NAMES:
-            raise ConfigError(f"unknown camera {camera!r}; cameras are {list(CAMERA_NAMES)}")
-        return np.ascontiguousarray(self._render(camera, _check_size(size, "frame size"))[::-1])
-
+    # ---- the robosuite backend -------------------------------------------------------------------
     @property
-    def steps(self) -> int:
-        return self._t
+    def _rs(self) -> IndgenRobosuiteEnv | None:
+        """The robosuite env (None once closed)."""
+        return self._sim_env
 
-    def _render(self, camera: str, size: tuple[int, int]) -> np.ndarray:
-        import mujoco
-
-        renderer = self._renderers.get(size)
-        if renderer is None:
-            model = self._rs.sim.model._model
-            model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[1])
-            model.vis.global_.offheight = max(model.vis.global_.offheight, size[0])
-            renderer = mujoco.Renderer(model, height=size[0], width=size[1])
-            self._renderers[size] = renderer
-        if self._scene_option is None:
-            self._scene_option = mujoco.MjvOption()
-            self._scene_option.geomgroup[0] = 0  # like robosuite: draw visual meshes, not collision geoms
-        renderer.update_scene(self._rs.sim.data._data, camera=CAMERA_NAMES[camera], scene_option=self._scene_option)
-        return np.ascontiguousarray(renderer.render()[::-1])  # robosuite's raw (OpenGL, upside-down) orientation
+    def _advance(self, action: np.ndarray) -> bool:
+        self._rs.step(action)
+        return bool(self.success_predicate(self._rs.privileged_state()))
 
     def _observation(self) -> Observation:
-        images = {c: self._render(c, self.image_size) for c in self.cameras}
-        return Observation(images=images, state=self._rs.robot_state(), instruction=self.instruction,
-                           extras={"step": self._t})
+        images = {c: self._render(CAMERA_NAMES[c], self.image_size) for c in self.cameras}
+        return Observation(
+            images=images,
+            state=self._rs.robot_state(),
+            instruction=self.instruction,
+            extras={"step": self._t},
+        )
 
 
 class GymDictEnv(gym.Env):
     """A plain-gymnasium view of a ``SceneEnv`` (dict observations) for ``gymnasium.utils.env_checker``."""
 
-    metadata = SceneEnv.metadata
+    metadata = BaseSceneEnv.metadata
 
     def __init__(self, env: SceneEnv):
         self.env = env
@@ -176,7 +240,9 @@ class GymDictEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        obs, info = self.env.reset(seed=seed if seed is not None else int(self.np_random.integers(0, 2**31 - 1)))
+        obs, info = self.env.reset(
+            seed=seed if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
+        )
         return self._dict(obs), info
 
     def step(self, action):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -50,6 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quick", action="store_true", help="a tiny smoke run of the same pipeline")
     r.add_argument("--seeds", type=int, default=None)
     r.add_argument("--max-level", type=int, default=None)
+    r.add_argument(
+        "--workers", type=int, default=None, help="processes training side by side (default: cores)"
+    )
     r.add_argument("--out", required=True)
     return p
 
@@ -137,7 +141,10 @@ def _reproduce(a) -> int:
         cfg = dataclasses.replace(cfg, seeds=tuple(range(a.seeds)))
     if a.max_level is not None:
         cfg = dataclasses.replace(cfg, eval_levels=tuple(range(a.max_level + 1)))
-    result = reproduce(cfg, Path(a.out), log=lambda m: print(m, file=sys.stderr, flush=True))
+    workers = a.workers if a.workers is not None else (os.cpu_count() or 1)
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    result = reproduce(cfg, Path(a.out), log=lambda m: print(m, file=sys.stderr, flush=True), workers=workers)
     from indgen_vla.blockenv.reproduce import render_markdown
 
     print(render_markdown(result))

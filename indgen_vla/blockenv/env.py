@@ -110,7 +110,9 @@ class BlockEnv:
     def __init__(self, cfg: BlockEnvConfig | None = None):
         self.cfg = cfg or BlockEnvConfig()
 
-    def reset(self, levels, rng: np.random.Generator | None = None, grids: np.ndarray | None = None) -> np.ndarray:
+    def reset(
+        self, levels, rng: np.random.Generator | None = None, grids: np.ndarray | None = None
+    ) -> np.ndarray:
         """Start one episode per level, from ``grids`` when given (fixed initial states), else sampled with ``rng``."""
         self.levels = np.asarray(levels, dtype=np.int64)
         if grids is None:

@@ -30,6 +30,7 @@ class TrainConfig:
     hidden: int = 128
     maml_inner_lr: float = 0.05
     maml_support: int = 5
+    schedule: str = "cosine"
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -41,6 +42,8 @@ class TrainConfig:
             raise UnknownNameError("BlockEnv method", self.method, [*METHODS, "oracle"])
         if self.steps < 1 or self.batch < 1 or self.demos_per_level < 1 or not self.lr > 0:
             raise ConfigError("steps, batch and demos_per_level must be >= 1 and lr > 0")
+        if self.schedule not in ("cosine", "constant"):
+            raise ConfigError(f"schedule must be 'cosine' or 'constant', got {self.schedule!r}")
         BlockEnvConfig(grid_size=self.grid_size).check_level(max(self.train_levels))
 
 
@@ -71,6 +74,14 @@ def bc_loss(out: dict, actions, mask=None, legal=None):
     return loss
 
 
+def _update(opt, loss):
+    """One optimiser update on ``loss``; returns it detached for progress reports."""
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+    return loss.detach()
+
+
 def _batches(n: int, batch: int, rng: np.random.Generator):
     while True:
         yield rng.choice(n, size=min(batch, n), replace=n < batch)
@@ -88,6 +99,9 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
     demos = make_demos(list(cfg.train_levels), cfg.demos_per_level, env_cfg, seed=10_000 + cfg.seed)
     model = build_model(cfg.method, cfg.grid_size, cfg.hidden)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    if cfg.schedule == "cosine":  # decays to 0 over cfg.steps optimiser updates, whichever path makes them
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.steps)
+        opt.register_step_post_hook(lambda *_: sched.step())
     if cfg.method == "maml":
         _train_maml(model, opt, demos, cfg, rng, progress)
     elif cfg.method == "trm":
@@ -99,20 +113,13 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
         prev = torch.cat([torch.zeros_like(act[:, :1]), act[:, :-1]], dim=1)
         for i, idx in zip(range(cfg.steps), _batches(len(demos), cfg.batch, rng), strict=False):
             out = model(obs[idx], lv[idx], prev[idx])
-            loss = bc_loss(out, act[idx], mask[idx], None if legal is None else legal[idx])
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
+            loss = _update(opt, bc_loss(out, act[idx], mask[idx], None if legal is None else legal[idx]))
             if progress:
                 progress(i, float(loss.detach()))
     else:
         obs, act, lv = _tensors(*demos.steps())
         for i, idx in zip(range(cfg.steps), _batches(len(obs), cfg.batch * 4, rng), strict=False):
-            out = model(obs[idx][:, None], lv[idx])
-            loss = bc_loss(out, act[idx][:, None])
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
+            loss = _update(opt, bc_loss(model(obs[idx][:, None], lv[idx]), act[idx][:, None]))
             if progress:
                 progress(i, float(loss.detach()))
     model.eval()
@@ -120,26 +127,32 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
 
 
 def _train_trm(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> None:
-    """Deep supervision: n_sup optimiser steps per batch, carrying (y, z) detached between them."""
+    """Deep supervision: n_sup optimiser steps per batch, carrying (y, z) detached between them.
+
+    ``cfg.steps`` counts optimiser updates, as for every other method, so a batch gives n_sup of them.
+    """
     from torch.nn import functional as F  # noqa: N812
 
     obs, act, lv = _tensors(*demos.steps())
     g = cfg.grid_size
     target = (act[:, 0] * g + act[:, 1]) * 2 + act[:, 2]
-    for i, idx in zip(range(cfg.steps), _batches(len(obs), cfg.batch, rng), strict=False):
+    done = 0
+    for idx in _batches(len(obs), cfg.batch, rng):
         x = model.embed(obs[idx], lv[idx])
         y, z = model.init_carry(x)
         for _ in range(model.n_sup):
-            x = model.embed(obs[idx], lv[idx])
             (y, z), logits, halt = model.deep_recursion(x, y, z)
             flat = logits.flatten(1)
             correct = (flat.argmax(-1) == target[idx]).float()
-            loss = F.cross_entropy(flat, target[idx]) + F.binary_cross_entropy_with_logits(halt, correct)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-        if progress:
-            progress(i, float(loss.detach()))
+            loss = _update(
+                opt, F.cross_entropy(flat, target[idx]) + F.binary_cross_entropy_with_logits(halt, correct)
+            )
+            if progress:
+                progress(done, float(loss.detach()))
+            done += 1
+            if done >= cfg.steps:
+                return
+            x = model.embed(obs[idx], lv[idx])
 
 
 def _level_steps(demos: Demos, level: int):

@@ -15,6 +15,7 @@ import numpy as np
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.regimes import quiet_datasets
 from indgen_vla.seeding import episode_seed
 
 FPS = 20  # robosuite control frequency used by every scene
@@ -142,7 +143,8 @@ def record_demos(
     if out.exists():
         out.rmdir()
     ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=features(cameras, (image_size, image_size), use_videos),
-                               root=out, robot_type="panda", use_videos=use_videos)  # fmt: skip
+                               root=out, robot_type="panda", use_videos=use_videos,
+                               video_backend="pyav")  # fmt: skip
     stats = {"scene": scene, "tasks": tasks, "episodes": 0, "attempts": 0, "frames": 0}
     try:
         for t in tasks:
@@ -207,6 +209,7 @@ def demos_main(args: argparse.Namespace) -> int:
     p.add_argument("--repo-id", default="local/indgen_demos")
     p.add_argument("--videos", action="store_true", help="store cameras as mp4 videos instead of images")
     a = p.parse_args(args.rest)
+    quiet_datasets()
     from rich.console import Console
 
     console = Console(stderr=True)

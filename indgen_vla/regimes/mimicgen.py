@@ -13,10 +13,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import shutil
 import time
-import warnings
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -26,6 +24,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.regimes import quiet_datasets
 from indgen_vla.regimes.demos import (
     EPISODES_SIDECAR,
     FPS,
@@ -414,9 +413,7 @@ def mimicgen_main(args: argparse.Namespace) -> int:
     cfg = MimicGenConfig(source=a.source, out=a.out, n=a.n, seed=a.seed, guarantee=a.guarantee,
                          max_attempts=a.max_attempts, selection=a.selection, action_noise=a.action_noise,
                          repo_id=a.repo_id)  # fmt: skip
-    # lerobot re-enables `datasets` progress bars after each save; only the env var (read at import) wins
-    os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
-    warnings.filterwarnings("ignore", message="Cannot enable progress bars")
+    quiet_datasets()
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 

@@ -18,6 +18,7 @@ from scenes.libero.assets import libero_root
 # suite -> (regex turning a task file name into its short name, max episode steps as in lerobot's LiberoEnv)
 SUITES: dict[str, tuple[str, int]] = {
     "libero_object": (r"pick_up_the_(.+)_and_place_it_in_the_basket", 280),
+    "libero_spatial": (r"pick_up_the_black_bowl_(.+)_and_place_it_on_the_plate", 280),
 }
 _REGION = re.compile(r"\(\s*([A-Za-z0-9_]+)\s*\(:target\s+([A-Za-z0-9_]+)\)\s*\(:ranges\s*\(\s*\(([^()]*)\)")
 
@@ -28,11 +29,16 @@ def suite_task_names(suite: str) -> tuple[str, ...]:
     path = libero_root() / "benchmark" / "libero_suite_task_map.py"
     try:
         tree = ast.parse(path.read_text())
-        node = next(n.value for n in tree.body if isinstance(n, ast.Assign)
-                    and any(getattr(t, "id", "") == "libero_task_map" for t in n.targets))
+        node = next(
+            n.value
+            for n in tree.body
+            if isinstance(n, ast.Assign) and any(getattr(t, "id", "") == "libero_task_map" for t in n.targets)
+        )
         return tuple(ast.literal_eval(node)[suite])
     except (OSError, StopIteration, KeyError, ValueError, SyntaxError):
-        raise SceneError(f"cannot read LIBERO's task list for {suite} from {path}; reinstall hf-libero") from None
+        raise SceneError(
+            f"cannot read LIBERO's task list for {suite} from {path}; reinstall hf-libero"
+        ) from None
 
 
 def short_name(suite: str, task_file: str) -> str:
@@ -57,14 +63,17 @@ class LiberoTask:
     objects: tuple[tuple[str, str], ...]  # (instance, category)
     pick: str  # instance moved by the goal predicate, e.g. alphabet_soup_1
     goal: str  # receptacle instance, e.g. basket_1
-    pick_region: str
+    pick_region: str  # the table region under the pick object (under what it rests on, if not the table)
     goal_region: str
     regions: tuple[tuple[str, tuple[float, float, float, float]], ...]
+    pick_on_table: bool = True  # False when the pick starts on another object or inside a fixture (a drawer)
 
     def __post_init__(self) -> None:
         names = dict(self.objects)
         if self.pick not in names or self.goal not in names:
-            raise SceneError(f"LIBERO task {self.file}: goal objects {self.pick}/{self.goal} are not declared")
+            raise SceneError(
+                f"LIBERO task {self.file}: goal objects {self.pick}/{self.goal} are not declared"
+            )
 
     @property
     def bddl_path(self) -> Path:
@@ -100,7 +109,7 @@ def _section(text: str, head: str) -> str:
     for j in range(i, len(text)):
         depth += {"(": 1, ")": -1}.get(text[j], 0)
         if depth == 0:
-            return text[i:j + 1]
+            return text[i : j + 1]
     return text[i:]
 
 
@@ -115,8 +124,9 @@ def load_task(suite: str, short: str) -> LiberoTask:
         text = path.read_text()
     except OSError:
         raise SceneError(f"LIBERO's BDDL file {path} is missing; reinstall hf-libero") from None
-    objects = tuple(re.findall(r"([A-Za-z0-9_]+)\s+-\s+([A-Za-z0-9_]+)", _section(text, "objects")))
-    on = dict(re.findall(r"\(On\s+([A-Za-z0-9_]+)\s+([A-Za-z0-9_]+)\)", _section(text, "init")))
+    objects = _declared(_section(text, "objects"))
+    instances = sorted((i for i, _ in objects + _declared(_section(text, "fixtures"))), key=len, reverse=True)
+    on = dict(re.findall(r"\((?:On|In)\s+([A-Za-z0-9_]+)\s+([A-Za-z0-9_]+)\)", _section(text, "init")))
     m = re.search(r"\((?:In|On)\s+([A-Za-z0-9_]+)\s+([A-Za-z0-9_]+)\)", _section(text, "goal"))
     if not m:
         raise SceneError(f"LIBERO task {file}: no (In/On pick receptacle) goal in {path}")
@@ -124,25 +134,54 @@ def load_task(suite: str, short: str) -> LiberoTask:
     goal = target.removesuffix("_contain_region")
     regions = parse_regions(text)
 
-    def region_of(inst: str) -> str:
+    def region_of(inst: str, seen: tuple[str, ...] = ()) -> str:
+        """The table region under ``inst``, following what it rests on / sits in (cookie box, drawer)."""
         ref = on.get(inst, "")
         for name, (tgt, _) in regions.items():
             if ref == f"{tgt}_{name}":
                 return name
-        raise SceneError(f"LIBERO task {file}: {inst} is not placed on a floor/table region")
+        holder = next((i for i in instances if ref == i or ref.startswith(i + "_")), None)
+        if holder is None or holder in seen:
+            raise SceneError(f"LIBERO task {file}: {inst} is not placed on a floor/table region or object")
+        return region_of(holder, (*seen, inst))
 
-    return LiberoTask(suite, task_id, file, short, language(file), objects, pick, goal, region_of(pick),
-                      region_of(goal), tuple((k, v[1]) for k, v in regions.items()))
+    pick_region = region_of(pick)
+    on_table = on.get(pick) == f"{regions[pick_region][0]}_{pick_region}"
+    return LiberoTask(
+        suite,
+        task_id,
+        file,
+        short,
+        language(file),
+        objects,
+        pick,
+        goal,
+        pick_region,
+        region_of(goal),
+        tuple((k, v[1]) for k, v in regions.items()),
+        on_table,
+    )
+
+
+def _declared(section: str) -> tuple[tuple[str, str], ...]:
+    """``(instance, category)`` pairs of a BDDL ``(:objects ...)``/``(:fixtures ...)`` section."""
+    out = []
+    for line in section.splitlines():
+        names, sep, category = line.partition(" - ")
+        if sep:
+            out += [(n, category.strip().rstrip(")").strip()) for n in names.split() if not n.startswith("(")]
+    return tuple(out)
 
 
 def shift_region(text: str, region: str, dx: float, dy: float) -> str:
     """The BDDL with one region's ranges translated by (dx, dy)."""
+
     def repl(m: re.Match) -> str:
         if m.group(1) != region:
             return m.group(0)
         x0, y0, x1, y1 = (float(v) for v in m.group(3).split())
         new = f"{x0 + dx:.6f} {y0 + dy:.6f} {x1 + dx:.6f} {y1 + dy:.6f}"
-        return m.group(0)[: m.start(3) - m.start(0)] + new + m.group(0)[m.end(3) - m.start(0):]
+        return m.group(0)[: m.start(3) - m.start(0)] + new + m.group(0)[m.end(3) - m.start(0) :]
 
     out, n = _REGION.subn(repl, text)
     if n == 0 or out == text and (dx or dy):

@@ -11,24 +11,22 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
-from indgen_vla.errors import ConfigError, SceneError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
+from indgen_vla.errors import SceneError
+from indgen_vla.interface import Observation
 from indgen_vla.progression import check_strictly_harder
 from scenes.axes import Successor, axis_param, spec_at_level
 from scenes.catalog import SceneDef
-from scenes.env import _check_size, check_env_args
-from scenes.libero import DISTRACTOR_SLOTS, NUM_STEPS_WAIT, base_spec, task_info
+from scenes.env import BaseSceneEnv
+from scenes.libero import NUM_STEPS_WAIT, base_spec, distractor_slots, task_info
 from scenes.libero.assets import config_dir, find_assets, import_libero
 from scenes.libero.bddl import add_fixtures, shift_region
+from scenes.sim import CAMERA_NAMES
 
-CAMERA_NAMES = {"agentview": "agentview", "wrist": "robot0_eye_in_hand"}
 DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
 DISTRACTOR_PREFIX = "indgen_distractor_"
 
@@ -46,6 +44,7 @@ LIBERO_SUCCESS = BddlGoal()
 
 def _scale_xml(obj, s: float) -> None:
     """Scale a robosuite ``MujocoXMLObject`` uniformly about its origin: geoms, sites, bodies and meshes."""
+
     def mul(el, attr: str) -> None:
         if el.get(attr) is not None:
             el.set(attr, " ".join(f"{float(v) * s:.6g}" for v in el.get(attr).split()))
@@ -65,7 +64,7 @@ def level_problem(base_cls, pick: str, scale: float, distractors: tuple[tuple[st
     """A subclass of LIBERO's problem class (same name, so its BDDL problem check passes) that scales the pick
     object's XML and loads ``distractors`` (instance, category, (x, y)) as visual-only, joint-less fixtures."""
     from libero.libero.envs.objects import get_object_fn
-    from libero.libero.envs.regions import get_region_samplers
+    from libero.libero.envs.regions import REGION_SAMPLERS
     from robosuite.models.objects import MujocoXMLObject
 
     names = {d[0] for d in distractors}
@@ -78,19 +77,31 @@ def level_problem(base_cls, pick: str, scale: float, distractors: tuple[tuple[st
 
         def _load_fixtures_in_arena(self, mujoco_arena):
             fixtures = self.parsed_problem["fixtures"]
-            self.parsed_problem["fixtures"] = {c: [i for i in v if i not in names] for c, v in fixtures.items()}
+            self.parsed_problem["fixtures"] = {
+                c: [i for i in v if i not in names] for c, v in fixtures.items()
+            }
             try:
                 super()._load_fixtures_in_arena(mujoco_arena)
             finally:
                 self.parsed_problem["fixtures"] = fixtures
             for inst, cat, (x, y) in distractors:
                 proto = get_object_fn(cat)(name=inst)  # LIBERO's object: its XML file and resting rotation
-                obj = MujocoXMLObject(proto.file, name=inst, joints=None, obj_type="visual",
-                                      duplicate_collision_geoms=False)
-                sampler = get_region_samplers(self.parsed_problem["problem_name"], "floor")(
-                    inst, proto, x_ranges=[[x, x]], y_ranges=[[y, y]], rotation=proto.rotation,
-                    rotation_axis=proto.rotation_axis, ensure_object_boundary_in_range=False,
-                    ensure_valid_placement=False, reference_pos=self.workspace_offset)
+                obj = MujocoXMLObject(
+                    proto.file, name=inst, joints=None, obj_type="visual", duplicate_collision_geoms=False
+                )
+                # the problem's one workspace sampler: "floor" (LIBERO-Object) or "table" (LIBERO-Spatial)
+                (workspace_sampler,) = REGION_SAMPLERS[self.parsed_problem["problem_name"]].values()
+                sampler = workspace_sampler(
+                    inst,
+                    proto,
+                    x_ranges=[[x, x]],
+                    y_ranges=[[y, y]],
+                    rotation=proto.rotation,
+                    rotation_axis=proto.rotation_axis,
+                    ensure_object_boundary_in_range=False,
+                    ensure_valid_placement=False,
+                    reference_pos=self.workspace_offset,
+                )
                 pos, quat, _ = sampler.sample()[inst]
                 obj.get_obj().set("pos", " ".join(f"{v:.6f}" for v in pos))
                 obj.get_obj().set("quat", " ".join(f"{v:.6f}" for v in quat))
@@ -123,18 +134,10 @@ class Support:
     goal_y: tuple[float, float]
 
 
-class LiberoSceneEnv(gym.Env):
+class LiberoSceneEnv(BaseSceneEnv):
     """One level of one LIBERO task; ``reset(seed=, options={"episode": i})`` starts from fixed init state i."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
-
-    def __init__(self, scene: SceneDef, task: str, successor: Successor, level: int,
-                 cameras: Sequence[str] = CAMERAS, image_size: tuple[int, int] = (128, 128),
-                 max_steps: int | None = None):
-        cams = check_env_args(cameras, max_steps)
-        self.scene, self.task, self.level, self.axis = scene.name, task, int(level), successor.axis
-        self.cameras, self.image_size = cams, _check_size(image_size, "image_size")
-        self.max_steps = int(max_steps) if max_steps is not None else scene.max_steps
+    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
         self.info = task_info(scene.name, task)
         self.instruction = self.info.language
         self.base = base_spec(scene.name, task)
@@ -145,22 +148,11 @@ class LiberoSceneEnv(gym.Env):
         self.assets = find_assets()
         import_libero(self.assets)
         self.bddl_file = self._level_bddl()
-        self._env = self._build()
-        self._renderers: dict = {}
-        self._t, self._done = 0, True
-        self.episode_seed: int | None = None
+        self._sim_env = self._build()
         self.init_index: int | None = None
         self._setup_indices()
         self.support = self._support()
         self._check_progression()
-        h, w = self.image_size
-        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cams}
-        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
-        self.observation_space = gym.spaces.Dict(spaces)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
-
-    def __repr__(self) -> str:
-        return f"<LiberoSceneEnv {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
 
     # ---- building ------------------------------------------------------------------------------
     @property
@@ -176,7 +168,10 @@ class LiberoSceneEnv(gym.Env):
         pool = [c for c in HOPE_OBJECTS if c not in present]
         if self.spec.distractors > len(pool):
             raise SceneError(f"{self.scene}/{self.task}: only {len(pool)} distractor objects are available")
-        return tuple((f"{DISTRACTOR_PREFIX}{i + 1}", pool[i], DISTRACTOR_SLOTS[i]) for i in range(self.spec.distractors))
+        return tuple(
+            (f"{DISTRACTOR_PREFIX}{i + 1}", pool[i], distractor_slots(self.scene)[i])
+            for i in range(self.spec.distractors)
+        )
 
     def _level_bddl(self) -> Path:
         """LIBERO's BDDL file at level 0; otherwise an edited copy (cached by content)."""
@@ -184,6 +179,8 @@ class LiberoSceneEnv(gym.Env):
         if not (dpick or dgoal or self.spec.distractors):
             return self.info.bddl_path
         text = self.info.bddl_path.read_text()
+        if dpick and not self.info.pick_on_table:
+            raise SceneError(f"{self.scene}/{self.task}: pick_y needs a pick object placed on a table region")
         if dpick:
             text = shift_region(text, self.info.pick_region, 0.0, dpick)
         if dgoal:
@@ -205,14 +202,24 @@ class LiberoSceneEnv(gym.Env):
         from libero.libero.envs.env_wrapper import ControlEnv
 
         h, w = self.image_size
-        kwargs = dict(bddl_file_name=str(self.bddl_file), camera_heights=h, camera_widths=w, control_freq=20,
-                      hard_reset=True)
+        kwargs = dict(
+            bddl_file_name=str(self.bddl_file),
+            camera_heights=h,
+            camera_widths=w,
+            control_freq=20,
+            hard_reset=True,
+        )
         if self.cameras:
             kwargs["camera_names"] = [CAMERA_NAMES[c] for c in self.cameras]
             cls = OffScreenRenderEnv
         else:
-            kwargs.update(use_camera_obs=False, has_offscreen_renderer=False, camera_names=[], camera_heights=[],
-                          camera_widths=[])
+            kwargs.update(
+                use_camera_obs=False,
+                has_offscreen_renderer=False,
+                camera_names=[],
+                camera_heights=[],
+                camera_widths=[],
+            )
             cls = ControlEnv
         problem = get_problem_info(str(self.bddl_file))["problem_name"]
         try:
@@ -225,7 +232,9 @@ class LiberoSceneEnv(gym.Env):
             raise
         except Exception as e:  # robosuite/LIBERO raise bare assertions, mujoco errors, missing files
             msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-            raise SceneError(f"LIBERO scene {self.scene}/{self.task} level {self.level} failed to build: {msg}") from e
+            raise SceneError(
+                f"LIBERO scene {self.scene}/{self.task} level {self.level} failed to build: {msg}"
+            ) from e
 
     def _setup_indices(self) -> None:
         import torch
@@ -234,17 +243,27 @@ class LiberoSceneEnv(gym.Env):
         self._states = np.asarray(torch.load(str(self.info.init_path), weights_only=False))
         n = 1 + sim.model.nq + sim.model.nv
         if self._states.ndim != 2 or self._states.shape[1] != n:
-            raise SceneError(f"LIBERO init states {self.info.init_path} have shape {self._states.shape}, the model "
-                             f"needs (N, {n}); the asset tree at {self.assets} does not match this task")
+            raise SceneError(
+                f"LIBERO init states {self.info.init_path} have shape {self._states.shape}, the model "
+                f"needs (N, {n}); the asset tree at {self.assets} does not match this task"
+            )
         objs = self._env.env.objects_dict
-        self._qpos = {k: sim.model.get_joint_qpos_addr(objs[k].joints[-1])[0] for k in (self.info.pick, self.info.goal)}
+        self._qpos = {
+            k: sim.model.get_joint_qpos_addr(objs[k].joints[-1])[0] for k in (self.info.pick, self.info.goal)
+        }
         m = sim.model._model
         root = m.body_rootid
 
         def geoms(inst: str) -> np.ndarray:
             b = sim.model.body_name2id(objs[inst].root_body)
-            return np.array([g for g in range(m.ngeom) if root[m.geom_bodyid[g]] == b
-                             and (m.geom_contype[g] or m.geom_conaffinity[g])], dtype=int)
+            return np.array(
+                [
+                    g
+                    for g in range(m.ngeom)
+                    if root[m.geom_bodyid[g]] == b and (m.geom_contype[g] or m.geom_conaffinity[g])
+                ],
+                dtype=int,
+            )
 
         self._pick_body = sim.model.body_name2id(objs[self.info.pick].root_body)
         self._goal_body = sim.model.body_name2id(objs[self.info.goal].root_body)
@@ -257,8 +276,10 @@ class LiberoSceneEnv(gym.Env):
     def _support(self) -> Support:
         p, g = 1 + self._qpos[self.info.pick] + 1, 1 + self._qpos[self.info.goal] + 1
         dp, dg = self.shift
-        return Support((float(self._states[:, p].min() + dp), float(self._states[:, p].max() + dp)),
-                       (float(self._states[:, g].min() + dg), float(self._states[:, g].max() + dg)))
+        return Support(
+            (float(self._states[:, p].min() + dp), float(self._states[:, p].max() + dp)),
+            (float(self._states[:, g].min() + dg), float(self._states[:, g].max() + dg)),
+        )
 
     def _check_progression(self) -> None:
         """Condition 2 against T0's actual support (LIBERO's fixed states), for pick_y and goal_y components."""
@@ -294,8 +315,12 @@ class LiberoSceneEnv(gym.Env):
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False
-        return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed,
-                                     "init_state": self.init_index}
+        return self._observation(), {
+            "success": False,
+            "step": 0,
+            "seed": self.episode_seed,
+            "init_state": self.init_index,
+        }
 
     def _reset_sim(self, seed: int, tries: int = 20) -> None:
         from robosuite.utils.errors import RandomizationError
@@ -307,8 +332,10 @@ class LiberoSceneEnv(gym.Env):
                 return
             except RandomizationError:
                 continue
-        raise SceneError(f"{self.scene}/{self.task} level {self.level}: LIBERO could not place the objects in "
-                         f"the moved regions ({tries} tries); use a smaller level")
+        raise SceneError(
+            f"{self.scene}/{self.task} level {self.level}: LIBERO could not place the objects in "
+            f"the moved regions ({tries} tries); use a smaller level"
+        )
 
     def _level_state(self, i: int) -> np.ndarray:
         """LIBERO's fixed initial state ``i`` with the pick object and basket translated like their regions."""
@@ -333,56 +360,54 @@ class LiberoSceneEnv(gym.Env):
         """World AABB (min, max corners) of ``geoms``."""
         m, d = self._env.sim.model._model, self._env.sim.data._data
         signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        pts = [d.geom_xpos[g] + (d.geom_xmat[g].reshape(3, 3) @ (m.geom_aabb[g][:3] + signs * m.geom_aabb[g][3:]).T).T
-               for g in geoms]
+        pts = [
+            d.geom_xpos[g]
+            + (d.geom_xmat[g].reshape(3, 3) @ (m.geom_aabb[g][:3] + signs * m.geom_aabb[g][3:]).T).T
+            for g in geoms
+        ]
         allp = np.concatenate(pts)
         return allp.min(axis=0), allp.max(axis=0)
 
-    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
-        if self._done:
-            raise SceneError("step() after the episode ended; call reset() first")
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
-            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
-        self._raw, _, _, _ = self._env.step(np.clip(a, -1.0, 1.0))
-        self._t += 1
-        success = bool(self._env.check_success())
-        truncated = (not success) and self._t >= self.max_steps
-        self._done = success or truncated
-        return self._observation(), float(success), success, truncated, {"success": success, "step": self._t}
-
-    def render(self) -> np.ndarray:
-        return self.render_frame()
-
-    def close(self) -> None:
-        for r in self._renderers.values():
-            r.close()
-        self._renderers.clear()
-        if getattr(self, "_env", None) is not None:
-            self._env.close()
-            self._env = None
-
+    # ---- the hf-libero backend --------------------------------------------------------------------
     @property
-    def steps(self) -> int:
-        return self._t
+    def _env(self):
+        """LIBERO's ``OffScreenRenderEnv``/``ControlEnv`` (None once closed)."""
+        return self._sim_env
 
-    # ---- observations, privileged state, video -------------------------------------------------
+    def _advance(self, action: np.ndarray) -> bool:
+        self._raw, _, _, _ = self._env.step(action)
+        return bool(self._env.check_success())
+
+    # ---- observations and privileged state -------------------------------------------------------
     def _observation(self) -> Observation:
         from robosuite.utils.transform_utils import quat2axisangle
 
         raw = self._raw
-        images = {c: np.ascontiguousarray(raw[f"{CAMERA_NAMES[c]}_image"], dtype=np.uint8) for c in self.cameras}
-        state = np.concatenate([raw["robot0_eef_pos"], quat2axisangle(np.array(raw["robot0_eef_quat"])),
-                                raw["robot0_gripper_qpos"]]).astype(np.float32)
-        return Observation(images=images, state=state, instruction=self.instruction,
-                           extras={"step": self._t, "init_state": self.init_index})
+        images = {
+            c: np.ascontiguousarray(raw[f"{CAMERA_NAMES[c]}_image"], dtype=np.uint8) for c in self.cameras
+        }
+        state = np.concatenate(
+            [
+                raw["robot0_eef_pos"],
+                quat2axisangle(np.array(raw["robot0_eef_quat"])),
+                raw["robot0_gripper_qpos"],
+            ]
+        ).astype(np.float32)
+        return Observation(
+            images=images,
+            state=state,
+            instruction=self.instruction,
+            extras={"step": self._t, "init_state": self.init_index},
+        )
 
     def _touching(self, a: np.ndarray, b: np.ndarray) -> bool:
         d = self._env.sim.data._data
         if d.ncon == 0:
             return False
         g = d.contact.geom[: d.ncon]
-        return bool(np.any((np.isin(g[:, 0], a) & np.isin(g[:, 1], b)) | (np.isin(g[:, 1], a) & np.isin(g[:, 0], b))))
+        return bool(
+            np.any((np.isin(g[:, 0], a) & np.isin(g[:, 1], b)) | (np.isin(g[:, 1], a) & np.isin(g[:, 0], b)))
+        )
 
     def privileged_state(self) -> dict:
         """Poses, extents and contacts for the oracle (never shown to learned policies)."""
@@ -406,29 +431,19 @@ class LiberoSceneEnv(gym.Env):
             "eef_pos": np.array(d.site_xpos[robot.eef_site_id]),
             "eef_mat": np.array(d.site_xmat[robot.eef_site_id]).reshape(3, 3),
             "gripper_qpos": np.array(d.qpos[robot._ref_gripper_joint_pos_indexes]),
-            "pick_pos": pick_pos, "pick_quat_wxyz": np.array(d.body_xquat[self._pick_body]),
-            "pick_linvel": np.array(d.qvel[qv:qv + 3]), "pick_bottom": bottom, "pick_top": top,
+            "pick_pos": pick_pos,
+            "pick_quat_wxyz": np.array(d.body_xquat[self._pick_body]),
+            "pick_linvel": np.array(d.qvel[qv : qv + 3]),
+            "pick_bottom": bottom,
+            "pick_top": top,
             "pick_half_width": float(max(hi[:2] - lo[:2]) / 2),
             "pick_touching_gripper": self._touching(self._finger_geoms, self._pick_geoms),
-            "goal_pos": goal_pos, "goal_quat_wxyz": np.array(d.body_xquat[self._goal_body]),
-            "goal_top": float(ghi[2]), "place_xy": np.array(place_xy), "place_bottom": floor + 0.012,
-            "clear_z": float(ghi[2]), "grasp_z": float(grasp), "success": bool(self._env.check_success()),
+            "goal_pos": goal_pos,
+            "goal_quat_wxyz": np.array(d.body_xquat[self._goal_body]),
+            "goal_top": float(ghi[2]),
+            "place_xy": np.array(place_xy),
+            "place_bottom": floor + 0.012,
+            "clear_z": float(ghi[2]),
+            "grasp_z": float(grasp),
+            "success": bool(self._env.check_success()),
         }
-
-    def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
-        """One upright uint8 HxWx3 frame from ``camera`` for videos (observations stay in raw orientation)."""
-        import mujoco
-
-        if camera not in CAMERA_NAMES:
-            raise ConfigError(f"unknown camera {camera!r}; cameras are {list(CAMERA_NAMES)}")
-        size = _check_size(size, "frame size")
-        model = self._env.sim.model._model
-        renderer = self._renderers.get(size)
-        if renderer is None:
-            model.vis.global_.offwidth = max(model.vis.global_.offwidth, size[1])
-            model.vis.global_.offheight = max(model.vis.global_.offheight, size[0])
-            renderer = self._renderers[size] = mujoco.Renderer(model, height=size[0], width=size[1])
-        opt = mujoco.MjvOption()
-        opt.geomgroup[0] = 0
-        renderer.update_scene(self._env.sim.data._data, camera=CAMERA_NAMES[camera], scene_option=opt)
-        return np.ascontiguousarray(renderer.render())

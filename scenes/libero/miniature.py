@@ -1,8 +1,9 @@
-"""A miniature LIBERO asset tree: LIBERO's file names and layout with plain boxes, enough for LIBERO-Object.
+"""A miniature LIBERO asset tree: LIBERO's file names and layout with plain boxes, for LIBERO-Object and -Spatial.
 
-Used by the tests (and for smoke-testing a machine without the Hub download): every LIBERO-Object task builds,
-steps, renders and loads its fixed initial states on it. Objects are 4 cm cubes (any of LIBERO's quarter-turn
-placements leaves them upright) with a small box mesh as the visual; the basket keeps LIBERO's wall layout.
+Used by the tests (and for smoke-testing a machine without the Hub download): every LIBERO-Object and
+LIBERO-Spatial task builds, steps, renders and loads its fixed initial states on it. Objects are 4 cm cubes
+(any of LIBERO's quarter-turn placements leaves them upright) with a small box mesh as the visual; the basket keeps
+LIBERO's wall layout; Spatial's fixtures are in ``miniature_spatial``.
 """
 
 from __future__ import annotations
@@ -12,15 +13,26 @@ import zlib
 from pathlib import Path
 
 HOPE_OBJECTS = {  # LIBERO-Object's grocery items -> an RGB for their miniature
-    "alphabet_soup": (0.85, 0.2, 0.15), "bbq_sauce": (0.45, 0.2, 0.1), "butter": (0.95, 0.85, 0.3),
-    "chocolate_pudding": (0.4, 0.25, 0.15), "cream_cheese": (0.85, 0.9, 0.95), "ketchup": (0.8, 0.1, 0.1),
-    "milk": (0.95, 0.95, 0.95), "orange_juice": (1.0, 0.6, 0.1), "salad_dressing": (0.5, 0.7, 0.3),
+    "alphabet_soup": (0.85, 0.2, 0.15),
+    "bbq_sauce": (0.45, 0.2, 0.1),
+    "butter": (0.95, 0.85, 0.3),
+    "chocolate_pudding": (0.4, 0.25, 0.15),
+    "cream_cheese": (0.85, 0.9, 0.95),
+    "ketchup": (0.8, 0.1, 0.1),
+    "milk": (0.95, 0.95, 0.95),
+    "orange_juice": (1.0, 0.6, 0.1),
+    "salad_dressing": (0.5, 0.7, 0.3),
     "tomato_sauce": (0.75, 0.15, 0.2),
 }
 CUBE_HALF = 0.02
 _GEOM = 'solimp="0.998 0.998 0.001" solref="0.001 1" density="100" friction="0.95 0.3 0.1"'
-TEXTURES = ("light-gray-floor-tile.png", "light-gray-plaster.png", "tile_grigia_caldera_porcelain_floor.png",
-            "smooth_light_gray_plaster.png", "martin_novak_wood_table.png")
+TEXTURES = (
+    "light-gray-floor-tile.png",
+    "light-gray-plaster.png",
+    "tile_grigia_caldera_porcelain_floor.png",
+    "smooth_light_gray_plaster.png",
+    "martin_novak_wood_table.png",
+)
 
 ARENA = """<mujoco model="table_arena">
   <asset>
@@ -98,8 +110,22 @@ BASKET = """<mujoco model="basket">
 """
 
 CUBE_OBJ = "".join(f"v {x} {y} {z}\n" for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)) + "".join(
-    f"f {a} {b} {c}\n" for a, b, c in ((1, 3, 4), (1, 4, 2), (5, 6, 8), (5, 8, 7), (1, 2, 6), (1, 6, 5),
-                                       (3, 7, 8), (3, 8, 4), (1, 5, 7), (1, 7, 3), (2, 4, 8), (2, 8, 6)))
+    f"f {a} {b} {c}\n"
+    for a, b, c in (
+        (1, 3, 4),
+        (1, 4, 2),
+        (5, 6, 8),
+        (5, 8, 7),
+        (1, 2, 6),
+        (1, 6, 5),
+        (3, 7, 8),
+        (3, 8, 4),
+        (1, 5, 7),
+        (1, 7, 3),
+        (2, 4, 8),
+        (2, 8, 6),
+    )
+)
 
 
 def png(rgb: tuple[float, float, float], size: int = 8) -> bytes:
@@ -108,17 +134,29 @@ def png(rgb: tuple[float, float, float], size: int = 8) -> bytes:
     raw = b"".join(b"\x00" + px * size for _ in range(size))
 
     def chunk(tag: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+        return (
+            struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+        )
 
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw))
+        + chunk(b"IEND", b"")
+    )
 
 
 def write_miniature_assets(root: str | Path) -> Path:
     """Write the miniature tree under ``root`` (idempotent) and return it; use it as $INDGEN_LIBERO_ASSETS."""
     root = Path(root)
-    for sub in ("scenes", "textures", "stable_hope_objects", "stable_scanned_objects/basket", "turbosquid_objects",
-                "articulated_objects"):
+    for sub in (
+        "scenes",
+        "textures",
+        "stable_hope_objects",
+        "stable_scanned_objects/basket",
+        "turbosquid_objects",
+        "articulated_objects",
+    ):
         (root / sub).mkdir(parents=True, exist_ok=True)
     (root / "scenes" / "libero_floor_base_style.xml").write_text(ARENA)
     for i, name in enumerate(TEXTURES):
@@ -132,4 +170,7 @@ def write_miniature_assets(root: str | Path) -> Path:
     basket = root / "stable_scanned_objects" / "basket"
     (basket / "basket.xml").write_text(BASKET.format(g=_GEOM))
     (basket / "texture.png").write_bytes(png((0.6, 0.45, 0.25)))
+    from scenes.libero.miniature_spatial import write_spatial_assets
+
+    write_spatial_assets(root)
     return root

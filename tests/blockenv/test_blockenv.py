@@ -100,7 +100,9 @@ def test_training_reduces_the_loss(method):
     from indgen_vla.blockenv.train import TrainConfig, train
 
     losses = []
-    train(TrainConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v))
+    train(
+        TrainConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v)
+    )
     assert np.mean(losses[-5:]) < np.mean(losses[:5])
 
 
@@ -113,3 +115,32 @@ def test_reproduce_writes_table1(tmp_path):
     assert set(table) == {*BASELINES, "local_equivariant", "oracle"}
     assert table["oracle"]["levels"]["3"]["rate"] == 1.0 and table["oracle"]["break_level"] is None
     assert (tmp_path / "table1.png").stat().st_size > 0 and "| ind |" in (tmp_path / "table1.md").read_text()
+
+
+def test_reproduce_results_do_not_depend_on_workers(tmp_path):
+    from indgen_vla.blockenv.reproduce import ReproduceConfig, reproduce
+
+    cfg = ReproduceConfig(seeds=(0, 1), eval_levels=(0, 1, 2), episodes=6, steps=20, demos_per_level=10,
+                          methods=("rnn", "trm"))  # fmt: skip
+    one = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1)["methods"]
+    two = reproduce(cfg, tmp_path / "w2", log=lambda m: None, workers=2)["methods"]
+    assert one == two
+
+
+def test_trm_reads_its_answer_off_the_whole_grid():
+    """Patch tokens must still address every cell, including those of a partial last patch (G = 11)."""
+    import torch
+
+    from indgen_vla.blockenv.models.recursive import TRMPolicy
+
+    torch.manual_seed(0)
+    model = TRMPolicy(grid=11, d=32, patch=3)
+    with torch.no_grad():
+        model.out.bias.zero_()
+        model.out.weight.zero_()
+        model.out.bias[-1] = 5.0  # the last cell of every patch, θ = 1
+    obs = torch.zeros(1, 1, 11, 11, dtype=torch.long)
+    joint = model(obs, torch.zeros(1, dtype=torch.long))["joint"]
+    assert joint.shape == (1, 1, 11, 11, 2)
+    hot = torch.nonzero(joint[0, 0] > 1).tolist()
+    assert sorted(hot) == [[r, c, 1] for r in (2, 5, 8) for c in (2, 5, 8)]

@@ -49,7 +49,7 @@ METHODS = {
     "transformer": "causal Transformer with learned absolute positions, whole history each step",
     "transformer_rope": "causal pre-norm Transformer with rotary position embeddings",
     "transformer_goal_act": "RoPE Transformer + o_0 goal token + previous action in each token",
-    "trm": "Tiny Recursive Model: latent z and answer y refined recursively, deep supervision, halting",
+    "trm": "Tiny Recursive Model on 3x3-patch tokens: latent z and answer y refined recursively, deep supervision",
     "maml": "first-order MAML over levels 0-2, one inner step (alpha 0.05), adapted on the test level",
     "ind": "RoPE Transformer + analytic legality head + factored joint head, masked and gated",
     "local_equivariant": "ours: fully convolutional local scorer of (cell, θ), translation-equivariant",
@@ -66,7 +66,7 @@ def build_model(method: str, grid: int, hidden: int = 128) -> nn.Module:
         "transformer_rope": lambda: sequence.TransformerPolicy(grid, hidden, rope=True),
         "transformer_goal_act": lambda: sequence.TransformerPolicy(grid, hidden, rope=True, goal_act=True),
         "ind": lambda: sequence.IndPolicy(grid, hidden),
-        "trm": lambda: recursive.TRMPolicy(grid, max(32, hidden // 2)),
+        "trm": lambda: recursive.TRMPolicy(grid, hidden),
         "maml": lambda: local.StepMLPPolicy(grid, hidden * 2),
         "local_equivariant": lambda: local.LocalConvPolicy(),
     }
