@@ -47,6 +47,7 @@ class OraclePolicy:
     def reset(self, instruction: str, seed: int | None = None) -> None:
         self._phase, self._count, self._retries, self._trace = "approach", 0, 0, []
         self._offset = 0.0
+        self._start_bottom = -np.inf  # the pick's bottom when grasped: what it rested on must be cleared too
         self._hold: np.ndarray | None = None
         self.seed = seed
 
@@ -82,7 +83,7 @@ class OraclePolicy:
         self._count += 1
         eef, pick = s["eef_pos"], s["pick_pos"]
         travel_z = max(s["pick_top"], s["clear_z"]) + 0.07
-        loaded_z = s["clear_z"] + 0.045 + self._offset
+        loaded_z = max(s["clear_z"], self._start_bottom) + 0.045 + self._offset
         phase = self._phase
         if phase in ("lift", "transport", "lower") and not s["pick_touching_gripper"] and self._count > 3:
             if self._retries < self.max_retries:  # dropped it: start over from the top
@@ -113,6 +114,7 @@ class OraclePolicy:
                 self._hold = np.array([pick[0], pick[1], s["grasp_z"]])
             if self._count >= 8:
                 self._offset = float(eef[2] - s["pick_bottom"])
+                self._start_bottom = float(s["pick_bottom"])
                 self._next("lift")
             return self._goto(s, self._hold, 1.0)
         if phase == "lift":

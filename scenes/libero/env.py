@@ -254,8 +254,8 @@ class LiberoSceneEnv(BaseSceneEnv):
         m = sim.model._model
         root = m.body_rootid
 
-        def geoms(inst: str) -> np.ndarray:
-            b = sim.model.body_name2id(objs[inst].root_body)
+        def geoms(inst: str, table: dict = objs) -> np.ndarray:
+            b = sim.model.body_name2id(table[inst].root_body)
             return np.array(
                 [
                     g
@@ -268,6 +268,10 @@ class LiberoSceneEnv(BaseSceneEnv):
         self._pick_body = sim.model.body_name2id(objs[self.info.pick].root_body)
         self._goal_body = sim.model.body_name2id(objs[self.info.goal].root_body)
         self._pick_geoms, self._goal_geoms = geoms(self.info.pick), geoms(self.info.goal)
+        # everything the carried object must clear on its way: other objects and the fixtures (cabinet, stove)
+        fixtures = self._env.env.fixtures_dict
+        self._other_geoms = [geoms(i) for i in objs if i not in (self.info.pick, self.info.goal)]
+        self._other_geoms += [geoms(i, fixtures) for i in fixtures]
         gripper = self._env.robots[0].gripper
         self._finger_geoms = np.array([sim.model.geom_name2id(g) for g in gripper.contact_geoms], dtype=int)
         site = f"{self.info.goal}_contain_region"
@@ -356,6 +360,17 @@ class LiberoSceneEnv(BaseSceneEnv):
     def _lowest(self, geoms: np.ndarray) -> float:
         return float(self._extent(geoms)[0][2])
 
+    def _corridor_top(self, start: np.ndarray, end: np.ndarray, margin: float) -> float:
+        """Highest top of the other objects and fixtures whose footprint (+ margin) meets the segment start→end."""
+        pts = start[None] + np.linspace(0.0, 1.0, 21)[:, None] * (np.asarray(end) - start)[None]
+        top = -np.inf
+        for g in self._other_geoms:
+            if len(g):
+                lo, hi = self._extent(g)
+                if np.any(np.all((pts >= lo[:2] - margin) & (pts <= hi[:2] + margin), axis=1)):
+                    top = max(top, float(hi[2]))
+        return top
+
     def _extent(self, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World AABB (min, max corners) of ``geoms``."""
         m, d = self._env.sim.model._model, self._env.sim.data._data
@@ -426,6 +441,9 @@ class LiberoSceneEnv(BaseSceneEnv):
         else:
             floor, place_xy = float(ghi[2]), goal_pos[:2]
         bottom, top = float(lo[2]), float(hi[2])
+        clear = max(
+            float(ghi[2]), self._corridor_top(pick_pos[:2], place_xy, float(max(hi[:2] - lo[:2]) / 2) + 0.02)
+        )
         grasp = max(min(bottom + 0.5 * (top - bottom), top - 0.012), top - 0.02, bottom + 0.01)
         return {
             "eef_pos": np.array(d.site_xpos[robot.eef_site_id]),
@@ -443,7 +461,7 @@ class LiberoSceneEnv(BaseSceneEnv):
             "goal_top": float(ghi[2]),
             "place_xy": np.array(place_xy),
             "place_bottom": floor + 0.012,
-            "clear_z": float(ghi[2]),
+            "clear_z": clear,
             "grasp_z": float(grasp),
             "success": bool(self._env.check_success()),
         }
