@@ -13,24 +13,7 @@ from torch import nn
 from torch.nn import functional as F  # noqa: N812
 
 from indgen_vla.blockenv.models.base import K_MAX
-
-
-class Block(nn.Module):
-    """Pre-norm bidirectional self-attention + MLP over the puzzle's tokens."""
-
-    def __init__(self, d: int, heads: int = 4):
-        super().__init__()
-        self.h = heads
-        self.n1, self.n2 = nn.LayerNorm(d), nn.LayerNorm(d)
-        self.qkv, self.proj = nn.Linear(d, 3 * d), nn.Linear(d, d)
-        self.ff = nn.Sequential(nn.Linear(d, 2 * d), nn.GELU(), nn.Linear(2 * d, d))
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        b, t, d = x.shape
-        q, k, v = self.qkv(self.n1(x)).view(b, t, 3, self.h, d // self.h).permute(2, 0, 3, 1, 4)
-        a = F.scaled_dot_product_attention(q, k, v)
-        x = x + self.proj(a.transpose(1, 2).reshape(b, t, d))
-        return x + self.ff(self.n2(x))
+from indgen_vla.blockenv.models.sequence import PreNormBlock
 
 
 class TRMPolicy(nn.Module):
@@ -53,7 +36,8 @@ class TRMPolicy(nn.Module):
         self.cell = nn.Linear(3 * patch * patch, d)
         self.pos = nn.Parameter(torch.randn(self.side * self.side + 1, d) * 0.02)
         self.goal = nn.Linear(1, d)
-        self.f = nn.Sequential(Block(d), Block(d))  # 2 blocks shared by the z and y updates
+        # 2 bidirectional blocks shared by the z and y updates; positions come from self.pos
+        self.f = nn.Sequential(*(PreNormBlock(d, ff_mult=2, rope=False, causal=False) for _ in range(2)))
         self.y0, self.z0 = nn.Parameter(torch.zeros(d)), nn.Parameter(torch.zeros(d))
         self.out = nn.Linear(d, 2 * patch * patch)
         self.halt = nn.Linear(d, 1)

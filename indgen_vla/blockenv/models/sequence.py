@@ -43,21 +43,22 @@ def rope(q: torch.Tensor, k: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return q * cos + rotate_half(q) * sin, k * cos + rotate_half(k) * sin
 
 
-class RopeBlock(nn.Module):
-    """Pre-norm causal self-attention + MLP with rotary positions inside each head."""
+class PreNormBlock(nn.Module):
+    """Pre-norm self-attention + MLP; rotary positions and a causal mask for histories, neither for puzzles (TRM)."""
 
-    def __init__(self, d: int, heads: int = 4):
+    def __init__(self, d: int, heads: int = 4, ff_mult: int = 4, rope: bool = True, causal: bool = True):
         super().__init__()
-        self.h = heads
+        self.h, self.rope, self.causal = heads, rope, causal
         self.n1, self.n2 = nn.LayerNorm(d), nn.LayerNorm(d)
         self.qkv, self.proj = nn.Linear(d, 3 * d), nn.Linear(d, d)
-        self.ff = nn.Sequential(nn.Linear(d, 4 * d), nn.GELU(), nn.Linear(4 * d, d))
+        self.ff = nn.Sequential(nn.Linear(d, ff_mult * d), nn.GELU(), nn.Linear(ff_mult * d, d))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         b, t, d = x.shape
         q, k, v = self.qkv(self.n1(x)).view(b, t, 3, self.h, d // self.h).permute(2, 0, 3, 1, 4)
-        q, k = rope(q, k)
-        a = F.scaled_dot_product_attention(q, k, v, is_causal=True)
+        if self.rope:
+            q, k = rope(q, k)
+        a = F.scaled_dot_product_attention(q, k, v, is_causal=self.causal)
         x = x + self.proj(a.transpose(1, 2).reshape(b, t, d))
         return x + self.ff(self.n2(x))
 
@@ -78,7 +79,7 @@ class TransformerPolicy(nn.Module):
         d_in = 2 * grid * grid + 1 + (3 if goal_act else 0)
         self.enc = mlp(d_in, d)
         if rope:
-            self.blocks = nn.ModuleList(RopeBlock(d) for _ in range(layers))
+            self.blocks = nn.ModuleList(PreNormBlock(d) for _ in range(layers))
             self.norm = nn.LayerNorm(d)
         else:
             self.pos = nn.Parameter(torch.randn(MAX_LEN, d) * 0.02)
