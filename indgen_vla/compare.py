@@ -57,14 +57,21 @@ def verdict(result: dict, label_a: str, label_b: str, alpha: float = 0.05) -> st
 
 
 def _k(b: dict) -> str:
-    def one(k):
-        return "none in range" if k is None else f"L{k}"
+    """Break levels as "+2 / −3" (signed axes: positive side / negative side) or "3"; "none" when none in range."""
 
-    return f"+{one(b['pos'])}/−{one(b['neg'])}" if "neg" in b else one(b["pos"])
+    def one(k, signed: bool) -> str:
+        if k is None:
+            return "none"
+        return f"{k:+d}".replace("-", "−") if signed else str(k)
+
+    if "neg" in b:
+        return f"{one(b['pos'], True)} / {one(b['neg'], True)}"
+    return one(b["pos"], False)
 
 
 def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
     lines = [f"# Comparison: {label_a} (A) vs {label_b} (B)", "",
+             "Break levels k* (first level with success < γ) read \"positive side / negative side\" on signed axes.", "",
              f"Two-sided {result['test'].capitalize()} exact test per level, Holm-corrected per axis.", "",
              f"**Verdict.** {text}", ""]  # fmt: skip
     for axis, ax in result["axes"].items():

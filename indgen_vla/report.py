@@ -65,8 +65,19 @@ def _trend(levels: list[dict], signed: bool) -> dict:
 def run_label(run: RunDir) -> str:
     """The label a run gets in tables and legends: its data regime, else its policy, else its folder."""
     m = run.manifest
-    parts = [p for p in (m.get("data_regime"), m.get("policy")) if p]
+    parts = [p for p in (m.get("data_regime"), _short_spec(m.get("policy"))) if p]
     return " / ".join(parts) if parts else run.path.name
+
+
+def _short_spec(spec: str | None) -> str | None:
+    """A policy spec whose local path lies under the working directory, shown relative to it (shorter labels)."""
+    family, sep, target = (spec or "").partition(":")
+    if not sep or not target.startswith("/"):
+        return spec
+    try:
+        return f"{family}:{Path(target).relative_to(Path.cwd())}"
+    except ValueError:
+        return spec
 
 
 def _fmt_rate(row: dict) -> str:

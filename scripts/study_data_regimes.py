@@ -29,6 +29,23 @@ def _run(cmd: list[str]) -> None:
     subprocess.run(cmd, check=True, cwd=ROOT)
 
 
+def _build(ckpt: Path, args: list[str]) -> None:
+    """Build a stand-in unless an earlier (interrupted) invocation already finished it: re-running resumes."""
+    if (ckpt / "train_info.json").is_file():
+        print(f"[study] {ckpt} exists (train_info.json); skipping its build", flush=True)
+        return
+    _run(args)
+
+
+def _wall(work: Path, seconds: float) -> tuple[float, int]:
+    """Add this invocation's seconds to the study's running total; return (total seconds, invocations)."""
+    path = work / "study_wall.json"
+    runs = json.loads(path.read_text()) if path.is_file() else []
+    runs.append(round(seconds, 1))
+    path.write_text(json.dumps(runs))
+    return sum(runs), len(runs)
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--work", default="runs/study_data_regimes", help="demos, checkpoints and runs go here")
@@ -43,11 +60,12 @@ def main() -> int:
     quick = ["--quick"] if a.quick else []
     n_mg = 2 if a.quick else a.mimicgen
     ckpts = {"h-only": work / "ckpt_h_only", "h+mg": work / "ckpt_h_mg"}
-    _run([py, "scripts/build_standin.py", "--out", str(ckpts["h-only"]), "--work", str(work / "h_only"), *quick])
-    _run([py, "scripts/build_standin.py", "--mimicgen", str(n_mg),
-          "--out", str(ckpts["h+mg"]), "--work", str(work / "h_mg"), *quick])  # fmt: skip
+    _build(ckpts["h-only"], [py, "scripts/build_standin.py", "--out", str(ckpts["h-only"]),
+                             "--work", str(work / "h_only"), *quick])  # fmt: skip
+    _build(ckpts["h+mg"], [py, "scripts/build_standin.py", "--mimicgen", str(n_mg), "--out", str(ckpts["h+mg"]),
+                           "--work", str(work / "h_mg"), *quick])  # fmt: skip
     episodes = 1 if a.quick else a.episodes
-    sections = []
+    sections, verdicts = [], []
     for axis in AXES:
         runs = {}
         for regime, ckpt in ckpts.items():
@@ -57,14 +75,22 @@ def main() -> int:
                   "--data-regime", regime, "--out", str(runs[regime])])  # fmt: skip
         out = work / f"compare_{axis}"
         _run([indgen, "compare", str(runs["h-only"]), str(runs["h+mg"]), "--out", str(out)])
-        sections.append((out / "compare.md").read_text())
-    wall = time.perf_counter() - start
+        verdicts.append(json.loads((out / "compare.json").read_text())["verdict"])
+        # one document: each comparison's headings go one level down
+        sections.append(
+            "\n".join(
+                "#" + ln if ln.startswith("#") else ln for ln in (out / "compare.md").read_text().splitlines()
+            )
+        )
+    wall, invocations = _wall(work, time.perf_counter() - start)
     cards = {r: json.loads((c / "train_info.json").read_text()) for r, c in ckpts.items()}
     text = "\n".join([
         "# Data regimes: human-only vs human+MimicGen (pick_place, state-only ACT)", "",
-        f"`scripts/study_data_regimes.py`, {time.strftime('%Y-%m-%d')}, wall time {wall / 60:.1f} min, "
+        f"`scripts/study_data_regimes.py`, {time.strftime('%Y-%m-%d')}, wall time {wall / 60:.1f} min"
+        + (f" over {invocations} invocations (resumed)" if invocations > 1 else "") + ", "
         f"{episodes} episodes per level, MimicGen episodes added: {n_mg}. Training set sizes: "
         + ", ".join(f"{r}: {c.get('episodes')} episodes" for r, c in cards.items()) + ".", "",
+        "**Result.** " + " ".join(verdicts), "",
         *sections,
     ])  # fmt: skip
     dest = work / "data_regimes.md" if a.quick else ROOT / "docs" / "results" / "data_regimes.md"

@@ -46,3 +46,11 @@ def test_compare_bad_inputs(tmp_path, capsys):
     assert main(["compare", str(a.path), str(tmp_path / "nope")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert main(["compare", str(a.path), str(a.path), "--alpha", "2"]) == 2
+
+
+def test_break_levels_read_as_signed_sides():
+    from indgen_vla.compare import _k
+
+    assert _k({"pos": 2, "neg": -3}) == "+2 / −3"
+    assert _k({"pos": None, "neg": -1}) == "none / −1"
+    assert _k({"pos": 4}) == "4" and _k({"pos": None}) == "none"

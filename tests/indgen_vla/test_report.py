@@ -59,3 +59,13 @@ def test_report_bad_inputs(tmp_path, capsys):
     make_run(tmp_path / "ok", {0: (1, 2)})
     assert main(["report", str(tmp_path / "ok"), "--gamma", "1.5"]) == 2
     assert "--gamma" in capsys.readouterr().err
+
+
+def test_labels_show_local_checkpoints_relative_to_the_working_directory(tmp_path, monkeypatch):
+    from indgen_vla.report import _short_spec
+
+    monkeypatch.chdir(tmp_path)
+    assert _short_spec(f"lerobot:{tmp_path}/ckpts/a") == "lerobot:ckpts/a"
+    assert _short_spec("lerobot:/elsewhere/b") == "lerobot:/elsewhere/b"
+    assert _short_spec("openpi:ws://gpu:8000") == "openpi:ws://gpu:8000"
+    assert _short_spec("lerobot:org/model") == "lerobot:org/model" and _short_spec(None) is None

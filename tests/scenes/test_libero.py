@@ -15,26 +15,16 @@ pytest.importorskip("libero")
 import scenes  # noqa: E402
 from indgen_vla.errors import SceneError  # noqa: E402
 from scenes.libero.bddl import add_fixtures, load_task, parse_regions, shift_region  # noqa: E402
-from scenes.libero.miniature import write_miniature_assets  # noqa: E402
+from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 SCENE = "libero_object"
 
 
-@pytest.fixture(scope="module")
-def mini(tmp_path_factory):
-    """Point the adapter at a freshly generated miniature asset tree (and a private LIBERO config dir)."""
-    root = write_miniature_assets(tmp_path_factory.mktemp("libero_assets"))
-    cache = tmp_path_factory.mktemp("indgen_cache")
-    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
-    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
-    os.environ.pop("LIBERO_CONFIG_PATH", None)
-    yield root
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+def _evaluate(policy, args, env, timeout):
+    """Run ``indgen_vla.cli evaluate`` with ``policy`` and ``args`` on this scene; return the process."""
+    cmd = [sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", policy, "--scene", SCENE, *args]
+    return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
 
 
 def _env(axis="pick_y", level=0, **kw):
@@ -45,14 +35,19 @@ def _env(axis="pick_y", level=0, **kw):
 def test_registry_without_simulator():
     assert SCENE in scenes.scene_names()
     tasks = scenes.tasks(SCENE)
-    assert len(tasks) == 10 and tasks[0] == "alphabet_soup" and tasks[-1] == "orange_juice"  # lerobot task_id order
+    # lerobot task_id order
+    assert len(tasks) == 10 and tasks[0] == "alphabet_soup" and tasks[-1] == "orange_juice"
     assert set(scenes.axes_for(SCENE)) == {"pick_y", "goal_y", "scale", "distractor"}
     assert scenes.level_param(SCENE, None, "pick_y", 2) == pytest.approx(-0.24 + 0.05)
     assert scenes.level_param(SCENE, "milk", "goal_y", -3) == pytest.approx(0.26 - 3 * 0.0367)
     assert scenes.level_param(SCENE, None, "scale", 3) == pytest.approx(1.2001)
     t = load_task(SCENE, "alphabet_soup")
-    assert (t.pick, t.goal, t.pick_region, t.goal_region) == ("alphabet_soup_1", "basket_1", "target_object_region",
-                                                              "bin_region")
+    assert (t.pick, t.goal, t.pick_region, t.goal_region) == (
+        "alphabet_soup_1",
+        "basket_1",
+        "target_object_region",
+        "bin_region",
+    )
     assert t.language == "pick up the alphabet soup and place it in the basket"
 
 
@@ -70,9 +65,8 @@ def test_missing_assets_is_one_line(tmp_path, monkeypatch):
     with pytest.raises(SceneError, match="INDGEN_LIBERO_ASSETS") as e:
         scenes.check_ready(SCENE)
     assert "\n" not in str(e.value) and "hf download lerobot/libero-assets" in str(e.value)
-    r = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", "standin:noop", "--scene",
-                        SCENE, "--axis", "pick_y", "--out", str(tmp_path / "run")], capture_output=True, text=True,
-                       env={**os.environ, "INDGEN_LIBERO_ASSETS": str(tmp_path)}, timeout=120)
+    env = {**os.environ, "INDGEN_LIBERO_ASSETS": str(tmp_path)}
+    r = _evaluate("standin:noop", ["--axis", "pick_y", "--out", str(tmp_path / "run")], env=env, timeout=120)
     lines = [ln for ln in r.stderr.splitlines() if ln.startswith("error:")]
     assert r.returncode != 0 and len(lines) == 1 and "LIBERO's assets" in lines[0], r.stderr[-2000:]
 
@@ -86,10 +80,19 @@ def test_level0_matches_lerobot_libero_env(mini):
     from lerobot.envs.libero import LiberoEnv, _get_suite
 
     env = _env(cameras=("agentview", "wrist"), image_size=(32, 32))
-    ref = LiberoEnv(_get_suite(SCENE), 0, SCENE, obs_type="pixels_agent_pos", observation_width=32,
-                    observation_height=32, episode_index=3)
+    ref = LiberoEnv(
+        _get_suite(SCENE),
+        0,
+        SCENE,
+        obs_type="pixels_agent_pos",
+        observation_width=32,
+        observation_height=32,
+        episode_index=3,
+    )
     try:
-        assert isinstance(env, LiberoSceneEnv) and env.bddl_file == load_task(SCENE, "alphabet_soup").bddl_path
+        assert (
+            isinstance(env, LiberoSceneEnv) and env.bddl_file == load_task(SCENE, "alphabet_soup").bddl_path
+        )
         assert env.max_steps == ref._max_episode_steps == 280 and env.instruction == ref.task_description
         obs, info = env.reset(seed=11, options={"episode": 3})
         robs, _ = ref.reset(seed=11)
@@ -101,24 +104,24 @@ def test_level0_matches_lerobot_libero_env(mini):
         eef, grip = robs["robot_state"]["eef"], robs["robot_state"]["gripper"]["qpos"]
         want = np.concatenate([eef["pos"], quat2axisangle(eef["quat"]), grip]).astype(np.float32)
         np.testing.assert_allclose(obs.state, want, atol=1e-6)
-        a = np.array([0.3, -0.2, 0.1, 0.0, 0.0, 0.1, 1.0], dtype=np.float32)
-        for _ in range(3):
-            obs, *_ = env.step(a)
-            robs, *_ = ref.step(a)
-        np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
+        assert_steps_match(env, ref, [0.3, -0.2, 0.1, 0.0, 0.0, 0.1, 1.0])
     finally:
         env.close()
         ref.close()
 
 
-@pytest.mark.parametrize(("axis", "level"), [("pick_y", 3), ("goal_y", -3), ("scale", 3), ("distractor", 4),
-                                             ("pick_y+distractor", -3)])
+@pytest.mark.parametrize(
+    ("axis", "level"),
+    [("pick_y", 3), ("goal_y", -3), ("scale", 3), ("distractor", 4), ("pick_y+distractor", -3)],
+)
 def test_axes_build_step_and_change_one_thing(mini, axis, level):
     from indgen_vla.progression import check_single_axis
 
     env, base = _env(axis, level, max_steps=2), _env(axis, 0)
     try:
-        fields = [p.axis.field for p in getattr(scenes.get_successor(axis), "parts", [scenes.get_successor(axis)])]
+        fields = [
+            p.axis.field for p in getattr(scenes.get_successor(axis), "parts", [scenes.get_successor(axis)])
+        ]
         check_single_axis(base.spec, env.spec, fields, axis)
         assert env.success_predicate is base.success_predicate
         env.reset(seed=1, options={"episode": 5})
@@ -127,14 +130,17 @@ def test_axes_build_step_and_change_one_thing(mini, axis, level):
         diff = np.flatnonzero(env._level_state(5) != base._level_state(5))
         dpick, dgoal = env.shift
         if axis.startswith("pick_y"):
-            assert s["pick_pos"][1] - s0["pick_pos"][1] == pytest.approx(dpick, abs=2e-3) and dpick == pytest.approx(0.025 * level)
+            assert s["pick_pos"][1] - s0["pick_pos"][1] == pytest.approx(dpick, abs=2e-3)
+            assert dpick == pytest.approx(0.025 * level)
             assert list(diff) == [1 + env._qpos[env.info.pick] + 1]
         if axis == "goal_y":
             assert s["goal_pos"][1] - s0["goal_pos"][1] == pytest.approx(dgoal, abs=2e-3)
             assert list(diff) == [1 + env._qpos[env.info.goal] + 1]
         if axis == "scale":
             assert s["pick_bottom"] == pytest.approx(s0["pick_bottom"], abs=2e-3)
-            assert (s["pick_top"] - s["pick_bottom"]) / (s0["pick_top"] - s0["pick_bottom"]) == pytest.approx(1.2, abs=0.01)
+            assert (s["pick_top"] - s["pick_bottom"]) / (s0["pick_top"] - s0["pick_bottom"]) == pytest.approx(
+                1.2, abs=0.01
+            )
         if "distractor" in axis:
             names = [n for n in env._env.sim.model.body_names if n.startswith("indgen_distractor_")]
             assert len({n.split("_main")[0] for n in names}) == abs(level)
@@ -176,9 +182,8 @@ def test_oracle_certifies_extreme_levels(mini):
 
 def test_evaluate_cli_with_oracle(mini, tmp_path):
     out = tmp_path / "run"
-    r = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", "standin:oracle", "--scene",
-                        SCENE, "--axis", "scale", "--levels", "-3,3", "--episodes", "1", "--out", str(out)],
-                       capture_output=True, text=True, env=dict(os.environ), timeout=300)
+    args = ["--axis", "scale", "--levels", "-3,3", "--episodes", "1", "--out", str(out)]
+    r = _evaluate("standin:oracle", args, env=dict(os.environ), timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     import pandas as pd
 
@@ -187,8 +192,10 @@ def test_evaluate_cli_with_oracle(mini, tmp_path):
 
 
 @pytest.mark.real_assets
-@pytest.mark.skipif(not (os.environ.get("INDGEN_LIBERO_ASSETS") or os.environ.get("LIBERO_ASSETS")),
-                    reason="set INDGEN_LIBERO_ASSETS to LIBERO's real asset folder")
+@pytest.mark.skipif(
+    not (os.environ.get("INDGEN_LIBERO_ASSETS") or os.environ.get("LIBERO_ASSETS")),
+    reason="set INDGEN_LIBERO_ASSETS to LIBERO's real asset folder",
+)
 def test_real_assets_level0_and_oracle():
     """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""
     from scenes.certify import certify

@@ -3,8 +3,6 @@ lerobot's LiberoEnv, the scale (bowl resting on another object) and distractor l
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -13,27 +11,11 @@ pytest.importorskip("libero")
 import scenes  # noqa: E402
 from indgen_vla.errors import UnknownNameError  # noqa: E402
 from scenes.libero.bddl import load_task  # noqa: E402
-from scenes.libero.miniature import write_miniature_assets  # noqa: E402
+from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 SCENE = "libero_spatial"
 DRAWER = "in_the_top_drawer_of_the_wooden_cabinet"
-
-
-@pytest.fixture(scope="module")
-def mini(tmp_path_factory):
-    """Point the adapter at a freshly generated miniature asset tree (and a private LIBERO config dir)."""
-    root = write_miniature_assets(tmp_path_factory.mktemp("libero_assets"))
-    cache = tmp_path_factory.mktemp("indgen_cache")
-    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
-    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
-    os.environ.pop("LIBERO_CONFIG_PATH", None)
-    yield root
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
 
 
 def _env(axis="scale", level=0, **kw):
@@ -110,11 +92,7 @@ def test_level0_matches_lerobot_libero_env(mini):
         assert (
             sim.data.qpos[sim.model.get_joint_qpos_addr("wooden_cabinet_1_top_level")] < -0.14
         )  # drawer open
-        a = np.array([0.2, 0.1, -0.1, 0.0, 0.0, 0.0, 1.0], dtype=np.float32)
-        for _ in range(3):
-            obs, *_ = env.step(a)
-            robs, *_ = ref.step(a)
-        np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
+        assert_steps_match(env, ref, [0.2, 0.1, -0.1, 0.0, 0.0, 0.0, 1.0])
     finally:
         env.close()
         ref.close()

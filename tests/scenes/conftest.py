@@ -1,0 +1,35 @@
+"""Shared fixtures and checks for the scene tests."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def mini(tmp_path_factory):
+    """Point the adapter at a freshly generated miniature asset tree (and a private LIBERO config dir)."""
+    from scenes.libero.miniature import write_miniature_assets
+
+    root = write_miniature_assets(tmp_path_factory.mktemp("libero_assets"))
+    cache = tmp_path_factory.mktemp("indgen_cache")
+    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
+    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
+    os.environ.pop("LIBERO_CONFIG_PATH", None)
+    yield root
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+def assert_steps_match(env, ref, action, steps=3):
+    """Step ``env`` and lerobot's ``ref`` alike ``steps`` times; their agentview frames must agree."""
+    a = np.array(action, dtype=np.float32)
+    for _ in range(steps):
+        obs, *_ = env.step(a)
+        robs, *_ = ref.step(a)
+    np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
