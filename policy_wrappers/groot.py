@@ -22,7 +22,15 @@ from policy_wrappers.base import PolicySpec
 from policy_wrappers.image_tools import GRIPPER_MODES, convert_gripper, flip_180, resize_with_pad
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
 
-LIBERO_STATE = (("x", 0, 1), ("y", 1, 2), ("z", 2, 3), ("roll", 3, 4), ("pitch", 4, 5), ("yaw", 5, 6), ("gripper", 6, 8))
+LIBERO_STATE = (
+    ("x", 0, 1),
+    ("y", 1, 2),
+    ("z", 2, 3),
+    ("roll", 3, 4),
+    ("pitch", 4, 5),
+    ("yaw", 5, 6),
+    ("gripper", 6, 8),
+)
 LIBERO_ACTION = ("x", "y", "z", "roll", "pitch", "yaw", "gripper")
 
 
@@ -53,8 +61,12 @@ class GrootConfig:
             raise ConfigError(f"groot {self.url}: gripper must be one of {GRIPPER_MODES}")
         bad = [cam for _, cam in self.video if cam not in CAMERAS]
         if bad or not self.video:
-            raise ConfigError(f"groot {self.url}: video map needs cameras from {list(CAMERAS)}, got {bad or 'none'}")
-        if sum(hi - lo for _, lo, hi in self.state) > 8 or any(not 0 <= lo < hi <= 8 for _, lo, hi in self.state):
+            raise ConfigError(
+                f"groot {self.url}: video map needs cameras from {list(CAMERAS)}, got {bad or 'none'}"
+            )
+        if sum(hi - lo for _, lo, hi in self.state) > 8 or any(
+            not 0 <= lo < hi <= 8 for _, lo, hi in self.state
+        ):
             raise ConfigError(f"groot {self.url}: state slices must lie within our 8-d state")
 
 
@@ -66,9 +78,16 @@ class GrootPolicy:
 
         self.config, self._zmq = config, zmq
         cams = tuple(c for c in CAMERAS if c in {cam for _, cam in config.video})
-        self.spec = PolicySpec("groot", name, chunk_size=config.chunk_size, replan_steps=config.replan_steps,
-                               cameras=cams, image_size=(config.render_size,) * 2, batched=config.api == "n1.6",
-                               flip_180=config.flip_180)
+        self.spec = PolicySpec(
+            "groot",
+            name,
+            chunk_size=config.chunk_size,
+            replan_steps=config.replan_steps,
+            cameras=cams,
+            image_size=(config.render_size,) * 2,
+            batched=config.api == "n1.6",
+            flip_180=config.flip_180,
+        )
         self._ctx = zmq.Context()
         self._sock = None
         self._language_key = config.language_key
@@ -100,21 +119,31 @@ class GrootPolicy:
             sock.send(groot_packb(request))
             if not sock.poll(int(timeout * 1000)):
                 self._drop()
-                raise PolicyError(f"policy {self.spec.name}: no reply from {self.config.url} to {endpoint!r} within "
-                                  f"{timeout:g}s; is the GR00T server running?")
+                raise PolicyError(
+                    f"policy {self.spec.name}: no reply from {self.config.url} to {endpoint!r} within "
+                    f"{timeout:g}s; is the GR00T server running?"
+                )
             message = sock.recv()
         except self._zmq.ZMQError as e:
             self._drop()
-            raise PolicyError(f"policy {self.spec.name}: ZMQ error talking to {self.config.url}: {e}") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: ZMQ error talking to {self.config.url}: {e}"
+            ) from None
         if message == b"ERROR":
             raise PolicyError(f"policy {self.spec.name}: server error (is it the right GR00T policy server?)")
         try:
             response = groot_unpackb(message)
         except Exception as e:
-            raise PolicyError(f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})"
+            ) from None
         if isinstance(response, dict) and "error" in response:
             first = (str(response["error"]).strip().splitlines() or [""])[0][:300]
-            hint = " (if this is an N1.5 server, add ?api=n1.5)" if endpoint == "get_action" and self.config.api == "n1.6" else ""
+            hint = (
+                " (if this is an N1.5 server, add ?api=n1.5)"
+                if endpoint == "get_action" and self.config.api == "n1.6"
+                else ""
+            )
             raise PolicyError(f"policy {self.spec.name}: server error: {first}{hint}")
         return response
 
@@ -125,7 +154,9 @@ class GrootPolicy:
             self.close()
             raise
         try:
-            config = self.call("get_modality_config", requires_input=False, timeout_s=self.config.connect_timeout_s)
+            config = self.call(
+                "get_modality_config", requires_input=False, timeout_s=self.config.connect_timeout_s
+            )
         except PolicyError:
             config = {}
         self.modality_config = config if isinstance(config, dict) else {}
@@ -133,18 +164,32 @@ class GrootPolicy:
 
     def _check_modalities(self) -> None:
         """Compare our modality map with what the server declares (when it declares anything)."""
+
         def keys(modality: str) -> list[str]:
             entry = self.modality_config.get(modality)
-            return [str(k).split(".", 1)[-1] for k in (entry or {}).get("modality_keys", [])] if isinstance(entry, dict) else []
+            return (
+                [str(k).split(".", 1)[-1] for k in (entry or {}).get("modality_keys", [])]
+                if isinstance(entry, dict)
+                else []
+            )
 
-        for modality, ours in (("video", [k for k, _ in self.config.video]), ("state", [k for k, _, _ in self.config.state])):
+        for modality, ours in (
+            ("video", [k for k, _ in self.config.video]),
+            ("state", [k for k, _, _ in self.config.state]),
+        ):
             theirs = keys(modality)
             missing = sorted(set(theirs) - set(ours))
             if theirs and missing:
                 self.close()
-                raise PolicyError(f"policy {self.spec.name}: server expects {modality} keys {theirs}; our map gives "
-                                  f"{ours} (set ?{modality}=... to map {missing})")
-        lang = (self.modality_config.get("language") or {}) if isinstance(self.modality_config.get("language"), dict) else {}
+                raise PolicyError(
+                    f"policy {self.spec.name}: server expects {modality} keys {theirs}; our map gives "
+                    f"{ours} (set ?{modality}=... to map {missing})"
+                )
+        lang = (
+            (self.modality_config.get("language") or {})
+            if isinstance(self.modality_config.get("language"), dict)
+            else {}
+        )
         if lang.get("modality_keys") and self._language_key not in lang["modality_keys"]:
             self._language_key = str(lang["modality_keys"][0])
 
@@ -154,7 +199,9 @@ class GrootPolicy:
 
     def _images(self, obs: Observation, cam: str) -> np.ndarray:
         if cam not in obs.images:
-            raise PolicyError(f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}")
+            raise PolicyError(
+                f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}"
+            )
         img = flip_180(obs.images[cam]) if self.config.flip_180 else obs.images[cam]
         size = self.config.image_size
         return resize_with_pad(img, size, size) if size else np.ascontiguousarray(img)
@@ -187,29 +234,41 @@ class GrootPolicy:
             if arr.ndim == 2:
                 arr = arr[None]
             if arr.ndim != 3 or arr.shape[0] != batch:
-                raise PolicyError(f"policy {self.spec.name}: {name} has shape {np.shape(value)}; expected (T, D) or (B, T, D)")
+                raise PolicyError(
+                    f"policy {self.spec.name}: {name} has shape {np.shape(value)}; expected (T, D) or (B, T, D)"
+                )
             parts.append(arr)
         if len({p.shape[1] for p in parts}) != 1:
-            raise PolicyError(f"policy {self.spec.name}: action keys disagree on the horizon: {[p.shape for p in parts]}")
+            raise PolicyError(
+                f"policy {self.spec.name}: action keys disagree on the horizon: {[p.shape for p in parts]}"
+            )
         chunk = np.concatenate(parts, axis=-1)
         if chunk.shape[-1] != ACTION_DIM or chunk.shape[1] < self.spec.replan_steps:
-            raise PolicyError(f"policy {self.spec.name} returned actions of shape {chunk.shape}; expected "
-                              f"({batch}, >={self.spec.replan_steps}, {ACTION_DIM})")
+            raise PolicyError(
+                f"policy {self.spec.name} returned actions of shape {chunk.shape}; expected "
+                f"({batch}, >={self.spec.replan_steps}, {ACTION_DIM})"
+            )
         return chunk[:, : self.spec.chunk_size]
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
         if self.config.api == "n1.6":
-            reply = self.call("get_action", {"observation": self.make_observation(observations), "options": None})
+            reply = self.call(
+                "get_action", {"observation": self.make_observation(observations), "options": None}
+            )
             if not isinstance(reply, list | tuple) or len(reply) != 2:
-                raise PolicyError(f"policy {self.spec.name}: N1.6 get_action must return [action, info], got "
-                                  f"{type(reply).__name__}; is this an N1.5 server? (use ?api=n1.5)")
+                raise PolicyError(
+                    f"policy {self.spec.name}: N1.6 get_action must return [action, info], got "
+                    f"{type(reply).__name__}; is this an N1.5 server? (use ?api=n1.5)"
+                )
             chunk = self._parse_actions(reply[0], len(observations))
         else:
             chunks = []
             for obs in observations:
                 reply = self.call("get_action", self.make_observation([obs]))
                 if isinstance(reply, list | tuple):
-                    raise PolicyError(f"policy {self.spec.name}: got [action, info]; this is an N1.6 server (use ?api=n1.6)")
+                    raise PolicyError(
+                        f"policy {self.spec.name}: got [action, info]; this is an N1.6 server (use ?api=n1.6)"
+                    )
                 chunks.append(self._parse_actions(reply, 1)[0])
             chunk = np.stack(chunks)
         chunk = validate_chunk(chunk, len(observations), self.spec.name)
@@ -227,7 +286,9 @@ def _pairs(text: str | None, default):
     for item in text.split(","):
         key, sep, cam = item.partition(":")
         if not sep:
-            raise ConfigError(f"bad groot video mapping {item!r}; write video=image:agentview,wrist_image:wrist")
+            raise ConfigError(
+                f"bad groot video mapping {item!r}; write video=image:agentview,wrist_image:wrist"
+            )
         out.append((key.strip(), cam.strip()))
     return tuple(out)
 
@@ -240,12 +301,18 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
     api = options.choice("api", ("n1.5", "n1.6"), "n1.6")
     chunk = options.int("chunk", 16)
     config = GrootConfig(
-        url=join_url("tcp", host, port), api=api, api_token=options.str("api_token"),
+        url=join_url("tcp", host, port),
+        api=api,
+        api_token=options.str("api_token"),
         video=_pairs(options.str("video"), GrootConfig.video),
         language_key=options.str("lang_key", GrootConfig.language_key),
-        chunk_size=chunk, replan_steps=options.int("replan", 1 if api == "n1.5" else min(8, chunk)),
-        render_size=options.int("render", 256), image_size=options.int("size"),
-        flip_180=options.bool("flip", True), gripper=options.choice("gripper", GRIPPER_MODES, "01"),
-        timeout_s=options.float("timeout", 60.0), connect_timeout_s=options.float("connect_timeout", 10.0),
+        chunk_size=chunk,
+        replan_steps=options.int("replan", 1 if api == "n1.5" else min(8, chunk)),
+        render_size=options.int("render", 256),
+        image_size=options.int("size"),
+        flip_180=options.bool("flip", True),
+        gripper=options.choice("gripper", GRIPPER_MODES, "01"),
+        timeout_s=options.float("timeout", 60.0),
+        connect_timeout_s=options.float("connect_timeout", 10.0),
     )
     return GrootPolicy(parsed.spec, config)

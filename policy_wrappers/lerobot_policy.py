@@ -23,11 +23,23 @@ from policy_wrappers.base import PolicySpec
 IMAGE_PREFIX = "observation.images."
 # Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).
 DEFAULT_CAMERA_MAP = {
-    "agentview": "agentview", "wrist": "wrist", "image": "agentview", "image2": "wrist", "wrist_image": "wrist",
-    "front": "agentview", "base_0_rgb": "agentview", "left_wrist_0_rgb": "wrist", "agentview_image": "agentview",
-    "robot0_eye_in_hand_image": "wrist", "eye_in_hand": "wrist", "main": "agentview",
+    "agentview": "agentview",
+    "wrist": "wrist",
+    "image": "agentview",
+    "image2": "wrist",
+    "wrist_image": "wrist",
+    "front": "agentview",
+    "base_0_rgb": "agentview",
+    "left_wrist_0_rgb": "wrist",
+    "agentview_image": "agentview",
+    "robot0_eye_in_hand_image": "wrist",
+    "eye_in_hand": "wrist",
+    "main": "agentview",
 }
-LIBERO_CAMERA_NAMES = {"image", "image2"}  # lerobot's LIBERO env: these checkpoints were trained on flipped images
+LIBERO_CAMERA_NAMES = {
+    "image",
+    "image2",
+}  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
 # indgen's state-only checkpoints feed proprioception as lerobot's environment state (policy_wrappers.lerobot_steps)
 PROPRIO_STEP_CLASS = "policy_wrappers.lerobot_steps.ProprioAsEnvStateStep"
@@ -40,7 +52,9 @@ class LeRobotConfig:
     path: str
     device: str = "cpu"
     revision: str | None = None
-    camera_map: tuple[tuple[str, str], ...] = ()  # (feature name after observation.images., our camera | zeros)
+    camera_map: tuple[
+        tuple[str, str], ...
+    ] = ()  # (feature name after observation.images., our camera | zeros)
     flip_180: bool | None = None  # None: flip iff the checkpoint uses LIBERO's camera names
     replan_steps: int | None = None  # None: the checkpoint's n_action_steps
     vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
@@ -49,8 +63,10 @@ class LeRobotConfig:
     def __post_init__(self) -> None:
         for feature, cam in self.camera_map:
             if cam not in (*CAMERAS, ZEROS):
-                raise ConfigError(f"lerobot {self.path}: camera {cam!r} for feature {feature!r} must be one of "
-                                  f"{[*CAMERAS, ZEROS]}")
+                raise ConfigError(
+                    f"lerobot {self.path}: camera {cam!r} for feature {feature!r} must be one of "
+                    f"{[*CAMERAS, ZEROS]}"
+                )
         if self.replan_steps is not None and self.replan_steps < 1:
             raise ConfigError(f"lerobot {self.path}: replan must be >= 1, got {self.replan_steps}")
 
@@ -91,8 +107,16 @@ class LeRobotPolicy:
         if self._replan_inside:
             replan = 1
         self._queue: deque = deque()
-        self.spec = PolicySpec(family, name, chunk_size=chunk, replan_steps=replan, cameras=cams,
-                               image_size=image_size, batched=self.n_obs_steps == 1, flip_180=self._flip)
+        self.spec = PolicySpec(
+            family,
+            name,
+            chunk_size=chunk,
+            replan_steps=replan,
+            cameras=cams,
+            image_size=image_size,
+            batched=self.n_obs_steps == 1,
+            flip_180=self._flip,
+        )
         self._history: deque = deque(maxlen=self.n_obs_steps)
 
     def _fail(self, what: str, err: BaseException) -> PolicyError:
@@ -108,12 +132,16 @@ class LeRobotPolicy:
         local = Path(path).expanduser()
         if local.exists():
             if not (local / "config.json").is_file():
-                raise PolicyError(f"policy {self._name}: {str(local)!r} has no config.json; point at the "
-                                  "pretrained_model directory of a LeRobot checkpoint")
+                raise PolicyError(
+                    f"policy {self._name}: {str(local)!r} has no config.json; point at the "
+                    "pretrained_model directory of a LeRobot checkpoint"
+                )
             path = str(local)
         elif path.startswith(("/", ".", "~")) or path.count("/") > 1:
-            raise PolicyError(f"policy {self._name}: no such checkpoint directory {path!r} (and it is not a Hub "
-                              "id of the form org/name)")
+            raise PolicyError(
+                f"policy {self._name}: no such checkpoint directory {path!r} (and it is not a Hub "
+                "id of the form org/name)"
+            )
         try:
             cfg = PreTrainedConfig.from_pretrained(path, revision=rev)
         except Exception as e:
@@ -123,7 +151,9 @@ class LeRobotPolicy:
         overrides: dict = {"device_processor": {"device": self.config.device}}
         if self.config.vlm:
             if not hasattr(cfg, "vlm_model_name"):
-                raise ConfigError(f"policy {self._name}: vlm= applies to VLM-backed policies (e.g. smolvla), not {cfg.type!r}")
+                raise ConfigError(
+                    f"policy {self._name}: vlm= applies to VLM-backed policies (e.g. smolvla), not {cfg.type!r}"
+                )
             cfg.vlm_model_name = self.config.vlm
         tokenizer = self.config.tokenizer or self.config.vlm
         if tokenizer and _has_step(path, rev, "tokenizer_processor"):
@@ -136,25 +166,36 @@ class LeRobotPolicy:
         policy.eval()
         try:
             pre, post = make_pre_post_processors(
-                cfg, pretrained_path=path, pretrained_revision=rev, preprocessor_overrides=overrides,
+                cfg,
+                pretrained_path=path,
+                pretrained_revision=rev,
+                preprocessor_overrides=overrides,
             )
         except Exception as e:
-            raise PolicyError(f"policy {self._name}: cannot load policy_preprocessor/policy_postprocessor from "
-                              f"{path!r} ({type(e).__name__}: {str(e)[:200]}); checkpoints saved before lerobot 0.4 "
-                              "need lerobot's migrate_policy_normalization first") from None
+            raise PolicyError(
+                f"policy {self._name}: cannot load policy_preprocessor/policy_postprocessor from "
+                f"{path!r} ({type(e).__name__}: {str(e)[:200]}); checkpoints saved before lerobot 0.4 "
+                "need lerobot's migrate_policy_normalization first"
+            ) from None
         self.cfg, self.policy, self.pre, self.post, self._torch = cfg, policy, pre, post, torch
         action = cfg.action_feature
         if action is None or tuple(action.shape) != (ACTION_DIM,):
             got = None if action is None else tuple(action.shape)
-            raise PolicyError(f"policy {self._name}: checkpoint outputs actions of shape {got}; indgen scenes take "
-                              f"({ACTION_DIM},) delta-EEF actions (OSC_POSE)")
+            raise PolicyError(
+                f"policy {self._name}: checkpoint outputs actions of shape {got}; indgen scenes take "
+                f"({ACTION_DIM},) delta-EEF actions (OSC_POSE)"
+            )
         state = cfg.robot_state_feature
         if state is not None and tuple(state.shape) != (STATE_DIM,):
-            raise PolicyError(f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
-                              f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos")
+            raise PolicyError(
+                f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
+                f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos"
+            )
         if cfg.env_state_feature is not None and not _has_step(path, rev, PROPRIO_STEP_CLASS):
-            raise PolicyError(f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
-                              "simulator state), which learned policies never get here")
+            raise PolicyError(
+                f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
+                "simulator state), which learned policies never get here"
+            )
 
     def _resolve_cameras(self) -> list[tuple[str, str, tuple[int, ...]]]:
         """[(feature name, our camera or 'zeros', (C, H, W))] for every visual input feature."""
@@ -162,18 +203,24 @@ class LeRobotPolicy:
         features = {k.removeprefix(IMAGE_PREFIX): tuple(f.shape) for k, f in self.cfg.image_features.items()}
         unknown = sorted(set(explicit) - set(features))
         if unknown:
-            raise ConfigError(f"policy {self._name}: cameras= names feature {unknown[0]!r}, which the checkpoint "
-                              f"lacks; its image features are {sorted(features)}")
+            raise ConfigError(
+                f"policy {self._name}: cameras= names feature {unknown[0]!r}, which the checkpoint "
+                f"lacks; its image features are {sorted(features)}"
+            )
         out = []
         for feat, shape in features.items():
             cam = explicit.get(feat) or DEFAULT_CAMERA_MAP.get(feat)
             if cam is None and feat.startswith("empty_camera_"):
                 cam = ZEROS
             if cam is None:
-                raise ConfigError(f"policy {self._name}: don't know which camera feeds image feature {feat!r}; "
-                                  f"add ?cameras={feat}:agentview (or :wrist, :zeros) — features: {sorted(features)}")
+                raise ConfigError(
+                    f"policy {self._name}: don't know which camera feeds image feature {feat!r}; "
+                    f"add ?cameras={feat}:agentview (or :wrist, :zeros) — features: {sorted(features)}"
+                )
             if len(shape) != 3 or shape[0] != 3:
-                raise PolicyError(f"policy {self._name}: image feature {feat!r} has shape {shape}; expected (3, H, W)")
+                raise PolicyError(
+                    f"policy {self._name}: image feature {feat!r} has shape {shape}; expected (3, H, W)"
+                )
             out.append((feat, cam, shape))
         return out
 
@@ -209,16 +256,22 @@ class LeRobotPolicy:
             try:
                 imgs = np.stack([obs.images[cam] for obs in observations])
             except KeyError:
-                raise PolicyError(f"policy {self._name} needs camera {cam!r}; observation has "
-                                  f"{sorted(observations[0].images)}") from None
+                raise PolicyError(
+                    f"policy {self._name} needs camera {cam!r}; observation has "
+                    f"{sorted(observations[0].images)}"
+                ) from None
             if self._flip:
                 imgs = imgs[:, ::-1, ::-1]
             t = torch.from_numpy(np.ascontiguousarray(imgs)).permute(0, 3, 1, 2).float().div_(255.0)
             if t.shape[-2:] != (h, w):
-                t = F.interpolate(t, size=(h, w), mode="bilinear", align_corners=False, antialias=True).clamp_(0, 1)
+                t = F.interpolate(
+                    t, size=(h, w), mode="bilinear", align_corners=False, antialias=True
+                ).clamp_(0, 1)
             batch[IMAGE_PREFIX + feat] = t
         if self.cfg.robot_state_feature is not None:
-            batch["observation.state"] = torch.from_numpy(np.stack([o.state for o in observations]).astype(np.float32))
+            batch["observation.state"] = torch.from_numpy(
+                np.stack([o.state for o in observations]).astype(np.float32)
+            )
         batch["task"] = [o.instruction for o in observations]
         return batch
 

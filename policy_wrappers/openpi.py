@@ -38,13 +38,16 @@ class OpenpiConfig:
 
     def __post_init__(self) -> None:
         if min(self.image_size, self.render_size) < 8:
-            raise ConfigError(f"openpi {self.url}: image sizes must be >= 8, got {self.image_size}/{self.render_size}")
+            raise ConfigError(
+                f"openpi {self.url}: image sizes must be >= 8, got {self.image_size}/{self.render_size}"
+            )
         if self.timeout_s <= 0 or self.connect_timeout_s <= 0:
             raise ConfigError(f"openpi {self.url}: timeouts must be positive")
 
 
 def make_request(obs: Observation, image_size: int, flip: bool) -> dict:
     """One observation in openpi's LIBERO request format (rotate 180°, resize-with-pad, uint8)."""
+
     def prep(img: np.ndarray) -> np.ndarray:
         img = flip_180(img) if flip else img
         return resize_with_pad(img, image_size, image_size)
@@ -66,8 +69,13 @@ class OpenpiPolicy:
     def __init__(self, name: str, config: OpenpiConfig):
         self.config = config
         self.spec = PolicySpec(
-            "openpi", name, chunk_size=config.chunk_size, replan_steps=config.replan_steps,
-            cameras=("agentview", "wrist"), image_size=(config.render_size, config.render_size), flip_180=config.flip_180,
+            "openpi",
+            name,
+            chunk_size=config.chunk_size,
+            replan_steps=config.replan_steps,
+            cameras=("agentview", "wrist"),
+            image_size=(config.render_size, config.render_size),
+            flip_180=config.flip_180,
         )
         self._ws = None
         self._packer = msgpack_numpy.Packer()
@@ -81,22 +89,39 @@ class OpenpiPolicy:
 
         headers = {"Authorization": f"Api-Key {self.config.api_key}"} if self.config.api_key else None
         try:
-            ws = connect(self.config.url, compression=None, max_size=None, additional_headers=headers,
-                         open_timeout=self.config.connect_timeout_s)
+            ws = connect(
+                self.config.url,
+                compression=None,
+                max_size=None,
+                additional_headers=headers,
+                open_timeout=self.config.connect_timeout_s,
+            )
         except ConnectionRefusedError:
-            raise PolicyError(f"policy {self.spec.name}: connection refused at {self.config.url}; is the openpi server running?") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: connection refused at {self.config.url}; is the openpi server running?"
+            ) from None
         except (TimeoutError, OSError) as e:
-            raise PolicyError(f"policy {self.spec.name}: cannot reach {self.config.url}: {e or type(e).__name__}") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: cannot reach {self.config.url}: {e or type(e).__name__}"
+            ) from None
         except InvalidStatus as e:
-            hint = "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if e.response.status_code in (401, 403) else ""
-            raise PolicyError(f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}") from None
+            hint = (
+                "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if e.response.status_code in (401, 403) else ""
+            )
+            raise PolicyError(
+                f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}"
+            ) from None
         except (InvalidHandshake, InvalidURI) as e:
-            raise PolicyError(f"policy {self.spec.name}: websocket handshake with {self.config.url} failed: {e}") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: websocket handshake with {self.config.url} failed: {e}"
+            ) from None
         try:
             first = ws.recv(timeout=self.config.connect_timeout_s)
         except Exception as e:
             ws.close()
-            raise PolicyError(f"policy {self.spec.name}: server at {self.config.url} sent no metadata frame ({type(e).__name__})") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: server at {self.config.url} sent no metadata frame ({type(e).__name__})"
+            ) from None
         if isinstance(first, str):
             ws.close()
             raise PolicyError(f"policy {self.spec.name}: server error on connect: {_last_line(first)}")
@@ -127,7 +152,9 @@ class OpenpiPolicy:
             reply = self._ws.recv(timeout=self.config.timeout_s)
         except TimeoutError:
             self._drop()
-            raise PolicyError(f"policy {self.spec.name}: no reply from {self.config.url} within {self.config.timeout_s:g}s") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
+            ) from None
         except (ConnectionClosed, OSError) as e:
             self._drop()
             raise PolicyError(f"policy {self.spec.name}: connection to {self.config.url} lost: {e}") from None
@@ -138,7 +165,9 @@ class OpenpiPolicy:
             out = msgpack_numpy.unpackb(reply)
         except Exception as e:
             self._drop()
-            raise PolicyError(f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})"
+            ) from None
         if not isinstance(out, dict) or "actions" not in out:
             keys = sorted(out) if isinstance(out, dict) else type(out).__name__
             raise PolicyError(f"policy {self.spec.name}: reply has no 'actions' (got {keys})")
@@ -154,7 +183,9 @@ class OpenpiPolicy:
             self._pending_reset = None
             actions = np.asarray(out["actions"])
             if actions.ndim != 2 or actions.shape[1] != ACTION_DIM:
-                raise PolicyError(f"policy {self.spec.name} returned actions of shape {actions.shape}; expected (T, {ACTION_DIM})")
+                raise PolicyError(
+                    f"policy {self.spec.name} returned actions of shape {actions.shape}; expected (T, {ACTION_DIM})"
+                )
             if actions.shape[0] < self.spec.replan_steps:
                 raise PolicyError(
                     f"policy {self.spec.name} returned {actions.shape[0]} actions but replans every {self.spec.replan_steps}; "
@@ -193,4 +224,3 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
         connect_timeout_s=options.float("connect_timeout", 10.0),
     )
     return OpenpiPolicy(parsed.spec, config)
-

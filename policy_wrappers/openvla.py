@@ -32,8 +32,11 @@ def _json_default(obj):
         from numpy.lib.format import dtype_to_descr
 
         arr = np.ascontiguousarray(obj)
-        return {"__numpy__": base64.b64encode(arr.tobytes()).decode(), "dtype": dtype_to_descr(arr.dtype),
-                "shape": list(arr.shape)}
+        return {
+            "__numpy__": base64.b64encode(arr.tobytes()).decode(),
+            "dtype": dtype_to_descr(arr.dtype),
+            "shape": list(arr.shape),
+        }
     raise TypeError(f"Object of type {type(obj).__name__} is not JSON serializable")
 
 
@@ -91,8 +94,15 @@ class OpenVLAPolicy:
     def __init__(self, name: str, config: OpenVLAConfig):
         self.config = config
         cams = ("agentview", "wrist") if config.variant == "oft" else ("agentview",)
-        self.spec = PolicySpec("openvla-oft", name, chunk_size=config.chunk_size, replan_steps=config.replan_steps,
-                               cameras=cams, image_size=(config.render_size,) * 2, flip_180=config.flip_180)
+        self.spec = PolicySpec(
+            "openvla-oft",
+            name,
+            chunk_size=config.chunk_size,
+            replan_steps=config.replan_steps,
+            cameras=cams,
+            image_size=(config.render_size,) * 2,
+            flip_180=config.flip_180,
+        )
         self._probe()
 
     def _probe(self) -> None:
@@ -102,23 +112,33 @@ class OpenVLAPolicy:
 
         parts = urlsplit(self.config.url)
         try:
-            socket.create_connection((parts.hostname, parts.port), timeout=self.config.connect_timeout_s).close()
+            socket.create_connection(
+                (parts.hostname, parts.port), timeout=self.config.connect_timeout_s
+            ).close()
         except ConnectionRefusedError:
-            raise PolicyError(f"policy {self.spec.name}: connection refused at {self.config.url}; is deploy.py running?") from None
+            raise PolicyError(
+                f"policy {self.spec.name}: connection refused at {self.config.url}; is deploy.py running?"
+            ) from None
         except OSError as e:
             raise PolicyError(f"policy {self.spec.name}: cannot reach {self.config.url}: {e}") from None
 
     def _image(self, obs: Observation, cam: str) -> np.ndarray:
         if cam not in obs.images:
-            raise PolicyError(f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}")
+            raise PolicyError(
+                f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}"
+            )
         img = flip_180(obs.images[cam]) if self.config.flip_180 else obs.images[cam]
         return resize_jpeg_lanczos(img, self.config.image_size, self.config.image_size)
 
     def make_payload(self, obs: Observation) -> dict:
         """The request body for one observation, before json-numpy encoding."""
         if self.config.variant == "oft":
-            return {"full_image": self._image(obs, "agentview"), "wrist_image": self._image(obs, "wrist"),
-                    "state": np.asarray(obs.state, dtype=np.float32), "instruction": obs.instruction}
+            return {
+                "full_image": self._image(obs, "agentview"),
+                "wrist_image": self._image(obs, "wrist"),
+                "state": np.asarray(obs.state, dtype=np.float32),
+                "instruction": obs.instruction,
+            }
         payload = {"image": self._image(obs, "agentview"), "instruction": obs.instruction}
         if self.config.unnorm_key:
             payload["unnorm_key"] = self.config.unnorm_key
@@ -127,23 +147,32 @@ class OpenVLAPolicy:
     def post(self, payload: dict):
         """POST /act and decode the reply; errors become PolicyError naming the policy."""
         body = dumps({"encoded": dumps(payload)} if self.config.encoded else payload).encode()
-        req = urllib.request.Request(self.config.url + "/act", data=body, method="POST",
-                                     headers={"Content-Type": "application/json"})
+        req = urllib.request.Request(
+            self.config.url + "/act", data=body, method="POST", headers={"Content-Type": "application/json"}
+        )
         name = self.spec.name
         try:
             with urllib.request.urlopen(req, timeout=self.config.timeout_s) as resp:
                 raw = resp.read()
         except urllib.error.HTTPError as e:
-            raise PolicyError(f"policy {name}: server answered HTTP {e.code} {e.reason} on POST /act") from None
+            raise PolicyError(
+                f"policy {name}: server answered HTTP {e.code} {e.reason} on POST /act"
+            ) from None
         except urllib.error.URLError as e:
             reason = e.reason
             if isinstance(reason, ConnectionRefusedError):
-                raise PolicyError(f"policy {name}: connection refused at {self.config.url}; is deploy.py running?") from None
+                raise PolicyError(
+                    f"policy {name}: connection refused at {self.config.url}; is deploy.py running?"
+                ) from None
             if isinstance(reason, TimeoutError):
-                raise PolicyError(f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s") from None
+                raise PolicyError(
+                    f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
+                ) from None
             raise PolicyError(f"policy {name}: cannot reach {self.config.url}: {reason}") from None
         except TimeoutError:
-            raise PolicyError(f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s") from None
+            raise PolicyError(
+                f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
+            ) from None
         except OSError as e:
             raise PolicyError(f"policy {name}: connection to {self.config.url} failed: {e}") from None
         try:
@@ -153,8 +182,10 @@ class OpenVLAPolicy:
         except (ValueError, TypeError) as e:
             raise PolicyError(f"policy {name}: reply is not json-numpy ({e})") from None
         if isinstance(out, str):
-            raise PolicyError(f"policy {name}: server replied {out!r}; its log has the traceback (bad request or "
-                              "wrong unnorm_key?)")
+            raise PolicyError(
+                f"policy {name}: server replied {out!r}; its log has the traceback (bad request or "
+                "wrong unnorm_key?)"
+            )
         return out
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
@@ -164,12 +195,20 @@ class OpenVLAPolicy:
             try:
                 actions = np.asarray(out, dtype=np.float32)
             except (ValueError, TypeError):
-                raise PolicyError(f"policy {self.spec.name}: reply is not an action array ({type(out).__name__})") from None
+                raise PolicyError(
+                    f"policy {self.spec.name}: reply is not an action array ({type(out).__name__})"
+                ) from None
             if self.config.variant == "openvla" and actions.ndim == 1:
                 actions = actions[None]
-            if actions.ndim != 2 or actions.shape[1] != ACTION_DIM or actions.shape[0] < self.spec.replan_steps:
-                raise PolicyError(f"policy {self.spec.name} returned actions of shape {actions.shape}; expected "
-                                  f"(>={self.spec.replan_steps}, {ACTION_DIM})")
+            if (
+                actions.ndim != 2
+                or actions.shape[1] != ACTION_DIM
+                or actions.shape[0] < self.spec.replan_steps
+            ):
+                raise PolicyError(
+                    f"policy {self.spec.name} returned actions of shape {actions.shape}; expected "
+                    f"(>={self.spec.replan_steps}, {ACTION_DIM})"
+                )
             chunks.append(actions[: self.spec.chunk_size])
         chunk = validate_chunk(np.stack(chunks), len(observations), self.spec.name)
         return convert_gripper(chunk, self.config.gripper)
@@ -189,10 +228,17 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
     variant = options.choice("variant", ("oft", "openvla"), "oft")
     chunk = options.int("chunk", 8 if variant == "oft" else 1)
     config = OpenVLAConfig(
-        url=join_url(scheme, host, port), variant=variant, unnorm_key=options.str("unnorm_key"),
-        image_size=options.int("size", 224), render_size=options.int("render", 256),
-        flip_180=options.bool("flip", True), gripper=options.choice("gripper", GRIPPER_MODES, "01inv"),
-        chunk_size=chunk, replan_steps=options.int("replan", chunk), encoded=bool(options.bool("encoded", False)),
-        timeout_s=options.float("timeout", 60.0), connect_timeout_s=options.float("connect_timeout", 10.0),
+        url=join_url(scheme, host, port),
+        variant=variant,
+        unnorm_key=options.str("unnorm_key"),
+        image_size=options.int("size", 224),
+        render_size=options.int("render", 256),
+        flip_180=options.bool("flip", True),
+        gripper=options.choice("gripper", GRIPPER_MODES, "01inv"),
+        chunk_size=chunk,
+        replan_steps=options.int("replan", chunk),
+        encoded=bool(options.bool("encoded", False)),
+        timeout_s=options.float("timeout", 60.0),
+        connect_timeout_s=options.float("connect_timeout", 10.0),
     )
     return OpenVLAPolicy(parsed.spec, config)

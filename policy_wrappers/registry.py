@@ -14,15 +14,35 @@ from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
 from indgen_vla.registry import Registry
 
 FAMILIES: Registry = Registry("policy family")
-FAMILIES.register("lerobot", "policy_wrappers.lerobot_policy:load", "any LeRobot PreTrainedPolicy (Hub id or local dir), in-process")
-FAMILIES.register("openpi", "policy_wrappers.openpi:load", "pi0 / pi0.5 behind openpi's websocket server (ws://HOST:PORT)")
-FAMILIES.register("openvla-oft", "policy_wrappers.openvla:load", "OpenVLA-OFT / OpenVLA deploy server (http://HOST:PORT, POST /act)")
-FAMILIES.register("groot", "policy_wrappers.groot:load", "Isaac-GR00T N1.5/N1.6 ZMQ inference service (tcp://HOST:PORT)")
-FAMILIES.register("standin", "policy_wrappers.standin:load", "CPU stand-ins: oracle, random, noop, or a tiny checkpoint dir")
+FAMILIES.register(
+    "lerobot",
+    "policy_wrappers.lerobot_policy:load",
+    "any LeRobot PreTrainedPolicy (Hub id or local dir), in-process",
+)
+FAMILIES.register(
+    "openpi", "policy_wrappers.openpi:load", "pi0 / pi0.5 behind openpi's websocket server (ws://HOST:PORT)"
+)
+FAMILIES.register(
+    "openvla-oft",
+    "policy_wrappers.openvla:load",
+    "OpenVLA-OFT / OpenVLA deploy server (http://HOST:PORT, POST /act)",
+)
+FAMILIES.register(
+    "groot", "policy_wrappers.groot:load", "Isaac-GR00T N1.5/N1.6 ZMQ inference service (tcp://HOST:PORT)"
+)
+FAMILIES.register(
+    "standin", "policy_wrappers.standin:load", "CPU stand-ins: oracle, random, noop, or a tiny checkpoint dir"
+)
 
 STANDINS: Registry = Registry("stand-in policy")
-STANDINS.register("oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle from the scenes package")
-STANDINS.register("random", "policy_wrappers.standin:RandomPolicy", "uniform random deltas, reproducible from the episode seed")
+STANDINS.register(
+    "oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle from the scenes package"
+)
+STANDINS.register(
+    "random",
+    "policy_wrappers.standin:RandomPolicy",
+    "uniform random deltas, reproducible from the episode seed",
+)
 STANDINS.register("noop", "policy_wrappers.standin:NoopPolicy", "zero motion, gripper open")
 
 EXAMPLES = {
@@ -45,26 +65,34 @@ class ParsedSpec:
 
     def __post_init__(self) -> None:
         if not self.target:
-            raise ConfigError(f"policy spec {self.spec!r} has nothing after '{self.family}:'; e.g. {EXAMPLES[self.family]}")
+            raise ConfigError(
+                f"policy spec {self.spec!r} has nothing after '{self.family}:'; e.g. {EXAMPLES[self.family]}"
+            )
 
 
 def parse_spec(spec: str) -> ParsedSpec:
     """Split ``family:target[?k=v&...]``; raise ``ConfigError`` / ``UnknownNameError`` with the fix."""
     if not isinstance(spec, str) or not spec.strip():
-        raise ConfigError("empty policy spec; use FAMILY:TARGET, e.g. standin:oracle or openpi:ws://HOST:PORT")
+        raise ConfigError(
+            "empty policy spec; use FAMILY:TARGET, e.g. standin:oracle or openpi:ws://HOST:PORT"
+        )
     spec = spec.strip()
     family, sep, rest = spec.partition(":")
     if not sep:
         if family in STANDINS:
             raise ConfigError(f"policy spec {spec!r} lacks a family; did you mean 'standin:{family}'?")
-        raise ConfigError(f"policy spec {spec!r} lacks a family; use one of {', '.join(f + ':' for f in FAMILIES.names())}")
+        raise ConfigError(
+            f"policy spec {spec!r} lacks a family; use one of {', '.join(f + ':' for f in FAMILIES.names())}"
+        )
     if family not in FAMILIES:
         raise UnknownNameError("policy family", family, FAMILIES.names())
     target, _, query = rest.partition("?")
     try:
         options = dict(parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query)))
     except ValueError:
-        raise ConfigError(f"policy spec {spec!r}: bad options {query!r}; write ?key=value&key2=value2") from None
+        raise ConfigError(
+            f"policy spec {spec!r}: bad options {query!r}; write ?key=value&key2=value2"
+        ) from None
     return ParsedSpec(spec, family, target.strip(), options)
 
 
@@ -116,7 +144,9 @@ class Options:
     def choice(self, key: str, choices: tuple[str, ...], default: str) -> str:
         value = self.str(key, default)
         if value not in choices:
-            raise UnknownNameError(f"value for option {key!r} of policy {self.spec}", str(value), list(choices))
+            raise UnknownNameError(
+                f"value for option {key!r} of policy {self.spec}", str(value), list(choices)
+            )
         return value
 
     def finish(self) -> None:
@@ -134,7 +164,9 @@ def check_url(spec: str, target: str, schemes: tuple[str, ...], default_port: in
     parts = urlsplit(target)
     if parts.scheme not in schemes:
         got = f"scheme {parts.scheme + '://'!r}" if parts.scheme else "no scheme"
-        raise ConfigError(f"policy spec {spec!r}: {got}; this family takes {' or '.join(s + '://' for s in schemes)}, e.g. {example}")
+        raise ConfigError(
+            f"policy spec {spec!r}: {got}; this family takes {' or '.join(s + '://' for s in schemes)}, e.g. {example}"
+        )
     try:
         port = parts.port or default_port
     except ValueError:
@@ -142,7 +174,9 @@ def check_url(spec: str, target: str, schemes: tuple[str, ...], default_port: in
     if not parts.hostname:
         raise ConfigError(f"policy spec {spec!r}: no host in {target!r}; e.g. {example}")
     if parts.path not in ("", "/"):
-        raise ConfigError(f"policy spec {spec!r}: unexpected path {parts.path!r}; give only {schemes[0]}://HOST:PORT")
+        raise ConfigError(
+            f"policy spec {spec!r}: unexpected path {parts.path!r}; give only {schemes[0]}://HOST:PORT"
+        )
     return parts.scheme, parts.hostname, port
 
 

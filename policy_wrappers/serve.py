@@ -33,14 +33,20 @@ def observation_from_request(request: dict, unflip: bool = True) -> Observation:
         raise ValueError(f"request must be a dict, got {type(request).__name__}")
     missing = [k for k in ("observation/image", "observation/state") if k not in request]
     if missing:
-        raise KeyError(f"request lacks {missing}; send openpi's LIBERO keys observation/image, "
-                       "observation/wrist_image, observation/state, prompt")
+        raise KeyError(
+            f"request lacks {missing}; send openpi's LIBERO keys observation/image, "
+            "observation/wrist_image, observation/state, prompt"
+        )
     images = {}
     for key, cam in (("observation/image", "agentview"), ("observation/wrist_image", "wrist")):
         if key in request:
             img = np.asarray(request[key])
             if img.dtype != np.uint8:
-                img = (255 * img).astype(np.uint8) if np.issubdtype(img.dtype, np.floating) else img.astype(np.uint8)
+                img = (
+                    (255 * img).astype(np.uint8)
+                    if np.issubdtype(img.dtype, np.floating)
+                    else img.astype(np.uint8)
+                )
             if img.ndim == 3 and img.shape[0] == 3 and img.shape[-1] != 3:
                 img = np.transpose(img, (1, 2, 0))
             images[cam] = flip_180(img) if unflip else np.ascontiguousarray(img)
@@ -51,13 +57,24 @@ def observation_from_request(request: dict, unflip: bool = True) -> Observation:
 class PolicyServer:
     """Serves one ``Policy`` over openpi's websocket protocol; acting runs in a worker thread under a lock."""
 
-    def __init__(self, policy, host: str = "127.0.0.1", port: int = 8000, api_key: str | None = None,
-                 unflip: bool = True):
+    def __init__(
+        self,
+        policy,
+        host: str = "127.0.0.1",
+        port: int = 8000,
+        api_key: str | None = None,
+        unflip: bool = True,
+    ):
         self.policy, self.host, self.port, self.api_key, self.unflip = policy, host, port, api_key, unflip
         spec = policy.spec
         self.metadata = {
-            "server": INDGEN_SERVER, "policy": spec.name, "family": spec.family, "chunk_size": spec.chunk_size,
-            "replan_steps": spec.replan_steps, "cameras": list(spec.cameras), "flip_180": spec.flip_180,
+            "server": INDGEN_SERVER,
+            "policy": spec.name,
+            "family": spec.family,
+            "chunk_size": spec.chunk_size,
+            "replan_steps": spec.replan_steps,
+            "cameras": list(spec.cameras),
+            "flip_180": spec.flip_180,
             "image_size": list(spec.image_size) if spec.image_size else None,
         }
         self._lock: asyncio.Lock | None = None
@@ -71,7 +88,9 @@ class PolicyServer:
         if request.path == "/healthz":
             return connection.respond(http.HTTPStatus.OK, "OK\n")
         if self.api_key and request.headers.get("Authorization") != f"Api-Key {self.api_key}":
-            return connection.respond(http.HTTPStatus.UNAUTHORIZED, "missing or wrong 'Authorization: Api-Key ...'\n")
+            return connection.respond(
+                http.HTTPStatus.UNAUTHORIZED, "missing or wrong 'Authorization: Api-Key ...'\n"
+            )
         return None
 
     def _act(self, request: dict, state: dict) -> np.ndarray:
@@ -110,7 +129,9 @@ class PolicyServer:
                 log.exception("request failed")
                 try:
                     await websocket.send(traceback.format_exc())
-                    await websocket.close(code=1011, reason="Internal server error. Traceback included in previous frame.")
+                    await websocket.close(
+                        code=1011, reason="Internal server error. Traceback included in previous frame."
+                    )
                 except websockets.ConnectionClosed:
                     pass
                 break
@@ -121,8 +142,14 @@ class PolicyServer:
         self._lock = asyncio.Lock()
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
-        async with serve(self._handler, self.host, self.port, compression=None, max_size=None,
-                         process_request=self._process_request) as server:
+        async with serve(
+            self._handler,
+            self.host,
+            self.port,
+            compression=None,
+            max_size=None,
+            process_request=self._process_request,
+        ) as server:
             self.bound_port = server.sockets[0].getsockname()[1] if server.sockets else self.port
             self._ready.set()
             await self._stop.wait()
@@ -153,9 +180,13 @@ def serve_main(args) -> int:
     policy = load_policy(args.policy, trust_remote_code=bool(getattr(args, "trust_remote_code", False)))
     server = PolicyServer(policy, host=args.host, port=int(args.port), api_key=getattr(args, "api_key", None))
     if args.host not in ("127.0.0.1", "localhost", "::1") and not server.api_key:
-        log.warning("serving on %s without --api-key: anyone who can reach this port can drive the policy", args.host)
-    print(f"serving {policy.spec.name} on ws://{args.host}:{args.port} (health: http://{args.host}:{args.port}/healthz)",
-          flush=True)
+        log.warning(
+            "serving on %s without --api-key: anyone who can reach this port can drive the policy", args.host
+        )
+    print(
+        f"serving {policy.spec.name} on ws://{args.host}:{args.port} (health: http://{args.host}:{args.port}/healthz)",
+        flush=True,
+    )
     try:
         asyncio.run(server.run())
     except KeyboardInterrupt:

@@ -16,7 +16,9 @@ class NoopPolicy:
     """Zero motion with the gripper open; stateless and batched, renders no cameras."""
 
     def __init__(self, name: str = "standin:noop", chunk_size: int = 8):
-        self.spec = PolicySpec("standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), batched=True)
+        self.spec = PolicySpec(
+            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), batched=True
+        )
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
         pass
@@ -59,15 +61,21 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
     if name == "noop":
         return NoopPolicy(parsed.spec, chunk_size=options.int("chunk", 8))
     if name == "random":
-        return RandomPolicy(parsed.spec, chunk_size=options.int("chunk", 8), scale=options.float("scale", 0.5))
+        return RandomPolicy(
+            parsed.spec, chunk_size=options.int("chunk", 8), scale=options.float("scale", 0.5)
+        )
     if name in STANDINS:
         try:
             cls = STANDINS.load(name)
         except ModuleNotFoundError as e:
-            raise PolicyError(f"policy {parsed.spec}: needs the {e.name!r} package, which is not installed yet") from None
+            raise PolicyError(
+                f"policy {parsed.spec}: needs the {e.name!r} package, which is not installed yet"
+            ) from None
         return cls()
     if Path(name).expanduser().is_dir():
         from policy_wrappers import lerobot_policy
 
-        return lerobot_policy.load(parsed, options, trust_remote_code=trust_remote_code, device=device, family="standin")
+        return lerobot_policy.load(
+            parsed, options, trust_remote_code=trust_remote_code, device=device, family="standin"
+        )
     raise UnknownNameError("stand-in policy (or checkpoint directory)", name, STANDINS.names())

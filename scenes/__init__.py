@@ -17,7 +17,12 @@ from scenes.catalog import SCENES, check_axis_supported, get_scene, resolve_task
 if TYPE_CHECKING:
     from scenes.env import SceneEnv
 
-DEFAULT_AXIS = {"pick_place": "pick_y", "stack": "stack", "cabinet_pick": "clutter", "libero_object": "pick_y"}
+DEFAULT_AXIS = {
+    "pick_place": "pick_y",
+    "stack": "stack",
+    "cabinet_pick": "clutter",
+    "libero_object": "pick_y",
+}
 
 __all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param", "check_ready"]
 
@@ -63,9 +68,17 @@ def level_param(scene: str, task: str | None, axis: str, level: int, step: float
     return axis_param(spec, successor, level)
 
 
-def make_env(scene: str, *, task: str | None = None, axis: str | None = None, level: int = 0,
-             step: float | None = None, cameras: Sequence[str] = CAMERAS,
-             image_size: tuple[int, int] = (128, 128), max_steps: int | None = None) -> SceneEnv:
+def make_env(
+    scene: str,
+    *,
+    task: str | None = None,
+    axis: str | None = None,
+    level: int = 0,
+    step: float | None = None,
+    cameras: Sequence[str] = CAMERAS,
+    image_size: tuple[int, int] = (128, 128),
+    max_steps: int | None = None,
+) -> SceneEnv:
     """Build one level of one task: the scene's T0 moved ``level`` atomic steps along ``axis``."""
     sdef = get_scene(scene)
     task = resolve_task(sdef, task)
@@ -75,8 +88,9 @@ def make_env(scene: str, *, task: str | None = None, axis: str | None = None, le
     if scene not in SCENES:  # a LIBERO suite
         from scenes.libero.env import LiberoSceneEnv
 
-        return LiberoSceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size,
-                              max_steps=max_steps)
+        return LiberoSceneEnv(
+            sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
+        )
     from scenes.env import SceneEnv
 
     return SceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

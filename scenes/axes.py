@@ -23,17 +23,47 @@ from scenes.spec import SceneSpec
 _AXIS_TABLE: dict[str, tuple[str, str, float, str, bool, int]] = {
     "pick_y": ("translate the pick object along the table's y axis", "pick.y", 0.025, "m", True, 3),
     "goal_y": ("translate the goal receptacle along the table's y axis", "goal.y", 0.0367, "m", True, 3),
-    "scale": ("uniformly scale the pick object (additive fraction of its size)", "pick.scale", 0.0667,
-              "fraction", True, 3),
-    "pick_x": ("translate the pick object along x by 1/5 of its valid region (0.20 m)", "pick.x", 0.04,
-               "m", False, 5),
-    "fixture_x": ("slide the goal fixture (cabinet) along its own x axis, the counter direction",
-                  "fixture_x", 0.125, "m", False, 3),
-    "horizon": ("move the robot base back from the table: a longer reach and horizon", "robot_back", 0.125,
-                "m", False, 2),
+    "scale": (
+        "uniformly scale the pick object (additive fraction of its size)",
+        "pick.scale",
+        0.0667,
+        "fraction",
+        True,
+        3,
+    ),
+    "pick_x": (
+        "translate the pick object along x by 1/5 of its valid region (0.20 m)",
+        "pick.x",
+        0.04,
+        "m",
+        False,
+        5,
+    ),
+    "fixture_x": (
+        "slide the goal fixture (cabinet) along its own x axis, the counter direction",
+        "fixture_x",
+        0.125,
+        "m",
+        False,
+        3,
+    ),
+    "horizon": (
+        "move the robot base back from the table: a longer reach and horizon",
+        "robot_back",
+        0.125,
+        "m",
+        False,
+        2,
+    ),
     "clutter": ("add one clutter object to the receptacle/cabinet", "clutter", 1.0, "objects", False, 4),
-    "stack": ("raise the target block by one 0.25 in riser: a taller target stack", "stack_in", 0.25, "in",
-              False, 4),
+    "stack": (
+        "raise the target block by one 0.25 in riser: a taller target stack",
+        "stack_in",
+        0.25,
+        "in",
+        False,
+        4,
+    ),
     "distractor": ("add one visual-only distractor (no collision)", "distractors", 1.0, "objects", False, 4),
 }
 
@@ -119,7 +149,9 @@ def _validate_step(axis: AxisSpec, step: float) -> None:
         raise ConfigError(f"axis {axis.name} counts {axis.unit}; its step must be a whole number, got {step}")
 
 
-def get_successor(name: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None) -> Successor:
+def get_successor(
+    name: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None
+) -> Successor:
     """The successor for ``name`` (``a+b`` for a composition), with an optional step override.
 
     ``overrides`` maps axis names to ``{"step": s, "max_level": K}`` (a YAML preset's ``axes``).
@@ -137,8 +169,9 @@ def get_successor(name: str, step: float | None = None, overrides: Mapping[str, 
         ov = dict(overrides.get(n, {}))
         if "step" in ov:
             _validate_step(axis, ov["step"])
-        axis = dataclasses.replace(axis, step=float(ov.get("step", axis.step)),
-                                   max_level=int(ov.get("max_level", axis.max_level)))
+        axis = dataclasses.replace(
+            axis, step=float(ov.get("step", axis.step)), max_level=int(ov.get("max_level", axis.max_level))
+        )
         parts.append(Shift(axis))
     if len(parts) == 1:
         if step is not None:
@@ -146,11 +179,14 @@ def get_successor(name: str, step: float | None = None, overrides: Mapping[str, 
             return Shift(parts[0].axis.with_step(float(step)))
         return parts[0]
     if step is not None:
-        raise ConfigError(f"axis {name!r} is a composition; set component steps in a configs/axes preset, not --step")
+        raise ConfigError(
+            f"axis {name!r} is a composition; set component steps in a configs/axes preset, not --step"
+        )
     signed = any(p.axis.signed for p in parts)
     comp = AxisSpec(
         name=name,
-        description="composition: " + "; ".join(f"{p.axis.name} ({p.axis.step:g} {p.axis.unit})" for p in parts),
+        description="composition: "
+        + "; ".join(f"{p.axis.name} ({p.axis.step:g} {p.axis.unit})" for p in parts),
         field="+".join(p.axis.field for p in parts),
         step=1.0,
         unit="level",
@@ -217,7 +253,9 @@ def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
         raise ConfigError(f"axis preset {path}: invalid YAML ({e.__class__.__name__})") from None
     axes = data.get("axes") if isinstance(data, dict) else None
     if not isinstance(axes, dict):
-        raise ConfigError(f"axis preset {path}: expected a top-level 'axes:' mapping of axis -> {{step, max_level}}")
+        raise ConfigError(
+            f"axis preset {path}: expected a top-level 'axes:' mapping of axis -> {{step, max_level}}"
+        )
     out: dict[str, dict[str, float]] = {}
     for name, body in axes.items():
         axis = _base_axis(str(name))
@@ -236,6 +274,8 @@ def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[
     from indgen_vla.progression import check_strictly_harder
 
     axis = successor.axis
-    supports = {k: level_support(spec_at_level(base, successor, k), successor, k) for k in axis.default_levels()}
+    supports = {
+        k: level_support(spec_at_level(base, successor, k), successor, k) for k in axis.default_levels()
+    }
     check_strictly_harder(supports, axis.name)
     return supports

@@ -33,33 +33,61 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
     return bool(info["success"]), env.steps
 
 
-def certify_level(scene: str, task: str, axis: str, level: int, step: float | None, episodes: int, seed: int,
-                  max_steps: int | None) -> dict:
+def certify_level(
+    scene: str,
+    task: str,
+    axis: str,
+    level: int,
+    step: float | None,
+    episodes: int,
+    seed: int,
+    max_steps: int | None,
+) -> dict:
     """Run ``episodes`` oracle episodes of one level; returns its certification row."""
     import scenes
     from scenes.oracle import OraclePolicy
 
-    env = scenes.make_env(scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps)
+    env = scenes.make_env(
+        scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps
+    )
     try:
         policy = OraclePolicy()
-        results = [run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
-                   for i in range(episodes)]
+        results = [
+            run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
+            for i in range(episodes)
+        ]
         param = env.axis_param
     finally:
         env.close()
     successes = sum(ok for ok, _ in results)
     rate = successes / episodes
-    return {"level": level, "param": param, "n": episodes, "successes": successes, "rate": rate,
-            "feasible": rate >= FEASIBLE_RATE, "mean_steps": sum(s for _, s in results) / episodes}
+    return {
+        "level": level,
+        "param": param,
+        "n": episodes,
+        "successes": successes,
+        "rate": rate,
+        "feasible": rate >= FEASIBLE_RATE,
+        "mean_steps": sum(s for _, s in results) / episodes,
+    }
 
 
 def _certify_job(args: tuple) -> dict:
     return certify_level(*args)
 
 
-def certify(scene: str, axis: str, *, task: str | None = None, levels: str | list[int] | None = None,
-            step: float | None = None, episodes: int = 20, seed: int = 0, max_steps: int | None = None,
-            workers: int = 1) -> dict:
+def certify(
+    scene: str,
+    axis: str,
+    *,
+    task: str | None = None,
+    levels: str | list[int] | None = None,
+    step: float | None = None,
+    episodes: int = 20,
+    seed: int = 0,
+    max_steps: int | None = None,
+    workers: int = 1,
+) -> dict:
     """Certify every requested level of ``axis`` on ``scene`` with the oracle; returns the certify.json dict."""
     import scenes
     from scenes.catalog import check_axis_supported, get_scene, resolve_task
@@ -83,8 +111,18 @@ def certify(scene: str, axis: str, *, task: str | None = None, levels: str | lis
 
         with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
             rows = pool.map(_certify_job, jobs, chunksize=1)
-    return {"scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit, "episodes": episodes,
-            "seed": seed, "threshold": FEASIBLE_RATE, "wall_s": round(time.time() - t0, 1), "levels": rows}
+    return {
+        "scene": scene,
+        "task": task,
+        "axis": axis,
+        "step": spec.step,
+        "unit": spec.unit,
+        "episodes": episodes,
+        "seed": seed,
+        "threshold": FEASIBLE_RATE,
+        "wall_s": round(time.time() - t0, 1),
+        "levels": rows,
+    }
 
 
 def load_certification(path: str | Path) -> dict:
@@ -97,13 +135,20 @@ def load_certification(path: str | Path) -> dict:
     try:
         cert = json.loads(p.read_text())
     except json.JSONDecodeError as e:
-        raise RunDirError(f"{p} is not valid JSON ({e.msg} at line {e.lineno}); re-run 'indgen certify'") from None
-    if not isinstance(cert, dict) or not {"scene", "axis", "levels"} <= cert.keys() or not isinstance(
-            cert["levels"], list):
+        raise RunDirError(
+            f"{p} is not valid JSON ({e.msg} at line {e.lineno}); re-run 'indgen certify'"
+        ) from None
+    if (
+        not isinstance(cert, dict)
+        or not {"scene", "axis", "levels"} <= cert.keys()
+        or not isinstance(cert["levels"], list)
+    ):
         raise RunDirError(f"{p} is not a certification (needs scene, axis, levels); re-run 'indgen certify'")
     for row in cert["levels"]:
         if not isinstance(row, dict) or not {"level", "n", "successes", "rate", "feasible"} <= row.keys():
-            raise RunDirError(f"{p}: a level row lacks level/n/successes/rate/feasible; re-run 'indgen certify'")
+            raise RunDirError(
+                f"{p}: a level row lacks level/n/successes/rate/feasible; re-run 'indgen certify'"
+            )
     return cert
 
 
@@ -116,21 +161,37 @@ def print_table(cert: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"certification: {cert['scene']}/{cert['task']} axis {cert['axis']} "
-                        f"(step {cert['step']:g} {cert['unit']}, oracle, threshold {cert['threshold']:.0%})")
+    table = Table(
+        title=f"certification: {cert['scene']}/{cert['task']} axis {cert['axis']} "
+        f"(step {cert['step']:g} {cert['unit']}, oracle, threshold {cert['threshold']:.0%})"
+    )
     for col in ("level", "param", "successes", "rate", "feasible"):
         table.add_column(col, justify="right")
     for r in cert["levels"]:
-        table.add_row(str(r["level"]), f"{r['param']:g}", f"{r['successes']}/{r['n']}", f"{r['rate']:.0%}",
-                      "yes" if r["feasible"] else "[red]NO[/red]")
+        table.add_row(
+            str(r["level"]),
+            f"{r['param']:g}",
+            f"{r['successes']}/{r['n']}",
+            f"{r['rate']:.0%}",
+            "yes" if r["feasible"] else "[red]NO[/red]",
+        )
     Console().print(table)
 
 
 def certify_main(args) -> int:
     """``indgen certify``: write OUT/certify.json and print the table; exit 1 if any level is infeasible."""
     out = Path(args.out)
-    cert = certify(args.scene, args.axis, task=args.task, levels=args.levels, step=args.step,
-                   episodes=args.episodes, seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1)
+    cert = certify(
+        args.scene,
+        args.axis,
+        task=args.task,
+        levels=args.levels,
+        step=args.step,
+        episodes=args.episodes,
+        seed=args.seed,
+        max_steps=args.max_steps,
+        workers=args.workers or 1,
+    )
     try:
         out.mkdir(parents=True, exist_ok=True)
         (out / "certify.json").write_text(json.dumps(cert, indent=2) + "\n")
@@ -169,8 +230,10 @@ def write_summary(out_dir: str | Path) -> Path:
         c = load_certification(path)
         cells = " ".join(f"{r['level']}: {r['successes']}/{r['n']}" for r in c["levels"])
         bad = infeasible_levels(c)
-        lines.append(f"| {c['scene']} / {c.get('task', '?')} | {c['axis']} | {c.get('step', 0):g} {c.get('unit', '')} | "
-                     f"{cells} | {'all' if not bad else 'NOT ' + ', '.join(map(str, bad))} |")
+        lines.append(
+            f"| {c['scene']} / {c.get('task', '?')} | {c['axis']} | {c.get('step', 0):g} {c.get('unit', '')} | "
+            f"{cells} | {'all' if not bad else 'NOT ' + ', '.join(map(str, bad))} |"
+        )
     target = out_dir / "SUMMARY.md"
     target.write_text("\n".join(lines) + "\n")
     return target
@@ -184,7 +247,9 @@ def certification_root() -> Path:
     return Path(env) if env else Path(__file__).resolve().parent.parent / "docs" / "certification"
 
 
-def find_certification(scene: str, axis: str, step: float | None = None, root: str | Path | None = None) -> dict | None:
+def find_certification(
+    scene: str, axis: str, step: float | None = None, root: str | Path | None = None
+) -> dict | None:
     """The committed certification of (scene, axis) made at this step size, or None if there is none."""
     import scenes
 

@@ -17,7 +17,12 @@ DISTRACTOR_SLOTS = {
     "stack": [(0.2, -0.02), (-0.16, 0.3), (0.24, -0.22), (0.22, 0.26)],
     "cabinet_pick": [(-0.2, 0.3), (-0.2, -0.34), (0.32, 0.38), (0.32, -0.4)],
 }
-CLUTTER_SLOTS = [(-0.045, 0.10), (0.045, -0.10), (0.045, 0.10), (-0.045, -0.10)]  # relative to the compartment
+CLUTTER_SLOTS = [
+    (-0.045, 0.10),
+    (0.045, -0.10),
+    (0.045, 0.10),
+    (-0.045, -0.10),
+]  # relative to the compartment
 CAB_X, CAB_Y0 = 0.14, -0.19
 
 
@@ -53,13 +58,30 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
     """LIBERO-Object style: the pick object, a basket, two dressing objects, visual distractors."""
     frac = _grasp_frac(spec.pick.kind)
     free = [
-        FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), spec.pick.x, spec.pick.y,
-                   TABLE_TOP, spec.pick.yaw, jitter="pick"),
-        FreeObject("goal", O.basket("basket"), spec.goal.x, spec.goal.y, TABLE_TOP, spec.goal.yaw, jitter="goal"),
+        FreeObject(
+            "pick",
+            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
+            spec.pick.x,
+            spec.pick.y,
+            TABLE_TOP,
+            spec.pick.yaw,
+            jitter="pick",
+        ),
+        FreeObject(
+            "goal", O.basket("basket"), spec.goal.x, spec.goal.y, TABLE_TOP, spec.goal.yaw, jitter="goal"
+        ),
     ]
     for i, item in enumerate(spec.dressing):
-        free.append(FreeObject(f"dress{i}", O.make_object(item.kind, f"dress{i}", item.scale), item.x, item.y,
-                               TABLE_TOP, item.yaw))
+        free.append(
+            FreeObject(
+                f"dress{i}",
+                O.make_object(item.kind, f"dress{i}", item.scale),
+                item.x,
+                item.y,
+                TABLE_TOP,
+                item.yaw,
+            )
+        )
     floor_off = -O.BASKET_WALL_H + 2 * O.BASKET_T
 
     def privileged(s: dict) -> dict:
@@ -72,8 +94,16 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
             "grasp_z": _grasp_z(s, frac),
         }
 
-    return Layout(free=free, static=_distractors(spec), pick="pick", goal="goal", robot_back=spec.robot_back,
-                  jitter=spec.jitter, facts={"receptacle_inner": O.BASKET_INNER}, privileged=privileged)
+    return Layout(
+        free=free,
+        static=_distractors(spec),
+        pick="pick",
+        goal="goal",
+        robot_back=spec.robot_back,
+        jitter=spec.jitter,
+        facts={"receptacle_inner": O.BASKET_INNER},
+        privileged=privileged,
+    )
 
 
 def stack_layout(spec: SceneSpec) -> Layout:
@@ -83,14 +113,37 @@ def stack_layout(spec: SceneSpec) -> Layout:
         raise ValueError(f"stack height {spec.stack_in} in is not a whole number of 0.25 in plates")
     colour = spec.goal.kind.removeprefix("block_")
     free = [
-        FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), spec.pick.x, spec.pick.y,
-                   TABLE_TOP, spec.pick.yaw, jitter="pick"),
-        FreeObject("goal", O.target_block(colour, "target"), spec.goal.x, spec.goal.y, TABLE_TOP + spec.stack_m,
-                   spec.goal.yaw, jitter="goal"),
+        FreeObject(
+            "pick",
+            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
+            spec.pick.x,
+            spec.pick.y,
+            TABLE_TOP,
+            spec.pick.yaw,
+            jitter="pick",
+        ),
+        FreeObject(
+            "goal",
+            O.target_block(colour, "target"),
+            spec.goal.x,
+            spec.goal.y,
+            TABLE_TOP + spec.stack_m,
+            spec.goal.yaw,
+            jitter="goal",
+        ),
     ]
     if n_plates:
-        free.append(FreeObject("riser", O.riser_stack(n_plates, "riser"), spec.goal.x, spec.goal.y, TABLE_TOP,
-                               spec.goal.yaw, jitter="goal"))
+        free.append(
+            FreeObject(
+                "riser",
+                O.riser_stack(n_plates, "riser"),
+                spec.goal.x,
+                spec.goal.y,
+                TABLE_TOP,
+                spec.goal.yaw,
+                jitter="goal",
+            )
+        )
 
     def privileged(s: dict) -> dict:
         return {
@@ -100,8 +153,16 @@ def stack_layout(spec: SceneSpec) -> Layout:
             "grasp_z": _grasp_z(s, 0.5),
         }
 
-    return Layout(free=free, static=_distractors(spec), pick="pick", goal="goal", robot_back=spec.robot_back,
-                  jitter=spec.jitter, facts={"stack_height_m": spec.stack_m}, privileged=privileged)
+    return Layout(
+        free=free,
+        static=_distractors(spec),
+        pick="pick",
+        goal="goal",
+        robot_back=spec.robot_back,
+        jitter=spec.jitter,
+        facts={"stack_height_m": spec.stack_m},
+        privileged=privileged,
+    )
 
 
 def cabinet_layout(spec: SceneSpec) -> Layout:
@@ -109,16 +170,29 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
     if spec.clutter > len(CLUTTER_SLOTS):
         from indgen_vla.errors import InfeasibleLevelError
 
-        raise InfeasibleLevelError(f"the cabinet holds {len(CLUTTER_SLOTS)} clutter objects; asked for {spec.clutter}")
+        raise InfeasibleLevelError(
+            f"the cabinet holds {len(CLUTTER_SLOTS)} clutter objects; asked for {spec.clutter}"
+        )
     cab_y = CAB_Y0 + spec.fixture_x
     cab = O.cabinet("cabinet")
     half_h = (O.CAB_FLOOR + O.CAB_WALL) / 2
     floor = TABLE_TOP + O.CAB_FLOOR
-    free = [FreeObject("pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), CAB_X + spec.pick.x,
-                       cab_y + spec.pick.y, floor, spec.pick.yaw, jitter="pick")]
+    free = [
+        FreeObject(
+            "pick",
+            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
+            CAB_X + spec.pick.x,
+            cab_y + spec.pick.y,
+            floor,
+            spec.pick.yaw,
+            jitter="pick",
+        )
+    ]
     for i in range(spec.clutter):
         dx, dy = CLUTTER_SLOTS[i]
-        free.append(FreeObject(f"clutter{i}", O.clutter_object(i, f"clutter{i}"), CAB_X + dx, cab_y + dy, floor))
+        free.append(
+            FreeObject(f"clutter{i}", O.clutter_object(i, f"clutter{i}"), CAB_X + dx, cab_y + dy, floor)
+        )
     frac = _grasp_frac(spec.pick.kind)
     centre = np.array([CAB_X, cab_y])
     half = (O.CAB_INNER[0] + 2 * O.CAB_T, O.CAB_INNER[1] + 2 * O.CAB_T)
@@ -135,5 +209,13 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
 
     static = [(cab, (CAB_X, cab_y, TABLE_TOP + half_h))] + _distractors(spec)
     facts = {"fixture_centre": centre, "fixture_half": half, "cabinet_floor_z": floor}
-    return Layout(free=free, static=static, pick="pick", goal=None, robot_back=spec.robot_back, jitter=spec.jitter,
-                  facts=facts, privileged=privileged)
+    return Layout(
+        free=free,
+        static=static,
+        pick="pick",
+        goal=None,
+        robot_back=spec.robot_back,
+        jitter=spec.jitter,
+        facts=facts,
+        privileged=privileged,
+    )

@@ -19,8 +19,14 @@ from indgen_vla.errors import SceneError
 from scenes.spec import BLOCK_COLOURS, INCH
 
 _ASSETS = Path(robosuite.__file__).resolve().parent / "models" / "assets" / "objects"
-MESH_OBJECTS = {"milk": "milk.xml", "bread": "bread.xml", "can": "can.xml", "lemon": "lemon.xml",
-                "bottle": "bottle.xml", "cereal": "cereal.xml"}
+MESH_OBJECTS = {
+    "milk": "milk.xml",
+    "bread": "bread.xml",
+    "can": "can.xml",
+    "lemon": "lemon.xml",
+    "bottle": "bottle.xml",
+    "cereal": "cereal.xml",
+}
 _PRIMITIVE_COLOURS = {"cube": BLOCK_COLOURS["red"], "cylinder": BLOCK_COLOURS["green"]}
 CUBE_HALF = 0.021
 CYL_RADIUS, CYL_HALF_HEIGHT = 0.022, 0.04
@@ -62,7 +68,9 @@ def _scaled_xml(fname: str, scale: float) -> str:
 def make_object(kind: str, name: str, scale: float = 1.0, *, visual: bool = False):
     """A catalog object (mesh or primitive) at ``scale``; ``visual=True`` gives a static, non-colliding copy."""
     obj = _make_object(kind, name, scale, joints=None if visual else "default")
-    if visual:  # keep every geom visible but out of collision (robosuite's "visual" type drops group-0 meshes)
+    if (
+        visual
+    ):  # keep every geom visible but out of collision (robosuite's "visual" type drops group-0 meshes)
         for geom in obj.get_obj().iter("geom"):
             geom.set("contype", "0")
             geom.set("conaffinity", "0")
@@ -72,30 +80,60 @@ def make_object(kind: str, name: str, scale: float = 1.0, *, visual: bool = Fals
 def _make_object(kind: str, name: str, scale: float, joints):
     obj_type = "all"
     if kind in MESH_OBJECTS:
-        return MujocoXMLObject(_scaled_xml(MESH_OBJECTS[kind], scale), name=name, joints=joints, obj_type=obj_type,
-                               duplicate_collision_geoms=True)
+        return MujocoXMLObject(
+            _scaled_xml(MESH_OBJECTS[kind], scale),
+            name=name,
+            joints=joints,
+            obj_type=obj_type,
+            duplicate_collision_geoms=True,
+        )
     if kind == "cube":
         s = CUBE_HALF * scale
-        return BoxObject(name=name, size=[s, s, s], rgba=_PRIMITIVE_COLOURS["cube"], density=300,
-                         friction=[1.0, 0.005, 0.0001], joints=joints, obj_type=obj_type)
+        return BoxObject(
+            name=name,
+            size=[s, s, s],
+            rgba=_PRIMITIVE_COLOURS["cube"],
+            density=300,
+            friction=[1.0, 0.005, 0.0001],
+            joints=joints,
+            obj_type=obj_type,
+        )
     if kind == "cylinder":
-        return CylinderObject(name=name, size=[CYL_RADIUS * scale, CYL_HALF_HEIGHT * scale],
-                              rgba=_PRIMITIVE_COLOURS["cylinder"], density=300, friction=[1.0, 0.005, 0.0001],
-                              joints=joints, obj_type=obj_type)
+        return CylinderObject(
+            name=name,
+            size=[CYL_RADIUS * scale, CYL_HALF_HEIGHT * scale],
+            rgba=_PRIMITIVE_COLOURS["cylinder"],
+            density=300,
+            friction=[1.0, 0.005, 0.0001],
+            joints=joints,
+            obj_type=obj_type,
+        )
     if kind.startswith("block_"):
         colour = kind.removeprefix("block_")
         if colour not in BLOCK_COLOURS:
             raise SceneError(f"unknown block colour {colour!r}; known: {', '.join(BLOCK_COLOURS)}")
         s = BLOCK_HALF * scale
-        return BoxObject(name=name, size=[s, s, s], rgba=BLOCK_COLOURS[colour], density=300,
-                         friction=[1.0, 0.005, 0.0001], joints=joints, obj_type=obj_type)
+        return BoxObject(
+            name=name,
+            size=[s, s, s],
+            rgba=BLOCK_COLOURS[colour],
+            density=300,
+            friction=[1.0, 0.005, 0.0001],
+            joints=joints,
+            obj_type=obj_type,
+        )
     raise SceneError(f"no MJCF builder for object kind {kind!r}")
 
 
 def target_block(colour: str, name: str) -> BoxObject:
     """The block the pick block goes on (slightly larger than the pick block, heavy so it stays put)."""
-    return BoxObject(name=name, size=[TARGET_HALF] * 3, rgba=BLOCK_COLOURS[colour], density=2000,
-                     friction=[1.0, 0.005, 0.0001])
+    return BoxObject(
+        name=name,
+        size=[TARGET_HALF] * 3,
+        rgba=BLOCK_COLOURS[colour],
+        density=2000,
+        friction=[1.0, 0.005, 0.0001],
+    )
 
 
 def riser_stack(n_plates: int, name: str) -> CompositeObject:
@@ -164,7 +202,10 @@ def cabinet(name: str) -> CompositeObject:
     zc = -half_h  # body frame is the bounding-box centre; z=zc is the table
     geoms = [
         ([ix + 2 * t, iy + 2 * t, CAB_FLOOR / 2], [0, 0, zc + CAB_FLOOR / 2]),  # plinth
-        ([t, iy + 2 * t, CAB_BACK / 2], [ix + t, 0, zc + CAB_FLOOR + CAB_BACK / 2]),  # back (low: camera sees in)
+        (
+            [t, iy + 2 * t, CAB_BACK / 2],
+            [ix + t, 0, zc + CAB_FLOOR + CAB_BACK / 2],
+        ),  # back (low: camera sees in)
         ([ix, t, CAB_WALL / 2], [0, iy + t, zc + CAB_FLOOR + CAB_WALL / 2]),  # left
         ([ix, t, CAB_WALL / 2], [0, -iy - t, zc + CAB_FLOOR + CAB_WALL / 2]),  # right
         ([t, iy + 2 * t, CAB_LIP / 2], [-ix - t, 0, zc + CAB_FLOOR + CAB_LIP / 2]),  # front lip
@@ -192,9 +233,12 @@ def clutter_object(i: int, name: str):
     kind = CLUTTER_KINDS[i % len(CLUTTER_KINDS)]
     colour = BLOCK_COLOURS[kind.rsplit("_", 1)[1]]
     if "_box_" in kind:
-        return BoxObject(name=name, size=[0.018, 0.018, 0.035], rgba=colour, density=400,
-                         friction=[1.0, 0.005, 0.0001])
-    return CylinderObject(name=name, size=[0.018, 0.035], rgba=colour, density=400, friction=[1.0, 0.005, 0.0001])
+        return BoxObject(
+            name=name, size=[0.018, 0.018, 0.035], rgba=colour, density=400, friction=[1.0, 0.005, 0.0001]
+        )
+    return CylinderObject(
+        name=name, size=[0.018, 0.035], rgba=colour, density=400, friction=[1.0, 0.005, 0.0001]
+    )
 
 
 DISTRACTOR_KINDS = ("milk", "cereal", "bottle", "can", "bread", "lemon")

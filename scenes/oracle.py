@@ -63,7 +63,9 @@ class OraclePolicy:
             raise PolicyError(f"standin:oracle is not batched; got {len(observations)} observations")
         priv = observations[0].extras.get("privileged")
         if not isinstance(priv, dict):
-            raise PolicyError("standin:oracle needs the env's privileged state in Observation.extras['privileged']")
+            raise PolicyError(
+                "standin:oracle needs the env's privileged state in Observation.extras['privileged']"
+            )
         return self.action(priv)[None, None, :].astype(np.float32)
 
     # ---- the state machine ---------------------------------------------------------------------

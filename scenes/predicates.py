@@ -72,4 +72,8 @@ class OnTableOutside:
 PICK_PLACE_SUCCESS = InReceptacle()
 STACK_SUCCESS = OnTarget()
 CABINET_SUCCESS = OnTableOutside()
-SUCCESS_PREDICATES = {"pick_place": PICK_PLACE_SUCCESS, "stack": STACK_SUCCESS, "cabinet_pick": CABINET_SUCCESS}
+SUCCESS_PREDICATES = {
+    "pick_place": PICK_PLACE_SUCCESS,
+    "stack": STACK_SUCCESS,
+    "cabinet_pick": CABINET_SUCCESS,
+}

@@ -103,8 +103,9 @@ class IndgenRobosuiteEnv(SingleArmEnv):
         xpos = np.array(robot.base_xpos_offset["table"](TABLE_SIZE[0]), dtype=float)
         xpos[0] -= self.layout.robot_back
         robot.set_base_xpos(xpos)
-        arena = TableArena(table_full_size=TABLE_SIZE, table_friction=(1.0, 5e-3, 1e-4),
-                           table_offset=(0, 0, TABLE_TOP))
+        arena = TableArena(
+            table_full_size=TABLE_SIZE, table_friction=(1.0, 5e-3, 1e-4), table_offset=(0, 0, TABLE_TOP)
+        )
         arena.set_origin([0, 0, 0])
         # robosuite's agentview, pulled back 0.35 m along its own view axis so the whole workspace is in frame
         arena.set_camera("agentview", pos=AGENTVIEW_POS, quat=AGENTVIEW_QUAT)
@@ -119,7 +120,8 @@ class IndgenRobosuiteEnv(SingleArmEnv):
         self.obj_body = {f.name: m.body_name2id(f.model.root_body) for f in self.layout.free}
         self.obj_joint = {f.name: f.model.joints[0] for f in self.layout.free}
         self.obj_geoms = {
-            f.name: np.array([m.geom_name2id(g) for g in f.model.contact_geoms], dtype=int) for f in self.layout.free
+            f.name: np.array([m.geom_name2id(g) for g in f.model.contact_geoms], dtype=int)
+            for f in self.layout.free
         }
         self._masks: dict[bytes, np.ndarray] = {}
         self.obj_qvel = {f.name: m.get_joint_qvel_addr(f.model.joints[0]) for f in self.layout.free}
@@ -142,7 +144,11 @@ class IndgenRobosuiteEnv(SingleArmEnv):
         root = m.body_rootid
         for f in self.layout.free:
             b = self.obj_body[f.name]
-            geoms = [g for g in range(m.ngeom) if root[m.geom_bodyid[g]] == b and m.geom_contype[g] | m.geom_conaffinity[g]]
+            geoms = [
+                g
+                for g in range(m.ngeom)
+                if root[m.geom_bodyid[g]] == b and m.geom_contype[g] | m.geom_conaffinity[g]
+            ]
             corners = []
             for g in geoms:
                 c, h = m.geom_aabb[g][:3], m.geom_aabb[g][3:]
@@ -215,7 +221,7 @@ class IndgenRobosuiteEnv(SingleArmEnv):
         pick_pos, pick_quat = self.object_pose(lay.pick)
         ext = self.extent[lay.pick]
         lo, _ = self.obj_qvel[lay.pick]
-        vel = d.qvel[lo:lo + 3]
+        vel = d.qvel[lo : lo + 3]
         state: dict = {
             "eef_pos": eef_pos,
             "eef_mat": np.array(d.site_xmat[robot.eef_site_id]).reshape(3, 3),

@@ -54,7 +54,9 @@ class Item:
     def __post_init__(self) -> None:
         _finite(f"{self.kind}.x/y/yaw", self.x, self.y, self.yaw)
         if not 0.3 <= self.scale <= 3.0:
-            raise ConfigError(f"object {self.kind}: scale {self.scale:g} is outside the physical range 0.3..3")
+            raise ConfigError(
+                f"object {self.kind}: scale {self.scale:g} is outside the physical range 0.3..3"
+            )
 
 
 @dataclass(frozen=True)
@@ -88,11 +90,19 @@ class SceneSpec:
     dressing: tuple[Item, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
-        _finite("jitter/robot_back/fixture_x/stack_in", self.jitter, self.robot_back, self.fixture_x, self.stack_in)
+        _finite(
+            "jitter/robot_back/fixture_x/stack_in",
+            self.jitter,
+            self.robot_back,
+            self.fixture_x,
+            self.stack_in,
+        )
         if not 0 <= self.jitter <= 0.05:
             raise ConfigError(f"scene {self.scene}: jitter {self.jitter} must be in 0..0.05 m")
         if self.robot_back < -0.1:
-            raise ConfigError(f"scene {self.scene}: robot_back {self.robot_back} would push the robot into the table")
+            raise ConfigError(
+                f"scene {self.scene}: robot_back {self.robot_back} would push the robot into the table"
+            )
         for name in ("clutter", "distractors"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 0:

@@ -27,8 +27,9 @@ def write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: int = 20) -> 
     pad = ((0, h % 2), (0, w % 2), (0, 0))  # H.264 needs even sides
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=2, quality=7,
-                            ffmpeg_log_level="error") as writer:
+    with imageio.get_writer(
+        path, fps=fps, codec="libx264", macro_block_size=2, quality=7, ffmpeg_log_level="error"
+    ) as writer:
         for f in frames:
             writer.append_data(np.pad(f, pad, mode="edge") if any(p[1] for p in pad) else f)
     return path

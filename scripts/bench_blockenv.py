@@ -40,7 +40,9 @@ def main() -> None:
     g = env.cfg.grid_size
 
     def rand(e, rng, _arms):
-        return np.stack([rng.integers(0, g, a.batch), rng.integers(0, g, a.batch), rng.integers(0, 2, a.batch)], 1)
+        return np.stack(
+            [rng.integers(0, g, a.batch), rng.integers(0, g, a.batch), rng.integers(0, 2, a.batch)], 1
+        )
 
     out = {"batch": a.batch, "level": a.level,
            "random_steps_per_s": round(_rate(env, a.batch, a.level, a.seconds, rand)),

@@ -46,7 +46,9 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers) -> float:
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
 
-    rc = RunnerConfig(scene=scene, cameras=(), image_size=(64, 64), max_steps=max_steps, step=None, privileged=False)
+    rc = RunnerConfig(
+        scene=scene, cameras=(), image_size=(64, 64), max_steps=max_steps, step=None, privileged=False
+    )
     records = []
     t0 = time.perf_counter()
     run_local(jobs, rc, lambda: load_policy(spec_str), RunMeta("bench", spec_str, "", scene), records.append,
@@ -90,7 +92,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="few short episodes (CI smoke run)")
     ap.add_argument("--scene", default="pick_place")
     ap.add_argument("--policy", default="standin:random")
-    ap.add_argument("--repeats", type=int, default=None, help="interleaved repeats, best kept (default 3; quick 1)")
+    ap.add_argument(
+        "--repeats", type=int, default=None, help="interleaved repeats, best kept (default 3; quick 1)"
+    )
     args = ap.parse_args()
     import torch
 

@@ -91,7 +91,9 @@ def bench_scene(scene: str, steps: int, repeats: int) -> dict:
         out["frames_per_s_bare"] = rsteps * len(CAMS) / min(b)
     finally:
         env.close()
-    out["physics_overhead_pct"] = 100 * (out["physics_steps_per_s_bare"] / out["physics_steps_per_s_wrapper"] - 1)
+    out["physics_overhead_pct"] = 100 * (
+        out["physics_steps_per_s_bare"] / out["physics_steps_per_s_wrapper"] - 1
+    )
     out["render_overhead_pct"] = 100 * (out["frames_per_s_bare"] / out["frames_per_s_wrapper"] - 1)
     return out
 
@@ -103,12 +105,16 @@ def main() -> int:
     ap.add_argument("--scenes", default=",".join(SCENES))
     args = ap.parse_args()
     rows = [bench_scene(s, args.steps, args.repeats) for s in args.scenes.split(",")]
-    print("| scene | physics steps/s (wrapper / bare) | overhead | frames/s 2x128² (wrapper / bare) | overhead |")
+    print(
+        "| scene | physics steps/s (wrapper / bare) | overhead | frames/s 2x128² (wrapper / bare) | overhead |"
+    )
     print("|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['scene']} | {r['physics_steps_per_s_wrapper']:.0f} / {r['physics_steps_per_s_bare']:.0f} | "
-              f"{r['physics_overhead_pct']:+.1f} % | {r['frames_per_s_wrapper']:.1f} / {r['frames_per_s_bare']:.1f} | "
-              f"{r['render_overhead_pct']:+.1f} % |")
+        print(
+            f"| {r['scene']} | {r['physics_steps_per_s_wrapper']:.0f} / {r['physics_steps_per_s_bare']:.0f} | "
+            f"{r['physics_overhead_pct']:+.1f} % | {r['frames_per_s_wrapper']:.1f} / {r['frames_per_s_bare']:.1f} | "
+            f"{r['render_overhead_pct']:+.1f} % |"
+        )
     print(json.dumps({"bench": "scenes", "steps": args.steps, "repeats": args.repeats, "rows": rows}))
     return 0
 

@@ -56,7 +56,9 @@ def bench_openpi(n: int) -> dict:
     port = server.start_background()
     client = load_policy(f"openpi:ws://127.0.0.1:{port}")
     o = obs(0)
-    packed_reply = msgpack_numpy.packb({"actions": np.zeros((10, 7), np.float32), "server_timing": {"infer_ms": 0.1}})
+    packed_reply = msgpack_numpy.packb(
+        {"actions": np.zeros((10, 7), np.float32), "server_timing": {"infer_ms": 0.1}}
+    )
     out = {
         "encode_ms": timed(lambda: msgpack_numpy.packb(make_request(o, 224, True)), n),
         "decode_ms": timed(lambda: msgpack_numpy.unpackb(packed_reply), n),
@@ -106,8 +108,14 @@ def bench_groot(n: int) -> dict:
     from policy_wrappers.registry import load_policy
 
     reply_n16 = msgpack_numpy.groot_packb(
-        [{f"action.{k}": np.zeros((1, 16, 1), np.float32)
-          for k in ("x", "y", "z", "roll", "pitch", "yaw", "gripper")}, {}])
+        [
+            {
+                f"action.{k}": np.zeros((1, 16, 1), np.float32)
+                for k in ("x", "y", "z", "roll", "pitch", "yaw", "gripper")
+            },
+            {},
+        ]
+    )
     ctx = zmq.Context()
     sock = ctx.socket(zmq.REP)
     port = sock.bind_to_random_port("tcp://127.0.0.1")
@@ -118,15 +126,26 @@ def bench_groot(n: int) -> dict:
             if sock.poll(20):
                 req = msgpack_numpy.groot_unpackb(sock.recv())
                 ep = req.get("endpoint")
-                sock.send(reply_n16 if ep == "get_action" else msgpack_numpy.groot_packb({"status": "ok"} if ep == "ping" else {}))
+                sock.send(
+                    reply_n16
+                    if ep == "get_action"
+                    else msgpack_numpy.groot_packb({"status": "ok"} if ep == "ping" else {})
+                )
 
     thread = threading.Thread(target=loop, daemon=True)
     thread.start()
     client = load_policy(f"groot:tcp://127.0.0.1:{port}?gripper=raw")
     o = obs(0)
     out = {
-        "encode_ms": timed(lambda: msgpack_numpy.groot_packb({"endpoint": "get_action", "data": {
-            "observation": client.make_observation([o]), "options": None}}), n),
+        "encode_ms": timed(
+            lambda: msgpack_numpy.groot_packb(
+                {
+                    "endpoint": "get_action",
+                    "data": {"observation": client.make_observation([o]), "options": None},
+                }
+            ),
+            n,
+        ),
         "decode_ms": timed(lambda: msgpack_numpy.groot_unpackb(reply_n16), n),
         "roundtrip_ms": timed(lambda: client.act([o]), n),
     }
@@ -176,7 +195,12 @@ def main(argv=None) -> int:
     parser.add_argument("--threads", type=int, default=1, help="torch threads for the in-process policy")
     args = parser.parse_args(argv)
     n = 10 if args.quick else 50
-    result = {"bench": "policy_wrappers", "iters": n, "image": "2 cameras 256x256 uint8", "torch_threads": args.threads}
+    result = {
+        "bench": "policy_wrappers",
+        "iters": n,
+        "image": "2 cameras 256x256 uint8",
+        "torch_threads": args.threads,
+    }
     result["openpi"] = bench_openpi(n)
     result["openvla_oft"] = bench_openvla(n)
     result["groot_n16"] = bench_groot(n)
@@ -184,7 +208,9 @@ def main(argv=None) -> int:
         from policy_wrappers.tiny import build_tiny_checkpoint
 
         with tempfile.TemporaryDirectory() as tmp:
-            result["lerobot_tiny_act"] = bench_lerobot(n, args.batch, build_tiny_checkpoint("act", tmp), args.threads)
+            result["lerobot_tiny_act"] = bench_lerobot(
+                n, args.batch, build_tiny_checkpoint("act", tmp), args.threads
+            )
     except ImportError as e:
         result["lerobot_tiny_act"] = {"skipped": str(e)}
     print(json.dumps(result))

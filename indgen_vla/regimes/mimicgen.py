@@ -117,7 +117,9 @@ def pose_to_action(target: np.ndarray, current: np.ndarray, gripper: float) -> n
     return np.clip(a, -1.0, 1.0)
 
 
-def split_subtasks(states: np.ndarray, actions: np.ndarray, lift_frac: float = 0.9) -> list[tuple[int, int]] | None:
+def split_subtasks(
+    states: np.ndarray, actions: np.ndarray, lift_frac: float = 0.9
+) -> list[tuple[int, int]] | None:
     """Frame ranges of the grasp and place segments, or None when the demo has no single grasp and release.
 
     The grasp segment runs from the start through the gripper closing to ``lift_frac`` of the lift height
@@ -134,7 +136,7 @@ def split_subtasks(states: np.ndarray, actions: np.ndarray, lift_frac: float = 0
     r = c + int(opens[0])
     z = np.asarray(states)[:, 2]
     top = z[c:r].max()
-    above = np.flatnonzero(z[c + 1:r] >= z[c] + lift_frac * (top - z[c]) - 1e-9)
+    above = np.flatnonzero(z[c + 1 : r] >= z[c] + lift_frac * (top - z[c]) - 1e-9)
     e = c + 1 + int(above[0]) if len(above) else r
     return [(0, e), (e, len(states))]
 
@@ -163,8 +165,9 @@ def load_sources(root: Path, lift_frac: float = 0.9) -> tuple[dict, list[SourceD
     """(lerobot info.json, usable source demos, number skipped) of a dataset written by ``indgen demos``."""
     info = json.loads((root / "meta" / "info.json").read_text())
     feats = info.get("features", {})
-    if feats.get("observation.state", {}).get("shape") not in ([STATE_DIM], (STATE_DIM,)) or \
-            feats.get("action", {}).get("shape") not in ([ACTION_DIM], (ACTION_DIM,)):
+    if feats.get("observation.state", {}).get("shape") not in ([STATE_DIM], (STATE_DIM,)) or feats.get(
+        "action", {}
+    ).get("shape") not in ([ACTION_DIM], (ACTION_DIM,)):
         raise ConfigError(f"--source {root} lacks the {STATE_DIM}-d observation.state and {ACTION_DIM}-d action "
                           "of `indgen demos` datasets; record one with `indgen demos`")  # fmt: skip
     records = {r["episode_index"]: r for r in read_episode_sidecar(root)}
@@ -284,7 +287,9 @@ def generate_episode(env, demos: list[SourceDemo], seed: int, rng: np.random.Gen
     priv = env.privileged_state()
     last, grip = pose_from_state(obs.state), float(demos[0].gripper[0])
     for k, (_, ref) in enumerate(SUBTASKS):
-        new_ref = pose_from_pq(object_poses(priv)[ref])  # the reference object's pose now, at the segment start
+        new_ref = pose_from_pq(
+            object_poses(priv)[ref]
+        )  # the reference object's pose now, at the segment start
         demo = select_source(demos, k, new_ref, rng, cfg.selection, cfg.nn_k)
         used.append(demo.index)
         targets, grips, src_ref = demo.segment(k)
@@ -398,14 +403,20 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
 
 def mimicgen_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen mimicgen`` (its own parser over the passthrough arguments)."""
-    p = argparse.ArgumentParser(prog="indgen mimicgen",
-                                description="MimicGen-style augmentation of T0 demonstrations (LeRobotDataset)")
+    p = argparse.ArgumentParser(
+        prog="indgen mimicgen",
+        description="MimicGen-style augmentation of T0 demonstrations (LeRobotDataset)",
+    )
     p.add_argument("--source", required=True, help="dataset written by `indgen demos`")
-    p.add_argument("--n", type=int, required=True, help="generation attempts per task (successes with --guarantee)")
+    p.add_argument(
+        "--n", type=int, required=True, help="generation attempts per task (successes with --guarantee)"
+    )
     p.add_argument("--out", required=True, help="new dataset root directory (must not exist)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task")
-    p.add_argument("--max-attempts", type=int, default=None, help="attempt cap per task with --guarantee (5 n)")
+    p.add_argument(
+        "--max-attempts", type=int, default=None, help="attempt cap per task with --guarantee (5 n)"
+    )
     p.add_argument("--selection", choices=SELECTIONS, default="nearest", help="per-subtask source choice")
     p.add_argument("--action-noise", type=float, default=0.05, help="std of motion noise on executed actions")
     p.add_argument("--repo-id", default="local/indgen_mimicgen")

@@ -47,10 +47,12 @@ def candidate_dirs() -> list[Path]:
 
 def missing_assets_message() -> str:
     """The one line ``evaluate`` prints when no asset tree is found."""
-    return (f"LIBERO's assets are missing (looked in {', '.join(str(p) for p in candidate_dirs())}); on a machine "
-            f"with network run 'hf download {HUB_REPO} --repo-type dataset --local-dir {HUB_CACHE}' and copy that "
-            f"folder here, or set {ASSETS_ENV}=DIR to a folder holding scenes/, stable_hope_objects/, "
-            "stable_scanned_objects/ and textures/")
+    return (
+        f"LIBERO's assets are missing (looked in {', '.join(str(p) for p in candidate_dirs())}); on a machine "
+        f"with network run 'hf download {HUB_REPO} --repo-type dataset --local-dir {HUB_CACHE}' and copy that "
+        f"folder here, or set {ASSETS_ENV}=DIR to a folder holding scenes/, stable_hope_objects/, "
+        "stable_scanned_objects/ and textures/"
+    )
 
 
 def find_assets(required: bool = True) -> Path | None:
@@ -59,8 +61,10 @@ def find_assets(required: bool = True) -> Path | None:
     for p in explicit:
         if not is_asset_tree(p):
             if required:
-                raise SceneError(f"{p} (from ${ASSETS_ENV}/$LIBERO_ASSETS) is not a LIBERO asset folder: it needs "
-                                 f"{', '.join(s + '/' for s in REQUIRED)}; {missing_assets_message()}")
+                raise SceneError(
+                    f"{p} (from ${ASSETS_ENV}/$LIBERO_ASSETS) is not a LIBERO asset folder: it needs "
+                    f"{', '.join(s + '/' for s in REQUIRED)}; {missing_assets_message()}"
+                )
             return None
     for p in candidate_dirs():
         if is_asset_tree(p):
@@ -87,8 +91,13 @@ def ensure_config(assets: Path) -> Path:
     if user and (Path(user) / "config.yaml").is_file():
         return Path(user) / "config.yaml"
     root = libero_root()
-    cfg = {"benchmark_root": str(root), "bddl_files": str(root / "bddl_files"),
-           "init_states": str(root / "init_files"), "datasets": str(root.parent / "datasets"), "assets": str(assets)}
+    cfg = {
+        "benchmark_root": str(root),
+        "bddl_files": str(root / "bddl_files"),
+        "init_states": str(root / "init_files"),
+        "datasets": str(root.parent / "datasets"),
+        "assets": str(assets),
+    }
     d = config_dir()
     path = d / "config.yaml"
     try:
@@ -98,8 +107,9 @@ def ensure_config(assets: Path) -> Path:
             tmp.write_text(yaml.safe_dump(cfg))
             tmp.replace(path)
     except OSError as e:
-        raise SceneError(f"cannot write LIBERO's config at {path}: {e.strerror}; set INDGEN_CACHE to a "
-                         "writable folder") from None
+        raise SceneError(
+            f"cannot write LIBERO's config at {path}: {e.strerror}; set INDGEN_CACHE to a writable folder"
+        ) from None
     os.environ["LIBERO_CONFIG_PATH"] = str(d)
     return path
 

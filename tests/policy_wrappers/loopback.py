@@ -19,8 +19,14 @@ class WebsocketServer:
 
         self._stop = asyncio.Event()
         self._loop = asyncio.get_running_loop()
-        async with serve(self.handler, "127.0.0.1", 0, compression=None, max_size=None,
-                         process_request=self.process_request) as server:
+        async with serve(
+            self.handler,
+            "127.0.0.1",
+            0,
+            compression=None,
+            max_size=None,
+            process_request=self.process_request,
+        ) as server:
             self.port = server.sockets[0].getsockname()[1]
             self._ready.set()
             await self._stop.wait()

@@ -58,10 +58,12 @@ class GrootServer:
             else:
                 endpoint = request.get("endpoint", "get_action")
                 try:
-                    result = {"ping": lambda d: {"status": "ok", "message": "Server is running"},
-                              "get_modality_config": lambda d: self.modality,
-                              "reset": lambda d: {},
-                              "get_action": self.get_action}[endpoint](request.get("data"))
+                    result = {
+                        "ping": lambda d: {"status": "ok", "message": "Server is running"},
+                        "get_modality_config": lambda d: self.modality,
+                        "reset": lambda d: {},
+                        "get_action": self.get_action,
+                    }[endpoint](request.get("data"))
                 except Exception as e:  # gr00t replies {"error": str(e)}
                     result = {"error": str(e)}
             self.sock.send(msgpack.packb(result, default=encode))
@@ -87,8 +89,10 @@ def n15_reply(data):
         assert data[f"state.{key}"].shape == (1, 1) and data[f"state.{key}"].dtype == np.float64
     assert data["state.gripper"].shape == (1, 2)
     assert isinstance(data["annotation.human.action.task_description"], list)
-    return {f"action.{k}": np.full((16, 1) if k != "x" else (16,), 0.9 if k == "gripper" else 0.1, np.float32)
-            for k in KEYS}
+    return {
+        f"action.{k}": np.full((16, 1) if k != "x" else (16,), 0.9 if k == "gripper" else 0.1, np.float32)
+        for k in KEYS
+    }
 
 
 def test_n15_flat_keys(obs_factory):
@@ -107,15 +111,30 @@ def test_n15_flat_keys(obs_factory):
 
 
 def test_n16_batched_with_reset_and_modality_config(obs_factory):
-    modality = {"video": {"__ModalityConfig_class__": True, "as_json": {"delta_indices": [0], "modality_keys": ["image", "wrist_image"]}},
-                "language": {"__ModalityConfig_class__": True, "as_json": {"delta_indices": [0], "modality_keys": ["annotation.human.task_description"]}}}
+    modality = {
+        "video": {
+            "__ModalityConfig_class__": True,
+            "as_json": {"delta_indices": [0], "modality_keys": ["image", "wrist_image"]},
+        },
+        "language": {
+            "__ModalityConfig_class__": True,
+            "as_json": {"delta_indices": [0], "modality_keys": ["annotation.human.task_description"]},
+        },
+    }
 
     def reply(data):
         obs = data["observation"]
         assert set(data) == {"observation", "options"} and data["options"] is None
         assert obs["video.image"].shape == (3, 1, 256, 256, 3) and obs["state.gripper"].shape == (3, 1, 2)
-        assert obs["state.x"].dtype == np.float32 and obs["annotation.human.task_description"] == ["a", "b", "c"]
-        return [{f"action.{k}": np.full((3, 16, 2 if k == "gripper" else 1), 0.2, np.float32) for k in KEYS}, {}]
+        assert obs["state.x"].dtype == np.float32 and obs["annotation.human.task_description"] == [
+            "a",
+            "b",
+            "c",
+        ]
+        return [
+            {f"action.{k}": np.full((3, 16, 2 if k == "gripper" else 1), 0.2, np.float32) for k in KEYS},
+            {},
+        ]
 
     def gripper_two(data):  # a wrong action dimension must be refused
         return [{f"action.{k}": np.zeros((1, 16, 2), np.float32) for k in KEYS}, {}]
@@ -143,7 +162,9 @@ def test_n16_good_reply(obs_factory):
         return [{f"action.{k}": np.full((n, 16, 1), 0.3, np.float32) for k in KEYS}, {}]
 
     with GrootServer(reply) as srv:
-        chunk = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?gripper=raw").act([obs_factory(0), obs_factory(1)])
+        chunk = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?gripper=raw").act(
+            [obs_factory(0), obs_factory(1)]
+        )
     assert chunk.shape == (2, 16, 7) and np.allclose(chunk, 0.3)
 
 

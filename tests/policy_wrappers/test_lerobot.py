@@ -57,9 +57,13 @@ def test_to_batch_matches_lerobot_env_pipeline(tiny_act, obs_factory):
     policy = load_policy(f"lerobot:{tiny_act}")
     obs = [obs_factory(i, size=32) for i in range(2)]
     ours = policy.to_batch(obs)
-    env_obs = {"pixels": {"image": np.stack([o.images["agentview"] for o in obs]),
-                          "image2": np.stack([o.images["wrist"] for o in obs])},
-               "agent_pos": np.stack([o.state for o in obs])}
+    env_obs = {
+        "pixels": {
+            "image": np.stack([o.images["agentview"] for o in obs]),
+            "image2": np.stack([o.images["wrist"] for o in obs]),
+        },
+        "agent_pos": np.stack([o.state for o in obs]),
+    }
     ref = preprocess_observation(env_obs)
     for key in ("observation.images.image", "observation.images.image2"):
         assert torch.equal(ours[key], torch.flip(ref[key], dims=[2, 3]))
@@ -96,7 +100,9 @@ def test_diffusion_history_and_seed_match_select_action(tiny_diffusion, obs_fact
     assert np.array_equal(ours[0], policy.act(seq[0]))  # the episode seed fixes the diffusion noise
     policy.reset("x", seed=3)
     with torch.inference_mode():
-        theirs = [policy.post(policy.policy.select_action(policy.pre(policy.to_batch(o)))).numpy() for o in seq]
+        theirs = [
+            policy.post(policy.policy.select_action(policy.pre(policy.to_batch(o)))).numpy() for o in seq
+        ]
     for c, t in zip(ours, theirs, strict=True):
         assert np.allclose(c[:, 0], t, atol=1e-5)
 
@@ -127,7 +133,9 @@ def test_standin_checkpoint_dir_delegates(tiny_act, obs_factory):
 
 def test_tiny_smolvla_with_local_backbone(tmp_path, hub_cache, obs_factory):
     """SmolVLA through the Hub-id path, its VLM config + tokenizer from a local dir (``?vlm=`` relocates it)."""
-    pytest.importorskip("num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])")
+    pytest.importorskip(
+        "num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])"
+    )
     from policy_wrappers.tiny import build_tiny_smolvla, build_tiny_vlm_dir
 
     vlm = build_tiny_vlm_dir(tmp_path / "vlm")

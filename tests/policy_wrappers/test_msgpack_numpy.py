@@ -13,7 +13,9 @@ from policy_wrappers import msgpack_numpy as mn
 
 def test_openpi_ndarray_encoding_is_byte_identical():
     arr = np.arange(6, dtype=np.float32).reshape(2, 3)
-    expected = msgpack.packb({"a": {b"__ndarray__": True, b"data": arr.tobytes(), b"dtype": "<f4", b"shape": (2, 3)}})
+    expected = msgpack.packb(
+        {"a": {b"__ndarray__": True, b"data": arr.tobytes(), b"dtype": "<f4", b"shape": (2, 3)}}
+    )
     assert mn.packb({"a": arr}) == expected
     assert mn.Packer().pack({"a": arr}) == expected
 
@@ -22,7 +24,9 @@ def test_openpi_scalar_and_roundtrip():
     msg = {"img": np.zeros((4, 4, 3), np.uint8), "s": np.float32(1.5), "i": np.int64(3), "p": "go"}
     expected_scalar = msgpack.packb({b"__npgeneric__": True, b"data": 1.5, b"dtype": "<f4"})
     assert mn.packb(np.float32(1.5)) == expected_scalar
-    assert mn.packb(np.float64(1.5)) == msgpack.packb(1.5)  # a float subclass: msgpack packs it natively, as upstream
+    assert mn.packb(np.float64(1.5)) == msgpack.packb(
+        1.5
+    )  # a float subclass: msgpack packs it natively, as upstream
     out = mn.unpackb(mn.packb(msg))
     assert out["img"].dtype == np.uint8 and out["img"].shape == (4, 4, 3)
     assert isinstance(out["s"], np.float32) and out["s"] == 1.5 and isinstance(out["i"], np.int64)
@@ -45,7 +49,21 @@ def test_groot_encoding_is_npy_inside_msgpack():
 
 
 def test_groot_modality_config_decodes_to_dict():
-    n15 = msgpack.packb({"video": {"__ModalityConfig_class__": True, "as_json": '{"delta_indices": [0], "modality_keys": ["video.image"]}'}})
-    n16 = msgpack.packb({"video": {"__ModalityConfig_class__": True, "as_json": {"delta_indices": [0], "modality_keys": ["image"]}}})
+    n15 = msgpack.packb(
+        {
+            "video": {
+                "__ModalityConfig_class__": True,
+                "as_json": '{"delta_indices": [0], "modality_keys": ["video.image"]}',
+            }
+        }
+    )
+    n16 = msgpack.packb(
+        {
+            "video": {
+                "__ModalityConfig_class__": True,
+                "as_json": {"delta_indices": [0], "modality_keys": ["image"]},
+            }
+        }
+    )
     assert mn.groot_unpackb(n15)["video"]["modality_keys"] == ["video.image"]
     assert mn.groot_unpackb(n16)["video"]["modality_keys"] == ["image"]

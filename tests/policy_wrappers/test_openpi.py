@@ -19,6 +19,7 @@ pytestmark = pytest.mark.timeout(60)
 
 def openpi_server(reply, seen: list, headers: list | None = None):
     """A server shaped like openpi's WebsocketPolicyServer: metadata frame, then request -> reply."""
+
     async def handler(ws):
         if headers is not None:
             headers.append(ws.request.headers.get("Authorization"))
@@ -36,13 +37,16 @@ def openpi_server(reply, seen: list, headers: list | None = None):
                 await ws.close(code=1011, reason="Internal server error")
                 return
             await ws.send(msgpack_numpy.packb(out))
+
     return WebsocketServer(handler)
 
 
 def test_request_matches_openpi_libero_example(obs_factory):
     seen, headers = [], []
     actions = np.linspace(-1, 1, 70, dtype=np.float32).reshape(10, 7)
-    with openpi_server(lambda obs: {"actions": actions, "server_timing": {"infer_ms": 1.0}}, seen, headers) as srv:
+    with openpi_server(
+        lambda obs: {"actions": actions, "server_timing": {"infer_ms": 1.0}}, seen, headers
+    ) as srv:
         policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}?api_key=secret")
         assert policy.metadata == {"action_horizon": 10}
         assert (policy.spec.chunk_size, policy.spec.replan_steps, policy.spec.flip_180) == (10, 5, True)
@@ -71,7 +75,9 @@ def test_resize_with_pad_matches_openpi_semantics():
 
 def test_server_error_frame_then_reconnect(obs_factory):
     seen = []
-    calls = iter(["Traceback (most recent call last):\nValueError: bad prompt", {"actions": np.zeros((10, 7))}])
+    calls = iter(
+        ["Traceback (most recent call last):\nValueError: bad prompt", {"actions": np.zeros((10, 7))}]
+    )
     with openpi_server(lambda obs: next(calls), seen) as srv:
         policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}")
         with pytest.raises(PolicyError, match="server error: ValueError: bad prompt") as err:

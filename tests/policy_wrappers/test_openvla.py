@@ -28,8 +28,11 @@ def jn_hook(d):  # json_numpy.object_hook, written out independently of the clie
 
 
 def jn_default(o):  # json_numpy.default
-    return {"__numpy__": base64.b64encode(np.ascontiguousarray(o).tobytes()).decode(),
-            "dtype": dtype_to_descr(o.dtype), "shape": o.shape}
+    return {
+        "__numpy__": base64.b64encode(np.ascontiguousarray(o).tobytes()).decode(),
+        "dtype": dtype_to_descr(o.dtype),
+        "shape": o.shape,
+    }
 
 
 class DeployServer:
@@ -76,7 +79,11 @@ def test_oft_payload_and_chunk(obs_factory):
     actions = [np.array([0.1, 0, 0, 0, 0, 0.2, g], np.float32) for g in (0.9, 0.1) * 4]
     with DeployServer(lambda p: actions) as srv:
         policy = load_policy(f"openvla-oft:http://127.0.0.1:{srv.port}")
-        assert (policy.spec.chunk_size, policy.spec.replan_steps, policy.spec.image_size) == (8, 8, (256, 256))
+        assert (policy.spec.chunk_size, policy.spec.replan_steps, policy.spec.image_size) == (
+            8,
+            8,
+            (256, 256),
+        )
         obs = obs_factory(2)
         chunk = policy.act([obs])
     assert chunk.shape == (1, 8, 7) and chunk.dtype == np.float32
@@ -92,10 +99,15 @@ def test_oft_payload_and_chunk(obs_factory):
 
 def test_base_openvla_variant(obs_factory):
     with DeployServer(lambda p: np.array([0, 0, 0.01, 0, 0, 0, 0.0], np.float64)) as srv:
-        policy = load_policy(f"openvla-oft:http://127.0.0.1:{srv.port}?variant=openvla&unnorm_key=libero_spatial")
+        policy = load_policy(
+            f"openvla-oft:http://127.0.0.1:{srv.port}?variant=openvla&unnorm_key=libero_spatial"
+        )
         chunk = policy.act([obs_factory(), obs_factory(1)])
     assert chunk.shape == (2, 1, 7) and chunk[0, 0, 2] == pytest.approx(0.01) and chunk[0, 0, 6] == 1.0
-    assert set(srv.seen[0]) == {"image", "instruction", "unnorm_key"} and srv.seen[0]["unnorm_key"] == "libero_spatial"
+    assert (
+        set(srv.seen[0]) == {"image", "instruction", "unnorm_key"}
+        and srv.seen[0]["unnorm_key"] == "libero_spatial"
+    )
     assert policy.spec.cameras == ("agentview",) and policy.spec.replan_steps == 1
 
 
@@ -107,7 +119,9 @@ def test_double_encoded_fallback(obs_factory):
         return json.dumps([np.zeros(7, np.float32)] * 8, default=jn_default)
 
     with DeployServer(reply) as srv:
-        assert load_policy(f"openvla-oft:http://127.0.0.1:{srv.port}?encoded=1").act([obs_factory()]).shape == (1, 8, 7)
+        assert load_policy(f"openvla-oft:http://127.0.0.1:{srv.port}?encoded=1").act(
+            [obs_factory()]
+        ).shape == (1, 8, 7)
 
 
 @pytest.mark.parametrize(

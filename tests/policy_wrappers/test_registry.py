@@ -81,9 +81,11 @@ def test_policies_main_json(capsys):
 
 
 def test_import_is_light():
-    code = ("import sys, policy_wrappers, policy_wrappers.registry, policy_wrappers.base; "
-            "bad = [m for m in ('torch', 'lerobot', 'transformers', 'zmq', 'websockets') if m in sys.modules]; "
-            "print(bad); sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, policy_wrappers, policy_wrappers.registry, policy_wrappers.base; "
+        "bad = [m for m in ('torch', 'lerobot', 'transformers', 'zmq', 'websockets') if m in sys.modules]; "
+        "print(bad); sys.exit(1 if bad else 0)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
 

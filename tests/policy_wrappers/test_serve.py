@@ -76,8 +76,12 @@ def test_plain_openpi_client_and_error_frame(served, obs_factory):
     with connect(f"ws://127.0.0.1:{port}", additional_headers={"Authorization": "Api-Key k"}) as ws:
         assert msgpack_numpy.unpackb(ws.recv())["chunk_size"] == 8
         obs = obs_factory(2, size=224)
-        request = {"observation/image": obs.images["agentview"], "observation/wrist_image": obs.images["wrist"],
-                   "observation/state": obs.state.astype(np.float64), "prompt": "stack the blocks"}
+        request = {
+            "observation/image": obs.images["agentview"],
+            "observation/wrist_image": obs.images["wrist"],
+            "observation/state": obs.state.astype(np.float64),
+            "prompt": "stack the blocks",
+        }
         ws.send(msgpack_numpy.packb(request))
         reply = msgpack_numpy.unpackb(ws.recv())
         assert reply["actions"].shape == (8, 7) and reply["actions"].dtype == np.float32
@@ -122,8 +126,12 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    proc = subprocess.Popen([sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "standin:random",
-                             "--port", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "standin:random", "--port", str(port)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 30
         while True:
@@ -132,7 +140,9 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
                     assert resp.status == 200
                     break
             except OSError:
-                assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read() if proc.poll() else "timeout"
+                assert proc.poll() is None and time.monotonic() < deadline, (
+                    proc.stderr.read() if proc.poll() else "timeout"
+                )
                 time.sleep(0.2)
         client = load_policy(f"openpi:ws://127.0.0.1:{port}?chunk=8")
         assert client.act([obs_factory()]).shape == (1, 8, 7)
@@ -148,6 +158,14 @@ def test_indgen_serve_cli_bad_spec_is_one_line():
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "lerobot:"],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode != 0 and out.stderr.strip().count("\n") == 0 and "nothing after 'lerobot:'" in out.stderr
+    out = subprocess.run(
+        [sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "lerobot:"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert (
+        out.returncode != 0
+        and out.stderr.strip().count("\n") == 0
+        and "nothing after 'lerobot:'" in out.stderr
+    )

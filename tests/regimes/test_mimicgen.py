@@ -35,7 +35,9 @@ def _pose(pos, rot):
 
 def test_pose_constructors_and_inverse():
     s = np.sqrt(0.5)
-    assert np.allclose(pose_from_pq([0.2, 0.1, 0.8, s, 0, 0, s]), _pose([0.2, 0.1, 0.8], RZ90))  # wxyz, 90° about z
+    assert np.allclose(
+        pose_from_pq([0.2, 0.1, 0.8, s, 0, 0, s]), _pose([0.2, 0.1, 0.8], RZ90)
+    )  # wxyz, 90° about z
     state = np.array([0.1, 0.2, 1.0, *Rotation.from_matrix(R_DOWN).as_rotvec(), 0.04, -0.04])
     assert np.allclose(pose_from_state(state), _pose([0.1, 0.2, 1.0], R_DOWN))
     t = _pose([1.0, 2.0, 3.0], RZ90)
@@ -53,7 +55,10 @@ def test_segment_transform_translation_only():
 def test_segment_transform_with_rotation_by_hand():
     # eef 5 cm in front of (+x) and 10 cm above the object; the object moves to (0.2, 0.1) and turns 90° about z:
     # the offset turns to +y, i.e. (0.2, 0.15, 0.9), and the gripper turns with it: RZ90 @ R_DOWN
-    src_obj, new_obj = _pose([0.1, 0.0, 0.8], np.eye(3)), pose_from_pq([0.2, 0.1, 0.8, np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
+    src_obj, new_obj = (
+        _pose([0.1, 0.0, 0.8], np.eye(3)),
+        pose_from_pq([0.2, 0.1, 0.8, np.sqrt(0.5), 0, 0, np.sqrt(0.5)]),
+    )
     out = transform_segment(_pose([0.15, 0.0, 0.9], R_DOWN)[None], src_obj, new_obj)[0]
     assert np.allclose(out[:3, 3], [0.2, 0.15, 0.9])
     assert np.allclose(out[:3, :3], [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]])
@@ -96,14 +101,19 @@ def test_split_subtasks_at_the_lift():
     regrasp = actions.copy()
     regrasp[8, -1] = -1.0
     assert split_subtasks(states, regrasp) is None
-    assert split_subtasks(states, np.where(t[:, None] >= 5, 1.0, -1.0) * np.ones((20, 7))) is None  # no release
+    assert (
+        split_subtasks(states, np.where(t[:, None] >= 5, 1.0, -1.0) * np.ones((20, 7))) is None
+    )  # no release
 
 
 def test_config_errors(tmp_path):
     with pytest.raises(ConfigError, match="not a LeRobotDataset"):
         MimicGenConfig(source=tmp_path / "nope", out=tmp_path / "out", n=3)
     (tmp_path / "src" / "meta").mkdir(parents=True)
-    feats = {"observation.state": {"dtype": "float32", "shape": [8]}, "action": {"dtype": "float32", "shape": [7]}}
+    feats = {
+        "observation.state": {"dtype": "float32", "shape": [8]},
+        "action": {"dtype": "float32", "shape": [7]},
+    }
     (tmp_path / "src" / "meta" / "info.json").write_text(json.dumps({"features": feats}))
     with pytest.raises(ConfigError, match="--n must be >= 1"):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=0)
@@ -132,7 +142,11 @@ def test_mimicgen_round_trip_through_lerobot(tmp_path):
     src, out = tmp_path / "src", tmp_path / "gen"
     record_demos("pick_place", src, n=1, image_size=24, seed=3, repo_id="local/src")
     rec = read_episode_sidecar(src)
-    assert len(rec) == 1 and rec[0]["episode_index"] == 0 and len(rec[0]["object_poses"]["pick"]) == rec[0]["frames"]
+    assert (
+        len(rec) == 1
+        and rec[0]["episode_index"] == 0
+        and len(rec[0]["object_poses"]["pick"]) == rec[0]["frames"]
+    )
     stats = generate(MimicGenConfig(source=src, out=out, n=1, seed=1, guarantee=True, max_attempts=3))
     assert stats["successes"] == 1 and 1 <= stats["attempts"] <= 3
     saved = json.loads((out / "mimicgen_stats.json").read_text())
@@ -145,4 +159,8 @@ def test_mimicgen_round_trip_through_lerobot(tmp_path):
     actions = np.stack([b[i]["action"].numpy() for i in range(len(b))])
     assert np.all(np.abs(actions) <= 1.0) and actions[:, -1].max() == 1.0 and actions[-1, -1] == -1.0
     gen = read_episode_sidecar(out)
-    assert gen[0]["regime"] == "mimicgen" and gen[0]["seed"] != rec[0]["seed"] and gen[0]["source_episodes"] == [0, 0]
+    assert (
+        gen[0]["regime"] == "mimicgen"
+        and gen[0]["seed"] != rec[0]["seed"]
+        and gen[0]["source_episodes"] == [0, 0]
+    )

@@ -132,7 +132,7 @@ def test_one_predicate_per_scene_is_shared():
 
 
 def test_api_lists():
-    assert scenes.scene_names() == ["pick_place", "stack", "cabinet_pick", "libero_object"]
+    assert scenes.scene_names() == ["pick_place", "stack", "cabinet_pick", "libero_object", "libero_spatial"]
     assert len(scenes.tasks("pick_place")) >= 6
     assert "stack" in scenes.axes_for("stack")
     for t in scenes.tasks("pick_place"):
@@ -140,9 +140,11 @@ def test_api_lists():
 
 
 def test_import_is_light():
-    code = ("import sys, scenes, scenes.catalog, scenes.axes; "
-            "bad = [m for m in ('robosuite', 'mujoco', 'torch') if m in sys.modules]; print(bad); "
-            "sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, scenes, scenes.catalog, scenes.axes; "
+        "bad = [m for m in ('robosuite', 'mujoco', 'torch') if m in sys.modules]; print(bad); "
+        "sys.exit(1 if bad else 0)"
+    )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=_repo_root())
     assert res.returncode == 0, res.stdout + res.stderr
 

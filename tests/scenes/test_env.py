@@ -18,7 +18,11 @@ from scenes.catalog import SCENES
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 SCENE_AXES = [(s.name, a) for s in SCENES.values() for a in s.axes]
-COMPOSITIONS = [("pick_place", "pick_y+distractor"), ("stack", "stack+distractor"), ("cabinet_pick", "clutter+fixture_x")]
+COMPOSITIONS = [
+    ("pick_place", "pick_y+distractor"),
+    ("stack", "stack+distractor"),
+    ("cabinet_pick", "clutter+fixture_x"),
+]
 
 
 def _extreme(axis: str) -> int:
@@ -29,7 +33,9 @@ def _extreme(axis: str) -> int:
 @pytest.mark.parametrize(("scene", "axis"), SCENE_AXES + COMPOSITIONS)
 def test_builds_and_steps_at_the_extreme_level(scene, axis):
     level = _extreme(axis)
-    env = scenes.make_env(scene, axis=axis, level=level, cameras=("agentview",), image_size=(64, 64), max_steps=3)
+    env = scenes.make_env(
+        scene, axis=axis, level=level, cameras=("agentview",), image_size=(64, 64), max_steps=3
+    )
     try:
         obs, info = env.reset(seed=1)
         assert isinstance(obs, Observation) and set(obs.images) == {"agentview"}
@@ -56,8 +62,12 @@ def test_conditions_on_built_envs():
         assert envs[2].axis_param == pytest.approx(0.16 + 0.0367)
         for e in envs:
             e.reset(seed=5)
-        y = [e.privileged_state()["goal_pos"][1] for e in envs]  # same seed, same jitter: exactly one step apart
-        assert y[2] - y[1] == pytest.approx(0.0367, abs=1e-6) and y[1] - y[0] == pytest.approx(0.0367, abs=1e-6)
+        y = [
+            e.privileged_state()["goal_pos"][1] for e in envs
+        ]  # same seed, same jitter: exactly one step apart
+        assert y[2] - y[1] == pytest.approx(0.0367, abs=1e-6) and y[1] - y[0] == pytest.approx(
+            0.0367, abs=1e-6
+        )
     finally:
         for e in envs:
             e.close()
@@ -75,7 +85,9 @@ def _fingerprint(env, seed: int) -> str:
 
 
 def test_seeded_determinism_in_process_and_across_processes():
-    env = scenes.make_env("stack", axis="pick_y", level=2, cameras=("agentview", "wrist"), image_size=(32, 32))
+    env = scenes.make_env(
+        "stack", axis="pick_y", level=2, cameras=("agentview", "wrist"), image_size=(32, 32)
+    )
     try:
         a, b, c = _fingerprint(env, 7), _fingerprint(env, 7), _fingerprint(env, 8)
         start7 = env.reset(seed=7)[0].state
@@ -139,7 +151,9 @@ def test_observation_state_follows_libero_convention():
         obs, _ = env.reset(seed=3)
         rs = env._rs
         ro = rs._get_observations(force_update=True)
-        expected = np.concatenate([ro["robot0_eef_pos"], quat2axisangle(ro["robot0_eef_quat"]), ro["robot0_gripper_qpos"]])
+        expected = np.concatenate(
+            [ro["robot0_eef_pos"], quat2axisangle(ro["robot0_eef_quat"]), ro["robot0_gripper_qpos"]]
+        )
         np.testing.assert_allclose(obs.state, expected.astype(np.float32), rtol=1e-5, atol=1e-6)
         assert rs.robots[0].controller.name == "OSC_POSE" and rs.control_freq == 20
         assert env.max_steps == 280

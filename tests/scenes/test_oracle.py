@@ -85,8 +85,24 @@ def test_oracle_is_deterministic_and_env_reset_does_not_leak_state():
 def test_certify_writes_rows_and_loads(tmp_path):
     from indgen_vla.cli import main
 
-    assert main(["certify", "--scene", "stack", "--axis", "stack", "--levels", "0:1", "--episodes", "1",
-                 "--out", str(tmp_path)]) == 0
+    assert (
+        main(
+            [
+                "certify",
+                "--scene",
+                "stack",
+                "--axis",
+                "stack",
+                "--levels",
+                "0:1",
+                "--episodes",
+                "1",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     cert = load_certification(tmp_path)
     assert cert["scene"] == "stack" and cert["axis"] == "stack" and cert["task"] == "orange_on_blue"
     assert [r["level"] for r in cert["levels"]] == [0, 1]
@@ -98,9 +114,14 @@ def test_certify_writes_rows_and_loads(tmp_path):
 
 
 def test_infeasible_levels_and_corrupt_files(tmp_path):
-    cert = {"scene": "s", "axis": "a", "levels": [
-        {"level": 0, "param": 0.0, "n": 20, "successes": 20, "rate": 1.0, "feasible": True},
-        {"level": 1, "param": 1.0, "n": 20, "successes": 18, "rate": 0.9, "feasible": False}]}
+    cert = {
+        "scene": "s",
+        "axis": "a",
+        "levels": [
+            {"level": 0, "param": 0.0, "n": 20, "successes": 20, "rate": 1.0, "feasible": True},
+            {"level": 1, "param": 1.0, "n": 20, "successes": 18, "rate": 0.9, "feasible": False},
+        ],
+    }
     p = tmp_path / "certify.json"
     p.write_text(json.dumps(cert))
     assert infeasible_levels(load_certification(p)) == [1]
@@ -147,7 +168,9 @@ def test_find_certification_matches_scene_axis_and_step(tmp_path, monkeypatch):
     d = tmp_path / "stack" / "stack"
     d.mkdir(parents=True)
     row = {"level": 0, "param": 0.0, "n": 1, "successes": 1, "rate": 1.0, "feasible": True}
-    (d / "certify.json").write_text(json.dumps({"scene": "stack", "axis": "stack", "step": 0.25, "levels": [row]}))
+    (d / "certify.json").write_text(
+        json.dumps({"scene": "stack", "axis": "stack", "step": 0.25, "levels": [row]})
+    )
     assert find_certification("stack", "stack", root=tmp_path)["levels"] == [row]
     assert find_certification("stack", "stack", step=0.5, root=tmp_path) is None  # certified at another step
     assert find_certification("stack", "pick_y", root=tmp_path) is None
