@@ -54,19 +54,19 @@ def _distractors(spec: SceneSpec) -> list[tuple[object, tuple[float, float, floa
     return out
 
 
+def _pick(spec: SceneSpec, x0: float = 0.0, y0: float = 0.0, z: float = TABLE_TOP) -> FreeObject:
+    """The pick object every layout has, at the spec's offset from (x0, y0), resting at height z."""
+    return FreeObject(
+        "pick", O.make_object(spec.pick.kind, "pick", spec.pick.scale), x0 + spec.pick.x, y0 + spec.pick.y, z,
+        spec.pick.yaw, jitter="pick",
+    )  # fmt: skip
+
+
 def pick_place_layout(spec: SceneSpec) -> Layout:
     """LIBERO-Object style: the pick object, a basket, two dressing objects, visual distractors."""
     frac = _grasp_frac(spec.pick.kind)
     free = [
-        FreeObject(
-            "pick",
-            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
-            spec.pick.x,
-            spec.pick.y,
-            TABLE_TOP,
-            spec.pick.yaw,
-            jitter="pick",
-        ),
+        _pick(spec),
         FreeObject(
             "goal", O.basket("basket"), spec.goal.x, spec.goal.y, TABLE_TOP, spec.goal.yaw, jitter="goal"
         ),
@@ -113,15 +113,7 @@ def stack_layout(spec: SceneSpec) -> Layout:
         raise ValueError(f"stack height {spec.stack_in} in is not a whole number of 0.25 in plates")
     colour = spec.goal.kind.removeprefix("block_")
     free = [
-        FreeObject(
-            "pick",
-            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
-            spec.pick.x,
-            spec.pick.y,
-            TABLE_TOP,
-            spec.pick.yaw,
-            jitter="pick",
-        ),
+        _pick(spec),
         FreeObject(
             "goal",
             O.target_block(colour, "target"),
@@ -177,17 +169,7 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
     cab = O.cabinet("cabinet")
     half_h = (O.CAB_FLOOR + O.CAB_WALL) / 2
     floor = TABLE_TOP + O.CAB_FLOOR
-    free = [
-        FreeObject(
-            "pick",
-            O.make_object(spec.pick.kind, "pick", spec.pick.scale),
-            CAB_X + spec.pick.x,
-            cab_y + spec.pick.y,
-            floor,
-            spec.pick.yaw,
-            jitter="pick",
-        )
-    ]
+    free = [_pick(spec, CAB_X, cab_y, floor)]
     for i in range(spec.clutter):
         dx, dy = CLUTTER_SLOTS[i]
         free.append(

@@ -138,9 +138,11 @@ def _train_trm(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> Non
     target = (act[:, 0] * g + act[:, 1]) * 2 + act[:, 2]
     done = 0
     for idx in _batches(len(obs), cfg.batch, rng):
-        x = model.embed(obs[idx], lv[idx])
-        y, z = model.init_carry(x)
+        y = z = None
         for _ in range(model.n_sup):
+            x = model.embed(obs[idx], lv[idx])  # after each update: the previous graph is freed by backward
+            if y is None:
+                y, z = model.init_carry(x)
             (y, z), logits, halt = model.deep_recursion(x, y, z)
             flat = logits.flatten(1)
             correct = (flat.argmax(-1) == target[idx]).float()
@@ -152,7 +154,6 @@ def _train_trm(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> Non
             done += 1
             if done >= cfg.steps:
                 return
-            x = model.embed(obs[idx], lv[idx])
 
 
 def _level_steps(demos: Demos, level: int):
