@@ -198,15 +198,21 @@ def demos_main(args: argparse.Namespace) -> int:
     p = argparse.ArgumentParser(
         prog="indgen demos", description="record T0 demonstrations as a LeRobotDataset"
     )
-    p.add_argument("--scene", required=True)
+    p.add_argument("--scene", required=True, help="built-in scene to record (see `indgen scenes`)")
     p.add_argument("--task", default=None, help="task name or 'all' (default: the scene's first task)")
     p.add_argument("--n", type=int, required=True, help="successful episodes per task")
     p.add_argument("--out", required=True, help="dataset root directory (must not exist)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--image-size", type=int, default=96)
+    p.add_argument(
+        "--seed", type=int, default=0, help="base seed; episode i of a task always gets the same seed"
+    )
+    p.add_argument("--image-size", type=int, default=96, help="camera side in pixels (square frames)")
     p.add_argument("--noise", type=float, default=0.1, help="std of motion noise (action units)")
-    p.add_argument("--pause-prob", type=float, default=0.02)
-    p.add_argument("--repo-id", default="local/indgen_demos")
+    p.add_argument(
+        "--pause-prob", type=float, default=0.02, help="per-step probability of a human-like pause"
+    )
+    p.add_argument(
+        "--repo-id", default="local/indgen_demos", help="LeRobotDataset repo id stored in the dataset"
+    )
     p.add_argument("--videos", action="store_true", help="store cameras as mp4 videos instead of images")
     a = p.parse_args(args.rest)
     quiet_datasets()

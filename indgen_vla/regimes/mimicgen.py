@@ -412,14 +412,16 @@ def mimicgen_main(args: argparse.Namespace) -> int:
         "--n", type=int, required=True, help="generation attempts per task (successes with --guarantee)"
     )
     p.add_argument("--out", required=True, help="new dataset root directory (must not exist)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the new T0 scenes and the source choice")
     p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task")
     p.add_argument(
         "--max-attempts", type=int, default=None, help="attempt cap per task with --guarantee (5 n)"
     )
     p.add_argument("--selection", choices=SELECTIONS, default="nearest", help="per-subtask source choice")
     p.add_argument("--action-noise", type=float, default=0.05, help="std of motion noise on executed actions")
-    p.add_argument("--repo-id", default="local/indgen_mimicgen")
+    p.add_argument(
+        "--repo-id", default="local/indgen_mimicgen", help="LeRobotDataset repo id stored in the dataset"
+    )
     a = p.parse_args(args.rest)
     cfg = MimicGenConfig(source=a.source, out=a.out, n=a.n, seed=a.seed, guarantee=a.guarantee,
                          max_attempts=a.max_attempts, selection=a.selection, action_noise=a.action_noise,

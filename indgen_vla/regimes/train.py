@@ -300,18 +300,22 @@ def train_main(args: argparse.Namespace) -> int:
         "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
     )
     p.add_argument("--out", required=True, help="checkpoint directory to create (must not exist)")
-    p.add_argument("--policy", default="act", choices=POLICIES)
-    p.add_argument("--steps", type=int, default=TrainConfig.steps)
-    p.add_argument("--batch-size", type=int, default=TrainConfig.batch_size)
-    p.add_argument("--lr", type=float, default=TrainConfig.lr)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--policy", default="act", choices=POLICIES, help="lerobot policy type to train")
+    p.add_argument("--steps", type=int, default=TrainConfig.steps, help="optimiser updates")
+    p.add_argument("--batch-size", type=int, default=TrainConfig.batch_size, help="frames per update")
+    p.add_argument("--lr", type=float, default=TrainConfig.lr, help="learning rate")
+    p.add_argument("--seed", type=int, default=0, help="training seed (init and batch order)")
     p.add_argument("--cameras", default="", help="comma-separated cameras to read; empty = state-only")
-    p.add_argument("--chunk-size", type=int, default=TrainConfig.chunk_size)
-    p.add_argument("--n-action-steps", type=int, default=TrainConfig.n_action_steps)
+    p.add_argument(
+        "--chunk-size", type=int, default=TrainConfig.chunk_size, help="actions predicted per chunk"
+    )
+    p.add_argument(
+        "--n-action-steps", type=int, default=TrainConfig.n_action_steps, help="actions executed per chunk"
+    )
     p.add_argument(
         "--data-regime", default="", help="label stored with the checkpoint (e.g. human, human+mimicgen)"
     )
-    p.add_argument("--repo-id", default=DEFAULT_REPO_ID)
+    p.add_argument("--repo-id", default=DEFAULT_REPO_ID, help="repo id stored in the checkpoint config")
     a = p.parse_args(getattr(args, "rest", args))
     cameras = tuple(c for c in a.cameras.split(",") if c)
     cfg = TrainConfig(policy=a.policy, steps=a.steps, batch_size=a.batch_size, lr=a.lr, seed=a.seed,

@@ -7,11 +7,10 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.regimes.demos import HumanNoise, record_demos
 
 
-def test_demos_round_trip_through_lerobot(tmp_path):
+def test_demos_round_trip_through_lerobot(one_demo):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    out = tmp_path / "demos"
-    stats = record_demos("pick_place", out, n=1, image_size=32, seed=3)
+    out, stats = one_demo
     assert stats["episodes"] == 1 and stats["frames"] > 50
     ds = LeRobotDataset("local/indgen_demos", root=out)
     assert ds.num_episodes == 1 and len(ds) == stats["frames"]

@@ -133,14 +133,13 @@ def test_new_seeds_are_deterministic_and_avoid_source_seeds():
     assert _new_seed(cfg, "pick_place", "lemon", 0, {a[0]}) != a[0]
 
 
-def test_mimicgen_round_trip_through_lerobot(tmp_path):
+def test_mimicgen_round_trip_through_lerobot(tmp_path, one_demo):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from indgen_vla.regimes.demos import read_episode_sidecar, record_demos
+    from indgen_vla.regimes.demos import read_episode_sidecar
     from indgen_vla.regimes.mimicgen import generate
 
-    src, out = tmp_path / "src", tmp_path / "gen"
-    record_demos("pick_place", src, n=1, image_size=24, seed=3, repo_id="local/src")
+    (src, _), out = one_demo, tmp_path / "gen"
     rec = read_episode_sidecar(src)
     assert (
         len(rec) == 1
@@ -151,11 +150,11 @@ def test_mimicgen_round_trip_through_lerobot(tmp_path):
     assert stats["successes"] == 1 and 1 <= stats["attempts"] <= 3
     saved = json.loads((out / "mimicgen_stats.json").read_text())
     assert saved["successes"] == 1 and saved["source"] == str(src) and saved["seed"] == 1
-    a, b = LeRobotDataset("local/src", root=src), LeRobotDataset("local/indgen_mimicgen", root=out)
+    a, b = LeRobotDataset("local/indgen_demos", root=src), LeRobotDataset("local/indgen_mimicgen", root=out)
     assert b.num_episodes == 1 and len(b) == stats["frames"] and b.fps == a.fps
     assert a.features == b.features and list(a.meta.tasks.index) == list(b.meta.tasks.index)
     item = b[0]
-    assert tuple(item["observation.images.wrist"].shape) == (3, 24, 24) and item["task"] == a[0]["task"]
+    assert tuple(item["observation.images.wrist"].shape) == (3, 32, 32) and item["task"] == a[0]["task"]
     actions = np.stack([b[i]["action"].numpy() for i in range(len(b))])
     assert np.all(np.abs(actions) <= 1.0) and actions[:, -1].max() == 1.0 and actions[-1, -1] == -1.0
     gen = read_episode_sidecar(out)
