@@ -19,8 +19,9 @@ REPORT = "report.md"
 
 COLUMNS = (
     "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",
-    "episode", "seed", "success", "steps", "status", "error", "wall_s", "video",
+    "episode", "seed", "success", "steps", "status", "error", "wall_s", "video", "failure",
 )  # fmt: skip
+OPTIONAL = {"failure": ""}  # columns added after the first release: older run dirs read with this default
 KEY = ("task", "axis", "level", "episode")
 
 
@@ -44,6 +45,7 @@ class EpisodeRecord:
     error: str = ""
     wall_s: float = 0.0
     video: str = ""
+    failure: str = ""  # scenes.failure mode ("none" on success, "error" for error rows; "" = not classified)
 
     def __post_init__(self) -> None:
         assert self.status in ("ok", "error"), self.status
@@ -91,7 +93,7 @@ def _schema():
         ("scene", pa.string()), ("task", pa.string()), ("axis", pa.string()),
         ("level", pa.int64()), ("param", pa.float64()), ("episode", pa.int64()), ("seed", pa.int64()),
         ("success", pa.bool_()), ("steps", pa.int64()), ("status", pa.string()), ("error", pa.string()),
-        ("wall_s", pa.float64()), ("video", pa.string()),
+        ("wall_s", pa.float64()), ("video", pa.string()), ("failure", pa.string()),
     ])  # fmt: skip
 
 
@@ -185,10 +187,11 @@ class RunDir:
                     raise RunDirError(
                         f"{p} is corrupt ({type(e).__name__}); move it away to restart the run"
                     ) from None
-                missing = set(COLUMNS) - set(table.column_names)
+                missing = set(COLUMNS) - set(table.column_names) - set(OPTIONAL)
                 if missing:
                     raise RunDirError(f"{p} lacks columns {sorted(missing)}; it was not written by indgen")
-                for row in table.select(list(COLUMNS)).to_pylist():
+                for row in table.select([c for c in COLUMNS if c in table.column_names]).to_pylist():
+                    row = {**OPTIONAL, **row}
                     self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
         return self._rows
 

@@ -17,6 +17,7 @@ from indgen_vla.errors import ConfigError, SceneError
 from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
 from scenes.catalog import SceneDef
+from scenes.failure import FailureTrace
 from scenes.predicates import SUCCESS_PREDICATES
 from scenes.sim import CAMERA_NAMES, IndgenRobosuiteEnv
 
@@ -49,6 +50,7 @@ class BaseSceneEnv(gym.Env):
     # in _sim_env), reset (setting _t/_done), _advance (one simulator step; returns success) and _observation.
 
     _sim_env = None  # the backend's robosuite-style env; None before it is built and once closed
+    _trace: FailureTrace | None = None  # this episode's contacts and lifts (privileged; never observed)
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
@@ -91,7 +93,10 @@ class BaseSceneEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64).reshape(-1)
         if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
             raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
+        if self._t == 0:  # the episode's first step: the trace starts from the reset state
+            self._trace = FailureTrace(start_bottom=self._failure_signals()[1])
         success = self._advance(np.clip(a, -1.0, 1.0))
+        self._trace.update(*self._failure_signals(), gripper_closed=bool(a[-1] > 0))
         self._t += 1
         terminated = success
         truncated = (not success) and self._t >= self.max_steps
@@ -119,6 +124,10 @@ class BaseSceneEnv(gym.Env):
     @property
     def steps(self) -> int:
         return self._t
+
+    def failure_mode(self, success: bool) -> str:
+        """Why the episode so far failed (``scenes.failure``); ``none`` on success or before any step."""
+        return "none" if success or self._trace is None or self._t == 0 else self._trace.classify(success)
 
     def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
         """One upright (human-viewable) uint8 HxWx3 frame from ``camera`` for videos, whatever ``cameras`` is.
@@ -160,6 +169,10 @@ class BaseSceneEnv(gym.Env):
         """Apply one clipped action to the simulator; return the success predicate after it."""
         raise NotImplementedError
 
+    def _failure_signals(self) -> tuple[bool, float]:
+        """(a finger touches the pick object, the pick object's lowest z) now, for the failure trace."""
+        raise NotImplementedError
+
     def _observation(self) -> Observation:
         raise NotImplementedError
 
@@ -172,6 +185,8 @@ class BaseSceneEnv(gym.Env):
 
 class SceneEnv(BaseSceneEnv):
     """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
+
+    _state: dict | None = None  # privileged state after the last step (None right after a reset)
 
     def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
         self.instruction = scene.instruction(task)
@@ -196,7 +211,7 @@ class SceneEnv(BaseSceneEnv):
         self.episode_seed = int(seed)
         self._rs.seed_placement(self.episode_seed)
         self._rs.reset()
-        self._t, self._done = 0, False
+        self._t, self._done, self._state = 0, False, None
         return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
 
     # ---- extras for the engine and the oracle ----------------------------------------------------
@@ -212,7 +227,12 @@ class SceneEnv(BaseSceneEnv):
 
     def _advance(self, action: np.ndarray) -> bool:
         self._rs.step(action)
-        return bool(self.success_predicate(self._rs.privileged_state()))
+        self._state = self._rs.privileged_state()  # read again by _failure_signals, once per step
+        return bool(self.success_predicate(self._state))
+
+    def _failure_signals(self) -> tuple[bool, float]:
+        s = self._state if self._state is not None else self._rs.privileged_state()
+        return bool(s["pick_touching_gripper"]), float(s["pick_bottom"])
 
     def _observation(self) -> Observation:
         images = {c: self._render(CAMERA_NAMES[c], self.image_size) for c in self.cameras}

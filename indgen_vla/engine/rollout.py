@@ -46,6 +46,7 @@ class Transition:
     error: str = ""
     video: str = ""
     wall_s: float = 0.0
+    failure: str = ""  # scenes.failure mode, set when the episode ends
 
 
 @dataclass(frozen=True)
@@ -130,6 +131,7 @@ class EnvRunner:
         except Exception as e:
             return Transition(job.key, None, done=True, error=_describe(e), steps=self._steps)
         if done:
+            t.failure = env.failure_mode(success)
             t.video = self._write_video(job, success)
             t.wall_s = time.perf_counter() - self._t0
         return t
@@ -169,7 +171,7 @@ def make_record(
         run_id=meta.run_id, policy=meta.policy, data_regime=meta.data_regime, scene=meta.scene, task=job.task,
         axis=job.axis, level=job.level, param=job.param, episode=job.episode, seed=job.seed,
         success=bool(t.success) and status == "ok", steps=int(t.steps), status=status, error=error,
-        wall_s=float(t.wall_s), video=t.video,
+        wall_s=float(t.wall_s), video=t.video, failure="error" if status == "error" else t.failure,
     )  # fmt: skip
 
 

@@ -393,6 +393,9 @@ class LiberoSceneEnv(BaseSceneEnv):
         self._raw, _, _, _ = self._env.step(action)
         return bool(self._env.check_success())
 
+    def _failure_signals(self) -> tuple[bool, float]:
+        return self._touching(self._finger_geoms, self._pick_geoms), self._lowest(self._pick_geoms)
+
     # ---- observations and privileged state -------------------------------------------------------
     def _observation(self) -> Observation:
         from robosuite.utils.transform_utils import quat2axisangle

@@ -42,6 +42,7 @@ def test_two_level_run_writes_run_dir(tmp_path):
     df = pd.read_parquet(out / "episodes.parquet")
     assert len(df) == 4 and set(df["level"]) == {0, 1}
     assert (df["status"] == "ok").all() and (df["steps"] == 12).all()
+    assert set(df["failure"]) <= {"no_contact", "no_grasp"}  # a random arm for 12 steps lifts nothing
     # episode i has the same seed at every level (paired design), different seeds across episodes
     assert df.groupby("episode")["seed"].nunique().eq(1).all() and df["seed"].nunique() == 2
     summary = json.loads((out / "summary.json").read_text())
@@ -58,6 +59,7 @@ def test_oracle_workers_1_vs_2_identical(tmp_path):
     oa, ob = outcomes(a), outcomes(b)
     assert oa == ob and len(oa) == 3
     assert all(v[1] for v in oa.values()), oa  # the oracle solves these levels
+    assert set(pd.read_parquet(Path(a) / "episodes.parquet")["failure"]) == {"none"}
 
 
 def test_resume_after_sigkill(tmp_path):
@@ -134,6 +136,9 @@ def test_retry_then_error_rows(tmp_path):
     by_ep = {r.episode: r for r in records}
     assert len(records) == 3
     assert by_ep[1].status == "error" and "attempt 3" in by_ep[1].error and "test:flaky" in by_ep[1].error
+    assert (
+        by_ep[1].failure == "error" and by_ep[0].failure == by_ep[2].failure == "no_contact"
+    )  # zeros: no move
     assert policy.calls[stubborn] == 3  # first try + 2 retries
     assert all(by_ep[e].status == "ok" for e in (0, 2))
 

@@ -94,3 +94,17 @@ def test_sigkill_never_corrupts(tmp_path):
     assert len(df) > 0
     RunDir.create_or_resume(tmp_path, {"plan": {}})  # resuming sweeps temp files a kill left behind
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]
+
+
+def test_run_dir_from_before_the_failure_column_still_reads_and_resumes(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])
+    old = pq.read_table(tmp_path / "run" / EPISODES).drop(["failure"])  # what an older release wrote
+    pq.write_table(old, tmp_path / "run" / EPISODES)
+    again = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    assert again.episodes()["failure"].tolist() == [""]  # not classified, not invented
+    again.append([rec(0, 1)])
+    assert pa.parquet.read_table(tmp_path / "run" / EPISODES).column("failure").to_pylist() == ["", ""]

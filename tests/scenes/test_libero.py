@@ -167,6 +167,9 @@ def test_episode_index_fixes_the_initial_state(mini):
         assert np.abs(a - c).max() > 1e-4
         lo, hi = env.support.goal_y
         assert lo - 1e-9 <= env._level_state(7)[1 + env._qpos[env.info.goal] + 1] <= hi + 1e-9
+        for _ in range(5):  # the LIBERO backend feeds the failure trace too: an idle arm touches nothing
+            env.step(np.array([0, 0, 0, 0, 0, 0, -1.0]))
+        assert env.failure_mode(False) == "no_contact" and env.failure_mode(True) == "none"
     finally:
         env.close()
 
@@ -189,6 +192,7 @@ def test_evaluate_cli_with_oracle(mini, tmp_path):
 
     eps = pd.read_parquet(out / "episodes.parquet")
     assert list(eps["success"]) == [True, True] and set(eps["status"]) == {"ok"}
+    assert set(eps["failure"]) == {"none"}
 
 
 @pytest.mark.real_assets
