@@ -9,23 +9,31 @@ import numpy as np
 CAMERAS = ("agentview", "wrist")
 STATE_DIM = 8  # eef pos (3) + eef axis-angle (3) + gripper qpos (2): the LIBERO convention
 ACTION_DIM = 7  # delta eef pos (3) + delta rotation (3) + gripper (-1 open, +1 close)
+# robomimic's "object" observation for low-dim policies that declare it: pick then target, pos + quat (xyzw, w >= 0)
+OBJECT_NAMES = tuple(f"{o}_{c}" for o in ("pick", "goal") for c in ("x", "y", "z", "qx", "qy", "qz", "qw"))
+OBJECT_DIM = len(OBJECT_NAMES)
 
 
 @dataclass(frozen=True)
 class Observation:
     """What a learned policy may see: raw-orientation camera images, 8-d state and the instruction.
 
-    Privileged simulator state never appears here; oracles read it from the scene directly.
+    Privileged simulator state never appears here; oracles read it from the scene directly. ``objects``
+    (the pick object's and the target's pose, ``OBJECT_NAMES``) is filled only for low-dimensional policies
+    whose spec declares ``observes_objects``; image policies never get it.
     """
 
     images: dict[str, np.ndarray]
     state: np.ndarray
     instruction: str
     extras: dict[str, object] = field(default_factory=dict)
+    objects: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.state.shape != (STATE_DIM,):
             raise ValueError(f"state must have shape ({STATE_DIM},), got {self.state.shape}")
+        if self.objects is not None and np.shape(self.objects) != (OBJECT_DIM,):
+            raise ValueError(f"objects must have shape ({OBJECT_DIM},), got {np.shape(self.objects)}")
         for name, img in self.images.items():
             if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
                 raise ValueError(f"image {name!r} must be uint8 HxWx3, got {img.dtype} {img.shape}")

@@ -26,6 +26,8 @@ class PolicySpec:
         batched: one ``act`` call may carry several environments' observations.
         privileged: reads simulator state (oracles only); the engine passes it in ``Observation.extras``.
         flip_180: the model was trained on 180°-rotated images (LIBERO); the adapter applies it.
+        observes_objects: a low-dimensional policy that reads ``Observation.objects`` (robomimic's "object"
+            observation); never an image policy.
     """
 
     family: str
@@ -37,6 +39,7 @@ class PolicySpec:
     batched: bool = False
     privileged: bool = False
     flip_180: bool = False
+    observes_objects: bool = False
 
     def __post_init__(self) -> None:
         if self.chunk_size < 1:
@@ -48,6 +51,11 @@ class PolicySpec:
         unknown = [c for c in self.cameras if c not in CAMERAS]
         if unknown:
             raise ConfigError(f"policy {self.name}: unknown camera(s) {unknown}; cameras are {list(CAMERAS)}")
+        if self.observes_objects and self.cameras:
+            raise ConfigError(
+                f"policy {self.name}: object poses are for low-dimensional policies only; drop its cameras "
+                "or observes_objects"
+            )
 
 
 @runtime_checkable

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError, PolicyError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation, validate_chunk
+from indgen_vla.interface import ACTION_DIM, CAMERAS, OBJECT_DIM, STATE_DIM, Observation, validate_chunk
 from policy_wrappers.base import PolicySpec
 
 IMAGE_PREFIX = "observation.images."
@@ -116,6 +116,7 @@ class LeRobotPolicy:
             image_size=image_size,
             batched=self.n_obs_steps == 1,
             flip_180=self._flip,
+            observes_objects=self._objects,
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
 
@@ -191,7 +192,19 @@ class LeRobotPolicy:
                 f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
                 f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos"
             )
-        if cfg.env_state_feature is not None and not _has_step(path, rev, PROPRIO_STEP_CLASS):
+        from policy_wrappers.lerobot_steps import OBJECT_STEP_CLASS
+
+        self._objects = cfg.env_state_feature is not None and _has_step(path, rev, OBJECT_STEP_CLASS)
+        if self._objects and tuple(cfg.env_state_feature.shape) != (OBJECT_DIM,):
+            raise PolicyError(
+                f"policy {self._name}: checkpoint marks observation.environment_state as object poses but "
+                f"its shape is {tuple(cfg.env_state_feature.shape)}, not ({OBJECT_DIM},); retrain it"
+            )
+        if (
+            cfg.env_state_feature is not None
+            and not self._objects
+            and not _has_step(path, rev, PROPRIO_STEP_CLASS)
+        ):
             raise PolicyError(
                 f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
                 "simulator state), which learned policies never get here"
@@ -271,6 +284,12 @@ class LeRobotPolicy:
         if self.cfg.robot_state_feature is not None:
             batch["observation.state"] = torch.from_numpy(
                 np.stack([o.state for o in observations]).astype(np.float32)
+            )
+        if self._objects:
+            if any(o.objects is None for o in observations):
+                raise PolicyError(f"policy {self._name} reads object poses; the observation carries none")
+            batch["observation.environment_state"] = torch.from_numpy(
+                np.stack([o.objects for o in observations]).astype(np.float32)
             )
         batch["task"] = [o.instruction for o in observations]
         return batch

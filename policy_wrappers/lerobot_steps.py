@@ -39,3 +39,27 @@ class ProprioAsEnvStateStep(ObservationProcessorStep):
         if OBS_STATE in obs:
             obs[OBS_ENV_STATE] = PolicyFeature(FeatureType.ENV, tuple(obs[OBS_STATE].shape))
         return features
+
+
+OBJECT_STEP_CLASS = "policy_wrappers.lerobot_steps.ObjectPosesStep"
+
+
+@dataclass
+class ObjectPosesStep(ObservationProcessorStep):
+    """Declares that ``observation.environment_state`` is indgen's object observation (pick and target poses,
+    ``indgen_vla.interface.OBJECT_NAMES``), so the wrapper hands the policy ``Observation.objects`` there.
+
+    It changes nothing: the wrapper fills the input; the step only marks the checkpoint as a low-dim policy
+    trained on those poses (any other environment state is refused).
+    """
+
+    def observation(self, observation):
+        return observation
+
+    def get_config(self) -> dict[str, Any]:
+        return {}
+
+    def transform_features(
+        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
+    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
+        return features

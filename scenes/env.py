@@ -125,6 +125,12 @@ class BaseSceneEnv(gym.Env):
     def steps(self) -> int:
         return self._t
 
+    def object_observation(self) -> np.ndarray:
+        """The pick object's and the target's pose (``Observation.objects``) for low-dim policies that declare it."""
+        from scenes.poses import object_poses, object_vector
+
+        return object_vector(object_poses(self.privileged_state()))
+
     def failure_mode(self, success: bool) -> str:
         """Why the episode so far failed (``scenes.failure``); ``none`` on success or before any step."""
         return "none" if success or self._trace is None or self._t == 0 else self._trace.classify(success)

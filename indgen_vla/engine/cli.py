@@ -163,7 +163,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
         runner_cfg = RunnerConfig(
             scene=cfg.scene, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
-            step=cfg.step, privileged=spec.privileged, warmup_steps=cfg.warmup_steps,
+            step=cfg.step, privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
             video_dir=str(out / "videos") if cfg.video else None,
         )  # fmt: skip
         meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)

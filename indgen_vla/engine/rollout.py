@@ -30,6 +30,7 @@ class RunnerConfig:
     step: float | None
     privileged: bool
     warmup_steps: int = 0
+    objects: bool = False  # attach Observation.objects (low-dim policies that declare observes_objects)
     video_dir: str | None = None
     video_size: tuple[int, int] = (256, 256)
 
@@ -86,7 +87,10 @@ class EnvRunner:
         return self._env
 
     def _observe(self, obs: Observation) -> Observation:
-        """Attach privileged state for oracles only; learned policies never see it."""
+        """Attach privileged state for oracles only (learned policies never see it), object poses for
+        the low-dim policies that declare them."""
+        if self.cfg.objects:
+            obs = dataclasses.replace(obs, objects=self._env.object_observation())
         if self.cfg.privileged:
             extras = dict(obs.extras)
             extras["privileged"] = self._env.privileged_state()

@@ -14,15 +14,17 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM, Observation
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.seeding import episode_seed
+from scenes.poses import object_poses, object_vector
 
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]
 ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
 # per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
 EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
+ENV_STATE = "observation.environment_state"
 
 
 @dataclass(frozen=True)
@@ -46,8 +48,10 @@ class HumanNoise:
             raise ConfigError(f"pause_steps must be 1 <= min <= max, got {self.pause_steps}")
 
 
-def features(cameras: tuple[str, ...], image_size: tuple[int, int], use_videos: bool) -> dict:
-    """LeRobotDataset feature spec: one image per camera, 8-d state, 7-d action."""
+def features(
+    cameras: tuple[str, ...], image_size: tuple[int, int], use_videos: bool, objects: bool = False
+) -> dict:
+    """LeRobotDataset feature spec: one image per camera, 8-d state, 7-d action (+ object poses if asked)."""
     h, w = image_size
     feats = {
         f"observation.images.{cam}": {"dtype": "video" if use_videos else "image", "shape": (h, w, 3),
@@ -55,28 +59,14 @@ def features(cameras: tuple[str, ...], image_size: tuple[int, int], use_videos: 
         for cam in cameras
     }  # fmt: skip
     feats["observation.state"] = {"dtype": "float32", "shape": (STATE_DIM,), "names": STATE_NAMES}
+    if objects:  # robomimic's "object" observation, as lerobot's environment_state
+        feats[ENV_STATE] = {"dtype": "float32", "shape": (OBJECT_DIM,), "names": list(OBJECT_NAMES)}
     feats["action"] = {"dtype": "float32", "shape": (ACTION_DIM,), "names": ACTION_NAMES}
     return feats
 
 
 def _with_privileged(env, obs: Observation) -> Observation:
     return dataclasses.replace(obs, extras={**obs.extras, "privileged": env.privileged_state()})
-
-
-def object_poses(priv: dict) -> dict[str, list[float]]:
-    """World poses [x, y, z, qw, qx, qy, qz] of the pick object and the receptacle from a privileged state.
-
-    Scenes without a free receptacle body (e.g. ``cabinet_pick``) use the placement target, unrotated.
-    """
-    poses = {}
-    if "pick_pos" in priv:
-        poses["pick"] = [*map(float, priv["pick_pos"]), *map(float, priv.get("pick_quat_wxyz", (1, 0, 0, 0)))]
-    if "goal_pos" in priv:
-        poses["goal"] = [*map(float, priv["goal_pos"]), *map(float, priv.get("goal_quat_wxyz", (1, 0, 0, 0)))]
-    elif "place_xy" in priv:
-        x, y = (float(v) for v in priv["place_xy"])
-        poses["goal"] = [x, y, float(priv.get("place_bottom", 0.0)), 1.0, 0.0, 0.0, 0.0]
-    return poses
 
 
 def append_episode_sidecar(root: Path, record: dict) -> None:
@@ -126,8 +116,12 @@ def record_demos(
     scene: str, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
     cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
     repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
+    objects: bool = False,
 ) -> dict:  # fmt: skip
-    """Record ``n`` successful T0 episodes per task into a LeRobotDataset at ``out``; return stats."""
+    """Record ``n`` successful T0 episodes per task into a LeRobotDataset at ``out``; return stats.
+
+    ``objects`` adds the pick and target poses per frame as ``observation.environment_state``.
+    """
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     import scenes
@@ -142,7 +136,7 @@ def record_demos(
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.exists():
         out.rmdir()
-    ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=features(cameras, (image_size, image_size), use_videos),
+    ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=features(cameras, (image_size, image_size), use_videos, objects),
                                root=out, robot_type="panda", use_videos=use_videos,
                                video_backend="pyav")  # fmt: skip
     stats = {"scene": scene, "tasks": tasks, "episodes": 0, "attempts": 0, "frames": 0}
@@ -166,10 +160,12 @@ def record_demos(
                     if not success:
                         continue  # keep only successful demonstrations, like a human operator's keepers
                     poses = [object_poses(obs.extras["privileged"]) for obs, _ in frames]
-                    for obs, a in frames:
+                    for (obs, a), pose in zip(frames, poses, strict=True):
                         frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
                         frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
                                       "task": obs.instruction})  # fmt: skip
+                        if objects:
+                            frame[ENV_STATE] = object_vector(pose)
                         ds.add_frame(frame)
                     ds.save_episode()
                     append_episode_sidecar(out, {
@@ -214,7 +210,16 @@ def demos_main(args: argparse.Namespace) -> int:
         "--repo-id", default="local/indgen_demos", help="LeRobotDataset repo id stored in the dataset"
     )
     p.add_argument("--videos", action="store_true", help="store cameras as mp4 videos instead of images")
+    p.add_argument(
+        "--cameras", default="agentview,wrist", help="comma-separated cameras to record; empty = state only"
+    )
+    p.add_argument(
+        "--objects",
+        action="store_true",
+        help="also record the pick and target poses as observation.environment_state (low-dim policies)",
+    )
     a = p.parse_args(args.rest)
+    cams = tuple(c for c in a.cameras.split(",") if c)
     quiet_datasets()
     from rich.console import Console
 
@@ -227,7 +232,7 @@ def demos_main(args: argparse.Namespace) -> int:
     try:
         stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
                              noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
-                             use_videos=a.videos, progress=progress)  # fmt: skip
+                             use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects)  # fmt: skip
     except KeyboardInterrupt:
         shutil.rmtree(out, ignore_errors=True)
         raise

@@ -26,14 +26,15 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.regimes.demos import (
+    ENV_STATE,
     EPISODES_SIDECAR,
     FPS,
     append_episode_sidecar,
     features,
-    object_poses,
     read_episode_sidecar,
 )
 from indgen_vla.seeding import episode_seed
+from scenes.poses import object_poses, object_vector
 
 SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
 SELECTIONS = ("nearest", "random")
@@ -340,6 +341,7 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
     shape = feats[f"observation.images.{cams[0]}"]["shape"] if cams else [96, 96, 3]
     size = (int(shape[0]), int(shape[1]))
     use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
+    objects = ENV_STATE in feats  # the source records object poses: so do the generated episodes
     by_task: dict[tuple[str, str], list[SourceDemo]] = {}
     for d in demos:
         by_task.setdefault((d.scene, d.task), []).append(d)
@@ -349,7 +351,7 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
         cfg.out.rmdir()
     cfg.out.parent.mkdir(parents=True, exist_ok=True)
     ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=cfg.out,
-                               features=features(cams, size, use_videos), robot_type=info.get("robot_type", "panda"),
+                               features=features(cams, size, use_videos, objects), robot_type=info.get("robot_type", "panda"),
                                use_videos=use_videos, video_backend="pyav")  # fmt: skip
     stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": 0, "successes": 0,
              "frames": 0, "source_demos": len(demos), "source_skipped": skipped, "tasks": {}}  # fmt: skip
@@ -369,10 +371,12 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
                         frames.append((obs, a, poses))
                         success = bool(step_info.get("success", False))
                     if success:
-                        for obs, a, _ in frames:
+                        for obs, a, pose in frames:
                             frame = {f"observation.images.{c}": obs.images[c] for c in cams}
                             frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
                                           "task": obs.instruction})  # fmt: skip
+                            if objects:
+                                frame[ENV_STATE] = object_vector(pose)
                             ds.add_frame(frame)
                         ds.save_episode()
                         append_episode_sidecar(cfg.out, {

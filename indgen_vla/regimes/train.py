@@ -17,6 +17,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.interface import OBJECT_DIM
+from indgen_vla.regimes.demos import ENV_STATE
 
 POLICIES = ("act", "diffusion")
 DEFAULT_REPO_ID = "local/indgen_demos"
@@ -33,6 +35,8 @@ class TrainConfig:
         cameras: dataset cameras the policy reads (``agentview``, ``wrist``); empty = state-only, in which
             case the proprioceptive state is also fed as lerobot's environment-state input (see
             ``policy_wrappers.lerobot_steps``) because ACT/Diffusion need an image or an environment state.
+        objects: low-dim policy that also observes the pick and target poses (the datasets'
+            ``observation.environment_state``, recorded by ``indgen demos --objects``); no cameras.
         chunk_size, n_action_steps: ACT's predicted chunk and how much of it the evaluator executes.
         dim_model, n_heads, dim_feedforward, n_encoder_layers, n_decoder_layers, use_vae: ACT size.
         horizon, n_obs_steps, down_dims, num_inference_steps: Diffusion size.
@@ -48,6 +52,7 @@ class TrainConfig:
     grad_clip: float = 10.0
     seed: int = 0
     cameras: tuple[str, ...] = ()
+    objects: bool = False
     chunk_size: int = 20
     n_action_steps: int = 10
     dim_model: int = 128
@@ -80,6 +85,8 @@ class TrainConfig:
             raise ConfigError(
                 f"train: dim_model {self.dim_model} must be divisible by n_heads {self.n_heads}"
             )
+        if self.objects and self.cameras:
+            raise ConfigError("train: --objects trains a low-dimensional policy; drop --cameras")
         bad = [c for c in self.cameras if c not in ("agentview", "wrist")]
         if bad:
             raise ConfigError(
@@ -131,8 +138,8 @@ def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) ->
     return out
 
 
-def _features(datasets: list, cameras: tuple[str, ...]) -> tuple[dict, dict]:
-    """Input/output policy features shared by every dataset (state, action and the chosen cameras)."""
+def _features(datasets: list, cameras: tuple[str, ...], objects: bool = False) -> tuple[dict, dict]:
+    """Input/output policy features shared by every dataset (state, action, the chosen cameras or object poses)."""
     from lerobot.configs.types import FeatureType, PolicyFeature
     from lerobot.utils.feature_utils import dataset_to_policy_features
 
@@ -155,20 +162,29 @@ def _features(datasets: list, cameras: tuple[str, ...]) -> tuple[dict, dict]:
                 f"train: camera {cam!r} is missing from a dataset; record it or train state-only"
             )
         inputs[key] = first[key]
-    if not cameras:  # ACT/Diffusion need a non-proprio input: the preprocessor copies the state into it
+    if objects:
+        feats = [dataset_to_policy_features(ds.meta.features) for ds in datasets]
+        shapes = {tuple(f[ENV_STATE].shape) if ENV_STATE in f else None for f in feats}
+        if shapes != {(OBJECT_DIM,)}:
+            raise ConfigError(
+                f"train: --objects needs {ENV_STATE} of shape ({OBJECT_DIM},) in every dataset (found "
+                f"{sorted(shapes, key=str)}); record them with 'indgen demos --objects'"
+            )
+        inputs[ENV_STATE] = first[ENV_STATE]
+    elif not cameras:  # ACT/Diffusion need a non-proprio input: the preprocessor copies the state into it
         inputs["observation.environment_state"] = PolicyFeature(
             FeatureType.ENV, tuple(first["observation.state"].shape)
         )
     return inputs, {"action": first["action"]}
 
 
-def _stats(datasets: list, inputs: dict) -> dict:
+def _stats(datasets: list, inputs: dict, objects: bool = False) -> dict:
     """Normalisation statistics aggregated over every dataset, restricted to the policy's features."""
     from lerobot.datasets.compute_stats import aggregate_stats
 
     stats = aggregate_stats([ds.meta.stats for ds in datasets])
     keep = {k: v for k, v in stats.items() if k in inputs or k == "action"}
-    if "observation.environment_state" in inputs:
+    if "observation.environment_state" in inputs and not objects:  # the proprio copy: normalised like it
         keep["observation.environment_state"] = dict(stats["observation.state"])
     return keep
 
@@ -218,7 +234,7 @@ def train_policy(
     from lerobot.datasets.factory import resolve_delta_timestamps
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 
-    from policy_wrappers.lerobot_steps import ProprioAsEnvStateStep
+    from policy_wrappers.lerobot_steps import ObjectPosesStep, ProprioAsEnvStateStep
 
     cfg = dataclasses.replace(config or TrainConfig(), **overrides)
     dirs = [Path(d) for d in dataset_dirs]
@@ -229,19 +245,20 @@ def train_policy(
         raise ConfigError(f"train: --out {out} already exists and is not empty; choose a new directory")
     _seed_all(cfg.seed)
     datasets = _open_datasets(dirs, repo_id)
-    inputs, outputs = _features(datasets, cfg.cameras)
+    inputs, outputs = _features(datasets, cfg.cameras, cfg.objects)
     policy_cfg = _policy_config(cfg, inputs, outputs)
     delta = resolve_delta_timestamps(policy_cfg, datasets[0].meta)
     datasets = _open_datasets(dirs, repo_id, delta)
-    stats = _stats(datasets, inputs)
+    stats = _stats(datasets, inputs, cfg.objects)
     policy = get_policy_class(policy_cfg.type)(policy_cfg)
     pre, post = make_pre_post_processors(policy_cfg, dataset_stats=stats)
-    if not cfg.cameras:  # state-only: copy proprio into the environment-state input, before normalisation
+    if not cfg.cameras:  # before normalisation: copy proprio into the environment-state input, or mark poses
         at = next(i for i, s in enumerate(pre.steps) if type(s).__name__.startswith("Normalizer"))
-        pre.steps.insert(at, ProprioAsEnvStateStep())
+        pre.steps.insert(at, ObjectPosesStep() if cfg.objects else ProprioAsEnvStateStep())
     keys = (*inputs, "action", "action_is_pad")
     cache = cfg.cache if cfg.cache is not None else not cfg.cameras
-    samples = _Samples(datasets, tuple(k for k in keys if k != "observation.environment_state"), cache)
+    copied = () if cfg.objects else ("observation.environment_state",)  # filled by ProprioAsEnvStateStep
+    samples = _Samples(datasets, tuple(k for k in keys if k not in copied), cache)
     gen = torch.Generator().manual_seed(cfg.seed)
     loader = torch.utils.data.DataLoader(samples, batch_size=cfg.batch_size, shuffle=True, drop_last=True,
                                          generator=gen, num_workers=0)  # fmt: skip
@@ -307,6 +324,9 @@ def train_main(args: argparse.Namespace) -> int:
     p.add_argument("--seed", type=int, default=0, help="training seed (init and batch order)")
     p.add_argument("--cameras", default="", help="comma-separated cameras to read; empty = state-only")
     p.add_argument(
+        "--objects", action="store_true", help="also read the recorded object poses (low-dim; no cameras)"
+    )
+    p.add_argument(
         "--chunk-size", type=int, default=TrainConfig.chunk_size, help="actions predicted per chunk"
     )
     p.add_argument(
@@ -319,7 +339,7 @@ def train_main(args: argparse.Namespace) -> int:
     a = p.parse_args(getattr(args, "rest", args))
     cameras = tuple(c for c in a.cameras.split(",") if c)
     cfg = TrainConfig(policy=a.policy, steps=a.steps, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
-                      cameras=cameras, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps)  # fmt: skip
+                      cameras=cameras, objects=a.objects, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps)  # fmt: skip
     out = train_policy(a.datasets, a.out, cfg, repo_id=a.repo_id, data_regime=a.data_regime,
                        progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True))  # fmt: skip
     info = json.loads((out / INFO_FILE).read_text())

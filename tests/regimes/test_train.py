@@ -20,11 +20,11 @@ SHIPPED = Path(__file__).resolve().parents[2] / "checkpoints" / "act_pick_place_
 
 @pytest.fixture(scope="module")
 def demos(tmp_path_factory) -> Path:
-    """Two state-only noisy-oracle T0 demos of pick_place."""
+    """Two state-only noisy-oracle T0 demos of pick_place, with the object poses recorded."""
     from indgen_vla.regimes.demos import record_demos
 
     out = tmp_path_factory.mktemp("train") / "demos"
-    record_demos("pick_place", out, n=2, seed=5, cameras=())
+    record_demos("pick_place", out, n=2, seed=5, cameras=(), objects=True)
     return out
 
 
@@ -93,6 +93,61 @@ def test_config_and_input_errors(demos, tmp_path):
         train_policy([tmp_path], tmp_path / "out", steps=1)
     with pytest.raises(ConfigError, match="camera 'agentview' is missing"):
         train_policy([demos], tmp_path / "out", steps=1, cameras=("agentview",))
+
+
+def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos, tmp_path):
+    from indgen_vla.engine.cli import evaluate
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.interface import OBJECT_DIM
+    from policy_wrappers.registry import load_policy
+
+    cfg = TrainConfig(steps=40, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20,
+                      objects=True)  # fmt: skip
+    ckpt = train_policy([demos], tmp_path / "act_objects", cfg)
+    steps = json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]
+    assert any(s.get("class", "").endswith("ObjectPosesStep") for s in steps)
+    assert not any(s.get("class", "").endswith("ProprioAsEnvStateStep") for s in steps)
+    policy = load_policy(f"lerobot:{ckpt}")
+    assert policy.spec.observes_objects and policy.spec.cameras == ()
+    state = np.zeros(8, np.float32)
+    with pytest.raises(PolicyError, match="object poses"):
+        policy.act([_obs(state)])
+    objects = np.zeros(OBJECT_DIM, np.float32)
+    objects[6] = objects[13] = 1.0
+    obs = Observation(images={}, state=state, instruction="pick up the milk carton", objects=objects)
+    assert policy.act([obs]).shape == (1, 20, 7)
+    policy.close()
+    out = evaluate(EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
+                              episodes=1, max_steps=10, out=str(tmp_path / "run")), quiet=True)  # fmt: skip
+    import pandas as pd
+
+    assert list(pd.read_parquet(out / "episodes.parquet")["status"]) == ["ok"]
+    with pytest.raises(ConfigError, match="drop --cameras"):
+        TrainConfig(objects=True, cameras=("agentview",))
+
+
+def test_object_poses_are_recorded_and_carried_through_mimicgen(demos, tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from indgen_vla.regimes.demos import ENV_STATE, read_episode_sidecar
+    from indgen_vla.regimes.mimicgen import MimicGenConfig, generate
+
+    gen = tmp_path / "gen"
+    generate(MimicGenConfig(source=demos, out=gen, n=1, seed=1, guarantee=True, max_attempts=3))
+    for root, repo in ((demos, "local/indgen_demos"), (gen, "local/indgen_mimicgen")):
+        ds = LeRobotDataset(repo, root=root)
+        pose = read_episode_sidecar(root)[0]["object_poses"]
+        x, y, z, qw, qx, qy, qz = pose["pick"][0]  # frame 0 of episode 0, wxyz in the sidecar
+        sign = 1.0 if qw >= 0 else -1.0
+        want = [x, y, z, sign * qx, sign * qy, sign * qz, sign * qw]
+        np.testing.assert_allclose(ds[0][ENV_STATE].numpy()[:7], want, atol=1e-5)
+        gx, gy, gz = pose["goal"][0][:3]
+        np.testing.assert_allclose(ds[0][ENV_STATE].numpy()[7:10], [gx, gy, gz], atol=1e-5)
+
+
+def test_objects_need_recorded_poses(one_demo, tmp_path):
+    with pytest.raises(ConfigError, match="indgen demos --objects"):  # one_demo was recorded without poses
+        train_policy([one_demo[0]], tmp_path / "out", steps=1, objects=True)
 
 
 @pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped checkpoint not built yet")
