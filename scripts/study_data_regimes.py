@@ -1,11 +1,13 @@
-"""The paper's data-regime experiment on a CPU: does MimicGen T0 data improve inductive generalization?
+"""The paper's data-regime experiment on a CPU, with a policy that sees the object (docs/results/data_regimes.md).
 
-    .venv/bin/python scripts/study_data_regimes.py [--work runs/study] [--episodes 10] [--quick]
+    .venv/bin/python scripts/study_data_regimes.py [--work runs/study_data_regimes] [--episodes 30] [--quick]
 
-demos → mimicgen → train a state-only ACT on human-only and on human+MimicGen data (``build_standin.py``, which
-also records the demos and generates the MimicGen episodes) → ``indgen evaluate`` both along ``pick_y`` and
-``scale`` (k = −3..3) → ``indgen compare`` per axis → ``docs/results/data_regimes.md`` with the wall time.
-Slow (tens of minutes on 2 cores); ``--quick`` is a smoke run of the same path that writes under ``--work`` only.
+One set of 50 noisy-oracle T0 demos with object poses (``indgen demos --objects``) → 50 MimicGen episodes from
+them → a low-dimensional ACT (state + object poses, ``indgen train --objects``) per regime (h-only, h+mg) and
+training seed (0, 1, 2), same budget → ``indgen evaluate`` of every checkpoint on the same episodes along
+``pick_y`` (then ``scale``) → ``indgen compare --a RUN... --b RUN...`` (paired, stratified by training seed) →
+``docs/results/data_regimes.md`` with the wall time. Every stage resumes: re-run the same command after a stop.
+``--quick`` is a smoke run of the same path that writes under ``--work`` only.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -20,21 +23,20 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
 ROOT = Path(__file__).resolve().parents[1]
-AXES = ("pick_y", "scale")
+sys.path.insert(0, str(ROOT))
+SCENE = "pick_place"
+REGIMES = ("h-only", "h+mg")
+
+
+def log(msg: str) -> None:
+    print(f"[study {time.strftime('%H:%M:%S')}] {msg}", flush=True)
 
 
 def _run(cmd: list[str]) -> None:
-    print(f"[study {time.strftime('%H:%M:%S')}] {' '.join(cmd)}", flush=True)
+    log(" ".join(cmd))
     subprocess.run(cmd, check=True, cwd=ROOT)
-
-
-def _build(ckpt: Path, args: list[str]) -> None:
-    """Build a stand-in unless an earlier (interrupted) invocation already finished it: re-running resumes."""
-    if (ckpt / "train_info.json").is_file():
-        print(f"[study] {ckpt} exists (train_info.json); skipping its build", flush=True)
-        return
-    _run(args)
 
 
 def _wall(work: Path, seconds: float) -> tuple[float, int]:
@@ -46,57 +48,102 @@ def _wall(work: Path, seconds: float) -> tuple[float, int]:
     return sum(runs), len(runs)
 
 
+def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
+    """The human demos and the MimicGen episodes made from them, once for every checkpoint."""
+    from indgen_vla.regimes.demos import record_demos
+    from indgen_vla.regimes.mimicgen import STATS_FILE, MimicGenConfig, generate
+
+    demos, mg = work / "data" / "human", work / "data" / "mimicgen"
+    if not (demos / ".done").is_file():
+        shutil.rmtree(demos, ignore_errors=True)
+        log(f"recording {n_demos} T0 demos with object poses into {demos}")
+        record_demos(SCENE, demos, n_demos, seed=0, cameras=(), objects=True)
+        (demos / ".done").touch()
+    if not (mg / STATS_FILE).is_file():
+        shutil.rmtree(mg, ignore_errors=True)
+        log(f"generating {n_mg} MimicGen T0 episodes from the demos into {mg}")
+        generate(MimicGenConfig(source=demos, out=mg, n=n_mg, seed=0, guarantee=True))
+    return {"h-only": [demos], "h+mg": [demos, mg]}
+
+
+def train(
+    work: Path, data: dict[str, list[Path]], seeds: list[int], steps: int
+) -> dict[tuple[str, int], Path]:
+    """One object-observing ACT per (regime, training seed), same budget; finished ones are kept."""
+    from indgen_vla.regimes.train import INFO_FILE, TrainConfig, train_policy
+
+    ckpts = {}
+    for regime in REGIMES:
+        for seed in seeds:
+            out = work / "ckpt" / f"{regime.replace('+', '_')}_s{seed}"
+            if not (out / INFO_FILE).is_file():
+                shutil.rmtree(out, ignore_errors=True)  # a training run killed half way
+                log(f"training {regime} seed {seed} ({steps} updates)")
+                cfg = TrainConfig(steps=steps, seed=seed, objects=True, log_every=max(steps // 5, 1))
+                train_policy(data[regime], out, cfg, data_regime=regime)
+            ckpts[(regime, seed)] = out
+    return ckpts
+
+
+def evaluate(work: Path, ckpts: dict, axis: str, episodes: int, workers: int) -> dict[str, list[Path]]:
+    """Every checkpoint on the same episodes (evaluation seed 0) along ``axis``; evaluate resumes itself."""
+    indgen = str(Path(sys.executable).with_name("indgen"))
+    runs: dict[str, list[Path]] = {r: [] for r in REGIMES}
+    for (regime, seed), ckpt in ckpts.items():
+        out = work / "runs" / axis / ckpt.name
+        _run([indgen, "evaluate", "--policy", f"lerobot:{ckpt}", "--scene", SCENE, "--axis", axis,
+              "--levels", "-3:3", "--episodes", str(episodes), "--seed", "0", "--workers", str(workers),
+              "--data-regime", f"{regime} seed {seed}", "--out", str(out)])  # fmt: skip
+        runs[regime].append(out)
+    return runs
+
+
+def compare(work: Path, axis: str, runs: dict[str, list[Path]]) -> tuple[dict, str]:
+    """``indgen compare --a h-only runs --b h+mg runs``: paired within a seed, stratified across seeds."""
+    indgen = str(Path(sys.executable).with_name("indgen"))
+    out = work / f"compare_{axis}"
+    _run([indgen, "compare", "--a", *map(str, runs["h-only"]), "--b", *map(str, runs["h+mg"]),
+          "--label-a", "h-only", "--label-b", "h+mg", "--out", str(out)])  # fmt: skip
+    return json.loads((out / "compare.json").read_text()), (out / "compare.md").read_text()
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--work", default="runs/study_data_regimes", help="demos, checkpoints and runs go here")
-    p.add_argument("--mimicgen", type=int, default=50, help="MimicGen episodes added for the h+mg regime")
-    p.add_argument("--episodes", type=int, default=10, help="episodes per level in the axis sweeps")
+    p.add_argument("--work", default="runs/study_data_regimes", help="data, checkpoints and runs go here")
+    p.add_argument(
+        "--episodes", type=int, default=30, help="episodes per level (same episodes for every checkpoint)"
+    )
+    p.add_argument("--seeds", type=int, default=3, help="training seeds per regime")
+    p.add_argument("--steps", type=int, default=3000, help="training updates per checkpoint")
+    p.add_argument("--axes", default="pick_y,scale", help="primary axis first; later ones are secondary")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--stop-after", choices=("data", "train", "evaluate"), default=None,
+                   help="stop after this stage (re-run later to continue)")  # fmt: skip
     p.add_argument("--quick", action="store_true", help="tiny smoke run; results are not written to docs/")
     a = p.parse_args()
+    if a.quick:
+        a.episodes, a.seeds, a.steps = 1, 2, 20
     work = (ROOT / a.work).resolve()
-    py, indgen = sys.executable, str(Path(sys.executable).with_name("indgen"))
+    work.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    quick = ["--quick"] if a.quick else []
-    n_mg = 2 if a.quick else a.mimicgen
-    ckpts = {"h-only": work / "ckpt_h_only", "h+mg": work / "ckpt_h_mg"}
-    _build(ckpts["h-only"], [py, "scripts/build_standin.py", "--out", str(ckpts["h-only"]),
-                             "--work", str(work / "h_only"), *quick])  # fmt: skip
-    _build(ckpts["h+mg"], [py, "scripts/build_standin.py", "--mimicgen", str(n_mg), "--out", str(ckpts["h+mg"]),
-                           "--work", str(work / "h_mg"), *quick])  # fmt: skip
-    episodes = 1 if a.quick else a.episodes
-    sections, verdicts = [], []
-    for axis in AXES:
-        runs = {}
-        for regime, ckpt in ckpts.items():
-            runs[regime] = work / f"eval_{axis}_{regime.replace('+', '_')}"
-            _run([indgen, "evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "pick_place", "--axis", axis,
-                  "--levels", "-3:3", "--episodes", str(episodes), "--workers", str(a.workers),
-                  "--data-regime", regime, "--out", str(runs[regime])])  # fmt: skip
-        out = work / f"compare_{axis}"
-        _run([indgen, "compare", str(runs["h-only"]), str(runs["h+mg"]), "--out", str(out)])
-        verdicts.append(json.loads((out / "compare.json").read_text())["verdict"])
-        # one document: each comparison's headings go one level down
-        sections.append(
-            "\n".join(
-                "#" + ln if ln.startswith("#") else ln for ln in (out / "compare.md").read_text().splitlines()
-            )
-        )
+    data = build_data(work, 3 if a.quick else 50, 2 if a.quick else 50)
+    if a.stop_after == "data":
+        return 0
+    ckpts = train(work, data, list(range(a.seeds)), a.steps)
+    if a.stop_after == "train":
+        return 0
+    axes = [x for x in a.axes.split(",") if x]
+    runs = {axis: evaluate(work, ckpts, axis, a.episodes, a.workers) for axis in axes}
+    if a.stop_after == "evaluate":
+        return 0
+    results = {axis: compare(work, axis, r) for axis, r in runs.items()}
     wall, invocations = _wall(work, time.perf_counter() - start)
-    cards = {r: json.loads((c / "train_info.json").read_text()) for r, c in ckpts.items()}
-    text = "\n".join([
-        "# Data regimes: human-only vs human+MimicGen (pick_place, state-only ACT)", "",
-        f"`scripts/study_data_regimes.py`, {time.strftime('%Y-%m-%d')}, wall time {wall / 60:.1f} min"
-        + (f" over {invocations} invocations (resumed)" if invocations > 1 else "") + ", "
-        f"{episodes} episodes per level, MimicGen episodes added: {n_mg}. Training set sizes: "
-        + ", ".join(f"{r}: {c.get('episodes')} episodes" for r, c in cards.items()) + ".", "",
-        "**Result.** " + " ".join(verdicts), "",
-        *sections,
-    ])  # fmt: skip
+    from study_regimes_doc import render  # scripts/study_regimes_doc.py: the document from the comparisons
+
+    text = render(results, axes, a, wall, invocations)
     dest = work / "data_regimes.md" if a.quick else ROOT / "docs" / "results" / "data_regimes.md"
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    dest.write_text(text + "\n")
-    print(f"wrote {dest} ({wall / 60:.1f} min)")
+    dest.write_text(text)
+    log(f"wrote {dest} ({wall / 60:.1f} min)")
     return 0
 
 
