@@ -1,0 +1,161 @@
+"""``indgen compare --a RUN... --b RUN...``: two groups of runs (one per training seed), paired within a seed.
+
+Run i of group A and run i of group B form stratum i (e.g. training seed i of each regime). When the two runs
+of a stratum share their episodes (same task, axis, level, episode index and seed), each level's outcomes are
+paired, and the strata are combined by the matched-pairs Mantel–Haenszel test (``groups.stratified_mcnemar``),
+Holm-corrected over the levels of an axis. Seed-level summaries — k* per direction and the mean success over
+the out-of-distribution levels |k| >= 1 — are compared across seeds with Welch t-intervals, and an equivalence
+test (TOST, ``--margin``) says whether "no difference" may be claimed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from indgen_vla.errors import RunDirError
+from indgen_vla.groups import kstar_value, mean_difference, ood_area, stratified_mcnemar, tost
+from indgen_vla.metrics import break_levels, holm
+
+KEY = ["task", "axis", "level", "episode"]
+
+
+def _ok(df):
+    return df[df["status"] == "ok"]
+
+
+def pair_episodes(a, b, axis: str):
+    """Episodes both runs finished on ``axis``, joined on (task, level, episode); refuses different seeds."""
+    da, db = _ok(a[a["axis"] == axis]), _ok(b[b["axis"] == axis])
+    joined = da.merge(db, on=KEY, suffixes=("_a", "_b"))
+    if (joined["seed_a"] != joined["seed_b"]).any():
+        raise RunDirError(
+            f"axis {axis}: the runs give the same episode different seeds, so they are not paired; evaluate "
+            "both with the same --seed and plan"
+        )
+    return joined
+
+
+def _rates(df) -> dict[int, float]:
+    return {int(k): float(g["success"].mean()) for k, g in _ok(df).groupby("level")}
+
+
+def compare_groups(
+    episodes_a: list, episodes_b: list, gamma: float = 0.2, margin: float = 0.10, alpha: float = 0.05
+) -> dict[str, Any]:
+    """The compare.json dict for two equally long lists of episode tables (stratum i = run i of each group)."""
+    if len(episodes_a) != len(episodes_b) or not episodes_a:
+        raise RunDirError(
+            f"--a has {len(episodes_a)} run(s) and --b {len(episodes_b)}; give one run per training seed on each "
+            "side, in the same seed order"
+        )
+    axes = sorted(set.intersection(*(set(df["axis"]) for df in episodes_a + episodes_b)))
+    if not axes:
+        raise RunDirError("the runs share no axis; compare runs evaluated on the same axis")
+    out: dict[str, Any] = {
+        "test": "mcnemar_exact" if len(episodes_a) == 1 else "mcnemar_exact_stratified",
+        "paired": True, "strata": len(episodes_a), "gamma": gamma, "alpha": alpha, "margin": margin, "axes": {},
+    }  # fmt: skip
+    for axis in axes:
+        pairs = [pair_episodes(a, b, axis) for a, b in zip(episodes_a, episodes_b, strict=True)]
+        levels = sorted(set().union(*(set(p["level"]) for p in pairs)))
+        rows = []
+        for k in levels:
+            strata = []
+            for p in pairs:
+                d = p[p["level"] == k]
+                sa, sb = d["success_a"].astype(bool), d["success_b"].astype(bool)
+                strata.append((int((sa & ~sb).sum()), int((~sa & sb).sum()), len(d)))
+            test = stratified_mcnemar(strata)
+            n = sum(s[2] for s in strata)
+            succ_a = sum(int(p[p["level"] == k]["success_a"].sum()) for p in pairs)
+            succ_b = sum(int(p[p["level"] == k]["success_b"].sum()) for p in pairs)
+            rows.append({
+                "level": int(k), "pairs": n, "successes_a": succ_a, "successes_b": succ_b,
+                "rate_a": succ_a / n if n else math.nan, "rate_b": succ_b / n if n else math.nan,
+                "a_only": test.a_only, "b_only": test.b_only, "p_value": test.p_value,
+            })  # fmt: skip
+        for r, p in zip(rows, holm([r["p_value"] for r in rows]), strict=True):
+            r["p_holm"] = p
+        out["axes"][axis] = {"levels": rows, **_seed_level(episodes_a, episodes_b, axis, gamma, margin)}
+    return out
+
+
+def _seed_level(episodes_a: list, episodes_b: list, axis: str, gamma: float, margin: float) -> dict:
+    """Per-seed k* (each direction) and OOD area for both groups, their B − A differences and the TOST."""
+    per: dict[str, dict[str, list]] = {"a": {}, "b": {}}
+    for side, group in (("a", episodes_a), ("b", episodes_b)):
+        for df in group:
+            rates = _rates(df[df["axis"] == axis])
+            signed = any(k < 0 for k in rates)
+            brk = break_levels(rates, gamma, signed)
+            for d in ("pos", "neg") if signed else ("pos",):
+                own = [k for k in rates if (k >= 0 if d == "pos" else k <= 0)]
+                value = brk[d] if brk[d] != "undetermined" else None
+                if brk[d] == "undetermined":
+                    raise RunDirError(f"axis {axis}: a run lacks data at a level before its break; finish it")
+                per[side].setdefault(f"kstar_{d}", []).append(kstar_value(value, own, d))
+            per[side].setdefault("ood_area", []).append(ood_area(rates))
+    res = {}
+    for name in per["a"]:
+        a, b = per["a"][name], per["b"][name]
+        md = mean_difference(a, b)
+        res[name] = {"a": a, "b": b, "diff": md.diff, "ci": [md.ci_low, md.ci_high]}
+    res["ood_area"]["tost_p"] = tost(per["a"]["ood_area"], per["b"]["ood_area"], margin)
+    return {"seed_level": res}
+
+
+def verdict(result: dict, label_a: str, label_b: str) -> str:
+    """What the data show per axis, never more: differing levels, the seed-level differences, equivalence."""
+    alpha, margin = result["alpha"], result["margin"]
+    parts = []
+    for axis, ax in result["axes"].items():
+        sig = [r for r in ax["levels"] if r["p_holm"] < alpha]
+        lv = ", ".join(f"L{r['level']:+d} ({100 * r['rate_a']:.0f}% vs {100 * r['rate_b']:.0f}%, "
+                       f"p_holm = {r['p_holm']:.2g})" for r in sig)  # fmt: skip
+        sl = ax["seed_level"]
+        area = sl["ood_area"]
+        text = (f"{axis}: " + (f"{len(sig)} level(s) differ after Holm ({lv})" if sig else
+                "no level differs after Holm") + f"; OOD mean success {label_b} − {label_a} = "
+                f"{100 * area['diff']:+.1f} points, 95% CI [{_pts(area['ci'][0])}, {_pts(area['ci'][1])}] over "
+                f"{len(area['a'])} vs {len(area['b'])} seeds")  # fmt: skip
+        tp = area["tost_p"]
+        if not math.isnan(tp):
+            text += (f"; equivalent within ±{100 * margin:.0f} points (TOST p = {tp:.2g})" if tp < alpha else
+                     f"; equivalence within ±{100 * margin:.0f} points not shown (TOST p = {tp:.2g})")  # fmt: skip
+        for d in ("pos", "neg"):
+            if f"kstar_{d}" in sl:
+                k = sl[f"kstar_{d}"]
+                text += f"; k* {d} {label_a} {k['a']} vs {label_b} {k['b']}"
+        parts.append(text + ".")
+    return " ".join(parts)
+
+
+def _pts(x: float) -> str:
+    return "n/a" if math.isnan(x) else f"{100 * x:+.1f}"
+
+
+def render_markdown(result: dict, label_a: str, label_b: str) -> str:
+    """compare.md for groups: per-level paired table, then the seed-level endpoints."""
+    lines = [f"# Comparison: {label_a} (A, {result['strata']} run(s)) vs {label_b} (B, {result['strata']} run(s))", "",
+             "Paired episode by episode within each stratum (run i of A with run i of B: same episodes); per level the "
+             "exact matched-pairs test on the discordant pairs pooled over strata (stratified McNemar), Holm-corrected "
+             "per axis. Seed-level endpoints: Welch t-intervals across runs; TOST for equivalence.", "",
+             f"**Verdict.** {result['verdict']}", ""]  # fmt: skip
+    for axis, ax in result["axes"].items():
+        lines += [f"## Axis `{axis}`", "", "| level | pairs | A | B | A only | B only | p | p (Holm) |",
+                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for r in ax["levels"]:
+            lines.append(f"| {r['level']} | {r['pairs']} | {r['successes_a']} | {r['successes_b']} | {r['a_only']} | "
+                         f"{r['b_only']} | {r['p_value']:.3g} | {r['p_holm']:.3g} |")  # fmt: skip
+        lines += ["", "| endpoint | A per run | B per run | B − A | 95% CI |", "|---|---|---|---|---|"]
+        for name, e in ax["seed_level"].items():
+            fmt = (lambda v: f"{v:.3f}") if name == "ood_area" else (lambda v: f"{v:+d}")
+            lines.append(f"| {name} | {', '.join(fmt(v) for v in e['a'])} | {', '.join(fmt(v) for v in e['b'])} | "
+                         f"{e['diff']:+.3f} | [{e['ci'][0]:.3f}, {e['ci'][1]:.3f}] |")  # fmt: skip
+        lines += [
+            "",
+            f"OOD area TOST p (margin ±{result['margin']}): {ax['seed_level']['ood_area']['tost_p']:.3g}",
+            "",
+        ]
+    return "\n".join(lines)

@@ -1,0 +1,72 @@
+"""Group comparisons (one run per training seed) on hand-built episode tables."""
+
+import math
+
+import pandas as pd
+import pytest
+from scipy import stats
+
+from indgen_vla.compare_groups import compare_groups, render_markdown, verdict
+from indgen_vla.errors import RunDirError
+
+
+def table(outcomes: dict[int, list[int]], seed0: int = 100) -> pd.DataFrame:
+    """Episode rows of one run: level -> per-episode success (episode i has seed seed0 + i at every level)."""
+    rows = [
+        {"task": "milk", "axis": "pick_y", "level": k, "episode": i, "seed": seed0 + i, "success": bool(s),
+         "status": "ok"}
+        for k, outs in outcomes.items()
+        for i, s in enumerate(outs)
+    ]  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def test_paired_levels_pool_discordant_pairs_over_seeds():
+    a1 = table({-1: [1, 0, 0, 0], 0: [1, 1, 1, 1], 1: [1, 1, 0, 0]})
+    b1 = table({-1: [1, 1, 1, 0], 0: [1, 1, 1, 1], 1: [1, 1, 0, 0]})
+    a2 = table({-1: [0, 0, 0, 0], 0: [1, 1, 1, 1], 1: [0, 1, 0, 0]})
+    b2 = table({-1: [1, 1, 1, 1], 0: [1, 1, 1, 1], 1: [1, 0, 0, 0]})
+    res = compare_groups([a1, a2], [b1, b2], margin=0.1)
+    assert res["test"] == "mcnemar_exact_stratified" and res["strata"] == 2
+    lv = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
+    # level -1: seed 1 has 0 A-only / 2 B-only, seed 2 has 0 / 4 -> Binomial(6, 1/2): p = 2 * 0.5**6
+    assert (lv[-1]["a_only"], lv[-1]["b_only"], lv[-1]["pairs"]) == (0, 6, 8)
+    assert lv[-1]["p_value"] == pytest.approx(2 * 0.5**6)
+    assert lv[1]["a_only"] == lv[1]["b_only"] == 1 and lv[1]["p_value"] == 1.0
+    assert lv[0]["p_value"] == 1.0 and (lv[-1]["successes_a"], lv[-1]["successes_b"]) == (1, 7)
+    # Holm over the three levels: the smallest p is multiplied by 3
+    assert lv[-1]["p_holm"] == pytest.approx(3 * 2 * 0.5**6)
+    sl = res["axes"]["pick_y"]["seed_level"]
+    # OOD area (levels -1, 1): A seed 1 = (0.25 + 0.5)/2, seed 2 = (0 + 0.25)/2; B = (0.75+0.5)/2, (1+0.25)/2
+    assert sl["ood_area"]["a"] == pytest.approx([0.375, 0.125]) and sl["ood_area"]["b"] == pytest.approx(
+        [0.625] * 2
+    )
+    welch = stats.ttest_ind([0.625, 0.625], [0.375, 0.125], equal_var=False)
+    assert sl["ood_area"]["diff"] == pytest.approx(0.375)
+    assert (sl["ood_area"]["ci"][0] > 0) == (welch.pvalue < 0.05)
+    # k* with gamma 0.2: A seed 2 breaks at -1 (0 %) and at +1 (25 % >= 0.2: no break -> +2); B never breaks
+    assert sl["kstar_neg"]["a"] == [-2, -1] and sl["kstar_neg"]["b"] == [-2, -2]
+    assert sl["kstar_pos"]["a"] == [2, 2] and sl["kstar_pos"]["b"] == [2, 2]
+    text = verdict({**res, "alpha": 0.05}, "h-only", "h+mg")
+    assert "no level differs after Holm" in text and "+37.5 points" in text and "2 vs 2 seeds" in text
+    res["verdict"] = text
+    md = render_markdown(res, "h-only", "h+mg")
+    assert "| -1 | 8 | 1 | 7 | 0 | 6 |" in md
+
+
+def test_single_pair_is_exact_mcnemar():
+    a = table({0: [1] * 6 + [0] * 4, 1: [1, 0, 0, 0, 0, 0, 0, 0, 0, 0]})
+    b = table({0: [1] * 10, 1: [1, 1, 1, 1, 1, 1, 1, 1, 0, 0]})
+    res = compare_groups([a], [b])
+    assert res["test"] == "mcnemar_exact"
+    lv = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
+    assert lv[1]["p_value"] == pytest.approx(stats.binomtest(0, 7, 0.5).pvalue)
+    assert math.isnan(res["axes"]["pick_y"]["seed_level"]["ood_area"]["tost_p"])  # one seed: no TOST
+
+
+def test_unpaired_or_unbalanced_groups_are_refused():
+    a = table({0: [1, 1]})
+    with pytest.raises(RunDirError, match="not paired"):
+        compare_groups([a], [table({0: [1, 1]}, seed0=7)])
+    with pytest.raises(RunDirError, match="one run per training seed"):
+        compare_groups([a, a], [a])
