@@ -106,9 +106,14 @@ def _seed_level(episodes_a: list, episodes_b: list, axis: str, gamma: float, mar
 
 
 def verdict(result: dict, label_a: str, label_b: str) -> str:
-    """What the data show per axis, never more: differing levels, the seed-level differences, equivalence."""
+    """What the data show, never more: one sentence per axis (``axis_verdicts``)."""
+    return " ".join(axis_verdicts(result, label_a, label_b).values())
+
+
+def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
+    """Per axis: differing levels after Holm, the seed-level differences with CIs, equivalence (TOST)."""
     alpha, margin = result["alpha"], result["margin"]
-    parts = []
+    parts = {}
     for axis, ax in result["axes"].items():
         sig = [r for r in ax["levels"] if r["p_holm"] < alpha]
         lv = ", ".join(f"L{r['level']:+d} ({100 * r['rate_a']:.0f}% vs {100 * r['rate_b']:.0f}%, "
@@ -127,8 +132,8 @@ def verdict(result: dict, label_a: str, label_b: str) -> str:
             if f"kstar_{d}" in sl:
                 k = sl[f"kstar_{d}"]
                 text += f"; k* {d} {label_a} {k['a']} vs {label_b} {k['b']}"
-        parts.append(text + ".")
-    return " ".join(parts)
+        parts[axis] = text + "."
+    return parts
 
 
 def _pts(x: float) -> str:

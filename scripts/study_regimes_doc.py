@@ -1,0 +1,58 @@
+"""docs/results/data_regimes.md from the study's comparisons: the pre-specified protocol, then what the data show."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "results" / "data_regimes.md"
+
+
+def _protocol() -> str:
+    """The pre-specified protocol section of the committed document (everything before "## Result")."""
+    text = DOC.read_text()
+    head = text.split("## Result", 1)[0]
+    return head.split("## Question", 1)[1] if "## Question" in head else head
+
+
+def _headline(cmp: dict, axis: str, primary: bool) -> str:
+    """One paragraph per axis: the pre-specified endpoints first, then the per-level tests."""
+    ax = cmp["axes"][axis]
+    sl = ax["seed_level"]
+    area = sl["ood_area"]
+    role = "primary" if primary else "secondary"
+    lines = [f"- **{axis}** ({role}). {cmp['verdicts'][axis]}"]
+    lines.append(
+        f"  OOD mean success per seed: h-only {', '.join(f'{v:.2f}' for v in area['a'])}; "
+        f"h+mg {', '.join(f'{v:.2f}' for v in area['b'])}."
+    )
+    return "\n".join(lines)
+
+
+def render(results: dict, axes: list[str], args, wall: float, invocations: int) -> str:
+    """The whole document; ``results`` maps axis -> (compare.json dict, compare.md text)."""
+    primary = results[axes[0]][0]
+    area = primary["axes"][axes[0]]["seed_level"]["ood_area"]
+    sig = [r for r in primary["axes"][axes[0]]["levels"] if r["p_holm"] < primary["alpha"]]
+    if sig:
+        status = "MimicGen data changed success on at least one level of the primary axis (see below)."
+    elif not (area["tost_p"] < primary["alpha"]):
+        status = ("No difference was detected, and equivalence was not shown: this design cannot say that "
+                  "MimicGen data does not help (see the power section of the protocol).")  # fmt: skip
+    else:
+        status = f"No level differs, and the regimes are equivalent within ±{primary['margin']:.2f} in OOD mean success."
+    lines = [
+        "# Data regimes: human-only vs human+MimicGen (pick_place, object-observing ACT)", "",
+        f"**Status: run {time.strftime('%Y-%m-%d')} under the protocol below, pre-specified before the run. {status}**",
+        "", f"`scripts/study_data_regimes.py --episodes {args.episodes} --seeds {args.seeds}`: wall time "
+        f"{wall / 60:.1f} min" + (f" over {invocations} invocations (resumed)" if invocations > 1 else "")
+        + " on a 2-core CPU machine shared with other jobs.", "",
+        "## Question", _protocol().rstrip(), "",
+        "## Result", "",
+        *(_headline(results[a][0], a, i == 0) for i, a in enumerate(axes)), "",
+    ]  # fmt: skip
+    for axis in axes:
+        md = results[axis][1]
+        lines += ["#" + ln if ln.startswith("#") else ln for ln in md.splitlines()]
+        lines.append("")
+    return "\n".join(lines) + "\n"
