@@ -5,6 +5,8 @@ Loading follows lerobot's own eval path (``scripts/lerobot_eval.py``, ``rollout/
 ``make_pre_post_processors(cfg, pretrained_path=path, preprocessor_overrides={"device_processor": ...})``.
 Acting mirrors ``envs/utils.py:preprocess_observation`` (uint8 HWC -> float CHW in [0, 1]) plus LIBERO's
 env processor (180° flip), then ``predict_action_chunk`` and the postprocessor (unnormalise) on the chunk.
+ACT with ``temporal_ensemble_coeff`` acts through its own ``select_action`` (one ensembled action per step),
+as lerobot's eval does.
 """
 
 from __future__ import annotations
@@ -100,6 +102,10 @@ class LeRobotPolicy:
         sizes = {shape[1:] for _, cam, shape in self._cams if cam != ZEROS}
         image_size = max(sizes) if sizes else None
         chunk, replan = self._chunking()
+        # ACT's temporal ensembling averages every step's new chunk with the earlier ones (per episode)
+        self._ensemble = getattr(self.cfg, "temporal_ensemble_coeff", None) is not None
+        if self._ensemble:
+            chunk, replan = 1, 1
         self.n_obs_steps = int(getattr(self.cfg, "n_obs_steps", 1) or 1)
         # A policy with an observation history must see every step, as lerobot's select_action does: it is
         # asked each step (replan 1) and answers from its own queue, predicting a new chunk only when empty.
@@ -114,7 +120,7 @@ class LeRobotPolicy:
             replan_steps=replan,
             cameras=cams,
             image_size=image_size,
-            batched=self.n_obs_steps == 1,
+            batched=self.n_obs_steps == 1 and not self._ensemble,
             flip_180=self._flip,
             observes_objects=self._objects,
         )
@@ -310,6 +316,11 @@ class LeRobotPolicy:
         return out
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
+        if self._ensemble:  # lerobot's select_action: predict a chunk, fold it into the ensemble, one action
+            with self._torch.inference_mode():
+                action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
+            chunk = action.detach().to("cpu", self._torch.float32).numpy()[:, None]
+            return validate_chunk(chunk, len(observations), self._name)
         if not self._replan_inside:
             return self._predict(observations)
         # history policies (not batched): record this step, replan from the queue like select_action

@@ -48,7 +48,7 @@ STANDINS.register("noop", "policy_wrappers.standin:NoopPolicy", "zero motion, gr
 EXAMPLES = {
     "lerobot": "lerobot:lerobot/smolvla_libero  or  lerobot:./outputs/checkpoints/last/pretrained_model",
     "openpi": "openpi:ws://gpu-box:8000?replan=5",
-    "openvla-oft": "openvla-oft:http://gpu-box:8777  or  openvla-oft:http://gpu-box:8000?variant=openvla&unnorm_key=libero_spatial",
+    "openvla-oft": "openvla-oft:http://gpu-box:8777  or  openvla-oft:http://gpu-box:8000?variant=openvla&unnorm_key=libero_spatial_no_noops",
     "groot": "groot:tcp://gpu-box:5555?api=n1.5",
     "standin": "standin:oracle | standin:random | standin:noop | standin:PATH_TO_CHECKPOINT",
 }
@@ -185,15 +185,21 @@ def join_url(scheme: str, host: str, port: int) -> str:
     return f"{scheme}://[{host}]:{port}" if ":" in host else f"{scheme}://{host}:{port}"
 
 
-def load_policy(spec: str, *, trust_remote_code: bool = False, device: str = "cpu", **kw: object):
+def load_policy(
+    spec: str, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None, **kw: object
+):
     """Load the policy a spec string names (the engine's and ``indgen serve``'s entry point).
 
-    Extra keyword arguments are spec options (the same as ``?key=value``) and override them.
+    Extra keyword arguments are spec options (the same as ``?key=value``) and override them. ``scene`` (the
+    scene being evaluated) reaches loaders that take it, for scene-dependent defaults (base OpenVLA's unnorm_key).
     """
+    import inspect
+
     parsed = parse_spec(spec)
     loader = FAMILIES.load(parsed.family)
     options = Options(parsed.spec, {**parsed.options, **kw})
-    policy = loader(parsed, options, trust_remote_code=trust_remote_code, device=device)
+    extra = {"scene": scene} if scene and "scene" in inspect.signature(loader).parameters else {}
+    policy = loader(parsed, options, trust_remote_code=trust_remote_code, device=device, **extra)
     try:
         options.finish()
     except Exception:

@@ -80,6 +80,20 @@ class GrootServer:
         self.ctx.term()
 
 
+def upstream_n15_gripper(x):
+    """Isaac-GR00T N1.5 ``examples/Libero/eval/utils.py:normalize_gripper_action(binarize=True)``, written out."""
+    return np.sign(1 - 2 * (np.asarray(x, np.float64) - 0.0) / (1.0 - 0.0))
+
+
+def upstream_n16_gripper(x):
+    """Isaac-GR00T N1.6+ ``gr00t/eval/sim/LIBERO/libero_env.py``: ``normalize_gripper_action`` (2x - 1, sign)
+    then ``invert_gripper_action`` (x -1), as ``LiberoEnv.step`` applies them, written out."""
+    return np.sign(2 * (np.asarray(x, np.float64) - 0.0) / (1.0 - 0.0) - 1) * -1.0
+
+
+N15_GRIPPER = 0.9  # the model says "open" (GR00T's LIBERO data: 1 = open); LIBERO must get -1
+
+
 def n15_reply(data):
     if "observation" in data:  # what a real N1.5 Gr00tPolicy does with an N1.6-shaped request
         raise KeyError("video.image")
@@ -90,7 +104,9 @@ def n15_reply(data):
     assert data["state.gripper"].shape == (1, 2)
     assert isinstance(data["annotation.human.action.task_description"], list)
     return {
-        f"action.{k}": np.full((16, 1) if k != "x" else (16,), 0.9 if k == "gripper" else 0.1, np.float32)
+        f"action.{k}": np.full(
+            (16, 1) if k != "x" else (16,), N15_GRIPPER if k == "gripper" else 0.1, np.float32
+        )
         for k in KEYS
     }
 
@@ -102,7 +118,9 @@ def test_n15_flat_keys(obs_factory):
         obs = obs_factory(1)
         chunk = policy.act([obs, obs_factory(2)])
         policy.close()
-    assert chunk.shape == (2, 16, 7) and np.allclose(chunk[..., :6], 0.1) and np.all(chunk[..., 6] == 1.0)
+    assert chunk.shape == (2, 16, 7) and np.allclose(chunk[..., :6], 0.1)
+    assert upstream_n15_gripper(N15_GRIPPER) == -1.0  # open, in LIBERO's (and our) -1 open / +1 close
+    assert np.all(chunk[..., 6] == upstream_n15_gripper(N15_GRIPPER))
     data = srv.requests[-2]["data"]  # first get_action (after ping and get_modality_config)
     assert srv.requests[0] == {"endpoint": "ping"} and srv.requests[1] == {"endpoint": "get_modality_config"}
     assert np.array_equal(data["video.image"][0], flip_180(obs.images["agentview"]))
@@ -186,3 +204,20 @@ def test_errors(obs_factory):
     with GrootServer(n15_reply, silent=True) as srv:
         with pytest.raises(PolicyError, match="no reply .* within 0.3s"):
             load_policy(f"groot:tcp://127.0.0.1:{srv.port}?connect_timeout=0.3")
+
+
+@pytest.mark.parametrize("model_gripper", [0.0, 0.1, 0.49, 0.51, 0.9, 1.0])
+def test_n16_gripper_follows_upstream_libero_env(obs_factory, model_gripper):
+    """The default gripper map equals N1.6's LiberoEnv.step: 0.9 (open) -> -1, 0.1 (closed) -> +1."""
+
+    def reply(data):
+        n = len(data["observation"]["annotation.human.action.task_description"])
+        acts = {f"action.{k}": np.full((n, 16, 1), 0.05, np.float32) for k in KEYS}
+        acts["action.gripper"][:] = model_gripper
+        return [acts, {}]
+
+    with GrootServer(reply) as srv:
+        chunk = load_policy(f"groot:tcp://127.0.0.1:{srv.port}").act([obs_factory(0)])
+    expected = upstream_n16_gripper(np.float32(model_gripper))
+    assert expected == upstream_n15_gripper(np.float32(model_gripper))  # N1.5 and N1.6 agree
+    assert np.all(chunk[..., 6] == expected) and np.allclose(chunk[..., :6], 0.05)

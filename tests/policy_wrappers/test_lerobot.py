@@ -84,6 +84,36 @@ def test_act_chunk_matches_select_action(tiny_act, obs_factory):
     assert np.allclose(chunk[:, 0], first.numpy(), atol=1e-5)
 
 
+def test_act_temporal_ensemble_follows_select_action(tiny_act, tmp_path, obs_factory):
+    """ACT with temporal_ensemble_coeff: one ensembled action per step, as lerobot's ACTPolicy.select_action."""
+    import json
+    import shutil
+
+    import torch
+
+    ckpt = tmp_path / "act_te"
+    shutil.copytree(tiny_act, ckpt)
+    cfg = json.loads((ckpt / "config.json").read_text())
+    cfg.update(temporal_ensemble_coeff=0.01, n_action_steps=1)
+    (ckpt / "config.json").write_text(json.dumps(cfg))
+    ours = ref = load_policy(f"lerobot:{ckpt}")
+    assert (ours.spec.chunk_size, ours.spec.replan_steps, ours.spec.batched) == (1, 1, False)
+    seq = [[obs_factory(i, size=32)] for i in range(4)]
+    ours.reset("x")
+    got = [ours.act(o) for o in seq]
+    ref.policy.reset()  # lerobot's own loop on the same model from here
+    with torch.inference_mode():
+        want = [ref.post(ref.policy.select_action(ref.pre(ref.to_batch(o)))).numpy() for o in seq]
+        firsts = [
+            ref.post(ref.policy.predict_action_chunk(ref.pre(ref.to_batch(o)))[:, 0]).numpy() for o in seq
+        ]
+    for g, w in zip(got, want, strict=True):
+        assert g.shape == (1, 1, 7) and np.allclose(g[:, 0], w, atol=1e-5)
+    assert not np.allclose(
+        got[-1][:, 0], firsts[-1], atol=1e-4
+    )  # the ensemble is not the newest chunk's head
+
+
 def test_diffusion_history_and_seed_match_select_action(tiny_diffusion, obs_factory):
     """A history policy is asked every step and follows lerobot's select_action step for step."""
     pytest.importorskip("diffusers")

@@ -11,7 +11,7 @@ from loopback import WebsocketServer
 
 from indgen_vla.errors import PolicyError
 from policy_wrappers import msgpack_numpy
-from policy_wrappers.image_tools import flip_180, resize_with_pad
+from policy_wrappers.image_tools import resize_with_pad
 from policy_wrappers.registry import load_policy
 
 pytestmark = pytest.mark.timeout(60)
@@ -60,10 +60,27 @@ def test_request_matches_openpi_libero_example(obs_factory):
     assert set(req) == {"observation/image", "observation/wrist_image", "observation/state", "prompt"}
     for key, cam in (("observation/image", "agentview"), ("observation/wrist_image", "wrist")):
         assert req[key].dtype == np.uint8 and req[key].shape == (224, 224, 3)
-        assert np.array_equal(req[key], resize_with_pad(flip_180(obs.images[cam]), 224, 224))
+        assert np.array_equal(req[key], openpi_resize_with_pad(obs.images[cam][::-1, ::-1], 224, 224))
     assert req["observation/image"][-10:].mean() > 250  # the bright top band is now at the bottom
     assert req["observation/state"].shape == (8,) and np.allclose(req["observation/state"], obs.state)
     assert req["prompt"] == obs.instruction
+
+
+def openpi_resize_with_pad(img: np.ndarray, height: int, width: int) -> np.ndarray:
+    """openpi ``packages/openpi-client/src/openpi_client/image_tools.py:_resize_with_pad_pil``, written out:
+    ratio = max(w / W, h / H), PIL bilinear to (int(w / ratio), int(h / ratio)), pasted at the integer centre."""
+    from PIL import Image
+
+    h, w = img.shape[:2]
+    if (h, w) == (height, width):
+        return img
+    ratio = max(w / width, h / height)
+    rh, rw = int(h / ratio), int(w / ratio)
+    resized = np.asarray(Image.fromarray(img).resize((rw, rh), resample=Image.BILINEAR))
+    out = np.zeros((height, width, 3), np.uint8)
+    top, left = max(0, int((height - rh) / 2)), max(0, int((width - rw) / 2))
+    out[top : top + rh, left : left + rw] = resized
+    return out
 
 
 def test_resize_with_pad_matches_openpi_semantics():
@@ -71,6 +88,10 @@ def test_resize_with_pad_matches_openpi_semantics():
     out = resize_with_pad(img, 224, 224)
     assert out.shape == (224, 224, 3)
     assert out[:55].max() == 0 and out[-55:].max() == 0 and out[112, 112, 0] == 200  # letterboxed with zeros
+    rng = np.random.default_rng(0)
+    for shape in ((256, 256, 3), (100, 200, 3), (181, 97, 3)):  # LIBERO's 256 render, and letterboxed ones
+        img = rng.integers(0, 256, shape, dtype=np.uint8)
+        assert np.array_equal(resize_with_pad(img, 224, 224), openpi_resize_with_pad(img, 224, 224))
 
 
 def test_server_error_frame_then_reconnect(obs_factory):

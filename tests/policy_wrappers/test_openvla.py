@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from numpy.lib.format import descr_to_dtype, dtype_to_descr
 
-from indgen_vla.errors import PolicyError
-from policy_wrappers.image_tools import flip_180, resize_jpeg_lanczos
+from indgen_vla.errors import ConfigError, PolicyError
+from policy_wrappers.image_tools import center_crop_tf, flip_180, resize_jpeg_lanczos
 from policy_wrappers.registry import load_policy
 
 pytestmark = pytest.mark.timeout(60)
@@ -109,6 +109,90 @@ def test_base_openvla_variant(obs_factory):
         and srv.seen[0]["unnorm_key"] == "libero_spatial"
     )
     assert policy.spec.cameras == ("agentview",) and policy.spec.replan_steps == 1
+
+
+def tf_center_crop_reference(img: np.ndarray, crop_scale: float = 0.9) -> np.ndarray:
+    """openvla ``experiments/robot/openvla_utils.py:get_vla_action(center_crop=True)`` pixel by pixel:
+    ``convert_image_dtype`` (u8 * 1/255), ``crop_and_resize`` with the box ``(1 - sqrt(s)) / 2 ..
+    (1 + sqrt(s)) / 2`` and TF's bilinear kernel (``crop_and_resize_op.cc``: ``in_y = y1 * (H - 1) + y *
+    (y2 - y1) * (H - 1) / (crop_h - 1)``, floor/ceil neighbours, lerp x then y), then the saturating cast
+    back (``x * 255.5`` truncated)."""
+    f32 = np.float32
+    h, w, _ = img.shape
+    side = f32(np.sqrt(f32(crop_scale)))
+    y1 = x1 = (f32(1) - side) / f32(2)
+    y2 = x2 = y1 + side
+    src = img.astype(f32) * f32(1 / 255)
+    out = np.zeros(img.shape, np.uint8)
+    hs = (y2 - y1) * f32(h - 1) / f32(h - 1)
+    ws = (x2 - x1) * f32(w - 1) / f32(w - 1)
+    for y in range(h):
+        in_y = y1 * f32(h - 1) + f32(y) * hs
+        t, b = int(np.floor(in_y)), int(np.ceil(in_y))
+        yl = in_y - f32(t)
+        for x in range(w):
+            in_x = x1 * f32(w - 1) + f32(x) * ws
+            left, r = int(np.floor(in_x)), int(np.ceil(in_x))
+            xl = in_x - f32(left)
+            top = src[t, left] + (src[t, r] - src[t, left]) * xl
+            bottom = src[b, left] + (src[b, r] - src[b, left]) * xl
+            val = np.clip(top + (bottom - top) * yl, 0, 1) * f32(255.5)
+            out[y, x] = np.minimum(val, 255).astype(np.uint8)
+    return out
+
+
+def test_center_crop_matches_tf_formula():
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    got = center_crop_tf(img, 0.9)
+    assert got.shape == img.shape and got.dtype == np.uint8
+    assert np.array_equal(got, tf_center_crop_reference(img, 0.9))
+    # 0.9 of the area, not of the side: the first output row samples row (1 - sqrt(0.9)) / 2 * 63 = 0.8277
+    ramp = np.repeat(np.arange(64, dtype=np.uint8)[:, None, None] * 4, 64, axis=1).repeat(3, axis=2)
+    first = center_crop_tf(ramp, 0.9)[0, 0, 0]
+    assert first == int(np.float32((1 - np.sqrt(0.9)) / 2 * 63 * 4 / 255 * 255.5))
+    assert np.array_equal(center_crop_tf(img, 1.0), img)  # the whole box is the identity
+
+
+def test_base_openvla_crops_and_picks_unnorm_key(obs_factory):
+    with DeployServer(lambda p: np.array([0, 0, 0.01, 0, 0, 0, 0.9], np.float64)) as srv:
+        url = f"openvla-oft:http://127.0.0.1:{srv.port}?variant=openvla"
+        obs = obs_factory(4)
+        chunk = load_policy(url, scene="libero_object").act([obs])
+        load_policy(url + "&center_crop=0", scene="pick_place").act([obs])
+        load_policy(url + "&unnorm_key=bridge_orig", scene="libero_object").act([obs])
+    resized = resize_jpeg_lanczos(flip_180(obs.images["agentview"]), 224, 224)
+    cropped, plain, explicit = srv.seen
+    assert np.array_equal(cropped["image"], center_crop_tf(resized))  # checked against TF's formula above
+    assert (
+        cropped["unnorm_key"] == "libero_object_no_noops"
+    )  # run_libero_eval: <suite>, else <suite>_no_noops
+    assert np.array_equal(plain["image"], resized) and "unnorm_key" not in plain
+    assert explicit["unnorm_key"] == "bridge_orig"
+    assert chunk[0, 0, 6] == -np.sign(2 * 0.9 - 1)  # normalize_gripper_action then invert_gripper_action
+
+
+def test_base_openvla_error_without_unnorm_key(obs_factory):
+    with DeployServer(lambda p: "error") as srv:
+        policy = load_policy(f"openvla-oft:http://127.0.0.1:{srv.port}?variant=openvla", scene="pick_place")
+        with pytest.raises(PolicyError, match=r"several datasets needs \?unnorm_key=KEY"):
+            policy.act([obs_factory()])
+
+
+def test_openvla_defaults_and_refusals(obs_factory):
+    # each deploy.py's own default port: base OpenVLA 8000, OFT 8777 (probed at load)
+    import socket
+
+    for variant, port in (("openvla", 8000), ("oft", 8777)):
+        with socket.socket() as sock:
+            if sock.connect_ex(("127.0.0.1", port)) == 0:
+                pytest.skip(f"something listens on 127.0.0.1:{port}")
+        with pytest.raises(PolicyError, match=f"127.0.0.1:{port}"):
+            load_policy(f"openvla-oft:http://127.0.0.1?variant={variant}&connect_timeout=0.5")
+    with pytest.raises(ConfigError, match="center-crops server-side"):
+        load_policy("openvla-oft:http://127.0.0.1:9?center_crop=1")
+    with pytest.raises(ConfigError, match="--unnorm_key"):
+        load_policy("openvla-oft:http://127.0.0.1:9?unnorm_key=libero_spatial")
 
 
 def test_double_encoded_fallback(obs_factory):

@@ -61,6 +61,14 @@ def test_noop_and_random_are_policies():
         assert policy.spec.family == "standin" and policy.spec.name == spec and policy.spec.cameras == ()
 
 
+def test_scene_reaches_only_loaders_that_take_it():
+    """The engine passes the scene; families without scene-dependent defaults never see it (nor as an option)."""
+    policy = load_policy("standin:noop", scene="libero_object")
+    assert policy.spec.family == "standin"
+    with pytest.raises(UnknownNameError, match="scene"):
+        load_policy("standin:noop?scene=libero_object")  # as a spec option it is still a typo
+
+
 def test_oracle_is_lazy(monkeypatch):
     try:
         import scenes.oracle  # noqa: F401
