@@ -24,7 +24,9 @@ DEFAULT_AXIS = {
     "libero_object": "pick_y",
 }
 
-__all__ = ["make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param", "check_ready"]
+__all__ = [
+    "make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param", "check_ready", "check_axis_progression",
+]  # fmt: skip
 
 
 def scene_names() -> list[str]:
@@ -52,20 +54,50 @@ def axes_for(scene: str) -> list[str]:
     return list(get_scene(scene).axes)
 
 
-def get_axis(name: str, step: float | None = None) -> AxisSpec:
-    """The ``AxisSpec`` of an axis or composition such as ``pick_y+distractor``; ``step`` overrides its step."""
-    return _get_axis(name, step)
+def get_axis(name: str, step: float | None = None, preset: str | None = None) -> AxisSpec:
+    """The ``AxisSpec`` of an axis or composition such as ``pick_y+distractor``; ``step`` overrides its step,
+    ``preset`` (a configs/axes name or YAML path) sets steps and ranges, components' included."""
+    return _get_axis(name, step, preset)
 
 
-def level_param(scene: str, task: str | None, axis: str, level: int, step: float | None = None) -> float:
+def successor_for(axis: str, step: float | None = None, preset: str | None = None):
+    """The successor of ``axis`` with the --step / --axes-preset overrides applied."""
+    from scenes.axes import load_preset
+
+    return get_successor(axis, step, load_preset(preset) if preset else None)
+
+
+def level_param(
+    scene: str, task: str | None, axis: str, level: int, step: float | None = None, preset: str | None = None
+) -> float:
     """The axis parameter at ``level`` exactly as the built env reports it (``env.axis_param``), without
     building the simulator: e.g. 1.2 for ``scale`` at level 3, or the pick object's y in metres."""
     from scenes.axes import axis_param, spec_at_level
 
     sdef = get_scene(scene)
-    successor = get_successor(axis, step)
+    successor = successor_for(axis, step, preset)
     spec = spec_at_level(sdef.base(resolve_task(sdef, task)), successor, level)
     return axis_param(spec, successor, level)
+
+
+def check_axis_progression(
+    scene: str, task: str | None, axis: str, step: float | None = None, preset: str | None = None
+) -> None:
+    """Condition 2 (strictly harder levels) before any episode runs: raises ProgressionError (a ConfigError).
+
+    Built-in scenes are checked from their frozen specs (each component of a composition on its own);
+    LIBERO suites against their fixed initial states, which needs level 0 built (physics only, ~10 s), so
+    up front only when --step / --axes-preset changed a step; the env repeats the check when it is built.
+    """
+    from scenes.axes import check_progression
+
+    sdef = get_scene(scene)
+    check_axis_supported(sdef, axis)
+    successor = successor_for(axis, step, preset)
+    if scene in SCENES:
+        check_progression(sdef.base(resolve_task(sdef, task)), successor)
+    elif (step is not None or preset is not None) and any(p in ("pick_y", "goal_y") for p in axis.split("+")):
+        make_env(scene, task=task, axis=axis, step=step, cameras=(), preset=preset).close()  # raises if not
 
 
 def make_env(
@@ -78,13 +110,14 @@ def make_env(
     cameras: Sequence[str] = CAMERAS,
     image_size: tuple[int, int] = (128, 128),
     max_steps: int | None = None,
+    preset: str | None = None,
 ) -> SceneEnv:
     """Build one level of one task: the scene's T0 moved ``level`` atomic steps along ``axis``."""
     sdef = get_scene(scene)
     task = resolve_task(sdef, task)
     axis = axis or DEFAULT_AXIS[scene]
     check_axis_supported(sdef, axis)
-    successor = get_successor(axis, step)
+    successor = successor_for(axis, step, preset)
     if scene not in SCENES:  # a LIBERO suite
         from scenes.libero.env import LiberoSceneEnv
 

@@ -180,7 +180,9 @@ def get_successor(
         return parts[0]
     if step is not None:
         raise ConfigError(
-            f"axis {name!r} is a composition; set component steps in a configs/axes preset, not --step"
+            f"axis {name!r} is a composition: --step applies to single axes only; set its components' steps "
+            f"with --axes-preset NAME|PATH (a YAML like configs/axes/paper.yaml; shipped: "
+            f"{', '.join(preset_names()) or 'none'})"
         )
     signed = any(p.axis.signed for p in parts)
     comp = AxisSpec(
@@ -227,6 +229,12 @@ def level_support(spec: SceneSpec, successor: Successor, level: int) -> tuple[fl
     return (p, p)
 
 
+def successor_steps(successor: Successor) -> dict[str, float]:
+    """Each component's step (one entry for a single axis): what a certificate was made at."""
+    parts = successor.parts if isinstance(successor, Composite) else (successor,)
+    return {p.axis.name: float(p.axis.step) for p in parts}
+
+
 def presets_dir() -> Path:
     return Path(__file__).resolve().parent.parent / "configs" / "axes"
 
@@ -241,16 +249,20 @@ def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
     import yaml
 
     path = Path(preset)
-    if not path.suffix:
+    if not path.suffix and not path.is_file():
         path = presets_dir() / f"{preset}.yaml"
         if not path.is_file():
-            raise UnknownNameError("axis preset", str(preset), preset_names())
+            raise UnknownNameError("--axes-preset", str(preset), preset_names())
     if not path.is_file():
-        raise ConfigError(f"axis preset {str(path)!r} does not exist")
+        raise ConfigError(
+            f"--axes-preset {str(path)!r}: no such file; give a YAML path or one of: {', '.join(preset_names())}"
+        )
     try:
         data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as e:
-        raise ConfigError(f"axis preset {path}: invalid YAML ({e.__class__.__name__})") from None
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        raise ConfigError(
+            f"axis preset {path}: invalid YAML ({e.__class__.__name__}); fix the file"
+        ) from None
     axes = data.get("axes") if isinstance(data, dict) else None
     if not isinstance(axes, dict):
         raise ConfigError(
@@ -258,6 +270,8 @@ def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
         )
     out: dict[str, dict[str, float]] = {}
     for name, body in axes.items():
+        if str(name) not in _AXIS_TABLE:
+            raise UnknownNameError(f"axis in preset {path}:", str(name), base_axis_names())
         axis = _base_axis(str(name))
         if not isinstance(body, dict) or not set(body) <= {"step", "max_level"}:
             raise ConfigError(f"axis preset {path}: axis {name} takes only 'step' and 'max_level'")
@@ -270,12 +284,19 @@ def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
 
 
 def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[float, float]]:
-    """Condition 2 (strict: disjoint supports) over the axis's default range, T0 jitter included."""
+    """Condition 2 (strict: disjoint supports) over the axis's default range, T0 jitter included.
+
+    A composition is checked component by component: each component's field, read off the composed
+    spec at every level (jitter included), must leave the easier levels' support on its own.
+    """
     from indgen_vla.progression import check_strictly_harder
 
     axis = successor.axis
-    supports = {
-        k: level_support(spec_at_level(base, successor, k), successor, k) for k in axis.default_levels()
-    }
+    specs = {k: spec_at_level(base, successor, k) for k in axis.default_levels()}
+    if isinstance(successor, Composite):
+        for part in successor.parts:
+            name = f"{axis.name} (component {part.axis.name} at step {part.axis.step:g} {part.axis.unit})"
+            check_strictly_harder({k: level_support(s, part, k) for k, s in specs.items()}, name)
+    supports = {k: level_support(s, successor, k) for k, s in specs.items()}
     check_strictly_harder(supports, axis.name)
     return supports

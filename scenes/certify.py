@@ -1,8 +1,11 @@
-"""``indgen certify``: run the privileged oracle on every level of an axis and record which levels are feasible.
+"""``indgen certify``: run the privileged oracle on every level of an axis and certify the feasible levels.
 
-A level is feasible (the paper's Assumption 2) when the oracle solves at least 95 % of its episodes.
-Certification runs physics only (no cameras), one process per worker, and is deterministic: episode i
-of level k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
+A level is certified (the paper's Assumption 2, stated statistically) when the one-sided 95 %
+Clopper–Pearson lower bound of the oracle's success rate is >= the threshold (0.95: 59/59 episodes).
+Episodes run one after another up to ``n_max`` and stop as soon as a failure makes certification
+unreachable even if every remaining episode succeeded (docs/certification/README.md). Certification is
+per (scene, task, axis, component steps), physics only, resumable, and deterministic: episode i of level
+k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
 """
 
 from __future__ import annotations
@@ -13,10 +16,70 @@ import time
 from pathlib import Path
 
 from indgen_vla.errors import ConfigError, RunDirError
+from indgen_vla.metrics import clopper_pearson_ci
 from indgen_vla.progression import parse_levels
 from indgen_vla.seeding import episode_seed
 
-FEASIBLE_RATE = 0.95
+THRESHOLD = 0.95
+CONFIDENCE = 0.95
+FEASIBLE_RATE = THRESHOLD  # the old name, kept for readers
+RULE_NAME = "clopper-pearson-sequential"
+
+
+def lower_bound(successes: int, n: int, confidence: float = CONFIDENCE) -> float:
+    """One-sided lower confidence bound: the two-sided interval at 2*conf-1 has the same lower end."""
+    return 0.0 if n == 0 else clopper_pearson_ci(successes, n, conf=2 * confidence - 1)[0]
+
+
+def episodes_needed(threshold: float = THRESHOLD, confidence: float = CONFIDENCE) -> int:
+    """The smallest n at which n/n successes certify (59 for 0.95 at 95 %)."""
+    n = 1
+    while lower_bound(n, n, confidence) < threshold:
+        n += 1
+    return n
+
+
+@dataclasses.dataclass(frozen=True)
+class Rule:
+    """The certification rule: run up to ``n_max`` episodes, certify when the CP lower bound >= threshold."""
+
+    threshold: float = THRESHOLD
+    confidence: float = CONFIDENCE
+    n_max: int = 0  # 0: the smallest n that can certify
+
+    def __post_init__(self) -> None:
+        if not 0 < self.threshold < 1:
+            raise ConfigError(f"--threshold must be in (0, 1), got {self.threshold}")
+        if not 0.5 < self.confidence < 1:
+            raise ConfigError(f"the confidence must be in (0.5, 1), got {self.confidence}")
+        if self.n_max < 0:
+            raise ConfigError(f"--episodes must be >= 1, got {self.n_max}")
+        if self.n_max == 0:
+            object.__setattr__(self, "n_max", episodes_needed(self.threshold, self.confidence))
+
+    def as_dict(self) -> dict:
+        return {
+            "name": RULE_NAME,
+            "threshold": self.threshold,
+            "confidence": self.confidence,
+            "n_max": self.n_max,
+        }
+
+    def reachable(self, successes: int, n: int) -> bool:
+        """Could the level still certify if every remaining episode up to n_max succeeded?"""
+        return lower_bound(successes + self.n_max - n, self.n_max, self.confidence) >= self.threshold
+
+    def stop(self, successes: int, n: int) -> bool:
+        """Stop at n_max, or early once a failure has made certification unreachable."""
+        return n >= self.n_max or (successes < n and not self.reachable(successes, n))
+
+    def status(self, successes: int, n: int) -> str:
+        """certified | failed (the oracle failed and the bound cannot be reached) | insufficient evidence."""
+        if n >= self.n_max and lower_bound(successes, n, self.confidence) >= self.threshold:
+            return "certified"
+        if successes < n and not self.reachable(successes, n):
+            return "failed"
+        return "insufficient"
 
 
 def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tuple[bool, int]:
@@ -33,47 +96,63 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
     return bool(info["success"]), env.steps
 
 
+def level_row(level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float) -> dict:
+    """The certification row of one level from its episodes' (success, steps)."""
+    n, successes = len(results), sum(ok for ok, _ in results)
+    status = rule.status(successes, n)
+    return {
+        "level": level, "param": param, "n": n, "successes": successes, "rate": successes / n if n else 0.0,
+        "lower_bound": round(lower_bound(successes, n, rule.confidence), 6), "status": status,
+        "certified": status == "certified", "feasible": status == "certified",
+        "stopped_early": n < rule.n_max, "mean_steps": sum(s for _, s in results) / n if n else 0.0,
+        "wall_s": round(wall_s, 1),
+    }  # fmt: skip
+
+
 def certify_level(
-    scene: str,
-    task: str,
-    axis: str,
-    level: int,
-    step: float | None,
-    episodes: int,
-    seed: int,
-    max_steps: int | None,
-) -> dict:
-    """Run ``episodes`` oracle episodes of one level; returns its certification row."""
+    scene: str, task: str, axis: str, level: int, step: float | None, preset: str | None, seed: int,
+    max_steps: int | None, rule: Rule,
+) -> dict:  # fmt: skip
+    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility)."""
     import scenes
     from scenes.oracle import OraclePolicy
 
+    t0 = time.time()
     env = scenes.make_env(
-        scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps
+        scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps, preset=preset
     )
+    results: list[tuple[bool, int]] = []
     try:
         policy = OraclePolicy()
-        results = [
-            run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
-            for i in range(episodes)
-        ]
+        while not rule.stop(sum(ok for ok, _ in results), len(results)):
+            i = len(results)
+            results.append(
+                run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
+            )
         param = env.axis_param
     finally:
         env.close()
-    successes = sum(ok for ok, _ in results)
-    rate = successes / episodes
-    return {
-        "level": level,
-        "param": param,
-        "n": episodes,
-        "successes": successes,
-        "rate": rate,
-        "feasible": rate >= FEASIBLE_RATE,
-        "mean_steps": sum(s for _, s in results) / episodes,
-    }
+    return level_row(level, param, results, rule, time.time() - t0)
 
 
 def _certify_job(args: tuple) -> dict:
     return certify_level(*args)
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write JSON so that ``path`` is always either the old or the new complete file (its folder is made)."""
+    from indgen_vla.records import atomic_write_json
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(path, data)
+
+
+def _key(cert: dict) -> tuple:
+    """What must match for a stored level to be reused: component steps, seed, rule and episode length."""
+    return (
+        json.dumps(cert.get("steps"), sort_keys=True), cert.get("seed"),
+        json.dumps(cert.get("rule"), sort_keys=True), cert.get("max_steps"),
+    )  # fmt: skip
 
 
 def certify(
@@ -83,46 +162,81 @@ def certify(
     task: str | None = None,
     levels: str | list[int] | None = None,
     step: float | None = None,
-    episodes: int = 20,
+    episodes: int | None = None,
     seed: int = 0,
     max_steps: int | None = None,
     workers: int = 1,
+    threshold: float = THRESHOLD,
+    preset: str | None = None,
+    out: str | Path | None = None,
+    log=None,
 ) -> dict:
-    """Certify every requested level of ``axis`` on ``scene`` with the oracle; returns the certify.json dict."""
+    """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
+    levels already certified there under the same steps/seed/rule and write after every level."""
     import scenes
+    from scenes.axes import successor_steps
     from scenes.catalog import check_axis_supported, get_scene, resolve_task
 
     sdef = get_scene(scene)
     task = resolve_task(sdef, task)
     check_axis_supported(sdef, axis)
-    scenes.check_ready(scene)
-    spec = scenes.get_axis(axis, step)
-    lv = parse_levels(levels, spec)
-    if episodes < 1:
-        raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
-    jobs = [(scene, task, axis, k, step, episodes, seed, max_steps) for k in lv]
-    t0 = time.time()
-    if workers == 1 or len(jobs) == 1:
-        rows = [_certify_job(j) for j in jobs]
+    if episodes is not None and episodes < 1:
+        raise ConfigError(f"--episodes must be >= 1, got {episodes}")
+    rule = Rule(threshold=threshold, n_max=episodes or 0)
+    successor = scenes.successor_for(axis, step, preset)
+    spec = successor.axis
+    lv = parse_levels(levels, spec)
+    scenes.check_axis_progression(scene, task, axis, step, preset)  # before any episode runs
+    scenes.check_ready(scene)
+    cert = {
+        "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
+        "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
+        "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
+    }  # fmt: skip
+    path = Path(out) if out is not None else None
+    done: dict[int, dict] = {}
+    if path is not None and path.is_file():
+        try:
+            old = load_certification(path)
+        except RunDirError:
+            old = {}
+        if old and _key(old) == _key(cert) and old.get("task") == task:
+            done = {int(r["level"]): r for r in old["levels"] if r.get("status") in ("certified", "failed")
+                    or r["n"] >= rule.n_max}  # fmt: skip
+            cert["wall_s"] = float(old.get("wall_s", 0.0))
+            cert["levels"] = sorted(old["levels"], key=lambda r: r["level"])
+        elif old and log:
+            log(f"{path}: made under other steps/seed/rule; replacing it")
+    todo = [k for k in lv if k not in done]
+    if log and done:
+        log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
+
+    def merge(row: dict) -> None:
+        rows = {int(r["level"]): r for r in cert["levels"]}
+        rows[int(row["level"])] = row
+        cert["levels"] = [rows[k] for k in sorted(rows)]
+        cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
+        if path is not None:
+            write_json_atomic(path, cert)
+        if log:
+            log(f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
+                f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
+
+    jobs = [(scene, task, axis, k, step, preset, seed, max_steps, rule) for k in todo]
+    if workers == 1 or len(jobs) <= 1:
+        for j in jobs:
+            merge(_certify_job(j))
     else:
         import multiprocessing as mp
 
         with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-            rows = pool.map(_certify_job, jobs, chunksize=1)
-    return {
-        "scene": scene,
-        "task": task,
-        "axis": axis,
-        "step": spec.step,
-        "unit": spec.unit,
-        "episodes": episodes,
-        "seed": seed,
-        "threshold": FEASIBLE_RATE,
-        "wall_s": round(time.time() - t0, 1),
-        "levels": rows,
-    }
+            for row in pool.imap_unordered(_certify_job, jobs, chunksize=1):
+                merge(row)
+    result = dict(cert)
+    result["levels"] = [r for r in cert["levels"] if int(r["level"]) in lv]
+    return result
 
 
 def load_certification(path: str | Path) -> dict:
@@ -131,7 +245,7 @@ def load_certification(path: str | Path) -> dict:
     if p.is_dir():
         p = p / "certify.json"
     if not p.is_file():
-        raise RunDirError(f"no certification at {p}; run 'indgen certify --scene S --axis A --out DIR' first")
+        raise RunDirError(f"no certification at {p}; run 'indgen certify --scene S --axis A' first")
     try:
         cert = json.loads(p.read_text())
     except json.JSONDecodeError as e:
@@ -152,113 +266,36 @@ def load_certification(path: str | Path) -> dict:
     return cert
 
 
+def level_status(row: dict) -> str:
+    """A row's verdict; rows written before the statistical rule count as failed/insufficient evidence."""
+    if "status" in row:
+        return str(row["status"])
+    return "insufficient" if row["feasible"] else "failed"
+
+
 def infeasible_levels(cert: dict) -> list[int]:
-    """Levels the oracle solved in fewer than 95 % of episodes."""
-    return sorted(int(r["level"]) for r in cert["levels"] if not r["feasible"])
+    """Levels where the oracle failed so that the rule can no longer certify them."""
+    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "failed")
 
 
-def print_table(cert: dict) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(
-        title=f"certification: {cert['scene']}/{cert['task']} axis {cert['axis']} "
-        f"(step {cert['step']:g} {cert['unit']}, oracle, threshold {cert['threshold']:.0%})"
-    )
-    for col in ("level", "param", "successes", "rate", "feasible"):
-        table.add_column(col, justify="right")
-    for r in cert["levels"]:
-        table.add_row(
-            str(r["level"]),
-            f"{r['param']:g}",
-            f"{r['successes']}/{r['n']}",
-            f"{r['rate']:.0%}",
-            "yes" if r["feasible"] else "[red]NO[/red]",
-        )
-    Console().print(table)
+def certified_levels(cert: dict) -> list[int]:
+    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "certified")
 
 
-def certify_main(args) -> int:
-    """``indgen certify``: write OUT/certify.json and print the table; exit 1 if any level is infeasible."""
-    out = Path(args.out)
-    cert = certify(
-        args.scene,
-        args.axis,
-        task=args.task,
-        levels=args.levels,
-        step=args.step,
-        episodes=args.episodes,
-        seed=args.seed,
-        max_steps=args.max_steps,
-        workers=args.workers or 1,
-    )
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "certify.json").write_text(json.dumps(cert, indent=2) + "\n")
-    except OSError as e:
-        raise RunDirError(f"cannot write {out / 'certify.json'}: {e.strerror}") from None
-    print_table(cert)
-    bad = infeasible_levels(cert)
-    if bad:
-        print(f"infeasible levels (oracle < {FEASIBLE_RATE:.0%}): {bad}")
-        return 1
-    return 0
+_IO_NAMES = ("certification_root", "certify_all", "certify_main", "cert_path", "find_certification",
+             "print_table", "write_summary")  # fmt: skip
 
 
-def certify_all(out_dir: str | Path, episodes: int = 20, workers: int = 1, seed: int = 0) -> list[dict]:
-    """Certify every default level of every default axis of every scene; write one folder per (scene, axis)."""
-    from scenes.catalog import SCENES
+def __getattr__(name: str):
+    """Storage, lookup and the CLI live in scenes.certify_io; re-export them lazily (no import cycle)."""
+    if name in _IO_NAMES:
+        import scenes.certify_io as io
 
-    out_dir = Path(out_dir)
-    certs = []
-    for sdef in SCENES.values():
-        for axis in sdef.axes:
-            cert = certify(sdef.name, axis, episodes=episodes, seed=seed, workers=workers)
-            d = out_dir / sdef.name / axis
-            d.mkdir(parents=True, exist_ok=True)
-            (d / "certify.json").write_text(json.dumps(cert, indent=2) + "\n")
-            print_table(cert)
-            certs.append(cert)
-    return certs
+        return getattr(io, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def write_summary(out_dir: str | Path) -> Path:
-    """Collect every ``<scene>/<axis>/certify.json`` under ``out_dir`` into one markdown table (README.md)."""
-    out_dir = Path(out_dir)
-    lines = ["| scene / task | axis | step | level: successes/n | feasible |", "|---|---|---|---|---|"]
-    for path in sorted(out_dir.glob("*/*/certify.json")):
-        c = load_certification(path)
-        cells = " ".join(f"{r['level']}: {r['successes']}/{r['n']}" for r in c["levels"])
-        bad = infeasible_levels(c)
-        lines.append(
-            f"| {c['scene']} / {c.get('task', '?')} | {c['axis']} | {c.get('step', 0):g} {c.get('unit', '')} | "
-            f"{cells} | {'all' if not bad else 'NOT ' + ', '.join(map(str, bad))} |"
-        )
-    target = out_dir / "SUMMARY.md"
-    target.write_text("\n".join(lines) + "\n")
-    return target
-
-
-def certification_root() -> Path:
-    """Where committed certifications live: $INDGEN_CERT_DIR, else the repository's docs/certification."""
-    import os
-
-    env = os.environ.get("INDGEN_CERT_DIR")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "docs" / "certification"
-
-
-def find_certification(
-    scene: str, axis: str, step: float | None = None, root: str | Path | None = None
-) -> dict | None:
-    """The committed certification of (scene, axis) made at this step size, or None if there is none."""
-    import scenes
-
-    path = Path(root) if root is not None else certification_root()
-    path = path / scene / axis / "certify.json"
-    if not path.is_file():
-        return None
-    cert = load_certification(path)
-    want = scenes.get_axis(axis, step).step
-    if abs(float(cert.get("step", float("nan"))) - want) > 1e-9:
-        return None
-    return cert
+__all__ = [
+    "Rule", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
+    "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode", *_IO_NAMES,
+]  # fmt: skip

@@ -108,9 +108,11 @@ def test_certify_writes_rows_and_loads(tmp_path):
     assert [r["level"] for r in cert["levels"]] == [0, 1]
     assert cert["levels"][1]["param"] == pytest.approx(0.25)
     for r in cert["levels"]:
-        assert {"level", "param", "n", "successes", "rate", "feasible"} <= r.keys()
+        assert {"level", "param", "n", "successes", "rate", "feasible", "lower_bound", "certified"} <= r.keys()
         assert r["n"] == 1 and r["rate"] == r["successes"] / r["n"]
-    assert infeasible_levels(cert) == [k for k in (0, 1) if not cert["levels"][k]["feasible"]]
+        # one episode can never certify 95 %: a success leaves too little evidence, a failure fails the level
+        assert not r["certified"] and r["status"] == ("insufficient" if r["successes"] else "failed")
+    assert infeasible_levels(cert) == [k for k in (0, 1) if not cert["levels"][k]["successes"]]
 
 
 def test_infeasible_levels_and_corrupt_files(tmp_path):
@@ -124,7 +126,7 @@ def test_infeasible_levels_and_corrupt_files(tmp_path):
     }
     p = tmp_path / "certify.json"
     p.write_text(json.dumps(cert))
-    assert infeasible_levels(load_certification(p)) == [1]
+    assert infeasible_levels(load_certification(p)) == [1]  # rows without a status: feasible False = failed
     p.write_text("{not json")
     with pytest.raises(RunDirError, match="not valid JSON"):
         load_certification(p)
@@ -162,17 +164,18 @@ def test_write_mp4(tmp_path):
         write_mp4([np.zeros((8, 8, 3), np.float32)], tmp_path / "x.mp4")
 
 
-def test_find_certification_matches_scene_axis_and_step(tmp_path, monkeypatch):
+def test_find_certification_matches_scene_task_axis_and_step(tmp_path, monkeypatch):
     from scenes.certify import find_certification
 
-    d = tmp_path / "stack" / "stack"
+    d = tmp_path / "stack" / "orange_on_blue" / "stack"
     d.mkdir(parents=True)
     row = {"level": 0, "param": 0.0, "n": 1, "successes": 1, "rate": 1.0, "feasible": True}
     (d / "certify.json").write_text(
-        json.dumps({"scene": "stack", "axis": "stack", "step": 0.25, "levels": [row]})
+        json.dumps({"scene": "stack", "task": "orange_on_blue", "axis": "stack", "step": 0.25, "levels": [row]})
     )
-    assert find_certification("stack", "stack", root=tmp_path)["levels"] == [row]
-    assert find_certification("stack", "stack", step=0.5, root=tmp_path) is None  # certified at another step
-    assert find_certification("stack", "pick_y", root=tmp_path) is None
+    assert find_certification("stack", "orange_on_blue", "stack", root=tmp_path)["levels"] == [row]
+    assert find_certification("stack", "orange_on_blue", "stack", step=0.5, root=tmp_path) is None
+    assert find_certification("stack", "orange_on_blue", "pick_y", root=tmp_path) is None
+    assert find_certification("stack", scenes.tasks("stack")[1], "stack", root=tmp_path) is None
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    assert find_certification("stack", "stack") is not None
+    assert find_certification("stack", None, "stack") is not None

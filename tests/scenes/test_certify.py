@@ -1,0 +1,227 @@
+"""Certification: the Clopper–Pearson rule against scipy, the sequential early stop, per-task storage and
+lookup, resuming, the SUMMARY table, and the up-front strictly-harder checks (compositions included)."""
+
+import json
+import math
+import os
+from pathlib import Path
+
+import pytest
+from scipy.stats import beta
+
+import scenes
+from indgen_vla.errors import ConfigError, UnknownNameError
+from indgen_vla.progression import ProgressionError
+from scenes.certify import (
+    Rule,
+    certify,
+    episodes_needed,
+    infeasible_levels,
+    level_status,
+    load_certification,
+    lower_bound,
+    write_json_atomic,
+)
+from scenes.certify_io import axis_dirname, cert_path, default_jobs, find_certification, write_summary
+
+
+@pytest.mark.parametrize("x,n", [(59, 59), (58, 58), (20, 20), (57, 59), (10, 30), (1, 1), (0, 5), (95, 100)])
+def test_lower_bound_is_scipys_one_sided_beta_quantile(x, n):
+    want = 0.0 if x == 0 else beta.ppf(0.05, x, n - x + 1)  # one-sided 95 % Clopper–Pearson lower bound
+    assert lower_bound(x, n) == pytest.approx(want, abs=1e-12)
+
+
+def test_all_successes_need_59_episodes_for_095():
+    # with x == n the bound is alpha ** (1 / n): 0.05 ** (1/59) = 0.95051 >= 0.95 > 0.05 ** (1/58) = 0.94970
+    assert lower_bound(59, 59) == pytest.approx(0.05 ** (1 / 59)) and lower_bound(59, 59) >= 0.95
+    assert lower_bound(58, 58) < 0.95
+    assert episodes_needed() == 59 == Rule().n_max
+    assert episodes_needed(0.9) == math.ceil(math.log(0.05) / math.log(0.9))  # 29
+    assert Rule().status(59, 59) == "certified" and Rule().status(20, 20) == "insufficient"
+
+
+def test_sequential_rule_stops_once_the_bound_is_out_of_reach():
+    r59 = Rule()
+    assert r59.stop(0, 1) and r59.status(0, 1) == "failed"  # at n_max 59 any failure is final
+    assert r59.stop(40, 41) and not r59.stop(41, 41) and r59.status(41, 41) == "insufficient"
+    r = Rule(n_max=100)
+    # the most failures out of 100 that still certify, from scipy directly
+    allowed = max(f for f in range(101) if beta.ppf(0.05, 100 - f, f + 1) >= 0.95)
+    assert allowed == 1
+    assert not r.stop(9, 10) and r.status(9, 10) == "insufficient"  # one failure: 99/100 still reachable
+    assert r.stop(8, 10) and r.status(8, 10) == "failed"  # two failures: stop at once
+    assert r.status(99, 100) == "certified" and r.status(98, 100) == "failed"
+    # replaying an outcome sequence: stops right after the failure that makes 0.95 unreachable
+    seq, s = [True] * 30 + [False] + [True] * 20 + [False] + [True] * 48, 0
+    for n, ok in enumerate(seq, start=1):
+        s += ok
+        if r.stop(s, n):
+            break
+    assert n == 52 and r.status(s, n) == "failed"
+    with pytest.raises(ConfigError, match="threshold"):
+        Rule(threshold=1.0)
+
+
+def test_failing_level_stops_after_one_episode_and_is_refused(tmp_path):
+    # 5 control steps cannot solve stack: the first failure ends the level (59 would be needed)
+    out = tmp_path / "c" / "certify.json"
+    cert = certify("stack", "stack", levels="0", max_steps=5, out=out)
+    row = cert["levels"][0]
+    assert (row["n"], row["successes"], row["status"], row["certified"], row["feasible"]) == (
+        1,
+        0,
+        "failed",
+        False,
+        False,
+    )
+    assert row["stopped_early"] and row["lower_bound"] == 0.0 and infeasible_levels(cert) == [0]
+    assert cert["rule"] == {
+        "name": "clopper-pearson-sequential",
+        "threshold": 0.95,
+        "confidence": 0.95,
+        "n_max": 59,
+    }
+    assert load_certification(out)["levels"] == cert["levels"]
+
+
+def test_certify_is_per_task_resumable_and_atomic(tmp_path):
+    root = tmp_path / "certs"
+    a = cert_path("stack", "orange_on_blue", "stack", root=root)
+    assert a == root / "stack" / "orange_on_blue" / "stack" / "certify.json"
+    cert = certify("stack", "stack", task="orange_on_blue", levels="0", episodes=1, max_steps=5, out=a)
+    assert cert["levels"][0]["status"] == "failed" and cert["task"] == "orange_on_blue"  # 5 steps: no success
+    assert [p.name for p in a.parent.iterdir()] == ["certify.json"]  # no temp files left behind
+    assert find_certification("stack", "orange_on_blue", "stack", root=root)["task"] == "orange_on_blue"
+    assert find_certification("stack", None, "stack", root=root) is not None  # None: the first task
+    other = scenes.tasks("stack")[1]
+    assert find_certification("stack", other, "stack", root=root) is None  # never inherits another task's
+    assert find_certification("stack", "orange_on_blue", "stack", step=0.5, root=root) is None
+    logs = []
+    again = certify(
+        "stack", "stack", task="orange_on_blue", levels="0:1", episodes=1, max_steps=5, out=a, log=logs.append
+    )
+    assert any("reusing levels [0]" in m for m in logs) and [r["level"] for r in again["levels"]] == [0, 1]
+    assert again["levels"][0] == cert["levels"][0]
+    logs.clear()
+    certify(
+        "stack",
+        "stack",
+        task="orange_on_blue",
+        levels="0",
+        episodes=1,
+        seed=1,
+        max_steps=5,
+        out=a,
+        log=logs.append,
+    )
+    assert any("replacing" in m for m in logs)  # another seed does not reuse
+
+
+def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
+    d = tmp_path / "stack" / "orange_on_blue" / "stack"
+    rows = [
+        {
+            "level": 0,
+            "param": 0.0,
+            "n": 59,
+            "successes": 59,
+            "rate": 1.0,
+            "feasible": True,
+            "status": "certified",
+        },
+        {"level": 1, "param": 0.25, "n": 20, "successes": 20, "rate": 1.0, "feasible": True},  # old 20/20 row
+        {"level": 2, "param": 0.5, "n": 20, "successes": 18, "rate": 0.9, "feasible": False},
+    ]
+    write_json_atomic(d / "certify.json", {"scene": "stack", "task": "orange_on_blue", "axis": "stack",
+                                           "step": 0.25, "unit": "in", "levels": rows})  # fmt: skip
+    monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
+    cert = find_certification("stack", "orange_on_blue", "stack")
+    assert [level_status(r) for r in cert["levels"]] == ["certified", "insufficient", "failed"]
+    assert infeasible_levels(cert) == [2]
+    summary = write_summary(tmp_path).read_text()
+    assert (
+        "| stack | orange_on_blue | stack | 0.25 in | 0: 59/59 1: 20/20? 2: 18/20! | 0 | 1, 2, 3, 4 |"
+        in summary
+    )
+    assert f"0 of {len(default_jobs())} default" in summary
+
+
+def test_default_jobs_put_every_tasks_first_axis_first():
+    jobs = default_jobs()
+    n_first = sum(len(s.tasks) for s in scenes.SCENES.values())
+    assert all(a == scenes.SCENES[s].axes[0] for s, _, a in jobs[:n_first])
+    assert ("pick_place", "bread", "pick_y+distractor") in jobs[n_first:]
+    assert len(jobs) == len(set(jobs)) == 7 * 7 + 4 * 6 + 5 * 3
+
+
+def test_strictly_harder_is_checked_up_front_for_axes_and_compositions(tmp_path):
+    scenes.check_axis_progression("pick_place", None, "pick_y")
+    scenes.check_axis_progression("pick_place", None, "pick_y+distractor")
+    with pytest.raises(ProgressionError, match="placement jitter"):
+        scenes.check_axis_progression("pick_place", None, "pick_y", step=0.005)
+    preset = tmp_path / "small.yaml"
+    preset.write_text("axes:\n  pick_y: {step: 0.005}\n")
+    with pytest.raises(ProgressionError, match=r"component pick_y at step 0.005"):
+        scenes.check_axis_progression("pick_place", None, "pick_y+distractor", preset=str(preset))
+    preset.write_text("axes:\n  goal_y: {step: 0.004}\n")
+    with pytest.raises(ProgressionError, match="component goal_y"):
+        scenes.check_axis_progression("stack", None, "goal_y+distractor", preset=str(preset))
+    with pytest.raises(ProgressionError):  # certify refuses before building any env
+        certify("pick_place", "pick_y", step=0.005, episodes=1, out=tmp_path / "x" / "certify.json")
+    assert not (tmp_path / "x").exists()
+
+
+def test_axes_preset_steps_reach_specs_params_and_folders(tmp_path):
+    (tmp_path / "wide.yaml").write_text("axes:\n  pick_y: {step: 0.05, max_level: 2}\n")
+    p = str(tmp_path / "wide.yaml")
+    spec = scenes.get_axis("pick_y+distractor", preset=p)
+    assert "pick_y (0.05 m)" in spec.description and spec.max_level == 2
+    base = scenes.level_param("pick_place", None, "pick_y", 1)
+    assert scenes.level_param("pick_place", None, "pick_y", 1, preset=p) == pytest.approx(base + 0.025)
+    assert axis_dirname("pick_y+distractor") == "pick_y+distractor"
+    assert axis_dirname("pick_y+distractor", preset=p) == "pick_y+distractor@pick_y=0.05,distractor=1"
+    assert axis_dirname("pick_y", preset="paper") == "pick_y"  # the paper preset states the defaults
+    with pytest.raises(UnknownNameError, match="did you mean 'paper'"):
+        scenes.get_axis("pick_y", preset="papr")
+    (tmp_path / "bad.yaml").write_text("axes: [pick_y\n")
+    with pytest.raises(ConfigError, match="invalid YAML"):
+        scenes.get_axis("pick_y", preset=str(tmp_path / "bad.yaml"))
+    (tmp_path / "typo.yaml").write_text("axes:\n  pick_z: {step: 0.05}\n")
+    with pytest.raises(
+        ConfigError, match=r"unknown axis in preset .*typo.yaml: 'pick_z'; did you mean 'pick_y', 'pick_x'"
+    ):
+        scenes.get_axis("pick_y", preset=str(tmp_path / "typo.yaml"))
+    with pytest.raises(ConfigError, match="--axes-preset NAME"):
+        scenes.get_axis("pick_y+distractor", step=0.05)
+
+
+def test_json_is_written_atomically(tmp_path):
+    p = tmp_path / "a" / "certify.json"
+    write_json_atomic(p, {"x": 1})
+    write_json_atomic(p, {"x": 2})
+    assert json.loads(p.read_text()) == {"x": 2} and [q.name for q in p.parent.iterdir()] == ["certify.json"]
+
+
+def test_libero_certificates_are_cached_per_asset_tree(mini):
+    import hashlib
+
+    from scenes.certify_io import certification_root
+
+    cache = os.environ["INDGEN_CACHE"]
+    tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
+    assert certification_root("libero_object") == Path(cache) / "certification" / tag
+    assert certification_root("pick_place").parts[-2:] == ("docs", "certification")  # built-ins: committed
+    assert (
+        cert_path("libero_object", None, "pick_y").parent.parent.parent.parent
+        == Path(cache) / "certification" / tag
+    )
+
+
+@pytest.mark.slow
+def test_workers_give_the_same_certificate(tmp_path):
+    kw = dict(task="orange_on_blue", levels="0:2", episodes=2)
+    one = certify("stack", "stack", workers=1, out=tmp_path / "a" / "certify.json", **kw)
+    two = certify("stack", "stack", workers=2, out=tmp_path / "b" / "certify.json", **kw)
+    strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in one["levels"]]
+    assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in two["levels"]]
+    assert [r["level"] for r in load_certification(tmp_path / "b")["levels"]] == [0, 1, 2]
