@@ -1,5 +1,6 @@
-"""``indgen compare RUN_A RUN_B``: per-level exact tests (Barnard/Boschloo) with Holm correction,
-the difference in break levels, an overlay plot and a verdict sentence that never overstates."""
+"""``indgen compare RUN_A RUN_B``: per-level exact tests with Holm correction — exact McNemar on episode pairs
+when the two runs share seeds and plan, Boschloo (or Barnard) otherwise — the difference in break levels, an
+overlay plot and a verdict sentence that never overstates."""
 
 from __future__ import annotations
 
@@ -9,59 +10,171 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError, RunDirError
-from indgen_vla.metrics import break_levels, compare_levels
-from indgen_vla.records import RunDir, atomic_write_json, atomic_write_text
+from indgen_vla.failures import failure_shift, plot_failures, render_shift
+from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
+from indgen_vla.records import RunDir, write_result
 from indgen_vla.report import plot_axis, run_label, summarize
+
+PAIR_KEY = ("scene", "task", "axis", "level", "episode")
+TESTS = ("auto", "mcnemar", "boschloo", "barnard")
 
 
 def _counts(axis_summary: dict) -> dict[int, tuple[int, int]]:
     return {r["level"]: (r["successes"], r["n"]) for r in axis_summary["levels"]}
 
 
-def compare_summaries(sa: dict, sb: dict, test: str = "boschloo", gamma: float = 0.2) -> dict[str, Any]:
-    """The compare.json dict for two run summaries (axes present in both)."""
-    out: dict[str, Any] = {"test": test, "gamma": gamma, "axes": {}}
-    for axis in sorted(set(sa["axes"]) & set(sb["axes"])):
+def pair_episodes(ea, eb, axis: str) -> tuple[dict[int, list[tuple[bool, bool]]] | None, str]:
+    """Episode-by-episode pairs of one axis, or None and the reason when the runs are not paired.
+
+    Runs are paired when they planned the same episodes (same scene, tasks, levels and episode indices) and
+    every episode has the same seed and level parameter in both, i.e. the same initial state. Pairs are the
+    episodes finished ``ok`` in both runs; an episode that errored in either run drops out of its pair.
+    """
+    a, b = ea[ea["axis"] == axis], eb[eb["axis"] == axis]
+    ia, ib = a.set_index(list(PAIR_KEY)), b.set_index(list(PAIR_KEY))
+    if ia.index.has_duplicates or ib.index.has_duplicates:
+        return None, "a run holds duplicate episodes"
+    if set(ia.index) != set(ib.index):
+        return (
+            None,
+            f"the runs did not plan the same episodes on {axis} (tasks, levels or episode counts differ)",
+        )
+    ib = ib.loc[ia.index]
+    if (ia["seed"].to_numpy() != ib["seed"].to_numpy()).any():
+        return None, f"episode seeds differ on {axis} (different --seed)"
+    pa, pb = ia["param"].to_numpy(dtype=float), ib["param"].to_numpy(dtype=float)
+    if (abs(pa - pb) > 1e-9 * (1 + abs(pa))).any():
+        return None, f"level parameters differ on {axis} (different --step)"
+    both = ((ia["status"] == "ok") & (ib["status"] == "ok")).to_numpy()
+    pairs: dict[int, list[tuple[bool, bool]]] = {int(k): [] for k in ia.index.get_level_values("level")}
+    for key, sa, sb in zip(ia.index[both], ia["success"][both], ib["success"][both], strict=True):
+        pairs[int(key[3])].append((bool(sa), bool(sb)))
+    return pairs, f"{int(both.sum())} episode pairs ({int((~both).sum())} dropped: error in either run)"
+
+
+def compare_summaries(
+    sa: dict, sb: dict, test: str = "auto", gamma: float = 0.2, episodes: tuple | None = None
+) -> dict[str, Any]:
+    """The compare.json dict for two runs (axes present in both).
+
+    Args:
+        sa, sb: the runs' summaries (``report.summarize``); break levels are read from them, so a level below
+            the data floor never yields a k*.
+        test: "auto" (exact McNemar when the runs are paired, else Boschloo), "mcnemar" (refuse unpaired
+            runs), "boschloo" or "barnard" (unpaired tests, even for paired runs).
+        episodes: the two runs' episode tables (``RunDir.episodes()``), needed for pairing.
+    """
+    if test not in TESTS:
+        raise ConfigError(f"unknown test {test!r}; use one of {', '.join(TESTS)}")
+    axes = sorted(set(sa["axes"]) & set(sb["axes"]))
+    pairing: dict[str, tuple] = {}
+    if test in ("auto", "mcnemar"):
+        if episodes is None:
+            reason = "no episode tables given"
+            pairing = {axis: (None, reason) for axis in axes}
+        else:
+            pairing = {axis: pair_episodes(episodes[0], episodes[1], axis) for axis in axes}
+        unpaired = [why for p, why in pairing.values() if p is None]
+        if unpaired and test == "mcnemar":
+            raise ConfigError(f"--test mcnemar needs runs paired episode by episode, but {unpaired[0]}; "
+                              "use --test auto or boschloo")  # fmt: skip
+        paired = bool(axes) and not unpaired
+    else:
+        paired = False
+    name = "mcnemar_exact" if paired else ("boschloo" if test in ("auto", "mcnemar") else test)
+    out: dict[str, Any] = {"test": name, "paired": paired, "gamma": gamma, "axes": {}}
+    if not paired and pairing:
+        out["unpaired_reason"] = next(why for p, why in pairing.values() if p is None)
+    for axis in axes:
         a, b = sa["axes"][axis], sb["axes"][axis]
-        rows = compare_levels(_counts(a), _counts(b), test=test)
-        signed = a["signed"] or b["signed"]
-        rates_a = {r["level"]: r["rate"] for r in a["levels"]}
-        rates_b = {r["level"]: r["rate"] for r in b["levels"]}
+        if paired:
+            rows = compare_paired_levels(pairing[axis][0])
+        else:
+            rows = compare_levels(_counts(a), _counts(b), test=name)
         out["axes"][axis] = {
             "levels": rows,
-            "break_level_a": break_levels(rates_a, gamma, signed),
-            "break_level_b": break_levels(rates_b, gamma, signed),
+            "break_level_a": a["break_level"],
+            "break_level_b": b["break_level"],
+            "failures": failure_shift(a["levels"], b["levels"]),
         }
+        if paired:
+            out["axes"][axis]["pairing"] = pairing[axis][1]
     return out
 
 
+def break_point_diff(ea, eb, axis: str, gamma: float) -> dict:
+    """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels)."""
+    from indgen_vla.breakpoint import break_point_difference, cells_from_records
+
+    def cells(e):
+        ok = e[(e["axis"] == axis) & (e["status"] == "ok")]
+        return cells_from_records(ok[["level", "param", "success", "status"]].to_dict("records"))
+
+    ca, cb = cells(ea), cells(eb)
+    if len({c.level for c in ca}) < 2 or len({c.level for c in cb}) < 2:
+        return {}
+    return break_point_difference(ca, cb, gamma)
+
+
+def _fmt_bp_diff(d: dict) -> str:
+    parts = []
+    for side in ("pos", "neg"):
+        b = d.get(side)
+        if b is None:
+            continue
+        lo, hi = b["ci"]["level"]
+        if b["level"] is None:
+            parts.append(
+                f"{'+' if side == 'pos' else '−'}: undefined (a run does not cross γ inside the range)"
+            )
+        else:
+            ci = f" [{lo:+.2f}, {hi:+.2f}]" if lo is not None and hi is not None else ""
+            parts.append(f"{'+' if side == 'pos' else '−'}: {b['level']:+.2f} levels{ci}")
+    return "; ".join(parts)
+
+
+def test_description(result: dict) -> str:
+    """Which test ran and whether it is paired, in words (compare.md and the verdict say it)."""
+    if result["paired"]:
+        return ("paired: two-sided exact McNemar test on the discordant episode pairs per level (episodes matched "
+                "on task, axis, level, episode and seed)")  # fmt: skip
+    why = f"; not paired: {result['unpaired_reason']}" if result.get("unpaired_reason") else ""
+    return f"unpaired: two-sided {result['test'].capitalize()} exact test per level{why}"
+
+
 def verdict(result: dict, label_a: str, label_b: str, alpha: float = 0.05) -> str:
-    """One cautious sentence per axis: which levels differ after Holm, and the k* of each run."""
+    """One cautious sentence per axis: which levels differ after Holm (paired or not), and each run's k*."""
     sentences = []
+    kind = "paired exact McNemar" if result.get("paired") else f"unpaired {result['test'].capitalize()}"
     for axis, ax in result["axes"].items():
         sig = [r for r in ax["levels"] if not math.isnan(r["p_holm"]) and r["p_holm"] < alpha]
         ka, kb = ax["break_level_a"], ax["break_level_b"]
         k_text = f"k* {_k(ka)} ({label_a}) vs {_k(kb)} ({label_b})"
         if not sig:
             sentences.append(
-                f"{axis}: no level differs at α = {alpha} after Holm correction "
+                f"{axis}: no level differs at α = {alpha} ({kind}, Holm-corrected) "
                 f"(this does not show the runs are equal); {k_text}."
             )
         else:
-            parts = [f"L{r['level']} ({100 * r['rate_a']:.0f}% vs {100 * r['rate_b']:.0f}%, p_holm = {r['p_holm']:.3g})"
+            parts = [f"L{r['level']} ({r['successes_a']}/{r['n_a']} = {100 * r['rate_a']:.0f}% vs "
+                     f"{r['successes_b']}/{r['n_b']} = {100 * r['rate_b']:.0f}%, p_holm = {r['p_holm']:.3g})"
                      for r in sig]  # fmt: skip
             sentences.append(
-                f"{axis}: {len(sig)} level(s) differ at α = {alpha} after Holm: {', '.join(parts)}; {k_text}."
+                f"{axis}: {len(sig)} level(s) differ at α = {alpha} ({kind}, Holm-corrected): "
+                f"{', '.join(parts)}; {k_text}."
             )
     return " ".join(sentences) if sentences else "the runs share no axis to compare."
 
 
 def _k(b: dict) -> str:
-    """Break levels as "+2 / −3" (signed axes: positive side / negative side) or "3"; "none" when none in range."""
+    """Break levels as "+2 / −3" (signed axes: positive side / negative side) or "3"; "none" when none in range,
+    "undetermined" when a level without enough data lies before the break."""
 
     def one(k, signed: bool) -> str:
         if k is None:
             return "none"
+        if k == UNDETERMINED:
+            return UNDETERMINED
         return f"{k:+d}".replace("-", "−") if signed else str(k)
 
     if "neg" in b:
@@ -70,18 +183,30 @@ def _k(b: dict) -> str:
 
 
 def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
+    paired = result.get("paired", False)
     lines = [f"# Comparison: {label_a} (A) vs {label_b} (B)", "",
-             "Break levels k* (first level with success < γ) read \"positive side / negative side\" on signed axes.", "",
-             f"Two-sided {result['test'].capitalize()} exact test per level, Holm-corrected per axis.", "",
+             "Break levels k* (first level with success < γ) read \"positive side / negative side\" on signed axes; "
+             "a level below the data floor never yields a k* (\"undetermined\" when one precedes the break).", "",
+             f"Test: {test_description(result)}; Holm-corrected per axis.", "",
              f"**Verdict.** {text}", ""]  # fmt: skip
     for axis, ax in result["axes"].items():
-        lines += [f"## Axis `{axis}`", "", "| level | A | B | p | p (Holm) |", "|---|---|---|---|---|"]
+        lines += [f"## Axis `{axis}`", ""]
+        if paired:
+            lines += [f"Pairs: {ax.get('pairing', '')}.", "",
+                      "| level | A | B | A only | B only | p | p (Holm) |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+        else:
+            lines += ["| level | A | B | p | p (Holm) |", "|---|---|---|---|---|"]
         for r in ax["levels"]:
+            disc = f"{r['a_only']} | {r['b_only']} | " if paired else ""
             lines.append(
-                f"| {r['level']} | {r['successes_a']}/{r['n_a']} | {r['successes_b']}/{r['n_b']} | "
+                f"| {r['level']} | {r['successes_a']}/{r['n_a']} | {r['successes_b']}/{r['n_b']} | {disc}"
                 f"{r['p_value']:.3g} | {r['p_holm']:.3g} |"
             )
-        lines += ["", f"Break level k*: A {_k(ax['break_level_a'])}, B {_k(ax['break_level_b'])}", ""]
+        lines += ["", f"Break level k*: A {_k(ax['break_level_a'])}, B {_k(ax['break_level_b'])}"]
+        if ax.get("break_point_diff"):
+            lines += ["", f"Break point B − A (where the fitted curve crosses γ; 95 % bootstrap CI): "
+                      f"{_fmt_bp_diff(ax['break_point_diff'])}"]  # fmt: skip
+        lines += [*render_shift(ax.get("failures", {"modes": []}), label_a, label_b), ""]
     return "\n".join(lines)
 
 
@@ -91,28 +216,35 @@ def compare_main(args: argparse.Namespace) -> int:
         raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}")
     if not 0 < args.gamma <= 1:
         raise ConfigError(f"--gamma must be in (0, 1], got {args.gamma}")
+    if getattr(args, "a", None) or getattr(args, "b", None):
+        if args.run_a or args.run_b:
+            raise ConfigError("give either RUN_A RUN_B or --a RUN... --b RUN..., not both")
+        from indgen_vla.compare_groups import groups_main
+
+        return groups_main(args)
+    if not (args.run_a and args.run_b):
+        raise ConfigError(
+            "compare needs two run directories (RUN_A RUN_B) or two groups (--a RUN... --b RUN...)"
+        )
     ra, rb = RunDir.open(args.run_a), RunDir.open(args.run_b)
     sa = summarize(ra.episodes(), ra.manifest, args.gamma)
     sb = summarize(rb.episodes(), rb.manifest, args.gamma)
     if not set(sa["axes"]) & set(sb["axes"]):
         raise RunDirError(f"{ra.path} and {rb.path} share no axis; compare runs evaluated on the same axis")
-    la, lb = run_label(ra), run_label(rb)
+    la, lb = getattr(args, "label_a", None) or run_label(ra), getattr(args, "label_b", None) or run_label(rb)
     if la == lb:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
-    result = compare_summaries(sa, sb, args.test, args.gamma)
+    result = compare_summaries(sa, sb, args.test, args.gamma, episodes=(ra.episodes(), rb.episodes()))
     result["label_a"], result["label_b"] = la, lb
+    for axis, ax in result["axes"].items():
+        ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise RunDirError(f"cannot write to --out {out}: {e.strerror}; choose another directory") from None
-    atomic_write_json(out / "compare.json", result)
-    atomic_write_text(out / "compare.md", render_markdown(result, la, lb, result["verdict"]))
+    write_result(out, "compare", result, render_markdown(result, la, lb, result["verdict"]))
     for axis in result["axes"]:
-        plot_axis(
-            [(la, sa["axes"][axis]), (lb, sb["axes"][axis])], axis, args.gamma, out / "plots" / f"{axis}.png"
-        )
+        curves = [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]
+        plot_axis(curves, axis, args.gamma, out / "plots" / f"{axis}.png")
+        plot_failures(curves, axis, out / "plots" / f"{axis}_failures.png")
     print(render_markdown(result, la, lb, result["verdict"]))
     print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
     return 0

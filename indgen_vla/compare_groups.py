@@ -17,23 +17,19 @@ from indgen_vla.errors import RunDirError
 from indgen_vla.groups import kstar_value, mean_difference, ood_area, stratified_mcnemar, tost
 from indgen_vla.metrics import break_levels, holm
 
-KEY = ["task", "axis", "level", "episode"]
-
 
 def _ok(df):
     return df[df["status"] == "ok"]
 
 
-def pair_episodes(a, b, axis: str):
-    """Episodes both runs finished on ``axis``, joined on (task, level, episode); refuses different seeds."""
-    da, db = _ok(a[a["axis"] == axis]), _ok(b[b["axis"] == axis])
-    joined = da.merge(db, on=KEY, suffixes=("_a", "_b"))
-    if (joined["seed_a"] != joined["seed_b"]).any():
-        raise RunDirError(
-            f"axis {axis}: the runs give the same episode different seeds, so they are not paired; evaluate "
-            "both with the same --seed and plan"
-        )
-    return joined
+def _pairs(a, b, axis: str) -> dict[int, list[tuple[bool, bool]]]:
+    """Level -> (success A, success B) per episode pair of one stratum; refuses runs that are not paired."""
+    from indgen_vla.compare import pair_episodes
+
+    pairs, why = pair_episodes(a, b, axis)
+    if pairs is None:
+        raise RunDirError(f"a pair of runs is not paired: {why}; evaluate both with the same --seed and plan")
+    return pairs
 
 
 def _rates(df) -> dict[int, float]:
@@ -57,19 +53,22 @@ def compare_groups(
         "paired": True, "strata": len(episodes_a), "gamma": gamma, "alpha": alpha, "margin": margin, "axes": {},
     }  # fmt: skip
     for axis in axes:
-        pairs = [pair_episodes(a, b, axis) for a, b in zip(episodes_a, episodes_b, strict=True)]
-        levels = sorted(set().union(*(set(p["level"]) for p in pairs)))
+        pairs = [_pairs(a, b, axis) for a, b in zip(episodes_a, episodes_b, strict=True)]
+        levels = sorted(set().union(*pairs))
         rows = []
         for k in levels:
-            strata = []
-            for p in pairs:
-                d = p[p["level"] == k]
-                sa, sb = d["success_a"].astype(bool), d["success_b"].astype(bool)
-                strata.append((int((sa & ~sb).sum()), int((~sa & sb).sum()), len(d)))
+            strata = [
+                (
+                    sum(x and not y for x, y in p.get(k, [])),
+                    sum(y and not x for x, y in p.get(k, [])),
+                    len(p.get(k, [])),
+                )
+                for p in pairs
+            ]
             test = stratified_mcnemar(strata)
             n = sum(s[2] for s in strata)
-            succ_a = sum(int(p[p["level"] == k]["success_a"].sum()) for p in pairs)
-            succ_b = sum(int(p[p["level"] == k]["success_b"].sum()) for p in pairs)
+            succ_a = sum(x for p in pairs for x, _ in p.get(k, []))
+            succ_b = sum(y for p in pairs for _, y in p.get(k, []))
             rows.append({
                 "level": int(k), "pairs": n, "successes_a": succ_a, "successes_b": succ_b,
                 "rate_a": succ_a / n if n else math.nan, "rate_b": succ_b / n if n else math.nan,
@@ -164,3 +163,31 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
             "",
         ]
     return "\n".join(lines)
+
+
+def groups_main(args) -> int:
+    """``indgen compare --a RUN... --b RUN...``: compare.json, compare.md and overlay plots of the group means."""
+    from pathlib import Path
+
+    from indgen_vla.errors import ConfigError
+    from indgen_vla.records import RunDir, write_result
+
+    if not args.a or not args.b:
+        raise ConfigError("give both groups: --a RUN... --b RUN... (one run per training seed each)")
+    if not 0 < args.margin < 1:
+        raise ConfigError(f"--margin must be in (0, 1), got {args.margin}")
+    runs_a, runs_b = [RunDir.open(p) for p in args.a], [RunDir.open(p) for p in args.b]
+    result = compare_groups([r.episodes() for r in runs_a], [r.episodes() for r in runs_b], args.gamma,
+                            args.margin, args.alpha)  # fmt: skip
+    la, lb = args.label_a or "A", args.label_b or "B"
+    result.update(
+        label_a=la, label_b=lb, runs_a=[str(r.path) for r in runs_a], runs_b=[str(r.path) for r in runs_b]
+    )
+    result["verdicts"] = axis_verdicts(result, la, lb)
+    result["verdict"] = " ".join(result["verdicts"].values())
+    out = Path(args.out) if args.out else runs_a[0].path / "compare_groups"
+    text = render_markdown(result, la, lb)
+    write_result(out, "compare", result, text)
+    print(text)
+    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}")
+    return 0

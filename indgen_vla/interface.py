@@ -12,6 +12,8 @@ ACTION_DIM = 7  # delta eef pos (3) + delta rotation (3) + gripper (-1 open, +1 
 # robomimic's "object" observation for low-dim policies that declare it: pick then target, pos + quat (xyzw, w >= 0)
 OBJECT_NAMES = tuple(f"{o}_{c}" for o in ("pick", "goal") for c in ("x", "y", "z", "qx", "qy", "qz", "qw"))
 OBJECT_DIM = len(OBJECT_NAMES)
+# why an episode failed (episodes.parquet "failure"), classified by the scene from privileged state; "" = older runs
+FAILURE_MODES = ("none", "no_contact", "no_grasp", "dropped", "misplaced", "timeout_holding", "error")
 
 
 @dataclass(frozen=True)

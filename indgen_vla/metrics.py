@@ -74,36 +74,79 @@ def success_rate(successes: int, n: int, method: str = "wilson", conf: float = 0
     return Rate(n=n, successes=successes, rate=successes / n if n else float("nan"), ci_low=lo, ci_high=hi)
 
 
+MIN_N = 5  # data floor: fewer finished episodes than this never yields a printed rate or a k*
+
+
+def below_floor(n: int, planned: int | None = None) -> bool:
+    """Issue 18's data floor: a level is insufficient when n < 5 or n < half the planned episodes."""
+    return n < MIN_N or (planned is not None and planned > 0 and 2 * n < planned)
+
+
+class UndeterminedBreakError(ConfigError):
+    """k* cannot be read off: a level with no usable data lies before the first break (a hole)."""
+
+    def __init__(self, level: int):
+        self.level = level
+        super().__init__(
+            f"level {level} has no usable data (no or too few finished episodes) before any break, so k* "
+            "would skip it; finish that level (re-run the same evaluate command) or leave it out with --levels"
+        )
+
+
 def break_level(rates: Mapping[int, float], gamma: float = DEFAULT_GAMMA) -> int | None:
     """k* = the first evaluated level, in increasing |k|, whose success rate is below γ; None if none.
 
-    Pass one direction at a time (levels 0..K or 0..-K); NaN rates (no finished episode) are skipped.
+    Pass one direction at a time (levels 0..K or 0..-K). A NaN rate marks a level without usable data
+    (no finished episode, or below the data floor): when it comes before the first break, k* is unknown
+    and ``UndeterminedBreakError`` is raised rather than silently skipping the hole.
     """
     if not 0 < gamma <= 1:
         raise ConfigError(f"gamma must be in (0, 1], got {gamma}")
     for k in sorted(rates, key=abs):
         r = rates[k]
-        if not math.isnan(r) and r < gamma:
+        if math.isnan(r):
+            raise UndeterminedBreakError(k)
+        if r < gamma:
             return k
     return None
+
+
+UNDETERMINED = "undetermined"
 
 
 def break_levels(
     rates: Mapping[int, float], gamma: float = DEFAULT_GAMMA, signed: bool | None = None
 ) -> dict:
-    """Break level per direction: ``{"pos": k|None}`` plus ``"neg"`` for signed axes (DESIGN.md)."""
+    """Break level per direction: ``{"pos": k|None|"undetermined"}`` plus ``"neg"`` for signed axes.
+
+    ``"undetermined"`` (not None, which means "no break in the evaluated range") when a level without
+    usable data precedes the first break in that direction.
+    """
     if signed is None:
         signed = any(k < 0 for k in rates)
-    out = {"pos": break_level({k: r for k, r in rates.items() if k >= 0}, gamma)}
+
+    def one(side: dict[int, float]) -> int | None | str:
+        try:
+            return break_level(side, gamma)
+        except UndeterminedBreakError:
+            return UNDETERMINED
+
+    out = {"pos": one({k: r for k, r in rates.items() if k >= 0})}
     if signed:
-        out["neg"] = break_level({k: r for k, r in rates.items() if k <= 0}, gamma)
+        out["neg"] = one({k: r for k, r in rates.items() if k <= 0})
     return out
 
 
 def kstar(rates: Mapping[int, float], gamma: float = DEFAULT_GAMMA) -> int:
-    """Definition 2's k*: first level with S < γ, or K+1 when none breaks (K = largest evaluated level)."""
+    """Definition 2's k*: first level with S < γ, or K+1 when none breaks: one step beyond the extreme
+    evaluated level in its direction (0..3 -> 4, 0..-3 -> -4). One direction at a time."""
+    if any(k > 0 for k in rates) and any(k < 0 for k in rates):
+        raise ConfigError("kstar takes one direction at a time: levels 0..K or 0..-K, not both signs")
     k = break_level(rates, gamma)
-    return (max(rates, key=abs) + 1) if k is None else k
+    if k is not None:
+        return k
+    extreme = max(rates, key=abs)
+    return extreme - 1 if extreme < 0 else extreme + 1
 
 
 def blackbox_reference(success: Mapping[Hashable, Sequence[float]]) -> tuple[Hashable, float]:
@@ -161,6 +204,145 @@ def cochran_armitage(scores: Sequence[float], successes: Sequence[int], n: Seque
     return TrendTest(statistic=z, p_decreasing=float(norm.cdf(z)), p_two_sided=float(2 * norm.sf(abs(z))))
 
 
+def isotonic_decreasing(values: Sequence[float], weights: Sequence[float]) -> list[float]:
+    """Weighted pool-adjacent-violators fit, non-increasing: for binomial rates weighted by n it is the
+    maximum-likelihood success curve under "success never rises with the level"."""
+    if len(values) != len(weights) or any(w <= 0 for w in weights):
+        raise ConfigError("isotonic fit needs one positive weight per value")
+    blocks: list[list[float]] = []  # [weighted mean, weight, count]
+    for v, w in zip(values, weights, strict=True):
+        blocks.append([float(v), float(w), 1])
+        while len(blocks) > 1 and blocks[-2][0] < blocks[-1][0]:  # a rise: pool the two blocks
+            (m2, w2, c2), (m1, w1, c1) = blocks.pop(), blocks.pop()
+            blocks.append([(m1 * w1 + m2 * w2) / (w1 + w2), w1 + w2, c1 + c2])
+    return [m for m, _, c in blocks for _ in range(c)]
+
+
+def _isotonic_rows(x, n):
+    """Non-increasing isotonic fit of many success tables at once (rows of ``x``), by the min–max formula
+    f_i = min_{s<=i} max_{t>=i} Av(s..t); equals ``isotonic_decreasing`` row by row."""
+    import numpy as np
+
+    k = x.shape[1]
+    cx = np.concatenate([np.zeros((x.shape[0], 1)), np.cumsum(x, axis=1)], axis=1)
+    cn = np.concatenate([[0.0], np.cumsum(n)])
+    s_idx, t_idx = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    valid = s_idx <= t_idx
+    av = (cx[:, t_idx + 1] - cx[:, s_idx]) / np.where(valid, cn[t_idx + 1] - cn[s_idx], 1.0)
+    av = np.where(valid, av, -np.inf)
+    max_t = np.maximum.accumulate(av[:, :, ::-1], axis=2)[:, :, ::-1]  # [b, s, i] = max_{t>=i} Av(s, t)
+    return np.where(valid, max_t, np.inf).min(axis=1)  # min over s <= i
+
+
+def _lrt_rows(x, n):
+    """2·(log-likelihood of the isotonic fit − of one common rate), per row of ``x`` (0·log 0 = 0)."""
+    import numpy as np
+    from scipy.special import xlogy
+
+    f = _isotonic_rows(x, n)
+    p = x.sum(axis=1, keepdims=True) / n.sum()
+
+    def ll(q):
+        return (xlogy(x, q) + xlogy(n - x, 1 - q)).sum(axis=1)
+
+    return np.maximum(2 * (ll(f) - ll(p)), 0.0)
+
+
+def _hypergeometric_tables(n: Sequence[int], total: int):
+    """Every table x (0 <= x_i <= n_i, sum x = total) with its probability under equal success rates."""
+    from math import comb
+
+    def rec(i: int, left: int):
+        if i == len(n) - 1:
+            if left <= n[i]:
+                yield (left,)
+            return
+        for xi in range(max(0, left - sum(n[i + 1 :])), min(n[i], left) + 1):
+            for rest in rec(i + 1, left - xi):
+                yield (xi, *rest)
+
+    denom = comb(sum(n), total)
+    for t in rec(0, total):
+        yield t, math.prod(comb(m, xi) for m, xi in zip(n, t, strict=True)) / denom
+
+
+def _n_tables(n: Sequence[int], total: int) -> int:
+    """How many tables ``_hypergeometric_tables`` yields: a DP over levels with prefix sums, O(k · total)."""
+    ways = [1] + [0] * total
+    for m in n:
+        prefix = [0]
+        for w in ways:
+            prefix.append(prefix[-1] + w)
+        ways = [prefix[r + 1] - prefix[max(0, r - m)] for r in range(total + 1)]
+    return ways[total]
+
+
+@dataclass(frozen=True)
+class MonotoneTest:
+    """Likelihood-ratio test of "success does not rise with the level" against "all levels equal"."""
+
+    statistic: float  # 2·(ℓ(isotonic fit) − ℓ(common rate)); 0 when the data give no sign of a decrease
+    p_decreasing: float  # permutation p-value: P(statistic >= observed | equal rates, total successes)
+    method: str  # "exact" (all tables enumerated) or "monte carlo, B = <draws>"
+    fitted: tuple[float, ...]  # the isotonic (non-increasing) success curve
+
+
+def monotone_decreasing_test(
+    successes: Sequence[int], n: Sequence[int], max_tables: int = 20000, draws: int = 4000, seed: int = 0
+) -> MonotoneTest:
+    """Does success fall monotonically with the level (appendix B's post-hoc ordering check)?
+
+    Likelihood-ratio test of H0 "every level has the same rate" against the order-restricted alternative
+    "rates never rise with the level" (the isotonic MLE, fitted by PAVA). Its asymptotic null is a
+    chi-bar-squared mixture whose weights depend on every n_i, so the p-value is taken instead from the
+    permutation distribution: given the total number of successes, tables are multivariate-hypergeometric
+    under H0, which makes the test exact in finite samples (no asymptotics, no nuisance rate). Every table is
+    enumerated when there are at most ``max_tables`` of them; otherwise ``draws`` tables are sampled with a
+    fixed ``seed`` and p = (1 + #{T* >= T}) / (1 + draws). Unlike Cochran–Armitage it tests any monotone
+    shape, not a linear trend: a curve that holds and then collapses is detected too.
+
+    Args:
+        successes, n: per level in increasing |k| (levels with n = 0 must be left out).
+    """
+    import numpy as np
+
+    if len(successes) != len(n) or len(n) < 2:
+        raise ConfigError("monotone test needs at least two levels with matching successes and n")
+    for x, m in zip(successes, n, strict=True):
+        _check_counts(x, m)
+        if m == 0:
+            raise ConfigError("monotone test: leave out levels with no finished episode (n = 0)")
+    nn = np.asarray(n, dtype=float)
+    obs = np.asarray([successes], dtype=float)
+    fitted = tuple(float(v) for v in _isotonic_rows(obs, nn)[0])
+    stat = float(_lrt_rows(obs, nn)[0])
+    total = int(sum(successes))
+    tol = 1e-9 * max(1.0, stat)
+    if stat <= tol:  # the data show no decrease at all
+        return MonotoneTest(0.0, 1.0, "exact", fitted)
+    if _n_tables(list(n), total) <= max_tables:
+        tables, probs = zip(*_hypergeometric_tables(list(n), total), strict=True)
+        null = _lrt_rows(np.asarray(tables, dtype=float), nn)
+        p = float(np.asarray(probs)[null >= stat - tol].sum())
+        return MonotoneTest(stat, min(1.0, p), "exact", fitted)
+    rng = np.random.default_rng(seed)
+    sample = rng.multivariate_hypergeometric(np.asarray(n, dtype=np.int64), total, size=draws)
+    null = _lrt_rows(sample.astype(float), nn)
+    p = (1 + int((null >= stat - tol).sum())) / (1 + draws)
+    return MonotoneTest(stat, p, f"monte carlo, B = {draws}", fitted)
+
+
+def mcnemar_exact(a_only: int, b_only: int) -> float:
+    """Two-sided exact McNemar test: under equal success, each discordant pair favours A with chance 1/2."""
+    from scipy.stats import binomtest
+
+    if a_only < 0 or b_only < 0:
+        raise ConfigError(f"discordant counts must be >= 0, got {a_only}, {b_only}")
+    if a_only + b_only == 0:
+        return 1.0  # no discordant pair: no evidence of a difference
+    return float(binomtest(a_only, a_only + b_only, 0.5, alternative="two-sided").pvalue)
+
+
 def holm(p_values: Sequence[float]) -> list[float]:
     """Holm–Bonferroni adjusted p-values (step-down, monotone, capped at 1), in the input order."""
     m = len(p_values)
@@ -212,6 +394,36 @@ def compare_levels(
             "n_b": nb, "successes_b": sb, "rate_b": sb / nb if nb else float("nan"),
             "p_value": exact_2x2(sa, na, sb, nb, test),
         })  # fmt: skip
+    _add_holm(rows)
+    return rows
+
+
+def compare_paired_levels(pairs: Mapping[int, Sequence[tuple[bool, bool]]]) -> list[dict]:
+    """Per-level exact McNemar tests on episode pairs (same seed, same initial state) with Holm correction.
+
+    Args:
+        pairs: level -> (success in A, success in B) for each episode finished ``ok`` in both runs.
+
+    Returns:
+        compare_levels' rows plus ``pairs, a_only, b_only`` (the discordant counts the test uses).
+    """
+    rows = []
+    for k in sorted(pairs, key=lambda k: (abs(k), k)):
+        ps = list(pairs[k])
+        m, sa, sb = len(ps), sum(a for a, _ in ps), sum(b for _, b in ps)
+        a_only, b_only = sum(a and not b for a, b in ps), sum(b and not a for a, b in ps)
+        rows.append({
+            "level": k, "n_a": m, "successes_a": sa, "rate_a": sa / m if m else float("nan"),
+            "n_b": m, "successes_b": sb, "rate_b": sb / m if m else float("nan"),
+            "pairs": m, "a_only": a_only, "b_only": b_only,
+            "p_value": mcnemar_exact(a_only, b_only) if m else float("nan"),
+        })  # fmt: skip
+    _add_holm(rows)
+    return rows
+
+
+def _add_holm(rows: list[dict]) -> None:
+    """Fill ``p_holm`` over the rows with a p-value (NaN for the others) and sort the rows by level."""
     valid = [i for i, r in enumerate(rows) if not math.isnan(r["p_value"])]
     adjusted = holm([rows[i]["p_value"] for i in valid])
     for r in rows:
@@ -219,7 +431,6 @@ def compare_levels(
     for i, p in zip(valid, adjusted, strict=True):
         rows[i]["p_holm"] = p
     rows.sort(key=lambda r: r["level"])
-    return rows
 
 
 def wilson_half_width(n: int, p: float = 0.5, conf: float = 0.95) -> float:

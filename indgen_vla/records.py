@@ -85,6 +85,17 @@ def atomic_write_text(path: Path, text: str) -> None:
     _atomic_write_bytes(Path(path), text.encode())
 
 
+def write_result(out: Path, stem: str, data: Any, markdown: str) -> None:
+    """``out/<stem>.json`` and ``out/<stem>.md`` of an analysis command, atomically; one clear line if ``out``
+    cannot be written."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise RunDirError(f"cannot write to --out {out}: {e.strerror}; choose another directory") from None
+    atomic_write_json(out / f"{stem}.json", data)
+    atomic_write_text(out / f"{stem}.md", markdown)
+
+
 def _schema():
     import pyarrow as pa
 

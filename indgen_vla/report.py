@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import argparse
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError, RunDirError
-from indgen_vla.metrics import DEFAULT_GAMMA, break_levels, cochran_armitage, success_rate
+from indgen_vla.failures import failure_counts, plot_failures, render_breakdown
+from indgen_vla.metrics import (
+    DEFAULT_GAMMA,
+    MIN_N,
+    UNDETERMINED,
+    below_floor,
+    break_levels,
+    cochran_armitage,
+    monotone_decreasing_test,
+    success_rate,
+)
 from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 
 
@@ -18,47 +27,150 @@ def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> 
     return bool(info["signed"]) if "signed" in info else any(k < 0 for k in levels)
 
 
-def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
-    """The summary.json dict: per axis, per level n/successes/rate/CI, break levels and trend tests.
+def _level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
+    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor (issue 18)."""
+    rows = []
+    for level in levels:
+        d = df[df["level"] == level]
+        ok = d[d["status"] == "ok"]
+        r = success_rate(int(ok["success"].sum()), len(ok), method=ci)
+        rows.append({
+            "level": int(level), "param": _one_param(d), "n": r.n,
+            "successes": r.successes, "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high,
+            "errors": int(len(d) - len(ok)), "planned": planned, "insufficient": below_floor(r.n, planned),
+            "failures": failure_counts(d),
+        })  # fmt: skip
+    return rows
 
-    Rows with status "error" are excluded from n and counted in ``errors``.
+
+def _one_param(d) -> float | None:
+    """The level's axis parameter; None when no episode ran or the pooled tasks disagree (absolute positions
+    such as pick_y differ per task: each task's rows carry their own)."""
+    values = d["param"].unique()
+    return float(values[0]) if len(values) and (values.max() - values.min()) <= 1e-12 else None
+
+
+def _usable_rates(rows: list[dict]) -> dict[int, float]:
+    """Rates for k*: a level below the data floor counts as missing (NaN), never as a measurement."""
+    return {r["level"]: float("nan") if r["insufficient"] else r["rate"] for r in rows}
+
+
+def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
+    """The summary.json dict: per axis, per level n/successes/rate/CI (pooled over tasks and per task), break
+    levels, and the linear (Cochran–Armitage) and monotone (isotonic LRT) trend tests.
+
+    Rows with status "error" are excluded from n and counted in ``errors``; levels planned in the manifest
+    but not yet run appear with n = 0; a level below the floor is marked ``insufficient`` and k* treats it as
+    missing (``"undetermined"`` when it comes before the break).
     """
-    out: dict[str, Any] = {"gamma": gamma, "ci": ci, "axes": {}}
-    for axis in sorted(episodes["axis"].unique()) if len(episodes) else []:
+    plan = manifest.get("plan") or {}
+    per_task = plan.get("episodes") if isinstance(plan.get("episodes"), int) else None
+    plan_levels = plan.get("levels") if isinstance(plan.get("levels"), dict) else {}
+    out: dict[str, Any] = {"gamma": gamma, "ci": ci, "min_n": MIN_N, "axes": {}}
+    seen = set(episodes["axis"].unique()) if len(episodes) else set()
+    for axis in sorted(seen | set(plan_levels)):
         df = episodes[episodes["axis"] == axis]
-        levels_out, rates = [], {}
-        for level in sorted(df["level"].unique()):
-            d = df[df["level"] == level]
-            ok = d[d["status"] == "ok"]
-            r = success_rate(int(ok["success"].sum()), len(ok), method=ci)
-            levels_out.append({
-                "level": int(level), "param": float(d["param"].iloc[0]), "n": r.n, "successes": r.successes,
-                "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high, "errors": int(len(d) - len(ok)),
-            })  # fmt: skip
-            rates[int(level)] = r.rate
-        signed = _axis_signed(manifest, axis, list(rates))
-        entry: dict[str, Any] = {
+        tasks = sorted(set(plan.get("tasks") or []) | set(df["task"].unique()))
+        levels = sorted({int(k) for k in df["level"].unique()} | {int(k) for k in plan_levels.get(axis, [])})
+        pooled = _level_rows(df, levels, per_task * len(tasks) if per_task else None, ci)
+        signed = _axis_signed(manifest, axis, levels)
+        _decide(pooled, gamma)
+        if plan.get("adaptive") and per_task:
+            _sequential(pooled, df, plan["adaptive"], per_task)
+        out["axes"][axis] = {
             "signed": signed,
-            "levels": levels_out,
-            "break_level": break_levels(rates, gamma, signed=signed),
-            "trend": _trend(levels_out, signed),
-        }
-        out["axes"][axis] = entry
+            "pooled_tasks": tasks,
+            "levels": pooled,
+            "break_level": break_levels(_usable_rates(pooled), gamma, signed=signed),
+            "trend": _trend(pooled, signed),
+            "monotone": _monotone(pooled, signed),
+            "kstar_status": _kstar_status(pooled, signed),
+            "break_point": _break_point(df, gamma, multi_task=len(tasks) > 1),
+            "tasks": {
+                t: {"levels": (rows := _level_rows(df[df["task"] == t], levels, per_task, ci)),
+                    "break_level": break_levels(_usable_rates(rows), gamma, signed=signed)}
+                for t in tasks
+            },
+        }  # fmt: skip
     return out
 
 
-def _trend(levels: list[dict], signed: bool) -> dict:
-    """One-sided Cochran–Armitage test per direction: the post-hoc ordering check of appendix B."""
-    res = {}
-    for name, keep in (
-        (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
-    ):
-        rows = [r for r in levels if keep(r["level"]) and r["n"] > 0]
+def _decide(rows: list[dict], gamma: float) -> None:
+    """Each level's three-way verdict from its CI (broken / intact / undetermined; below the floor: undetermined)."""
+    from indgen_vla.breakpoint import verdict_from_ci
+
+    for r in rows:
+        r["decision"] = (
+            "undetermined" if r["insufficient"] else verdict_from_ci(r["ci_low"], r["ci_high"], gamma)
+        )
+
+
+def _sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
+    """Adaptive runs: each level's verdict is the sequential rule's, on its episodes in index order; the data
+    floor counts against the episodes the rule used, not the cap (a level past a decided k* was never run)."""
+    from indgen_vla.sequential import level_outcomes, outcome_prefix, rule_from_plan
+
+    rule = rule_from_plan(adaptive, episodes)
+    per_level = level_outcomes(df)
+    for r in rows:
+        outcomes = outcome_prefix(per_level.get(r["level"], {}))
+        dec = rule.decide(outcomes)
+        r["sequential"] = dec.as_dict()
+        r["decision"] = "undetermined" if dec.verdict == "continue" else dec.verdict
+        r["planned"] = dec.episodes if dec.final else dec.next_boundary
+        r["insufficient"] = dec.n == 0 or (not dec.final and below_floor(r["n"], r["planned"]))
+
+
+def _kstar_status(rows: list[dict], signed: bool) -> dict:
+    """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]")."""
+    from indgen_vla.breakpoint import kstar_status
+
+    verdicts = {r["level"]: r["decision"] for r in rows}
+    sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
+    return {d: kstar_status(verdicts, sorted((k for k in verdicts if s * k >= 0), key=abs)) for d, s in sides}
+
+
+def _break_point(df, gamma: float, multi_task: bool) -> dict:
+    """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled)."""
+    from indgen_vla.breakpoint import break_point, cells_from_records
+
+    ok = df[df["status"] == "ok"]
+    if ok["level"].nunique() < 2:
+        return {}
+    keys = ("task",) if multi_task else ()
+    cells = cells_from_records(ok[["level", "param", "success", "status", "task"]].to_dict("records"), keys)
+    return break_point(cells, gamma, cluster_names=keys)
+
+
+def _directions(levels: list[dict], signed: bool):
+    """(name, usable rows in increasing |k|) per direction; levels below the data floor are left out."""
+    sides = (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
+    for name, keep in sides:
+        rows = sorted(
+            (r for r in levels if keep(r["level"]) and not r["insufficient"]), key=lambda r: abs(r["level"])
+        )
         if len(rows) >= 2:
-            t = cochran_armitage(
-                [abs(r["level"]) for r in rows], [r["successes"] for r in rows], [r["n"] for r in rows]
-            )
-            res[name] = {"z": t.statistic, "p_decreasing": t.p_decreasing}
+            yield name, rows
+
+
+def _trend(levels: list[dict], signed: bool) -> dict:
+    """One-sided Cochran–Armitage test per direction: the post-hoc ordering check of appendix B (linear)."""
+    res = {}
+    for name, rows in _directions(levels, signed):
+        t = cochran_armitage(
+            [abs(r["level"]) for r in rows], [r["successes"] for r in rows], [r["n"] for r in rows]
+        )
+        res[name] = {"z": t.statistic, "p_decreasing": t.p_decreasing}
+    return res
+
+
+def _monotone(levels: list[dict], signed: bool) -> dict:
+    """Isotonic likelihood-ratio test per direction (any monotone decrease, not only a linear one)."""
+    res = {}
+    for name, rows in _directions(levels, signed):
+        t = monotone_decreasing_test([r["successes"] for r in rows], [r["n"] for r in rows])
+        res[name] = {"lrt": t.statistic, "p_decreasing": t.p_decreasing, "method": t.method,
+                     "levels": [r["level"] for r in rows]}  # fmt: skip
     return res
 
 
@@ -80,70 +192,209 @@ def _short_spec(spec: str | None) -> str | None:
         return spec
 
 
+def insufficient_text(row: dict) -> str:
+    """What a level below the data floor prints instead of a rate, e.g. "insufficient data (n = 1 of 4; 3 errors)"."""
+    of = f" of {row['planned']}" if row.get("planned") else ""
+    errs = f"; {row['errors']} error{'s' * (row['errors'] != 1)}" if row.get("errors") else ""
+    return f"insufficient data (n = {row['n']}{of}{errs})"
+
+
 def _fmt_rate(row: dict) -> str:
-    if row["n"] == 0:
-        return "—"
-    return f"{100 * row['rate']:.0f}% [{100 * row['ci_low']:.0f}, {100 * row['ci_high']:.0f}] (n={row['n']})"
+    if row.get("insufficient", row["n"] == 0):
+        return insufficient_text(row)
+    errs = f"; {row['errors']} error{'s' * (row['errors'] != 1)}" if row.get("errors") else ""
+    verdict = f" {row['decision']}" if row.get("decision") else ""
+    return f"{100 * row['rate']:.0f}% [{100 * row['ci_low']:.0f}, {100 * row['ci_high']:.0f}] (n={row['n']}{errs}){verdict}"
 
 
 def _fmt_break(b: dict, signed: bool) -> str:
     def one(k):
+        if k == UNDETERMINED:
+            return UNDETERMINED
         return "none" if k is None else f"L{k}"
 
     return f"+: {one(b['pos'])}, −: {one(b.get('neg'))}" if signed else one(b["pos"])
 
 
+def _fmt_tests(tests: dict, signed: bool, method: bool = False) -> str:
+    """p-values per direction, e.g. "+: p = 0.0004 (exact), −: p = 0.2"; "—" where a side has < 2 levels."""
+
+    def one(side: str) -> str:
+        t = tests.get(side)
+        if t is None:
+            return "— (< 2 usable levels)"
+        return f"p = {t['p_decreasing']:.2g}" + (f" ({t['method']})" if method else "")
+
+    return f"+: {one('pos')}, −: {one('neg')}" if signed else one("pos")
+
+
+def _fmt_status(status: dict, signed: bool) -> str:
+    """k* with its certainty per direction, from the three-way level verdicts."""
+    if not status:
+        return "—"
+    return "; ".join(
+        f"{'+' if d == 'pos' else '−'}: {status[d]['text']}" for d in ("pos", "neg") if d in status
+    )
+
+
+def _fmt_point(bp: dict, signed: bool) -> str:
+    """Where the fitted curve crosses γ per direction: fractional level, parameter and bootstrap CI."""
+    parts = []
+    for d in ("pos", "neg"):
+        if d not in bp:
+            continue
+        b, side = bp[d], "+" if d == "pos" else "−"
+        if b.get("level") is None:
+            where = {"below": "below γ at the first level", "above": "no crossing in range"}.get(
+                b.get("crossing"), "—"
+            )
+            parts.append(f"{side}: {where}")
+            continue
+        lo, hi = b["ci"]["level"]
+        ci = f" [{lo:.2f}, {hi:.2f}]" if lo is not None and hi is not None else ""
+        parts.append(f"{side}: L{b['level']:.2f}{ci} (param {b['param']:.4g}; {b['method']})")
+    return "; ".join(parts) or "—"
+
+
+def _param(p: float | None) -> str:
+    return "—" if p is None else f"{p:.4g}"
+
+
+def error_warnings(label: str, axis_summary: dict, limit: float = 0.10) -> list[str]:
+    """One line per level whose error rate exceeds ``limit``: errors that grow with the level bias the curve."""
+    out = []
+    for r in axis_summary["levels"]:
+        total = r["n"] + r["errors"]
+        if total and r["errors"] / total > limit:
+            out.append(f"**Warning** ({label}): level {r['level']} has {r['errors']} error episode(s) of {total} "
+                       f"({100 * r['errors'] / total:.0f} % > {100 * limit:.0f} %); errors that grow with the level "
+                       "bias the curve: re-run the same evaluate command to retry them.")  # fmt: skip
+    return out
+
+
+def _pools(present: list[tuple[str, dict]]) -> str:
+    """Which tasks each run's pooled curve pools (one line)."""
+    texts = {lbl: ", ".join(a.get("pooled_tasks") or ["(unknown)"]) for lbl, a in present}
+    if len(set(texts.values())) == 1:
+        t = next(iter(texts.values()))
+        return f"Pooled over task{'s' * (',' in t)}: {t}."
+    return "Pooled over tasks: " + "; ".join(f"{lbl}: {t}" for lbl, t in texts.items()) + "."
+
+
 def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive generalization report") -> str:
-    """A levels × runs table per axis with rate, CI, n and k*."""
-    gamma = summaries[0][1]["gamma"]
-    lines = [f"# {title}", "", f"Success rate with {summaries[0][1]['ci']} 95 % CI; break level k* = first level "
-             f"with success < γ = {gamma} (per direction for signed axes).", ""]  # fmt: skip
+    """A levels × runs table per axis with rate, CI, n, errors and k*, the trend tests, and k* per task."""
+    s0 = summaries[0][1]
+    gamma = s0["gamma"]
+    lines = [f"# {title}", "",
+             f"Success rate with {s0['ci']} 95 % CI; n = finished episodes (episodes with status \"error\" are "
+             "excluded from n and counted beside it). Break level k* = first level with success < "
+             f"γ = {gamma} (per direction for signed axes). A level with n < {s0.get('min_n', MIN_N)} or fewer "
+             "than half its planned episodes finished shows \"insufficient data\": it gives no rate and no k* "
+             "(k* is \"undetermined\" when such a level comes before the break). Trend tests are one-sided "
+             "(success falls with |k|), per direction, on the levels with enough data. param \"—\": no episode, or "
+             "the pooled tasks use different parameters (see each task in summary.json).", ""]  # fmt: skip
     axes = sorted({a for _, s in summaries for a in s["axes"]})
     for axis in axes:
         present = [(label, s["axes"][axis]) for label, s in summaries if axis in s["axes"]]
         levels = sorted({r["level"] for _, a in present for r in a["levels"]})
-        params = {r["level"]: r["param"] for _, a in present for r in a["levels"]}
-        lines += [f"## Axis `{axis}`", "", "| level | param | " + " | ".join(lbl for lbl, _ in present) + " |",
+        params = {}
+        for _, a in present:
+            for r in a["levels"]:
+                if params.get(r["level"]) is None:
+                    params[r["level"]] = r["param"]
+        lines += [f"## Axis `{axis}`", "", _pools(present), "",
+                  "| level | param | " + " | ".join(lbl for lbl, _ in present) + " |",
                   "|---|---|" + "---|" * len(present)]  # fmt: skip
         for k in levels:
             cells = []
             for _, a in present:
                 row = next((r for r in a["levels"] if r["level"] == k), None)
                 cells.append(_fmt_rate(row) if row else "")
-            lines.append(f"| {k} | {params[k]:.4g} | " + " | ".join(cells) + " |")
+            lines.append(f"| {k} | {_param(params[k])} | " + " | ".join(cells) + " |")
         lines.append(
             "| **k\\*** | | "
             + " | ".join(_fmt_break(a["break_level"], a["signed"]) for _, a in present)
             + " |"
         )
-        errs = [(lbl, sum(r["errors"] for r in a["levels"])) for lbl, a in present]
-        if any(e for _, e in errs):
+        lines.append(
+            "| k\\* status | | "
+            + " | ".join(_fmt_status(a.get("kstar_status", {}), a["signed"]) for _, a in present)
+            + " |"
+        )
+        lines.append(
+            "| break point (S = γ) | | "
+            + " | ".join(_fmt_point(a.get("break_point", {}), a["signed"]) for _, a in present)
+            + " |"
+        )
+        lines.append(
+            "| monotone decrease (isotonic LRT) | | "
+            + " | ".join(_fmt_tests(a.get("monotone", {}), a["signed"], method=True) for _, a in present)
+            + " |"
+        )
+        lines.append(
+            "| linear trend (Cochran–Armitage) | | "
+            + " | ".join(_fmt_tests(a.get("trend", {}), a["signed"]) for _, a in present)
+            + " |"
+        )
+        warnings = [w for lbl, a in present for w in error_warnings(lbl, a)]
+        if warnings:
+            lines += ["", *warnings]
+        lines += render_breakdown(present)
+        if any(len(a.get("tasks", {})) > 1 for _, a in present):
+            tasks = sorted({t for _, a in present for t in a.get("tasks", {})})
             lines += [
                 "",
-                "Episodes with errors (excluded from n): " + ", ".join(f"{lbl}: {e}" for lbl, e in errs),
+                "k* per task (the pooled rows above mix these tasks):",
+                "",
+                "| task | " + " | ".join(lbl for lbl, _ in present) + " |",
+                "|---|" + "---|" * len(present),
             ]
+            for t in tasks:
+                cells = [
+                    _fmt_break(a["tasks"][t]["break_level"], a["signed"]) if t in a.get("tasks", {}) else ""
+                    for _, a in present
+                ]
+                lines.append(f"| {t} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
 
 
+def _usable(rows: list[dict]) -> list[dict]:
+    return [r for r in rows if r["n"] > 0 and not r.get("insufficient", False)]
+
+
 def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Path) -> Path:
-    """Success vs level in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands."""
+    """Success vs level in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands; each task's
+    curve drawn faintly behind the pooled one when a run pools several tasks; levels without enough data
+    are not drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5, 3.6), dpi=120)
+    fig, ax = plt.subplots(figsize=(7.4, 3.6), dpi=120)
     all_levels: list[int] = []
     signed = False
     for label, a in curves:
-        rows = [r for r in a["levels"] if r["n"] > 0]
+        rows = _usable(a["levels"])
         ks = [r["level"] for r in rows]
         all_levels += ks
         signed |= a["signed"]
-        line = ax.plot(ks, [r["rate"] for r in rows], marker="o", label=label)[0]
+        line = ax.plot(ks, [r["rate"] for r in rows], marker="o", label=label, zorder=3)[0]
         ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], alpha=0.2,
-                        color=line.get_color())  # fmt: skip
+                        color=line.get_color(), zorder=2)  # fmt: skip
+        for d, b in a.get("break_point", {}).items():  # where the fitted curve crosses γ, with its interval
+            lo, hi = b.get("ci", {}).get("level", [None, None])
+            if b.get("level") is not None and lo is not None and hi is not None:
+                ax.errorbar([b["level"]], [gamma], xerr=[[b["level"] - lo], [hi - b["level"]]], fmt="D", ms=4,
+                            color=line.get_color(), capsize=3, zorder=4,
+                            label=f"{label}: break point (95% CI)" if d == "pos" else None)  # fmt: skip
+        tasks = a.get("tasks", {})
+        if len(tasks) > 1:
+            for i, t in enumerate(sorted(tasks)):
+                tr = _usable(tasks[t]["levels"])
+                ax.plot([r["level"] for r in tr], [r["rate"] for r in tr], color=line.get_color(), alpha=0.25,
+                        lw=0.8, zorder=1, label=f"{label}: single tasks ({len(tasks)})" if i == 0 else None)  # fmt: skip
     ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
     if signed and all_levels:
         m = max(abs(k) for k in all_levels)
@@ -156,7 +407,7 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     ax.set_ylabel("success rate")
     ax.set_title(axis)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left" if not signed else "lower center")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
@@ -172,6 +423,7 @@ def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilso
     atomic_write_text(run.path / REPORT, render_markdown([(label, summary)], f"Report: {label}"))
     for axis, a in summary["axes"].items():
         plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
+        plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
     return summary
 
 
@@ -207,24 +459,36 @@ def report_main(args: argparse.Namespace) -> int:
         for axis in sorted({a for _, s in results for a in s["axes"]}):
             curves = [(lbl, s["axes"][axis]) for lbl, s in results if axis in s["axes"]]
             plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")
+            plot_failures(curves, axis, out / "plots" / f"{_safe(axis)}_failures.png")
         print(f"overlay: {out / REPORT}, {out / 'plots'}/")
     print_tables(results)
     return 0
 
 
 def print_tables(results: list[tuple[str, dict]]) -> None:
+    """Rich tables per run and axis; a level below the data floor prints "insufficient data (...)", no rate."""
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
     for label, s in results:
         for axis, a in s["axes"].items():
-            t = Table(title=f"{label} — {axis} (γ = {s['gamma']})")
-            for col in ("level", "param", "n", "success", "95% CI"):
+            t = Table(
+                title=f"{label} — {axis} (γ = {s['gamma']}; pooled over {len(a.get('pooled_tasks', []))} task(s))"
+            )
+            for col in ("level", "param", "n", "errors", "success", "95% CI"):
                 t.add_column(col, justify="right")
             for r in a["levels"]:
-                rate = "—" if math.isnan(r["rate"]) else f"{100 * r['rate']:.0f}%"
-                t.add_row(str(r["level"]), f"{r['param']:.4g}", str(r["n"]), rate,
-                          f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]")  # fmt: skip
+                if r.get("insufficient", r["n"] == 0):
+                    rate, ci = insufficient_text(r), ""
+                else:
+                    rate = f"{100 * r['rate']:.0f}%"
+                    ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
+                t.add_row(str(r["level"]), _param(r["param"]), str(r["n"]), str(r["errors"]), rate, ci)
             console.print(t)
             console.print(f"break level k*: {_fmt_break(a['break_level'], a['signed'])}")
+            console.print(
+                f"monotone decrease (isotonic LRT): {_fmt_tests(a.get('monotone', {}), a['signed'], True)}"
+            )
+            for w in error_warnings(label, a):
+                console.print(w.replace("**", ""))

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-FAILURE_MODES = ("none", "no_contact", "no_grasp", "dropped", "misplaced", "timeout_holding", "error")
+from indgen_vla.interface import FAILURE_MODES
+
+__all__ = ["FAILURE_MODES", "LIFT_M", "FailureTrace"]
 LIFT_M = 0.02  # the object's bottom must rise this far above its start for a grasp to count as a lift
 
 

@@ -40,10 +40,13 @@ class ReproduceConfig:
     demos_per_level: int = 300
     methods: tuple[str, ...] = BASELINES + OURS
     gamma: float = 0.2
+    hidden: int = 128  # model width; smaller only for smoke runs and tests
 
     def __post_init__(self) -> None:
         if not self.seeds or self.episodes < 1 or self.steps < 1 or any(n < 1 for _, n in self.method_steps):
             raise ConfigError("reproduce needs at least one seed, one episode and one training step")
+        if self.hidden < 1:
+            raise ConfigError(f"hidden width must be >= 1, got {self.hidden}")
 
     @classmethod
     def quick(cls) -> ReproduceConfig:
@@ -61,12 +64,31 @@ class ReproduceConfig:
         return dict(self.method_steps).get(method, self.steps)
 
 
-def _pooled(counts: list[tuple[int, int]]) -> dict:
+def seed_t_interval(rates: list[float], conf: float = 0.95) -> tuple[float, float] | None:
+    """Student-t interval of the mean of per-seed rates (seeds as the unit: training variance included),
+    clipped to [0, 1]; None with fewer than two seeds."""
+    from scipy.stats import t as student_t
+
+    m = len(rates)
+    if m < 2:
+        return None
+    mean, sd = float(np.mean(rates)), float(np.std(rates, ddof=1))
+    half = float(student_t.ppf(0.5 + conf / 2, m - 1)) * sd / m**0.5
+    return max(0.0, mean - half), min(1.0, mean + half)
+
+
+def _pooled(counts: list[tuple[int, int]], seeds: tuple[int, ...]) -> dict:
+    """One level of one method: the pooled rate with its Wilson CI (episodes as the unit) and the per-seed
+    counts with a t-interval over seeds."""
     s, n = sum(c[0] for c in counts), sum(c[1] for c in counts)
     lo, hi = wilson_ci(s, n)
     per_seed = [c[0] / c[1] for c in counts]
+    seed_ci = seed_t_interval(per_seed)
     return {"rate": s / n, "ci_low": lo, "ci_high": hi, "n": n, "seed_mean": float(np.mean(per_seed)),
-            "seed_std": float(np.std(per_seed))}  # fmt: skip
+            "seed_std": float(np.std(per_seed)),
+            "per_seed": [{"seed": sd, "successes": c[0], "n": c[1]} for sd, c in zip(seeds, counts, strict=True)],
+            "seed_ci_low": None if seed_ci is None else seed_ci[0],
+            "seed_ci_high": None if seed_ci is None else seed_ci[1]}  # fmt: skip
 
 
 def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) -> tuple[dict, float]:
@@ -79,7 +101,7 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
     torch.set_num_threads(1)
     ts = time.perf_counter()
     tc = TrainConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
-                     demos_per_level=cfg.demos_per_level)  # fmt: skip
+                     demos_per_level=cfg.demos_per_level, hidden=cfg.hidden)  # fmt: skip
     model, _ = train(tc)
     res = evaluate_model(
         model, method, cfg.eval_levels, cfg.episodes, env_cfg, seed=1000 + seed, train_cfg=tc
@@ -126,13 +148,13 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1) -> d
     table: dict = {}
     for method in cfg.methods:  # pooled in seed order, whatever order the jobs finished in
         per_level = {k: [counts[method][s][k] for s in cfg.seeds] for k in cfg.eval_levels}
-        table[method] = _entry(per_level, cfg.gamma)
+        table[method] = _entry(per_level, cfg.gamma, cfg.seeds)
     oracle = {k: [(int(oracle_rollout(k, cfg.episodes, env_cfg, 1000 + s).sum()), cfg.episodes) for s in cfg.seeds]
               for k in cfg.eval_levels}  # fmt: skip
-    table["oracle"] = _entry(oracle, cfg.gamma)
+    table["oracle"] = _entry(oracle, cfg.gamma, cfg.seeds)
     wall = time.perf_counter() - t0
     result = {"config": {"seeds": list(cfg.seeds), "eval_levels": list(cfg.eval_levels), "episodes": cfg.episodes,
-                         "train_steps": {m: cfg.steps_for(m) for m in cfg.methods}, "demos_per_level": cfg.demos_per_level, "train_levels": [0, 1, 2],
+                         "train_steps": {m: cfg.steps_for(m) for m in cfg.methods}, "demos_per_level": cfg.demos_per_level, "train_levels": [0, 1, 2], "hidden": cfg.hidden,
                          "grid_size": env_cfg.grid_size, "gamma": cfg.gamma, "workers": workers},
               "wall_s": round(wall, 1), "job_seconds": job_seconds, "methods": table}  # fmt: skip
     (out / "table1.json").write_text(json.dumps(table, indent=2) + "\n")
@@ -142,36 +164,64 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1) -> d
     return result
 
 
-def _entry(per_level: dict[int, list[tuple[int, int]]], gamma: float) -> dict:
-    levels = {str(k): _pooled(c) for k, c in per_level.items()}
+def _entry(per_level: dict[int, list[tuple[int, int]]], gamma: float, seeds: tuple[int, ...]) -> dict:
+    levels = {str(k): _pooled(c, seeds) for k, c in per_level.items()}
+    per_seed = {
+        str(sd): break_level({k: c[i][0] / c[i][1] for k, c in per_level.items()}, gamma)
+        for i, sd in enumerate(seeds)
+    }
     return {
         "levels": levels,
         "break_level": break_level({int(k): v["rate"] for k, v in levels.items()}, gamma),
+        "break_level_per_seed": per_seed,
     }
 
 
 def render_markdown(result: dict) -> str:
-    """Table 1's layout: success % per level (pooled over seeds), the break level, the paper beside ours."""
+    """Table 1's layout: success % per level (pooled over seeds), the break level pooled and per seed, the
+    paper beside ours; then both 95 % intervals per level: Wilson over pooled episodes, t over seeds."""
     table, c = result["methods"], result["config"]
     levels = c["eval_levels"]
-    head = "| method | " + " | ".join(f"L{k}" for k in levels) + " | breaks at | paper L0–L3 | paper breaks |"
+    head = (
+        "| method | "
+        + " | ".join(f"L{k}" for k in levels)
+        + " | breaks at | per seed | paper L0–L3 | paper breaks |"
+    )
     lines = [
         "# BlockEnv — Table 1 reproduction", "",
         f"Trained on L0–L2 oracle demonstrations ({c['demos_per_level']} per level; optimiser updates: {_steps(c)}), "
-        f"{len(c['seeds'])} seed(s), {c['episodes']} episodes per level and seed; success pooled over seeds "
-        f"(95 % Wilson CI in table1.json). Break level: first level with success < γ = {c['gamma']}. "
-        f"Wall time {result['wall_s'] / 60:.1f} min.", "",
-        head, "|" + "---|" * (len(levels) + 4),
+        f"{len(c['seeds'])} seed(s) ({', '.join(map(str, c['seeds']))}), {c['episodes']} episodes per level and seed; "
+        f"success pooled over seeds (n = {c['episodes'] * len(c['seeds'])} per level). Break level: first level with "
+        f"success < γ = {c['gamma']}, on the pooled rates and on each seed's own rates. Wall time "
+        f"{result['wall_s'] / 60:.1f} min.", "",
+        head, "|" + "---|" * (len(levels) + 5),
     ]  # fmt: skip
     for m, e in table.items():
         cells = [f"{100 * e['levels'][str(k)]['rate']:.0f}" for k in levels]
-        brk = "—" if e["break_level"] is None else f"L{e['break_level']}"
+        per_seed = ", ".join(_brk(b) for b in e.get("break_level_per_seed", {}).values())
         paper = PAPER.get(m)
         p_cells = " / ".join(f"{v:g}" for v in paper[0]) if paper else "(ours)"
-        lines.append(
-            f"| {m} | " + " | ".join(cells) + f" | {brk} | {p_cells} | {paper[1] if paper else '—'} |"
-        )
+        lines.append(f"| {m} | " + " | ".join(cells)
+                     + f" | {_brk(e['break_level'])} | {per_seed} | {p_cells} | {paper[1] if paper else '—'} |")  # fmt: skip
+    lines += ["", "95 % intervals per level, % — pooled Wilson (episodes as the unit) / Student-t over the "
+              "per-seed rates (seeds as the unit; needs ≥ 2 seeds):", "",
+              "| method | " + " | ".join(f"L{k}" for k in levels) + " |", "|" + "---|" * (len(levels) + 1)]  # fmt: skip
+    for m, e in table.items():
+        cells = []
+        for k in levels:
+            v = e["levels"][str(k)]
+            seed = (
+                "—"
+                if v.get("seed_ci_low") is None
+                else f"{100 * v['seed_ci_low']:.0f}–{100 * v['seed_ci_high']:.0f}"
+            )
+            cells.append(f"{100 * v['ci_low']:.0f}–{100 * v['ci_high']:.0f} / {seed}")
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _brk(k: int | None) -> str:
+    return "—" if k is None else f"L{k}"
 
 
 def _steps(c: dict) -> str:

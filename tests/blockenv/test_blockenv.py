@@ -107,21 +107,68 @@ def test_training_reduces_the_loss(method):
 
 
 def test_reproduce_writes_table1(tmp_path):
-    from indgen_vla.blockenv.reproduce import BASELINES, ReproduceConfig, reproduce
+    """Every method runs through the pipeline (tiny models, 2 updates); per-seed counts, per-seed break levels
+    and the t-interval over seeds land beside the pooled Wilson CI."""
+    from scipy.stats import t as student_t
 
-    cfg = ReproduceConfig(seeds=(0,), eval_levels=(0, 1, 3), episodes=4, steps=2, demos_per_level=4)
+    from indgen_vla.blockenv.reproduce import BASELINES, ReproduceConfig, reproduce
+    from indgen_vla.metrics import break_level, wilson_ci
+
+    cfg = ReproduceConfig(seeds=(0, 1), eval_levels=(0, 1, 3), episodes=4, steps=2, demos_per_level=4,
+                          method_steps=(), hidden=16)  # fmt: skip
     reproduce(cfg, tmp_path, log=lambda m: None)
     table = json.loads((tmp_path / "table1.json").read_text())
     assert set(table) == {*BASELINES, "local_equivariant", "oracle"}
-    assert table["oracle"]["levels"]["3"]["rate"] == 1.0 and table["oracle"]["break_level"] is None
-    assert (tmp_path / "table1.png").stat().st_size > 0 and "| ind |" in (tmp_path / "table1.md").read_text()
+    oracle3 = table["oracle"]["levels"]["3"]
+    assert oracle3["rate"] == 1.0 and table["oracle"]["break_level"] is None
+    assert oracle3["per_seed"] == [{"seed": 0, "successes": 4, "n": 4}, {"seed": 1, "successes": 4, "n": 4}]
+    assert (oracle3["seed_ci_low"], oracle3["seed_ci_high"]) == (1.0, 1.0)  # no spread over seeds
+    for m, e in table.items():
+        for v in e["levels"].values():
+            (s0, n0), (s1, n1) = [(p["successes"], p["n"]) for p in v["per_seed"]]
+            assert v["n"] == n0 + n1 == 8 and v["rate"] == (s0 + s1) / 8
+            assert (v["ci_low"], v["ci_high"]) == pytest.approx(wilson_ci(s0 + s1, 8))
+            r = np.array([s0 / n0, s1 / n1])
+            half = student_t.ppf(0.975, 1) * r.std(ddof=1) / np.sqrt(2)
+            assert v["seed_ci_low"] == pytest.approx(max(0.0, r.mean() - half))
+            assert v["seed_ci_high"] == pytest.approx(min(1.0, r.mean() + half))
+        for i, seed in enumerate(cfg.seeds):
+            rates = {
+                int(k): v["per_seed"][i]["successes"] / v["per_seed"][i]["n"] for k, v in e["levels"].items()
+            }
+            assert e["break_level_per_seed"][str(seed)] == break_level(rates, cfg.gamma), m
+    md = (tmp_path / "table1.md").read_text()
+    assert (tmp_path / "table1.png").stat().st_size > 0 and "| ind |" in md
+    assert (
+        "| per seed |" in md
+        and "Student-t over the per-seed rates" in md
+        and "| oracle | 68–100 / 100–100 |" in md  # Wilson 8/8: 8 / (8 + 1.96²)
+    )
+
+
+def _workers_config(methods, steps):
+    from indgen_vla.blockenv.reproduce import ReproduceConfig
+
+    return ReproduceConfig(seeds=(0, 1), eval_levels=(0, 1, 2), episodes=6, steps=steps, demos_per_level=10,
+                           methods=methods, method_steps=(), hidden=32)  # fmt: skip
 
 
 def test_reproduce_results_do_not_depend_on_workers(tmp_path):
+    from indgen_vla.blockenv.reproduce import reproduce
+
+    cfg = _workers_config(("rnn", "local_equivariant"), steps=5)
+    one = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1)["methods"]
+    two = reproduce(cfg, tmp_path / "w2", log=lambda m: None, workers=2)["methods"]
+    assert one == two
+
+
+@pytest.mark.slow
+def test_reproduce_results_do_not_depend_on_workers_trm(tmp_path):
+    """The same with TRM's deep-supervision training loop (minutes on CPU)."""
     from indgen_vla.blockenv.reproduce import ReproduceConfig, reproduce
 
     cfg = ReproduceConfig(seeds=(0, 1), eval_levels=(0, 1, 2), episodes=6, steps=20, demos_per_level=10,
-                          methods=("rnn", "trm"))  # fmt: skip
+                          methods=("rnn", "trm"), method_steps=())  # fmt: skip
     one = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1)["methods"]
     two = reproduce(cfg, tmp_path / "w2", log=lambda m: None, workers=2)["methods"]
     assert one == two

@@ -1,18 +1,22 @@
 import json
 
 import pytest
-from scipy.stats import boschloo_exact
+from scipy.stats import binomtest, boschloo_exact
 
 from indgen_vla.cli import main
+from indgen_vla.records import RunDir
+from tests.indgen_vla.test_records import rec
 from tests.indgen_vla.test_report import make_run
 
 
 def test_compare_against_scipy_and_hand_holm(tmp_path, capsys):
     a = make_run(tmp_path / "a", {0: (19, 20), 1: (15, 20), 2: (12, 20)}, regime="h-only")
     b = make_run(tmp_path / "b", {0: (20, 20), 1: (4, 20), 2: (11, 20)}, regime="h+mg")
-    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    assert (
+        main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c"), "--test", "boschloo"]) == 0
+    )
     res = json.loads((tmp_path / "c" / "compare.json").read_text())
-    assert res["test"] == "boschloo"
+    assert res["test"] == "boschloo" and res["paired"] is False
     rows = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
     p = {k: boschloo_exact([[rows[k]["successes_a"], rows[k]["successes_b"]],
                             [20 - rows[k]["successes_a"], 20 - rows[k]["successes_b"]]]).pvalue
@@ -37,7 +41,7 @@ def test_compare_never_overstates(tmp_path):
     assert main(["compare", str(a.path), str(b.path), "--test", "barnard"]) == 0
     res = json.loads((a.path / "compare" / "compare.json").read_text())
     assert res["test"] == "barnard"
-    assert "no level differs at α = 0.05 after Holm" in res["verdict"]
+    assert "no level differs at α = 0.05 (unpaired Barnard, Holm-corrected)" in res["verdict"]
     assert "does not show the runs are equal" in res["verdict"]
 
 
@@ -54,3 +58,66 @@ def test_break_levels_read_as_signed_sides():
     assert _k({"pos": 2, "neg": -3}) == "+2 / −3"
     assert _k({"pos": None, "neg": -1}) == "none / −1"
     assert _k({"pos": 4}) == "4" and _k({"pos": None}) == "none"
+    assert _k({"pos": "undetermined", "neg": -1}) == "undetermined / −1"
+
+
+def _paired_run(path, outcomes, regime, seed_offset=0):
+    """A run whose episode i at each level succeeds as ``outcomes[level][i]`` says (seed 1000 + i)."""
+    run = RunDir.create_or_resume(path, {"plan": {"x": 1}, "data_regime": regime, "policy": "standin:noop",
+                                         "axes": {"pick_y": {"signed": True}}})  # fmt: skip
+    recs = []
+    for level, outs in outcomes.items():
+        for i, o in enumerate(outs):
+            r = rec(level, i, success=o == 1, status="error" if o is None else "ok")
+            recs.append(type(r)(**{**r.__dict__, "seed": r.seed + seed_offset}))
+    run.append(recs)
+    return run
+
+
+def test_paired_runs_use_exact_mcnemar(tmp_path, capsys):
+    # level 1: A succeeds alone on 8 episodes, B alone on 1, both on 2, neither on 1 (one error dropped)
+    a_out = {0: [1] * 12, 1: [1] * 8 + [0] + [1, 1] + [0] + [1]}
+    b_out = {0: [1] * 11 + [0], 1: [0] * 8 + [1] + [1, 1] + [0] + [None]}
+    a, b = _paired_run(tmp_path / "a", a_out, "h-only"), _paired_run(tmp_path / "b", b_out, "h+mg")
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    res = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert res["test"] == "mcnemar_exact" and res["paired"] is True
+    rows = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
+    assert (rows[1]["pairs"], rows[1]["a_only"], rows[1]["b_only"]) == (12, 8, 1)
+    p1 = binomtest(8, 9, 0.5).pvalue  # hand: 2·(1 + 9)/512 = 0.0390625
+    assert rows[1]["p_value"] == pytest.approx(p1) == pytest.approx(20 / 512)
+    assert rows[0]["p_value"] == pytest.approx(1.0)  # one discordant pair: binomtest(0, 1) = 1
+    assert rows[1]["p_holm"] == pytest.approx(min(1, 2 * p1))
+    assert "24 episode pairs (1 dropped" in res["axes"]["pick_y"]["pairing"]
+    md = (tmp_path / "c" / "compare.md").read_text()
+    assert "paired: two-sided exact McNemar" in md and "| A only | B only |" in md
+    assert "paired exact McNemar" in res["verdict"]
+    assert (
+        main(["compare", str(a.path), str(b.path), "--test", "boschloo", "--out", str(tmp_path / "u")]) == 0
+    )
+    assert json.loads((tmp_path / "u" / "compare.json").read_text())["test"] == "boschloo"
+
+
+def test_unpaired_runs_fall_back_to_boschloo(tmp_path, capsys):
+    outs = {0: [1, 1, 0, 1, 1, 1], 1: [0, 1, 0, 0, 1, 0]}
+    a = _paired_run(tmp_path / "a", outs, "h-only")
+    b = _paired_run(tmp_path / "b", outs, "h+mg", seed_offset=7)  # another --seed: same keys, other seeds
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    res = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert res["test"] == "boschloo" and res["paired"] is False and "seeds differ" in res["unpaired_reason"]
+    assert "unpaired Boschloo" in res["verdict"]
+    assert main(["compare", str(a.path), str(b.path), "--test", "mcnemar"]) == 2
+    assert "needs runs paired episode by episode" in capsys.readouterr().err
+    c = _paired_run(tmp_path / "c3", {0: outs[0][:4], 1: outs[1]}, "h+mg")  # fewer episodes at level 0
+    assert main(["compare", str(a.path), str(c.path), "--out", str(tmp_path / "d")]) == 0
+    res = json.loads((tmp_path / "d" / "compare.json").read_text())
+    assert res["test"] == "boschloo" and "did not plan the same episodes" in res["unpaired_reason"]
+
+
+def test_compare_reports_break_point_difference(tmp_path):
+    a = make_run(tmp_path / "a", {0: (20, 20), 1: (14, 20), 2: (4, 20), 3: (0, 20)})
+    b = make_run(tmp_path / "b", {0: (20, 20), 1: (19, 20), 2: (12, 20), 3: (1, 20)}, regime="h+mg")
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    d = json.loads((tmp_path / "c" / "compare.json").read_text())["axes"]["pick_y"]["break_point_diff"]["pos"]
+    assert d["level"] > 0.5 and d["ci"]["level"][0] <= d["level"] <= d["ci"]["level"][1]  # B breaks later
+    assert "Break point B − A" in (tmp_path / "c" / "compare.md").read_text()

@@ -13,8 +13,8 @@ from indgen_vla.errors import RunDirError
 def table(outcomes: dict[int, list[int]], seed0: int = 100) -> pd.DataFrame:
     """Episode rows of one run: level -> per-episode success (episode i has seed seed0 + i at every level)."""
     rows = [
-        {"task": "milk", "axis": "pick_y", "level": k, "episode": i, "seed": seed0 + i, "success": bool(s),
-         "status": "ok"}
+        {"scene": "pick_place", "task": "milk", "axis": "pick_y", "level": k, "param": 0.025 * k, "episode": i,
+         "seed": seed0 + i, "success": bool(s), "status": "ok"}
         for k, outs in outcomes.items()
         for i, s in enumerate(outs)
     ]  # fmt: skip
@@ -70,3 +70,27 @@ def test_unpaired_or_unbalanced_groups_are_refused():
         compare_groups([a], [table({0: [1, 1]}, seed0=7)])
     with pytest.raises(RunDirError, match="one run per training seed"):
         compare_groups([a, a], [a])
+
+
+def test_cli_compares_groups(tmp_path, capsys):
+    import json
+
+    from indgen_vla.cli import main
+    from tests.indgen_vla.test_report import make_run
+
+    a = [make_run(tmp_path / f"a{s}", {-1: (2, 10), 0: (10, 10), 1: (3, 10)}) for s in range(2)]
+    b = [
+        make_run(tmp_path / f"b{s}", {-1: (9, 10), 0: (10, 10), 1: (8, 10)}, regime="h+mg") for s in range(2)
+    ]
+    args = ["compare", "--a", *(str(r.path) for r in a), "--b", *(str(r.path) for r in b), "--label-a", "h-only",
+            "--label-b", "h+mg", "--out", str(tmp_path / "c")]  # fmt: skip
+    assert main(args) == 0
+    res = json.loads((tmp_path / "c" / "compare.json").read_text())
+    lv = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
+    # make_run solves episodes 0..s-1: level -1 pairs differ on episodes 2..8 in both seeds -> 0 vs 14 discordant
+    assert (lv[-1]["a_only"], lv[-1]["b_only"]) == (0, 14)
+    assert lv[-1]["p_value"] == pytest.approx(stats.binomtest(0, 14, 0.5).pvalue)
+    assert res["test"] == "mcnemar_exact_stratified" and "h+mg" in res["verdicts"]["pick_y"]
+    assert "## Axis `pick_y`" in (tmp_path / "c" / "compare.md").read_text()
+    assert main(["compare", str(a[0].path), "--a", str(a[0].path), "--b", str(b[0].path)]) == 2
+    assert main(["compare", "--a", str(a[0].path)]) == 2

@@ -5,14 +5,20 @@ from scipy.stats import barnard_exact, binomtest, boschloo_exact
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.metrics import (
+    UndeterminedBreakError,
+    below_floor,
     blackbox_reference,
     break_level,
     break_levels,
     clopper_pearson_ci,
     cochran_armitage,
     compare_levels,
+    compare_paired_levels,
     holm,
+    isotonic_decreasing,
     kstar,
+    mcnemar_exact,
+    monotone_decreasing_test,
     rollouts_needed,
     success_rate,
     wilson_ci,
@@ -57,7 +63,16 @@ def test_break_level_per_direction():
     assert break_levels(rates, 0.2) == {"pos": 3, "neg": -2}
     assert break_levels({0: 0.9, 1: 0.8}, 0.2) == {"pos": None}
     assert break_level({0: 0.1, 1: 0.9}) == 0
-    assert break_level({0: 0.9, 1: float("nan"), 2: 0.1}) == 2
+    # a level without usable data before the break is a hole: k* is undetermined, never skipped over
+    with pytest.raises(UndeterminedBreakError, match="level 1 has no usable data"):
+        break_level({0: 0.9, 1: float("nan"), 2: 0.1})
+    assert break_level({0: 0.9, 1: 0.1, 2: float("nan")}) == 1  # a hole after the break does not matter
+    assert break_levels({-2: 0.0, -1: float("nan"), 0: 0.9, 1: 0.1}, signed=True) == {
+        "pos": 1,
+        "neg": "undetermined",
+    }
+    with pytest.raises(UndeterminedBreakError):  # no break, but the last level is unknown
+        break_level({0: 0.9, 1: 0.8, 2: float("nan")})
     # exactly gamma does not break (S < gamma breaks)
     assert break_level({0: 1.0, 1: 0.2}, 0.2) is None
 
@@ -65,6 +80,11 @@ def test_break_level_per_direction():
 def test_kstar_paper_convention():
     assert kstar({0: 1.0, 1: 1.0, 2: 1.0, 3: 0.0}) == 3
     assert kstar({0: 1.0, 1: 1.0, 2: 1.0, 3: 0.86, 4: 0.5, 5: 0.3}) == 6  # K+1 when none breaks
+    # negative side: K+1 is one step beyond the extreme level in that direction, -4 over 0..-3
+    assert kstar({0: 1.0, -1: 0.9, -2: 0.8, -3: 0.5}) == -4
+    assert kstar({0: 1.0, -1: 0.9, -2: 0.1, -3: 0.5}) == -2
+    with pytest.raises(ConfigError, match="one direction"):
+        kstar({-1: 0.9, 0: 1.0, 1: 0.9})
     with pytest.raises(ConfigError):
         break_level({0: 1.0}, gamma=0)
 
@@ -113,3 +133,66 @@ def test_rollouts_needed():
     assert rollouts_needed(0.1, p=0.9) < 93
     with pytest.raises(ConfigError):
         rollouts_needed(0.7)
+
+
+def test_data_floor():
+    assert below_floor(4) and not below_floor(5)
+    assert below_floor(24, planned=50) and not below_floor(25, planned=50)  # fewer than half planned
+    assert below_floor(1, planned=4) and not below_floor(5, planned=None)
+
+
+def test_isotonic_pava_hand_values():
+    # 0.5 < 0.7 rises: pool with weights 10, 30 -> (5 + 21) / 40 = 0.65
+    assert isotonic_decreasing([0.9, 0.5, 0.7, 0.1], [10, 10, 30, 10]) == pytest.approx(
+        [0.9, 0.65, 0.65, 0.1]
+    )
+    # 0.2 < 0.6: pool -> 0.4, which equals the next value: all 0.4
+    assert isotonic_decreasing([0.2, 0.6, 0.4], [10, 10, 10]) == pytest.approx([0.4, 0.4, 0.4])
+    assert isotonic_decreasing([1.0, 0.5], [3, 1]) == [1.0, 0.5]  # already non-increasing
+
+
+def test_monotone_test_hand_values():
+    # x = 9, 5, 1 of 10: already decreasing, so the isotonic fit is the raw rates; common rate 0.5.
+    t = monotone_decreasing_test([9, 5, 1], [10, 10, 10])
+    ll_fit = 2 * (9 * math.log(0.9) + math.log(0.1)) + 10 * math.log(0.5)
+    assert t.fitted == pytest.approx((0.9, 0.5, 0.1))
+    assert t.statistic == pytest.approx(2 * (ll_fit - 30 * math.log(0.5)))
+    assert t.method == "exact" and t.p_decreasing < 0.001
+    # two levels of 2 episodes, 2 successes in all: tables (2,0), (1,1), (0,2) have null probabilities
+    # 1/6, 4/6, 1/6; only (2,0) shows a decrease, so the exact p-value is 1/6.
+    t = monotone_decreasing_test([2, 0], [2, 2])
+    assert t.p_decreasing == pytest.approx(1 / 6)
+    assert t.statistic == pytest.approx(8 * math.log(2))  # fit (1, 0): 2·(0 − 4 ln ½)
+    rising = monotone_decreasing_test([1, 5, 9], [10, 10, 10])  # rises: the fit pools to one rate
+    assert rising.statistic == 0.0 and rising.p_decreasing == 1.0
+    with pytest.raises(ConfigError, match="n = 0"):
+        monotone_decreasing_test([0, 1], [0, 3])
+
+
+def test_monotone_test_matches_chi_bar_squared_for_large_n():
+    from scipy.stats import chi2
+
+    # Three equal-n levels: the LRT's null is 1/3·χ²0 + 1/2·χ²1 + 1/6·χ²2 (level probabilities of the
+    # simple order, Robertson et al. 1988); the Monte Carlo permutation p-value must agree for large n.
+    t = monotone_decreasing_test([1040, 1000, 980], [2000, 2000, 2000], draws=10000)
+    assert t.method.startswith("monte carlo")
+    asymptotic = 0.5 * chi2.sf(t.statistic, 1) + chi2.sf(t.statistic, 2) / 6
+    assert 0.005 < asymptotic < 0.2 and t.p_decreasing == pytest.approx(asymptotic, abs=0.008)
+    # a curve that holds then collapses: monotone but far from linear; both tests see it
+    t = monotone_decreasing_test([10, 10, 10, 10, 0], [10] * 5)
+    assert t.p_decreasing < 0.001
+
+
+def test_mcnemar_is_binomtest_on_discordant_pairs():
+    assert mcnemar_exact(8, 1) == pytest.approx(binomtest(8, 9, 0.5).pvalue)
+    assert mcnemar_exact(8, 1) == pytest.approx(2 * 10 / 512)  # hand: 2·(C(9,0)+C(9,1))/2^9
+    assert mcnemar_exact(0, 0) == 1.0
+    pairs = {
+        0: [(True, True)] * 9 + [(True, False)],
+        1: [(True, False)] * 8 + [(False, True)] + [(False, False)] * 3,
+    }
+    rows = compare_paired_levels(pairs)
+    r1 = rows[1]
+    assert (r1["pairs"], r1["a_only"], r1["b_only"], r1["successes_a"], r1["successes_b"]) == (12, 8, 1, 8, 1)
+    assert r1["p_value"] == pytest.approx(binomtest(8, 9).pvalue)
+    assert rows[0]["p_value"] == 1.0 and r1["p_holm"] == pytest.approx(min(1.0, 2 * r1["p_value"]))

@@ -5,7 +5,7 @@ import pytest
 
 from indgen_vla.cli import main
 from indgen_vla.records import RunDir
-from indgen_vla.report import summarize
+from indgen_vla.report import plot_axis, render_markdown, summarize
 from tests.indgen_vla.test_records import rec
 
 
@@ -69,3 +69,106 @@ def test_labels_show_local_checkpoints_relative_to_the_working_directory(tmp_pat
     assert _short_spec("lerobot:/elsewhere/b") == "lerobot:/elsewhere/b"
     assert _short_spec("openpi:ws://gpu:8000") == "openpi:ws://gpu:8000"
     assert _short_spec("lerobot:org/model") == "lerobot:org/model" and _short_spec(None) is None
+
+
+def _run_with(path, rows, plan):
+    """A run dir from (task, level, episode, success, status) rows and a manifest plan."""
+    from indgen_vla.records import EpisodeRecord
+
+    run = RunDir.create_or_resume(
+        path, {"plan": plan, "policy": "standin:noop", "axes": {"pick_y": {"signed": True}}}
+    )
+    recs = [EpisodeRecord(run_id="r", policy="p", data_regime="", scene="s", task=t, axis="pick_y", level=k,
+                          param=0.025 * k, episode=i, seed=1000 + i, success=ok, steps=1, status=st,
+                          error="boom" if st == "error" else "")
+            for t, k, i, ok, st in rows]  # fmt: skip
+    run.append(recs)
+    return run
+
+
+def test_per_task_summary_and_pooled_curve(tmp_path):
+    # task a holds at level 1 (5/6) and breaks at 2 (0/6); task b breaks at 1 (1/6); pooled level 1 = 6/12
+    outcomes = {("a", 0): 6, ("a", 1): 5, ("a", 2): 0, ("b", 0): 6, ("b", 1): 1, ("b", 2): 0}
+    rows = [(t, k, i, i < s, "ok") for (t, k), s in outcomes.items() for i in range(6)]
+    plan = {"tasks": ["a", "b"], "levels": {"pick_y": [0, 1, 2]}, "episodes": 6}
+    run = _run_with(tmp_path / "r", rows, plan)
+    s = summarize(run.episodes(), run.manifest)
+    ax = s["axes"]["pick_y"]
+    assert ax["pooled_tasks"] == ["a", "b"]
+    assert [(r["level"], r["successes"], r["n"], r["planned"]) for r in ax["levels"]] == [
+        (0, 12, 12, 12), (1, 6, 12, 12), (2, 0, 12, 12)]  # fmt: skip
+    assert ax["break_level"] == {"pos": 2, "neg": None}
+    ta, tb = ax["tasks"]["a"], ax["tasks"]["b"]
+    assert [r["successes"] for r in ta["levels"]] == [6, 5, 0] and ta["levels"][1]["planned"] == 6
+    assert ta["break_level"]["pos"] == 2 and tb["break_level"]["pos"] == 1
+    assert tb["levels"][1]["ci_low"] == pytest.approx(0.030053, abs=1e-5)  # Wilson 1/6
+    md = render_markdown([("run", s)])
+    assert "Pooled over tasks: a, b." in md and "k* per task" in md
+    assert "| a | +: L2, −: none |" in md and "| b | +: L1, −: none |" in md
+    assert plot_axis([("run", ax)], "pick_y", 0.2, tmp_path / "p.png").stat().st_size > 1000
+
+
+def test_data_floor_and_visible_errors(tmp_path, capsys):
+    # level 0: 5 ok of 5; level 1: 1 ok + 3 errors of 4 planned; level 2: 4 of 4 ok but n < 5 -> both short
+    rows = [("t", 0, i, True, "ok") for i in range(5)] + [("t", 1, 0, True, "ok")]
+    rows += [("t", 1, i, False, "error") for i in (1, 2, 3)] + [("t", 2, i, False, "ok") for i in range(4)]
+    run = _run_with(tmp_path / "r", rows, {"tasks": ["t"], "levels": {"pick_y": [0, 1, 2, 3]}, "episodes": 4})
+    s = summarize(run.episodes(), run.manifest)
+    lv = {r["level"]: r for r in s["axes"]["pick_y"]["levels"]}
+    assert [lv[k]["insufficient"] for k in range(4)] == [False, True, True, True]
+    assert lv[3]["n"] == 0 and lv[3]["param"] is None  # planned, never run: still listed
+    assert lv[1]["errors"] == 3
+    # level 2 (0/4) would break, but it is below the floor and level 1 before it has no usable data
+    assert s["axes"]["pick_y"]["break_level"]["pos"] == "undetermined"
+    assert s["axes"]["pick_y"]["monotone"] == {} and s["axes"]["pick_y"]["trend"] == {}
+    md = render_markdown([("run", s)])
+    assert "insufficient data (n = 1 of 4; 3 errors)" in md and "insufficient data (n = 0 of 4)" in md
+    assert "| 2 | 0.05 | insufficient data (n = 4 of 4) |" in md
+    rows_md = [line for line in md.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 3 |"))]
+    assert len(rows_md) == 3 and not any("%" in line for line in rows_md)  # no rate below the floor
+    assert "undetermined" in md and "level 1 has 3 error episode(s) of 4 (75 % > 10 %)" in md
+    assert main(["report", str(run.path)]) == 0
+    out = capsys.readouterr().out
+    assert "insufficient data (n = 1 of 4; 3" in out and "undetermined" in out
+
+
+def test_monotone_test_is_shown_per_direction(tmp_path):
+    run = make_run(tmp_path, {-2: (2, 10), -1: (6, 10), 0: (10, 10), 1: (10, 10), 2: (9, 10)})
+    s = summarize(run.episodes(), run.manifest)
+    mono = s["axes"]["pick_y"]["monotone"]
+    from indgen_vla.metrics import monotone_decreasing_test
+
+    expect = monotone_decreasing_test([10, 6, 2], [10, 10, 10])
+    assert mono["neg"]["p_decreasing"] == pytest.approx(expect.p_decreasing) and mono["neg"]["levels"] == [
+        0,
+        -1,
+        -2,
+    ]
+    assert mono["pos"]["p_decreasing"] > 0.1
+    md = render_markdown([("run", s)])
+    row = next(line for line in md.splitlines() if line.startswith("| monotone decrease"))
+    assert f"−: p = {expect.p_decreasing:.2g} (exact)" in row and "+: p = " in row
+    assert any(line.startswith("| linear trend (Cochran–Armitage)") for line in md.splitlines())
+
+
+def test_verdicts_kstar_status_and_break_point(tmp_path):
+    from indgen_vla.metrics import wilson_ci
+
+    counts = {-3: (0, 20), -2: (2, 20), -1: (12, 20), 0: (20, 20), 1: (15, 20), 2: (5, 20), 3: (0, 20)}
+    run = make_run(tmp_path / "r", counts)
+    s = summarize(run.episodes(), run.manifest, gamma=0.2)
+    ax = s["axes"]["pick_y"]
+    want = {}
+    for k, (x, n) in counts.items():  # by hand from the Wilson bounds: broken < 0.2 <= intact
+        lo, hi = wilson_ci(x, n)
+        want[k] = "broken" if hi < 0.2 else ("intact" if lo >= 0.2 else "undetermined")
+    assert {r["level"]: r["decision"] for r in ax["levels"]} == want
+    assert want[2] == "undetermined" and want[3] == "broken"  # 5/20: CI [0.11, 0.47] straddles 0.2
+    assert ax["kstar_status"]["pos"]["text"] == "k* ∈ [+2, +3]"
+    assert ax["kstar_status"]["neg"]["text"] == "k* ∈ [-3, -2]"
+    bp = ax["break_point"]["pos"]
+    # the curve falls from 0.75 at +1 to 0.25 at +2 and 0 at +3: it crosses 0.2 between +1 and +3
+    assert 1 < bp["level"] < 3 and bp["ci"]["level"][0] <= bp["level"] <= bp["ci"]["level"][1]
+    assert bp["param"] == pytest.approx(0.025 * bp["level"], rel=1e-6)
+    md = render_markdown([("x", s)], "t")
+    assert "k\\* status" in md and "k* ∈ [+2, +3]" in md and "break point (S = γ)" in md

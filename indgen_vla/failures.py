@@ -1,0 +1,113 @@
+"""Failure modes in reports: per-level counts, the markdown breakdown, a stacked-bar panel, and what changed
+between two runs. The modes themselves are classified by the scenes (``scenes.failure``) from privileged
+simulator state the policy never sees; this module only counts them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from indgen_vla.interface import FAILURE_MODES
+
+UNCLASSIFIED = "unclassified"  # rows of run directories written before the failure column existed
+MODES = (*FAILURE_MODES, UNCLASSIFIED)
+COLOURS = {"none": "#4caf50", "no_contact": "#9e9e9e", "no_grasp": "#ff9800", "dropped": "#e53935",
+           "misplaced": "#8e24aa", "timeout_holding": "#1e88e5", "error": "#212121", UNCLASSIFIED: "#e0e0e0"}  # fmt: skip
+
+
+def failure_counts(level_df) -> dict[str, int]:
+    """Episodes per failure mode at one level (every finished row, errors included), in ``MODES`` order."""
+    if "failure" not in level_df:
+        return {UNCLASSIFIED: len(level_df)} if len(level_df) else {}
+    values = level_df["failure"].fillna("").replace("", UNCLASSIFIED)
+    counts = values.value_counts().to_dict()
+    return {m: int(counts[m]) for m in MODES if counts.get(m)}
+
+
+def render_breakdown(present: list[tuple[str, dict]]) -> list[str]:
+    """Markdown lines: per run, one row per level with each mode's count (only modes that occur)."""
+    lines = []
+    for label, a in present:
+        used = [m for m in MODES if any(r.get("failures", {}).get(m) for r in a["levels"])]
+        if not set(used) - {"none", UNCLASSIFIED}:  # nothing classified failed: no table to show
+            continue
+        lines += ["", f"Failure modes ({label}; `none` = success, see README):", "",
+                  "| level | " + " | ".join(used) + " |", "|---|" + "---|" * len(used)]  # fmt: skip
+        for r in a["levels"]:
+            f = r.get("failures", {})
+            lines.append(f"| {r['level']} | " + " | ".join(str(f.get(m, 0)) for m in used) + " |")
+    return lines
+
+
+def classified(levels: list[dict]) -> bool:
+    """Whether any episode of these summary levels carries a failure mode (runs before the column: none)."""
+    return any(m != UNCLASSIFIED for r in levels for m in r.get("failures", {}))
+
+
+def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path | None:
+    """One stacked-bar panel per run: the share of each failure mode per level (None: nothing classified)."""
+    if not any(classified(a["levels"]) for _, a in curves):
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 3.2), dpi=120, squeeze=False)
+    for ax, (label, a) in zip(axes[0], curves, strict=True):
+        rows = [r for r in a["levels"] if sum(r.get("failures", {}).values())]
+        ks = [r["level"] for r in rows]
+        bottom = [0.0] * len(rows)
+        for m in MODES:
+            share = [r.get("failures", {}).get(m, 0) / sum(r["failures"].values()) for r in rows]
+            if any(share):
+                ax.bar(ks, share, bottom=bottom, color=COLOURS[m], label=m, width=0.8)
+                bottom = [b + s for b, s in zip(bottom, share, strict=True)]
+        ax.set_title(f"{label}", fontsize=8)
+        ax.set_xlabel(f"level k along {axis}")
+        ax.set_ylim(0, 1)
+        if ks:
+            ax.set_xticks(ks)
+    axes[0][0].set_ylabel("share of episodes")
+    handles, labels = {}, []
+    for ax in axes[0]:
+        for h, lbl in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lbl, h)
+    labels = [m for m in MODES if m in handles]
+    fig.legend([handles[m] for m in labels], labels, fontsize=7, loc="upper right", ncol=1)
+    fig.tight_layout(rect=(0, 0, 0.82, 1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def failure_shift(a_levels: list[dict], b_levels: list[dict]) -> dict:
+    """Which failure modes changed between two runs on one axis: per mode, its share of all episodes of the
+    shared levels in A and in B and the difference (B − A), largest change first."""
+    shared = {r["level"] for r in a_levels} & {r["level"] for r in b_levels}
+
+    def shares(levels: list[dict]) -> dict[str, float]:
+        counts: dict[str, int] = {}
+        for r in levels:
+            if r["level"] in shared:
+                for m, c in r.get("failures", {}).items():
+                    counts[m] = counts.get(m, 0) + c
+        total = sum(counts.values())
+        return {m: c / total for m, c in counts.items()} if total else {}
+
+    sa, sb = shares(a_levels), shares(b_levels)
+    rows = [{"mode": m, "share_a": sa.get(m, 0.0), "share_b": sb.get(m, 0.0), "diff": sb.get(m, 0.0) - sa.get(m, 0.0)}
+            for m in MODES if m in sa or m in sb]  # fmt: skip
+    return {"levels": sorted(shared), "modes": sorted(rows, key=lambda r: -abs(r["diff"]))}
+
+
+def render_shift(shift: dict, label_a: str, label_b: str) -> list[str]:
+    """Markdown lines for ``failure_shift``: each mode's share in A and B over the shared levels."""
+    if not shift["modes"]:
+        return []
+    lines = ["", f"Failure modes, share of all episodes on the shared levels ({label_a} → {label_b}); descriptive, "
+             "not tested:", "", "| mode | A | B | B − A |", "|---|---|---|---|"]  # fmt: skip
+    for r in shift["modes"]:
+        lines.append(f"| {r['mode']} | {100 * r['share_a']:.0f}% | {100 * r['share_b']:.0f}% | "
+                     f"{100 * r['diff']:+.0f} pts |")  # fmt: skip
+    return lines
