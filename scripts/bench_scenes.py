@@ -1,9 +1,11 @@
-"""Benchmark the scenes wrapper against a bare robosuite loop on the same scene.
+"""Benchmark the physics step and the scenes wrapper against bare robosuite loops on the same scene.
 
-For each scene: physics control steps/s with no cameras (``SceneEnv.step`` vs the underlying robosuite
-env's ``step``), and rendered frames/s with both cameras at 128x128 (``SceneEnv.step`` with cameras vs
-robosuite ``step`` + the same two MuJoCo renders). Blocks are interleaved so background load hits both
-sides alike. Prints a markdown table and, on its last line, one JSON object.
+For each scene, per 20 Hz control step (25 MuJoCo steps), no cameras, the same seeded actions: stock robosuite
+1.4 (``env.step`` with ``fast_physics=False``), the bit-identical fast path (``scenes.sim.FastControl``, the
+default), raw ``mj_step`` replaying the fast path's recorded controls (MuJoCo alone: the floor), and
+``SceneEnv.step`` (the wrapper on the fast path); wall and CPU ms, best of the interleaved repeats. Then
+rendered frames/s with both cameras at 128x128 (``SceneEnv.step`` with cameras vs robosuite ``step`` + the
+same two MuJoCo renders). Prints a markdown table and, on its last line, one JSON object.
 
     .venv/bin/python scripts/bench_scenes.py [--steps 200] [--repeats 3]
 """
@@ -37,63 +39,133 @@ def _actions(n: int) -> np.ndarray:
     return a
 
 
-def _wrapper(env, actions) -> float:
+class _Clock:
+    """Wall and CPU seconds of one block."""
+
+    def __enter__(self):
+        self.wall, self.cpu = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc):
+        self.wall, self.cpu = time.perf_counter() - self.wall, time.process_time() - self.cpu
+
+
+def _wrapper(env, actions) -> tuple[float, float]:
+    env._rs.fast_physics = True
     env.reset(seed=0)
-    t = time.perf_counter()
+    with _Clock() as c:
+        for a in actions:
+            env.step(a)
+    return c.wall, c.cpu
+
+
+class _Recorder:
+    """Stands in for the ``mujoco`` module inside ``FastControl``: records ``ctrl`` at every ``mj_step``."""
+
+    def __init__(self):
+        import mujoco
+
+        self.mujoco, self.ctrls = mujoco, []
+
+    def __getattr__(self, name):
+        return getattr(self.mujoco, name)
+
+    def mj_step(self, m, d):
+        self.ctrls.append(d.ctrl.copy())
+        self.mujoco.mj_step(m, d)
+
+
+def _record_controls(env, actions) -> tuple[list[np.ndarray], np.ndarray]:
+    """The fast path's per-substep controls for ``actions`` and its final qpos."""
+    from scenes.sim import FastControl
+
+    env.reset(seed=0)
+    rs = env._rs
+    rs.fast_physics, rs._indgen_fast = True, FastControl(rs)
+    rec = rs._indgen_fast.mujoco = _Recorder()
     for a in actions:
-        env.step(a)
-    return time.perf_counter() - t
+        rs.step(a)
+    qpos = rs.sim.data.qpos.copy()
+    env.reset(seed=0)  # drops the recording FastControl
+    return rec.ctrls, qpos
 
 
-def _bare(env, actions, render: bool) -> float:
+def _raw(env, ctrls, qpos_end) -> tuple[float, float]:
+    """MuJoCo alone: ``mj_step`` with the recorded controls (the same trajectory, checked bit for bit)."""
+    import mujoco
+
+    env.reset(seed=0)
+    m, d = env._rs.sim.model._model, env._rs.sim.data._data
+    with _Clock() as c:
+        for u in ctrls:
+            d.ctrl[:] = u
+            mujoco.mj_step(m, d)
+    if not np.array_equal(d.qpos, qpos_end):
+        raise RuntimeError("replaying the recorded controls did not reproduce the fast path's trajectory")
+    return c.wall, c.cpu
+
+
+def _bare(env, actions, render: bool, fast: bool = True) -> tuple[float, float]:
     """The same robosuite env stepped directly; optionally the same two renders, nothing else."""
     import mujoco
 
     env.reset(seed=0)
     rs = env._rs
+    rs.fast_physics = fast
     renderer = mujoco.Renderer(rs.sim.model._model, height=SIZE[0], width=SIZE[1]) if render else None
     opt = mujoco.MjvOption()
     opt.geomgroup[0] = 0
-    t = time.perf_counter()
-    for a in actions:
-        rs.step(a)
-        if renderer is not None:
-            for cam in CAMS:
-                renderer.update_scene(rs.sim.data._data, camera=CAMERA_NAMES[cam], scene_option=opt)
-                renderer.render()
-    dt = time.perf_counter() - t
+    with _Clock() as c:
+        for a in actions:
+            rs.step(a)
+            if renderer is not None:
+                for cam in CAMS:
+                    renderer.update_scene(rs.sim.data._data, camera=CAMERA_NAMES[cam], scene_option=opt)
+                    renderer.render()
+    rs.fast_physics = True
     if renderer is not None:
         renderer.close()
-    return dt
+    return c.wall, c.cpu
 
 
-def bench_scene(scene: str, steps: int, repeats: int) -> dict:
+def bench_scene(scene: str, steps: int, repeats: int, render: bool = True) -> dict:
     actions = _actions(steps)
-    out = {"scene": scene}
+    out: dict = {"scene": scene}
     env = scenes.make_env(scene, cameras=(), max_steps=10**6)
     try:
-        w, b = [], []
+        ctrls, qpos_end = _record_controls(env, actions)
+        runs: dict[str, list[tuple[float, float]]] = {k: [] for k in ("stock", "fast", "raw", "wrapper")}
         for _ in range(repeats):
-            w.append(_wrapper(env, actions))
-            b.append(_bare(env, actions, render=False))
-        out["physics_steps_per_s_wrapper"] = steps / min(w)
-        out["physics_steps_per_s_bare"] = steps / min(b)
-    finally:
-        env.close()
-    env = scenes.make_env(scene, cameras=CAMS, image_size=SIZE, max_steps=10**6)
-    try:
-        rsteps = max(steps // 4, 10)
-        w, b = [], []
-        for _ in range(repeats):
-            w.append(_wrapper(env, actions[:rsteps]))
-            b.append(_bare(env, actions[:rsteps], render=True))
-        out["frames_per_s_wrapper"] = rsteps * len(CAMS) / min(w)
-        out["frames_per_s_bare"] = rsteps * len(CAMS) / min(b)
+            runs["stock"].append(_bare(env, actions, render=False, fast=False))
+            runs["fast"].append(_bare(env, actions, render=False, fast=True))
+            runs["raw"].append(_raw(env, ctrls, qpos_end))
+            runs["wrapper"].append(_wrapper(env, actions))
+        for k, v in runs.items():
+            out[f"ms_per_step_{k}"] = 1e3 * min(w for w, _ in v) / steps
+            out[f"cpu_ms_per_step_{k}"] = 1e3 * min(c for _, c in v) / steps
+        out["physics_steps_per_s_wrapper"] = 1e3 / out["ms_per_step_wrapper"]
+        out["physics_steps_per_s_bare"] = 1e3 / out["ms_per_step_fast"]
+        out["speedup_fast_vs_stock"] = out["ms_per_step_stock"] / out["ms_per_step_fast"]
+        out["cpu_speedup_fast_vs_stock"] = out["cpu_ms_per_step_stock"] / out["cpu_ms_per_step_fast"]
+        out["fast_vs_raw"] = out["ms_per_step_fast"] / out["ms_per_step_raw"]
     finally:
         env.close()
     out["physics_overhead_pct"] = 100 * (
         out["physics_steps_per_s_bare"] / out["physics_steps_per_s_wrapper"] - 1
     )
+    if not render:
+        return out
+    env = scenes.make_env(scene, cameras=CAMS, image_size=SIZE, max_steps=10**6)
+    try:
+        rsteps = max(steps // 4, 10)
+        w, b = [], []
+        for _ in range(repeats):
+            w.append(_wrapper(env, actions[:rsteps])[0])
+            b.append(_bare(env, actions[:rsteps], render=True)[0])
+        out["frames_per_s_wrapper"] = rsteps * len(CAMS) / min(w)
+        out["frames_per_s_bare"] = rsteps * len(CAMS) / min(b)
+    finally:
+        env.close()
     out["render_overhead_pct"] = 100 * (out["frames_per_s_bare"] / out["frames_per_s_wrapper"] - 1)
     return out
 
@@ -103,17 +175,29 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--scenes", default=",".join(SCENES))
-    args = ap.parse_args()
-    rows = [bench_scene(s, args.steps, args.repeats) for s in args.scenes.split(",")]
-    print(
-        "| scene | physics steps/s (wrapper / bare) | overhead | frames/s 2x128² (wrapper / bare) | overhead |"
+    ap.add_argument(
+        "--no-render", action="store_true", help="physics columns only (skip the 2-camera frames)"
     )
-    print("|---|---|---|---|---|")
+    args = ap.parse_args()
+    if args.steps < 1 or args.repeats < 1:
+        print("bench_scenes: --steps and --repeats must be >= 1", file=sys.stderr)
+        return 2
+    rows = [bench_scene(s, args.steps, args.repeats, not args.no_render) for s in args.scenes.split(",")]
+    print(
+        "| scene | ms/control step: stock robosuite | fast path | raw mj_step | speed-up (CPU) | fast / raw "
+        "| SceneEnv (fast) | wrapper overhead | frames/s 2x128² (wrapper / bare) | overhead |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(
-            f"| {r['scene']} | {r['physics_steps_per_s_wrapper']:.0f} / {r['physics_steps_per_s_bare']:.0f} | "
-            f"{r['physics_overhead_pct']:+.1f} % | {r['frames_per_s_wrapper']:.1f} / {r['frames_per_s_bare']:.1f} | "
-            f"{r['render_overhead_pct']:+.1f} % |"
+            f"| {r['scene']} | {r['ms_per_step_stock']:.2f} | {r['ms_per_step_fast']:.2f} | "
+            f"{r['ms_per_step_raw']:.2f} | {r['speedup_fast_vs_stock']:.2f}× ({r['cpu_speedup_fast_vs_stock']:.2f}×) | "
+            f"{r['fast_vs_raw']:.2f}× | {r['ms_per_step_wrapper']:.2f} | {r['physics_overhead_pct']:+.1f} % | "
+            + (
+                f"{r['frames_per_s_wrapper']:.1f} / {r['frames_per_s_bare']:.1f} | {r['render_overhead_pct']:+.1f} % |"
+                if "frames_per_s_wrapper" in r
+                else "— | — |"
+            )
         )
     print(json.dumps({"bench": "scenes", "steps": args.steps, "repeats": args.repeats, "rows": rows}))
     return 0

@@ -137,6 +137,8 @@ class Support:
 class LiberoSceneEnv(BaseSceneEnv):
     """One level of one LIBERO task; ``reset(seed=, options={"episode": i})`` starts from fixed init state i."""
 
+    fast_physics = True  # scenes.sim.fast_step: stock robosuite states bit for bit (False: LIBERO's own step)
+
     def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
         self.info = task_info(scene.name, task)
         self.instruction = self.info.language
@@ -315,7 +317,7 @@ class LiberoSceneEnv(BaseSceneEnv):
         if self.spec.pick.scale != 1.0:
             raw = self._env.set_init_state(self._rest_scaled_pick(self._level_state(self.init_index)))
         for _ in range(NUM_STEPS_WAIT):
-            raw, _, _, _ = self._env.step(DUMMY_ACTION)
+            raw = self._sim_step(DUMMY_ACTION)
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False
@@ -389,8 +391,16 @@ class LiberoSceneEnv(BaseSceneEnv):
         """LIBERO's ``OffScreenRenderEnv``/``ControlEnv`` (None once closed)."""
         return self._sim_env
 
+    def _sim_step(self, action) -> dict:
+        """One LIBERO control step, its raw observation: ``scenes.sim.fast_step`` (bit for bit) or LIBERO's."""
+        if not self.fast_physics:
+            return self._env.step(action)[0]
+        from scenes.sim import fast_step
+
+        return fast_step(self._env.env, action)[0]  # LIBERO's step adds only a 4-d (OSC_POSITION) conversion
+
     def _advance(self, action: np.ndarray) -> bool:
-        self._raw, _, _, _ = self._env.step(action)
+        self._raw = self._sim_step(action)
         return bool(self._env.check_success())
 
     def _failure_signals(self) -> tuple[bool, float]:
