@@ -25,6 +25,7 @@ HANDLERS: dict[str, tuple[str, str]] = {
     "certify": ("scenes.certify:certify_main", "the scenes capability (issue: Scenes)"),
     "report": ("indgen_vla.report:report_main", "the protocol core"),
     "compare": ("indgen_vla.compare:compare_main", "the protocol core"),
+    "reference": ("indgen_vla.reference:reference_main", "the protocol core"),
     "serve": ("policy_wrappers.serve:serve_main", "the policy wrappers (issue: Policy wrappers)"),
     "scenes": ("scenes.catalog:scenes_main", "the scenes capability (issue: Scenes)"),
     "axes": ("scenes.catalog:axes_main", "the scenes capability (issue: Scenes)"),
@@ -73,7 +74,29 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         help="inclusive range like -3:3 or list like 0,1,2 (default: the axis range)",
     )
     p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
-    p.add_argument("--episodes", type=int, default=None, help="episodes per level (default 50)")
+    p.add_argument(
+        "--axes-preset",
+        default=None,
+        metavar="NAME|PATH",
+        help="configs/axes preset or YAML: steps and ranges",
+    )
+    p.add_argument(
+        "--episodes", type=int, default=None, help="episodes per level (default 50; the cap with --adaptive)"
+    )
+    p.add_argument(
+        "--adaptive",
+        choices=["kstar", "curve"],
+        default=None,
+        help="run episodes in rounds and stop a level once a sequential test decides it (kstar: also skip levels "
+        "past a decided break; curve: decide every level); docs/adaptive.md",
+    )
+    p.add_argument(
+        "--adaptive-delta", type=float, default=None, help="indifference half-width around γ (default 0.1)"
+    )
+    p.add_argument(
+        "--adaptive-alpha", type=float, default=None, help="error rate of each verdict, α = β (default 0.025)"
+    )
+    p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
     p.add_argument("--backend", choices=["local", "ray"], default=None)
     p.add_argument("--seed", type=int, default=None, help="run seed (default 0)")
@@ -98,6 +121,12 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
     )
+    p.add_argument(
+        "--server-patience",
+        type=float,
+        default=None,
+        help="seconds to keep reconnecting to an unreachable policy server before stopping (default 600)",
+    )
     p.add_argument("--config", default=None, help="YAML preset (configs/paper/*.yaml); flags override it")
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
 
@@ -105,15 +134,28 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
 def _add_certify(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
     p.add_argument("--scene", required=True)
-    p.add_argument("--task", default=None)
+    p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
     p.add_argument("--axis", required=True)
     p.add_argument("--levels", default=None)
     p.add_argument("--step", type=float, default=None)
-    p.add_argument("--episodes", type=int, default=20)
+    p.add_argument(
+        "--axes-preset",
+        default=None,
+        metavar="NAME|PATH",
+        help="configs/axes preset or YAML: component steps",
+    )
+    p.add_argument(
+        "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
+    )
+    p.add_argument(
+        "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-steps", type=int, default=None)
-    p.add_argument("--workers", type=int, default=1)
-    p.add_argument("--out", required=True)
+    p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
+    p.add_argument(
+        "--out", default=None, help="folder for certify.json (default: where evaluate looks; resumes there)"
+    )
 
 
 def _add_report(sp: argparse._SubParsersAction) -> None:
@@ -125,13 +167,53 @@ def _add_report(sp: argparse._SubParsersAction) -> None:
 
 
 def _add_compare(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("compare", help="per-level exact tests between two runs, Holm-corrected")
-    p.add_argument("run_a", metavar="RUN_A")
-    p.add_argument("run_b", metavar="RUN_B")
-    p.add_argument("--test", choices=["barnard", "boschloo"], default="boschloo")
-    p.add_argument("--gamma", type=float, default=0.2)
-    p.add_argument("--alpha", type=float, default=0.05)
-    p.add_argument("--out", default=None)
+    p = sp.add_parser(
+        "compare", help="per-level exact tests between two runs (paired when seeds match), Holm"
+    )
+    p.add_argument("run_a", metavar="RUN_A", nargs="?", help="run directory A (or use --a for a group)")
+    p.add_argument("run_b", metavar="RUN_B", nargs="?", help="run directory B (or use --b for a group)")
+    p.add_argument(
+        "--a", nargs="+", metavar="RUN", help="group A: one run per training seed (paired with --b by order)"
+    )
+    p.add_argument(
+        "--b", nargs="+", metavar="RUN", help="group B: one run per training seed, same seed order as --a"
+    )
+    p.add_argument(
+        "--label-a", default=None, help="name of group/run A in tables (default: its data regime or policy)"
+    )
+    p.add_argument("--label-b", default=None, help="name of group/run B in tables")
+    p.add_argument(
+        "--margin", type=float, default=0.10, help="equivalence margin for groups (TOST on OOD mean success)"
+    )
+    p.add_argument(
+        "--test",
+        choices=["auto", "mcnemar", "boschloo", "barnard"],
+        default="auto",
+        help="auto: exact McNemar when the runs are paired episode by episode (same seeds and plan), else "
+        "Boschloo (default auto)",
+    )
+    p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
+    p.add_argument("--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)")
+    p.add_argument("--out", default=None, help="output folder (default: RUN_A/compare)")
+
+
+def _add_reference(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser(
+        "reference",
+        help="black-box regime: pick T0 from reference policies' runs, test the level ordering on held-out episodes",
+        description="Black-box reference level (paper appendix B): each RUN_DIR is one reference policy evaluated on "
+        "the (task, level) configurations of one axis. T0 = the configuration with the highest mean success over "
+        "the policies, chosen on even-numbered episodes; the ordering of the levels around T0 is then tested "
+        "(isotonic LRT and Cochran-Armitage) on the held-out odd-numbered episodes.",
+    )
+    p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="one run directory per reference policy")
+    p.add_argument(
+        "--axis", default=None, help="axis whose levels are the configurations (default: the only shared one)"
+    )
+    p.add_argument(
+        "--task", default=None, help="restrict the configurations to one task (default: every shared task)"
+    )
+    p.add_argument("--out", default=None, help="folder for reference.json/.md (default: FIRST_RUN/reference)")
 
 
 def _add_serve(sp: argparse._SubParsersAction) -> None:
@@ -168,6 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_certify(sp)
     _add_report(sp)
     _add_compare(sp)
+    _add_reference(sp)
     _add_serve(sp)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
@@ -194,7 +277,9 @@ def _resolve(command: str):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``indgen`` console script."""
+    """Entry point of the ``indgen`` console script. Exit codes (README "Exit codes"): 0 success, 1 an
+    unexpected crash, 2 bad input (``IndgenError``), 3 ``evaluate`` finished with ``error`` episodes, 4 it
+    stopped early because the policy server stayed unreachable, 130 Ctrl-C."""
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)

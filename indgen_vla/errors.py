@@ -37,6 +37,24 @@ class PolicyError(IndgenError):
     """A policy that cannot be loaded, reached, or returned a malformed action."""
 
 
+# Exit codes of ``indgen evaluate`` (README "Exit codes"): 0 every planned episode ok, 2 bad input,
+# EXIT_EPISODE_ERRORS the run finished but some episodes ended ``error``, EXIT_STOPPED the run stopped early
+# (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130).
+EXIT_EPISODE_ERRORS = 3
+EXIT_STOPPED = 4
+
+
+class PolicyConnectionError(PolicyError):
+    """A fault of the connection to a policy server (refused, reset, closed mid-reply, timed out, HTTP 5xx),
+    not of the episode: the engine pauses and reconnects instead of recording an ``error`` episode."""
+
+    exit_code = EXIT_STOPPED
+
+
+class ServerUnreachableError(PolicyConnectionError):
+    """The policy server stayed unreachable past ``--server-patience``; finished episodes are on disk."""
+
+
 class SceneError(IndgenError):
     """A scene that cannot be built or stepped."""
 

@@ -7,6 +7,11 @@ errors come back as ``{"error": msg}``. N1.5 ``get_action`` takes flat unbatched
 (1,2), ``annotation.human.action.task_description`` [str]) and returns ``action.*`` (16, D). N1.6 (server run
 with ``--use-sim-policy-wrapper``) takes ``{"observation": flat batched keys (B,1,…), "options"}`` and returns
 ``[action, info]`` with ``action.*`` (B, 16, D); it also has ``reset`` and ``get_modality_config``.
+
+Gripper: GR00T's LIBERO checkpoints output [0, 1] with 1 = open (the RLDS convention), so upstream inverts:
+N1.5 ``examples/Libero/eval/utils.py:normalize_gripper_action`` computes ``sign(1 - 2x)``, N1.6+
+``gr00t/eval/sim/LIBERO/libero_env.py`` ``normalize_gripper_action`` (``sign(2x - 1)``) then
+``invert_gripper_action`` (x -1). Both are our ``gripper=01inv`` (the default): 0.9 -> -1 (open).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyError
+from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import ACTION_DIM, CAMERAS, Observation, validate_chunk
 from policy_wrappers.base import PolicySpec
 from policy_wrappers.image_tools import GRIPPER_MODES, convert_gripper, flip_180, resize_with_pad
@@ -50,7 +55,7 @@ class GrootConfig:
     render_size: int = 256
     image_size: int | None = None  # resize-with-pad before sending; None sends the render as is
     flip_180: bool = True
-    gripper: str = "01"
+    gripper: str = "01inv"  # upstream LIBERO eval: [0, 1] (1 = open) -> sign(1 - 2x)
     timeout_s: float = 60.0
     connect_timeout_s: float = 10.0
 
@@ -107,26 +112,27 @@ class GrootPolicy:
         self._sock = None
 
     def call(self, endpoint: str, data=None, requires_input: bool = True, timeout_s: float | None = None):
-        """One request/reply; a timeout or error reply raises PolicyError (a timed-out REQ socket is rebuilt)."""
+        """One request/reply. A timeout or ZMQ error raises PolicyConnectionError and rebuilds the REQ socket
+        (so the next call reconnects); an error reply from the server raises PolicyError."""
         request: dict = {"endpoint": endpoint}
         if requires_input:
             request["data"] = data
         if self.config.api_token:
             request["api_token"] = self.config.api_token
-        sock = self._socket()
         timeout = self.config.timeout_s if timeout_s is None else timeout_s
         try:
+            sock = self._socket()
             sock.send(groot_packb(request))
             if not sock.poll(int(timeout * 1000)):
                 self._drop()
-                raise PolicyError(
+                raise PolicyConnectionError(
                     f"policy {self.spec.name}: no reply from {self.config.url} to {endpoint!r} within "
                     f"{timeout:g}s; is the GR00T server running?"
                 )
             message = sock.recv()
         except self._zmq.ZMQError as e:
             self._drop()
-            raise PolicyError(
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: ZMQ error talking to {self.config.url}: {e}"
             ) from None
         if message == b"ERROR":
@@ -311,7 +317,7 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
         render_size=options.int("render", 256),
         image_size=options.int("size"),
         flip_180=options.bool("flip", True),
-        gripper=options.choice("gripper", GRIPPER_MODES, "01"),
+        gripper=options.choice("gripper", GRIPPER_MODES, "01inv"),
         timeout_s=options.float("timeout", 60.0),
         connect_timeout_s=options.float("connect_timeout", 10.0),
     )

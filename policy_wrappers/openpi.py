@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyError
+from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.base import PolicySpec
@@ -97,29 +97,29 @@ class OpenpiPolicy:
                 open_timeout=self.config.connect_timeout_s,
             )
         except ConnectionRefusedError:
-            raise PolicyError(
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: connection refused at {self.config.url}; is the openpi server running?"
             ) from None
-        except (TimeoutError, OSError) as e:
-            raise PolicyError(
+        except (TimeoutError, OSError, EOFError) as e:
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: cannot reach {self.config.url}: {e or type(e).__name__}"
             ) from None
         except InvalidStatus as e:
-            hint = (
-                "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if e.response.status_code in (401, 403) else ""
-            )
-            raise PolicyError(
-                f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}"
-            ) from None
-        except (InvalidHandshake, InvalidURI) as e:
-            raise PolicyError(
+            code = e.response.status_code
+            hint = "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if code in (401, 403) else ""
+            kind = PolicyConnectionError if code >= 500 else PolicyError  # 5xx: a proxy or a restarting server
+            raise kind(f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}") from None
+        except InvalidURI as e:
+            raise PolicyError(f"policy {self.spec.name}: bad websocket URL {self.config.url}: {e}") from None
+        except InvalidHandshake as e:  # e.g. the server died during the handshake
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: websocket handshake with {self.config.url} failed: {e}"
             ) from None
         try:
             first = ws.recv(timeout=self.config.connect_timeout_s)
         except Exception as e:
             ws.close()
-            raise PolicyError(
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: server at {self.config.url} sent no metadata frame ({type(e).__name__})"
             ) from None
         if isinstance(first, str):
@@ -142,7 +142,8 @@ class OpenpiPolicy:
         self._pending_reset = {"instruction": instruction, "seed": -1 if seed is None else int(seed)}
 
     def infer(self, request: dict) -> dict:
-        """One round trip; any failure drops the connection (the next call reconnects) and raises PolicyError."""
+        """One round trip; any failure drops the connection (the next call reconnects). Transport faults
+        (timeout, reset, closed mid-reply) raise PolicyConnectionError, a server error frame PolicyError."""
         from websockets.exceptions import ConnectionClosed
 
         if self._ws is None:
@@ -152,12 +153,14 @@ class OpenpiPolicy:
             reply = self._ws.recv(timeout=self.config.timeout_s)
         except TimeoutError:
             self._drop()
-            raise PolicyError(
+            raise PolicyConnectionError(
                 f"policy {self.spec.name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
             ) from None
-        except (ConnectionClosed, OSError) as e:
+        except (ConnectionClosed, OSError, EOFError) as e:
             self._drop()
-            raise PolicyError(f"policy {self.spec.name}: connection to {self.config.url} lost: {e}") from None
+            raise PolicyConnectionError(
+                f"policy {self.spec.name}: connection to {self.config.url} lost: {e}"
+            ) from None
         if isinstance(reply, str):
             self._drop()
             raise PolicyError(f"policy {self.spec.name}: server error: {_last_line(reply)}")

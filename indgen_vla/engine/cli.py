@@ -14,7 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.engine.config import EvalConfig, config_from_args, plan_episodes
-from indgen_vla.errors import ConfigError, InfeasibleLevelError, UnknownNameError
+from indgen_vla.errors import (
+    EXIT_EPISODE_ERRORS,
+    ConfigError,
+    InfeasibleLevelError,
+    ServerUnreachableError,
+    UnknownNameError,
+)
 from indgen_vla.progression import AxisSpec, parse_levels
 from indgen_vla.records import SUMMARY, RunDir
 
@@ -71,7 +77,7 @@ def resolve(cfg: EvalConfig) -> ResolvedPlan:
     supported = list(scenes.axes_for(cfg.scene))
     axes, levels = {}, {}
     for name in cfg.axes:
-        spec = scenes.get_axis(name, step=cfg.step)
+        spec = scenes.get_axis(name, step=cfg.step, preset=cfg.axes_preset)
         parts = name.split("+")
         missing = [p for p in parts if p not in supported]
         if missing:
@@ -80,31 +86,56 @@ def resolve(cfg: EvalConfig) -> ResolvedPlan:
             )
         axes[name] = spec
         levels[name] = parse_levels(cfg.levels, spec)
+        for task in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
+            scenes.check_axis_progression(cfg.scene, task, name, cfg.step, cfg.axes_preset)
     return ResolvedPlan(tasks, axes, levels)
 
 
+def _levels_text(levels: list[int]) -> str:
+    return ", ".join(f"{k:+d}" if k else "0" for k in levels)
+
+
 def check_feasible(cfg: EvalConfig, plan: ResolvedPlan) -> list[str]:
-    """Refuse levels the oracle did not certify (Assumption 2) unless --allow-infeasible; return warnings."""
+    """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
+    line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
     try:
-        from scenes.certify import find_certification, infeasible_levels
+        from scenes.certify import certified_levels, find_certification, infeasible_levels
     except ImportError:
         return ["feasibility not checked: the scenes package has no certification support"]
     warnings = []
     for name, spec in plan.axes.items():
-        cert = find_certification(cfg.scene, name, cfg.step)
-        if cert is None:
-            warnings.append(
-                f"axis {name} at step {spec.step:g} has no oracle certification; run 'indgen certify'"
-            )
-            continue
-        bad = sorted(set(infeasible_levels(cert)) & set(plan.levels[name]))
-        if bad and not cfg.allow_infeasible:
+        want = plan.levels[name]
+        failed: dict[str, list[int]] = {}
+        missing: dict[str, list[int]] = {}
+        for task in plan.tasks:
+            cert = find_certification(cfg.scene, task, name, cfg.step, preset=cfg.axes_preset)
+            bad = sorted(set(infeasible_levels(cert)) & set(want)) if cert else []
+            ok = set(certified_levels(cert)) if cert else set()
+            short = [k for k in want if k not in ok and k not in bad]
+            if bad:
+                failed[task] = bad
+            if short:
+                missing[task] = short
+        if failed and not cfg.allow_infeasible:
+            where = "; ".join(f"task {t}: levels {_levels_text(b)}" for t, b in failed.items())
             raise InfeasibleLevelError(
-                f"levels {bad} of {cfg.scene}/{name} are not solvable by the oracle (< 95 %); drop them from "
-                "--levels or pass --allow-infeasible"
+                f"{cfg.scene}/{name}: the oracle failed its certification at {where}; drop them from --levels "
+                "or pass --allow-infeasible"
             )
-        if bad:
-            warnings.append(f"evaluating infeasible levels {bad} of {name} (--allow-infeasible)")
+        if failed:
+            where = "; ".join(f"task {t}: {_levels_text(b)}" for t, b in failed.items())
+            warnings.append(f"evaluating levels of {name} the oracle failed (--allow-infeasible): {where}")
+        if missing:
+            if all(v == want for v in missing.values()) and len(missing) == len(plan.tasks):
+                where = f"all requested levels of {'every task' if len(plan.tasks) > 1 else 'task ' + plan.tasks[0]}"
+            else:
+                where = "; ".join(f"task {t}: levels {_levels_text(v)}" for t, v in missing.items())
+            warnings.append(
+                f"axis {name} (step {spec.step:g} {spec.unit}) is uncertified at {where} (no oracle certificate "
+                f"with enough evidence); run 'indgen certify --scene {cfg.scene} --axis {name} --task "
+                f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}{f' --step {cfg.step:g}' if cfg.step else ''}"
+                f"{f' --axes-preset {cfg.axes_preset}' if cfg.axes_preset else ''}'"
+            )
     return warnings
 
 
@@ -144,16 +175,23 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
     import scenes
 
-    params = {(t, a, k): scenes.level_param(cfg.scene, t, a, k, cfg.step) for t in plan.tasks for a in cfg.axes
+    params = {(t, a, k): scenes.level_param(cfg.scene, t, a, k, cfg.step, cfg.axes_preset) for t in plan.tasks
+              for a in cfg.axes
               for k in plan.levels[a]}  # fmt: skip
     jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
     done = run.done_keys()
     todo = [j for j in jobs if j.key not in done]
+    if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
+        from indgen_vla.engine.adaptive import next_round
+
+        todo = next_round(jobs, run.episodes(), cfg)
     if todo:
         from policy_wrappers.registry import load_policy
 
         def make_policy():
-            return load_policy(cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device)
+            return load_policy(
+                cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene
+            )
 
         probe = make_policy()
         spec = probe.spec
@@ -163,13 +201,21 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
         runner_cfg = RunnerConfig(
             scene=cfg.scene, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
-            step=cfg.step, privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
+            step=cfg.step, axes_preset=cfg.axes_preset, privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
             video_dir=str(out / "videos") if cfg.video else None,
         )  # fmt: skip
         meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
-        _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console)
+        try:
+            _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console)
+        except ServerUnreachableError as e:
+            raise ServerUnreachableError(f"{e} (run directory {out})") from None
     elif not quiet:
-        console.print(f"all {len(jobs)} planned episodes are already in {out}; writing the report")
+        done_text = (
+            "the decisions of every level the adaptive rule needs are"
+            if cfg.adaptive
+            else f"all {len(jobs)} planned episodes are"
+        )
+        console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
     return out
 
@@ -183,11 +229,10 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
     for j in jobs:
         planned[(j.axis, j.level)] += 1
     stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
-    for r in run.episodes().itertuples():
-        stats[(r.axis, int(r.level))][0 if r.status == "ok" else 2] += (
-            int(r.success) if r.status == "ok" else 1
-        )
-        stats[(r.axis, int(r.level))][1] += int(r.status == "ok")
+    for r in run.episodes().itertuples():  # earlier error rows are re-run now: only ok rows count as done
+        if r.status == "ok":
+            stats[(r.axis, int(r.level))][0] += int(r.success)
+            stats[(r.axis, int(r.level))][1] += 1
     columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
                TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
     with Progress(*columns, console=console, transient=False) as progress:
@@ -209,21 +254,36 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
             progress.update(rows[(rec.axis, rec.level)], advance=1, info=_level_info(s))
             progress.update(total, advance=1)
 
-        first = [probe]
+        made, handed = [probe], [0]
 
-        def policy_factory():  # hand the already loaded probe to the first consumer
-            return first.pop() if first else make_policy()
+        def policy_factory():  # hand out the loaded policies again in every round; load more only when needed
+            if handed[0] == len(made):
+                made.append(make_policy())
+            handed[0] += 1
+            return made[handed[0] - 1]
 
-        if cfg.backend == "ray":
-            from indgen_vla.engine.ray_backend import run_ray
+        def run_jobs(batch: list) -> None:
+            handed[0] = 0
+            if cfg.backend == "ray":
+                from indgen_vla.engine.ray_backend import run_ray
 
-            run_ray(todo, runner_cfg, cfg, meta, on_record, replan)
-        else:
-            from indgen_vla.engine.local import run_local
+                run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
+            else:
+                from indgen_vla.engine.local import run_local
 
-            run_local(todo, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries)
-        if first:  # the ray backend loads its own policies in its actors
-            probe.close()
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
+                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text))  # fmt: skip
+
+        try:
+            if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
+                from indgen_vla.engine.adaptive import run_adaptive
+
+                run_adaptive(jobs, run.episodes, run_jobs, cfg)
+            else:
+                run_jobs(todo)
+        finally:
+            for p in made:  # the ray backend loads its own policies in its actors
+                p.close()
 
 
 def _level_info(s: list[int]) -> str:
@@ -233,7 +293,9 @@ def _level_info(s: list[int]) -> str:
 
 
 def evaluate_main(args: argparse.Namespace) -> int:
-    """CLI handler for ``indgen evaluate``."""
+    """CLI handler for ``indgen evaluate``: exit 0 only when every planned episode finished ``ok``,
+    EXIT_EPISODE_ERRORS (3) when some ended ``error`` (re-run to retry them); a run that stopped early raises
+    (ServerUnreachableError -> EXIT_STOPPED (4), Ctrl-C -> 130), bad input ConfigError -> 2."""
     cfg = config_from_args(args)
     out = evaluate(cfg)
     from indgen_vla.report import print_tables, run_label
@@ -245,4 +307,5 @@ def evaluate_main(args: argparse.Namespace) -> int:
     if n_err:
         print(f"warning: {n_err} episode(s) ended with errors (see the 'error' column); re-run to retry them",
               file=sys.stderr)  # fmt: skip
+        return EXIT_EPISODE_ERRORS
     return 0

@@ -27,6 +27,7 @@ class EvalConfig:
     task: str | None = None
     levels: str | None = None
     step: float | None = None
+    axes_preset: str | None = None  # configs/axes NAME or YAML PATH: component steps and level ranges
     episodes: int = DEFAULT_EPISODES
     workers: int = 1
     backend: str = "local"
@@ -43,6 +44,11 @@ class EvalConfig:
     trust_remote_code: bool = False
     max_retries: int = 2
     device: str = "cpu"
+    server_patience: float = 600.0  # seconds a remote policy server may stay unreachable before the run stops
+    adaptive: str | None = None  # "kstar" | "curve": sequential episodes per level (docs/adaptive.md)
+    adaptive_delta: float = 0.1  # indifference half-width around gamma
+    adaptive_alpha: float = 0.025  # stated error rate of each verdict (alpha = beta)
+    round_size: int = 5  # episodes between two looks of the sequential rule
 
     def __post_init__(self) -> None:
         if not self.policy:
@@ -67,21 +73,49 @@ class EvalConfig:
                 raise ConfigError(f"--{name.replace('_', '-')} must be >= 1, got {v}")
         if self.step is not None and not self.step > 0:
             raise ConfigError(f"--step must be positive, got {self.step}")
+        if self.axes_preset is not None:
+            from scenes.axes import load_preset as load_axes_preset  # yaml only; raises one clear line
+
+            load_axes_preset(self.axes_preset)
         if self.warmup_steps < 0 or self.max_retries < 0 or self.video_per_level < 0:
             raise ConfigError("warmup_steps, max_retries and video_per_level must be >= 0")
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
+        if not self.server_patience >= 0:
+            raise ConfigError(f"--server-patience must be >= 0 seconds, got {self.server_patience}")
+        if self.adaptive is not None:
+            self.sequential_rule()  # validates mode and rule parameters in one clear line each
+            if self.task == "all":
+                raise ConfigError(
+                    "--adaptive decides one task's levels; run one --task at a time (or drop --adaptive)"
+                )
+
+    def sequential_rule(self):
+        """The sequential rule of an ``--adaptive`` run (its cap is ``--episodes``)."""
+        from indgen_vla.sequential import MODES, SequentialRule
+
+        if self.adaptive not in MODES:
+            raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {self.adaptive!r}")
+        return SequentialRule(gamma=self.gamma, delta=self.adaptive_delta, alpha=self.adaptive_alpha,
+                              beta=self.adaptive_alpha, round_size=self.round_size, max_episodes=self.episodes)  # fmt: skip
 
     def plan_dict(
         self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None
     ) -> dict[str, Any]:
         """The part of the config that fixes which episodes exist and how they run (resume must match)."""
-        return {
+        plan = {
             "policy": self.policy, "scene": self.scene, "tasks": tasks, "axes": list(self.axes),
             "levels": {a: levels[a] for a in self.axes}, "step": self.step, "episodes": self.episodes,
             "seed": self.seed, "max_steps": max_steps, "replan_steps": self.replan_steps,
             "warmup_steps": self.warmup_steps, "image_size": self.image_size, "data_regime": self.data_regime,
         }  # fmt: skip
+        if self.axes_preset is not None:  # only when set, so runs made before the option still resume
+            plan["axes_preset"] = self.axes_preset
+        if self.adaptive is not None:
+            from indgen_vla.engine.adaptive import adaptive_plan_entry
+
+            plan["adaptive"] = adaptive_plan_entry(self.adaptive, self.sequential_rule())
+        return plan
 
 
 FLAG_FIELDS = {f.name for f in dataclasses.fields(EvalConfig)}

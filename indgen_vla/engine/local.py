@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing as mp
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -14,7 +15,9 @@ from multiprocessing.connection import wait
 import numpy as np
 
 from indgen_vla.engine.config import EpisodeJob
+from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, _describe, make_record
+from indgen_vla.errors import PolicyConnectionError
 from indgen_vla.interface import validate_chunk
 from indgen_vla.records import EpisodeRecord
 
@@ -118,6 +121,15 @@ class _Slot:
     attempt: int = 0
     fresh: bool = True
     last_error: str = ""
+    acts: int = 0  # successful policy calls in the current try of the episode
+    faults: int = 0  # connection faults of this episode in the current outage (backoff exponent)
+    wake: float = 0.0  # > 0: paused by a connection fault until this monotonic time
+    fault_at: float = 0.0  # when the last connection fault happened
+    fault_acts: int = -1  # ``acts`` at the last connection fault
+    poison: int = 0  # consecutive faults at the same point while the server answered others
+
+
+POISON_FAULTS = 5  # after this many, a connection drop that only this episode triggers is an episode fault
 
 
 def run_local(
@@ -129,11 +141,15 @@ def run_local(
     workers: int = 1,
     replan_steps: int = 1,
     max_retries: int = 2,
+    server_patience_s: float = DEFAULT_PATIENCE_S,
+    on_wait: Callable[[str], None] | None = None,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
     Batched policies get one ``act`` per round over all waiting environments; per-episode-stateful
-    policies get one instance per worker (remote ones are called concurrently from threads).
+    policies get one instance per worker (remote ones are called concurrently from threads). A connection
+    fault pauses the episode, waits with backoff (``on_wait`` gets the progress line, "" when it clears)
+    and re-runs it from its seed; past ``server_patience_s`` it raises ``ServerUnreachableError``.
     """
     n = max(1, min(workers, len(jobs)))
     if not jobs:
@@ -144,6 +160,8 @@ def run_local(
     ctx = _context()
     pool: list = []
     threads = ThreadPoolExecutor(max_workers=n) if not spec.batched and n > 1 else None
+    outage = Outage(patience_s=server_patience_s)
+    notify = on_wait or (lambda text: None)
     try:
         pool = (
             [_InProcessWorker(runner_cfg)] if n == 1 else [_ProcessWorker(ctx, runner_cfg) for _ in range(n)]
@@ -157,7 +175,7 @@ def run_local(
                     slots.pop(i, None)
                     return
                 slot = _Slot(queue.popleft())
-            slot.fresh = True
+            slot.fresh, slot.acts, slot.wake = True, 0, 0.0
             slots[i] = slot
             pool[i].send(("reset", slot.job))
 
@@ -173,14 +191,40 @@ def run_local(
                 )
                 start(i)
 
+        def conn_fault(i: int, e: Exception) -> None:
+            """Pause the episode and schedule a fresh try from its seed (never a half-episode record)."""
+            slot, now, error = slots[i], time.monotonic(), _describe(e)
+            same_point = slot.acts == slot.fault_acts and outage.last_ok > slot.fault_at
+            slot.poison = slot.poison + 1 if same_point else 0
+            if slot.poison + 1 >= POISON_FAULTS:  # the server answers others but drops this episode
+                slot.poison, slot.faults, slot.fault_acts = 0, 0, -1
+                fail(
+                    i, f"{error} (the connection dropped {POISON_FAULTS} times at this point of the episode)"
+                )
+                return
+            slot.faults += 1
+            slot.wake = now + outage.fault(slot.faults, error)
+            slot.fault_at, slot.fault_acts = now, slot.acts
+            notify(outage.describe(min(s.wake for s in slots.values() if s.wake)))
+
         for i in range(n):
             start(i)
         while slots:
-            busy = list(slots)
+            now = time.monotonic()
+            for i in [i for i, s in slots.items() if s.wake and s.wake <= now]:
+                start(i, slots[i])  # the server may be back: re-run the paused episode from its seed
+            busy = [i for i, s in slots.items() if not s.wake]
+            paused = [s.wake for s in slots.values() if s.wake]
+            if paused:
+                notify(outage.describe(min(paused)))
             ready = [i for i in busy if pool[i].poll()]
             if not ready:
+                timeout = min(1.0, max(0.0, min(paused) - now)) if paused else None
+                if not busy:
+                    time.sleep(timeout or 0.0)
+                    continue
                 conns = {pool[i].conn: i for i in busy}
-                ready = [conns[c] for c in wait(list(conns))]
+                ready = [conns[c] for c in wait(list(conns), timeout)]
             waiting: list[tuple[int, Transition]] = []
             for i in ready:
                 t = pool[i].recv()
@@ -199,15 +243,24 @@ def run_local(
                     policy = policies[0] if spec.batched else policies[i]
                     try:
                         policy.reset(t.obs.instruction, seed=slots[i].job.seed)
+                    except PolicyConnectionError as e:
+                        conn_fault(i, e)
+                        continue
                     except Exception as e:
                         fail(i, _describe(e))
                         continue
                     slots[i].fresh = False
             waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
             for i, result in _act(policies, spec, waiting, meta.policy, threads):
-                if isinstance(result, str):
-                    fail(i, result)
+                if isinstance(result, PolicyConnectionError):
+                    conn_fault(i, result)
+                elif isinstance(result, Exception):
+                    fail(i, _describe(result))
                 else:
+                    if outage.ok():
+                        notify("")
+                    slots[i].acts += 1
+                    slots[i].faults = 0
                     pool[i].send(("step", result[:replan_steps]))
     finally:
         if threads is not None:
@@ -223,15 +276,15 @@ def run_local(
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
 
 
-def _act(policies, spec, waiting, who: str, threads) -> list[tuple[int, np.ndarray | str]]:
-    """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, error message)."""
+def _act(policies, spec, waiting, who: str, threads) -> list[tuple[int, np.ndarray | Exception]]:
+    """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, the exception)."""
     if not waiting:
         return []
     if spec.batched:
         try:
             chunks = validate_chunk(policies[0].act([t.obs for _, t in waiting]), len(waiting), who)
         except Exception as e:
-            return [(i, _describe(e)) for i, _ in waiting]
+            return [(i, e) for i, _ in waiting]
         return [(i, chunks[j]) for j, (i, _) in enumerate(waiting)]
 
     def one(item):
@@ -239,7 +292,7 @@ def _act(policies, spec, waiting, who: str, threads) -> list[tuple[int, np.ndarr
         try:
             return i, validate_chunk(policies[i].act([t.obs]), 1, who)[0]
         except Exception as e:
-            return i, _describe(e)
+            return i, e
 
     return (
         list(threads.map(one, waiting))

@@ -1,7 +1,8 @@
 """The Ray backend: each actor owns a scene runner and its own policy; episodes are scheduled
 dynamically across actors. Seeds come from the plan, so results equal the local backend's.
 
-Connects to the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance.
+Connects to the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance. Each actor waits out
+a policy server outage on its own (``run_episode``'s backoff), with the same ``--server-patience``.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from collections.abc import Callable, Sequence
 
 from indgen_vla.engine.config import EpisodeJob, EvalConfig
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
-from indgen_vla.errors import ConfigError
+from indgen_vla.errors import ConfigError, ServerUnreachableError
 from indgen_vla.records import EpisodeRecord
 
 
@@ -27,12 +28,16 @@ class _EpisodeActor:
         from policy_wrappers.registry import load_policy
 
         self.runner = EnvRunner(runner_cfg)
-        self.policy = load_policy(policy, trust_remote_code=trust_remote_code, device=device)
+        self.policy = load_policy(
+            policy, trust_remote_code=trust_remote_code, device=device, scene=runner_cfg.scene
+        )
 
-    def run(self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int) -> EpisodeRecord:
+    def run(
+        self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float
+    ) -> EpisodeRecord:
         from indgen_vla.engine.rollout import run_episode
 
-        return run_episode(self.runner, self.policy, job, meta, replan, max_retries)
+        return run_episode(self.runner, self.policy, job, meta, replan, max_retries, patience)
 
     def close(self) -> None:
         self.runner.close()
@@ -64,9 +69,16 @@ def run_ray(
     actors = [actor_cls.remote(runner_cfg, cfg.policy, cfg.trust_remote_code, cfg.device) for _ in range(n)]
     try:
         pool = ActorPool(actors)
-        results = pool.map_unordered(lambda a, j: a.run.remote(j, meta, replan, cfg.max_retries), list(jobs))
-        for record in results:
-            on_record(record)
+        results = pool.map_unordered(
+            lambda a, j: a.run.remote(j, meta, replan, cfg.max_retries, cfg.server_patience), list(jobs)
+        )
+        try:
+            for record in results:
+                on_record(record)
+        except ray.exceptions.RayTaskError as e:  # an actor gave up on the server: one clear line
+            if isinstance(getattr(e, "cause", None), ServerUnreachableError):
+                raise ServerUnreachableError(str(e.cause)) from None
+            raise
     finally:
         ray.get([a.close.remote() for a in actors], timeout=60)
         for a in actors:

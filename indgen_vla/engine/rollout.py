@@ -29,6 +29,7 @@ class RunnerConfig:
     max_steps: int | None
     step: float | None
     privileged: bool
+    axes_preset: str | None = None  # configs/axes preset (component steps of compositions)
     warmup_steps: int = 0
     objects: bool = False  # attach Observation.objects (low-dim policies that declare observes_objects)
     video_dir: str | None = None
@@ -82,6 +83,7 @@ class EnvRunner:
             self._env = scenes.make_env(
                 self.cfg.scene, task=job.task, axis=job.axis, level=job.level, step=self.cfg.step,
                 cameras=cams, image_size=self.cfg.image_size, max_steps=self.cfg.max_steps,
+                preset=self.cfg.axes_preset,
             )  # fmt: skip
             self._env_key = key
         return self._env
@@ -180,25 +182,42 @@ def make_record(
 
 
 def run_episode(
-    runner: EnvRunner, policy, job: EpisodeJob, meta: RunMeta, replan_steps: int, max_retries: int = 2
+    runner: EnvRunner,
+    policy,
+    job: EpisodeJob,
+    meta: RunMeta,
+    replan_steps: int,
+    max_retries: int = 2,
+    server_patience_s: float = 600.0,
 ):
     """The reference loop: reset, then act → execute ``replan_steps`` of each chunk until done.
 
     A policy or simulator failure retries the episode from its seed up to ``max_retries`` times, then
-    returns a record with status "error" and the message (never a silent failure).
+    returns a record with status "error" and the message (never a silent failure). A connection fault
+    (``PolicyConnectionError``) waits with backoff and re-runs the episode without using up a retry; past
+    ``server_patience_s`` it raises ``ServerUnreachableError``.
     """
-    last_error = ""
-    for attempt in range(max_retries + 1):
+    from indgen_vla.engine.reconnect import Outage
+    from indgen_vla.errors import PolicyConnectionError
+
+    outage, faults, attempt, last_error = Outage(patience_s=server_patience_s), 0, 0, ""
+    while attempt <= max_retries:
         t = runner.reset(job)
         try:
             if not t.error:
                 policy.reset(t.obs.instruction, seed=job.seed)
             while not t.done and not t.error:
                 chunk = validate_chunk(policy.act([t.obs]), 1, meta.policy)
+                outage.ok()
                 t = runner.execute(chunk[0, :replan_steps])
+        except PolicyConnectionError as e:
+            faults += 1
+            time.sleep(outage.fault(faults, _describe(e)))
+            continue  # the same attempt again, from the seed
         except Exception as e:  # PolicyError and anything the model raises
             t = Transition(job.key, None, done=True, error=_describe(e))
         if not t.error:
             return make_record(meta, job, t)
-        last_error = f"attempt {attempt + 1}: {t.error}"
+        attempt += 1
+        last_error = f"attempt {attempt}: {t.error}"
     return make_record(meta, job, t, status="error", error=last_error)

@@ -51,3 +51,36 @@ def test_passthrough_and_unknown_flags(capsys):
     with pytest.raises(SystemExit) as e:
         main(["report", "x", "--bogus"])
     assert e.value.code == 2 and "unrecognized arguments: --bogus" in capsys.readouterr().err
+
+
+def test_paper_presets_run_the_suite_they_are_named_after():
+    """A preset named after a LIBERO suite runs that suite; every other one starts with the built-in scene it
+    runs (the stand-ins for suites the toolkit does not bundle end in ``_style``)."""
+    import scenes
+    from indgen_vla.engine.config import PRESET_DIR, load_preset
+
+    presets = {p.stem: load_preset(str(p)) for p in sorted(PRESET_DIR.glob("*.yaml"))}
+    assert {"libero_object", "pick_place_libero_object_style"} <= set(presets)
+    suites = [s for s in scenes.scene_names() if s.startswith("libero_")]
+    for name, d in presets.items():
+        scene = d["scene"]
+        suite = next((s for s in suites if name.startswith(s)), None)
+        assert scene == (suite or scene) and name.startswith(scene), name
+        if suite is None and any(w in name for w in ("libero", "robocasa", "real_robot")):
+            assert name.endswith("_style") or "distractor" in name, name
+        for axis in d["axes"]:
+            assert set(axis.split("+")) <= set(scenes.axes_for(scene)), (name, axis)
+    assert presets["libero_object"]["task"] == "all" and presets["libero_object"]["axes"] == [
+        "pick_y",
+        "goal_y",
+        "scale",
+    ]
+
+
+def test_reference_subcommand_documents_every_option(capsys):
+    with pytest.raises(SystemExit):
+        main(["reference", "--help"])
+    out = capsys.readouterr().out
+    for opt in ("RUN_DIR", "--axis", "--task", "--out"):
+        assert opt in out
+    assert "held-out" in out.replace("\n", " ") or "held out" in out
