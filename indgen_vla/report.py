@@ -486,7 +486,9 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                     ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
                 t.add_row(str(r["level"]), _param(r["param"]), str(r["n"]), str(r["errors"]), rate, ci)
             console.print(t)
-            console.print(f"break level k*: {_fmt_break(a['break_level'], a['signed'])}")
+            console.print(f"break level k*: {_fmt_break(a['break_level'], a['signed'])} "
+                          f"({_fmt_status(a.get('kstar_status', {}), a['signed'])})")  # fmt: skip
+            console.print(f"break point (S = γ): {_fmt_point(a.get('break_point', {}), a['signed'])}")
             console.print(
                 f"monotone decrease (isotonic LRT): {_fmt_tests(a.get('monotone', {}), a['signed'], True)}"
             )

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export MUJOCO_GL="${MUJOCO_GL:-egl}" HF_HUB_OFFLINE=1
 OUT="${DEMO_OUT:-demo_out}"
-EPISODES="${DEMO_EPISODES:-4}"
+EPISODES="${DEMO_EPISODES:-10}"  # >= 5: below that a level has too little data for a rate
 INDGEN=.venv/bin/indgen
 start=$(date +%s)
 run() {  # run NAME POLICY REGIME
