@@ -43,8 +43,6 @@ LIBERO_CAMERA_NAMES = {
     "image2",
 }  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
-# indgen's state-only checkpoints feed proprioception as lerobot's environment state (policy_wrappers.lerobot_steps)
-PROPRIO_STEP_CLASS = "policy_wrappers.lerobot_steps.ProprioAsEnvStateStep"
 
 
 @dataclass(frozen=True)
@@ -198,7 +196,7 @@ class LeRobotPolicy:
                 f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
                 f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos"
             )
-        from policy_wrappers.lerobot_steps import OBJECT_STEP_CLASS
+        from policy_wrappers.lerobot_steps import OBJECT_STEP_CLASS, PROPRIO_STEP_CLASS
 
         self._objects = cfg.env_state_feature is not None and _has_step(path, rev, OBJECT_STEP_CLASS)
         if self._objects and tuple(cfg.env_state_feature.shape) != (OBJECT_DIM,):
