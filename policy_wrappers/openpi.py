@@ -107,8 +107,12 @@ class OpenpiPolicy:
         except InvalidStatus as e:
             code = e.response.status_code
             hint = "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if code in (401, 403) else ""
-            kind = PolicyConnectionError if code >= 500 else PolicyError  # 5xx: a proxy or a restarting server
-            raise kind(f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}") from None
+            kind = (
+                PolicyConnectionError if code >= 500 else PolicyError
+            )  # 5xx: a proxy or a restarting server
+            raise kind(
+                f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}"
+            ) from None
         except InvalidURI as e:
             raise PolicyError(f"policy {self.spec.name}: bad websocket URL {self.config.url}: {e}") from None
         except InvalidHandshake as e:  # e.g. the server died during the handshake

@@ -1,6 +1,6 @@
 """Power of the data-regime study design (docs/results/data_regimes.md), by simulation; run once before the study.
 
-    .venv/bin/python scripts/power_data_regimes.py
+.venv/bin/python scripts/power_data_regimes.py
 """
 
 import numpy as np

@@ -108,7 +108,16 @@ def test_certify_writes_rows_and_loads(tmp_path):
     assert [r["level"] for r in cert["levels"]] == [0, 1]
     assert cert["levels"][1]["param"] == pytest.approx(0.25)
     for r in cert["levels"]:
-        assert {"level", "param", "n", "successes", "rate", "feasible", "lower_bound", "certified"} <= r.keys()
+        assert {
+            "level",
+            "param",
+            "n",
+            "successes",
+            "rate",
+            "feasible",
+            "lower_bound",
+            "certified",
+        } <= r.keys()
         assert r["n"] == 1 and r["rate"] == r["successes"] / r["n"]
         # one episode can never certify 95 %: a success leaves too little evidence, a failure fails the level
         assert not r["certified"] and r["status"] == ("insufficient" if r["successes"] else "failed")
@@ -171,7 +180,9 @@ def test_find_certification_matches_scene_task_axis_and_step(tmp_path, monkeypat
     d.mkdir(parents=True)
     row = {"level": 0, "param": 0.0, "n": 1, "successes": 1, "rate": 1.0, "feasible": True}
     (d / "certify.json").write_text(
-        json.dumps({"scene": "stack", "task": "orange_on_blue", "axis": "stack", "step": 0.25, "levels": [row]})
+        json.dumps(
+            {"scene": "stack", "task": "orange_on_blue", "axis": "stack", "step": 0.25, "levels": [row]}
+        )
     )
     assert find_certification("stack", "orange_on_blue", "stack", root=tmp_path)["levels"] == [row]
     assert find_certification("stack", "orange_on_blue", "stack", step=0.5, root=tmp_path) is None
