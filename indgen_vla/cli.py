@@ -98,7 +98,12 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
-    p.add_argument("--backend", choices=["local", "ray"], default=None)
+    p.add_argument(
+        "--backend",
+        choices=["local", "ray"],
+        default=None,
+        help="local worker processes or Ray (default local)",
+    )
     p.add_argument("--seed", type=int, default=None, help="run seed (default 0)")
     p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
     p.add_argument(
@@ -133,11 +138,11 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
 
 def _add_certify(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
-    p.add_argument("--scene", required=True)
+    p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
     p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
-    p.add_argument("--axis", required=True)
-    p.add_argument("--levels", default=None)
-    p.add_argument("--step", type=float, default=None)
+    p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
+    p.add_argument("--levels", default=None, help="range like -3:3 or list 0,1,2 (default: the axis range)")
+    p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
     p.add_argument(
         "--axes-preset",
         default=None,
@@ -150,8 +155,8 @@ def _add_certify(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
     )
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-steps", type=int, default=None)
+    p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
+    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
     p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
     p.add_argument(
         "--out", default=None, help="folder for certify.json (default: where evaluate looks; resumes there)"
@@ -218,11 +223,15 @@ def _add_reference(sp: argparse._SubParsersAction) -> None:
 
 def _add_serve(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("serve", help="serve any policy over openpi's websocket protocol")
-    p.add_argument("--policy", required=True)
-    p.add_argument("--host", default="127.0.0.1")
-    p.add_argument("--port", type=int, default=8000)
+    p.add_argument(
+        "--policy", required=True, help="policy spec to serve, e.g. lerobot:HUB_ID or standin:oracle"
+    )
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback only)")
+    p.add_argument("--port", type=int, default=8000, help="port (default 8000)")
     p.add_argument("--api-key", default=None, help="require 'Authorization: Api-Key KEY' from clients")
-    p.add_argument("--trust-remote-code", action="store_true")
+    p.add_argument(
+        "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
+    )
 
 
 def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argparse.ArgumentParser:
