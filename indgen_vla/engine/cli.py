@@ -272,7 +272,8 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
                 from indgen_vla.engine.local import run_local
 
                 run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
-                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text))  # fmt: skip
+                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
+                          close_policies=False)  # closed below, after the last round  # fmt: skip
 
         try:
             if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)

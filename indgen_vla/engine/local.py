@@ -143,6 +143,7 @@ def run_local(
     max_retries: int = 2,
     server_patience_s: float = DEFAULT_PATIENCE_S,
     on_wait: Callable[[str], None] | None = None,
+    close_policies: bool = True,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
@@ -267,7 +268,7 @@ def run_local(
             threads.shutdown(wait=False, cancel_futures=True)
         for w in pool:
             w.close()
-        for p in policies:
+        for p in policies if close_policies else ():  # the caller may keep them for its next call
             close = getattr(p, "close", None)
             if close is not None:
                 try:

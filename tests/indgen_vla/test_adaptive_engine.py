@@ -55,3 +55,58 @@ def test_adaptive_config_errors(tmp_path):
         cfg(tmp_path, task="all")
     with pytest.raises(ConfigError, match="delta"):
         cfg(tmp_path, adaptive_delta=0.5)
+
+
+class ClosablePolicy:
+    """Acts until closed, then refuses: the adaptive loop must keep its policies open between rounds."""
+
+    def __init__(self):
+        from policy_wrappers.base import PolicySpec
+
+        self.spec = PolicySpec("standin", "test:closable", chunk_size=4, replan_steps=4, cameras=())
+        self.closed = False
+
+    def reset(self, instruction, seed=None):
+        if self.closed:
+            raise RuntimeError("reset after close")
+
+    def act(self, observations):
+        import numpy as np
+
+        if self.closed:
+            raise RuntimeError("act after close")
+        return np.zeros((len(observations), 4, 7), np.float32)
+
+    def close(self):
+        self.closed = True
+
+
+def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
+    from indgen_vla.engine.adaptive import run_adaptive
+    from indgen_vla.engine.config import plan_episodes
+    from indgen_vla.engine.local import run_local
+    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.records import RunDir
+
+    c = cfg(tmp_path, levels="0", episodes=20)
+    jobs = plan_episodes(c, ["milk"], {"pick_y": [0]}, {("milk", "pick_y", 0): -0.13})
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": c.plan_dict(["milk"], {"pick_y": [0]}, 6)})
+    policy = ClosablePolicy()
+    rc = RunnerConfig(
+        scene="pick_place", cameras=(), image_size=(64, 64), max_steps=6, step=None, privileged=False
+    )
+    meta = RunMeta("r", "test:closable", "", "pick_place")
+    rounds = []
+
+    def run_jobs(batch):
+        rounds.append(len(batch))
+        run_local(batch, rc, lambda: policy, meta, lambda rec: run.append([rec]), workers=1, replan_steps=4,
+                  close_policies=False)  # fmt: skip
+
+    run_adaptive(jobs, run.episodes, run_jobs, c)
+    df = run.episodes()
+    assert (
+        len(rounds) == 3 and (df["status"] == "ok").all() and not policy.closed
+    )  # 3 rounds of 5 on one policy
+    run_local(jobs[15:16], rc, lambda: policy, meta, lambda rec: None, workers=1, replan_steps=4)
+    assert policy.closed  # by default run_local closes what it was given
