@@ -149,7 +149,7 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
         client.close()
     finally:
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=10)
+        out, err = proc.communicate(timeout=30)  # once took > 10 s in a full-suite run (2026-11-23)
     assert proc.returncode == 0, err
     assert f"serving standin:random on ws://127.0.0.1:{port}" in out
 
