@@ -131,6 +131,8 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # a suite started as a background job ignores SIGINT, and children inherit that: restore the default
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         deadline = time.monotonic() + 30
@@ -149,7 +151,7 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
         client.close()
     finally:
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)  # once took > 10 s in a full-suite run (2026-11-23)
+        out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert f"serving standin:random on ws://127.0.0.1:{port}" in out
 
