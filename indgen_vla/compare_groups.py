@@ -14,8 +14,8 @@ import math
 from typing import Any
 
 from indgen_vla.errors import RunDirError
-from indgen_vla.groups import kstar_value, mean_difference, ood_area, stratified_mcnemar, tost
-from indgen_vla.metrics import break_levels, holm
+from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
+from indgen_vla.metrics import UndeterminedBreakError, holm, kstar
 
 
 def _ok(df):
@@ -87,13 +87,14 @@ def _seed_level(episodes_a: list, episodes_b: list, axis: str, gamma: float, mar
         for df in group:
             rates = _rates(df[df["axis"] == axis])
             signed = any(k < 0 for k in rates)
-            brk = break_levels(rates, gamma, signed)
             for d in ("pos", "neg") if signed else ("pos",):
-                own = [k for k in rates if (k >= 0 if d == "pos" else k <= 0)]
-                value = brk[d] if brk[d] != "undetermined" else None
-                if brk[d] == "undetermined":
-                    raise RunDirError(f"axis {axis}: a run lacks data at a level before its break; finish it")
-                per[side].setdefault(f"kstar_{d}", []).append(kstar_value(value, own, d))
+                own = {k: r for k, r in rates.items() if (k >= 0 if d == "pos" else k <= 0)}
+                try:
+                    per[side].setdefault(f"kstar_{d}", []).append(kstar(own, gamma))  # K+1 when none breaks
+                except UndeterminedBreakError:
+                    raise RunDirError(
+                        f"axis {axis}: a run lacks data at a level before its break; finish it"
+                    ) from None
             per[side].setdefault("ood_area", []).append(ood_area(rates))
     res = {}
     for name in per["a"]:

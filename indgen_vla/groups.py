@@ -109,12 +109,3 @@ def ood_area(rates: Mapping[int, float]) -> float:
     if not ood or any(math.isnan(r) for r in ood):
         raise ConfigError("the OOD area needs a finished rate at every level |k| >= 1")
     return sum(ood) / len(ood)
-
-
-def kstar_value(break_level: int | None, levels: Sequence[int], side: str) -> int:
-    """k* on one side as a number: the break level, or one step past the evaluated extreme when none broke."""
-    if side not in ("pos", "neg"):
-        raise ConfigError(f"side must be 'pos' or 'neg', got {side!r}")
-    if break_level is not None:
-        return int(break_level)
-    return max(levels) + 1 if side == "pos" else min(levels) - 1

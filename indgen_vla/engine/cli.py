@@ -179,12 +179,13 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
               for a in cfg.axes
               for k in plan.levels[a]}  # fmt: skip
     jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
-    done = run.done_keys()
-    todo = [j for j in jobs if j.key not in done]
     if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
         from indgen_vla.engine.adaptive import next_round
 
         todo = next_round(jobs, run.episodes(), cfg)
+    else:
+        done = run.done_keys()
+        todo = [j for j in jobs if j.key not in done]
     if todo:
         from policy_wrappers.registry import load_policy
 

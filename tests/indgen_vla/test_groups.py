@@ -6,7 +6,7 @@ import pytest
 from scipy import stats
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.groups import kstar_value, mean_difference, ood_area, stratified_mcnemar, tost
+from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
 
 
 def test_stratified_mcnemar_pools_discordant_pairs():
@@ -53,9 +53,7 @@ def test_tost_by_hand():
         tost(a, b, 0)
 
 
-def test_ood_area_and_kstar_value():
+def test_ood_area():
     assert ood_area({-1: 0.5, 0: 1.0, 1: 0.3, 2: 0.1}) == pytest.approx(0.3)
     with pytest.raises(ConfigError):
         ood_area({0: 1.0, 1: float("nan")})
-    assert kstar_value(2, range(-3, 4), "pos") == 2
-    assert kstar_value(None, range(-3, 4), "pos") == 4 and kstar_value(None, range(-3, 4), "neg") == -4
