@@ -22,8 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, Observation, validate_chunk
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import ACTION_DIM, CAMERAS, Observation, PolicySpec, validate_chunk
 from policy_wrappers.image_tools import GRIPPER_MODES, convert_gripper, flip_180, resize_with_pad
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
 

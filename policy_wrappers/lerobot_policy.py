@@ -19,8 +19,15 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError, PolicyError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, OBJECT_DIM, STATE_DIM, Observation, validate_chunk
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import (
+    ACTION_DIM,
+    CAMERAS,
+    OBJECT_DIM,
+    STATE_DIM,
+    Observation,
+    PolicySpec,
+    validate_chunk,
+)
 
 IMAGE_PREFIX = "observation.images."
 # Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).

@@ -14,9 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
+from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
 from policy_wrappers import msgpack_numpy
-from policy_wrappers.base import PolicySpec
 from policy_wrappers.image_tools import flip_180, resize_with_pad
 
 INDGEN_SERVER = "indgen-vla"  # metadata["server"] of our own `indgen serve`, which accepts reset hints

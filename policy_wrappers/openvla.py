@@ -29,8 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
 from policy_wrappers.image_tools import (
     GRIPPER_MODES,
     center_crop_tf,

@@ -8,8 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import PolicyError, UnknownNameError
-from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
 
 
 class NoopPolicy:

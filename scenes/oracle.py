@@ -11,13 +11,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from indgen_vla.errors import PolicyError
-from indgen_vla.interface import ACTION_DIM, Observation
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
 
 # Gripper pointing straight down, fingers closing along world y (the Panda's home orientation, untilted).
 R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-POS_SCALE = 0.05  # metres per unit action (robosuite OSC_POSE default output range)
-ROT_SCALE = 0.5  # radians per unit action
 
 
 def _axis_angle(r: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.interface import ACTION_DIM, POS_SCALE, ROT_SCALE, STATE_DIM, Observation
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.regimes.demos import (
     ENV_STATE,
@@ -39,13 +39,6 @@ from scenes.poses import object_poses, object_vector
 SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
 SELECTIONS = ("nearest", "random")
 STATS_FILE = "mimicgen_stats.json"
-
-
-def _scales() -> tuple[float, float]:
-    """robosuite OSC_POSE action scaling (metres, radians per unit action), shared with the oracle."""
-    from scenes.oracle import POS_SCALE, ROT_SCALE
-
-    return POS_SCALE, ROT_SCALE
 
 
 # ---- SE(3) math: pure functions on 4x4 homogeneous matrices ------------------------------------------------
@@ -99,7 +92,7 @@ def target_poses(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
 
     The controller's goal is ``p + POS_SCALE * a[:3]`` and ``Rot(ROT_SCALE * a[3:6]) @ R`` (world frame).
     """
-    pos_scale, rot_scale = _scales()
+    pos_scale, rot_scale = POS_SCALE, ROT_SCALE
     states, actions = np.asarray(states, dtype=float), np.asarray(actions, dtype=float)
     rots = Rotation.from_rotvec(rot_scale * actions[:, 3:6]) * Rotation.from_rotvec(states[:, 3:6])
     out = np.tile(np.eye(4), (len(states), 1, 1))
@@ -110,7 +103,7 @@ def target_poses(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
 
 def pose_to_action(target: np.ndarray, current: np.ndarray, gripper: float) -> np.ndarray:
     """The 7-d OSC_POSE delta action that sets the controller's goal to ``target`` from ``current`` (clipped)."""
-    pos_scale, rot_scale = _scales()
+    pos_scale, rot_scale = POS_SCALE, ROT_SCALE
     a = np.zeros(ACTION_DIM)
     a[:3] = (target[:3, 3] - current[:3, 3]) / pos_scale
     a[3:6] = Rotation.from_matrix(target[:3, :3] @ current[:3, :3].T).as_rotvec() / rot_scale

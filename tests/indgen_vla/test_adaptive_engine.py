@@ -61,7 +61,7 @@ class ClosablePolicy:
     """Acts until closed, then refuses: the adaptive loop must keep its policies open between rounds."""
 
     def __init__(self):
-        from policy_wrappers.base import PolicySpec
+        from indgen_vla.interface import PolicySpec
 
         self.spec = PolicySpec("standin", "test:closable", chunk_size=4, replan_steps=4, cameras=())
         self.closed = False

@@ -17,8 +17,7 @@ from indgen_vla.engine.config import EvalConfig, config_from_args, plan_episodes
 from indgen_vla.engine.local import run_local
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
-from indgen_vla.interface import ACTION_DIM
-from policy_wrappers.base import PolicySpec
+from indgen_vla.interface import ACTION_DIM, PolicySpec
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

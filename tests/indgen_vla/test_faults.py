@@ -192,7 +192,7 @@ class DropsOnce:
     """Drops the connection on the second call of the run only (a server restart mid-episode)."""
 
     def __init__(self):
-        from policy_wrappers.base import PolicySpec
+        from indgen_vla.interface import PolicySpec
 
         self.spec = PolicySpec("standin", "test:drops", chunk_size=4, replan_steps=4, cameras=())
         self.calls, self.resets = 0, []

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
-from indgen_vla.interface import validate_chunk
-from policy_wrappers.base import Policy
+from indgen_vla.interface import Policy, validate_chunk
 from policy_wrappers.registry import load_policy, parse_spec, policies_main
 
 
@@ -90,7 +89,7 @@ def test_policies_main_json(capsys):
 
 def test_import_is_light():
     code = (
-        "import sys, policy_wrappers, policy_wrappers.registry, policy_wrappers.base; "
+        "import sys, policy_wrappers, policy_wrappers.registry; "
         "bad = [m for m in ('torch', 'lerobot', 'transformers', 'zmq', 'websockets') if m in sys.modules]; "
         "print(bad); sys.exit(1 if bad else 0)"
     )

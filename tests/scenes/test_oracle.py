@@ -9,8 +9,7 @@ import pytest
 
 import scenes
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError
-from indgen_vla.interface import Observation
-from policy_wrappers.base import Policy
+from indgen_vla.interface import Observation, Policy
 from scenes.catalog import SCENES
 from scenes.certify import certify, infeasible_levels, load_certification, run_oracle_episode
 from scenes.oracle import OraclePolicy
