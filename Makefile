@@ -36,8 +36,8 @@ test: $(STAMP)
 test-all: $(STAMP)
 	@$(PY) -m pytest -q -m ""
 
-lint: $(STAMP)
-	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+lint: $(STAMP)  # ruff, then the layering contracts of pyproject.toml [tool.importlinter]
+	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check . && $(VENV)/bin/lint-imports
 
 clean-venv:
 	rm -rf $(VENV)

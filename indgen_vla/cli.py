@@ -14,29 +14,23 @@ import sys
 from collections.abc import Sequence
 
 from indgen_vla import __version__
-from indgen_vla.errors import IndgenError, NotBuiltYetError
+from indgen_vla.errors import IndgenError
 
-# subcommand -> (handler, capability that brings it)
-HANDLERS: dict[str, tuple[str, str]] = {
-    "evaluate": (
-        "indgen_vla.engine.cli:evaluate_main",
-        "the rollout engine (issue: Rollout engine and `indgen evaluate`)",
-    ),
-    "certify": ("scenes.certify:certify_main", "the scenes capability (issue: Scenes)"),
-    "report": ("indgen_vla.report:report_main", "the protocol core"),
-    "compare": ("indgen_vla.compare:compare_main", "the protocol core"),
-    "reference": ("indgen_vla.reference:reference_main", "the protocol core"),
-    "serve": ("policy_wrappers.serve:serve_main", "the policy wrappers (issue: Policy wrappers)"),
-    "scenes": ("scenes.catalog:scenes_main", "the scenes capability (issue: Scenes)"),
-    "axes": ("scenes.catalog:axes_main", "the scenes capability (issue: Scenes)"),
-    "policies": ("policy_wrappers.registry:policies_main", "the policy wrappers (issue: Policy wrappers)"),
-    "blockenv": ("indgen_vla.blockenv.cli:blockenv_main", "BlockEnv (issue: BlockEnv)"),
-    "demos": ("indgen_vla.regimes.demos:demos_main", "the data-regimes capability (issue: Data regimes)"),
-    "mimicgen": (
-        "indgen_vla.regimes.mimicgen:mimicgen_main",
-        "the data-regimes capability (issue: Data regimes)",
-    ),
-    "train": ("indgen_vla.regimes.train:train_main", "the data-regimes capability (issue: Data regimes)"),
+# subcommand -> "package.module:function" handler, imported only when that subcommand runs
+HANDLERS: dict[str, str] = {
+    "evaluate": "indgen_vla.engine.cli:evaluate_main",
+    "certify": "scenes.certify:certify_main",
+    "report": "indgen_vla.report:report_main",
+    "compare": "indgen_vla.compare:compare_main",
+    "reference": "indgen_vla.reference:reference_main",
+    "serve": "policy_wrappers.serve:serve_main",
+    "scenes": "scenes.catalog:scenes_main",
+    "axes": "scenes.catalog:axes_main",
+    "policies": "policy_wrappers.registry:policies_main",
+    "blockenv": "indgen_vla.blockenv.cli:blockenv_main",
+    "demos": "indgen_vla.regimes.demos:demos_main",
+    "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
+    "train": "indgen_vla.regimes.train:train_main",
 }
 
 
@@ -60,14 +54,8 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _add_evaluate(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
-    p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
-    p.add_argument("--scene", help="scene name (see 'indgen scenes')")
-    p.add_argument(
-        "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
-    )
-    p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
+def _add_level_options(p: argparse.ArgumentParser) -> None:
+    """--levels, --step and --axes-preset: which levels run and how far apart (evaluate and certify alike)."""
     p.add_argument(
         "--levels",
         default=None,
@@ -78,8 +66,19 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         "--axes-preset",
         default=None,
         metavar="NAME|PATH",
-        help="configs/axes preset or YAML: steps and ranges",
+        help="shipped axes preset (paper, quick) or YAML path: steps and level ranges, compositions' components too",
     )
+
+
+def _add_evaluate(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
+    p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
+    p.add_argument("--scene", help="scene name (see 'indgen scenes')")
+    p.add_argument(
+        "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
+    )
+    p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
+    _add_level_options(p)
     p.add_argument(
         "--episodes", type=int, default=None, help="episodes per level (default 50; the cap with --adaptive)"
     )
@@ -98,6 +97,12 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
+    p.add_argument(
+        "--pipeline",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="two environments per worker: one steps while the policy computes the other's chunk (default off)",
+    )
     p.add_argument(
         "--backend",
         choices=["local", "ray"],
@@ -132,7 +137,11 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         default=None,
         help="seconds to keep reconnecting to an unreachable policy server before stopping (default 600)",
     )
-    p.add_argument("--config", default=None, help="YAML preset (configs/paper/*.yaml); flags override it")
+    p.add_argument(
+        "--config",
+        default=None,
+        help="shipped preset name (indgen_vla/configs/paper) or YAML path; flags override it",
+    )
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
 
 
@@ -141,14 +150,7 @@ def _add_certify(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
     p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
     p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
-    p.add_argument("--levels", default=None, help="range like -3:3 or list 0,1,2 (default: the axis range)")
-    p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
-    p.add_argument(
-        "--axes-preset",
-        default=None,
-        metavar="NAME|PATH",
-        help="configs/axes preset or YAML: component steps",
-    )
+    _add_level_options(p)
     p.add_argument(
         "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
     )
@@ -165,9 +167,14 @@ def _add_certify(sp: argparse._SubParsersAction) -> None:
 
 def _add_report(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("report", help="summary.json, report.md and plots for one or more run directories")
-    p.add_argument("runs", nargs="+", metavar="RUN_DIR")
+    p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="run directories written by 'indgen evaluate'")
     p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
-    p.add_argument("--ci", choices=["wilson", "clopper-pearson"], default="wilson")
+    p.add_argument(
+        "--ci",
+        choices=["wilson", "clopper-pearson"],
+        default="wilson",
+        help="95%% interval of each level's success rate (default wilson; clopper-pearson is exact, wider)",
+    )
     p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
 
 
@@ -272,17 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _resolve(command: str):
-    target, capability = HANDLERS[command]
-    module, _, func = target.partition(":")
-    try:
-        mod = importlib.import_module(module)
-    except ModuleNotFoundError as e:
-        if e.name and (module == e.name or module.startswith(e.name + ".")):
-            raise NotBuiltYetError(
-                f"'indgen {command}' is not available yet; it arrives with {capability}"
-            ) from None
-        raise
-    return getattr(mod, func)
+    importlib.import_module("indgen_vla.engine")  # registers the scene-side stand-ins (standin:oracle)
+    module, _, func = HANDLERS[command].partition(":")
+    return getattr(importlib.import_module(module), func)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -61,7 +61,3 @@ class SceneError(IndgenError):
 
 class InfeasibleLevelError(IndgenError):
     """A level the privileged oracle does not certify (Assumption 2 of the paper)."""
-
-
-class NotBuiltYetError(IndgenError):
-    """A registered subcommand whose capability has not landed yet."""

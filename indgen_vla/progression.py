@@ -10,11 +10,9 @@ import dataclasses
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any
 
 from indgen_vla.errors import ConfigError
-
-S = TypeVar("S")
 
 
 class ProgressionError(ConfigError):
@@ -96,14 +94,6 @@ def parse_levels(text: str | Sequence[int] | None, axis: AxisSpec) -> list[int]:
             f"use --levels {axis.min_level}:{axis.max_level} or a sub-range"
         )
     return sorted(set(levels))
-
-
-class Successor(Protocol[S]):
-    """One atomic step along an axis: a pure function from scene spec to scene spec."""
-
-    axis: AxisSpec
-
-    def __call__(self, spec: S, direction: int = 1) -> S: ...
 
 
 def apply_level[S](base: S, successor: Callable[..., S], level: int) -> S:

@@ -48,7 +48,8 @@ class EpisodeRecord:
     failure: str = ""  # scenes.failure mode ("none" on success, "error" for error rows; "" = not classified)
 
     def __post_init__(self) -> None:
-        assert self.status in ("ok", "error"), self.status
+        if self.status not in ("ok", "error"):
+            raise ValueError(f"episode status must be 'ok' or 'error', got {self.status!r}")
 
     @property
     def key(self) -> tuple[str, str, int, int]:

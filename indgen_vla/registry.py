@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,6 +61,3 @@ def lookup[T](kind: str, name: str, table: dict[str, T]) -> T:
         return table[name]
     except KeyError:
         raise UnknownNameError(kind, name, list(table)) from None
-
-
-Factory = Callable[..., Any]

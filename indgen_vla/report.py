@@ -28,7 +28,7 @@ def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> 
 
 
 def _level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
-    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor (issue 18)."""
+    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor."""
     rows = []
     for level in levels:
         d = df[df["level"] == level]

@@ -18,13 +18,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
+from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import ACTION_DIM, CAMERAS, Observation, PolicySpec, validate_chunk
-from policy_wrappers.image_tools import GRIPPER_MODES, convert_gripper, flip_180, resize_with_pad
+from policy_wrappers.image_tools import GRIPPER_MODES
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
+from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
+from policy_wrappers.transforms import LIBERO_GROOT_N15, LIBERO_GROOT_N16, Conventions
 
 LIBERO_STATE = (
     ("x", 0, 1),
@@ -38,31 +41,20 @@ LIBERO_STATE = (
 LIBERO_ACTION = ("x", "y", "z", "roll", "pitch", "yaw", "gripper")
 
 
-@dataclass(frozen=True)
-class GrootConfig:
+@dataclass(frozen=True, kw_only=True)
+class GrootConfig(RemoteConfig):
     """Endpoint, API version and the modality map from our Observation (defaults: GR00T's LIBERO example)."""
 
-    url: str
     api: str = "n1.6"
     api_token: str | None = None
     video: tuple[tuple[str, str], ...] = (("image", "agentview"), ("wrist_image", "wrist"))
     state: tuple[tuple[str, int, int], ...] = LIBERO_STATE
     action: tuple[str, ...] = LIBERO_ACTION
     language_key: str = "annotation.human.action.task_description"
-    chunk_size: int = 16
-    replan_steps: int = 8
-    render_size: int = 256
-    image_size: int | None = None  # resize-with-pad before sending; None sends the render as is
-    flip_180: bool = True
-    gripper: str = "01inv"  # upstream LIBERO eval: [0, 1] (1 = open) -> sign(1 - 2x)
-    timeout_s: float = 60.0
-    connect_timeout_s: float = 10.0
 
     def __post_init__(self) -> None:
-        if self.api not in ("n1.5", "n1.6"):
+        if self.api not in APIS:
             raise ConfigError(f"groot {self.url}: api must be n1.5 or n1.6, got {self.api!r}")
-        if self.gripper not in GRIPPER_MODES:
-            raise ConfigError(f"groot {self.url}: gripper must be one of {GRIPPER_MODES}")
         bad = [cam for _, cam in self.video if cam not in CAMERAS]
         if bad or not self.video:
             raise ConfigError(
@@ -72,27 +64,41 @@ class GrootConfig:
             not 0 <= lo < hi <= 8 for _, lo, hi in self.state
         ):
             raise ConfigError(f"groot {self.url}: state slices must lie within our 8-d state")
+        super().__post_init__()
+
+    def family_conventions(self) -> Conventions:
+        return APIS[self.api].upstream
 
 
-class GrootPolicy:
-    """ZMQ client for one GR00T inference server (N1.6 sends the whole batch in one request)."""
+class GrootPolicy(RemotePolicy):
+    """ZMQ REQ client for one GR00T inference server: socket, handshake, modality check, action parsing.
+    The two API versions (``GrootN15Policy``, ``GrootN16Policy``) differ only in their messages."""
+
+    family, schemes, default_port, server = "groot", ("tcp",), 5555, "the GR00T server"
+    batched: ClassVar[bool]
+    upstream: ClassVar[Conventions]  # the API version's LIBERO eval; config.conventions applies the options
+    action_hint: ClassVar[str] = ""  # added to a get_action error: the other API's spec option
 
     def __init__(self, name: str, config: GrootConfig):
         import zmq
 
-        self.config, self._zmq = config, zmq
+        self._zmq = zmq
         cams = tuple(c for c in CAMERAS if c in {cam for _, cam in config.video})
-        self.spec = PolicySpec(
-            "groot",
+        chunk, replan = config.chunking()
+        spec = PolicySpec(
+            self.family,
             name,
-            chunk_size=config.chunk_size,
-            replan_steps=config.replan_steps,
+            chunk_size=chunk,
+            replan_steps=replan,
             cameras=cams,
-            image_size=(config.render_size,) * 2,
-            batched=config.api == "n1.6",
-            flip_180=config.flip_180,
+            image_size=(config.conventions.render,) * 2,
+            batched=self.batched,
+            flip_180=config.conventions.flips,
         )
-        self._ctx = zmq.Context()
+        super().__init__(spec, config)
+        # The process-wide context: a per-policy one, when the garbage collector frees a policy caught in a
+        # reference cycle (an exception's traceback), can be finalised before its socket and block forever.
+        self._ctx = zmq.Context.instance()
         self._sock = None
         self._language_key = config.language_key
         self.modality_config: dict = {}
@@ -110,6 +116,13 @@ class GrootPolicy:
             self._sock.close(linger=0)
         self._sock = None
 
+    def _map_error(self, error: BaseException, connecting: bool) -> IndgenError | None:
+        if isinstance(error, self._zmq.ZMQError):
+            return PolicyConnectionError(
+                f"policy {self.spec.name}: ZMQ error talking to {self.config.url}: {error}"
+            )
+        return None
+
     def call(self, endpoint: str, data=None, requires_input: bool = True, timeout_s: float | None = None):
         """One request/reply. A timeout or ZMQ error raises PolicyConnectionError and rebuilds the REQ socket
         (so the next call reconnects); an error reply from the server raises PolicyError."""
@@ -119,37 +132,22 @@ class GrootPolicy:
         if self.config.api_token:
             request["api_token"] = self.config.api_token
         timeout = self.config.timeout_s if timeout_s is None else timeout_s
-        try:
+        with self.transport(f" to {endpoint!r}", timeout_s=timeout):
             sock = self._socket()
             sock.send(groot_packb(request))
             if not sock.poll(int(timeout * 1000)):
-                self._drop()
-                raise PolicyConnectionError(
-                    f"policy {self.spec.name}: no reply from {self.config.url} to {endpoint!r} within "
-                    f"{timeout:g}s; is the GR00T server running?"
-                )
+                raise TimeoutError
             message = sock.recv()
-        except self._zmq.ZMQError as e:
-            self._drop()
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: ZMQ error talking to {self.config.url}: {e}"
-            ) from None
         if message == b"ERROR":
-            raise PolicyError(f"policy {self.spec.name}: server error (is it the right GR00T policy server?)")
+            raise self.fail("server error (is it the right GR00T policy server?)")
         try:
             response = groot_unpackb(message)
         except Exception as e:
-            raise PolicyError(
-                f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})"
-            ) from None
+            raise self.fail(f"undecodable reply ({type(e).__name__}: {e})") from None
         if isinstance(response, dict) and "error" in response:
             first = (str(response["error"]).strip().splitlines() or [""])[0][:300]
-            hint = (
-                " (if this is an N1.5 server, add ?api=n1.5)"
-                if endpoint == "get_action" and self.config.api == "n1.6"
-                else ""
-            )
-            raise PolicyError(f"policy {self.spec.name}: server error: {first}{hint}")
+            hint = self.action_hint if endpoint == "get_action" else ""
+            raise self.fail(f"server error: {first}{hint}")
         return response
 
     def _handshake(self) -> None:
@@ -186,9 +184,8 @@ class GrootPolicy:
             missing = sorted(set(theirs) - set(ours))
             if theirs and missing:
                 self.close()
-                raise PolicyError(
-                    f"policy {self.spec.name}: server expects {modality} keys {theirs}; our map gives "
-                    f"{ours} (set ?{modality}=... to map {missing})"
+                raise self.fail(
+                    f"server expects {modality} keys {theirs}; our map gives {ours} (set ?{modality}=... to map {missing})"
                 )
         lang = (
             (self.modality_config.get("language") or {})
@@ -198,55 +195,46 @@ class GrootPolicy:
         if lang.get("modality_keys") and self._language_key not in lang["modality_keys"]:
             self._language_key = str(lang["modality_keys"][0])
 
-    def reset(self, instruction: str, seed: int | None = None) -> None:
-        if self.config.api == "n1.6":
-            self.call("reset", {"options": None})
-
     def _images(self, obs: Observation, cam: str) -> np.ndarray:
         if cam not in obs.images:
-            raise PolicyError(
-                f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}"
-            )
-        img = flip_180(obs.images[cam]) if self.config.flip_180 else obs.images[cam]
-        size = self.config.image_size
-        return resize_with_pad(img, size, size) if size else np.ascontiguousarray(img)
+            raise self.fail(f"needs camera {cam!r}; observation has {sorted(obs.images)}")
+        return np.ascontiguousarray(self.config.conventions.images(obs.images[cam]))
+
+    def batch_keys(self, observations: Sequence[Observation]) -> tuple[dict, dict]:
+        """Flat GR00T keys, batched with a time axis: ({video.K: (B, 1, H, W, 3)}, {state.K: (B, 1, D)})."""
+        video = {
+            f"video.{key}": np.stack([self._images(o, cam) for o in observations])[:, None]
+            for key, cam in self.config.video
+        }
+        state = {
+            f"state.{key}": np.stack([o.state[lo:hi] for o in observations])[:, None]
+            for key, lo, hi in self.config.state
+        }
+        return video, state
 
     def make_observation(self, observations: Sequence[Observation]) -> dict:
-        """Flat GR00T keys; N1.5: one unbatched observation (T=1 leading), N1.6: (B, T=1, ...)."""
-        batched = self.config.api == "n1.6"
-        out: dict = {}
-        for key, cam in self.config.video:
-            frames = np.stack([self._images(o, cam) for o in observations])[:, None]  # (B, 1, H, W, 3)
-            out[f"video.{key}"] = frames if batched else frames[0]
-        for key, lo, hi in self.config.state:
-            vals = np.stack([o.state[lo:hi] for o in observations])[:, None]  # (B, 1, D)
-            out[f"state.{key}"] = vals.astype(np.float32) if batched else vals[0].astype(np.float64)
-        out[self._language_key] = [o.instruction for o in observations]
-        return out
+        """The ``get_action`` observation in this API's shapes."""
+        raise NotImplementedError
 
     def _parse_actions(self, action: dict, batch: int) -> np.ndarray:
         if not isinstance(action, dict):
-            raise PolicyError(f"policy {self.spec.name}: action reply is {type(action).__name__}, not a dict")
+            raise self.fail(f"action reply is {type(action).__name__}, not a dict")
         parts = []
         for key in self.config.action:
             name = f"action.{key}"
             value = action.get(name, action.get(key))
             if value is None:
-                raise PolicyError(f"policy {self.spec.name}: reply lacks {name!r} (got {sorted(action)})")
+                raise self.fail(f"reply lacks {name!r} (got {sorted(action)})")
             arr = np.asarray(value, dtype=np.float32)
             if arr.ndim == 1:
                 arr = arr[:, None]
             if arr.ndim == 2:
                 arr = arr[None]
             if arr.ndim != 3 or arr.shape[0] != batch:
-                raise PolicyError(
-                    f"policy {self.spec.name}: {name} has shape {np.shape(value)}; expected (T, D) or (B, T, D)"
-                )
+                raise self.fail(f"{name} has shape {np.shape(value)}; expected (T, D) or (B, T, D)")
             parts.append(arr)
         if len({p.shape[1] for p in parts}) != 1:
-            raise PolicyError(
-                f"policy {self.spec.name}: action keys disagree on the horizon: {[p.shape for p in parts]}"
-            )
+            raise self.fail(f"action keys disagree on the horizon: {[p.shape for p in parts]}")
         chunk = np.concatenate(parts, axis=-1)
         if chunk.shape[-1] != ACTION_DIM or chunk.shape[1] < self.spec.replan_steps:
             raise PolicyError(
@@ -255,38 +243,72 @@ class GrootPolicy:
             )
         return chunk[:, : self.spec.chunk_size]
 
+    def predict(self, observations: Sequence[Observation]) -> np.ndarray:
+        """The raw (B, T, 7) chunk the server returns for ``observations``."""
+        raise NotImplementedError
+
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        if self.config.api == "n1.6":
-            reply = self.call(
-                "get_action", {"observation": self.make_observation(observations), "options": None}
+        chunk = validate_chunk(self.predict(observations), len(observations), self.spec.name)
+        return self.config.conventions.actions(chunk)
+
+
+class GrootN15Policy(GrootPolicy):
+    """N1.5 (``gr00t/eval/service.py``): one unbatched observation per ``get_action``, no ``reset``."""
+
+    batched, upstream = False, LIBERO_GROOT_N15
+
+    def make_observation(self, observations: Sequence[Observation]) -> dict:
+        """Flat keys of the first observation, time axis leading: video (1, H, W, 3), state (1, D) float64."""
+        video, state = self.batch_keys(observations)
+        out = {k: v[0] for k, v in video.items()}
+        out.update({k: v[0].astype(np.float64) for k, v in state.items()})
+        out[self._language_key] = [o.instruction for o in observations]
+        return out
+
+    def predict(self, observations: Sequence[Observation]) -> np.ndarray:
+        chunks = []
+        for obs in observations:
+            reply = self.call("get_action", self.make_observation([obs]))
+            if isinstance(reply, list | tuple):
+                raise self.fail("got [action, info]; this is an N1.6 server (use ?api=n1.6)")
+            chunks.append(self._parse_actions(reply, 1)[0])
+        return np.stack(chunks)
+
+
+class GrootN16Policy(GrootPolicy):
+    """N1.6+ (``gr00t/policy/server_client.py``, ``--use-sim-policy-wrapper``): the whole batch in one
+    ``get_action`` ``{"observation", "options"}`` returning ``[action, info]``; ``reset`` per episode."""
+
+    batched, upstream = True, LIBERO_GROOT_N16
+    action_hint = " (if this is an N1.5 server, add ?api=n1.5)"
+
+    def reset(self, instruction: str, seed: int | None = None) -> None:
+        self.call("reset", {"options": None})
+
+    def make_observation(self, observations: Sequence[Observation]) -> dict:
+        """Flat batched keys: video (B, 1, H, W, 3), state (B, 1, D) float32, language [B strings]."""
+        video, state = self.batch_keys(observations)
+        out = dict(video)
+        out.update({k: v.astype(np.float32) for k, v in state.items()})
+        out[self._language_key] = [o.instruction for o in observations]
+        return out
+
+    def predict(self, observations: Sequence[Observation]) -> np.ndarray:
+        reply = self.call("get_action", {"observation": self.make_observation(observations), "options": None})
+        if not isinstance(reply, list | tuple) or len(reply) != 2:
+            raise self.fail(
+                f"N1.6 get_action must return [action, info], got {type(reply).__name__}; is this an N1.5 "
+                "server? (use ?api=n1.5)"
             )
-            if not isinstance(reply, list | tuple) or len(reply) != 2:
-                raise PolicyError(
-                    f"policy {self.spec.name}: N1.6 get_action must return [action, info], got "
-                    f"{type(reply).__name__}; is this an N1.5 server? (use ?api=n1.5)"
-                )
-            chunk = self._parse_actions(reply[0], len(observations))
-        else:
-            chunks = []
-            for obs in observations:
-                reply = self.call("get_action", self.make_observation([obs]))
-                if isinstance(reply, list | tuple):
-                    raise PolicyError(
-                        f"policy {self.spec.name}: got [action, info]; this is an N1.6 server (use ?api=n1.6)"
-                    )
-                chunks.append(self._parse_actions(reply, 1)[0])
-            chunk = np.stack(chunks)
-        chunk = validate_chunk(chunk, len(observations), self.spec.name)
-        return convert_gripper(chunk, self.config.gripper)
-
-    def close(self) -> None:
-        self._drop()
-        self._ctx.term()
+        return self._parse_actions(reply[0], len(observations))
 
 
-def _pairs(text: str | None, default):
+APIS: dict[str, type[GrootPolicy]] = {"n1.5": GrootN15Policy, "n1.6": GrootN16Policy}
+
+
+def _pairs(text: str | None) -> tuple[tuple[str, str], ...] | None:
     if not text:
-        return default
+        return None
     out = []
     for item in text.split(","):
         key, sep, cam = item.partition(":")
@@ -298,26 +320,20 @@ def _pairs(text: str | None, default):
     return tuple(out)
 
 
+OPTIONS = {
+    "api_token": "api_token",
+    "language_key": "lang_key",
+    **REMOTE_OPTIONS,
+}  # GrootConfig field -> option
+
+
 def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu") -> GrootPolicy:
     """``groot:tcp://HOST:PORT[?api=n1.5|n1.6&api_token=&video=key:cam,..&replan=&chunk=&size=&flip=&gripper=]``."""
-    from policy_wrappers.registry import check_url, join_url
-
-    _, host, port = check_url(parsed.spec, parsed.target, ("tcp",), 5555)
-    api = options.choice("api", ("n1.5", "n1.6"), "n1.6")
-    chunk = options.int("chunk", 16)
-    config = GrootConfig(
-        url=join_url("tcp", host, port),
-        api=api,
-        api_token=options.str("api_token"),
-        video=_pairs(options.str("video"), GrootConfig.video),
-        language_key=options.str("lang_key", GrootConfig.language_key),
-        chunk_size=chunk,
-        replan_steps=options.int("replan", 1 if api == "n1.5" else min(8, chunk)),
-        render_size=options.int("render", 256),
-        image_size=options.int("size"),
-        flip_180=options.bool("flip", True),
-        gripper=options.choice("gripper", GRIPPER_MODES, "01inv"),
-        timeout_s=options.float("timeout", 60.0),
-        connect_timeout_s=options.float("connect_timeout", 10.0),
-    )
-    return GrootPolicy(parsed.spec, config)
+    chosen = {
+        "api": options.choice("api", tuple(APIS)),
+        "gripper": options.choice("gripper", GRIPPER_MODES),
+        "video": _pairs(options.str("video")),
+    }
+    values = {k: v for k, v in chosen.items() if v is not None} | options.fields(GrootConfig, OPTIONS)
+    config = GrootConfig(url=GrootPolicy.url_from(parsed), **values)
+    return APIS[config.api](parsed.spec, config)

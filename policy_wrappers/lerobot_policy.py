@@ -28,6 +28,7 @@ from indgen_vla.interface import (
     PolicySpec,
     validate_chunk,
 )
+from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions
 
 IMAGE_PREFIX = "observation.images."
 # Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).
@@ -49,6 +50,7 @@ LIBERO_CAMERA_NAMES = {
     "image",
     "image2",
 }  # lerobot's LIBERO env: these checkpoints were trained on flipped images
+NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
 
 
@@ -62,7 +64,7 @@ class LeRobotConfig:
     camera_map: tuple[
         tuple[str, str], ...
     ] = ()  # (feature name after observation.images., our camera | zeros)
-    flip_180: bool | None = None  # None: flip iff the checkpoint uses LIBERO's camera names
+    flip_180: bool | None = None  # None: LIBERO_LEROBOT's flip iff the checkpoint uses LIBERO's camera names
     replan_steps: int | None = None  # None: the checkpoint's n_action_steps
     vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
     tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
@@ -100,10 +102,8 @@ class LeRobotPolicy:
         self._load()
         self._cams = self._resolve_cameras()
         cams = tuple(c for c in CAMERAS if c in {cam for _, cam, _ in self._cams})
-        flip = config.flip_180
-        if flip is None:
-            flip = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
-        self._flip = bool(flip)
+        libero = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
+        self.conventions = (LIBERO_LEROBOT if libero else NO_CONVENTIONS).override(flip=config.flip_180)
         sizes = {shape[1:] for _, cam, shape in self._cams if cam != ZEROS}
         image_size = max(sizes) if sizes else None
         chunk, replan = self._chunking()
@@ -126,7 +126,7 @@ class LeRobotPolicy:
             cameras=cams,
             image_size=image_size,
             batched=self.n_obs_steps == 1 and not self._ensemble,
-            flip_180=self._flip,
+            flip_180=self.conventions.flips,
             observes_objects=self._objects,
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
@@ -278,14 +278,12 @@ class LeRobotPolicy:
                 batch[IMAGE_PREFIX + feat] = torch.zeros((len(observations), 3, h, w))
                 continue
             try:
-                imgs = np.stack([obs.images[cam] for obs in observations])
+                imgs = np.stack([self.conventions.images(obs.images[cam]) for obs in observations])
             except KeyError:
                 raise PolicyError(
                     f"policy {self._name} needs camera {cam!r}; observation has "
                     f"{sorted(observations[0].images)}"
                 ) from None
-            if self._flip:
-                imgs = imgs[:, ::-1, ::-1]
             t = torch.from_numpy(np.ascontiguousarray(imgs)).permute(0, 3, 1, 2).float().div_(255.0)
             if t.shape[-2:] != (h, w):
                 t = F.interpolate(
@@ -382,6 +380,15 @@ def _offline() -> bool:
     return os.environ.get("HF_HUB_OFFLINE", "").lower() in ("1", "true", "yes", "on")
 
 
+OPTIONS = {  # LeRobotConfig field -> spec option
+    "revision": "revision",
+    "flip_180": "flip",
+    "replan_steps": "replan",
+    "vlm": "vlm",
+    "tokenizer": "tokenizer",
+}
+
+
 def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot"):
     """``lerobot:<hub id or dir>[?cameras=feat:agentview,..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR]``.
 
@@ -391,11 +398,7 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
     config = LeRobotConfig(
         path=parsed.target,
         device=options.str("device", device),
-        revision=options.str("revision"),
         camera_map=parse_camera_map(options.str("cameras")),
-        flip_180=options.bool("flip", None),
-        replan_steps=options.int("replan"),
-        vlm=options.str("vlm"),
-        tokenizer=options.str("tokenizer"),
+        **options.fields(LeRobotConfig, OPTIONS),
     )
     return LeRobotPolicy(parsed.spec, config, family=family)

@@ -13,81 +13,88 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
+from indgen_vla.errors import IndgenError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
 from policy_wrappers import msgpack_numpy
-from policy_wrappers.image_tools import flip_180, resize_with_pad
+from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
+from policy_wrappers.transforms import LIBERO_OPENPI, Compose, Conventions
 
 INDGEN_SERVER = "indgen-vla"  # metadata["server"] of our own `indgen serve`, which accepts reset hints
 
 
-@dataclass(frozen=True)
-class OpenpiConfig:
-    """How to talk to one openpi server and which LIBERO conventions to apply client-side."""
+@dataclass(frozen=True, kw_only=True)
+class OpenpiConfig(RemoteConfig):
+    """How to talk to one openpi server; unset conventions are ``LIBERO_OPENPI``'s."""
 
-    url: str
     api_key: str | None = None
-    chunk_size: int = 10  # pi0.5 LIBERO action horizon
-    replan_steps: int = 5  # openpi examples/libero/main.py
-    image_size: int = 224  # sent to the server (resize-with-pad)
-    render_size: int = 256  # LIBERO_ENV_RESOLUTION: what the engine renders before the resize
-    flip_180: bool = True
-    timeout_s: float = 60.0
-    connect_timeout_s: float = 10.0
 
-    def __post_init__(self) -> None:
-        if min(self.image_size, self.render_size) < 8:
-            raise ConfigError(
-                f"openpi {self.url}: image sizes must be >= 8, got {self.image_size}/{self.render_size}"
-            )
-        if self.timeout_s <= 0 or self.connect_timeout_s <= 0:
-            raise ConfigError(f"openpi {self.url}: timeouts must be positive")
+    def family_conventions(self) -> Conventions:
+        return LIBERO_OPENPI
 
 
-def make_request(obs: Observation, image_size: int, flip: bool) -> dict:
-    """One observation in openpi's LIBERO request format (rotate 180°, resize-with-pad, uint8)."""
-
-    def prep(img: np.ndarray) -> np.ndarray:
-        img = flip_180(img) if flip else img
-        return resize_with_pad(img, image_size, image_size)
-
+def make_request(obs: Observation, images: Compose) -> dict:
+    """One observation in openpi's LIBERO request format (``images``: e.g. rotate 180°, resize-with-pad)."""
     for cam in ("agentview", "wrist"):
         if cam not in obs.images:
             raise PolicyError(f"openpi needs the {cam!r} camera but the observation has {sorted(obs.images)}")
     return {
-        "observation/image": prep(obs.images["agentview"]),
-        "observation/wrist_image": prep(obs.images["wrist"]),
+        "observation/image": images(obs.images["agentview"]),
+        "observation/wrist_image": images(obs.images["wrist"]),
         "observation/state": np.asarray(obs.state, dtype=np.float32),
         "prompt": str(obs.instruction),
     }
 
 
-class OpenpiPolicy:
+class OpenpiPolicy(RemotePolicy):
     """Client for one openpi websocket server; one request per observation."""
 
+    family, schemes, default_port, server = "openpi", ("ws", "wss"), 8000, "the openpi server"
+
     def __init__(self, name: str, config: OpenpiConfig):
-        self.config = config
-        self.spec = PolicySpec(
-            "openpi",
+        conv = config.conventions
+        chunk, replan = config.chunking()
+        spec = PolicySpec(
+            self.family,
             name,
-            chunk_size=config.chunk_size,
-            replan_steps=config.replan_steps,
+            chunk_size=chunk,
+            replan_steps=replan,
             cameras=("agentview", "wrist"),
-            image_size=(config.render_size, config.render_size),
-            flip_180=config.flip_180,
+            image_size=(conv.render, conv.render),
+            flip_180=conv.flips,
         )
+        super().__init__(spec, config)
         self._ws = None
         self._packer = msgpack_numpy.Packer()
         self.metadata: dict = {}
         self._pending_reset: dict | None = None
         self._connect()
 
+    def _map_error(self, error: BaseException, connecting: bool) -> IndgenError | None:
+        from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidStatus, InvalidURI
+
+        url = self.config.url
+        if isinstance(error, InvalidStatus):
+            code = error.response.status_code
+            hint = "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if code in (401, 403) else ""
+            kind = (
+                PolicyConnectionError if code >= 500 else PolicyError
+            )  # 5xx: a proxy or a restarting server
+            return kind(f"policy {self.spec.name}: {url} refused the websocket: {error}{hint}")
+        if isinstance(error, InvalidURI):
+            return self.fail(f"bad websocket URL {url}: {error}")
+        if isinstance(error, InvalidHandshake):  # e.g. the server died during the handshake
+            return PolicyConnectionError(
+                f"policy {self.spec.name}: websocket handshake with {url} failed: {error}"
+            )
+        if isinstance(error, ConnectionClosed):
+            return PolicyConnectionError(f"policy {self.spec.name}: connection to {url} lost: {error}")
+        return None
+
     def _connect(self) -> None:
-        from websockets.exceptions import InvalidHandshake, InvalidStatus, InvalidURI
         from websockets.sync.client import connect
 
         headers = {"Authorization": f"Api-Key {self.config.api_key}"} if self.config.api_key else None
-        try:
+        with self.transport(connecting=True):
             ws = connect(
                 self.config.url,
                 compression=None,
@@ -95,29 +102,6 @@ class OpenpiPolicy:
                 additional_headers=headers,
                 open_timeout=self.config.connect_timeout_s,
             )
-        except ConnectionRefusedError:
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: connection refused at {self.config.url}; is the openpi server running?"
-            ) from None
-        except (TimeoutError, OSError, EOFError) as e:
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: cannot reach {self.config.url}: {e or type(e).__name__}"
-            ) from None
-        except InvalidStatus as e:
-            code = e.response.status_code
-            hint = "; pass ?api_key=KEY (or set OPENPI_API_KEY)" if code in (401, 403) else ""
-            kind = (
-                PolicyConnectionError if code >= 500 else PolicyError
-            )  # 5xx: a proxy or a restarting server
-            raise kind(
-                f"policy {self.spec.name}: {self.config.url} refused the websocket: {e}{hint}"
-            ) from None
-        except InvalidURI as e:
-            raise PolicyError(f"policy {self.spec.name}: bad websocket URL {self.config.url}: {e}") from None
-        except InvalidHandshake as e:  # e.g. the server died during the handshake
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: websocket handshake with {self.config.url} failed: {e}"
-            ) from None
         try:
             first = ws.recv(timeout=self.config.connect_timeout_s)
         except Exception as e:
@@ -127,7 +111,7 @@ class OpenpiPolicy:
             ) from None
         if isinstance(first, str):
             ws.close()
-            raise PolicyError(f"policy {self.spec.name}: server error on connect: {_last_line(first)}")
+            raise self.fail(f"server error on connect: {_last_line(first)}")
         meta = msgpack_numpy.unpackb(first)
         self.metadata = meta if isinstance(meta, dict) else {}
         self._ws = ws
@@ -147,42 +131,28 @@ class OpenpiPolicy:
     def infer(self, request: dict) -> dict:
         """One round trip; any failure drops the connection (the next call reconnects). Transport faults
         (timeout, reset, closed mid-reply) raise PolicyConnectionError, a server error frame PolicyError."""
-        from websockets.exceptions import ConnectionClosed
-
         if self._ws is None:
             self._connect()
-        try:
+        with self.transport():
             self._ws.send(self._packer.pack(request))
             reply = self._ws.recv(timeout=self.config.timeout_s)
-        except TimeoutError:
-            self._drop()
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
-            ) from None
-        except (ConnectionClosed, OSError, EOFError) as e:
-            self._drop()
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: connection to {self.config.url} lost: {e}"
-            ) from None
         if isinstance(reply, str):
             self._drop()
-            raise PolicyError(f"policy {self.spec.name}: server error: {_last_line(reply)}")
+            raise self.fail(f"server error: {_last_line(reply)}")
         try:
             out = msgpack_numpy.unpackb(reply)
         except Exception as e:
             self._drop()
-            raise PolicyError(
-                f"policy {self.spec.name}: undecodable reply ({type(e).__name__}: {e})"
-            ) from None
+            raise self.fail(f"undecodable reply ({type(e).__name__}: {e})") from None
         if not isinstance(out, dict) or "actions" not in out:
             keys = sorted(out) if isinstance(out, dict) else type(out).__name__
-            raise PolicyError(f"policy {self.spec.name}: reply has no 'actions' (got {keys})")
+            raise self.fail(f"reply has no 'actions' (got {keys})")
         return out
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
         chunks = []
         for obs in observations:
-            request = make_request(obs, self.config.image_size, self.config.flip_180)
+            request = make_request(obs, self.config.conventions.images)
             if self._pending_reset is not None and self.metadata.get("server") == INDGEN_SERVER:
                 request["indgen/reset"] = self._pending_reset
             out = self.infer(request)
@@ -199,10 +169,8 @@ class OpenpiPolicy:
                 )
             chunks.append(actions.astype(np.float32))
         length = min(c.shape[0] for c in chunks)
-        return validate_chunk(np.stack([c[:length] for c in chunks]), len(observations), self.spec.name)
-
-    def close(self) -> None:
-        self._drop()
+        chunk = validate_chunk(np.stack([c[:length] for c in chunks]), len(observations), self.spec.name)
+        return self.config.conventions.actions(chunk)
 
 
 def _last_line(text: str) -> str:
@@ -210,23 +178,13 @@ def _last_line(text: str) -> str:
     return lines[-1] if lines else "(empty error frame)"
 
 
+OPTIONS = {"api_key": "api_key", **REMOTE_OPTIONS}  # OpenpiConfig field -> spec option
+
+
 def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu") -> OpenpiPolicy:
     """Build an ``OpenpiPolicy`` from ``openpi:ws://HOST:PORT[?api_key=&replan=&chunk=&size=&flip=&timeout=]``."""
     import os
 
-    from policy_wrappers.registry import check_url, join_url
-
-    scheme, host, port = check_url(parsed.spec, parsed.target, ("ws", "wss"), 8000)
-    chunk = options.int("chunk", 10)
-    config = OpenpiConfig(
-        url=join_url(scheme, host, port),
-        api_key=options.str("api_key", os.environ.get("OPENPI_API_KEY")),
-        chunk_size=chunk,
-        replan_steps=options.int("replan", min(5, chunk)),
-        image_size=options.int("size", 224),
-        render_size=options.int("render", 256),
-        flip_180=options.bool("flip", True),
-        timeout_s=options.float("timeout", 60.0),
-        connect_timeout_s=options.float("connect_timeout", 10.0),
-    )
-    return OpenpiPolicy(parsed.spec, config)
+    values = options.fields(OpenpiConfig, OPTIONS)
+    values.setdefault("api_key", os.environ.get("OPENPI_API_KEY"))
+    return OpenpiPolicy(parsed.spec, OpenpiConfig(url=OpenpiPolicy.url_from(parsed), **values))

@@ -28,18 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyConnectionError, PolicyError
+from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
-from policy_wrappers.image_tools import (
-    GRIPPER_MODES,
-    center_crop_tf,
-    convert_gripper,
-    flip_180,
-    resize_jpeg_lanczos,
-)
+from policy_wrappers.image_tools import GRIPPER_MODES
+from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
+from policy_wrappers.transforms import LIBERO_OFT, LIBERO_OPENVLA, CenterCrop, Conventions
 
 LIBERO_SUITES = ("libero_spatial", "libero_object", "libero_goal", "libero_10", "libero_90")
 PORTS = {"oft": 8777, "openvla": 8000}  # DeployConfig.port of each repository's vla-scripts/deploy.py
+CONVENTIONS = {"oft": LIBERO_OFT, "openvla": LIBERO_OPENVLA}
 
 
 def _json_default(obj):
@@ -75,34 +72,22 @@ def loads(text: str | bytes):
     return json.loads(text, object_hook=_json_hook)
 
 
-@dataclass(frozen=True)
-class OpenVLAConfig:
-    """Endpoint, variant (oft | openvla) and the LIBERO conventions applied client-side."""
+@dataclass(frozen=True, kw_only=True)
+class OpenVLAConfig(RemoteConfig):
+    """Endpoint, variant (oft | openvla) and overrides of the variant's conventions (``CONVENTIONS``)."""
 
-    url: str
     variant: str = "oft"
     unnorm_key: str | None = None
-    image_size: int = 224
-    render_size: int = 256
-    flip_180: bool = True
-    gripper: str = "01inv"
-    chunk_size: int = 8  # OFT LIBERO NUM_ACTIONS_CHUNK
-    replan_steps: int = 8  # OFT run_libero_eval num_open_loop_steps
+    center_crop: bool | None = None  # None: the variant's (base OpenVLA crops client-side, as its eval)
     encoded: bool = False  # deploy.py's double-encoded fallback {"encoded": "<json>"}
-    center_crop: bool = False  # base OpenVLA: crop 0.9 of the area client-side, as its LIBERO eval does
-    timeout_s: float = 60.0
-    connect_timeout_s: float = 10.0
 
     def __post_init__(self) -> None:
-        if self.variant not in ("oft", "openvla"):
+        if self.variant not in CONVENTIONS:
             raise ConfigError(f"openvla-oft {self.url}: variant must be oft or openvla, got {self.variant!r}")
-        if self.gripper not in GRIPPER_MODES:
-            raise ConfigError(f"openvla-oft {self.url}: gripper must be one of {GRIPPER_MODES}")
-        if self.variant == "openvla" and self.chunk_size != 1:
+        super().__post_init__()
+        if self.variant == "openvla" and self.chunking()[0] != 1:
             raise ConfigError(f"openvla-oft {self.url}: base OpenVLA returns one action; chunk must be 1")
-        if self.timeout_s <= 0:
-            raise ConfigError(f"openvla-oft {self.url}: timeout must be positive")
-        if self.variant == "oft" and self.center_crop:
+        if self.variant == "oft" and self.conventions.images.find(CenterCrop):
             raise ConfigError(
                 f"openvla-oft {self.url}: OFT's deploy.py center-crops server-side (its --center_crop); "
                 "drop ?center_crop=1 so the image is not cropped twice"
@@ -113,22 +98,31 @@ class OpenVLAConfig:
                 "line (--unnorm_key), not per request; drop ?unnorm_key="
             )
 
+    def family_conventions(self) -> Conventions:
+        return CONVENTIONS[self.variant]
 
-class OpenVLAPolicy:
+    def more_overrides(self) -> dict:
+        return {"crop": self.center_crop}
+
+
+class OpenVLAPolicy(RemotePolicy):
     """HTTP client for one OpenVLA(-OFT) deploy server; one request per observation."""
 
+    family, schemes, default_port, server = "openvla-oft", ("http", "https"), PORTS["oft"], "deploy.py"
+
     def __init__(self, name: str, config: OpenVLAConfig):
-        self.config = config
         cams = ("agentview", "wrist") if config.variant == "oft" else ("agentview",)
-        self.spec = PolicySpec(
-            "openvla-oft",
+        chunk, replan = config.chunking()
+        spec = PolicySpec(
+            self.family,
             name,
-            chunk_size=config.chunk_size,
-            replan_steps=config.replan_steps,
+            chunk_size=chunk,
+            replan_steps=replan,
             cameras=cams,
-            image_size=(config.render_size,) * 2,
-            flip_180=config.flip_180,
+            image_size=(config.conventions.render,) * 2,
+            flip_180=config.conventions.flips,
         )
+        super().__init__(spec, config)
         self._probe()
 
     def _probe(self) -> None:
@@ -137,27 +131,33 @@ class OpenVLAPolicy:
         from urllib.parse import urlsplit
 
         parts = urlsplit(self.config.url)
-        try:
+        with self.transport(connecting=True):
             socket.create_connection(
                 (parts.hostname, parts.port), timeout=self.config.connect_timeout_s
             ).close()
-        except ConnectionRefusedError:
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: connection refused at {self.config.url}; is deploy.py running?"
-            ) from None
-        except OSError as e:
-            raise PolicyConnectionError(
-                f"policy {self.spec.name}: cannot reach {self.config.url}: {e}"
-            ) from None
+
+    def _map_error(self, error: BaseException, connecting: bool) -> IndgenError | None:
+        import http.client
+
+        if isinstance(error, urllib.error.HTTPError):
+            kind = (
+                PolicyConnectionError if error.code >= 500 else PolicyError
+            )  # 5xx: proxy or restarting server
+            return kind(
+                f"policy {self.spec.name}: server answered HTTP {error.code} {error.reason} on POST /act"
+            )
+        if isinstance(error, urllib.error.URLError) and not isinstance(error.reason, OSError):
+            return self.fail(f"cannot reach {self.config.url}: {error.reason}")
+        if isinstance(error, http.client.HTTPException):  # closed mid-reply (IncompleteRead)
+            return PolicyConnectionError(
+                f"policy {self.spec.name}: connection to {self.config.url} failed: {type(error).__name__}: {error}"
+            )
+        return None
 
     def _image(self, obs: Observation, cam: str) -> np.ndarray:
         if cam not in obs.images:
-            raise PolicyError(
-                f"policy {self.spec.name} needs camera {cam!r}; observation has {sorted(obs.images)}"
-            )
-        img = flip_180(obs.images[cam]) if self.config.flip_180 else obs.images[cam]
-        img = resize_jpeg_lanczos(img, self.config.image_size, self.config.image_size)
-        return center_crop_tf(img, 0.9) if self.config.center_crop else img
+            raise self.fail(f"needs camera {cam!r}; observation has {sorted(obs.images)}")
+        return self.config.conventions.images(obs.images[cam])
 
     def make_payload(self, obs: Observation) -> dict:
         """The request body for one observation, before json-numpy encoding."""
@@ -177,42 +177,21 @@ class OpenVLAPolicy:
         """POST /act and decode the reply; errors become PolicyError naming the policy, transport faults
         (refused, reset, timeout, truncated reply, HTTP 5xx) PolicyConnectionError. Each call is a fresh
         HTTP connection, so the next call after a fault reconnects."""
-        import http.client
-
         body = dumps({"encoded": dumps(payload)} if self.config.encoded else payload).encode()
         req = urllib.request.Request(
             self.config.url + "/act", data=body, method="POST", headers={"Content-Type": "application/json"}
         )
         name = self.spec.name
-        try:
-            with urllib.request.urlopen(req, timeout=self.config.timeout_s) as resp:
-                raw = resp.read()
-        except urllib.error.HTTPError as e:
-            kind = PolicyConnectionError if e.code >= 500 else PolicyError  # 5xx: proxy or restarting server
-            raise kind(f"policy {name}: server answered HTTP {e.code} {e.reason} on POST /act") from None
-        except urllib.error.URLError as e:
-            reason = e.reason
-            if isinstance(reason, ConnectionRefusedError):
-                raise PolicyConnectionError(
-                    f"policy {name}: connection refused at {self.config.url}; is deploy.py running?"
-                ) from None
-            if isinstance(reason, TimeoutError):
-                raise PolicyConnectionError(
-                    f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
-                ) from None
-            if isinstance(reason, OSError):
-                raise PolicyConnectionError(
-                    f"policy {name}: cannot reach {self.config.url}: {reason}"
-                ) from None
-            raise PolicyError(f"policy {name}: cannot reach {self.config.url}: {reason}") from None
-        except TimeoutError:
-            raise PolicyConnectionError(
-                f"policy {name}: no reply from {self.config.url} within {self.config.timeout_s:g}s"
-            ) from None
-        except (OSError, http.client.HTTPException) as e:  # reset, or closed mid-reply (IncompleteRead)
-            raise PolicyConnectionError(
-                f"policy {name}: connection to {self.config.url} failed: {type(e).__name__}: {e}"
-            ) from None
+        with self.transport():
+            try:
+                with urllib.request.urlopen(req, timeout=self.config.timeout_s) as resp:
+                    raw = resp.read()
+            except urllib.error.HTTPError:
+                raise
+            except urllib.error.URLError as e:  # the socket's own fault inside: refused, timed out, reset
+                if isinstance(e.reason, OSError):
+                    raise e.reason from None
+                raise
         try:
             out = loads(raw)
             if self.config.encoded and isinstance(out, str) and out != "error":
@@ -256,13 +235,7 @@ class OpenVLAPolicy:
                 )
             chunks.append(actions[: self.spec.chunk_size])
         chunk = validate_chunk(np.stack(chunks), len(observations), self.spec.name)
-        return convert_gripper(chunk, self.config.gripper)
-
-    def reset(self, instruction: str, seed: int | None = None) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
+        return self.config.conventions.actions(chunk)
 
 
 def default_unnorm_key(variant: str, scene: str | None) -> str | None:
@@ -270,29 +243,27 @@ def default_unnorm_key(variant: str, scene: str | None) -> str | None:
     return f"{scene}_no_noops" if variant == "openvla" and scene in LIBERO_SUITES else None
 
 
+OPTIONS = {
+    "center_crop": "center_crop",
+    "encoded": "encoded",
+    **REMOTE_OPTIONS,
+}  # OpenVLAConfig field -> option
+
+
 def load(
     parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None
 ) -> OpenVLAPolicy:
     """``openvla-oft:http://HOST:PORT[?variant=oft|openvla&unnorm_key=&center_crop=&gripper=&size=&replan=..]``;
     ``scene`` (passed by the engine) picks base OpenVLA's default ``unnorm_key`` on LIBERO suites."""
-    from policy_wrappers.registry import check_url, join_url
-
-    variant = options.choice("variant", ("oft", "openvla"), "oft")
-    scheme, host, port = check_url(parsed.spec, parsed.target, ("http", "https"), PORTS[variant])
-    chunk = options.int("chunk", 8 if variant == "oft" else 1)
+    variant = options.choice("variant", tuple(CONVENTIONS)) or OpenVLAConfig.variant
+    values = options.fields(OpenVLAConfig, OPTIONS)
+    gripper = options.choice("gripper", GRIPPER_MODES)
+    if gripper is not None:
+        values["gripper"] = gripper
     config = OpenVLAConfig(
-        url=join_url(scheme, host, port),
+        url=OpenVLAPolicy.url_from(parsed, PORTS[variant]),
         variant=variant,
         unnorm_key=options.str("unnorm_key", default_unnorm_key(variant, scene)),
-        center_crop=bool(options.bool("center_crop", variant == "openvla")),
-        image_size=options.int("size", 224),
-        render_size=options.int("render", 256),
-        flip_180=options.bool("flip", True),
-        gripper=options.choice("gripper", GRIPPER_MODES, "01inv"),
-        chunk_size=chunk,
-        replan_steps=options.int("replan", chunk),
-        encoded=bool(options.bool("encoded", False)),
-        timeout_s=options.float("timeout", 60.0),
-        connect_timeout_s=options.float("connect_timeout", 10.0),
+        **values,
     )
     return OpenVLAPolicy(parsed.spec, config)

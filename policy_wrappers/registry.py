@@ -36,14 +36,21 @@ FAMILIES.register(
 
 STANDINS: Registry = Registry("stand-in policy")
 STANDINS.register(
-    "oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle from the scenes package"
-)
-STANDINS.register(
     "random",
     "policy_wrappers.standin:RandomPolicy",
     "uniform random deltas, reproducible from the episode seed",
 )
 STANDINS.register("noop", "policy_wrappers.standin:NoopPolicy", "zero motion, gripper open")
+
+
+def register_standin(name: str, target: str, description: str) -> None:
+    """Register ``standin:NAME`` as the class at ``"module:attr"`` (built with no arguments, imported on use).
+
+    The application layer registers stand-ins that live elsewhere (the scenes' privileged oracle:
+    ``indgen_vla.engine``), so this package never refers to them. Registering the same again is a no-op.
+    """
+    STANDINS.register(name, target, description)
+
 
 EXAMPLES = {
     "lerobot": "lerobot:lerobot/smolvla_libero  or  lerobot:./outputs/checkpoints/last/pretrained_model",
@@ -119,7 +126,7 @@ class Options:
         except (TypeError, ValueError):
             raise ConfigError(f"policy {self.spec}: option {key}={value!r} must be an integer") from None
 
-    def float(self, key: str, default: float) -> float:
+    def float(self, key: str, default: float | None = None) -> float | None:
         value = self._get(key)
         if value is None:
             return default
@@ -141,48 +148,35 @@ class Options:
             return False
         raise ConfigError(f"policy {self.spec}: option {key}={value!r} must be 0/1 (or true/false)")
 
-    def choice(self, key: str, choices: tuple[str, ...], default: str) -> str:
+    def choice(self, key: str, choices: tuple[str, ...], default: str | None = None) -> str | None:
         value = self.str(key, default)
-        if value not in choices:
+        if value is not None and value not in choices:
             raise UnknownNameError(
                 f"value for option {key!r} of policy {self.spec}", str(value), list(choices)
             )
         return value
+
+    def fields(self, cls: type, names: Mapping[str, str]) -> dict[str, object]:
+        """The options given among ``names`` (field of dataclass ``cls``, or parameter of its ``__init__``,
+        -> option), typed by its annotation; absent ones are left out, so each default lives in one place."""
+        import dataclasses
+        import typing
+
+        hints = typing.get_type_hints(cls if dataclasses.is_dataclass(cls) else cls.__init__)
+        out: dict[str, object] = {}
+        for name, key in names.items():
+            kind = next((t for t in typing.get_args(hints[name]) if t is not type(None)), hints[name])
+            getter = {int: self.int, float: self.float, bool: self.bool, str: self.str}[kind]
+            value = getter(key, None)
+            if value is not None:
+                out[name] = value
+        return out
 
     def finish(self) -> None:
         """Raise on any option nobody asked for (a typo would otherwise be silently ignored)."""
         unknown = sorted(set(self._raw) - self._used)
         if unknown:
             raise UnknownNameError(f"option of policy {self.spec}", unknown[0], sorted(self._used))
-
-
-def check_url(spec: str, target: str, schemes: tuple[str, ...], default_port: int) -> tuple[str, str, int]:
-    """Parse ``scheme://host:port`` for a remote family; return (scheme, host, port)."""
-    from urllib.parse import urlsplit
-
-    example = f"{schemes[0]}://127.0.0.1:{default_port}"
-    parts = urlsplit(target)
-    if parts.scheme not in schemes:
-        got = f"scheme {parts.scheme + '://'!r}" if parts.scheme else "no scheme"
-        raise ConfigError(
-            f"policy spec {spec!r}: {got}; this family takes {' or '.join(s + '://' for s in schemes)}, e.g. {example}"
-        )
-    try:
-        port = parts.port or default_port
-    except ValueError:
-        raise ConfigError(f"policy spec {spec!r}: bad port in {target!r}; e.g. {example}") from None
-    if not parts.hostname:
-        raise ConfigError(f"policy spec {spec!r}: no host in {target!r}; e.g. {example}")
-    if parts.path not in ("", "/"):
-        raise ConfigError(
-            f"policy spec {spec!r}: unexpected path {parts.path!r}; give only {schemes[0]}://HOST:PORT"
-        )
-    return parts.scheme, parts.hostname, port
-
-
-def join_url(scheme: str, host: str, port: int) -> str:
-    """``scheme://host:port`` with IPv6 hosts bracketed."""
-    return f"{scheme}://[{host}]:{port}" if ":" in host else f"{scheme}://{host}:{port}"
 
 
 def load_policy(

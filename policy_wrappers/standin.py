@@ -1,4 +1,5 @@
-"""CPU stand-ins: ``oracle`` (from scenes, lazily), ``random``, ``noop`` and tiny checkpoint directories."""
+"""CPU stand-ins: ``random``, ``noop``, tiny checkpoint directories, and any stand-in the application registers
+(``registry.register_standin``: the scenes' privileged oracle)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import PolicyError, UnknownNameError
-from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
+from indgen_vla.interface import ACTION_DIM, NOOP_ACTION, Observation, PolicySpec, validate_chunk
 
 
 class NoopPolicy:
@@ -23,9 +24,8 @@ class NoopPolicy:
         pass
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        chunk = np.zeros((len(observations), self.spec.chunk_size, ACTION_DIM), np.float32)
-        chunk[..., -1] = -1.0
-        return chunk
+        shape = (len(observations), self.spec.chunk_size, ACTION_DIM)
+        return np.broadcast_to(np.asarray(NOOP_ACTION, np.float32), shape).copy()
 
     def close(self) -> None:
         pass
@@ -58,10 +58,10 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
 
     name = parsed.target
     if name == "noop":
-        return NoopPolicy(parsed.spec, chunk_size=options.int("chunk", 8))
+        return NoopPolicy(parsed.spec, **options.fields(NoopPolicy, {"chunk_size": "chunk"}))
     if name == "random":
         return RandomPolicy(
-            parsed.spec, chunk_size=options.int("chunk", 8), scale=options.float("scale", 0.5)
+            parsed.spec, **options.fields(RandomPolicy, {"chunk_size": "chunk", "scale": "scale"})
         )
     if name in STANDINS:
         try:

@@ -1,5 +1,7 @@
-"""Scenes: frozen specs, inductive axes (successors), robosuite builders, the oracle and certification.
+"""Scenes: frozen specs, inductive axes (successors), the registered scene families, the oracle and certification.
 
+A scene family is one ``scenes.registry.Scene`` subclass registered with ``@register_scene`` (the built-ins in
+``scenes.catalog``, the LIBERO suites in ``scenes.libero``); the functions here look it up by name.
 Importing this package is cheap: robosuite and MuJoCo load only when ``make_env`` builds an env.
 """
 
@@ -10,43 +12,38 @@ from typing import TYPE_CHECKING
 
 from indgen_vla.interface import CAMERAS
 from indgen_vla.progression import AxisSpec
+from scenes import catalog, libero  # noqa: F401  (importing them registers the built-in families, the LIBERO suites)
 from scenes.axes import get_axis as _get_axis
 from scenes.axes import get_successor
-from scenes.catalog import SCENES, check_axis_supported, get_scene, resolve_task
+from scenes.registry import get_scene, registered_scenes
 
 if TYPE_CHECKING:
-    from scenes.env import SceneEnv
-
-DEFAULT_AXIS = {
-    "pick_place": "pick_y",
-    "stack": "stack",
-    "cabinet_pick": "clutter",
-    "libero_object": "pick_y",
-}
+    from scenes.env import BaseSceneEnv
 
 __all__ = [
-    "make_env", "scene_names", "tasks", "axes_for", "get_axis", "level_param", "check_ready", "check_axis_progression",
+    "make_env", "scene_names", "tasks", "select_tasks", "axes_for", "get_axis", "level_param", "check_ready",
+    "check_axis_progression",
 ]  # fmt: skip
 
 
 def scene_names() -> list[str]:
-    """Registered scene names (the LIBERO suites too when hf-libero is installed)."""
-    from scenes.catalog import all_scenes
-
-    return list(all_scenes())
+    """Registered scene names: the built-in families, then the LIBERO suites."""
+    return [s.name for s in registered_scenes()]
 
 
 def check_ready(scene: str) -> None:
-    """Fail fast, in one line, when a scene's external assets are missing (LIBERO's Hub download)."""
-    if scene not in SCENES:
-        from scenes.libero import check_ready as libero_ready
-
-        libero_ready(scene)
+    """Fail fast, in one line, when a scene's external install or assets are missing (LIBERO's Hub download)."""
+    get_scene(scene).check_ready()
 
 
 def tasks(scene: str) -> list[str]:
     """Tasks of ``scene`` (the first is the default)."""
     return list(get_scene(scene).tasks)
+
+
+def select_tasks(scene: str, task: str | None) -> list[str]:
+    """The tasks a run covers: ``[default]`` for None/"", every task for "all", else ``[task]`` (checked)."""
+    return get_scene(scene).select_tasks(task)
 
 
 def axes_for(scene: str) -> list[str]:
@@ -74,9 +71,9 @@ def level_param(
     building the simulator: e.g. 1.2 for ``scale`` at level 3, or the pick object's y in metres."""
     from scenes.axes import axis_param, spec_at_level
 
-    sdef = get_scene(scene)
+    sc = get_scene(scene)
     successor = successor_for(axis, step, preset)
-    spec = spec_at_level(sdef.base(resolve_task(sdef, task)), successor, level)
+    spec = spec_at_level(sc.base(sc.resolve_task(task)), successor, level)
     return axis_param(spec, successor, level)
 
 
@@ -89,15 +86,10 @@ def check_axis_progression(
     LIBERO suites against their fixed initial states, which needs level 0 built (physics only, ~10 s), so
     up front only when --step / --axes-preset changed a step; the env repeats the check when it is built.
     """
-    from scenes.axes import check_progression
-
-    sdef = get_scene(scene)
-    check_axis_supported(sdef, axis)
+    sc = get_scene(scene)
+    sc.check_axis(axis)
     successor = successor_for(axis, step, preset)
-    if scene in SCENES:
-        check_progression(sdef.base(resolve_task(sdef, task)), successor)
-    elif (step is not None or preset is not None) and any(p in ("pick_y", "goal_y") for p in axis.split("+")):
-        make_env(scene, task=task, axis=axis, step=step, cameras=(), preset=preset).close()  # raises if not
+    sc.check_progression(sc.resolve_task(task), successor, step is not None or preset is not None)
 
 
 def make_env(
@@ -111,19 +103,12 @@ def make_env(
     image_size: tuple[int, int] = (128, 128),
     max_steps: int | None = None,
     preset: str | None = None,
-) -> SceneEnv:
-    """Build one level of one task: the scene's T0 moved ``level`` atomic steps along ``axis``."""
-    sdef = get_scene(scene)
-    task = resolve_task(sdef, task)
-    axis = axis or DEFAULT_AXIS[scene]
-    check_axis_supported(sdef, axis)
+) -> BaseSceneEnv:
+    """Build one level of one task: the scene's T0 moved ``level`` atomic steps along ``axis`` (default: the
+    scene's first axis)."""
+    sc = get_scene(scene)
+    task = sc.resolve_task(task)
+    axis = axis or sc.default_axis
+    sc.check_axis(axis)
     successor = successor_for(axis, step, preset)
-    if scene not in SCENES:  # a LIBERO suite
-        from scenes.libero.env import LiberoSceneEnv
-
-        return LiberoSceneEnv(
-            sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
-        )
-    from scenes.env import SceneEnv
-
-    return SceneEnv(sdef, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)
+    return sc.make_env(task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

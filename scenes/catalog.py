@@ -1,48 +1,95 @@
-"""The registered scenes (pure data, no simulator import) and the ``indgen scenes`` / ``indgen axes`` listings."""
+"""The built-in scene families (pure data, no simulator import) and the ``indgen scenes`` / ``indgen axes`` listings.
+
+Each family is one registered ``Scene`` subclass; ``scenes.layouts`` holds its simulator builder.
+"""
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
-from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
-from indgen_vla.errors import ConfigError, UnknownNameError
+from indgen_vla.errors import ConfigError
 from scenes.axes import base_axis_names, get_successor
+from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
+from scenes.registry import Scene, register_scene, registered_scenes
 from scenes.spec import BLOCK_COLOURS, PICK_OBJECTS, Item, SceneSpec
 
+if TYPE_CHECKING:
+    from scenes.env import SceneEnv
+    from scenes.sim import Layout
+
 SHORT_DRESSING = ("lemon", "bread", "can", "cube", "cylinder")
+STACK_TASKS = ("orange_on_blue", "red_on_green", "yellow_on_red", "blue_on_yellow")
 
 
-@dataclass(frozen=True)
-class SceneDef:
-    """A scene family: its tasks, the axes it supports, its episode length and where its builder lives."""
+class RobosuiteScene(Scene):
+    """A family built by this package's robosuite backend (``scenes.env.SceneEnv``) from a ``SceneSpec``.
 
-    name: str
-    description: str
-    tasks: tuple[str, ...]
-    axes: tuple[str, ...]
-    max_steps: int
-    builder: str  # "module:function" turning a SceneSpec into a robosuite Layout
-    base: Callable[[str], SceneSpec]
-    instruction: Callable[[str], str]
+    ``builder`` names the ``scenes.layouts`` function turning a level's spec into the simulator ``Layout``.
+    """
 
-    def __post_init__(self) -> None:
-        if not self.tasks or self.max_steps < 1:
-            raise ConfigError(f"scene {self.name}: needs tasks and a positive max_steps")
-        unknown = [a for a in self.axes if a not in base_axis_names()]
-        if unknown:
-            raise ConfigError(f"scene {self.name}: unknown axes {unknown}")
+    tasks: ClassVar[tuple[str, ...]]
+    builder: ClassVar[str]
+
+    def layout(self, spec: SceneSpec) -> Layout:
+        """The simulator layout of one level (imports robosuite)."""
+        from scenes import layouts
+
+        return getattr(layouts, self.builder)(spec)
+
+    def env_class(self) -> type[SceneEnv]:
+        from scenes.env import SceneEnv
+
+        return SceneEnv
+
+    @classmethod
+    def validate(cls) -> None:
+        super().validate()
+        if not getattr(cls, "tasks", ()) or not isinstance(cls.tasks, tuple):
+            raise ConfigError(f"scene {cls.name}: set tasks to a non-empty tuple of task names")
+        if not isinstance(getattr(cls, "builder", None), str):
+            raise ConfigError(f"scene {cls.name}: set builder to the name of a scenes.layouts function")
 
 
-def _pick_place_base(task: str) -> SceneSpec:
-    dressing = tuple(k for k in SHORT_DRESSING if k != task)[:2]
-    return SceneSpec(
-        scene="pick_place",
-        task=task,
-        pick=Item(task, x=-0.06, y=-0.13),
-        goal=Item("basket", x=-0.04, y=0.16),
-        dressing=(Item(dressing[0], x=0.14, y=-0.32), Item(dressing[1], x=0.2, y=0.37)),
-    )
+@register_scene
+class PickPlace(RobosuiteScene):
+    """LIBERO-Object style pick and place into a basket.
+
+    **Task Description:**
+    Pick up the task's object (milk carton, bread, soda can, lemon, bottle, red cube or green cylinder) and place
+    it in the basket; two other objects dress the table.
+
+    **Randomizations:**
+    - per episode seed, the pick object's and the basket's x/y each move by a uniform offset in +-1 cm (T0 jitter)
+    - along the axes: the pick object's y (``pick_y``), x (``pick_x``) and size (``scale``), the basket's y
+      (``goal_y``), the robot base's distance (``horizon``), visual-only distractors (``distractor``)
+
+    **Success Conditions:**
+    - the object rests inside the basket (within its walls, below its rim), released by the gripper and still
+    """
+
+    name = "pick_place"
+    description = "LIBERO-Object style: pick one object and place it in the basket"
+    tasks = tuple(PICK_OBJECTS)
+    axes = ("pick_y", "goal_y", "scale", "pick_x", "horizon", "distractor")
+    max_steps = 280
+    distractor_slots = ((0.22, 0.02), (-0.16, 0.32), (0.26, -0.18), (-0.2, -0.34))
+    success_predicate = InReceptacle()
+    certified_compositions = ("pick_y+distractor",)
+    builder = "pick_place_layout"
+
+    def base(self, task: str) -> SceneSpec:
+        dressing = tuple(k for k in SHORT_DRESSING if k != task)[:2]
+        return SceneSpec(
+            scene=self.name,
+            task=task,
+            pick=Item(task, x=-0.06, y=-0.13),
+            goal=Item("basket", x=-0.04, y=0.16),
+            dressing=(Item(dressing[0], x=0.14, y=-0.32), Item(dressing[1], x=0.2, y=0.37)),
+        )
+
+    def instruction(self, task: str) -> str:
+        return f"pick up the {PICK_OBJECTS[task][0]} and place it in the basket"
 
 
 def _stack_pair(task: str) -> tuple[str, str]:
@@ -50,113 +97,106 @@ def _stack_pair(task: str) -> tuple[str, str]:
     return top, bottom
 
 
-def _stack_base(task: str) -> SceneSpec:
-    top, bottom = _stack_pair(task)
-    return SceneSpec(
-        scene="stack",
-        task=task,
-        pick=Item(f"block_{top}", x=-0.1, y=-0.12),
-        goal=Item(f"block_{bottom}", x=-0.07, y=0.10),
-    )
+@register_scene
+class Stack(RobosuiteScene):
+    """The paper's real-robot Stack task in simulation.
+
+    **Task Description:**
+    Place one coloured block (the task's first colour) on another (its second) that sits on a stack of
+    0.25 in riser plates.
+
+    **Randomizations:**
+    - per episode seed, the pick block's and the target's x/y each move by a uniform offset in +-1 cm (T0 jitter;
+      the risers move with the target)
+    - along the axes: the riser stack's height (``stack``), the pick block's y (``pick_y``) and size (``scale``),
+      the target's y (``goal_y``), the robot base's distance (``horizon``), visual-only distractors
+      (``distractor``)
+
+    **Success Conditions:**
+    - the pick block rests on top of the target block (within 2 cm in x/y, within 1 cm of its top), released
+      and still
+    """
+
+    name = "stack"
+    description = "real-robot Stack: place one block on another that sits on a riser stack"
+    tasks = STACK_TASKS
+    axes = ("stack", "pick_y", "goal_y", "scale", "horizon", "distractor")
+    max_steps = 240
+    distractor_slots = ((0.2, -0.02), (-0.16, 0.3), (0.24, -0.22), (0.22, 0.26))
+    success_predicate = OnTarget()
+    builder = "stack_layout"
+
+    @classmethod
+    def validate(cls) -> None:
+        super().validate()
+        bad = [t for t in cls.tasks if not all(c in BLOCK_COLOURS for c in _stack_pair(t))]
+        if bad:
+            raise ConfigError(
+                f"scene {cls.name}: tasks {bad} are not '<colour>_on_<colour>' of {list(BLOCK_COLOURS)}"
+            )
+
+    def base(self, task: str) -> SceneSpec:
+        top, bottom = _stack_pair(task)
+        return SceneSpec(
+            scene=self.name,
+            task=task,
+            pick=Item(f"block_{top}", x=-0.1, y=-0.12),
+            goal=Item(f"block_{bottom}", x=-0.07, y=0.10),
+        )
+
+    def instruction(self, task: str) -> str:
+        return "place the {} block on the {} block".format(*_stack_pair(task))
 
 
-def _cabinet_base(task: str) -> SceneSpec:
-    # pick.x/pick.y are relative to the compartment centre; goal is the table spot in front of the cabinet
-    return SceneSpec(
-        scene="cabinet_pick",
-        task=task,
-        pick=Item(task, x=0.0, y=0.0),
-        goal=Item("table", x=-0.16, y=0.0),
-        jitter=0.008,
-    )
+@register_scene
+class CabinetPick(RobosuiteScene):
+    """RoboCasa style: take an object out of a cabinet compartment.
+
+    **Task Description:**
+    Take the task's object out of the open cabinet's compartment and put it on the table in front of the cabinet.
+
+    **Randomizations:**
+    - per episode seed, the object's x/y in the compartment moves by a uniform offset in +-0.8 cm (T0 jitter)
+    - along the axes: clutter objects beside it in the compartment (``clutter``), the cabinet's position along
+      the counter (``fixture_x``), visual-only distractors on the table (``distractor``)
+
+    **Success Conditions:**
+    - the object rests on the table top outside the cabinet's footprint, released and still
+    """
+
+    name = "cabinet_pick"
+    description = "RoboCasa style: take an object out of a cabinet compartment and put it on the table"
+    tasks = ("can", "cube", "lemon", "cylinder", "bread")
+    axes = ("clutter", "fixture_x", "distractor")
+    max_steps = 300
+    distractor_slots = ((-0.2, 0.3), (-0.2, -0.34), (0.32, 0.38), (0.32, -0.4))
+    success_predicate = OnTableOutside()
+    builder = "cabinet_layout"
+
+    def base(self, task: str) -> SceneSpec:
+        # pick.x/pick.y are relative to the compartment centre; goal is the table spot in front of the cabinet
+        return SceneSpec(
+            scene=self.name,
+            task=task,
+            pick=Item(task, x=0.0, y=0.0),
+            goal=Item("table", x=-0.16, y=0.0),
+            jitter=0.008,
+        )
+
+    def instruction(self, task: str) -> str:
+        return f"take the {PICK_OBJECTS[task][0]} out of the cabinet and put it on the table"
 
 
-STACK_TASKS = ("orange_on_blue", "red_on_green", "yellow_on_red", "blue_on_yellow")
-for _t in STACK_TASKS:
-    assert all(c in BLOCK_COLOURS for c in _stack_pair(_t)), _t
-
-SCENES: dict[str, SceneDef] = {
-    "pick_place": SceneDef(
-        name="pick_place",
-        description="LIBERO-Object style: pick one object and place it in the basket",
-        tasks=tuple(PICK_OBJECTS),
-        axes=("pick_y", "goal_y", "scale", "pick_x", "horizon", "distractor"),
-        max_steps=280,
-        builder="scenes.layouts:pick_place_layout",
-        base=_pick_place_base,
-        instruction=lambda t: f"pick up the {PICK_OBJECTS[t][0]} and place it in the basket",
-    ),
-    "stack": SceneDef(
-        name="stack",
-        description="real-robot Stack: place one block on another that sits on a riser stack",
-        tasks=STACK_TASKS,
-        axes=("stack", "pick_y", "goal_y", "scale", "horizon", "distractor"),
-        max_steps=240,
-        builder="scenes.layouts:stack_layout",
-        base=_stack_base,
-        instruction=lambda t: "place the {} block on the {} block".format(*_stack_pair(t)),
-    ),
-    "cabinet_pick": SceneDef(
-        name="cabinet_pick",
-        description="RoboCasa style: take an object out of a cabinet compartment and put it on the table",
-        tasks=("can", "cube", "lemon", "cylinder", "bread"),
-        axes=("clutter", "fixture_x", "distractor"),
-        max_steps=300,
-        builder="scenes.layouts:cabinet_layout",
-        base=_cabinet_base,
-        instruction=lambda t: f"take the {PICK_OBJECTS[t][0]} out of the cabinet and put it on the table",
-    ),
-}
+def builtin_scenes() -> list[RobosuiteScene]:
+    """The registered families this package builds itself (no external assets)."""
+    return [s for s in registered_scenes() if isinstance(s, RobosuiteScene)]
 
 
-def all_scenes() -> dict[str, SceneDef]:
-    """Built-in scenes plus the LIBERO suites (registered when hf-libero is installed)."""
-    from scenes.libero import scene_defs
-
-    return {**SCENES, **scene_defs()}
-
-
-def get_scene(name: str) -> SceneDef:
-    scenes = SCENES if name in SCENES else all_scenes()
-    try:
-        return scenes[name]
-    except KeyError:
-        raise UnknownNameError("scene", name, list(scenes)) from None
-
-
-def resolve_task(scene: SceneDef, task: str | None) -> str:
-    if task is None:
-        return scene.tasks[0]
-    if task not in scene.tasks:
-        raise UnknownNameError(f"task of scene {scene.name}", task, list(scene.tasks))
-    return task
-
-
-def check_axis_supported(scene: SceneDef, axis: str) -> None:
-    """Every component of ``axis`` must be one of the scene's axes."""
-    for part in axis.split("+"):
-        if part not in scene.axes:
-            if part not in base_axis_names():
-                raise UnknownNameError("axis", part, base_axis_names())
-            raise UnknownNameError(f"axis of scene {scene.name}", part, list(scene.axes))
-
-
+# ---- ``indgen scenes`` / ``indgen axes`` ------------------------------------------------------------
 def scene_rows() -> list[dict]:
-    """One row per scene for ``indgen scenes``: the built-ins, then the LIBERO suites (assets not required)."""
-    from scenes.libero import listing
-
-    rows = [
-        {
-            "name": s.name,
-            "description": s.description,
-            "tasks": list(s.tasks),
-            "axes": list(s.axes),
-            "max_steps": s.max_steps,
-            "needs": None,
-        }
-        for s in SCENES.values()
-    ]
-    return rows + listing()
+    """One row per registered scene for ``indgen scenes``: the built-ins, then the LIBERO suites (assets not
+    required)."""
+    return [s.row() for s in registered_scenes()]
 
 
 def _axis_rows() -> list[dict]:

@@ -3,7 +3,7 @@
 A level is certified (the paper's Assumption 2, stated statistically) when the one-sided 95 %
 Clopper–Pearson lower bound of the oracle's success rate is >= the threshold (0.95: 59/59 episodes).
 Episodes run one after another up to ``n_max`` and stop as soon as a failure makes certification
-unreachable even if every remaining episode succeeded (docs/certification/README.md). Certification is
+unreachable even if every remaining episode succeeded (scenes/certification/README.md). Certification is
 per (scene, task, axis, component steps), physics only, resumable, and deterministic: episode i of level
 k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
 """
@@ -19,6 +19,7 @@ from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.metrics import clopper_pearson_ci
 from indgen_vla.progression import parse_levels
 from indgen_vla.seeding import episode_seed
+from scenes.privileged import with_privileged
 
 THRESHOLD = 0.95
 CONFIDENCE = 0.95
@@ -88,7 +89,7 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
     policy.reset(env.instruction, seed)
     info = {"success": False}
     for _ in range(env.max_steps):
-        obs = dataclasses.replace(obs, extras={**obs.extras, "privileged": env.privileged_state()})
+        obs = with_privileged(obs, env)
         action = policy.act([obs])[0, 0]
         obs, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
@@ -175,11 +176,11 @@ def certify(
     levels already certified there under the same steps/seed/rule and write after every level."""
     import scenes
     from scenes.axes import successor_steps
-    from scenes.catalog import check_axis_supported, get_scene, resolve_task
+    from scenes.registry import get_scene
 
-    sdef = get_scene(scene)
-    task = resolve_task(sdef, task)
-    check_axis_supported(sdef, axis)
+    sc = get_scene(scene)
+    task = sc.resolve_task(task)
+    sc.check_axis(axis)
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     if episodes is not None and episodes < 1:

@@ -1,6 +1,6 @@
 """Where certificates live, how ``evaluate`` finds them, the SUMMARY table and the ``indgen certify`` CLI.
 
-Built-in scenes: ``docs/certification/<scene>/<task>/<axis>/certify.json`` (committed). LIBERO suites:
+Built-in scenes: ``scenes/certification/<scene>/<task>/<axis>/certify.json`` (committed). LIBERO suites:
 ``$INDGEN_CACHE/certification/<hash of the asset tree path>/<scene>/<task>/<axis>/certify.json``
 (``$INDGEN_CACHE`` defaults to ``~/.cache/indgen``), written by
 ``indgen certify`` on the user's machine. ``$INDGEN_CERT_DIR`` replaces either root. An axis certified at
@@ -15,20 +15,19 @@ from pathlib import Path
 
 from indgen_vla.errors import RunDirError
 from scenes.certify import certified_levels, certify, infeasible_levels, level_status, load_certification
-
-# compositions certified beside each scene's single axes (the ones the docs and presets use)
-CERTIFIED_COMPOSITIONS = {"pick_place": ("pick_y+distractor",)}
+from scenes.registry import get_scene, registered_scenes
 
 
 def certification_root(scene: str | None = None) -> Path:
-    """$INDGEN_CERT_DIR, else docs/certification for built-in scenes, else a cache folder per asset tree."""
+    """$INDGEN_CERT_DIR, else the committed certificates (``indgen_vla.resources.certification_dir``) for the built-in
+    scenes, else a cache folder per asset tree."""
     env = os.environ.get("INDGEN_CERT_DIR")
     if env:
         return Path(env)
-    from scenes.catalog import SCENES
+    if scene is None or get_scene(scene).committed_certificates:
+        from indgen_vla.resources import certification_dir
 
-    if scene is None or scene in SCENES:
-        return Path(__file__).resolve().parent.parent / "docs" / "certification"
+        return certification_dir()
     from scenes.libero.assets import find_assets
 
     assets = find_assets(required=False)
@@ -52,9 +51,7 @@ def cert_path(
     root: str | Path | None = None,
 ) -> Path:  # fmt: skip
     """The certify.json of (scene, task, axis, steps)."""
-    from scenes.catalog import get_scene, resolve_task
-
-    task = resolve_task(get_scene(scene), task)
+    task = get_scene(scene).resolve_task(task)
     base = Path(root) if root is not None else certification_root(scene)
     return base / scene / task / axis_dirname(axis, step, preset) / "certify.json"
 
@@ -103,9 +100,7 @@ def print_table(cert: dict) -> None:
 
 def certify_main(args) -> int:
     """``indgen certify``: write certify.json per task (resuming what is there); exit 1 if a level failed."""
-    from scenes.catalog import get_scene
-
-    tasks = list(get_scene(args.scene).tasks) if args.task == "all" else [args.task]
+    tasks = get_scene(args.scene).select_tasks(args.task)
     preset = getattr(args, "axes_preset", None)
     failed = False
     for task in tasks:
@@ -143,13 +138,15 @@ def _needed(cert: dict) -> int:
 
 
 def default_jobs(scene_names: list[str] | None = None) -> list[tuple[str, str, str]]:
-    """Every (scene, task, axis) of the built-in scenes in priority order: each task's first axis, then the rest."""
-    from scenes.catalog import SCENES
-
-    defs = [s for s in SCENES.values() if scene_names is None or s.name in scene_names]
+    """Every (scene, task, axis) of the scenes with committed certificates (the built-ins) in priority order:
+    each task's first axis, then the rest and the scene's ``certified_compositions``."""
+    defs = [
+        s
+        for s in registered_scenes()
+        if s.committed_certificates and (scene_names is None or s.name in scene_names)
+    ]
     first = [(s.name, t, s.axes[0]) for s in defs for t in s.tasks]
-    rest = [(s.name, t, a) for s in defs for a in (*s.axes[1:], *CERTIFIED_COMPOSITIONS.get(s.name, ()))
-            for t in s.tasks]  # fmt: skip
+    rest = [(s.name, t, a) for s in defs for a in (*s.axes[1:], *s.certified_compositions) for t in s.tasks]
     return first + rest
 
 
@@ -225,6 +222,6 @@ def write_summary(out_dir: str | Path) -> Path:
 
 
 __all__ = [
-    "CERTIFIED_COMPOSITIONS", "certification_root", "axis_dirname", "cert_path", "find_certification",
+    "certification_root", "axis_dirname", "cert_path", "find_certification",
     "print_table", "certify_main", "default_jobs", "certify_all", "write_summary", "RunDirError",
 ]  # fmt: skip

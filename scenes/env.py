@@ -7,7 +7,6 @@ and judges success with the scene's single success predicate.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 
 import gymnasium as gym
@@ -16,9 +15,9 @@ import numpy as np
 from indgen_vla.errors import ConfigError, SceneError
 from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
-from scenes.catalog import SceneDef
 from scenes.failure import FailureTrace
-from scenes.predicates import SUCCESS_PREDICATES
+from scenes.privileged import PrivilegedState
+from scenes.registry import Scene
 from scenes.sim import CAMERA_NAMES, IndgenRobosuiteEnv
 
 
@@ -43,6 +42,46 @@ def check_env_args(cameras: Sequence[str], max_steps: int | None) -> tuple[str, 
     return cams
 
 
+class ObservationSpace(gym.spaces.Space):
+    """What a scene env's ``reset``/``step`` return: an ``Observation`` with one uint8 HxWx3 image per requested
+    camera and the float32 robot state (``DictObservation`` gives the same as a ``spaces.Dict``)."""
+
+    def __init__(self, cameras: tuple[str, ...], image_size: tuple[int, int], seed: int | None = None):
+        h, w = image_size
+        self.images = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cameras}
+        self.state = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+        super().__init__(seed=seed)
+
+    def as_dict(self) -> gym.spaces.Dict:
+        """The same observations as ``{camera: image, "state": state}`` (``DictObservation``'s space)."""
+        return gym.spaces.Dict({**self.images, "state": self.state})
+
+    def contains(self, x) -> bool:
+        return (
+            isinstance(x, Observation)
+            and set(x.images) == set(self.images)
+            and all(self.images[c].contains(x.images[c]) for c in self.images)
+            and self.state.contains(np.asarray(x.state))
+        )
+
+    def sample(self, mask=None, probability=None) -> Observation:
+        return Observation(
+            images={c: b.sample() for c, b in self.images.items()}, state=self.state.sample(), instruction=""
+        )
+
+    def seed(self, seed: int | None = None) -> list[int]:
+        seeds = super().seed(seed)
+        for i, b in enumerate([*self.images.values(), self.state]):
+            b.seed(None if seed is None else seed + 1 + i)
+        return seeds
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, ObservationSpace) and self.as_dict() == other.as_dict()
+
+    def __repr__(self) -> str:
+        return f"ObservationSpace({self.as_dict()!r})"
+
+
 class BaseSceneEnv(gym.Env):
     """The gym plumbing every scene env shares: arguments, spaces, the step contract, video frames, closing."""
 
@@ -51,12 +90,14 @@ class BaseSceneEnv(gym.Env):
 
     _sim_env = None  # the backend's robosuite-style env; None before it is built and once closed
     _trace: FailureTrace | None = None  # this episode's contacts and lifts (privileged; never observed)
+    _observing: bool = True  # whether the step in progress must produce camera images (``step(observe=...)``)
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    render_mode = "rgb_array"  # render() returns an upright agentview frame (``render_frame``)
 
     def __init__(
         self,
-        scene: SceneDef,
+        scene: Scene,
         task: str,
         successor: Successor,
         level: int,
@@ -75,10 +116,7 @@ class BaseSceneEnv(gym.Env):
         self._done = True
         self.episode_seed: int | None = None
         self._load(scene, task, successor)
-        h, w = self.image_size
-        spaces = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in self.cameras}
-        spaces["state"] = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
-        self.observation_space = gym.spaces.Dict(spaces)
+        self.observation_space = ObservationSpace(self.cameras, self.image_size)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
 
     def __repr__(self) -> str:
@@ -87,7 +125,9 @@ class BaseSceneEnv(gym.Env):
     __str__ = __repr__
 
     # ---- gymnasium API -------------------------------------------------------------------------
-    def step(self, action) -> tuple[Observation, float, bool, bool, dict]:
+    def step(self, action, observe: bool = True) -> tuple[Observation, float, bool, bool, dict]:
+        """Gymnasium's step; ``observe=False`` (the engine, for steps whose observation nobody reads) skips the
+        camera renders where the scene can: the returned observation then has no images, all else is the same."""
         if self._done:
             raise SceneError("step() after the episode ended; call reset() first")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
@@ -95,6 +135,7 @@ class BaseSceneEnv(gym.Env):
             raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
         if self._t == 0:  # the episode's first step: the trace starts from the reset state
             self._trace = FailureTrace(start_bottom=self._failure_signals()[1])
+        self._observing = observe
         success = self._advance(np.clip(a, -1.0, 1.0))
         self._trace.update(*self._failure_signals(), gripper_closed=bool(a[-1] > 0))
         self._t += 1
@@ -102,7 +143,7 @@ class BaseSceneEnv(gym.Env):
         truncated = (not success) and self._t >= self.max_steps
         self._done = terminated or truncated
         return (
-            self._observation(),
+            self._observation() if observe else self._observation_without_images(),
             float(success),
             terminated,
             truncated,
@@ -163,7 +204,7 @@ class BaseSceneEnv(gym.Env):
         return np.ascontiguousarray(renderer.render()[::-1])
 
     # ---- what a backend provides ---------------------------------------------------------------
-    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
+    def _load(self, scene: Scene, task: str, successor: Successor) -> None:
         """Build this level's simulator into ``_sim_env`` (and whatever else the backend needs)."""
         raise NotImplementedError
 
@@ -182,6 +223,14 @@ class BaseSceneEnv(gym.Env):
     def _observation(self) -> Observation:
         raise NotImplementedError
 
+    def _observation_without_images(self) -> Observation:
+        """The observation minus the camera images (scenes whose images come with the physics step: all of it)."""
+        return self._observation()
+
+    def privileged_state(self) -> PrivilegedState:
+        """The simulator facts oracles and the success predicate read, now (``scenes.privileged``)."""
+        raise NotImplementedError
+
     def _mj_model(self):
         return self._sim_env.sim.model._model
 
@@ -192,18 +241,17 @@ class BaseSceneEnv(gym.Env):
 class SceneEnv(BaseSceneEnv):
     """One level of one task of one scene; ``reset(seed=...)`` fixes the initial state completely."""
 
-    _state: dict | None = None  # privileged state after the last step (None right after a reset)
+    _state: PrivilegedState | None = None  # privileged state after the last step (None right after a reset)
 
-    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
+    def _load(self, scene: Scene, task: str, successor: Successor) -> None:
         self.instruction = scene.instruction(task)
         base = scene.base(task)
         # a step below the T0 jitter would not leave the easier levels' support
         check_progression(base, successor)
         self.spec = spec_at_level(base, successor, self.level)  # the frozen scene spec of this level
         self.axis_param = axis_param(self.spec, successor, self.level)
-        self.success_predicate = SUCCESS_PREDICATES[scene.name]
-        module, _, func = scene.builder.partition(":")
-        layout = getattr(importlib.import_module(module), func)(self.spec)
+        self.success_predicate = scene.success_predicate
+        layout = scene.layout(self.spec)
         try:
             self._sim_env = IndgenRobosuiteEnv(layout)
         except Exception as e:  # robosuite raises bare assertions and mujoco errors
@@ -221,7 +269,7 @@ class SceneEnv(BaseSceneEnv):
         return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
 
     # ---- extras for the engine and the oracle ----------------------------------------------------
-    def privileged_state(self) -> dict:
+    def privileged_state(self) -> PrivilegedState:
         """Object/receptacle poses, contacts and placement targets (for oracles only)."""
         return self._rs.privileged_state()
 
@@ -238,7 +286,7 @@ class SceneEnv(BaseSceneEnv):
 
     def _failure_signals(self) -> tuple[bool, float]:
         s = self._state if self._state is not None else self._rs.privileged_state()
-        return bool(s["pick_touching_gripper"]), float(s["pick_bottom"])
+        return bool(s.pick.touching_gripper), float(s.pick.bottom)
 
     def _observation(self) -> Observation:
         images = {c: self._render(CAMERA_NAMES[c], self.image_size) for c in self.cameras}
@@ -249,31 +297,18 @@ class SceneEnv(BaseSceneEnv):
             extras={"step": self._t},
         )
 
+    def _observation_without_images(self) -> Observation:
+        return Observation(images={}, state=self._rs.robot_state(), instruction=self.instruction,
+                           extras={"step": self._t})  # fmt: skip
 
-class GymDictEnv(gym.Env):
-    """A plain-gymnasium view of a ``SceneEnv`` (dict observations) for ``gymnasium.utils.env_checker``."""
 
-    metadata = BaseSceneEnv.metadata
+class DictObservation(gym.ObservationWrapper):
+    """A scene env with plain dict observations (``{camera: image, "state": state}``) in a ``spaces.Dict``, for
+    gymnasium tooling such as ``gymnasium.utils.env_checker``."""
 
-    def __init__(self, env: SceneEnv):
-        self.env = env
-        self.observation_space = env.observation_space
-        self.action_space = env.action_space
+    def __init__(self, env: BaseSceneEnv):
+        super().__init__(env)
+        self.observation_space = env.observation_space.as_dict()
 
-    @staticmethod
-    def _dict(obs: Observation) -> dict:
-        return {**obs.images, "state": obs.state}
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        obs, info = self.env.reset(
-            seed=seed if seed is not None else int(self.np_random.integers(0, 2**31 - 1))
-        )
-        return self._dict(obs), info
-
-    def step(self, action):
-        obs, r, term, trunc, info = self.env.step(action)
-        return self._dict(obs), r, term, trunc, info
-
-    def close(self) -> None:
-        self.env.close()
+    def observation(self, observation: Observation) -> dict[str, np.ndarray]:
+        return {**observation.images, "state": observation.state}

@@ -1,7 +1,7 @@
 """Scene builders: a frozen ``SceneSpec`` in, a simulator ``Layout`` (objects, poses, facts) out.
 
-Each builder reads only the spec, so the layout of a level is a pure function of its spec; the seeded
-T0 jitter is applied by the simulator at reset.
+Each builder reads only the spec (and its scene family's distractor slots), so the layout of a level is a pure
+function of its spec; the seeded T0 jitter is applied by the simulator at reset.
 """
 
 from __future__ import annotations
@@ -9,14 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from scenes import objects as O
+from scenes.mujoco_geom import grasp_height
+from scenes.privileged import GoalState, PickState, SceneFacts, Targets
+from scenes.registry import get_scene
 from scenes.sim import TABLE_TOP, FreeObject, Layout
 from scenes.spec import PICK_OBJECTS, SceneSpec
 
-DISTRACTOR_SLOTS = {
-    "pick_place": [(0.22, 0.02), (-0.16, 0.32), (0.26, -0.18), (-0.2, -0.34)],
-    "stack": [(0.2, -0.02), (-0.16, 0.3), (0.24, -0.22), (0.22, 0.26)],
-    "cabinet_pick": [(-0.2, 0.3), (-0.2, -0.34), (0.32, 0.38), (0.32, -0.4)],
-}
 CLUTTER_SLOTS = [
     (-0.045, 0.10),
     (0.045, -0.10),
@@ -30,15 +28,8 @@ def _grasp_frac(kind: str) -> float:
     return PICK_OBJECTS[kind][1] if kind in PICK_OBJECTS else 0.5
 
 
-def _grasp_z(s: dict, frac: float) -> float:
-    bottom, top = s["pick_bottom"], s["pick_top"]
-    z = bottom + frac * (top - bottom)
-    # the Panda hand sits ~2.7 cm above the grip site: never let the object's top reach it
-    return float(max(min(z, top - 0.012), top - 0.02, bottom + 0.01))
-
-
 def _distractors(spec: SceneSpec) -> list[tuple[object, tuple[float, float, float]]]:
-    slots = DISTRACTOR_SLOTS[spec.scene]
+    slots = get_scene(spec.scene).distractor_slots
     if spec.distractors > len(slots):
         from indgen_vla.errors import InfeasibleLevelError
 
@@ -84,15 +75,15 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
         )
     floor_off = -O.BASKET_WALL_H + 2 * O.BASKET_T
 
-    def privileged(s: dict) -> dict:
-        floor = float(s["goal_pos"][2] + floor_off)
-        return {
-            "receptacle_floor_z": floor,
-            "place_xy": np.array(s["goal_pos"][:2]),
-            "place_bottom": floor + 0.012,
-            "clear_z": float(s["goal_top"]),
-            "grasp_z": _grasp_z(s, frac),
-        }
+    def targets(pick: PickState, goal: GoalState) -> Targets:
+        floor = float(goal.pos[2] + floor_off)
+        return Targets(
+            place_xy=np.array(goal.pos[:2]),
+            place_bottom=floor + 0.012,
+            clear_z=float(goal.top),
+            grasp_z=grasp_height(pick.bottom, pick.top, frac),
+            floor_z=floor,
+        )
 
     return Layout(
         free=free,
@@ -101,8 +92,8 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
         goal="goal",
         robot_back=spec.robot_back,
         jitter=spec.jitter,
-        facts={"receptacle_inner": O.BASKET_INNER},
-        privileged=privileged,
+        facts=SceneFacts(receptacle_inner=O.BASKET_INNER),
+        targets=targets,
     )
 
 
@@ -137,13 +128,13 @@ def stack_layout(spec: SceneSpec) -> Layout:
             )
         )
 
-    def privileged(s: dict) -> dict:
-        return {
-            "place_xy": np.array(s["goal_pos"][:2]),
-            "place_bottom": float(s["goal_top"]) + 0.004,
-            "clear_z": float(s["goal_top"]),
-            "grasp_z": _grasp_z(s, 0.5),
-        }
+    def targets(pick: PickState, goal: GoalState) -> Targets:
+        return Targets(
+            place_xy=np.array(goal.pos[:2]),
+            place_bottom=float(goal.top) + 0.004,
+            clear_z=float(goal.top),
+            grasp_z=grasp_height(pick.bottom, pick.top, 0.5),
+        )
 
     return Layout(
         free=free,
@@ -152,8 +143,7 @@ def stack_layout(spec: SceneSpec) -> Layout:
         goal="goal",
         robot_back=spec.robot_back,
         jitter=spec.jitter,
-        facts={"stack_height_m": spec.stack_m},
-        privileged=privileged,
+        targets=targets,
     )
 
 
@@ -181,16 +171,16 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
     wall_top = TABLE_TOP + O.CAB_FLOOR + O.CAB_WALL
     place = np.array([spec.goal.x, cab_y + spec.goal.y])
 
-    def privileged(s: dict) -> dict:
-        return {
-            "place_xy": place,
-            "place_bottom": TABLE_TOP + 0.004,
-            "clear_z": wall_top,
-            "grasp_z": _grasp_z(s, frac),
-        }
+    def targets(pick: PickState, goal: None) -> Targets:
+        return Targets(
+            place_xy=place,
+            place_bottom=TABLE_TOP + 0.004,
+            clear_z=wall_top,
+            grasp_z=grasp_height(pick.bottom, pick.top, frac),
+        )
 
     static = [(cab, (CAB_X, cab_y, TABLE_TOP + half_h))] + _distractors(spec)
-    facts = {"fixture_centre": centre, "fixture_half": half, "cabinet_floor_z": floor}
+    facts = SceneFacts(fixture_centre=centre, fixture_half=half)
     return Layout(
         free=free,
         static=static,
@@ -199,5 +189,5 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
         robot_back=spec.robot_back,
         jitter=spec.jitter,
         facts=facts,
-        privileged=privileged,
+        targets=targets,
     )

@@ -142,16 +142,27 @@ def riser_stack(n_plates: int, name: str) -> CompositeObject:
         raise SceneError("a riser stack needs at least one plate")
     hz = RISER_HALF_Z
     shades = [(0.55, 0.45, 0.35, 1.0), (0.45, 0.36, 0.28, 1.0)]
+    plates = [
+        ([RISER_HALF_XY, RISER_HALF_XY, hz], [0.0, 0.0, (2 * i + 1) * hz - hz * n_plates])
+        for i in range(n_plates)
+    ]
+    rgbas = [shades[i % 2] for i in range(n_plates)]
+    return _boxes(name, [RISER_HALF_XY, RISER_HALF_XY, hz * n_plates], plates, rgbas, density=3000.0)
+
+
+def _boxes(name: str, total_size: list, boxes: list, rgbas: list, density: float, **kw) -> CompositeObject:
+    """One rigid body of ``boxes`` (half sizes, centre relative to the bounding box centre ``total_size``)."""
     return CompositeObject(
         name=name,
-        total_size=[RISER_HALF_XY, RISER_HALF_XY, hz * n_plates],
-        geom_types=["box"] * n_plates,
-        geom_sizes=[[RISER_HALF_XY, RISER_HALF_XY, hz]] * n_plates,
-        geom_locations=[[0.0, 0.0, (2 * i + 1) * hz - hz * n_plates] for i in range(n_plates)],
-        geom_rgbas=[shades[i % 2] for i in range(n_plates)],
-        geom_frictions=[[1.0, 0.005, 0.0001]] * n_plates,
-        density=3000.0,
+        total_size=total_size,
+        geom_types=["box"] * len(boxes),
+        geom_sizes=[b[0] for b in boxes],
+        geom_locations=[b[1] for b in boxes],
+        geom_rgbas=rgbas,
+        geom_frictions=[[1.0, 0.005, 0.0001]] * len(boxes),
+        density=density,
         locations_relative_to_center=True,
+        **kw,
     )
 
 
@@ -172,17 +183,7 @@ def basket(name: str) -> CompositeObject:
         ([ix, t, h], [0, -iy - t, 0]),
     ]
     brown = (0.55, 0.38, 0.2, 1.0)
-    return CompositeObject(
-        name=name,
-        total_size=[ix + 2 * t, iy + 2 * t, h],
-        geom_types=["box"] * 5,
-        geom_sizes=[g[0] for g in geoms],
-        geom_locations=[g[1] for g in geoms],
-        geom_rgbas=[brown] * 5,
-        geom_frictions=[[1.0, 0.005, 0.0001]] * 5,
-        density=1500.0,
-        locations_relative_to_center=True,
-    )
+    return _boxes(name, [ix + 2 * t, iy + 2 * t, h], geoms, [brown] * 5, density=1500.0)
 
 
 # Cabinet compartment (fixed body): interior half-extents and heights, relative to its base centre.
@@ -211,18 +212,8 @@ def cabinet(name: str) -> CompositeObject:
         ([t, iy + 2 * t, CAB_LIP / 2], [-ix - t, 0, zc + CAB_FLOOR + CAB_LIP / 2]),  # front lip
     ]
     wood = (0.78, 0.7, 0.58, 1.0)
-    return CompositeObject(
-        name=name,
-        total_size=[ix + 2 * t, iy + 2 * t, half_h],
-        geom_types=["box"] * 5,
-        geom_sizes=[g[0] for g in geoms],
-        geom_locations=[g[1] for g in geoms],
-        geom_rgbas=[wood, wood, wood, wood, (0.6, 0.5, 0.4, 1.0)],
-        geom_frictions=[[1.0, 0.005, 0.0001]] * 5,
-        density=1000.0,
-        locations_relative_to_center=True,
-        joints=None,
-    )
+    rgbas = [wood, wood, wood, wood, (0.6, 0.5, 0.4, 1.0)]
+    return _boxes(name, [ix + 2 * t, iy + 2 * t, half_h], geoms, rgbas, density=1000.0, joints=None)
 
 
 CLUTTER_KINDS = ("clutter_box_blue", "clutter_cyl_yellow", "clutter_box_orange", "clutter_cyl_red")

@@ -1,17 +1,20 @@
 """The privileged scripted oracle that certifies every level (Assumption 2): approach, grasp, lift, transport, release.
 
-It reads ``observations[0].extras["privileged"]`` (the env's ``privileged_state()``, passed by the engine)
-and emits 7-d OSC_POSE delta actions. It has no randomness, so it is deterministic given the episode.
+It reads the env's ``PrivilegedState`` that the engine attaches to its observation (``scenes.privileged``) and
+emits 7-d OSC_POSE delta actions. It has no randomness, so it is deterministic given the episode. Each phase
+is a ``Phase`` member whose method emits one action and decides when the next phase starts.
 """
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Sequence
 
 import numpy as np
 
 from indgen_vla.errors import PolicyError
 from indgen_vla.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
+from scenes.privileged import PrivilegedState, privileged_of
 
 # Gripper pointing straight down, fingers closing along world y (the Panda's home orientation, untilted).
 R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -31,6 +34,97 @@ def _axis_angle(r: np.ndarray) -> np.ndarray:
     return v / n * angle
 
 
+class Phase(enum.Enum):
+    """The oracle's phases in order; ``act`` emits one action of the member's phase and may start the next."""
+
+    REOPEN = "reopen"  # dropped the object: open and rise to the travel height, then approach again
+    APPROACH = "approach"
+    DESCEND = "descend"
+    GRASP = "grasp"
+    LIFT = "lift"
+    TRANSPORT = "transport"
+    LOWER = "lower"
+    RELEASE = "release"
+    RETREAT = "retreat"  # and stay clear
+
+    @property
+    def carrying(self) -> bool:
+        """Does this phase hold the object (so losing finger contact means it was dropped)?"""
+        return self in (Phase.LIFT, Phase.TRANSPORT, Phase.LOWER)
+
+    def act(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        return getattr(self, f"_{self.value}")(o, s)
+
+    def _reopen(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        eef, travel_z = s.eef_pos, o.travel_z(s)
+        target = np.array([eef[0], eef[1], travel_z])
+        if abs(eef[2] - travel_z) < 0.02 or o._count > 40:
+            o._next(Phase.APPROACH)
+        return o._goto(s, target, -1.0)
+
+    def _approach(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        pick = s.pick.pos
+        target = np.array([pick[0], pick[1], o.travel_z(s)])
+        err = target - s.eef_pos
+        if np.linalg.norm(err[:2]) < 0.008 and abs(err[2]) < 0.02 or o._count > 120:
+            o._next(Phase.DESCEND)
+        return o._goto(s, target, -1.0)
+
+    def _descend(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        eef, pick = s.eef_pos, s.pick.pos
+        target = np.array([pick[0], pick[1], s.target.grasp_z])
+        err = target - eef
+        o._trace.append(float(eef[2]))
+        stalled = len(o._trace) > 6 and abs(o._trace[-6] - eef[2]) < 0.001 and abs(err[2]) < 0.02
+        if (abs(err[2]) < 0.006 and np.linalg.norm(err[:2]) < 0.008) or stalled or o._count > 80:
+            o._next(Phase.GRASP)
+        return o._goto(s, target, -1.0, speed=1.0)
+
+    def _grasp(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        if o._hold is None or o._count == 1:
+            o._hold = np.array([s.pick.pos[0], s.pick.pos[1], s.target.grasp_z])
+        if o._count >= 8:
+            o._offset = float(s.eef_pos[2] - s.pick.bottom)
+            o._start_bottom = float(s.pick.bottom)
+            o._next(Phase.LIFT)
+        return o._goto(s, o._hold, 1.0)
+
+    def _lift(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        loaded_z = o.loaded_z(s)
+        target = np.array([o._hold[0], o._hold[1], loaded_z])
+        if abs(s.eef_pos[2] - loaded_z) < 0.015 or o._count > 80:
+            o._next(Phase.TRANSPORT)
+        return o._goto(s, target, 1.0)
+
+    def _transport(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        px, py = s.target.place_xy
+        target = np.array([px, py, o.loaded_z(s)])
+        if np.linalg.norm((target - s.eef_pos)[:2]) < 0.008 or o._count > 150:
+            o._next(Phase.LOWER)
+        return o._goto(s, target, 1.0)
+
+    def _lower(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        px, py = s.target.place_xy
+        place_bottom = s.target.place_bottom
+        z = place_bottom + o._offset
+        target = np.array([px, py, z])
+        if abs(s.eef_pos[2] - z) < 0.005 or s.pick.bottom <= place_bottom + 0.002 or o._count > 80:
+            o._next(Phase.RELEASE)
+        return o._goto(s, target, 1.0, speed=0.7)
+
+    def _release(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        if o._count == 1:
+            o._hold = s.eef_pos.copy()
+        if o._count >= 10:
+            o._next(Phase.RETREAT)
+        return o._goto(s, o._hold, -1.0)
+
+    def _retreat(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
+        hold = o._hold
+        target = np.array([hold[0], hold[1], max(hold[2] + 0.08, o.travel_z(s) - 0.02)])
+        return o._goto(s, target, -1.0, speed=0.5)
+
+
 class OraclePolicy:
     """Scripted pick-and-place from privileged object poses; one instance per environment (not batched)."""
 
@@ -42,8 +136,8 @@ class OraclePolicy:
         self.reset("")
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
-        self._phase, self._count, self._retries, self._trace = "approach", 0, 0, []
-        self._offset = 0.0
+        self._phase, self._count, self._retries, self._trace = Phase.APPROACH, 0, 0, []
+        self._offset = 0.0  # grip site above the object's bottom, measured at the grasp
         self._start_bottom = -np.inf  # the pick's bottom when grasped: what it rested on must be cleared too
         self._hold: np.ndarray | None = None
         self.seed = seed
@@ -53,93 +147,38 @@ class OraclePolicy:
 
     @property
     def phase(self) -> str:
-        return self._phase
+        return self._phase.value
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
         if len(observations) != 1:
             raise PolicyError(f"standin:oracle is not batched; got {len(observations)} observations")
-        priv = observations[0].extras.get("privileged")
-        if not isinstance(priv, dict):
-            raise PolicyError(
-                "standin:oracle needs the env's privileged state in Observation.extras['privileged']"
-            )
-        return self.action(priv)[None, None, :].astype(np.float32)
+        return self.action(privileged_of(observations[0], "standin:oracle"))[None, None, :].astype(np.float32)
 
     # ---- the state machine ---------------------------------------------------------------------
-    def _goto(self, s: dict, target: np.ndarray, grip: float, speed: float = 1.0) -> np.ndarray:
-        err = target - s["eef_pos"]
+    def travel_z(self, s: PrivilegedState) -> float:
+        """Height to travel at empty-handed: above the object and everything to clear."""
+        return max(s.pick.top, s.target.clear_z) + 0.07
+
+    def loaded_z(self, s: PrivilegedState) -> float:
+        """Grip-site height to carry the object at: its bottom clears the obstacles and where it rested."""
+        return max(s.target.clear_z, self._start_bottom) + 0.045 + self._offset
+
+    def _goto(self, s: PrivilegedState, target: np.ndarray, grip: float, speed: float = 1.0) -> np.ndarray:
+        err = target - s.eef_pos
         a = np.zeros(ACTION_DIM)
         a[:3] = np.clip(self.gain * err, -speed, speed)
-        a[3:6] = np.clip(_axis_angle(R_DOWN @ s["eef_mat"].T) / ROT_SCALE, -1.0, 1.0)
+        a[3:6] = np.clip(_axis_angle(R_DOWN @ s.eef_mat.T) / ROT_SCALE, -1.0, 1.0)
         a[6] = grip
         return a
 
-    def _next(self, phase: str) -> None:
+    def _next(self, phase: Phase) -> None:
         self._phase, self._count, self._trace = phase, 0, []
 
-    def action(self, s: dict) -> np.ndarray:
+    def action(self, s: PrivilegedState) -> np.ndarray:
         """One action from the privileged state ``s`` (advances the phase machine)."""
         self._count += 1
-        eef, pick = s["eef_pos"], s["pick_pos"]
-        travel_z = max(s["pick_top"], s["clear_z"]) + 0.07
-        loaded_z = max(s["clear_z"], self._start_bottom) + 0.045 + self._offset
-        phase = self._phase
-        if phase in ("lift", "transport", "lower") and not s["pick_touching_gripper"] and self._count > 3:
+        if self._phase.carrying and not s.pick.touching_gripper and self._count > 3:
             if self._retries < self.max_retries:  # dropped it: start over from the top
                 self._retries += 1
-                self._next("reopen")
-                phase = "reopen"
-        if phase == "reopen":
-            target = np.array([eef[0], eef[1], travel_z])
-            if abs(eef[2] - travel_z) < 0.02 or self._count > 40:
-                self._next("approach")
-            return self._goto(s, target, -1.0)
-        if phase == "approach":
-            target = np.array([pick[0], pick[1], travel_z])
-            err = target - eef
-            if np.linalg.norm(err[:2]) < 0.008 and abs(err[2]) < 0.02 or self._count > 120:
-                self._next("descend")
-            return self._goto(s, target, -1.0)
-        if phase == "descend":
-            target = np.array([pick[0], pick[1], s["grasp_z"]])
-            err = target - eef
-            self._trace.append(float(eef[2]))
-            stalled = len(self._trace) > 6 and abs(self._trace[-6] - eef[2]) < 0.001 and abs(err[2]) < 0.02
-            if (abs(err[2]) < 0.006 and np.linalg.norm(err[:2]) < 0.008) or stalled or self._count > 80:
-                self._next("grasp")
-            return self._goto(s, target, -1.0, speed=1.0)
-        if phase == "grasp":
-            if self._hold is None or self._count == 1:
-                self._hold = np.array([pick[0], pick[1], s["grasp_z"]])
-            if self._count >= 8:
-                self._offset = float(eef[2] - s["pick_bottom"])
-                self._start_bottom = float(s["pick_bottom"])
-                self._next("lift")
-            return self._goto(s, self._hold, 1.0)
-        if phase == "lift":
-            target = np.array([self._hold[0], self._hold[1], loaded_z])
-            if abs(eef[2] - loaded_z) < 0.015 or self._count > 80:
-                self._next("transport")
-            return self._goto(s, target, 1.0)
-        if phase == "transport":
-            px, py = s["place_xy"]
-            target = np.array([px, py, loaded_z])
-            if np.linalg.norm((target - eef)[:2]) < 0.008 or self._count > 150:
-                self._next("lower")
-            return self._goto(s, target, 1.0)
-        if phase == "lower":
-            px, py = s["place_xy"]
-            z = s["place_bottom"] + self._offset
-            target = np.array([px, py, z])
-            if abs(eef[2] - z) < 0.005 or s["pick_bottom"] <= s["place_bottom"] + 0.002 or self._count > 80:
-                self._next("release")
-            return self._goto(s, target, 1.0, speed=0.7)
-        if phase == "release":
-            if self._count == 1:
-                self._hold = eef.copy()
-            if self._count >= 10:
-                self._next("retreat")
-            return self._goto(s, self._hold, -1.0)
-        # retreat and stay clear
-        target = np.array([self._hold[0], self._hold[1], max(self._hold[2] + 0.08, travel_z - 0.02)])
-        return self._goto(s, target, -1.0, speed=0.5)
+                self._next(Phase.REOPEN)
+        return self._phase.act(self, s)

@@ -5,21 +5,20 @@ from __future__ import annotations
 import numpy as np
 
 from indgen_vla.interface import OBJECT_DIM
+from scenes.privileged import PrivilegedState
 
 
-def object_poses(priv: dict) -> dict[str, list[float]]:
+def object_poses(priv: PrivilegedState) -> dict[str, list[float]]:
     """World poses [x, y, z, qw, qx, qy, qz] of the pick object and the receptacle from a privileged state.
 
     Scenes without a free receptacle body (e.g. ``cabinet_pick``) use the placement target, unrotated.
     """
-    poses = {}
-    if "pick_pos" in priv:
-        poses["pick"] = [*map(float, priv["pick_pos"]), *map(float, priv.get("pick_quat_wxyz", (1, 0, 0, 0)))]
-    if "goal_pos" in priv:
-        poses["goal"] = [*map(float, priv["goal_pos"]), *map(float, priv.get("goal_quat_wxyz", (1, 0, 0, 0)))]
-    elif "place_xy" in priv:
-        x, y = (float(v) for v in priv["place_xy"])
-        poses["goal"] = [x, y, float(priv.get("place_bottom", 0.0)), 1.0, 0.0, 0.0, 0.0]
+    poses = {"pick": [*map(float, priv.pick.pos), *map(float, priv.pick.quat_wxyz)]}
+    if priv.goal is not None:
+        poses["goal"] = [*map(float, priv.goal.pos), *map(float, priv.goal.quat_wxyz)]
+    else:
+        x, y = (float(v) for v in priv.target.place_xy)
+        poses["goal"] = [x, y, float(priv.target.place_bottom), 1.0, 0.0, 0.0, 0.0]
     return poses
 
 

@@ -1,4 +1,5 @@
-"""Success predicates: one frozen object per scene, evaluated on ``privileged_state()`` at every level.
+"""Success predicates: one frozen object per scene family (its ``Scene.success_predicate``), evaluated on
+``privileged_state()`` at every level.
 
 The same instance judges every level of every axis (the paper's semantics-preservation condition);
 anything level-dependent (where the basket is, how tall the target stack is) is read from the state.
@@ -10,9 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenes.privileged import PrivilegedState
 
-def _released_and_still(s: dict, max_speed: float) -> bool:
-    return (not s["pick_touching_gripper"]) and float(np.linalg.norm(s["pick_linvel"])) < max_speed
+
+def _released_and_still(s: PrivilegedState, max_speed: float) -> bool:
+    return (not s.pick.touching_gripper) and float(np.linalg.norm(s.pick.linvel)) < max_speed
 
 
 def _in_frame(point_xy: np.ndarray, centre: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:
@@ -31,11 +34,11 @@ class InReceptacle:
     margin: float = 0.003
     max_speed: float = 0.05
 
-    def __call__(self, s: dict) -> bool:
-        rel = _in_frame(s["pick_pos"][:2], s["goal_pos"], s["goal_quat_wxyz"])
-        ix, iy = s["receptacle_inner"]
+    def __call__(self, s: PrivilegedState) -> bool:
+        rel = _in_frame(s.pick.pos[:2], s.goal.pos, s.goal.quat_wxyz)
+        ix, iy = s.facts.receptacle_inner
         inside = abs(rel[0]) <= ix - self.margin and abs(rel[1]) <= iy - self.margin
-        low = s["receptacle_floor_z"] - 0.01 <= s["pick_bottom"] <= s["goal_top"]
+        low = s.target.floor_z - 0.01 <= s.pick.bottom <= s.goal.top
         return bool(inside and low and _released_and_still(s, self.max_speed))
 
 
@@ -47,10 +50,10 @@ class OnTarget:
     z_tol: float = 0.01
     max_speed: float = 0.05
 
-    def __call__(self, s: dict) -> bool:
-        rel = _in_frame(s["pick_pos"][:2], s["goal_pos"], s["goal_quat_wxyz"])
+    def __call__(self, s: PrivilegedState) -> bool:
+        rel = _in_frame(s.pick.pos[:2], s.goal.pos, s.goal.quat_wxyz)
         on_top = abs(rel[0]) <= self.xy_tol and abs(rel[1]) <= self.xy_tol
-        touching = abs(s["pick_bottom"] - s["goal_top"]) <= self.z_tol
+        touching = abs(s.pick.bottom - s.goal.top) <= self.z_tol
         return bool(on_top and touching and _released_and_still(s, self.max_speed))
 
 
@@ -61,19 +64,17 @@ class OnTableOutside:
     z_tol: float = 0.012
     max_speed: float = 0.05
 
-    def __call__(self, s: dict) -> bool:
-        on_table = s["pick_bottom"] <= s["table_top"] + self.z_tol
-        rel = np.abs(np.asarray(s["pick_pos"][:2]) - np.asarray(s["fixture_centre"][:2]))
-        hx, hy = s["fixture_half"]
+    def __call__(self, s: PrivilegedState) -> bool:
+        on_table = s.pick.bottom <= s.table_top + self.z_tol
+        rel = np.abs(np.asarray(s.pick.pos[:2]) - np.asarray(s.facts.fixture_centre[:2]))
+        hx, hy = s.facts.fixture_half
         outside = rel[0] > hx or rel[1] > hy
         return bool(on_table and outside and _released_and_still(s, self.max_speed))
 
 
-PICK_PLACE_SUCCESS = InReceptacle()
-STACK_SUCCESS = OnTarget()
-CABINET_SUCCESS = OnTableOutside()
-SUCCESS_PREDICATES = {
-    "pick_place": PICK_PLACE_SUCCESS,
-    "stack": STACK_SUCCESS,
-    "cabinet_pick": CABINET_SUCCESS,
-}
+@dataclass(frozen=True)
+class BddlGoal:
+    """LIBERO's own BDDL goal check (``env.check_success()``, read into the state as ``bddl_success``)."""
+
+    def __call__(self, s: PrivilegedState) -> bool:
+        return bool(s.bddl_success)

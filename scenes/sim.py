@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from indgen_vla.errors import SceneError
+from scenes import mujoco_geom as geom
+from scenes.privileged import NO_FACTS, GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -60,13 +62,13 @@ class Layout:
     """What a scene builder hands the simulator: objects, fixed bodies, roles and scene-specific facts."""
 
     free: list[FreeObject]
+    targets: Callable[[PickState, GoalState | None], Targets]  # where the oracle grasps and places, per state
     static: list[tuple[object, tuple[float, float, float]]] = field(default_factory=list)
     pick: str = "pick"
     goal: str | None = None
     robot_back: float = 0.0
     jitter: float = 0.0
-    facts: dict[str, object] = field(default_factory=dict)
-    privileged: Callable[[dict], dict] | None = None  # adds scene-specific keys to privileged_state
+    facts: SceneFacts = NO_FACTS  # constant geometry the scene's success predicate reads
 
 
 def _yaw_quat_wxyz(yaw: float) -> np.ndarray:
@@ -203,7 +205,8 @@ class FastControl:
         env, d, c = self.env, self.d, self.controller
         if env.done:
             raise ValueError("executing action in terminated episode")
-        assert len(action) == self.action_dim, f"expected {self.action_dim}-d action, got {len(action)}"
+        if len(action) != self.action_dim:
+            raise ValueError(f"expected a {self.action_dim}-d action, got {len(action)}-d")
         env.timestep += 1
         arm, grip = action[: self.control_dim], action[self.control_dim :]
         grip_delta = np.array([-1.0, 1.0]) * self.gripper.speed * np.sign(grip) if self.panda_grip else None
@@ -299,15 +302,13 @@ class IndgenRobosuiteEnv(SingleArmEnv):
         m = self.sim.model
         self.obj_body = {f.name: m.body_name2id(f.model.root_body) for f in self.layout.free}
         self.obj_joint = {f.name: f.model.joints[0] for f in self.layout.free}
-        self.obj_geoms = {
-            f.name: np.array([m.geom_name2id(g) for g in f.model.contact_geoms], dtype=int)
-            for f in self.layout.free
-        }
-        self._masks: dict[bytes, np.ndarray] = {}
         self.obj_qvel = {f.name: m.get_joint_qvel_addr(f.model.joints[0]) for f in self.layout.free}
         self.eef_body = m.body_name2id(self.robots[0].robot_model.eef_name)
-        gripper = self.robots[0].gripper
-        self.finger_geoms = np.array([m.geom_name2id(g) for g in gripper.contact_geoms], dtype=int)
+        raw = m._model
+        fingers = geom.named_geoms(raw, self.robots[0].gripper.contact_geoms)
+        self._finger_mask = geom.geom_mask(raw, fingers)
+        pick = next(f for f in self.layout.free if f.name == self.layout.pick)
+        self._pick_mask = geom.geom_mask(raw, geom.named_geoms(raw, pick.model.contact_geoms))
         if not hasattr(self, "extent"):
             self.extent = self._measure_extents()
 
@@ -321,21 +322,9 @@ class IndgenRobosuiteEnv(SingleArmEnv):
             self.sim.data.set_joint_qpos(self.obj_joint[f.name], np.array([0, 0, 5.0 + 2 * i, 1, 0, 0, 0]))
         mujoco.mj_forward(m, d)
         out = {}
-        root = m.body_rootid
         for f in self.layout.free:
             b = self.obj_body[f.name]
-            geoms = [
-                g
-                for g in range(m.ngeom)
-                if root[m.geom_bodyid[g]] == b and m.geom_contype[g] | m.geom_conaffinity[g]
-            ]
-            corners = []
-            for g in geoms:
-                c, h = m.geom_aabb[g][:3], m.geom_aabb[g][3:]
-                signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-                pts = d.geom_xpos[g] + (d.geom_xmat[g].reshape(3, 3) @ (c + signs * h).T).T
-                corners.append(pts - d.xpos[b])
-            pts = np.concatenate(corners)
+            pts = geom.geom_corners(m, d, geom.body_geoms(m, b)) - d.xpos[b]
             out[f.name] = np.array([pts[:, 2].min(), pts[:, 2].max(), np.abs(pts[:, :2]).max(axis=0).max()])
         d.qpos[:] = saved
         mujoco.mj_forward(m, d)
@@ -369,60 +358,41 @@ class IndgenRobosuiteEnv(SingleArmEnv):
     def _check_success(self) -> bool:
         return False  # the wrapper evaluates the scene's success predicate on privileged_state()
 
-    def _mask(self, geoms: np.ndarray) -> np.ndarray:
-        key = geoms.tobytes()
-        mask = self._masks.get(key)
-        if mask is None:
-            mask = np.zeros(self.sim.model.ngeom, dtype=bool)
-            mask[geoms] = True
-            self._masks[key] = mask
-        return mask
-
-    def contact_between(self, geoms_a: np.ndarray, geoms_b: np.ndarray) -> bool:
-        """Is any geom of ``geoms_a`` touching any geom of ``geoms_b`` (boolean masks: ~2 us per call)?"""
-        d = self.sim.data._data
-        n = d.ncon
-        if n == 0:
-            return False
-        g = d.contact.geom[:n]
-        a, b = self._mask(geoms_a), self._mask(geoms_b)
-        return bool(np.any((a[g[:, 0]] & b[g[:, 1]]) | (a[g[:, 1]] & b[g[:, 0]])))
-
     def object_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         b = self.obj_body[name]
         return self.sim.data.body_xpos[b].copy(), self.sim.data.body_xquat[b].copy()  # quat wxyz
 
-    def privileged_state(self) -> dict:
+    def privileged_state(self) -> PrivilegedState:
         """Poses, velocities and contacts the oracle and the success predicate read."""
         d = self.sim.data
-        robot = self.robots[0]
-        eef_pos = np.array(d.site_xpos[robot.eef_site_id])
         lay = self.layout
         pick_pos, pick_quat = self.object_pose(lay.pick)
         ext = self.extent[lay.pick]
         lo, _ = self.obj_qvel[lay.pick]
-        vel = d.qvel[lo : lo + 3]
-        state: dict = {
-            "eef_pos": eef_pos,
-            "eef_mat": np.array(d.site_xmat[robot.eef_site_id]).reshape(3, 3),
-            "gripper_qpos": np.array(d.qpos[robot._ref_gripper_joint_pos_indexes]),
-            "pick_pos": pick_pos,
-            "pick_quat_wxyz": pick_quat,
-            "pick_linvel": np.array(vel[:3]),
-            "pick_bottom": float(pick_pos[2] + ext[0]),
-            "pick_top": float(pick_pos[2] + ext[1]),
-            "pick_half_width": float(ext[2]),
-            "pick_touching_gripper": self.contact_between(self.finger_geoms, self.obj_geoms[lay.pick]),
-            "table_top": TABLE_TOP,
-        }
+        pick = PickState(
+            pos=pick_pos,
+            quat_wxyz=pick_quat,
+            linvel=np.array(d.qvel[lo : lo + 3]),
+            bottom=float(pick_pos[2] + ext[0]),
+            top=float(pick_pos[2] + ext[1]),
+            half_width=float(ext[2]),
+            touching_gripper=geom.touching(d._data, self._finger_mask, self._pick_mask),
+        )
+        goal = None
         if lay.goal is not None:
             gp, gq = self.object_pose(lay.goal)
-            state["goal_pos"], state["goal_quat_wxyz"] = gp, gq
-            state["goal_top"] = float(gp[2] + self.extent[lay.goal][1])
-        state.update(lay.facts)
-        if lay.privileged is not None:
-            state.update(lay.privileged(state))
-        return state
+            goal = GoalState(pos=gp, quat_wxyz=gq, top=float(gp[2] + self.extent[lay.goal][1]))
+        eef_pos, eef_mat, gripper_qpos = geom.grip_site(d, self.robots[0])
+        return PrivilegedState(
+            eef_pos=eef_pos,
+            eef_mat=eef_mat,
+            gripper_qpos=gripper_qpos,
+            pick=pick,
+            goal=goal,
+            target=lay.targets(pick, goal),
+            table_top=TABLE_TOP,
+            facts=lay.facts,
+        )
 
     def robot_state(self) -> np.ndarray:
         """The LIBERO 8-d state: eef pos, eef axis-angle, gripper qpos (2)."""

@@ -1,17 +1,22 @@
-"""Benchmark the rollout engine against a bare ``env.step`` + policy loop, 1 vs 2 workers, and
-batched vs per-env inference of a tiny in-process policy. Prints one JSON object on its last line.
+"""Benchmark the rollout engine against a bare ``env.step`` + policy loop, 1 vs 2 workers (with their start
+costs and CPU seconds per process), batched vs per-env inference of a tiny in-process policy, pipelined vs
+unpipelined with a LeRobot ACT whose forward costs about one control step, lazy vs per-step renders, and thread
+overlap of physics and inference (the GIL). Prints one JSON object on its last line (docs/benchmarks.md).
 
-    .venv/bin/python scripts/bench_engine.py [--quick]
+    .venv/bin/python scripts/bench_engine.py [--quick] [--only engine|pipeline|render|gil]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -41,7 +46,10 @@ def bare_loop(jobs, scene, policy, replan, max_steps) -> float:
     return time.perf_counter() - t0
 
 
-def engine_run(jobs, scene, spec_str, replan, max_steps, workers) -> float:
+CPU: dict[str, tuple[float, float]] = {}  # run label -> CPU seconds (main process, workers) of its last run
+
+
+def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False) -> float:
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
@@ -51,19 +59,141 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers) -> float:
     )
     records = []
     t0 = time.perf_counter()
-    run_local(jobs, rc, lambda: load_policy(spec_str), RunMeta("bench", spec_str, "", scene), records.append,
-              workers=workers, replan_steps=replan)  # fmt: skip
+    with CpuMeter() as meter:
+        run_local(jobs, rc, lambda: load_policy(spec_str), RunMeta("bench", spec_str, "", scene), records.append,
+                  workers=workers, replan_steps=replan, pipeline=pipeline)  # fmt: skip
     assert len(records) == len(jobs) and all(r.status == "ok" for r in records)
+    CPU[f"{workers}w{'p' if pipeline else ''}_{len(jobs)}x{max_steps}"] = (round(meter.main_s, 2),
+                                                                          round(meter.workers_s, 2))  # fmt: skip
     return time.perf_counter() - t0
+
+
+def worker_start_s(jobs, scene, spec_str, workers: int) -> float:
+    """Fixed cost of a run: ``workers`` environments started, built and reset, each running one 1-step episode."""
+    return engine_run(jobs[:workers], scene, spec_str, 1, 1, workers)
+
+
+class CpuMeter:
+    """CPU seconds of this process and of every worker process it started (sampled, as workers exit on close),
+    so a run on a loaded machine still tells how the work splits: with idle cores the wall time of a pipelined
+    run tends to max(policy process, worker), of an unpipelined one to their sum."""
+
+    def __init__(self, period_s: float = 0.2):
+        import threading
+
+        import psutil
+
+        self._me, self._period, self._seen = psutil.Process(), period_s, {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+
+    def _sample(self) -> None:
+        for child in self._me.children(recursive=True):
+            try:
+                if child.ppid() == self._me.pid and "forkserver" in " ".join(child.cmdline()):
+                    continue  # the idle fork server itself (its children, the workers, share its command line)
+                t = child.cpu_times()
+                self._seen[child.pid] = t.user + t.system
+            except Exception:  # exited between listing and reading
+                pass
+
+    def _loop(self) -> None:
+        while not self._stop.wait(self._period):
+            self._sample()
+
+    def __enter__(self):
+        self._t0 = time.process_time()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.main_s, self.workers_s = time.process_time() - self._t0, sum(self._seen.values())
+
+
+def pipeline_bench(scene: str, size: int, episodes: int, max_steps: int, repeats: int) -> dict:
+    """A LeRobot ACT (ResNet-18 backbone, random init) on one ``size``-px camera, acting every control step:
+    its forward costs about one control step (physics + render). 1 worker, unpipelined vs pipelined, interleaved
+    repeats; the records of both must be equal (the pipelined engine changes speed only)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.fixtures
+    import numpy as np
+
+    import scenes
+    from indgen_vla.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.engine.local import run_local
+    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from policy_wrappers.registry import load_policy
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    task = scenes.tasks(scene)[0]
+    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    with tempfile.TemporaryDirectory() as d:
+        path = build_tiny_checkpoint("act", d, cameras=("agentview",), size=size)
+        policy = load_policy(f"lerobot:{path}", scene=scene)
+        cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
+        env = scenes.make_env(
+            scene, task=task, cameras=cams, image_size=hw
+        )  # calibration: one step vs one act
+        obs, _ = env.reset(seed=0)
+        policy.reset(obs.instruction, seed=0)
+        policy.act([obs])
+        t0 = time.perf_counter()
+        for _ in range(10):
+            chunk = policy.act([obs])
+        t_act = (time.perf_counter() - t0) / 10
+        t0 = time.perf_counter()
+        for _ in range(10):
+            obs, *_ = env.step(np.asarray(chunk[0, 0]))
+        t_step = (time.perf_counter() - t0) / 10
+        env.close()
+        rc = RunnerConfig(
+            scene=scene, cameras=cams, image_size=hw, max_steps=max_steps, step=None, privileged=False
+        )
+        meta = RunMeta("bench", "act", "", scene)
+        warm = [j for j in jobs[:2]]  # start the forkserver (imports) before timing: a one-off per process
+        run_local(warm, dataclasses.replace(rc, max_steps=1), lambda: policy, meta, lambda r: None, workers=1,
+                  replan_steps=1, close_policies=False, pipeline=True)  # fmt: skip
+        times: dict[bool, list[float]] = {False: [], True: []}
+        cpu: dict[bool, tuple[float, float]] = {}
+        rows: dict[bool, list] = {}
+        for _ in range(repeats):
+            for pipelined in (False, True):
+                records: list = []
+                t0 = time.perf_counter()
+                with CpuMeter() as meter:
+                    run_local(jobs, rc, lambda: policy, meta, records.append, workers=1, replan_steps=1,
+                              close_policies=False, pipeline=pipelined)  # fmt: skip
+                times[pipelined].append(time.perf_counter() - t0)
+                cpu[pipelined] = (round(meter.main_s, 2), round(meter.workers_s, 2))
+                rows[pipelined] = sorted(
+                    (r.episode, r.seed, r.success, r.steps, r.status, r.failure) for r in records
+                )
+        policy.close()
+    assert all(r[4] == "ok" for r in rows[False]), rows[False]
+    steps = len(jobs) * max_steps
+    t_off, t_on = min(times[False]), min(times[True])
+    return {
+        "pipeline_policy": f"lerobot ACT resnet18, 1 camera {hw[0]}px, replan 1", "pipeline_episodes": len(jobs),
+        "pipeline_max_steps": max_steps, "act_ms": round(1000 * t_act, 1), "control_step_ms": round(1000 * t_step, 1),
+        "unpipelined_s": round(t_off, 2), "pipelined_s": round(t_on, 2),
+        "steps_per_s_unpipelined": round(steps / t_off, 2), "steps_per_s_pipelined": round(steps / t_on, 2),
+        "pipeline_gain": round(t_off / t_on, 3), "pipeline_identical": rows[False] == rows[True],
+        "pipeline_times": {"off": [round(t, 2) for t in times[False]], "on": [round(t, 2) for t in times[True]]},
+        "cpu_s_unpipelined_main_workers": cpu[False], "cpu_s_pipelined_main_workers": cpu[True],
+        "idle_bound_gain": round(sum(cpu[False]) / max(cpu[True]), 3),
+    }  # fmt: skip
 
 
 def batched_gain(batch: int, reps: int) -> float:
     """Time one act() over a batch of 8 observations vs 8 single-observation calls (tiny LeRobot ACT)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.fixtures
     import numpy as np
 
     from indgen_vla.interface import Observation
     from policy_wrappers.registry import load_policy
-    from policy_wrappers.tiny import build_tiny_checkpoint
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     with tempfile.TemporaryDirectory() as d:
         path = build_tiny_checkpoint("act", d, cameras=("agentview", "wrist"), size=64)
@@ -87,6 +217,102 @@ def batched_gain(batch: int, reps: int) -> float:
     return t_single / t_batched
 
 
+def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repeats: int) -> dict:
+    """A tiny LeRobot ACT (chunk 10, two cameras) executing whole chunks, 1 worker: rendering only the observation
+    each chunk ends on (``lazy_render``, the default) vs rendering every step; records must be equal."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    import scenes
+    from indgen_vla.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.engine.local import run_local
+    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from policy_wrappers.registry import load_policy
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    task = scenes.tasks(scene)[0]
+    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    times: dict[bool, list[float]] = {False: [], True: []}
+    cpu: dict[bool, float] = {}
+    rows: dict[bool, list] = {}
+    with tempfile.TemporaryDirectory() as d:
+        policy = load_policy(
+            f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview', 'wrist'), size=size)}"
+        )
+        hw = tuple(policy.spec.image_size or (size, size))
+        replan = policy.spec.replan_steps
+        for _ in range(repeats):
+            for lazy in (False, True):
+                rc = RunnerConfig(scene=scene, cameras=policy.spec.cameras, image_size=hw, max_steps=max_steps,
+                                  step=None, privileged=False, lazy_render=lazy)  # fmt: skip
+                records: list = []
+                t0 = time.perf_counter()
+                with CpuMeter() as meter:
+                    run_local(jobs, rc, lambda: policy, RunMeta("bench", "act", "", scene), records.append,
+                              workers=1, replan_steps=replan, close_policies=False)  # fmt: skip
+                times[lazy].append(time.perf_counter() - t0)
+                cpu[lazy] = round(meter.main_s + meter.workers_s, 2)
+                rows[lazy] = sorted(
+                    (r.episode, r.seed, r.success, r.steps, r.status, r.failure) for r in records
+                )
+        policy.close()
+    t_eager, t_lazy = min(times[False]), min(times[True])
+    return {
+        "render_policy": f"lerobot ACT, 2 cameras {hw[0]}px, replan {replan}", "render_episodes": len(jobs),
+        "render_max_steps": max_steps, "eager_s": round(t_eager, 2), "lazy_s": round(t_lazy, 2),
+        "lazy_render_gain": round(t_eager / t_lazy, 3), "lazy_render_cpu_gain": round(cpu[False] / cpu[True], 3),
+        "cpu_s_eager_lazy": (cpu[False], cpu[True]), "lazy_render_identical": rows[False] == rows[True],
+    }  # fmt: skip
+
+
+def gil_overlap(scene: str, size: int, n: int) -> dict:
+    """Why workers are processes: a thread stepping the scene and a thread running an ACT forward, vs the same
+    work one after the other (ratio 0.5 = full overlap, 1.0 = none: the GIL serialises them)."""
+    import threading
+
+    import numpy as np
+
+    import scenes
+    from policy_wrappers.registry import load_policy
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    task = scenes.tasks(scene)[0]
+    out = {}
+    with tempfile.TemporaryDirectory() as d:
+        policy = load_policy(f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview',), size=size)}")
+        hw = tuple(policy.spec.image_size or (size, size))
+        for label, cams in (("physics", ()), ("physics+render", ("agentview",))):
+            env = scenes.make_env(scene, task=task, cameras=cams or (), image_size=hw)
+            render_env = scenes.make_env(scene, task=task, cameras=("agentview",), image_size=hw)
+            obs, _ = render_env.reset(seed=0)
+            policy.reset(obs.instruction, seed=0)
+            policy.act([obs])
+
+            def sim(env=env):
+                env.reset(seed=1)
+                for _ in range(n):
+                    env.step(np.zeros(7))
+
+            def infer(obs=obs):
+                for _ in range(n):
+                    policy.act([obs])
+
+            t0 = time.perf_counter()
+            sim()
+            infer()
+            serial = time.perf_counter() - t0
+            threads = [threading.Thread(target=f) for f in (sim, infer)]
+            t0 = time.perf_counter()
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            out[f"threads_vs_serial_{label}"] = round((time.perf_counter() - t0) / serial, 3)
+            env.close()
+            render_env.close()
+        policy.close()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="few short episodes (CI smoke run)")
@@ -95,13 +321,39 @@ def main() -> None:
     ap.add_argument(
         "--repeats", type=int, default=None, help="interleaved repeats, best kept (default 3; quick 1)"
     )
+    ap.add_argument(
+        "--only", choices=["engine", "pipeline", "render", "gil"], default=None, help="run one part only"
+    )
+    ap.add_argument("--pipeline-size", type=int, default=128, help="camera size of the pipelining ACT")
+    ap.add_argument("--episodes", type=int, default=None, help="engine part: episodes (default 16; quick 4)")
+    ap.add_argument(
+        "--max-steps", type=int, default=None, help="engine part: steps each (default 200; quick 40)"
+    )
     args = ap.parse_args()
     import torch
 
     torch.set_num_threads(1)
+    repeats = args.repeats or (1 if args.quick else 3)
+    head = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "load_avg_start": os.getloadavg()[0],
+            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}  # fmt: skip
+    if args.only == "gil":
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+        print(json.dumps({**head, **gil_overlap(args.scene, args.pipeline_size, 20 if args.quick else 60)}))
+        return
+    if args.only == "render":
+        eps, steps = (2, 20) if args.quick else (4, 60)
+        res = lazy_render_bench(args.scene, args.pipeline_size, eps, steps, repeats)
+        print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
+        return
+    if args.only == "pipeline":
+        eps, steps = (2, 20) if args.quick else (4, 60)
+        res = pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats)
+        print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
+        return
     from indgen_vla.engine.config import EvalConfig, plan_episodes
 
     episodes, max_steps = (4, 40) if args.quick else (16, 200)
+    episodes, max_steps = args.episodes or episodes, args.max_steps or max_steps
     cfg = EvalConfig(policy=args.policy, scene=args.scene, axes=("pick_y",), out="-", episodes=episodes)
     import scenes
 
@@ -113,16 +365,18 @@ def main() -> None:
     replan = policy.spec.replan_steps
     scenes.make_env(args.scene, task=task, cameras=()).close()  # warm-up: imports and first model build
     steps = len(jobs) * max_steps
-    repeats = args.repeats or (1 if args.quick else 3)
-    times: dict[str, list[float]] = {"bare": [], "1w": [], "2w": []}
+    times: dict[str, list[float]] = {"bare": [], "1w": [], "2w": [], "start_1w": [], "start_2w": []}
     for _ in range(repeats):  # interleaved, so a burst of load elsewhere hits every variant alike
         times["bare"].append(bare_loop(jobs, args.scene, policy, replan, max_steps))
         times["1w"].append(engine_run(jobs, args.scene, args.policy, replan, max_steps, workers=1))
         times["2w"].append(engine_run(jobs, args.scene, args.policy, replan, max_steps, workers=2))
+        times["start_1w"].append(worker_start_s(jobs, args.scene, args.policy, 1))
+        times["start_2w"].append(worker_start_s(jobs, args.scene, args.policy, 2))
     t_bare, t_eng1, t_eng2 = min(times["bare"]), min(times["1w"]), min(times["2w"])
     gain = batched_gain(8, 5 if args.quick else 20)
+    s1, s2 = min(times["start_1w"]), min(times["start_2w"])
     result = {
-        "machine": f"{platform.machine()} {os.cpu_count()} cores", "scene": args.scene, "policy": args.policy,
+        **head, "scene": args.scene, "policy": args.policy,
         "episodes": len(jobs), "max_steps": max_steps, "repeats": repeats,
         "bare_s": round(t_bare, 3), "engine_1w_s": round(t_eng1, 3), "engine_2w_s": round(t_eng2, 3),
         "steps_per_s_bare": round(steps / t_bare, 1), "steps_per_s_engine_1w": round(steps / t_eng1, 1),
@@ -130,7 +384,14 @@ def main() -> None:
         "overhead_ratio": round(t_eng1 / t_bare - 1, 4),
         "speedup_2_workers": round(t_eng1 / t_eng2, 3),
         "batched_gain": round(gain, 3),
+        "start_1w_s": round(s1, 3), "start_2w_s": round(s2, 3),
+        "speedup_2_workers_net_of_start": round((t_eng1 - s1) / (t_eng2 - s2), 3),
+        "cpu_s_main_workers": CPU,
     }  # fmt: skip
+    if args.only is None:
+        eps, steps = (2, 20) if args.quick else (4, 60)
+        result.update(pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats))
+    result["load_avg_end"] = os.getloadavg()[0]
     print(json.dumps(result))
 
 

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 import scenes  # noqa: E402
-from scenes.catalog import SCENES  # noqa: E402  (built-in scenes: the bare-robosuite baseline needs them)
+from scenes.catalog import builtin_scenes  # noqa: E402  (the bare-robosuite baseline needs a built-in scene)
 from scenes.sim import CAMERA_NAMES  # noqa: E402
 
 CAMS = ("agentview", "wrist")
@@ -174,7 +174,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--scenes", default=",".join(s.name for s in builtin_scenes()))
     ap.add_argument(
         "--no-render", action="store_true", help="physics columns only (skip the 2-camera frames)"
     )

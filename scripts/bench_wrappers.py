@@ -60,7 +60,7 @@ def bench_openpi(n: int) -> dict:
         {"actions": np.zeros((10, 7), np.float32), "server_timing": {"infer_ms": 0.1}}
     )
     out = {
-        "encode_ms": timed(lambda: msgpack_numpy.packb(make_request(o, 224, True)), n),
+        "encode_ms": timed(lambda: msgpack_numpy.packb(make_request(o, client.config.conventions.images)), n),
         "decode_ms": timed(lambda: msgpack_numpy.unpackb(packed_reply), n),
         "roundtrip_ms": timed(lambda: client.act([o]), n),
     }
@@ -205,7 +205,7 @@ def main(argv=None) -> int:
     result["openvla_oft"] = bench_openvla(n)
     result["groot_n16"] = bench_groot(n)
     try:
-        from policy_wrappers.tiny import build_tiny_checkpoint
+        from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
         with tempfile.TemporaryDirectory() as tmp:
             result["lerobot_tiny_act"] = bench_lerobot(

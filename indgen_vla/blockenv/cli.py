@@ -25,36 +25,70 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="indgen blockenv", description="the paper's toy inductive benchmark")
     sp = p.add_subparsers(dest="cmd", required=True)
     s = sp.add_parser("sample", help="print initial grids of a level")
-    s.add_argument("--level", type=int, required=True)
-    s.add_argument("--n", type=int, default=1)
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--grid-size", type=int, default=12)
+    s.add_argument(
+        "--level", type=int, required=True, help="level k: two chains of k distractors around the goal"
+    )
+    s.add_argument("--n", type=int, default=1, help="how many initial grids (default 1)")
+    s.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
+    s.add_argument("--grid-size", type=int, default=12, help="grid side G (default 12)")
     s.add_argument("--json", action="store_true", help="a JSON list of GxG integer lists")
     t = sp.add_parser("train", help="behaviour-clone one method on oracle demonstrations")
-    t.add_argument("--method", required=True)
+    t.add_argument(
+        "--method", required=True, help="learner key, e.g. ind or rnn (docs/blockenv.md, The learners)"
+    )
     t.add_argument("--levels", default="0:2", help="training levels (paper: 0:2)")
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--steps", type=int, default=2000)
-    t.add_argument("--demos-per-level", type=int, default=300)
-    t.add_argument("--grid-size", type=int, default=12)
-    t.add_argument("--out", required=True)
+    t.add_argument(
+        "--seed", type=int, default=0, help="training seed: init, demonstrations, batches (default 0)"
+    )
+    t.add_argument("--steps", type=int, default=2000, help="optimiser updates (default 2000)")
+    t.add_argument(
+        "--demos-per-level",
+        type=int,
+        default=300,
+        help="oracle demonstrations per training level (default 300)",
+    )
+    t.add_argument("--grid-size", type=int, default=12, help="grid side G (default 12)")
+    t.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a variant option of the method, e.g. legal_head=local (see docs/blockenv.md)")  # fmt: skip
+    t.add_argument("--out", required=True, help="checkpoint directory to write")
     e = sp.add_parser("eval", help="evaluate a checkpoint (or --method oracle) on levels")
-    e.add_argument("--method", required=True)
-    e.add_argument("--checkpoint", default=None)
-    e.add_argument("--levels", default="0:5")
-    e.add_argument("--episodes", type=int, default=100)
-    e.add_argument("--seed", type=int, default=1000)
-    e.add_argument("--grid-size", type=int, default=None)
-    e.add_argument("--gamma", type=float, default=0.2)
+    e.add_argument("--method", required=True, help="learner key of the checkpoint, or oracle")
+    e.add_argument(
+        "--checkpoint", default=None, help="directory written by 'indgen blockenv train' (not for oracle)"
+    )
+    e.add_argument("--levels", default="0:5", help="levels to evaluate, like 0:10 or 0,3,5 (default 0:5)")
+    e.add_argument("--episodes", type=int, default=100, help="episodes per level (default 100)")
+    e.add_argument(
+        "--seed", type=int, default=1000, help="evaluation seed (default 1000, apart from training seeds)"
+    )
+    e.add_argument(
+        "--grid-size",
+        type=int,
+        default=None,
+        help="oracle grid side (default: fits the levels, >= 12); learned methods use their checkpoint's",
+    )
+    e.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
     e.add_argument("--out", default=None, help="write results JSON here")
     r = sp.add_parser("reproduce", help="train and evaluate every method: Table 1")
     r.add_argument("--quick", action="store_true", help="a tiny smoke run of the same pipeline")
-    r.add_argument("--seeds", type=int, default=None)
-    r.add_argument("--max-level", type=int, default=None)
+    r.add_argument(
+        "--seeds", type=int, default=None, help="training seeds per method (default 3; 1 with --quick)"
+    )
+    r.add_argument(
+        "--max-level", type=int, default=None, help="evaluate levels 0..K (default 10; 4 with --quick)"
+    )
     r.add_argument(
         "--workers", type=int, default=None, help="processes training side by side (default: cores)"
     )
-    r.add_argument("--out", required=True)
+    r.add_argument("--resume", action="store_true", help="keep finished jobs in OUT/jobs and reuse them")
+    r.add_argument("--out", required=True, help="folder for table1.json, table1.md, table1.png (and jobs/)")
+    ab = sp.add_parser("ablate", help="the reduced-scale ablations of docs/blockenv.md")
+    ab.add_argument(
+        "--name", action="append", default=None, help="ablation to run (repeatable; default: all)"
+    )
+    ab.add_argument("--seeds", type=int, default=3, help="training seeds per ablation (default 3)")
+    ab.add_argument("--results", default="docs/results/blockenv_ablations.json", help="JSON merged into")
+    ab.add_argument("--doc", default="docs/blockenv.md", help="markdown whose ablation section is rewritten")
     return p
 
 
@@ -77,13 +111,27 @@ def _sample(a) -> int:
     return 0
 
 
+def _options(items: list[str]) -> dict:
+    """KEY=VALUE strings -> options; values are read as JSON (numbers, true/false) or kept as text."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--option {item!r} must look like KEY=VALUE, e.g. legal_head=local")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
 def _train(a) -> int:
     from rich.progress import Progress
 
     from indgen_vla.blockenv.train import TrainConfig, save_checkpoint, train
 
     cfg = TrainConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
-                      steps=a.steps, demos_per_level=a.demos_per_level)  # fmt: skip
+                      steps=a.steps, demos_per_level=a.demos_per_level, extra=_options(a.option))  # fmt: skip
     with Progress(transient=True) as prog:
         task = prog.add_task(f"training {a.method}", total=cfg.steps)
         model, _ = train(
@@ -144,7 +192,8 @@ def _reproduce(a) -> int:
     workers = a.workers if a.workers is not None else (os.cpu_count() or 1)
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
-    result = reproduce(cfg, Path(a.out), log=lambda m: print(m, file=sys.stderr, flush=True), workers=workers)
+    result = reproduce(cfg, Path(a.out), log=lambda m: print(m, file=sys.stderr, flush=True), workers=workers,
+                       resume=a.resume)  # fmt: skip
     from indgen_vla.blockenv.reproduce import render_markdown
 
     print(render_markdown(result))
@@ -152,7 +201,24 @@ def _reproduce(a) -> int:
     return 0
 
 
+def _ablate(a) -> int:
+    import dataclasses
+
+    from indgen_vla.blockenv.ablate import ABLATIONS, AblationScale, ablate
+    from indgen_vla.registry import lookup
+
+    names = a.name or list(ABLATIONS)
+    for n in names:
+        lookup("BlockEnv ablation", n, ABLATIONS)
+    scale = dataclasses.replace(AblationScale(), seeds=tuple(range(a.seeds)))
+    ablate(names, scale, Path(a.results), Path(a.doc) if a.doc else None,
+           log=lambda m: print(m, file=sys.stderr, flush=True))  # fmt: skip
+    print(f"wrote {a.results}" + (f" and the ablation section of {a.doc}" if a.doc else ""))
+    return 0
+
+
 def blockenv_main(args: argparse.Namespace) -> int:
     """CLI handler: parses ``args.rest`` with the blockenv sub-parser."""
     a = build_parser().parse_args(args.rest)
-    return {"sample": _sample, "train": _train, "eval": _eval, "reproduce": _reproduce}[a.cmd](a)
+    handlers = {"sample": _sample, "train": _train, "eval": _eval, "reproduce": _reproduce, "ablate": _ablate}
+    return handlers[a.cmd](a)

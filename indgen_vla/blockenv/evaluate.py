@@ -13,15 +13,13 @@ def initial_grids(level: int, episodes: int, cfg: BlockEnvConfig, seed: int) -> 
                            for i in range(episodes)])  # fmt: skip
 
 
-def decode(out: dict, obs_last, method: str) -> np.ndarray:
-    """Greedy (r, c, θ) from the last time step's logits."""
+def decode(out: dict, obs_last, model) -> np.ndarray:
+    """Greedy (r, c, θ) from the last time step's logits (after the model's inference gate, if it has one)."""
     import torch
 
     if "joint" in out:
-        if method == "ind":
-            from indgen_vla.blockenv.models.sequence import IndPolicy
-
-            logits = IndPolicy.gate({k: v[:, -1] for k, v in out.items()}, obs_last)
+        if hasattr(model, "gate"):
+            logits = model.gate({k: v[:, -1] for k, v in out.items()}, obs_last)
         else:
             logits = out["joint"][:, -1]
         g = logits.shape[-2]
@@ -47,7 +45,7 @@ def rollout(model, method: str, level: int, episodes: int, cfg: BlockEnvConfig, 
             obs = torch.as_tensor(np.stack(history if use_hist else history[-1:], 1), dtype=torch.long)
             pa = torch.as_tensor(np.stack(prev[-obs.shape[1] :], 1))
             out = functional_call(model, params, (obs, lv, pa)) if params else model(obs, lv, pa)
-            a = decode(out, obs[:, -1], method)
+            a = decode(out, obs[:, -1], model)
             env.step(a)
             prev.append(a)
     return env.success.copy()

@@ -38,6 +38,13 @@ class ReproduceConfig:
     # (L2 47 % -> 88 %); MAML did not (2000: 98/60/49, 8000: 97/52/38), so it keeps the default.
     method_steps: tuple[tuple[str, int], ...] = (("rnn", 12000),)
     demos_per_level: int = 300
+    # Variant options (models.base.OPTIONS) per method where Table 1 departs from the model's default. Ind's
+    # legality head reads the current grid cell by cell (a shared 3x3 convolution): the paper's head "learns
+    # the local invariant grasping rule" and its gate "structurally" prevents blocked grasps, which a linear
+    # read-out of the trunk's global embedding does not do even in distribution (docs/blockenv.md, ind_gate).
+    method_extra: tuple[tuple[str, tuple[tuple[str, object], ...]], ...] = (
+        ("ind", (("legal_head", "local"),)),
+    )
     methods: tuple[str, ...] = BASELINES + OURS
     gamma: float = 0.2
     hidden: int = 128  # model width; smaller only for smoke runs and tests
@@ -62,6 +69,10 @@ class ReproduceConfig:
     def steps_for(self, method: str) -> int:
         """Optimiser updates ``method`` trains for."""
         return dict(self.method_steps).get(method, self.steps)
+
+    def extra_for(self, method: str) -> dict:
+        """The variant options ``method`` trains with (empty: the model's defaults)."""
+        return dict(dict(self.method_extra).get(method, ()))
 
 
 def seed_t_interval(rates: list[float], conf: float = 0.95) -> tuple[float, float] | None:
@@ -101,7 +112,7 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
     torch.set_num_threads(1)
     ts = time.perf_counter()
     tc = TrainConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
-                     demos_per_level=cfg.demos_per_level, hidden=cfg.hidden)  # fmt: skip
+                     demos_per_level=cfg.demos_per_level, hidden=cfg.hidden, extra=cfg.extra_for(method))  # fmt: skip
     model, _ = train(tc)
     res = evaluate_model(
         model, method, cfg.eval_levels, cfg.episodes, env_cfg, seed=1000 + seed, train_cfg=tc
@@ -109,8 +120,50 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
     return res, time.perf_counter() - ts
 
 
-def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int):
-    """Yield ((method, seed), counts, seconds) as jobs finish, in ``workers`` spawned processes."""
+def code_digest() -> str:
+    """SHA-256 (12 hex) of the BlockEnv sources a job's outcome depends on: a cached job is reused only under it."""
+    import hashlib
+
+    root = Path(__file__).parent
+    h = hashlib.sha256()
+    for f in sorted([*root.glob("*.py"), *root.glob("models/*.py")]):
+        if f.name not in ("cli.py", "reproduce.py", "ablate.py"):
+            h.update(f.name.encode() + f.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def _job_path(cache: Path, method: str, seed: int, cfg, env_cfg, digest: str) -> Path:
+    """Where one (method, seed) job's counts are kept: the name pins everything the counts depend on."""
+    import hashlib
+
+    key = json.dumps([method, seed, cfg.steps_for(method), cfg.demos_per_level, cfg.hidden, list(cfg.eval_levels),
+                      cfg.episodes, env_cfg.grid_size, digest] + ([cfg.extra_for(method)] if cfg.extra_for(method) else []))  # fmt: skip
+    return cache / f"{method}_seed{seed}_{hashlib.sha256(key.encode()).hexdigest()[:12]}.json"
+
+
+def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int, cache: Path | None = None):
+    """Yield ((method, seed), counts, seconds) as jobs finish, in ``workers`` spawned processes.
+
+    With ``cache``, a job already finished under the same configuration and code is read back instead of
+    rerun, and every finished job is written there at once: an interrupted reproduction resumes.
+    """
+    if cache is not None:
+        digest = code_digest()
+        cache.mkdir(parents=True, exist_ok=True)
+        todo = []
+        for job in jobs:
+            path = _job_path(cache, *job, cfg, env_cfg, digest)
+            if path.exists():
+                saved = json.loads(path.read_text())
+                yield job, {int(k): tuple(v) for k, v in saved["counts"].items()}, saved["seconds"]
+            else:
+                todo.append(job)
+        for job, res, sec in _run_jobs(todo, cfg, env_cfg, workers):
+            path = _job_path(cache, *job, cfg, env_cfg, digest)
+            path.write_text(json.dumps({"job": list(job), "counts": {str(k): list(v) for k, v in res.items()},
+                                        "seconds": sec}) + "\n")  # fmt: skip
+            yield job, res, sec
+        return
     if workers <= 1:
         for job in jobs:
             yield job, *_job(*job, cfg, env_cfg)
@@ -124,11 +177,12 @@ def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int):
             yield futures[fut], *fut.result()
 
 
-def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1) -> dict:
+def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1, resume: bool = False) -> dict:
     """Train and evaluate every method; write table1.json/.md/.png into ``out``; return the table.
 
     Args:
         workers: processes training (method, seed) jobs side by side; results do not depend on it.
+        resume: keep each finished job in ``out/jobs`` and reuse those done under the same config and code.
     """
     from indgen_vla.blockenv.evaluate import oracle_rollout
 
@@ -140,7 +194,7 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1) -> d
     jobs = [(m, s) for m in order for s in cfg.seeds]
     counts: dict[str, dict[int, dict[int, tuple[int, int]]]] = {m: {} for m in cfg.methods}
     job_seconds: dict[str, list[float]] = {m: [] for m in cfg.methods}
-    for (method, seed), res, sec in _run_jobs(jobs, cfg, env_cfg, workers):
+    for (method, seed), res, sec in _run_jobs(jobs, cfg, env_cfg, workers, out / "jobs" if resume else None):
         counts[method][seed] = res
         job_seconds[method].append(round(sec, 1))
         log(f"{method} seed {seed}: " + " ".join(f"L{k} {c[0]}/{c[1]}" for k, c in res.items())
@@ -154,7 +208,7 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1) -> d
     table["oracle"] = _entry(oracle, cfg.gamma, cfg.seeds)
     wall = time.perf_counter() - t0
     result = {"config": {"seeds": list(cfg.seeds), "eval_levels": list(cfg.eval_levels), "episodes": cfg.episodes,
-                         "train_steps": {m: cfg.steps_for(m) for m in cfg.methods}, "demos_per_level": cfg.demos_per_level, "train_levels": [0, 1, 2], "hidden": cfg.hidden,
+                         "train_steps": {m: cfg.steps_for(m) for m in cfg.methods}, "method_extra": {m: cfg.extra_for(m) for m in cfg.methods if cfg.extra_for(m)}, "demos_per_level": cfg.demos_per_level, "train_levels": [0, 1, 2], "hidden": cfg.hidden,
                          "grid_size": env_cfg.grid_size, "gamma": cfg.gamma, "workers": workers},
               "wall_s": round(wall, 1), "job_seconds": job_seconds, "methods": table}  # fmt: skip
     (out / "table1.json").write_text(json.dumps(table, indent=2) + "\n")
@@ -193,7 +247,9 @@ def render_markdown(result: dict) -> str:
         f"{len(c['seeds'])} seed(s) ({', '.join(map(str, c['seeds']))}), {c['episodes']} episodes per level and seed; "
         f"success pooled over seeds (n = {c['episodes'] * len(c['seeds'])} per level). Break level: first level with "
         f"success < γ = {c['gamma']}, on the pooled rates and on each seed's own rates. Wall time "
-        f"{result['wall_s'] / 60:.1f} min.", "",
+        f"{result['wall_s'] / 60:.1f} min ({c.get('workers', 1)} workers); the jobs' own wall times sum to "
+        f"{sum(map(sum, result.get('job_seconds', {}).values())) / 60:.0f} min (per job in the _run.json, jobs "
+        "read back by --resume included)." + _extra_note(c), "",
         head, "|" + "---|" * (len(levels) + 5),
     ]  # fmt: skip
     for m, e in table.items():
@@ -218,6 +274,15 @@ def render_markdown(result: dict) -> str:
             cells.append(f"{100 * v['ci_low']:.0f}–{100 * v['ci_high']:.0f} / {seed}")
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _extra_note(c: dict) -> str:
+    """ " Variant options: ind legal_head=local." for the methods that train with non-default options."""
+    extra = c.get("method_extra") or {}
+    if not extra:
+        return ""
+    opts = "; ".join(f"{m} " + ", ".join(f"{k}={v}" for k, v in o.items()) for m, o in extra.items())
+    return f" Variant options (docs/blockenv.md): {opts}."
 
 
 def _brk(k: int | None) -> str:

@@ -31,7 +31,7 @@ class TrainConfig:
     maml_inner_lr: float = 0.05
     maml_support: int = 5
     schedule: str = "cosine"
-    extra: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # the method's variant options (models.base.OPTIONS)
 
     def __post_init__(self) -> None:
         from indgen_vla.blockenv.models import METHODS
@@ -45,6 +45,9 @@ class TrainConfig:
         if self.schedule not in ("cosine", "constant"):
             raise ConfigError(f"schedule must be 'cosine' or 'constant', got {self.schedule!r}")
         BlockEnvConfig(grid_size=self.grid_size).check_level(max(self.train_levels))
+        from indgen_vla.blockenv.models.base import check_options
+
+        check_options(self.method, self.extra)
 
 
 def _tensors(obs, actions, levels):
@@ -53,8 +56,11 @@ def _tensors(obs, actions, levels):
     return torch.as_tensor(obs, dtype=torch.long), torch.as_tensor(actions), torch.as_tensor(levels)
 
 
-def bc_loss(out: dict, actions, mask=None, legal=None):
-    """Cross-entropy on the taken action (factored heads or joint logits) + Ind's legality BCE."""
+def bc_loss(
+    out: dict, actions, mask=None, legal=None, legal_weight: float = 1.0, legal_pos_weight: float = 1.0
+):
+    """Cross-entropy on the taken action (factored heads or joint logits) + Ind's legality BCE (mean over cells
+    and θ, legal cells weighted ``legal_pos_weight``, the whole term ``legal_weight``)."""
     import torch
     from torch.nn import functional as F  # noqa: N812
 
@@ -69,8 +75,9 @@ def bc_loss(out: dict, actions, mask=None, legal=None):
     m = torch.ones_like(ce) if mask is None else mask.flatten()
     loss = (ce * m).sum() / m.sum()
     if legal is not None and "legal" in out:
-        bce = F.binary_cross_entropy_with_logits(out["legal"], legal, reduction="none").mean((-3, -2, -1))
-        loss = loss + (bce.flatten() * m).sum() / m.sum()
+        pw = None if legal_pos_weight == 1.0 else torch.tensor(legal_pos_weight)
+        bce = F.binary_cross_entropy_with_logits(out["legal"], legal, reduction="none", pos_weight=pw)
+        loss = loss + legal_weight * (bce.mean((-3, -2, -1)).flatten() * m).sum() / m.sum()
     return loss
 
 
@@ -97,7 +104,7 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
     rng = np.random.default_rng(cfg.seed)
     env_cfg = BlockEnvConfig(grid_size=cfg.grid_size)
     demos = make_demos(list(cfg.train_levels), cfg.demos_per_level, env_cfg, seed=10_000 + cfg.seed)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden)
+    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     if cfg.schedule == "cosine":  # decays to 0 over cfg.steps optimiser updates, whichever path makes them
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.steps)
@@ -110,10 +117,13 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
         obs, act, mask, lv = (torch.as_tensor(demos.obs, dtype=torch.long), torch.as_tensor(demos.actions),
                               torch.as_tensor(demos.mask), torch.as_tensor(demos.levels))  # fmt: skip
         legal = torch.as_tensor(legality_targets(demos.obs)) if cfg.method == "ind" else None
+        lw = {k: v for k, v in cfg.extra.items() if k in ("legal_weight", "legal_pos_weight")}
         prev = torch.cat([torch.zeros_like(act[:, :1]), act[:, :-1]], dim=1)
         for i, idx in zip(range(cfg.steps), _batches(len(demos), cfg.batch, rng), strict=False):
             out = model(obs[idx], lv[idx], prev[idx])
-            loss = _update(opt, bc_loss(out, act[idx], mask[idx], None if legal is None else legal[idx]))
+            loss = _update(
+                opt, bc_loss(out, act[idx], mask[idx], None if legal is None else legal[idx], **lw)
+            )
             if progress:
                 progress(i, float(loss.detach()))
     else:
@@ -220,7 +230,7 @@ def load_checkpoint(path: Path):
         ) from None
     raw["train_levels"] = tuple(raw["train_levels"])
     cfg = TrainConfig(**raw)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden)
+    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
     model.load_state_dict(torch.load(path / "model.pt", weights_only=True))
     model.eval()
     return model, cfg

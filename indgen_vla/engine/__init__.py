@@ -1,1 +1,11 @@
-"""The rollout engine: plan episodes, drive scenes with a policy, record every episode."""
+"""The rollout engine: plan episodes, drive scenes with a policy, record every episode.
+
+The application composes scenes and policies, so the scene-side stand-ins are registered here, in one place
+(``policy_wrappers`` never refers to ``scenes``): ``standin:oracle`` is the scenes' privileged controller.
+"""
+
+from policy_wrappers.registry import register_standin
+
+register_standin(
+    "oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle of the scenes (certifies every level)"
+)

@@ -5,15 +5,16 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.resources import config_dir
 from indgen_vla.seeding import episode_seed
 
 DEFAULT_EPISODES = 50
-PRESET_DIR = Path(__file__).resolve().parents[2] / "configs" / "paper"
+PRESET_DIR = config_dir("paper")
 
 
 @dataclass(frozen=True)
@@ -27,10 +28,11 @@ class EvalConfig:
     task: str | None = None
     levels: str | None = None
     step: float | None = None
-    axes_preset: str | None = None  # configs/axes NAME or YAML PATH: component steps and level ranges
+    axes_preset: str | None = None  # preset NAME (indgen_vla/configs/axes) or YAML PATH: steps, level ranges
     episodes: int = DEFAULT_EPISODES
     workers: int = 1
     backend: str = "local"
+    pipeline: bool = False  # local backend: two environments per worker, stepping overlapped with inference
     seed: int = 0
     max_steps: int | None = None
     replan_steps: int | None = None
@@ -67,6 +69,13 @@ class EvalConfig:
             raise ConfigError(f"--workers must be >= 1, got {self.workers}")
         if self.backend not in ("local", "ray"):
             raise ConfigError(f"--backend must be 'local' or 'ray', got {self.backend!r}")
+        if not isinstance(self.pipeline, bool):
+            raise ConfigError(f"pipeline must be true or false, got {self.pipeline!r}")
+        if self.pipeline and self.backend == "ray":
+            raise ConfigError(
+                "--pipeline is for --backend local; with Ray, overlap by running 2 simulator actors per CPU "
+                "(INDGEN_RAY_CPUS_PER_SIM=0.5)"
+            )
         for name in ("max_steps", "replan_steps", "image_size"):
             v = getattr(self, name)
             if v is not None and v < 1:
@@ -119,10 +128,11 @@ class EvalConfig:
 
 
 FLAG_FIELDS = {f.name for f in dataclasses.fields(EvalConfig)}
+EXPLICIT_FALSE = {"pipeline"}  # --no-pipeline (False) overrides a preset; other False flags are "not given"
 
 
-def load_preset(path: str) -> dict[str, Any]:
-    """Read a YAML preset; a bare name like ``libero_object`` is looked up in configs/paper/."""
+def load_config_preset(path: str) -> dict[str, Any]:
+    """Read a YAML preset; a bare name like ``libero_object`` is looked up in the shipped indgen_vla/configs/paper/."""
     import yaml
 
     p = Path(path)
@@ -152,11 +162,11 @@ def load_preset(path: str) -> dict[str, Any]:
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
     """Merge a YAML preset (if any) with the flags; flags given on the command line win."""
-    values: dict[str, Any] = load_preset(args.config) if getattr(args, "config", None) else {}
+    values: dict[str, Any] = load_config_preset(args.config) if getattr(args, "config", None) else {}
     flag_map = {"axis": "axes"}
     for key, value in vars(args).items():
         name = flag_map.get(key, key)
-        if name in FLAG_FIELDS and value is not None and value is not False:
+        if name in FLAG_FIELDS and value is not None and (value is not False or name in EXPLICIT_FALSE):
             values[name] = value
     axes = values.get("axes")
     if isinstance(axes, str):
@@ -183,8 +193,6 @@ class EpisodeJob:
     seed: int
     param: float
     video: bool = False
-    attempt: int = 0
-    extras: dict = field(default_factory=dict, compare=False)
 
     @property
     def key(self) -> tuple[str, str, int, int]:

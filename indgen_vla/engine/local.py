@@ -1,10 +1,15 @@
 """The local backend: W worker processes own scene instances; the main process holds the policy and
-serves one batched forward per round across every environment that is waiting for actions."""
+serves one batched forward per round across every environment that is waiting for actions.
+
+With ``pipeline=True`` every worker owns two environments (lanes) and the policy computes one lane's chunk while
+the worker steps the other's, so simulation and inference overlap (docs/benchmarks.md, "Pipelining").
+"""
 
 from __future__ import annotations
 
 import logging
 import multiprocessing as mp
+import os
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -21,25 +26,32 @@ from indgen_vla.errors import PolicyConnectionError
 from indgen_vla.interface import validate_chunk
 from indgen_vla.records import EpisodeRecord
 
+LANES = 2  # environments per worker when pipelined: one steps while the policy computes the other's chunk
 
-def _handle(runner: EnvRunner, msg: tuple) -> Transition:
-    op, arg = msg
+
+def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tuple[int, Transition]:
+    op, lane, arg = msg
+    runner = runners.get(lane)
+    if runner is None:
+        runner = runners[lane] = EnvRunner(cfg)
     if op == "reset":
-        return runner.reset(arg)
+        return lane, runner.reset(arg)
     if op == "step":
-        return runner.execute(arg)
+        return lane, runner.execute(arg)
     raise ValueError(f"unknown worker op {op!r}")
 
 
-def _worker_main(conn, cfg: RunnerConfig) -> None:
+def _worker_main(conn, cfg: RunnerConfig, render_threads: int) -> None:
     """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
-    import os
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process handles Ctrl-C and closes us
     os.environ.setdefault("MUJOCO_GL", "egl")
+    # llvmpipe starts one render thread per core in every process: W workers would oversubscribe the cores
+    # (pixels do not depend on the thread count; docs/benchmarks.md "Where a CPU frame goes")
+    os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
     logging.getLogger("robosuite").setLevel(logging.ERROR)
-    runner = EnvRunner(cfg)
+    runners: dict[int, EnvRunner] = {}
     try:
         while True:
             try:
@@ -48,37 +60,39 @@ def _worker_main(conn, cfg: RunnerConfig) -> None:
                 break
             if msg[0] == "close":
                 break
-            conn.send(_handle(runner, msg))
+            conn.send(_handle(runners, cfg, msg))
     finally:
-        runner.close()
+        for runner in runners.values():
+            runner.close()
 
 
 class _InProcessWorker:
-    """W = 1: the same request/reply protocol without a subprocess (cheaper start, easier debugging)."""
+    """W = 1, unpipelined: the same request/reply protocol without a subprocess (cheaper start, easier
+    debugging)."""
 
     def __init__(self, cfg: RunnerConfig):
-        self.runner = EnvRunner(cfg)
-        self._reply: Transition | None = None
+        self.cfg = cfg
+        self.runners: dict[int, EnvRunner] = {}
+        self._replies: deque[tuple[int, Transition]] = deque()
 
     def send(self, msg: tuple) -> None:
-        self._reply = _handle(self.runner, msg)
+        self._replies.append(_handle(self.runners, self.cfg, msg))
 
     def poll(self) -> bool:
-        return self._reply is not None
+        return bool(self._replies)
 
-    def recv(self) -> Transition:
-        reply, self._reply = self._reply, None
-        assert reply is not None
-        return reply
+    def recv(self) -> tuple[int, Transition]:
+        return self._replies.popleft()
 
     def close(self) -> None:
-        self.runner.close()
+        for runner in self.runners.values():
+            runner.close()
 
 
 class _ProcessWorker:
-    def __init__(self, ctx, cfg: RunnerConfig):
+    def __init__(self, ctx, cfg: RunnerConfig, render_threads: int):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_main, args=(child, cfg), daemon=True)
+        self.proc = ctx.Process(target=_worker_main, args=(child, cfg, render_threads), daemon=True)
         self.proc.start()
         child.close()
 
@@ -88,7 +102,7 @@ class _ProcessWorker:
     def poll(self) -> bool:
         return self.conn.poll()
 
-    def recv(self) -> Transition:
+    def recv(self) -> tuple[int, Transition]:
         try:
             return self.conn.recv()
         except (EOFError, OSError):
@@ -98,7 +112,7 @@ class _ProcessWorker:
 
     def close(self) -> None:
         try:
-            self.conn.send(("close", None))
+            self.conn.send(("close", None, None))
         except (BrokenPipeError, OSError):
             pass
         self.proc.join(timeout=10)
@@ -144,31 +158,42 @@ def run_local(
     server_patience_s: float = DEFAULT_PATIENCE_S,
     on_wait: Callable[[str], None] | None = None,
     close_policies: bool = True,
+    pipeline: bool = False,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
     Batched policies get one ``act`` per round over all waiting environments; per-episode-stateful
-    policies get one instance per worker (remote ones are called concurrently from threads). A connection
+    policies get one instance per environment (remote ones are called concurrently from threads). A connection
     fault pauses the episode, waits with backoff (``on_wait`` gets the progress line, "" when it clears)
     and re-runs it from its seed; past ``server_patience_s`` it raises ``ServerUnreachableError``.
+
+    ``pipeline``: two environments per worker (slot ``i`` is lane ``i // W`` of worker ``i % W``), and each
+    lane gets its own ``act``, so a worker steps one lane while the policy computes the other's chunk. Every
+    episode still runs from its own seed with its own actions: the records equal the unpipelined run's.
     """
     n = max(1, min(workers, len(jobs)))
     if not jobs:
         return
-    first = make_policy()
-    spec = first.spec
-    policies = [first] if spec.batched else [first] + [make_policy() for _ in range(n - 1)]
+    lanes = LANES if pipeline and len(jobs) > n else 1
+    n_slots = min(n * lanes, len(jobs))
     ctx = _context()
     pool: list = []
-    threads = ThreadPoolExecutor(max_workers=n) if not spec.batched and n > 1 else None
+    policies: list = []
+    threads: ThreadPoolExecutor | None = None
     outage = Outage(patience_s=server_patience_s)
     notify = on_wait or (lambda text: None)
     try:
+        render_threads = max(1, (os.cpu_count() or 1) // n)
         pool = (
-            [_InProcessWorker(runner_cfg)] if n == 1 else [_ProcessWorker(ctx, runner_cfg) for _ in range(n)]
+            [_InProcessWorker(runner_cfg)]
+            if n == 1 and lanes == 1
+            else [_ProcessWorker(ctx, runner_cfg, render_threads) for _ in range(n)]
         )
         queue = deque(jobs)
         slots: dict[int, _Slot] = {}
+
+        def send(i: int, op: str, arg) -> None:
+            pool[i % n].send((op, i // n, arg))
 
         def start(i: int, slot: _Slot | None = None) -> None:
             if slot is None:
@@ -178,7 +203,7 @@ def run_local(
                 slot = _Slot(queue.popleft())
             slot.fresh, slot.acts, slot.wake = True, 0, 0.0
             slots[i] = slot
-            pool[i].send(("reset", slot.job))
+            send(i, "reset", slot.job)
 
         def fail(i: int, error: str, t: Transition | None = None) -> None:
             slot = slots[i]
@@ -208,8 +233,12 @@ def run_local(
             slot.fault_at, slot.fault_acts = now, slot.acts
             notify(outage.describe(min(s.wake for s in slots.values() if s.wake)))
 
-        for i in range(n):
-            start(i)
+        for i in range(n_slots):
+            start(i)  # the workers start and build their scenes while the policy loads
+        first = make_policy()
+        spec = first.spec
+        policies = [first] if spec.batched else [first] + [make_policy() for _ in range(n_slots - 1)]
+        threads = ThreadPoolExecutor(max_workers=n_slots) if not spec.batched and n_slots > 1 else None
         while slots:
             now = time.monotonic()
             for i in [i for i, s in slots.items() if s.wake and s.wake <= now]:
@@ -218,17 +247,19 @@ def run_local(
             paused = [s.wake for s in slots.values() if s.wake]
             if paused:
                 notify(outage.describe(min(paused)))
-            ready = [i for i in busy if pool[i].poll()]
+            busy_workers = sorted({i % n for i in busy})
+            ready = [w for w in busy_workers if pool[w].poll()]
             if not ready:
                 timeout = min(1.0, max(0.0, min(paused) - now)) if paused else None
                 if not busy:
                     time.sleep(timeout or 0.0)
                     continue
-                conns = {pool[i].conn: i for i in busy}
+                conns = {pool[w].conn: w for w in busy_workers}
                 ready = [conns[c] for c in wait(list(conns), timeout)]
             waiting: list[tuple[int, Transition]] = []
-            for i in ready:
-                t = pool[i].recv()
+            for w in ready:  # one reply per worker and round (a pipelined worker's other lane: next round)
+                lane, t = pool[w].recv()
+                i = lane * n + w
                 slot = slots[i]
                 if t.error:
                     fail(i, t.error, t)
@@ -252,17 +283,19 @@ def run_local(
                         continue
                     slots[i].fresh = False
             waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
-            for i, result in _act(policies, spec, waiting, meta.policy, threads):
-                if isinstance(result, PolicyConnectionError):
-                    conn_fault(i, result)
-                elif isinstance(result, Exception):
-                    fail(i, _describe(result))
-                else:
-                    if outage.ok():
-                        notify("")
-                    slots[i].acts += 1
-                    slots[i].faults = 0
-                    pool[i].send(("step", result[:replan_steps]))
+            for lane in sorted({i // n for i, _ in waiting}):  # a lane's chunk leaves once computed
+                group = [(i, t) for i, t in waiting if i // n == lane]
+                for i, result in _act(policies, spec, group, meta.policy, threads):
+                    if isinstance(result, PolicyConnectionError):
+                        conn_fault(i, result)
+                    elif isinstance(result, Exception):
+                        fail(i, _describe(result))
+                    else:
+                        if outage.ok():
+                            notify("")
+                        slots[i].acts += 1
+                        slots[i].faults = 0
+                        send(i, "step", result[:replan_steps])
     finally:
         if threads is not None:
             threads.shutdown(wait=False, cancel_futures=True)

@@ -1,36 +1,211 @@
-"""The Ray backend: each actor owns a scene runner and its own policy; episodes are scheduled
-dynamically across actors. Seeds come from the plan, so results equal the local backend's.
+"""The Ray backend: simulator actors on CPUs, one batched policy actor per GPU (per node without GPUs).
 
-Connects to the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance. Each actor waits out
-a policy server outage on its own (``run_episode``'s backoff), with the same ``--server-patience``.
+A VLA is loaded once per GPU, not once per simulator: each simulator actor runs episodes with a thin client
+that sends its observation to a policy actor, which coalesces concurrent requests into one batched ``act``
+(up to ``INDGEN_RAY_MAX_BATCH`` observations, waiting at most ``INDGEN_RAY_BATCH_WAIT_MS`` for more).
+Per-episode-stateful policies (``batched=False``: history policies, remote openpi/GR00T/OFT servers) get one
+instance per simulator actor inside the policy actor, so connections and weights live there too. Seeds come
+from the plan and each episode runs ``run_episode``, so results equal the local backend's.
+
+Connects to the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance. Each simulator actor
+waits out a policy server outage on its own (``run_episode``'s backoff), with the same ``--server-patience``.
 """
 
 from __future__ import annotations
 
+import os
+import queue
+import threading
+import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future
 
 from indgen_vla.engine.config import EpisodeJob, EvalConfig
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.errors import ConfigError, ServerUnreachableError
 from indgen_vla.records import EpisodeRecord
 
+ENV_KNOBS = {  # environment variable: (default, what it sets)
+    "INDGEN_RAY_CPUS_PER_SIM": (1.0, "CPUs reserved per simulator actor"),
+    "INDGEN_RAY_GPUS_PER_POLICY": (1.0, "GPUs per policy actor (device cuda); one actor per that many GPUs"),
+    "INDGEN_RAY_MAX_BATCH": (32, "most observations in one batched act"),
+    "INDGEN_RAY_BATCH_WAIT_MS": (5.0, "how long a policy actor waits to fill a batch"),
+}
 
-class _EpisodeActor:
-    """Holds one EnvRunner and one policy instance for the actor's lifetime."""
 
-    def __init__(self, runner_cfg: RunnerConfig, policy: str, trust_remote_code: bool, device: str):
+def ray_knobs(environ=os.environ) -> dict[str, float]:
+    """The backend's resource and batching settings from the environment, each checked (one line if bad)."""
+    out = {}
+    for name, (default, what) in ENV_KNOBS.items():
+        raw = environ.get(name)
+        try:
+            value = type(default)(raw) if raw not in (None, "") else default
+        except ValueError:
+            value = -1
+        if not value > 0 or (name == "INDGEN_RAY_BATCH_WAIT_MS" and value > 10_000):
+            raise ConfigError(f"{name}={raw!r}: {what} must be a positive number (default {default})")
+        out[name] = value
+    return out
+
+
+class Batcher:
+    """Coalesces ``act`` requests from many threads into batched calls of one stateless policy."""
+
+    def __init__(self, policy, who: str, max_batch: int, max_wait_s: float):
+        self.policy, self.who, self.max_batch, self.max_wait_s = (
+            policy,
+            who,
+            int(max_batch),
+            float(max_wait_s),
+        )
+        self._queue: queue.Queue = queue.Queue()
+        self.batch_sizes: list[int] = []  # what was served (benchmarks and tests read it)
+        self._thread = threading.Thread(target=self._loop, name="indgen-batcher", daemon=True)
+        self._thread.start()
+
+    def act(self, obs):
+        """One observation's (T, 7) chunk, computed in a batch with whatever else arrived meanwhile."""
+        fut: Future = Future()
+        self._queue.put((obs, fut))
+        return fut.result()
+
+    def close(self) -> None:
+        self._queue.put(None)
+        self._thread.join(timeout=10)
+
+    def _loop(self) -> None:
+        from indgen_vla.interface import validate_chunk
+
+        while (item := self._queue.get()) is not None:
+            batch, deadline = [item], time.monotonic() + self.max_wait_s
+            while len(batch) < self.max_batch:
+                try:
+                    nxt = self._queue.get(timeout=max(0.0, deadline - time.monotonic()))
+                except queue.Empty:
+                    break
+                if nxt is None:
+                    self._queue.put(None)  # stop after serving this batch
+                    break
+                batch.append(nxt)
+            try:
+                chunks = validate_chunk(self.policy.act([o for o, _ in batch]), len(batch), self.who)
+            except Exception as e:  # every waiting request sees the failure, as in the local engine
+                for _, fut in batch:
+                    fut.set_exception(e)
+                continue
+            self.batch_sizes.append(len(batch))
+            for j, (_, fut) in enumerate(batch):
+                fut.set_result(chunks[j])
+
+
+class _PolicyActor:
+    """Holds the policy (once) for every simulator actor that talks to it; replies carry exceptions as values."""
+
+    def __init__(self, make_policy: Callable[[], object], max_batch: int, max_wait_s: float):
+        self._make = make_policy
+        first = make_policy()
+        self.spec = first.spec
+        self._lock = threading.Lock()
+        self._instances: dict[int, object] = {}
+        self._first: object | None = first
+        self._batcher = Batcher(first, first.spec.name, max_batch, max_wait_s) if first.spec.batched else None
+
+    def get_spec(self):
+        return self.spec
+
+    def node_id(self) -> str:
+        return _node()
+
+    def _instance(self, client: int):
+        if self._batcher is not None:
+            return self._batcher.policy
+        with self._lock:
+            if client not in self._instances:
+                first, self._first = self._first, None
+                self._instances[client] = first if first is not None else self._make()
+            return self._instances[client]
+
+    def reset(self, client: int, instruction: str, seed: int | None):
+        try:
+            policy = self._instance(client)
+            if self._batcher is not None:
+                with self._lock:
+                    policy.reset(instruction, seed=seed)
+            else:
+                policy.reset(instruction, seed=seed)
+        except Exception as e:
+            return _carried(e)
+        return None
+
+    def act(self, client: int, obs):
+        from indgen_vla.interface import validate_chunk
+
+        try:
+            if self._batcher is not None:
+                return self._batcher.act(obs)
+            return validate_chunk(self._instance(client).act([obs]), 1, self.spec.name)[0]
+        except Exception as e:
+            return _carried(e)
+
+    def batch_sizes(self) -> list[int]:
+        return list(self._batcher.batch_sizes) if self._batcher is not None else []
+
+    def close(self) -> None:
+        if self._batcher is not None:
+            self._batcher.close()
+        held = (
+            [self._batcher.policy] if self._batcher is not None else [*self._instances.values(), self._first]
+        )
+        for p in held:
+            if p is not None:
+                p.close()
+
+
+class _PolicyClient:
+    """What ``run_episode`` sees in a simulator actor: a policy whose calls go to the shared policy actor."""
+
+    def __init__(self, actor, client: int, spec):
+        self.actor, self.client, self.spec = actor, client, spec
+
+    def _call(self, method, *args):
+        import ray
+
+        result = ray.get(method.remote(self.client, *args))
+        if isinstance(result, Exception):
+            raise result  # PolicyConnectionError stays itself, so run_episode's backoff sees it
+        return result
+
+    def reset(self, instruction: str, seed: int | None = None) -> None:
+        self._call(self.actor.reset, instruction, seed)
+
+    def act(self, observations):
+        import numpy as np
+
+        return np.stack([self._call(self.actor.act, o) for o in observations])
+
+    def close(self) -> None:
+        pass  # the policy actor owns the policy
+
+
+class _SimActor:
+    """Holds one EnvRunner for the actor's lifetime and runs whole episodes against a policy actor."""
+
+    def __init__(self, runner_cfg: RunnerConfig, render_threads: int):
         import logging
-        import os
 
         os.environ.setdefault("MUJOCO_GL", "egl")
+        os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
         logging.getLogger("robosuite").setLevel(logging.ERROR)
         from indgen_vla.engine.rollout import EnvRunner
-        from policy_wrappers.registry import load_policy
 
         self.runner = EnvRunner(runner_cfg)
-        self.policy = load_policy(
-            policy, trust_remote_code=trust_remote_code, device=device, scene=runner_cfg.scene
-        )
+        self.policy: _PolicyClient | None = None
+
+    def node_id(self) -> str:
+        return _node()
+
+    def connect(self, policy_actor, client: int, spec) -> None:
+        self.policy = _PolicyClient(policy_actor, client, spec)
 
     def run(
         self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float
@@ -41,7 +216,15 @@ class _EpisodeActor:
 
     def close(self) -> None:
         self.runner.close()
-        self.policy.close()
+
+
+def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
+    from functools import partial
+
+    from policy_wrappers.registry import load_policy
+
+    return partial(load_policy, cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device,
+                   scene=scene)  # fmt: skip
 
 
 def run_ray(
@@ -51,8 +234,12 @@ def run_ray(
     meta: RunMeta,
     on_record: Callable[[EpisodeRecord], None],
     replan: int,
+    make_policy: Callable[[], object] | None = None,
+    stats: dict | None = None,
 ) -> None:
-    """Run ``jobs`` on ``cfg.workers`` Ray actors, recording each episode as it finishes."""
+    """Run ``jobs`` on ``cfg.workers`` simulator actors served by shared policy actors, recording each
+    episode as it finishes. ``make_policy`` (picklable) replaces loading ``cfg.policy``; ``stats`` gets the
+    policy actors' batch sizes."""
     try:
         import ray
         from ray.util import ActorPool
@@ -60,14 +247,41 @@ def run_ray(
         raise ConfigError("--backend ray needs the 'ray' extra: pip install 'indgen-vla[ray]'") from None
     if not jobs:
         return
+    knobs = ray_knobs()
+    n = max(1, min(cfg.workers, len(jobs)))
     started_here = not ray.is_initialized()
     if started_here:
-        ray.init(num_cpus=max(cfg.workers, 1), include_dashboard=False, log_to_driver=False,
-                 ignore_reinit_error=True)  # fmt: skip
-    actor_cls = ray.remote(num_cpus=1)(_EpisodeActor)
-    n = max(1, min(cfg.workers, len(jobs)))
-    actors = [actor_cls.remote(runner_cfg, cfg.policy, cfg.trust_remote_code, cfg.device) for _ in range(n)]
+        import math
+
+        cpus = math.ceil(n * knobs["INDGEN_RAY_CPUS_PER_SIM"]) + 1  # the simulators and one policy actor
+        ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+    gpu = cfg.device.startswith("cuda")
+    gpus_per = knobs["INDGEN_RAY_GPUS_PER_POLICY"]
+    resources = ray.cluster_resources()
+    if gpu:
+        if resources.get("GPU", 0) < gpus_per:
+            raise ConfigError(f"--device {cfg.device} but the Ray cluster has {resources.get('GPU', 0):g} GPUs "
+                              f"(< INDGEN_RAY_GPUS_PER_POLICY={gpus_per:g}); use --device cpu or add GPU nodes")  # fmt: skip
+        n_policy = max(1, min(n, int(resources["GPU"] // gpus_per)))
+        policy_opts = {"num_gpus": gpus_per, "num_cpus": 1}
+    else:
+        n_policy = max(1, min(n, len([x for x in ray.nodes() if x.get("Alive")])))
+        policy_opts = {"num_cpus": 1}
+    factory = make_policy or _policy_factory(cfg, runner_cfg.scene)
+    policy_cls = ray.remote(max_concurrency=n + 4, **policy_opts)(_PolicyActor)
+    wait_s = knobs["INDGEN_RAY_BATCH_WAIT_MS"] / 1000.0
+    servers = [
+        policy_cls.options(scheduling_strategy="SPREAD").remote(
+            factory, knobs["INDGEN_RAY_MAX_BATCH"], wait_s
+        )
+        for _ in range(n_policy)
+    ]
+    sim_cls = ray.remote(num_cpus=knobs["INDGEN_RAY_CPUS_PER_SIM"])(_SimActor)
+    render_threads = max(1, int(knobs["INDGEN_RAY_CPUS_PER_SIM"]))
+    actors = [sim_cls.remote(runner_cfg, render_threads) for _ in range(n)]
     try:
+        specs = ray.get([s.get_spec.remote() for s in servers])
+        _connect(ray, actors, servers, specs)
         pool = ActorPool(actors)
         results = pool.map_unordered(
             lambda a, j: a.run.remote(j, meta, replan, cfg.max_retries, cfg.server_patience), list(jobs)
@@ -79,9 +293,44 @@ def run_ray(
             if isinstance(getattr(e, "cause", None), ServerUnreachableError):
                 raise ServerUnreachableError(str(e.cause)) from None
             raise
+        if stats is not None:
+            stats["batch_sizes"] = [b for s in ray.get([s.batch_sizes.remote() for s in servers]) for b in s]
+            stats["policy_actors"] = len(servers)
     finally:
-        ray.get([a.close.remote() for a in actors], timeout=60)
-        for a in actors:
+        ray.get([a.close.remote() for a in actors + servers], timeout=60)
+        for a in actors + servers:
             ray.kill(a)
         if started_here:
             ray.shutdown()
+
+
+def _connect(ray, actors: list, servers: list, specs: list) -> None:
+    """Pair every simulator actor with a policy actor on its own node when there is one (round robin)."""
+    server_nodes = ray.get([s.node_id.remote() for s in servers])
+    sim_nodes = ray.get([a.node_id.remote() for a in actors])
+    turn: dict[str, int] = {}
+    calls = []
+    for client, (actor, node) in enumerate(zip(actors, sim_nodes, strict=True)):
+        local = [k for k, sn in enumerate(server_nodes) if sn == node] or list(range(len(servers)))
+        k = local[turn.get(node, 0) % len(local)]
+        turn[node] = turn.get(node, 0) + 1
+        calls.append(actor.connect.remote(servers[k], client, specs[k]))
+    ray.get(calls)
+
+
+def _carried(e: Exception) -> Exception:
+    """The exception as a reply value, its error line described here (the traceback does not cross processes),
+    so an ``error`` row reads as the local backend's."""
+    from indgen_vla.engine.rollout import _describe
+
+    try:
+        e.remote_description = _describe(e)
+    except AttributeError:  # an exception type that refuses attributes keeps its plain description
+        pass
+    return e
+
+
+def _node() -> str:
+    import ray
+
+    return ray.get_runtime_context().get_node_id()

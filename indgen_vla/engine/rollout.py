@@ -34,6 +34,7 @@ class RunnerConfig:
     objects: bool = False  # attach Observation.objects (low-dim policies that declare observes_objects)
     video_dir: str | None = None
     video_size: tuple[int, int] = (256, 256)
+    lazy_render: bool = True  # render cameras only for the observation a chunk slice ends on (the one read)
 
 
 @dataclass
@@ -72,6 +73,7 @@ class EnvRunner:
         self._steps = 0
         self._t0 = 0.0
         self._frames: list[np.ndarray] = []
+        self._can_skip_render = False
 
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)
@@ -86,6 +88,7 @@ class EnvRunner:
                 preset=self.cfg.axes_preset,
             )  # fmt: skip
             self._env_key = key
+            self._can_skip_render = _takes_observe(self._env)
         return self._env
 
     def _observe(self, obs: Observation) -> Observation:
@@ -94,9 +97,9 @@ class EnvRunner:
         if self.cfg.objects:
             obs = dataclasses.replace(obs, objects=self._env.object_observation())
         if self.cfg.privileged:
-            extras = dict(obs.extras)
-            extras["privileged"] = self._env.privileged_state()
-            obs = dataclasses.replace(obs, extras=extras)
+            from scenes.privileged import with_privileged
+
+            obs = with_privileged(obs, self._env)
         return obs
 
     def _record_frame(self) -> None:
@@ -125,8 +128,13 @@ class EnvRunner:
         try:
             env = self._env
             obs, done, success = None, False, False
-            for a in np.asarray(actions, dtype=np.float32).reshape(-1, ACTION_DIM):
-                obs, _, terminated, truncated, info = env.step(a)
+            rows = np.asarray(actions, dtype=np.float32).reshape(-1, ACTION_DIM)
+            lazy = self.cfg.lazy_render and self._can_skip_render
+            for j, a in enumerate(rows):
+                if lazy and j < len(rows) - 1:  # nobody reads this step's images: physics only
+                    obs, _, terminated, truncated, info = env.step(a, observe=False)
+                else:
+                    obs, _, terminated, truncated, info = env.step(a)
                 self._steps += 1
                 success = bool(info.get("success", False))
                 self._record_frame()
@@ -162,8 +170,21 @@ class EnvRunner:
                 self._env, self._env_key = None, None
 
 
+def _takes_observe(env) -> bool:
+    """Whether the scene can step without rendering (``step(action, observe=False)``)."""
+    import inspect
+
+    try:
+        return "observe" in inspect.signature(env.step).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 def _describe(e: BaseException) -> str:
-    """One line for the ``error`` column: exception type, message and where it was raised."""
+    """One line for the ``error`` column: exception type, message and where it was raised (an exception that
+    crossed a process keeps the line described where it was raised, ``remote_description``)."""
+    if isinstance(getattr(e, "remote_description", None), str):
+        return e.remote_description
     tb = traceback.extract_tb(e.__traceback__)
     where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
     msg = str(e).strip().splitlines()[0] if str(e).strip() else ""

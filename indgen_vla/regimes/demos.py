@@ -4,7 +4,6 @@ written with lerobot's own ``LeRobotDataset`` API so lerobot's training code rea
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import shutil
 from collections.abc import Iterator
@@ -18,6 +17,7 @@ from indgen_vla.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.seeding import episode_seed
 from scenes.poses import object_poses, object_vector
+from scenes.privileged import privileged_of, with_privileged
 
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]
@@ -65,10 +65,6 @@ def features(
     return feats
 
 
-def _with_privileged(env, obs: Observation) -> Observation:
-    return dataclasses.replace(obs, extras={**obs.extras, "privileged": env.privileged_state()})
-
-
 def append_episode_sidecar(root: Path, record: dict) -> None:
     """Append one episode's record (seed, task, per-frame object poses) to the dataset's sidecar."""
     path = Path(root) / EPISODES_SIDECAR
@@ -95,7 +91,7 @@ def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Ob
     oracle.reset(obs.instruction, seed=seed)
     pause = 0
     for _ in range(env.max_steps):
-        obs = _with_privileged(env, obs)  # yielded too, so recorders can keep object poses
+        obs = with_privileged(obs, env)  # yielded too, so recorders can keep object poses
         a = oracle.act([obs])[0, 0].astype(np.float64)
         if pause == 0 and rng.random() < noise.pause_prob:
             pause = int(rng.integers(noise.pause_steps[0], noise.pause_steps[1] + 1))
@@ -131,8 +127,7 @@ def record_demos(
         raise ConfigError(f"--n must be >= 1, got {n}")
     if out.exists() and any(out.iterdir()):
         raise ConfigError(f"--out {out} already exists and is not empty; choose a new directory")
-    all_tasks = list(scenes.tasks(scene))
-    tasks = all_tasks if task == "all" else [task or all_tasks[0]]
+    tasks = scenes.select_tasks(scene, task)
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.exists():
         out.rmdir()
@@ -159,7 +154,7 @@ def record_demos(
                         success = bool(info.get("success", False))
                     if not success:
                         continue  # keep only successful demonstrations, like a human operator's keepers
-                    poses = [object_poses(obs.extras["privileged"]) for obs, _ in frames]
+                    poses = [object_poses(privileged_of(obs, "indgen demos")) for obs, _ in frames]
                     for (obs, a), pose in zip(frames, poses, strict=True):
                         frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
                         frame.update({"observation.state": obs.state.astype(np.float32), "action": a,

@@ -1,5 +1,5 @@
 """LIBERO scene adapter: LIBERO-Object's and LIBERO-Spatial's tasks (hf-libero env classes, BDDL problems, fixed
-initial states) moved along the paper's axes.
+initial states) moved along the paper's axes; each suite is one registered ``LiberoSuite`` subclass.
 
 Level 0 is LIBERO's own task exactly as lerobot's ``LiberoEnv`` runs it. A level k edits LIBERO's own inputs
 only: the BDDL init region of the pick object (``pick_y``) or of the basket (``goal_y``), the pick object's XML
@@ -12,24 +12,18 @@ plate (``pick_y``/``goal_y``) could change which bowl is meant. Importing this i
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.errors import ConfigError, SceneError
+from scenes.predicates import BddlGoal
+from scenes.registry import Scene, get_scene, register_scene
 from scenes.spec import Item
 
-AXES = ("pick_y", "goal_y", "scale", "distractor")
-# Axes that keep every task's meaning, per suite (Spatial's instructions locate the bowl relative to landmarks).
-SUITE_AXES = {"libero_object": AXES, "libero_spatial": ("scale", "distractor")}
+if TYPE_CHECKING:
+    from scenes.axes import Successor
+    from scenes.libero.env import LiberoSceneEnv
+
 NUM_STEPS_WAIT = 10  # lerobot's LiberoEnv settles the scene with this many no-op steps after each reset
-# Distractor spots on LIBERO-Object's floor, clear of its object regions and of the moved pick/basket.
-DISTRACTOR_SLOTS = ((0.20, 0.22), (-0.22, 0.24), (0.22, -0.34), (0.26, -0.06))
-# Spots on LIBERO-Spatial's table, clear of its regions, the cabinet (and its open drawer) and the stove.
-SUITE_SLOTS = {"libero_spatial": ((0.30, 0.30), (0.32, -0.18), (-0.12, 0.46), (0.24, 0.50))}
-
-
-def distractor_slots(suite: str) -> tuple[tuple[float, float], ...]:
-    """Where the suite's distractors go, in order (table/floor coordinates of LIBERO's regions)."""
-    return SUITE_SLOTS.get(suite, DISTRACTOR_SLOTS)
 
 
 @dataclass(frozen=True)
@@ -43,13 +37,13 @@ class LiberoSpec:
     distractors: int = 0
 
     def __post_init__(self) -> None:
-        n = len(distractor_slots(self.scene))
+        n = len(get_scene(self.scene).distractor_slots)
         if not isinstance(self.distractors, int) or not 0 <= self.distractors <= n:
             raise ConfigError(f"scene {self.scene}: distractors must be 0..{n}, got {self.distractors!r}")
 
 
 def available() -> bool:
-    """Is hf-libero installed (the scenes are registered only then)?"""
+    """Is hf-libero installed (the suites' tasks can be read only then)?"""
     try:
         from scenes.libero.assets import libero_root
 
@@ -59,81 +53,124 @@ def available() -> bool:
         return False
 
 
-def description(suite: str) -> str:
-    """One line saying what the suite's scene is, e.g. for ``libero_object``."""
-    name = "LIBERO-" + suite.removeprefix("libero_").capitalize()
-    return f"{name} (hf-libero): LIBERO's own tasks and fixed initial states"
+class LiberoSuite(Scene):
+    """A LIBERO suite: its tasks are LIBERO's own (read from hf-libero's BDDL files), built by ``LiberoSceneEnv``.
 
+    A subclass sets ``name`` (LIBERO's suite name), ``task_pattern`` (a regex whose group 1 turns a task file
+    name into its short task name), ``axes``, ``distractor_slots`` and ``max_steps`` (lerobot's LiberoEnv's).
+    """
 
-@cache
-def scene_defs() -> dict:
-    """``{scene name: SceneDef}`` of the LIBERO suites this adapter supports (empty without hf-libero)."""
-    if not available():
-        return {}
-    from scenes.catalog import SceneDef
-    from scenes.libero.bddl import SUITES, short_name, suite_task_names
+    task_pattern: ClassVar[str]
+    max_steps = 280
+    success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
+    committed_certificates = False  # certificates depend on the user's LIBERO asset tree
 
-    out = {}
-    for suite, (_, max_steps) in SUITES.items():
-        tasks = tuple(short_name(suite, f) for f in suite_task_names(suite))
-        out[suite] = SceneDef(
-            name=suite,
-            description=description(suite),
-            tasks=tasks,
-            axes=SUITE_AXES[suite],
-            max_steps=max_steps,
-            builder="scenes.libero.env:LiberoSceneEnv",
-            base=lambda t, s=suite: base_spec(s, t),
-            instruction=lambda t, s=suite: task_info(s, t).language,
+    @property
+    def tasks(self) -> tuple[str, ...]:
+        """LIBERO's tasks of the suite in benchmark order, by short name (needs hf-libero, not its assets)."""
+        from scenes.libero.bddl import short_name, suite_task_names
+
+        return tuple(short_name(self.name, f) for f in suite_task_names(self.name))
+
+    def listed_tasks(self) -> tuple[str, ...]:
+        return self.tasks if available() else ()
+
+    def task_info(self, task: str):
+        """The parsed BDDL problem of ``task`` (``scenes.libero.bddl.LiberoTask``)."""
+        from scenes.libero.bddl import load_task
+
+        return load_task(self.name, task)
+
+    def base(self, task: str) -> LiberoSpec:
+        """T0: the pick object and receptacle at their BDDL init-region centres, unscaled, no distractors."""
+        t = self.task_info(task)
+        px, py = t.centre(t.pick_region)
+        gx, gy = t.centre(t.goal_region)
+        return LiberoSpec(
+            scene=self.name,
+            task=task,
+            pick=Item(t.category(t.pick), px, py),
+            goal=Item(t.category(t.goal), gx, gy),
         )
-    return out
 
+    def instruction(self, task: str) -> str:
+        return self.task_info(task).language
 
-def listing() -> list[dict]:
-    """``indgen scenes`` rows for the LIBERO suites: tasks, axes and what they need (no ``libero`` import)."""
-    from scenes.libero.assets import HUB_REPO, find_assets
-    from scenes.libero.bddl import SUITES
+    def env_class(self) -> type[LiberoSceneEnv]:
+        from scenes.libero.env import LiberoSceneEnv
 
-    defs = scene_defs()
-    assets = find_assets(required=False) if defs else None
-    if not defs:
-        needs = "hf-libero (pip install 'lerobot[libero]') and LIBERO's assets"
-    elif assets is None:
-        needs = f"LIBERO's assets (missing: hf download {HUB_REPO} --repo-type dataset, or set INDGEN_LIBERO_ASSETS)"
-    else:
-        needs = f"LIBERO's assets (found: {assets})"
-    return [
-        {
-            "name": suite,
-            "description": description(suite),
-            "tasks": list(defs[suite].tasks) if suite in defs else [],
-            "axes": list(SUITE_AXES[suite]),
-            "max_steps": max_steps,
-            "needs": needs,
-        }
-        for suite, (_, max_steps) in SUITES.items()
-    ]
+        return LiberoSceneEnv
 
+    def check_ready(self) -> None:
+        """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
+        from scenes.libero.assets import find_assets, libero_root
 
-def task_info(suite: str, task: str):
-    from scenes.libero.bddl import load_task
-
-    return load_task(suite, task)
-
-
-def base_spec(suite: str, task: str) -> LiberoSpec:
-    """T0: the pick object and receptacle at their BDDL init-region centres, unscaled, no distractors."""
-    t = task_info(suite, task)
-    px, py = t.centre(t.pick_region)
-    gx, gy = t.centre(t.goal_region)
-    return LiberoSpec(
-        scene=suite, task=task, pick=Item(t.category(t.pick), px, py), goal=Item(t.category(t.goal), gx, gy)
-    )
-
-
-def check_ready(scene: str) -> None:
-    """Raise the one-line missing-assets ``SceneError`` before any episode runs."""
-    from scenes.libero.assets import find_assets
-
-    if scene in scene_defs():
+        libero_root()
         find_assets()
+
+    def needs(self) -> str:
+        from scenes.libero.assets import HUB_REPO, find_assets
+
+        if not available():
+            return "hf-libero (pip install 'lerobot[libero]') and LIBERO's assets"
+        assets = find_assets(required=False)
+        if assets is None:
+            return f"LIBERO's assets (missing: hf download {HUB_REPO} --repo-type dataset, or set INDGEN_LIBERO_ASSETS)"
+        return f"LIBERO's assets (found: {assets})"
+
+    def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
+        """Condition 2 is checked against LIBERO's fixed initial states, which needs level 0 built (physics only,
+        ~10 s): up front only when --step / --axes-preset changed a pick_y/goal_y step; the env repeats the check
+        when it is built."""
+        if overridden and any(p in ("pick_y", "goal_y") for p in successor.axis.name.split("+")):
+            self.make_env(task, successor, 0, cameras=(), image_size=(128, 128), max_steps=None).close()
+
+
+@register_scene
+class LiberoObject(LiberoSuite):
+    """LIBERO-Object (hf-libero), LIBERO's own ten pick-and-place tasks.
+
+    **Task Description:**
+    Pick up the named grocery item (alphabet soup, cream cheese, ketchup, ...) among others on the floor and
+    place it in the basket, as LIBERO's BDDL problem states.
+
+    **Randomizations:**
+    - episode i starts from LIBERO's fixed initial state i % 50 (lerobot's LiberoEnv), then 10 no-op steps
+    - along the axes: the pick object's BDDL init region and start pose in y (``pick_y``), the basket's
+      (``goal_y``), the pick object's XML scale (``scale``), visual-only distractor objects (``distractor``)
+
+    **Success Conditions:**
+    - LIBERO's own BDDL goal, ``(In pick basket_contain_region)``, via ``env.check_success()``
+    """
+
+    name = "libero_object"
+    description = "LIBERO-Object (hf-libero): LIBERO's own tasks and fixed initial states"
+    task_pattern = r"pick_up_the_(.+)_and_place_it_in_the_basket"
+    axes = ("pick_y", "goal_y", "scale", "distractor")
+    # distractor spots on LIBERO-Object's floor, clear of its object regions and of the moved pick/basket
+    distractor_slots = ((0.20, 0.22), (-0.22, 0.24), (0.22, -0.34), (0.26, -0.06))
+
+
+@register_scene
+class LiberoSpatial(LiberoSuite):
+    """LIBERO-Spatial (hf-libero), LIBERO's own ten tasks that name a black bowl by where it is.
+
+    **Task Description:**
+    Pick up the black bowl the instruction locates (between the plate and the ramekin, on the cookie box, in the
+    top drawer, ...) and place it on the plate, as LIBERO's BDDL problem states.
+
+    **Randomizations:**
+    - episode i starts from LIBERO's fixed initial state i % 50 (lerobot's LiberoEnv), then 10 no-op steps
+    - along the axes: the bowl's XML scale (``scale``) and visual-only distractor objects (``distractor``) only;
+      moving the bowl or the plate could change which of the two identical bowls the instruction means
+
+    **Success Conditions:**
+    - LIBERO's own BDDL goal, ``(On bowl plate)``, via ``env.check_success()``
+    """
+
+    name = "libero_spatial"
+    description = "LIBERO-Spatial (hf-libero): LIBERO's own tasks and fixed initial states"
+    task_pattern = r"pick_up_the_black_bowl_(.+)_and_place_it_on_the_plate"
+    axes = ("scale", "distractor")
+    # spots on LIBERO-Spatial's table, clear of its regions, the cabinet (and its open drawer) and the stove
+    distractor_slots = ((0.30, 0.30), (0.32, -0.18), (-0.12, 0.46), (0.24, 0.50))

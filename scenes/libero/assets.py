@@ -16,6 +16,11 @@ ASSETS_ENV = "INDGEN_LIBERO_ASSETS"  # preferred; LIBERO_ASSETS is accepted too
 HUB_REPO = "lerobot/libero-assets"  # what hf-libero's own downloader fetches (repo_type=dataset)
 HUB_CACHE = Path("~/.cache/libero/assets")  # where hf-libero's downloader puts them
 REQUIRED = ("scenes", "stable_hope_objects", "stable_scanned_objects")
+# LIBERO-Object's grocery items (assets/stable_hope_objects/<name>/); the pool distractors are drawn from, in order
+HOPE_OBJECTS = (
+    "alphabet_soup", "bbq_sauce", "butter", "chocolate_pudding", "cream_cheese", "ketchup", "milk", "orange_juice",
+    "salad_dressing", "tomato_sauce",
+)  # fmt: skip
 
 
 def libero_root() -> Path:

@@ -15,11 +15,6 @@ from pathlib import Path
 from indgen_vla.errors import SceneError
 from scenes.libero.assets import libero_root
 
-# suite -> (regex turning a task file name into its short name, max episode steps as in lerobot's LiberoEnv)
-SUITES: dict[str, tuple[str, int]] = {
-    "libero_object": (r"pick_up_the_(.+)_and_place_it_in_the_basket", 280),
-    "libero_spatial": (r"pick_up_the_black_bowl_(.+)_and_place_it_on_the_plate", 280),
-}
 _REGION = re.compile(r"\(\s*([A-Za-z0-9_]+)\s*\(:target\s+([A-Za-z0-9_]+)\)\s*\(:ranges\s*\(\s*\(([^()]*)\)")
 
 
@@ -42,7 +37,10 @@ def suite_task_names(suite: str) -> tuple[str, ...]:
 
 
 def short_name(suite: str, task_file: str) -> str:
-    m = re.fullmatch(SUITES[suite][0], task_file)
+    """The task's short name: group 1 of the suite's ``task_pattern`` (``scenes.libero.LiberoSuite``)."""
+    from scenes.registry import get_scene
+
+    m = re.fullmatch(get_scene(suite).task_pattern, task_file)
     return m.group(1) if m else task_file
 
 

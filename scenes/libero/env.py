@@ -19,27 +19,17 @@ import numpy as np
 from indgen_vla.errors import SceneError
 from indgen_vla.interface import Observation
 from indgen_vla.progression import check_strictly_harder
+from scenes import mujoco_geom as geom
 from scenes.axes import Successor, axis_param, spec_at_level
-from scenes.catalog import SceneDef
 from scenes.env import BaseSceneEnv
-from scenes.libero import NUM_STEPS_WAIT, base_spec, distractor_slots, task_info
+from scenes.libero import NUM_STEPS_WAIT, LiberoSuite
 from scenes.libero.assets import config_dir, find_assets, import_libero
 from scenes.libero.bddl import add_fixtures, shift_region
+from scenes.privileged import GoalState, PickState, PrivilegedState, Targets
 from scenes.sim import CAMERA_NAMES
 
 DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
 DISTRACTOR_PREFIX = "indgen_distractor_"
-
-
-@dataclass(frozen=True)
-class BddlGoal:
-    """The one success predicate at every level: LIBERO's own BDDL goal check (``env.check_success()``)."""
-
-    def __call__(self, s: dict) -> bool:
-        return bool(s["success"])
-
-
-LIBERO_SUCCESS = BddlGoal()
 
 
 def _scale_xml(obj, s: float) -> None:
@@ -139,13 +129,14 @@ class LiberoSceneEnv(BaseSceneEnv):
 
     fast_physics = True  # scenes.sim.fast_step: stock robosuite states bit for bit (False: LIBERO's own step)
 
-    def _load(self, scene: SceneDef, task: str, successor: Successor) -> None:
-        self.info = task_info(scene.name, task)
+    def _load(self, scene: LiberoSuite, task: str, successor: Successor) -> None:
+        self.info = scene.task_info(task)
         self.instruction = self.info.language
-        self.base = base_spec(scene.name, task)
+        self.base = scene.base(task)
         self.spec = spec_at_level(self.base, successor, self.level)
         self.axis_param = axis_param(self.spec, successor, self.level)
-        self.success_predicate = LIBERO_SUCCESS
+        self.success_predicate = scene.success_predicate  # LIBERO's own BDDL goal at every level
+        self._slots = scene.distractor_slots
         self._successor = successor
         self.assets = find_assets()
         import_libero(self.assets)
@@ -165,14 +156,13 @@ class LiberoSceneEnv(BaseSceneEnv):
     @property
     def distractors(self) -> tuple[tuple[str, str, tuple[float, float]], ...]:
         present = {c for _, c in self.info.objects}
-        from scenes.libero.miniature import HOPE_OBJECTS
+        from scenes.libero.assets import HOPE_OBJECTS
 
         pool = [c for c in HOPE_OBJECTS if c not in present]
         if self.spec.distractors > len(pool):
             raise SceneError(f"{self.scene}/{self.task}: only {len(pool)} distractor objects are available")
         return tuple(
-            (f"{DISTRACTOR_PREFIX}{i + 1}", pool[i], distractor_slots(self.scene)[i])
-            for i in range(self.spec.distractors)
+            (f"{DISTRACTOR_PREFIX}{i + 1}", pool[i], self._slots[i]) for i in range(self.spec.distractors)
         )
 
     def _level_bddl(self) -> Path:
@@ -254,18 +244,9 @@ class LiberoSceneEnv(BaseSceneEnv):
             k: sim.model.get_joint_qpos_addr(objs[k].joints[-1])[0] for k in (self.info.pick, self.info.goal)
         }
         m = sim.model._model
-        root = m.body_rootid
 
         def geoms(inst: str, table: dict = objs) -> np.ndarray:
-            b = sim.model.body_name2id(table[inst].root_body)
-            return np.array(
-                [
-                    g
-                    for g in range(m.ngeom)
-                    if root[m.geom_bodyid[g]] == b and (m.geom_contype[g] or m.geom_conaffinity[g])
-                ],
-                dtype=int,
-            )
+            return geom.body_geoms(m, sim.model.body_name2id(table[inst].root_body))
 
         self._pick_body = sim.model.body_name2id(objs[self.info.pick].root_body)
         self._goal_body = sim.model.body_name2id(objs[self.info.goal].root_body)
@@ -274,8 +255,8 @@ class LiberoSceneEnv(BaseSceneEnv):
         fixtures = self._env.env.fixtures_dict
         self._other_geoms = [geoms(i) for i in objs if i not in (self.info.pick, self.info.goal)]
         self._other_geoms += [geoms(i, fixtures) for i in fixtures]
-        gripper = self._env.robots[0].gripper
-        self._finger_geoms = np.array([sim.model.geom_name2id(g) for g in gripper.contact_geoms], dtype=int)
+        self._finger_mask = geom.geom_mask(m, geom.named_geoms(m, self._env.robots[0].gripper.contact_geoms))
+        self._pick_mask = geom.geom_mask(m, self._pick_geoms)
         site = f"{self.info.goal}_contain_region"
         self._contain_site = sim.model.site_name2id(site) if site in sim.model.site_names else None
 
@@ -375,15 +356,7 @@ class LiberoSceneEnv(BaseSceneEnv):
 
     def _extent(self, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World AABB (min, max corners) of ``geoms``."""
-        m, d = self._env.sim.model._model, self._env.sim.data._data
-        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        pts = [
-            d.geom_xpos[g]
-            + (d.geom_xmat[g].reshape(3, 3) @ (m.geom_aabb[g][:3] + signs * m.geom_aabb[g][3:]).T).T
-            for g in geoms
-        ]
-        allp = np.concatenate(pts)
-        return allp.min(axis=0), allp.max(axis=0)
+        return geom.world_aabb(self._env.sim.model._model, self._env.sim.data._data, geoms)
 
     # ---- the hf-libero backend --------------------------------------------------------------------
     @property
@@ -393,27 +366,46 @@ class LiberoSceneEnv(BaseSceneEnv):
 
     def _sim_step(self, action) -> dict:
         """One LIBERO control step, its raw observation: ``scenes.sim.fast_step`` (bit for bit) or LIBERO's."""
-        if not self.fast_physics:
-            return self._env.step(action)[0]
-        from scenes.sim import fast_step
+        with self._cameras_held(not self._observing):
+            if not self.fast_physics:
+                return self._env.step(action)[0]
+            from scenes.sim import fast_step
 
-        return fast_step(self._env.env, action)[0]  # LIBERO's step adds only a 4-d (OSC_POSITION) conversion
+            # LIBERO's own step adds only a 4-d (OSC_POSITION) conversion
+            return fast_step(self._env.env, action)[0]
+
+    @contextlib.contextmanager
+    def _cameras_held(self, hold: bool):
+        """While ``hold``, the camera observables re-emit their last image instead of rendering.
+
+        robosuite samples each camera at a fixed substep of a control step on its own timer; the timers run on
+        unchanged, so the frames a policy reads are rendered at the same substep from the same state as when
+        every step renders: only frames nobody reads are skipped.
+        """
+        held = [self._env.env._observables[f"{CAMERA_NAMES[c]}_image"] for c in self.cameras] if hold else []
+        sensors = [o._sensor for o in held]
+        for o, sensor in zip(held, sensors, strict=True):
+            o._sensor = _last_value(o, sensor.__modality__)
+        try:
+            yield
+        finally:
+            for o, sensor in zip(held, sensors, strict=True):
+                o._sensor = sensor
 
     def _advance(self, action: np.ndarray) -> bool:
         self._raw = self._sim_step(action)
         return bool(self._env.check_success())
 
     def _failure_signals(self) -> tuple[bool, float]:
-        return self._touching(self._finger_geoms, self._pick_geoms), self._lowest(self._pick_geoms)
+        return self._pick_touching(), self._lowest(self._pick_geoms)
 
     # ---- observations and privileged state -------------------------------------------------------
-    def _observation(self) -> Observation:
+    def _observation(self, with_images: bool = True) -> Observation:
         from robosuite.utils.transform_utils import quat2axisangle
 
         raw = self._raw
-        images = {
-            c: np.ascontiguousarray(raw[f"{CAMERA_NAMES[c]}_image"], dtype=np.uint8) for c in self.cameras
-        }
+        cameras = self.cameras if with_images else ()
+        images = {c: np.ascontiguousarray(raw[f"{CAMERA_NAMES[c]}_image"], dtype=np.uint8) for c in cameras}
         state = np.concatenate(
             [
                 raw["robot0_eef_pos"],
@@ -428,20 +420,16 @@ class LiberoSceneEnv(BaseSceneEnv):
             extras={"step": self._t, "init_state": self.init_index},
         )
 
-    def _touching(self, a: np.ndarray, b: np.ndarray) -> bool:
-        d = self._env.sim.data._data
-        if d.ncon == 0:
-            return False
-        g = d.contact.geom[: d.ncon]
-        return bool(
-            np.any((np.isin(g[:, 0], a) & np.isin(g[:, 1], b)) | (np.isin(g[:, 1], a) & np.isin(g[:, 0], b)))
-        )
+    def _observation_without_images(self) -> Observation:
+        return self._observation(with_images=False)
 
-    def privileged_state(self) -> dict:
+    def _pick_touching(self) -> bool:
+        return geom.touching(self._env.sim.data._data, self._finger_mask, self._pick_mask)
+
+    def privileged_state(self) -> PrivilegedState:
         """Poses, extents and contacts for the oracle (never shown to learned policies)."""
         sim = self._env.sim
         d = sim.data
-        robot = self._env.robots[0]
         lo, hi = self._extent(self._pick_geoms)
         glo, ghi = self._extent(self._goal_geoms)
         pick_pos = np.array(d.body_xpos[self._pick_body])
@@ -457,24 +445,39 @@ class LiberoSceneEnv(BaseSceneEnv):
         clear = max(
             float(ghi[2]), self._corridor_top(pick_pos[:2], place_xy, float(max(hi[:2] - lo[:2]) / 2) + 0.02)
         )
-        grasp = max(min(bottom + 0.5 * (top - bottom), top - 0.012), top - 0.02, bottom + 0.01)
-        return {
-            "eef_pos": np.array(d.site_xpos[robot.eef_site_id]),
-            "eef_mat": np.array(d.site_xmat[robot.eef_site_id]).reshape(3, 3),
-            "gripper_qpos": np.array(d.qpos[robot._ref_gripper_joint_pos_indexes]),
-            "pick_pos": pick_pos,
-            "pick_quat_wxyz": np.array(d.body_xquat[self._pick_body]),
-            "pick_linvel": np.array(d.qvel[qv : qv + 3]),
-            "pick_bottom": bottom,
-            "pick_top": top,
-            "pick_half_width": float(max(hi[:2] - lo[:2]) / 2),
-            "pick_touching_gripper": self._touching(self._finger_geoms, self._pick_geoms),
-            "goal_pos": goal_pos,
-            "goal_quat_wxyz": np.array(d.body_xquat[self._goal_body]),
-            "goal_top": float(ghi[2]),
-            "place_xy": np.array(place_xy),
-            "place_bottom": floor + 0.012,
-            "clear_z": clear,
-            "grasp_z": float(grasp),
-            "success": bool(self._env.check_success()),
-        }
+        eef_pos, eef_mat, gripper_qpos = geom.grip_site(d, self._env.robots[0])
+        return PrivilegedState(
+            eef_pos=eef_pos,
+            eef_mat=eef_mat,
+            gripper_qpos=gripper_qpos,
+            pick=PickState(
+                pos=pick_pos,
+                quat_wxyz=np.array(d.body_xquat[self._pick_body]),
+                linvel=np.array(d.qvel[qv : qv + 3]),
+                bottom=bottom,
+                top=top,
+                half_width=float(max(hi[:2] - lo[:2]) / 2),
+                touching_gripper=self._pick_touching(),
+            ),
+            goal=GoalState(
+                pos=goal_pos, quat_wxyz=np.array(d.body_xquat[self._goal_body]), top=float(ghi[2])
+            ),
+            target=Targets(
+                place_xy=np.array(place_xy),
+                place_bottom=floor + 0.012,
+                clear_z=clear,
+                grasp_z=geom.grasp_height(bottom, top, 0.5),
+                floor_z=floor,
+            ),
+            bddl_success=bool(self._env.check_success()),
+        )
+
+
+def _last_value(observable, modality: str):
+    """A robosuite sensor that re-emits ``observable``'s last value (robosuite reads its ``__modality__``)."""
+
+    def sensor(_cache):
+        return observable._current_observed_value
+
+    sensor.__modality__ = modality
+    return sensor

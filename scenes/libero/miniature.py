@@ -11,9 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from scenes.libero import miniature_common as common
+from scenes.libero.assets import HOPE_OBJECTS
 from scenes.libero.miniature_spatial import write_spatial_assets
 
-HOPE_OBJECTS = {  # LIBERO-Object's grocery items -> an RGB for their miniature
+HOPE_COLOURS = {  # LIBERO-Object's grocery items (assets.HOPE_OBJECTS) -> an RGB for their miniature
     "alphabet_soup": (0.85, 0.2, 0.15),
     "bbq_sauce": (0.45, 0.2, 0.1),
     "butter": (0.95, 0.85, 0.3),
@@ -25,6 +26,7 @@ HOPE_OBJECTS = {  # LIBERO-Object's grocery items -> an RGB for their miniature
     "salad_dressing": (0.5, 0.7, 0.3),
     "tomato_sauce": (0.75, 0.15, 0.2),
 }
+assert tuple(HOPE_COLOURS) == HOPE_OBJECTS  # one colour per LIBERO object, in LIBERO's order
 CUBE_HALF = 0.02
 TEXTURES = (
     "light-gray-floor-tile.png",
@@ -64,7 +66,7 @@ def write_miniature_assets(root: str | Path) -> Path:
     (root / "scenes" / "libero_floor_base_style.xml").write_text(ARENA)
     for i, name in enumerate(TEXTURES):
         (root / "textures" / name).write_bytes(common.png((0.55 + 0.08 * i, 0.55 + 0.05 * i, 0.55)))
-    for name, rgb in HOPE_OBJECTS.items():
+    for name, rgb in HOPE_COLOURS.items():
         common.write_hope_object(root / "stable_hope_objects" / name, CUBE_HALF, rgb)
     common.write_box_object(root / "stable_scanned_objects" / "basket", BASKET, (0.6, 0.45, 0.25))
     write_spatial_assets(root)

@@ -157,9 +157,14 @@ def test_reproduce_results_do_not_depend_on_workers(tmp_path):
     from indgen_vla.blockenv.reproduce import reproduce
 
     cfg = _workers_config(("rnn", "local_equivariant"), steps=5)
-    one = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1)["methods"]
+    first = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1, resume=True)
+    one = first["methods"]
     two = reproduce(cfg, tmp_path / "w2", log=lambda m: None, workers=2)["methods"]
     assert one == two
+    # --resume: the four finished jobs are kept and read back (same counts, same recorded seconds), not rerun
+    assert len(list((tmp_path / "w1" / "jobs").glob("*.json"))) == 4
+    again = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1, resume=True)
+    assert again["methods"] == one and again["job_seconds"] == first["job_seconds"]
 
 
 @pytest.mark.slow
@@ -191,3 +196,185 @@ def test_trm_reads_its_answer_off_the_whole_grid():
     assert joint.shape == (1, 1, 11, 11, 2)
     hot = torch.nonzero(joint[0, 0] > 1).tolist()
     assert sorted(hot) == [[r, c, 1] for r in (2, 5, 8) for c in (2, 5, 8)]
+
+
+def test_legality_target_matches_hand_computed_cells():
+    """Ind's auxiliary target on a hand-drawn grid: a grasp is legal on an occupied cell whose two neighbours
+    along the approach axis (θ 0: up/down, θ 1: left/right) are free; off-grid counts as free."""
+    from indgen_vla.blockenv.data import legality_targets
+
+    grid = np.array(
+        [
+            [1, 0, 0, 0, 0],
+            [1, 2, 1, 0, 0],
+            [0, 0, 0, 0, 1],
+            [0, 0, 0, 0, 0],
+            [0, 1, 1, 1, 0],
+        ]
+    )
+    target = legality_targets(grid[None])[0]
+    assert target.shape == (5, 5, 2) and target.dtype == np.float32
+    legal = {(r, c, th) for r, c, th in zip(*np.nonzero(target), strict=True)}
+    assert legal == {
+        (0, 0, 1),  # top-left corner: off-grid to the left, free to the right; (1, 0) below blocks θ 0
+        # (1, 0) has neither: (0, 0) above it, the goal to its right
+        (1, 1, 0),  # the goal: free above and below, blocked left and right
+        (1, 2, 0),  # right of the goal: free above and below
+        (2, 4, 0), (2, 4, 1),  # isolated block at the right edge: both axes free
+        (4, 1, 0), (4, 3, 0),  # row ends of the bottom bar: free above and off-grid below
+        (4, 2, 0),  # its middle: blocked left/right but free above and below
+    }  # fmt: skip
+
+
+def test_ind_gate_masks_empty_cells_and_adds_scaled_legality():
+    """At inference an empty cell can never win, and the gate adds gate_scale · log σ(legal) to the pick logits."""
+    import torch
+    from torch.nn import functional as F  # noqa: N812
+
+    from indgen_vla.blockenv.evaluate import decode
+    from indgen_vla.blockenv.models import build_model
+
+    obs = torch.zeros(1, 4, 4, dtype=torch.long)
+    obs[0, 1, 1], obs[0, 2, 3] = 2, 1
+    joint = torch.zeros(1, 4, 4, 2)
+    joint[0, 0, 0, 0] = 50.0  # the ungated favourite is an empty cell
+    joint[0, 2, 3, 1] = 1.0
+    legal = torch.full((1, 4, 4, 2), -8.0)
+    legal[0, 1, 1, 0] = 3.0  # the goal, top/bottom, is predicted legal
+    out = {"joint": joint[:, None], "legal": legal[:, None]}
+    for scale, expected in ((0.0, [2, 3, 1]), (1.0, [1, 1, 0])):
+        model = build_model("ind", 4, 16, {"gate_scale": scale})
+        gated = model.gate({k: v[:, -1] for k, v in out.items()}, obs)
+        assert torch.isinf(gated[0, 0, 0]).all() and (gated[0, 0, 0] < 0).all()
+        occupied = gated[0, 2, 3, 1]
+        assert occupied == pytest.approx(float(1.0 + scale * F.logsigmoid(torch.tensor(-8.0))))
+        assert decode(out, obs, model).tolist() == [expected]
+    unmasked = build_model("ind", 4, 16, {"mask": False, "gate_scale": 0.0})
+    assert decode(out, obs, unmasked).tolist() == [[0, 0, 0]]
+
+
+def test_legality_loss_weights_match_a_hand_computed_bce():
+    import torch
+    from torch.nn import functional as F  # noqa: N812
+
+    from indgen_vla.blockenv.train import bc_loss
+
+    torch.manual_seed(0)
+    joint = torch.randn(2, 1, 3, 3, 2)
+    legal_logits = torch.randn(2, 1, 3, 3, 2)
+    actions = torch.tensor([[[0, 1, 1]], [[2, 2, 0]]])
+    target = torch.zeros(2, 1, 3, 3, 2)
+    target[0, 0, 0, 1, 1] = target[1, 0, 2, 2, 0] = 1.0
+    ce = F.cross_entropy(joint.flatten(2).squeeze(1), torch.tensor([3, 16]))
+    p = torch.sigmoid(legal_logits)
+    bce = -(3.0 * target * p.log() + (1 - target) * (1 - p).log()).mean()
+    got = bc_loss(
+        {"joint": joint, "legal": legal_logits}, actions, None, target, legal_weight=5.0, legal_pos_weight=3.0
+    )
+    assert float(got) == pytest.approx(float(ce + 5.0 * bce), rel=1e-5)
+
+
+def test_variant_options_are_checked():
+    from indgen_vla.blockenv.train import TrainConfig
+
+    assert TrainConfig("ind", extra={"gate_scale": 4}).extra == {"gate_scale": 4}
+    for method, extra, msg in (
+        ("ind", {"gate": 1.0}, "no option"),
+        ("rnn", {"patch": 2}, "allowed: none"),
+        ("ind", {"mask": "yes"}, "must be bool"),
+        ("ind", {"legal_weight": -1.0}, ">= 0"),
+        ("maml", {"head": "both"}, "'factored' or 'joint'"),
+        ("trm", {"patch": 0}, "patch must be >= 1"),
+    ):
+        with pytest.raises(ConfigError, match=msg):
+            TrainConfig(method, extra=extra)
+
+
+def test_maml_joint_head_never_mixes_the_two_right_answers():
+    """With two equally right first grasps, factored argmaxes can pair one tip's row with the other's column;
+    one softmax over (r, c, θ) picks a whole cell."""
+    import torch
+
+    from indgen_vla.blockenv.evaluate import decode
+    from indgen_vla.blockenv.models import build_model
+
+    model = build_model("maml", 5, 8, {"head": "joint"})
+    obs = torch.zeros(1, 1, 5, 5, dtype=torch.long)
+    out = model(obs, torch.zeros(1, dtype=torch.long))
+    assert out["joint"].shape == (1, 1, 5, 5, 2) and set(out) == {"joint"}
+    joint = torch.zeros(1, 1, 5, 5, 2)
+    joint[0, 0, 1, 3, 0] = joint[0, 0, 3, 1, 0] = 2.0
+    assert decode({"joint": joint}, obs[:, 0], model).tolist() in ([[1, 3, 0]], [[3, 1, 0]])
+    rows, cols = torch.zeros(1, 1, 5), torch.zeros(1, 1, 5)
+    rows[0, 0, [1, 3]] = torch.tensor([2.0, 1.9])
+    cols[0, 0, [3, 1]] = torch.tensor([1.9, 2.0])  # tips (1, 3) and (3, 1): the argmaxes pick (1, 1)
+    factored = {"rows": rows, "cols": cols, "theta": torch.zeros(1, 1, 2)}
+    assert decode(factored, obs[:, 0], build_model("maml", 5, 8)).tolist() == [[1, 1, 0]]
+
+
+def test_ablate_writes_per_seed_tables_into_the_doc(tmp_path):
+    """A tiny ablation run: per-seed counts, both intervals, and the doc section between the markers only."""
+    from indgen_vla.blockenv.ablate import BEGIN, END, ablate, quick_scale
+    from indgen_vla.metrics import wilson_ci
+
+    doc = tmp_path / "doc.md"
+    doc.write_text(f"# head\n\n{BEGIN}\nold\n{END}\n\ntail\n")
+    res = ablate(["maml_head"], quick_scale(), tmp_path / "abl.json", doc, log=lambda m: None)
+    rows = res["maml_head"]["variants"]
+    assert [r["extra"] for r in rows] == [{}, {"head": "joint"}]
+    for r in rows:
+        l3 = r["levels"]["2"]
+        s = sum(p["successes"] for p in l3["per_seed"])
+        assert [p["n"] for p in l3["per_seed"]] == [3, 3] and l3["n"] == 6
+        assert (l3["ci_low"], l3["ci_high"]) == pytest.approx(wilson_ci(s, 6))
+    text = doc.read_text()
+    assert text.startswith("# head\n") and text.endswith("tail\n") and "old" not in text
+    assert "| joint (r, c, θ) |" in text and "L2 t over seeds" in text
+    assert json.loads((tmp_path / "abl.json").read_text())["maml_head"]["variants"] == rows
+    from indgen_vla.blockenv.ablate import write_doc
+
+    bare = tmp_path / "bare.md"
+    bare.write_text("no markers\n")
+    with pytest.raises(ConfigError, match="no ablation markers"):
+        write_doc(res, bare)
+
+
+def test_legality_top1_scores_the_head_on_oracle_states():
+    """A hand-wired local legality head that computes the rule scores 1 at an unseen level; its negation 0."""
+    import torch
+
+    from indgen_vla.blockenv.ablate import legality_top1
+    from indgen_vla.blockenv.models import build_model
+
+    model = build_model("ind", 12, 16, {"legal_head": "local"})
+    first, mid, last = model.local_legal[0], model.local_legal[2], model.local_legal[4]
+    with torch.no_grad():
+        for m in (first, mid, last):
+            m.weight.zero_()
+            m.bias.zero_()
+        # channel 0: occupied(centre) − occupied(above) − occupied(below); channel 1: the same left/right
+        first.weight[0, 0, 1, 1] = first.weight[1, 0, 1, 1] = 1.0
+        first.weight[0, 0, 0, 1] = first.weight[0, 0, 2, 1] = -1.0
+        first.weight[1, 0, 1, 0] = first.weight[1, 0, 1, 2] = -1.0
+        mid.weight[0, 0] = mid.weight[1, 1] = 1.0
+        last.weight[0, 0] = last.weight[1, 1] = 10.0
+    cfg = BlockEnvConfig(grid_size=12)
+    assert legality_top1(model, 5, 4, cfg, seed=0) == 1.0
+    with torch.no_grad():
+        last.weight.neg_()
+    assert legality_top1(model, 5, 4, cfg, seed=0) == 0.0
+
+
+def test_train_cli_passes_variant_options(tmp_path):
+    from indgen_vla.blockenv.train import load_checkpoint
+
+    out = tmp_path / "ind"
+    rest = ["train", "--method", "ind", "--steps", "1", "--demos-per-level", "2", "--out", str(out)]
+    assert _run([*rest, "--option", "legal_head=local", "--option", "gate_scale=2"]) == 0
+    model, cfg = load_checkpoint(out)
+    assert cfg.extra == {"legal_head": "local", "gate_scale": 2} and model.gate_scale == 2.0
+    assert model.legal_head == "local" and "legal" not in model.heads
+    with pytest.raises(ConfigError, match="KEY=VALUE"):
+        _run([*rest, "--option", "legal_head"])
+    with pytest.raises(ConfigError, match="no option"):
+        _run([*rest, "--option", "patch=2"])

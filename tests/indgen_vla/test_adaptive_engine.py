@@ -6,8 +6,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from indgen_vla.engine.cli import evaluate
 from indgen_vla.engine.config import EvalConfig
+from indgen_vla.engine.run import evaluate
 from indgen_vla.errors import ConfigError
 from indgen_vla.sequential import SequentialRule
 

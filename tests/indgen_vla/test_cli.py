@@ -1,5 +1,6 @@
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -57,9 +58,9 @@ def test_paper_presets_run_the_suite_they_are_named_after():
     """A preset named after a LIBERO suite runs that suite; every other one starts with the built-in scene it
     runs (the stand-ins for suites the toolkit does not bundle end in ``_style``)."""
     import scenes
-    from indgen_vla.engine.config import PRESET_DIR, load_preset
+    from indgen_vla.engine.config import PRESET_DIR, load_config_preset
 
-    presets = {p.stem: load_preset(str(p)) for p in sorted(PRESET_DIR.glob("*.yaml"))}
+    presets = {p.stem: load_config_preset(str(p)) for p in sorted(PRESET_DIR.glob("*.yaml"))}
     assert {"libero_object", "pick_place_libero_object_style"} <= set(presets)
     suites = [s for s in scenes.scene_names() if s.startswith("libero_")]
     for name, d in presets.items():
@@ -84,3 +85,76 @@ def test_reference_subcommand_documents_every_option(capsys):
     for opt in ("RUN_DIR", "--axis", "--task", "--out"):
         assert opt in out
     assert "held-out" in out.replace("\n", " ") or "held out" in out
+
+
+class _Captured(Exception):
+    """Carries the parser a passthrough handler built, instead of letting it parse."""
+
+    def __init__(self, parser):
+        self.parser = parser
+
+
+def _parsers_without_help(parser, where: str) -> list[str]:
+    import argparse
+
+    out = []
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            for name, sub in a.choices.items():
+                out += _parsers_without_help(sub, f"{where} {name}")
+        elif not isinstance(a, argparse._HelpAction) and not a.help:
+            out.append(f"{where} {'/'.join(a.option_strings) or a.dest}")
+    return out
+
+
+@pytest.mark.parametrize("command", ["demos", "mimicgen", "train", "blockenv"])
+def test_every_passthrough_option_has_a_help_line(command, monkeypatch):
+    """The subcommands that parse their own arguments document every option too."""
+    import argparse
+
+    def capture(self, args=None, namespace=None):
+        raise _Captured(self)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    with pytest.raises(_Captured) as e:
+        main([command])
+    assert _parsers_without_help(e.value.parser, f"indgen {command}") == []
+
+
+def test_every_option_has_a_help_line():
+    assert _parsers_without_help(build_parser(), "indgen") == []
+
+
+def test_presets_ship_inside_the_package_and_resolve_by_name():
+    """configs/ is package data: a bare preset name works from any working directory (a wheel install)."""
+    import indgen_vla
+    from indgen_vla.engine.config import PRESET_DIR, load_config_preset
+    from indgen_vla.resources import config_dir
+    from scenes.axes import load_preset, preset_names
+
+    pkg = Path(indgen_vla.__file__).parent
+    assert PRESET_DIR == config_dir("paper") and PRESET_DIR.is_relative_to(pkg)
+    assert load_config_preset("libero_object")["scene"] == "libero_object"
+    assert {"paper", "quick"} <= set(preset_names()) and config_dir("axes").is_relative_to(pkg)
+    assert load_preset("quick")["pick_y"] == {"max_level": 1}
+    with pytest.raises(ValueError, match="unknown config kind"):
+        config_dir("nope")
+
+
+def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
+    """evaluate and certify share one rule for tasks and axes: the same one-line errors."""
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import resolve
+    from indgen_vla.errors import UnknownNameError
+
+    def cfg(**kw):
+        base = dict(policy="standin:oracle", scene="stack", axes=("stack",), out=str(tmp_path), levels="0:1")
+        return EvalConfig(**{**base, **kw})
+
+    plan = resolve(cfg(task="all"))
+    assert len(plan.tasks) > 1 and plan.levels == {"stack": [0, 1]}
+    assert resolve(cfg()).tasks == plan.tasks[:1]
+    with pytest.raises(UnknownNameError, match=r"unknown task of scene stack 'nope'.*all"):
+        resolve(cfg(task="nope"))
+    with pytest.raises(UnknownNameError, match=r"unknown axis of scene cabinet_pick 'pick_y'"):
+        resolve(cfg(scene="cabinet_pick", axes=("pick_y",)))

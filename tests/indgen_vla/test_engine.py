@@ -1,6 +1,5 @@
 """The rollout engine on the real pick_place scene with CPU stand-ins (short episodes)."""
 
-import importlib.util
 import json
 import signal
 import subprocess
@@ -12,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from indgen_vla.engine.cli import evaluate
 from indgen_vla.engine.config import EvalConfig, config_from_args, plan_episodes
 from indgen_vla.engine.local import run_local
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+from indgen_vla.engine.run import evaluate
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.interface import ACTION_DIM, PolicySpec
 
@@ -159,11 +158,3 @@ def test_config_from_yaml_and_flags(tmp_path):
     preset.write_text("episods: 3\n")
     with pytest.raises(ConfigError, match="did you mean episodes"):
         config_from_args(argparse.Namespace(config=str(preset)))
-
-
-@pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="the 'ray' extra is not installed")
-def test_ray_backend_matches_local(tmp_path):
-    kw = dict(levels="0:1", episodes=2, max_steps=10)
-    a = evaluate(cfg(tmp_path / "local", workers=1, **kw), quiet=True)
-    b = evaluate(cfg(tmp_path / "ray", workers=2, backend="ray", **kw), quiet=True)
-    assert outcomes(a) == outcomes(b)

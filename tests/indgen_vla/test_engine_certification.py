@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 
 from indgen_vla.cli import main
-from indgen_vla.engine.cli import check_feasible, evaluate, resolve
 from indgen_vla.engine.config import EvalConfig, config_from_args
+from indgen_vla.engine.run import check_feasible, evaluate, resolve
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, UnknownNameError
 from scenes.certify import write_json_atomic
 

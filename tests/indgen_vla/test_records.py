@@ -82,9 +82,12 @@ def test_sigkill_never_corrupts(tmp_path):
             if ("t", "a", 0, i) in done:
                 continue
             run.append([EpisodeRecord("r", "p", "", "s", "t", "a", 0, 0.0, i, i, i % 2 == 0, 3)])
+            if i == len(done):
+                print("writing", flush=True)
     """)
-    for delay in (0.6, 0.9, 1.3):
-        proc = subprocess.Popen([sys.executable, "-c", script])
+    for delay in (0.1, 0.3, 0.6):
+        proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+        assert proc.stdout.readline() == "writing\n"  # a row is down; kill mid-stream even under load
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()

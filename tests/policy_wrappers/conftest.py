@@ -13,7 +13,7 @@ os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
 sys.path.insert(0, os.path.dirname(__file__))  # the loopback helpers (tests run with --import-mode=importlib)
 
 from indgen_vla.interface import Observation  # noqa: E402
-from policy_wrappers.tiny import build_tiny_checkpoint  # noqa: E402,F401
+from tests.fixtures.tiny_policies import build_tiny_checkpoint  # noqa: E402,F401
 
 
 def make_obs(seed: int = 0, size: int = 256, instruction: str = "put the bowl on the plate") -> Observation:

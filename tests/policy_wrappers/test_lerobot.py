@@ -166,7 +166,7 @@ def test_tiny_smolvla_with_local_backbone(tmp_path, hub_cache, obs_factory):
     pytest.importorskip(
         "num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])"
     )
-    from policy_wrappers.tiny import build_tiny_smolvla, build_tiny_vlm_dir
+    from tests.fixtures.tiny_policies import build_tiny_smolvla, build_tiny_vlm_dir
 
     vlm = build_tiny_vlm_dir(tmp_path / "vlm")
     hub_cache(build_tiny_smolvla(tmp_path / "smolvla", vlm), "indgen-test/tiny-smolvla")

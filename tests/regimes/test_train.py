@@ -96,8 +96,8 @@ def test_config_and_input_errors(demos, tmp_path):
 
 
 def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos, tmp_path):
-    from indgen_vla.engine.cli import evaluate
     from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import evaluate
     from indgen_vla.interface import OBJECT_DIM
     from policy_wrappers.registry import load_policy
 

@@ -21,10 +21,10 @@ from scenes.axes import (
     preset_names,
     spec_at_level,
 )
-from scenes.catalog import SCENES, get_scene
-from scenes.predicates import SUCCESS_PREDICATES
+from scenes.catalog import builtin_scenes
+from scenes.registry import get_scene
 
-SCENE_AXES = [(s.name, a) for s in SCENES.values() for a in s.axes]
+SCENE_AXES = [(s.name, a) for s in builtin_scenes() for a in s.axes]
 
 
 @pytest.mark.parametrize(("scene", "axis"), SCENE_AXES)
@@ -127,8 +127,8 @@ def test_bad_names_suggest():
 
 
 def test_one_predicate_per_scene_is_shared():
-    check_semantics_preserved([SUCCESS_PREDICATES["pick_place"]] * 3, "x")
-    assert len({id(p) for p in SUCCESS_PREDICATES.values()}) == 3
+    check_semantics_preserved([get_scene("pick_place").success_predicate] * 3, "x")
+    assert len({id(s.success_predicate) for s in builtin_scenes()}) == 3
 
 
 def test_api_lists():
@@ -141,7 +141,7 @@ def test_api_lists():
 
 def test_import_is_light():
     code = (
-        "import sys, scenes, scenes.catalog, scenes.axes; "
+        "import sys, scenes, scenes.catalog, scenes.axes, scenes.registry, scenes.libero; "
         "bad = [m for m in ('robosuite', 'mujoco', 'torch') if m in sys.modules]; print(bad); "
         "sys.exit(1 if bad else 0)"
     )

@@ -1,7 +1,9 @@
-"""``indgen scenes`` / ``indgen axes`` listings and the certify CLI's error paths."""
+"""The scene registry (one registered ``Scene`` subclass per family), the ``indgen scenes`` / ``indgen axes``
+listings and the certify CLI's error paths."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -10,14 +12,22 @@ import sys
 
 import pytest
 
+import scenes
 from indgen_vla.cli import main
-from scenes.catalog import SCENES
+from indgen_vla.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
+from scenes import registry
+from scenes.catalog import PickPlace, builtin_scenes
+from scenes.registry import Scene, get_scene, register_scene, registered_scenes
 
 
 def test_scenes_json(capsys):
     assert main(["scenes", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
-    assert [r["name"] for r in rows] == [*SCENES, "libero_object", "libero_spatial"]
+    assert [r["name"] for r in rows] == [
+        *(s.name for s in builtin_scenes()),
+        "libero_object",
+        "libero_spatial",
+    ]
     pp = rows[0]
     assert pp["max_steps"] == 280 and "pick_y" in pp["axes"] and "milk" in pp["tasks"] and pp["needs"] is None
 
@@ -132,3 +142,126 @@ def test_certify_bad_input_is_one_line(argv, needle, tmp_path, capsys):
     assert main(["certify", *argv, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert needle in err and "\n" not in err and "Traceback" not in err
+
+
+# ---- the registry ----------------------------------------------------------------------------------
+@pytest.fixture
+def private_registry(monkeypatch):
+    """Register test scenes in a copy of the registry, dropped after the test."""
+    monkeypatch.setattr(registry, "_SCENES", dict(registry._SCENES))
+
+
+SLOTS = ((0.25, 0.05), (-0.18, 0.3))
+
+
+def _tiny_pick():
+    class TinyPick(PickPlace):
+        """Pick and place with one task and its own distractor spots.
+
+        **Task Description:** pick up the milk carton and place it in the basket.
+
+        **Randomizations:** PickPlace's T0 jitter; the pick object's y; two distractors at ``SLOTS``.
+
+        **Success Conditions:** PickPlace's (in the basket, released and still).
+        """
+
+        name = "tiny_pick"
+        tasks = ("milk",)
+        axes = ("distractor", "pick_y")
+        distractor_slots = SLOTS
+
+    return TinyPick
+
+
+def test_every_family_is_registered_once_with_its_docstring_sections():
+    names = [s.name for s in registered_scenes()]
+    assert (
+        names
+        == scenes.scene_names()
+        == ["pick_place", "stack", "cabinet_pick", "libero_object", "libero_spatial"]
+    )
+    for s in registered_scenes():
+        assert isinstance(s, Scene) and get_scene(s.name) is s and s.default_axis == s.axes[0]
+        assert all(sec in type(s).__doc__ for sec in registry.DOC_SECTIONS), s.name
+    with pytest.raises(UnknownNameError, match="did you mean 'libero_spatial'"):
+        get_scene("libero_spatal")
+    with pytest.raises(UnknownNameError, match="did you mean 'stack'"):
+        scenes.tasks("stak")
+
+
+def test_a_registered_subclass_is_found_by_the_scenes_api(private_registry):
+    register_scene(_tiny_pick())
+    assert scenes.scene_names()[-1] == "tiny_pick"
+    assert scenes.tasks("tiny_pick") == ["milk"] and scenes.axes_for("tiny_pick") == ["distractor", "pick_y"]
+    assert scenes.select_tasks("tiny_pick", "all") == ["milk"] == scenes.select_tasks("tiny_pick", None)
+    assert scenes.level_param("tiny_pick", None, "pick_y", 2) == scenes.level_param(
+        "pick_place", "milk", "pick_y", 2
+    )
+    scenes.check_axis_progression("tiny_pick", None, "pick_y+distractor")
+    with pytest.raises(UnknownNameError, match="axis of scene tiny_pick 'goal_y'"):
+        scenes.make_env("tiny_pick", axis="goal_y")
+    # the family's own distractor slots place the distractors of its levels (make_env's default axis: distractor)
+    env = scenes.make_env("tiny_pick", level=2, cameras=())
+    try:
+        assert env.spec.scene == "tiny_pick" and env.axis.name == "distractor" and env.spec.distractors == 2
+        assert env.success_predicate is get_scene("pick_place").success_predicate
+        placed = [pos[:2] for _, pos in env._rs.layout.static]
+        assert placed == [pytest.approx(xy) for xy in SLOTS]
+    finally:
+        env.close()
+    tiny = get_scene("tiny_pick")
+    with pytest.raises(InfeasibleLevelError, match="tiny_pick has 2 distractor slots"):
+        tiny.layout(dataclasses.replace(tiny.base("milk"), distractors=3))
+
+
+def test_register_rejects_incomplete_classes(private_registry):
+    class NoDoc(PickPlace):
+        name = "no_doc"
+
+    with pytest.raises(ConfigError, match="lacks the section"):
+        register_scene(NoDoc)
+    bad_axis = type(
+        "BadAxis",
+        (_tiny_pick(),),
+        {"name": "bad_axis", "axes": ("pick_yy",), "__doc__": _tiny_pick().__doc__},
+    )
+    with pytest.raises(ConfigError, match="unknown axes"):
+        register_scene(bad_axis)
+    clash = type("Clash", (_tiny_pick(),), {"name": "stack", "__doc__": _tiny_pick().__doc__})
+    with pytest.raises(ConfigError, match="already registered"):
+        register_scene(clash)
+    with pytest.raises(ConfigError, match="Scene subclasses"):
+        register_scene(dict)
+    assert "no_doc" not in scenes.scene_names() and "bad_axis" not in scenes.scene_names()
+
+
+def test_select_tasks_is_the_one_task_resolution():
+    assert scenes.select_tasks("stack", None) == ["orange_on_blue"] == scenes.select_tasks("stack", "")
+    assert scenes.select_tasks("stack", "all") == scenes.tasks("stack")
+    with pytest.raises(UnknownNameError, match="did you mean 'red_on_green'.*all"):
+        scenes.select_tasks("stack", "red_on_gren")
+
+
+@pytest.mark.skipif(importlib.util.find_spec("libero") is None, reason="needs hf-libero")
+def test_libero_spatial_defaults_to_scale_and_missing_assets_are_one_line(tmp_path, monkeypatch):
+    """``make_env("libero_spatial")`` once raised a bare KeyError; now its default axis is scale, and without
+    LIBERO's assets it is the one-line SceneError saying how to get them."""
+    assert get_scene("libero_spatial").default_axis == "scale" and len(scenes.tasks("libero_spatial")) == 10
+    monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
+    with pytest.raises(SceneError, match="not a LIBERO asset folder") as err:
+        scenes.make_env("libero_spatial", cameras=())
+    assert "\n" not in str(err.value)
+    with pytest.raises(SceneError, match="hf download"):
+        scenes.check_ready("libero_spatial")
+    scenes.check_ready("stack")  # built-ins need nothing
+
+
+@pytest.mark.slow
+def test_libero_spatial_builds_at_its_default_axis(mini):
+    env = scenes.make_env("libero_spatial", cameras=())
+    try:
+        assert env.axis.name == "scale" and env.level == 0 and env.max_steps == 280
+        obs, info = env.reset(seed=0)
+        assert obs.state.shape == (8,) and info["init_state"] == 0
+    finally:
+        env.close()

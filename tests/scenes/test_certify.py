@@ -12,6 +12,7 @@ from scipy.stats import beta
 import scenes
 from indgen_vla.errors import ConfigError, UnknownNameError
 from indgen_vla.progression import ProgressionError
+from scenes.catalog import builtin_scenes
 from scenes.certify import (
     Rule,
     certify,
@@ -148,8 +149,8 @@ def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
 
 def test_default_jobs_put_every_tasks_first_axis_first():
     jobs = default_jobs()
-    n_first = sum(len(s.tasks) for s in scenes.SCENES.values())
-    assert all(a == scenes.SCENES[s].axes[0] for s, _, a in jobs[:n_first])
+    n_first = sum(len(s.tasks) for s in builtin_scenes())
+    assert all(a == scenes.axes_for(s)[0] for s, _, a in jobs[:n_first])
     assert ("pick_place", "bread", "pick_y+distractor") in jobs[n_first:]
     assert len(jobs) == len(set(jobs)) == 7 * 7 + 4 * 6 + 5 * 3
 
@@ -210,7 +211,7 @@ def test_libero_certificates_are_cached_per_asset_tree(mini):
     cache = os.environ["INDGEN_CACHE"]
     tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
     assert certification_root("libero_object") == Path(cache) / "certification" / tag
-    assert certification_root("pick_place").parts[-2:] == ("docs", "certification")  # built-ins: committed
+    assert certification_root("pick_place").parts[-2:] == ("scenes", "certification")  # built-ins: committed
     assert (
         cert_path("libero_object", None, "pick_y").parent.parent.parent.parent
         == Path(cache) / "certification" / tag

@@ -14,10 +14,10 @@ import scenes
 from indgen_vla.errors import ConfigError, SceneError
 from indgen_vla.interface import Observation
 from indgen_vla.progression import check_semantics_preserved, check_single_axis
-from scenes.catalog import SCENES
+from scenes.catalog import builtin_scenes
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
-SCENE_AXES = [(s.name, a) for s in SCENES.values() for a in s.axes]
+SCENE_AXES = [(s.name, a) for s in builtin_scenes() for a in s.axes]
 COMPOSITIONS = [
     ("pick_place", "pick_y+distractor"),
     ("stack", "stack+distractor"),
@@ -62,9 +62,7 @@ def test_conditions_on_built_envs():
         assert envs[2].axis_param == pytest.approx(0.16 + 0.0367)
         for e in envs:
             e.reset(seed=5)
-        y = [
-            e.privileged_state()["goal_pos"][1] for e in envs
-        ]  # same seed, same jitter: exactly one step apart
+        y = [e.privileged_state().goal.pos[1] for e in envs]  # same seed, same jitter: exactly one step apart
         assert y[2] - y[1] == pytest.approx(0.0367, abs=1e-6) and y[1] - y[0] == pytest.approx(
             0.0367, abs=1e-6
         )
@@ -91,9 +89,9 @@ def test_seeded_determinism_in_process_and_across_processes():
     try:
         a, b, c = _fingerprint(env, 7), _fingerprint(env, 7), _fingerprint(env, 8)
         start7 = env.reset(seed=7)[0].state
-        pick7 = env.privileged_state()["pick_pos"]
+        pick7 = env.privileged_state().pick.pos
         env.reset(seed=8)
-        pick8 = env.privileged_state()["pick_pos"]
+        pick8 = env.privileged_state().pick.pos
     finally:
         env.close()
     assert a == b != c
@@ -113,11 +111,17 @@ def test_seeded_determinism_in_process_and_across_processes():
 def test_gymnasium_env_checker():
     from gymnasium.utils.env_checker import check_env
 
-    from scenes.env import GymDictEnv
+    from scenes.env import DictObservation
 
     env = scenes.make_env("pick_place", cameras=("wrist",), image_size=(32, 32))
     try:
-        check_env(GymDictEnv(env), skip_render_check=True, skip_close_check=True)
+        check_env(DictObservation(env), skip_render_check=True, skip_close_check=True)
+        obs, _ = env.reset(seed=0)  # the unwrapped env honours its own space: Observation objects
+        assert env.observation_space.contains(obs) and env.observation_space.contains(
+            env.step(np.zeros(7))[0]
+        )
+        assert not env.observation_space.contains({"wrist": obs.images["wrist"], "state": obs.state})
+        assert env.observation_space.contains(env.observation_space.sample())
     finally:
         env.close()
 

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 import scenes
 from indgen_vla.errors import SceneError
-from scenes.catalog import SCENES
+from scenes.catalog import builtin_scenes
 from scenes.oracle import OraclePolicy
+from scenes.privileged import with_privileged
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -55,7 +54,7 @@ def _assert_identical(fast: dict, stock: dict) -> None:
         assert np.array_equal(fast[key], stock[key]), f"{key} differs between fast and stock physics"
 
 
-@pytest.fixture(scope="module", params=list(SCENES))
+@pytest.fixture(scope="module", params=[s.name for s in builtin_scenes()])
 def env(request):
     e = scenes.make_env(request.param, cameras=(), max_steps=10**6)
     yield e
@@ -88,7 +87,7 @@ def _oracle_episode(env, fast: bool, seed: int, steps: int) -> tuple[np.ndarray,
     policy.reset(env.instruction, seed)
     actions, qpos, success = [], [], False
     for _ in range(steps):
-        obs = dataclasses.replace(obs, extras={**obs.extras, "privileged": env.privileged_state()})
+        obs = with_privileged(obs, env)
         a = policy.act([obs])[0, 0]
         obs, _, terminated, truncated, info = env.step(a)
         actions.append(a)

@@ -105,6 +105,26 @@ def test_level0_matches_lerobot_libero_env(mini):
         want = np.concatenate([eef["pos"], quat2axisangle(eef["quat"]), grip]).astype(np.float32)
         np.testing.assert_allclose(obs.state, want, atol=1e-6)
         assert_steps_match(env, ref, [0.3, -0.2, 0.1, 0.0, 0.0, 0.1, 1.0])
+        # steps nobody observes skip the renders; the next observed frame is still lerobot's, pixel for pixel
+        cam = env._env.env._observables["agentview_image"]
+        renders, real = [], cam._sensor
+
+        def counted(cache):
+            renders.append(1)
+            return real(cache)
+
+        counted.__modality__ = real.__modality__
+        cam._sensor = counted
+        a = np.array([-0.2, 0.3, 0.0, 0.1, 0.0, 0.0, -1.0], np.float32)
+        for _ in range(3):
+            obs, *_ = env.step(a, observe=False)
+            robs, *_ = ref.step(a)
+            assert obs.images == {} and not renders
+        obs, *_ = env.step(a)
+        robs, *_ = ref.step(a)
+        assert len(renders) == 1
+        np.testing.assert_array_equal(obs.images["agentview"], robs["pixels"]["image"])
+        np.testing.assert_array_equal(obs.images["wrist"], robs["pixels"]["image2"])
     finally:
         env.close()
         ref.close()
@@ -130,15 +150,15 @@ def test_axes_build_step_and_change_one_thing(mini, axis, level):
         diff = np.flatnonzero(env._level_state(5) != base._level_state(5))
         dpick, dgoal = env.shift
         if axis.startswith("pick_y"):
-            assert s["pick_pos"][1] - s0["pick_pos"][1] == pytest.approx(dpick, abs=2e-3)
+            assert s.pick.pos[1] - s0.pick.pos[1] == pytest.approx(dpick, abs=2e-3)
             assert dpick == pytest.approx(0.025 * level)
             assert list(diff) == [1 + env._qpos[env.info.pick] + 1]
         if axis == "goal_y":
-            assert s["goal_pos"][1] - s0["goal_pos"][1] == pytest.approx(dgoal, abs=2e-3)
+            assert s.goal.pos[1] - s0.goal.pos[1] == pytest.approx(dgoal, abs=2e-3)
             assert list(diff) == [1 + env._qpos[env.info.goal] + 1]
         if axis == "scale":
-            assert s["pick_bottom"] == pytest.approx(s0["pick_bottom"], abs=2e-3)
-            assert (s["pick_top"] - s["pick_bottom"]) / (s0["pick_top"] - s0["pick_bottom"]) == pytest.approx(
+            assert s.pick.bottom == pytest.approx(s0.pick.bottom, abs=2e-3)
+            assert (s.pick.top - s.pick.bottom) / (s0.pick.top - s0.pick.bottom) == pytest.approx(
                 1.2, abs=0.01
             )
         if "distractor" in axis:
@@ -158,11 +178,11 @@ def test_episode_index_fixes_the_initial_state(mini):
     env = _env("goal_y", 1)
     try:
         env.reset(seed=1, options={"episode": 7})
-        a = env.privileged_state()["goal_pos"]
+        a = env.privileged_state().goal.pos
         env.reset(seed=99, options={"episode": 7})
-        b = env.privileged_state()["goal_pos"]
+        b = env.privileged_state().goal.pos
         env.reset(seed=1, options={"episode": 8})
-        c = env.privileged_state()["goal_pos"]
+        c = env.privileged_state().goal.pos
         np.testing.assert_allclose(a, b, atol=1e-9)
         assert np.abs(a - c).max() > 1e-4
         lo, hi = env.support.goal_y

@@ -120,19 +120,19 @@ def test_levels_build_and_change_one_thing(mini, axis, level, task):
         s, s0 = env.privileged_state(), base.privileged_state()
         if "scale" in axis:
             want = env.spec.pick.scale
-            assert s["pick_bottom"] == pytest.approx(s0["pick_bottom"], abs=3e-3)  # re-seated where it rested
-            ratio = (s["pick_top"] - s["pick_bottom"]) / (s0["pick_top"] - s0["pick_bottom"])
+            assert s.pick.bottom == pytest.approx(s0.pick.bottom, abs=3e-3)  # re-seated where it rested
+            ratio = (s.pick.top - s.pick.bottom) / (s0.pick.top - s0.pick.bottom)
             sizes = env._env.sim.model.geom_size[env._pick_geoms]
             assert ratio == pytest.approx(want, abs=0.01)
             np.testing.assert_allclose(
                 sizes, base._env.sim.model.geom_size[base._pick_geoms] * want, rtol=1e-4
             )
-            assert np.allclose(s["goal_pos"], s0["goal_pos"], atol=2e-3)
+            assert np.allclose(s.goal.pos, s0.goal.pos, atol=2e-3)
         if "distractor" in axis:
             names = [n for n in env._env.sim.model.body_names if n.startswith("indgen_distractor_")]
             assert len({n.split("_main")[0] for n in names}) == level
         if axis == "distractor":
-            assert np.allclose(s["pick_pos"], s0["pick_pos"], atol=2e-3)
+            assert np.allclose(s.pick.pos, s0.pick.pos, atol=2e-3)
         for _ in range(2):
             obs, r, term, trunc, info = env.step(np.zeros(7))
         assert trunc and obs.state.shape == (8,)

@@ -10,7 +10,7 @@ import pytest
 import scenes
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError
 from indgen_vla.interface import Observation, Policy
-from scenes.catalog import SCENES
+from scenes.catalog import builtin_scenes
 from scenes.certify import certify, infeasible_levels, load_certification, run_oracle_episode
 from scenes.oracle import OraclePolicy
 
@@ -27,7 +27,7 @@ FAST = [
 ]
 FULL = [
     (s.name, a, k, t)
-    for s in SCENES.values()
+    for s in builtin_scenes()
     for a in s.axes
     for k in sorted({scenes.get_axis(a).min_level, scenes.get_axis(a).max_level})
     for t in s.tasks

@@ -56,18 +56,77 @@ METHODS = {
 }
 
 
-def build_model(method: str, grid: int, hidden: int = 128) -> nn.Module:
-    """Instantiate a learner by method key."""
+# Variant options a method accepts (TrainConfig.extra): name -> (type, default, what it changes). Defaults are
+# the configuration of the committed Table 1; the others exist for the ablations in docs/blockenv.md.
+OPTIONS: dict[str, dict[str, tuple[type, object, str]]] = {
+    "ind": {
+        "gate_scale": (
+            float,
+            1.0,
+            "weight of log σ(legal) added to the pick logits at inference (0: no gate)",
+        ),
+        "mask": (bool, True, "mask unoccupied cells to -inf at inference"),
+        "legal_weight": (float, 1.0, "weight of the legality BCE beside the action cross-entropy"),
+        "legal_pos_weight": (float, 1.0, "BCE weight of the rare legal (positive) cells"),
+        "legal_head": (
+            str,
+            "global",
+            "legality logits read from the trunk ('global'), from a 3x3 conv over the "
+            "current grid ('local'), or their sum ('both')",
+        ),
+    },
+    "maml": {
+        "head": (str, "factored", "'factored' (rows, cols, θ heads) or 'joint' (one softmax over (r, c, θ))")
+    },
+    "trm": {"patch": (int, 3, "cells per token side (1: one token per cell, as the original TRM)")},
+}
+
+
+def check_options(method: str, extra: dict) -> dict:
+    """``extra`` validated against OPTIONS[method], with defaults filled in; unknown keys are refused."""
+    from indgen_vla.errors import ConfigError
+
+    spec = OPTIONS.get(method, {})
+    unknown = sorted(set(extra) - set(spec))
+    if unknown:
+        allowed = ", ".join(spec) or "none"
+        raise ConfigError(f"{method} has no option(s) {', '.join(unknown)}; allowed: {allowed}")
+    out = {}
+    for name, (typ, default, _) in spec.items():
+        v = extra.get(name, default)
+        if typ is float and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        if not isinstance(v, typ) or (typ is not bool and isinstance(v, bool)):
+            raise ConfigError(f"{method} option {name} must be {typ.__name__}, got {v!r}")
+        if typ in (int, float) and v < 0:
+            raise ConfigError(f"{method} option {name} must be >= 0, got {v}")
+        out[name] = v
+    if method == "maml" and out["head"] not in ("factored", "joint"):
+        raise ConfigError(f"maml option head must be 'factored' or 'joint', got {out['head']!r}")
+    if method == "ind" and out["legal_head"] not in ("global", "local", "both"):
+        raise ConfigError(
+            f"ind option legal_head must be 'global', 'local' or 'both', got {out['legal_head']!r}"
+        )
+    if method == "trm" and out["patch"] < 1:
+        raise ConfigError(f"trm option patch must be >= 1, got {out['patch']}")
+    return out
+
+
+def build_model(method: str, grid: int, hidden: int = 128, extra: dict | None = None) -> nn.Module:
+    """Instantiate a learner by method key; ``extra`` holds its OPTIONS (defaults when absent)."""
     from indgen_vla.blockenv.models import local, recursive, sequence
 
+    o = check_options(method, extra or {}) if method in METHODS else {}
     table = {
         "rnn": lambda: sequence.RNNPolicy(grid, hidden),
         "transformer": lambda: sequence.TransformerPolicy(grid, hidden, rope=False),
         "transformer_rope": lambda: sequence.TransformerPolicy(grid, hidden, rope=True),
         "transformer_goal_act": lambda: sequence.TransformerPolicy(grid, hidden, rope=True, goal_act=True),
-        "ind": lambda: sequence.IndPolicy(grid, hidden),
-        "trm": lambda: recursive.TRMPolicy(grid, hidden),
-        "maml": lambda: local.StepMLPPolicy(grid, hidden * 2),
+        "ind": lambda: sequence.IndPolicy(
+            grid, hidden, gate_scale=o["gate_scale"], mask=o["mask"], legal_head=o["legal_head"]
+        ),
+        "trm": lambda: recursive.TRMPolicy(grid, hidden, patch=o["patch"]),
+        "maml": lambda: local.StepMLPPolicy(grid, hidden * 2, joint=o["head"] == "joint"),
         "local_equivariant": lambda: local.LocalConvPolicy(),
     }
     from indgen_vla.registry import lookup

@@ -9,17 +9,28 @@ from indgen_vla.blockenv.models.base import FactoredHeads, flat_features, mlp, o
 
 
 class StepMLPPolicy(nn.Module):
-    """A memoryless MLP over the flattened grid and goal scalar, with three factored heads (MAML's net)."""
+    """A memoryless MLP over the flattened grid and goal scalar (MAML's net).
+
+    Args:
+        joint: one softmax over every (r, c, θ) instead of three factored heads. A memoryless policy needs it
+            wherever the demonstrations hold two right answers for one state (the oracle's random arm at the
+            first grasp): independent row and column argmaxes can combine the row of one tip with the column
+            of the other, a blocked or empty cell that the policy then repeats until the budget runs out.
+    """
 
     history = False
 
-    def __init__(self, grid: int, d: int):
+    def __init__(self, grid: int, d: int, joint: bool = False):
         super().__init__()
+        self.grid, self.joint = grid, joint
         self.enc = mlp(2 * grid * grid + 1, d)
-        self.heads = FactoredHeads(d, grid)
+        self.heads = nn.Linear(d, grid * grid * 2) if joint else FactoredHeads(d, grid)
 
     def forward(self, obs, levels, prev_actions=None):
-        return self.heads(self.enc(flat_features(obs, levels)))
+        h = self.enc(flat_features(obs, levels))
+        if self.joint:
+            return {"joint": self.heads(h).view(*obs.shape[:2], self.grid, self.grid, 2)}
+        return self.heads(h)
 
 
 class LocalConvPolicy(nn.Module):

@@ -8,7 +8,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F  # noqa: N812
 
-from indgen_vla.blockenv.models.base import FactoredHeads, flat_features, mlp
+from indgen_vla.blockenv.models.base import FactoredHeads, flat_features, mlp, one_hot_grid
 
 MAX_LEN = 48
 
@@ -118,17 +118,34 @@ class TransformerPolicy(nn.Module):
 class IndPolicy(TransformerPolicy):
     """Ind: RoPE Transformer + per-cell/orientation legality head + factored joint (r, c, θ) head.
 
-    At inference unoccupied cells are masked to -inf and the legality logits gate the pick logits.
+    At inference unoccupied cells are masked to -inf (``mask``) and ``gate_scale`` · log σ(legal) is added to
+    the pick logits (the additive legality gate; 0 turns it off). ``legal_head`` says where the legality
+    logits come from: a linear read-out of the trunk's embedding of the flattened grid ('global', the
+    paper's "head" on its Transformer), a small convolution shared by every cell over the current grid
+    ('local'), or the sum of both ('both').
     """
 
-    def __init__(self, grid: int, d: int):
+    def __init__(
+        self, grid: int, d: int, gate_scale: float = 1.0, mask: bool = True, legal_head: str = "global"
+    ):
+        self.legal_head = legal_head
         super().__init__(grid, d, rope=True)
+        self.gate_scale, self.mask = gate_scale, mask
+        if legal_head != "global":
+            self.local_legal = nn.Sequential(
+                nn.Conv2d(2, 32, 3, padding=1),
+                nn.ReLU(),
+                nn.Conv2d(32, 32, 1),
+                nn.ReLU(),
+                nn.Conv2d(32, 2, 1),
+            )
 
     def _heads(self, d: int) -> nn.Module:
         g = self.grid
-        return nn.ModuleDict(
-            {"cell": nn.Linear(d, g * g), "theta": nn.Linear(d, g * g * 2), "legal": nn.Linear(d, g * g * 2)}
-        )
+        heads = {"cell": nn.Linear(d, g * g), "theta": nn.Linear(d, g * g * 2)}
+        if self.legal_head != "local":
+            heads["legal"] = nn.Linear(d, g * g * 2)
+        return nn.ModuleDict(heads)
 
     def forward(self, obs, levels, prev_actions=None):
         h = self.trunk(obs, levels, prev_actions)
@@ -137,12 +154,19 @@ class IndPolicy(TransformerPolicy):
         joint = (self.heads["cell"](h)[..., None] + self.heads["theta"](h).view(b, t, g * g, 2)).view(
             b, t, g, g, 2
         )
-        legal = self.heads["legal"](h).view(b, t, g, g, 2)
+        legal = self.heads["legal"](h).view(b, t, g, g, 2) if "legal" in self.heads else 0.0
+        if (
+            self.legal_head != "global"
+        ):  # zero padding: off-grid cells read as empty, as the environment has them
+            conv = self.local_legal(one_hot_grid(obs.flatten(0, 1)))  # (BT, 2, G, G)
+            legal = legal + conv.permute(0, 2, 3, 1).reshape(b, t, g, g, 2)
         return {"joint": joint, "legal": legal}
 
-    @staticmethod
-    def gate(out: dict, obs: torch.Tensor) -> torch.Tensor:
-        """Inference-time logits: unoccupied cells masked, legality added as a log-probability gate."""
-        occupied = (obs != 0)[..., None].expand_as(out["joint"])
-        logits = out["joint"] + F.logsigmoid(out["legal"])
-        return logits.masked_fill(~occupied, -math.inf)
+    def gate(self, out: dict, obs: torch.Tensor) -> torch.Tensor:
+        """Inference-time logits: legality added as a scaled log-probability gate, unoccupied cells masked."""
+        logits = out["joint"]
+        if self.gate_scale:
+            logits = logits + self.gate_scale * F.logsigmoid(out["legal"])
+        if self.mask:
+            logits = logits.masked_fill(~(obs != 0)[..., None].expand_as(logits), -math.inf)
+        return logits

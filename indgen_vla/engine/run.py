@@ -1,0 +1,272 @@
+"""The run logic of ``indgen evaluate`` as a library: resolve the plan, check feasibility, write the manifest,
+run every remaining episode resumably, then write the report. The CLI (``engine/cli.py``) only parses and prints."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import subprocess
+import sys
+import uuid
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.engine.config import EvalConfig, plan_episodes
+from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
+from indgen_vla.progression import AxisSpec, parse_levels
+from indgen_vla.records import RunDir
+
+VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
+
+
+def package_versions() -> dict[str, str]:
+    """Installed versions of the packages that can change the numbers, recorded in the manifest."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for name in VERSIONED:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+def git_sha() -> str:
+    """The toolkit's commit, so a run names the code that made it ("" outside a git checkout)."""
+    try:
+        here = Path(__file__).resolve().parent
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5)
+        return r.stdout.strip() if r.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+@dataclasses.dataclass(frozen=True)
+class ResolvedPlan:
+    """Scene-side facts the plan needs, resolved once in the main process."""
+
+    tasks: list[str]
+    axes: dict[str, AxisSpec]
+    levels: dict[str, list[int]]
+
+
+def resolve(cfg: EvalConfig) -> ResolvedPlan:
+    """Check scene, tasks, axes and levels against the scene registry (its rules, its one-line errors)."""
+    import scenes
+
+    scene = scenes.get_scene(cfg.scene)  # unknown name: one line suggesting the closest
+    scene.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
+    tasks = scene.select_tasks(cfg.task)
+    axes, levels = {}, {}
+    for name in cfg.axes:
+        spec = scenes.get_axis(name, step=cfg.step, preset=cfg.axes_preset)
+        scene.check_axis(name)  # every component must be one of the scene's axes
+        axes[name] = spec
+        levels[name] = parse_levels(cfg.levels, spec)
+        for task in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
+            scenes.check_axis_progression(cfg.scene, task, name, cfg.step, cfg.axes_preset)
+    return ResolvedPlan(tasks, axes, levels)
+
+
+def _levels_text(levels: list[int]) -> str:
+    return ", ".join(f"{k:+d}" if k else "0" for k in levels)
+
+
+def check_feasible(cfg: EvalConfig, plan: ResolvedPlan) -> list[str]:
+    """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
+    line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
+    from scenes.certify import certified_levels, find_certification, infeasible_levels
+
+    warnings = []
+    for name, spec in plan.axes.items():
+        want = plan.levels[name]
+        failed: dict[str, list[int]] = {}
+        missing: dict[str, list[int]] = {}
+        for task in plan.tasks:
+            cert = find_certification(cfg.scene, task, name, cfg.step, preset=cfg.axes_preset)
+            bad = sorted(set(infeasible_levels(cert)) & set(want)) if cert else []
+            ok = set(certified_levels(cert)) if cert else set()
+            short = [k for k in want if k not in ok and k not in bad]
+            if bad:
+                failed[task] = bad
+            if short:
+                missing[task] = short
+        if failed and not cfg.allow_infeasible:
+            where = "; ".join(f"task {t}: levels {_levels_text(b)}" for t, b in failed.items())
+            raise InfeasibleLevelError(
+                f"{cfg.scene}/{name}: the oracle failed its certification at {where}; drop them from --levels "
+                "or pass --allow-infeasible"
+            )
+        if failed:
+            where = "; ".join(f"task {t}: {_levels_text(b)}" for t, b in failed.items())
+            warnings.append(f"evaluating levels of {name} the oracle failed (--allow-infeasible): {where}")
+        if missing:
+            if all(v == want for v in missing.values()) and len(missing) == len(plan.tasks):
+                where = f"all requested levels of {'every task' if len(plan.tasks) > 1 else 'task ' + plan.tasks[0]}"
+            else:
+                where = "; ".join(f"task {t}: levels {_levels_text(v)}" for t, v in missing.items())
+            warnings.append(
+                f"axis {name} (step {spec.step:g} {spec.unit}) is uncertified at {where} (no oracle certificate "
+                f"with enough evidence); run 'indgen certify --scene {cfg.scene} --axis {name} --task "
+                f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}{f' --step {cfg.step:g}' if cfg.step else ''}"
+                f"{f' --axes-preset {cfg.axes_preset}' if cfg.axes_preset else ''}'"
+            )
+    return warnings
+
+
+def build_manifest(cfg: EvalConfig, plan: ResolvedPlan, run_id: str) -> dict[str, Any]:
+    """manifest.json: the plan a resume must match, plus provenance (config, versions, commit, command)."""
+    return {
+        "run_id": run_id,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "policy": cfg.policy,
+        "data_regime": cfg.data_regime,
+        "scene": cfg.scene,
+        "seed": cfg.seed,
+        "plan": cfg.plan_dict(plan.tasks, plan.levels, cfg.max_steps),
+        "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
+        "config": dataclasses.asdict(cfg),
+        "versions": package_versions(),
+        "git_sha": git_sha(),
+        "command": " ".join(["indgen", *sys.argv[1:]]) if sys.argv and "indgen" in sys.argv[0] else "",
+    }
+
+
+def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
+    """Run (or resume) an evaluation and write its report; returns the run directory."""
+    from rich.console import Console
+
+    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.report import write_run_report
+
+    console = Console(stderr=True, quiet=quiet)
+    plan = resolve(cfg)
+    for w in check_feasible(cfg, plan):
+        console.print(f"[yellow]warning:[/] {w}")
+    out = Path(cfg.out)
+    existing = RunDir(out)
+    run_id = (
+        existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
+    ) or uuid.uuid4().hex[:12]
+    run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
+    import scenes
+
+    params = {(t, a, k): scenes.level_param(cfg.scene, t, a, k, cfg.step, cfg.axes_preset) for t in plan.tasks
+              for a in cfg.axes
+              for k in plan.levels[a]}  # fmt: skip
+    jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
+    if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
+        from indgen_vla.engine.adaptive import next_round
+
+        todo = next_round(jobs, run.episodes(), cfg)
+    else:
+        done = run.done_keys()
+        todo = [j for j in jobs if j.key not in done]
+    if todo:
+        from policy_wrappers.registry import load_policy
+
+        def make_policy():
+            return load_policy(
+                cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene
+            )
+
+        probe = make_policy()
+        spec = probe.spec
+        replan = cfg.replan_steps or spec.replan_steps
+        if replan > spec.chunk_size:
+            raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
+        side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
+        runner_cfg = RunnerConfig(
+            scene=cfg.scene, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
+            step=cfg.step, axes_preset=cfg.axes_preset, privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
+            video_dir=str(out / "videos") if cfg.video else None,
+        )  # fmt: skip
+        meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
+        try:
+            _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console)
+        except ServerUnreachableError as e:
+            raise ServerUnreachableError(f"{e} (run directory {out})") from None
+    elif not quiet:
+        done_text = (
+            "the decisions of every level the adaptive rule needs are"
+            if cfg.adaptive
+            else f"all {len(jobs)} planned episodes are"
+        )
+        console.print(f"{done_text} already in {out}; writing the report")
+    write_run_report(run, cfg.gamma)
+    return out
+
+
+def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
+    """Run the remaining episodes under a live display: one row per (axis, level) with its success so
+    far, and a total row with the ETA."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    planned: dict[tuple[str, int], int] = defaultdict(int)
+    for j in jobs:
+        planned[(j.axis, j.level)] += 1
+    stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
+    for r in run.episodes().itertuples():  # earlier error rows are re-run now: only ok rows count as done
+        if r.status == "ok":
+            stats[(r.axis, int(r.level))][0] += int(r.success)
+            stats[(r.axis, int(r.level))][1] += 1
+    columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
+               TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
+    with Progress(*columns, console=console, transient=False) as progress:
+        total = progress.add_task("all episodes", total=len(jobs), completed=len(jobs) - len(todo), info="")
+        rows = {}
+        for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
+            s = stats[key]
+            rows[key] = progress.add_task(f"{key[0]} L{key[1]:+d}", total=planned[key], completed=s[1] + s[2],
+                                          info=_level_info(s))  # fmt: skip
+
+        def on_record(rec) -> None:
+            run.append([rec])
+            s = stats[(rec.axis, rec.level)]
+            if rec.status == "ok":
+                s[0] += int(rec.success)
+                s[1] += 1
+            else:
+                s[2] += 1
+            progress.update(rows[(rec.axis, rec.level)], advance=1, info=_level_info(s))
+            progress.update(total, advance=1)
+
+        made, handed = [probe], [0]
+
+        def policy_factory():  # hand out the loaded policies again in every round; load more only when needed
+            if handed[0] == len(made):
+                made.append(make_policy())
+            handed[0] += 1
+            return made[handed[0] - 1]
+
+        def run_jobs(batch: list) -> None:
+            handed[0] = 0
+            if cfg.backend == "ray":
+                from indgen_vla.engine.ray_backend import run_ray
+
+                run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
+            else:
+                from indgen_vla.engine.local import run_local
+
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
+                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
+                          close_policies=False, pipeline=cfg.pipeline)  # closed below, after the last round  # fmt: skip
+
+        try:
+            if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
+                from indgen_vla.engine.adaptive import run_adaptive
+
+                run_adaptive(jobs, run.episodes, run_jobs, cfg)
+            else:
+                run_jobs(todo)
+        finally:
+            for p in made:  # the ray backend loads its own policies in its actors
+                p.close()
+
+
+def _level_info(s: list[int]) -> str:
+    """Success so far at one level, e.g. ``success 3/4`` (+ errors when any)."""
+    text = f"success {s[0]}/{s[1]}" if s[1] else ""
+    return text + (f" [red]errors {s[2]}[/]" if s[2] else "")

@@ -1,0 +1,25 @@
+"""Files shipped inside the package (presets, committed certificates), found the same way from a checkout or a wheel."""
+
+from __future__ import annotations
+
+import importlib.util
+from importlib.resources import files
+from pathlib import Path
+
+CONFIG_KINDS = ("paper", "axes")  # evaluate --config presets; --axes-preset step/range presets
+
+
+def config_dir(kind: str) -> Path:
+    """The shipped preset folder ``indgen_vla/configs/<kind>`` (package data, so a wheel install has it too)."""
+    if kind not in CONFIG_KINDS:
+        raise ValueError(f"unknown config kind {kind!r}; expected one of {', '.join(CONFIG_KINDS)}")
+    return Path(str(files("indgen_vla").joinpath("configs", kind)))
+
+
+def certification_dir() -> Path:
+    """The committed certificates of the built-in scenes (``scenes/certification``, package data of ``scenes``);
+    every lookup of them goes through this function. Found without importing ``scenes`` (core must not)."""
+    spec = importlib.util.find_spec("scenes")
+    if spec is None or not spec.submodule_search_locations:
+        raise ModuleNotFoundError("the scenes package is not installed; reinstall indgen-vla")
+    return Path(next(iter(spec.submodule_search_locations))) / "certification"

@@ -1,0 +1,191 @@
+"""The scene registry: one ``Scene`` subclass per scene family, registered once with ``@register_scene``.
+
+A family says everything the toolkit needs about it in one class: its tasks, the axes it supports (the first
+is the default), its episode length, the T0 spec and instruction of each task, its one success predicate, where
+its distractors go, and how to build an env. Like ManiSkill's ``@register_env`` tasks, each registered class's
+docstring has three sections: **Task Description**, **Randomizations** and **Success Conditions**.
+
+Importing this is cheap (no simulator); ``make_env`` imports the simulator backend when it builds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from indgen_vla.errors import ConfigError, UnknownNameError
+from scenes.axes import base_axis_names
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from scenes.axes import Successor
+    from scenes.env import BaseSceneEnv
+
+DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
+
+_SCENES: dict[str, Scene] = {}
+
+
+class Scene:
+    """A scene family; subclass it, fill the class attributes and methods, and decorate it with ``register_scene``.
+
+    Class attributes:
+        name: the registry name (``--scene``).
+        description: one line for ``indgen scenes``.
+        tasks: the task names (the first is the default); a property where they are read from external files.
+        axes: the single axes the family supports (any '+'-composition of them works too); the first is the
+            default axis of ``make_env``.
+        max_steps: the episode length (steps at 20 Hz) unless the caller overrides it.
+        distractor_slots: (x, y) table spots of the ``distractor`` axis's visual-only objects, in order.
+        success_predicate: the one frozen predicate that judges every level of every axis.
+        committed_certificates: True when its oracle certificates ship with the package (``certification_dir``);
+            False when they are made per machine (e.g. per LIBERO asset tree).
+        certified_compositions: compositions certified beside the single axes by ``certify_all``.
+    """
+
+    name: ClassVar[str]
+    description: ClassVar[str]
+    tasks: tuple[str, ...]
+    axes: ClassVar[tuple[str, ...]]
+    max_steps: ClassVar[int]
+    distractor_slots: ClassVar[tuple[tuple[float, float], ...]]
+    success_predicate: ClassVar[Callable[[Any], bool]]
+    committed_certificates: ClassVar[bool] = True
+    certified_compositions: ClassVar[tuple[str, ...]] = ()
+
+    def __repr__(self) -> str:
+        return f"<scene {self.name} ({type(self).__name__})>"
+
+    @property
+    def default_axis(self) -> str:
+        """The axis ``make_env`` moves along when none is given: the family's first axis."""
+        return self.axes[0]
+
+    # ---- what a family provides ------------------------------------------------------------------
+    def base(self, task: str):
+        """T0: the frozen spec of ``task`` at level 0 (what the axes' successors edit)."""
+        raise NotImplementedError
+
+    def instruction(self, task: str) -> str:
+        """The language instruction of ``task`` (the same at every level)."""
+        raise NotImplementedError
+
+    def env_class(self) -> type[BaseSceneEnv]:
+        """The env class that builds this family's levels (imported only here: it loads the simulator)."""
+        raise NotImplementedError
+
+    def make_env(
+        self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
+        max_steps: int | None,
+    ) -> BaseSceneEnv:  # fmt: skip
+        """Build one level of one (resolved) task along ``successor``."""
+        return self.env_class()(
+            self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
+        )
+
+    def check_ready(self) -> None:
+        """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
+
+    def needs(self) -> str | None:
+        """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
+        return None
+
+    def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
+        """Condition 2 (strictly harder levels) before any episode runs, from the frozen specs; ``overridden``
+        says --step / --axes-preset changed a step (a family that needs a built env checks only then)."""
+        from scenes.axes import check_progression
+
+        check_progression(self.base(task), successor)
+
+    # ---- shared checks -----------------------------------------------------------------------------
+    def resolve_task(self, task: str | None) -> str:
+        """``task``, or the default (first) task when None; a one-line error suggesting the right name."""
+        if task is None:
+            return self.tasks[0]
+        if task not in self.tasks:
+            raise UnknownNameError(f"task of scene {self.name}", task, list(self.tasks))
+        return task
+
+    def select_tasks(self, task: str | None) -> list[str]:
+        """The tasks a run covers: the default for None/"", every task for "all", else the one named."""
+        tasks = list(self.tasks)
+        if task in (None, ""):
+            return tasks[:1]
+        if task == "all":
+            return tasks
+        if task not in tasks:
+            raise UnknownNameError(f"task of scene {self.name}", task, tasks + ["all"])
+        return [task]
+
+    def check_axis(self, axis: str) -> None:
+        """Every component of ``axis`` must be one of the family's axes (one line naming the right ones)."""
+        for part in axis.split("+"):
+            if part not in self.axes:
+                if part not in base_axis_names():
+                    raise UnknownNameError("axis", part, base_axis_names())
+                raise UnknownNameError(f"axis of scene {self.name}", part, list(self.axes))
+
+    def row(self) -> dict:
+        """The family's ``indgen scenes`` row (listing tasks never needs the simulator or the assets)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "tasks": list(self.listed_tasks()),
+            "axes": list(self.axes),
+            "max_steps": self.max_steps,
+            "needs": self.needs(),
+        }
+
+    def listed_tasks(self) -> tuple[str, ...]:
+        """The tasks ``indgen scenes`` shows (a family whose task list needs an install shows none without it)."""
+        return tuple(self.tasks)
+
+    @classmethod
+    def validate(cls) -> None:
+        """Check the class attributes when the class is registered (one line naming the problem)."""
+        where = f"scene class {cls.__name__}"
+        name = getattr(cls, "name", None)
+        if not isinstance(name, str) or not name:
+            raise ConfigError(f"{where}: set a class attribute name = '<scene name>'")
+        for attr in ("description", "axes", "max_steps", "distractor_slots", "success_predicate"):
+            if not hasattr(cls, attr):
+                raise ConfigError(f"scene {name}: set the class attribute {attr!r}")
+        if not isinstance(cls.max_steps, int) or cls.max_steps < 1:
+            raise ConfigError(f"scene {name}: max_steps must be a positive integer, got {cls.max_steps!r}")
+        if not cls.axes:
+            raise ConfigError(f"scene {name}: needs at least one axis")
+        unknown = [a for a in cls.axes if a not in base_axis_names()]
+        if unknown:
+            raise ConfigError(f"scene {name}: unknown axes {unknown}; axes are {base_axis_names()}")
+        if any(len(s) != 2 for s in cls.distractor_slots):
+            raise ConfigError(f"scene {name}: distractor_slots must be (x, y) pairs")
+        doc = cls.__dict__.get("__doc__") or ""
+        missing = [s for s in DOC_SECTIONS if s not in doc]
+        if missing:
+            raise ConfigError(f"scene {name}: its class docstring lacks the section(s) {missing}")
+
+
+def register_scene[T: type[Scene]](cls: T) -> T:
+    """Class decorator: validate a ``Scene`` subclass and register one instance of it under ``cls.name``."""
+    if not (isinstance(cls, type) and issubclass(cls, Scene)):
+        raise ConfigError(f"register_scene decorates Scene subclasses, got {cls!r}")
+    cls.validate()
+    old = _SCENES.get(cls.name)
+    if old is not None and type(old).__qualname__ != cls.__qualname__:
+        raise ConfigError(f"scene {cls.name!r} is already registered by {type(old).__qualname__}")
+    _SCENES[cls.name] = cls()
+    return cls
+
+
+def get_scene(name: str) -> Scene:
+    """The registered scene ``name``; an unknown name is one line suggesting the closest ones."""
+    try:
+        return _SCENES[name]
+    except (KeyError, TypeError):
+        raise UnknownNameError("scene", str(name), list(_SCENES)) from None
+
+
+def registered_scenes() -> list[Scene]:
+    """Every registered scene in registration order (built-ins first, then the LIBERO suites)."""
+    return list(_SCENES.values())
