@@ -51,6 +51,9 @@ def render(results: dict, axes: list[str], args, wall: float, invocations: int) 
         "## Result", "",
         *(_headline(results[a][0], a, i == 0) for i, a in enumerate(axes)), "",
     ]  # fmt: skip
+    if len(axes) == 1:
+        lines += [f"No secondary axis was run (the protocol's `scale` is optional; `--axes {axes[0]},scale` adds "
+                  "it: finished runs are reused).", ""]  # fmt: skip
     for axis in axes:
         md = results[axis][1]
         lines += ["#" + ln if ln.startswith("#") else ln for ln in md.splitlines()]
