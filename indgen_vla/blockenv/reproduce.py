@@ -42,8 +42,10 @@ class ReproduceConfig:
     # legality head reads the current grid cell by cell (a shared 3x3 convolution): the paper's head "learns
     # the local invariant grasping rule" and its gate "structurally" prevents blocked grasps, which a linear
     # read-out of the trunk's global embedding does not do even in distribution (docs/blockenv.md, ind_gate).
+    # MAML's memoryless net scores (r, c, θ) jointly: factored heads mix the two chain tips into a blocked grasp.
     method_extra: tuple[tuple[str, tuple[tuple[str, object], ...]], ...] = (
         ("ind", (("legal_head", "local"),)),
+        ("maml", (("head", "joint"),)),
     )
     methods: tuple[str, ...] = BASELINES + OURS
     gamma: float = 0.2
