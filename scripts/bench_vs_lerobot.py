@@ -26,7 +26,6 @@ import os
 import platform
 import shutil
 import statistics
-import struct
 import subprocess
 import sys
 import tempfile
@@ -139,60 +138,6 @@ def parse_sizes(text: str) -> list[int]:
     if not sizes or min(sizes) <= 0:
         sys.exit(f"--sizes must list positive pixel sizes like 128,256, got {text!r}")
     return sizes
-
-
-def referenced_missing(assets: Path) -> list[Path]:
-    """Files that the asset tree's own MJCF files reference but that are absent (relative paths only)."""
-    import re
-
-    missing = set()
-    for xml in assets.rglob("*.xml"):
-        for ref in re.findall(r'file="([^"]+)"', xml.read_text(errors="ignore")):
-            if os.path.isabs(ref):
-                continue
-            p = Path(os.path.normpath(xml.parent / ref))
-            if not p.exists() and assets.resolve() in p.resolve().parents:
-                missing.add(p)
-    return sorted(missing)
-
-
-def placeholder_bytes(suffix: str) -> bytes:
-    """A tiny stand-in for a missing asset file: a 1 cm tetrahedron mesh (.msh/.stl/.obj) or a grey PNG."""
-    v = [(0, 0, 0), (0.01, 0, 0), (0, 0.01, 0), (0, 0, 0.01)]
-    f = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
-    if suffix == ".msh":  # MuJoCo's legacy binary mesh: nvert, nnormal, ntexcoord, nface, then the arrays
-        return (
-            struct.pack("4i", 4, 0, 0, 4) + struct.pack("12f", *sum(v, ())) + struct.pack("12i", *sum(f, ()))
-        )
-    if suffix == ".stl":
-        tris = b"".join(struct.pack("<12fH", 0, 0, 0, *v[a], *v[b], *v[c], 0) for a, b, c in f)
-        return b"\0" * 80 + struct.pack("<I", len(f)) + tris
-    if suffix == ".obj":
-        return ("".join(f"v {x} {y} {z}\n" for x, y, z in v) + "".join(
-            f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f)).encode()  # fmt: skip
-    import io
-
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.new("RGB", (4, 4), (128, 128, 128)).save(buf, format="PNG")  # MuJoCo reads PNG by content
-    return buf.getvalue()
-
-
-def overlay_assets(src: Path, dst: Path) -> list[str]:
-    """A symlink copy of ``src`` at ``dst`` with a placeholder for each referenced-but-missing file; their paths."""
-    missing = referenced_missing(src)
-    for dirpath, _, files in os.walk(src):
-        out = dst / Path(dirpath).relative_to(src)
-        out.mkdir(parents=True, exist_ok=True)
-        for name in files:
-            if not (out / name).exists():
-                (out / name).symlink_to(Path(dirpath, name).resolve())
-    for p in missing:
-        q = dst / p.relative_to(src)
-        q.parent.mkdir(parents=True, exist_ok=True)
-        q.write_bytes(placeholder_bytes(q.suffix.lower()))
-    return [str(p.relative_to(src)) for p in missing]
 
 
 def lerobot_libero_env(work: Path, assets: Path) -> dict:
@@ -484,6 +429,8 @@ def main(argv: list[str] | None = None) -> dict:
 
         assets = Path(a.assets).expanduser() if a.assets else find_assets()
         if a.fill_missing:
+            from scenes.libero.overlay import overlay_assets
+
             placeholders = overlay_assets(assets.resolve(), work / "assets_overlay")
             assets = work / "assets_overlay"
     os.environ["INDGEN_LIBERO_ASSETS"] = str(assets)

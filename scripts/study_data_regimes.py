@@ -18,6 +18,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -39,13 +40,42 @@ def _run(cmd: list[str]) -> None:
     subprocess.run(cmd, check=True, cwd=ROOT)
 
 
-def _wall(work: Path, seconds: float) -> tuple[float, int]:
-    """Add this invocation's seconds to the study's running total; return (total seconds, invocations)."""
-    path = work / "study_wall.json"
-    runs = json.loads(path.read_text()) if path.is_file() else []
-    runs.append(round(seconds, 1))
-    path.write_text(json.dumps(runs))
-    return sum(runs), len(runs)
+class StudyClock:
+    """The study's wall time summed over its invocations, saved every 30 s and at exit, so an invocation that is
+    killed or stops early (``--stop-after``) still counts. ``study_wall.json``: {"invocations": [{"start", "s"}],
+    "unrecorded": bool} (true when earlier invocations predate this accounting, so the total is a lower bound)."""
+
+    def __init__(self, work: Path, every_s: float = 30.0):
+        self.path, self.every_s, self.t0 = work / "study_wall.json", every_s, time.perf_counter()
+        data = json.loads(self.path.read_text()) if self.path.is_file() else {"invocations": []}
+        if isinstance(data, list):  # the old format kept only invocations that reached the document
+            data = {"invocations": [{"start": None, "s": s} for s in data], "unrecorded": True}
+        self.data = data
+        self.data["invocations"].append({"start": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "s": 0.0})
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, daemon=True)
+        self._thread.start()
+        self.save()
+
+    def save(self) -> None:
+        from indgen_vla.records import atomic_write_json
+
+        self.data["invocations"][-1]["s"] = round(time.perf_counter() - self.t0, 1)
+        atomic_write_json(self.path, self.data)
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self.every_s):
+            self.save()
+
+    def close(self) -> None:
+        self._stop.set()
+        self.save()
+
+    def total(self) -> tuple[float, int, bool]:
+        """(seconds over every invocation, invocations, whether some earlier ones were not recorded)."""
+        self.save()
+        inv = self.data["invocations"]
+        return sum(i["s"] for i in inv), len(inv), bool(self.data.get("unrecorded"))
 
 
 def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
@@ -125,7 +155,14 @@ def main() -> int:
         a.episodes, a.seeds, a.steps = 1, 2, 20
     work = (ROOT / a.work).resolve()
     work.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
+    clock = StudyClock(work)
+    try:
+        return _stages(a, work, clock)
+    finally:
+        clock.close()
+
+
+def _stages(a, work: Path, clock: StudyClock) -> int:
     data = build_data(work, 3 if a.quick else 50, 2 if a.quick else 50)
     if a.stop_after == "data":
         return 0
@@ -137,10 +174,10 @@ def main() -> int:
     if a.stop_after == "evaluate":
         return 0
     results = {axis: compare(work, axis, r) for axis, r in runs.items()}
-    wall, invocations = _wall(work, time.perf_counter() - start)
+    wall, invocations, unrecorded = clock.total()
     from study_regimes_doc import render  # scripts/study_regimes_doc.py: the document from the comparisons
 
-    text = render(results, axes, a, wall, invocations)
+    text = render(results, axes, a, wall, invocations, unrecorded)
     dest = work / "data_regimes.md" if a.quick else ROOT / "docs" / "results" / "data_regimes.md"
     dest.write_text(text)
     log(f"wrote {dest} ({wall / 60:.1f} min)")

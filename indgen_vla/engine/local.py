@@ -285,7 +285,7 @@ def run_local(
             waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
             for lane in sorted({i // n for i, _ in waiting}):  # a lane's chunk leaves once computed
                 group = [(i, t) for i, t in waiting if i // n == lane]
-                for i, result in _act(policies, spec, group, meta.policy, threads):
+                for i, result in _act(policies, spec, group, meta.policy, threads, pad_to=n):
                     if isinstance(result, PolicyConnectionError):
                         conn_fault(i, result)
                     elif isinstance(result, Exception):
@@ -310,13 +310,22 @@ def run_local(
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
 
 
-def _act(policies, spec, waiting, who: str, threads) -> list[tuple[int, np.ndarray | Exception]]:
-    """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, the exception)."""
+def _act(
+    policies, spec, waiting, who: str, threads, pad_to: int = 1
+) -> list[tuple[int, np.ndarray | Exception]]:
+    """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, the exception).
+
+    A batched policy always gets ``pad_to`` rows (the worker count; missing rows repeat the first observation):
+    which workers are waiting depends on timing, and a batched forward can round differently with the batch
+    size (BLAS blocking), so a fixed size keeps a run's outcomes the same from one invocation to the next.
+    """
     if not waiting:
         return []
     if spec.batched:
+        obs = [t.obs for _, t in waiting]
+        obs += obs[:1] * (pad_to - len(obs))
         try:
-            chunks = validate_chunk(policies[0].act([t.obs for _, t in waiting]), len(waiting), who)
+            chunks = validate_chunk(policies[0].act(obs), len(obs), who)
         except Exception as e:
             return [(i, e) for i, _ in waiting]
         return [(i, chunks[j]) for j, (i, _) in enumerate(waiting)]

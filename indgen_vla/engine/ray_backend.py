@@ -49,15 +49,21 @@ def ray_knobs(environ=os.environ) -> dict[str, float]:
 
 
 class Batcher:
-    """Coalesces ``act`` requests from many threads into batched calls of one stateless policy."""
+    """Coalesces ``act`` requests from many threads into batched calls of one stateless policy.
 
-    def __init__(self, policy, who: str, max_batch: int, max_wait_s: float):
+    Every call gets at least ``pad_to`` rows (the first observation repeated): which requests coalesce depends
+    on timing, and a batched forward can round differently with the batch size, so a fixed size keeps outcomes
+    the same from one run to the next (the local engine pads to its worker count the same way).
+    """
+
+    def __init__(self, policy, who: str, max_batch: int, max_wait_s: float, pad_to: int = 1):
         self.policy, self.who, self.max_batch, self.max_wait_s = (
             policy,
             who,
             int(max_batch),
             float(max_wait_s),
         )
+        self.pad_to = min(int(pad_to), self.max_batch)
         self._queue: queue.Queue = queue.Queue()
         self.batch_sizes: list[int] = []  # what was served (benchmarks and tests read it)
         self._thread = threading.Thread(target=self._loop, name="indgen-batcher", daemon=True)
@@ -88,7 +94,9 @@ class Batcher:
                     break
                 batch.append(nxt)
             try:
-                chunks = validate_chunk(self.policy.act([o for o, _ in batch]), len(batch), self.who)
+                obs = [o for o, _ in batch]
+                obs += obs[:1] * (self.pad_to - len(obs))
+                chunks = validate_chunk(self.policy.act(obs), len(obs), self.who)
             except Exception as e:  # every waiting request sees the failure, as in the local engine
                 for _, fut in batch:
                     fut.set_exception(e)
@@ -112,6 +120,11 @@ class _PolicyActor:
 
     def get_spec(self):
         return self.spec
+
+    def set_clients(self, count: int) -> None:
+        """How many simulators this actor serves: every batch is padded to that many rows (see Batcher)."""
+        if self._batcher is not None:
+            self._batcher.pad_to = min(int(count), self._batcher.max_batch)
 
     def node_id(self) -> str:
         return _node()
@@ -309,12 +322,15 @@ def _connect(ray, actors: list, servers: list, specs: list) -> None:
     server_nodes = ray.get([s.node_id.remote() for s in servers])
     sim_nodes = ray.get([a.node_id.remote() for a in actors])
     turn: dict[str, int] = {}
+    clients: dict[int, int] = {}
     calls = []
     for client, (actor, node) in enumerate(zip(actors, sim_nodes, strict=True)):
         local = [k for k, sn in enumerate(server_nodes) if sn == node] or list(range(len(servers)))
         k = local[turn.get(node, 0) % len(local)]
         turn[node] = turn.get(node, 0) + 1
         calls.append(actor.connect.remote(servers[k], client, specs[k]))
+        clients[k] = clients.get(k, 0) + 1
+    calls += [servers[k].set_clients.remote(count) for k, count in clients.items()]
     ray.get(calls)
 
 

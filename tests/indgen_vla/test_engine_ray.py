@@ -45,6 +45,31 @@ def test_batcher_coalesces_and_matches_single_calls():
         batcher.close()
 
 
+class _Sizes:
+    """A batched policy that records the number of rows of every call (padding is visible)."""
+
+    def __init__(self):
+        self.inner, self.sizes = feedback_policy_class()(), []
+        self.spec = self.inner.spec
+
+    def act(self, observations):
+        self.sizes.append(len(observations))
+        return self.inner.act(observations)
+
+
+def test_batcher_pads_every_call_to_its_client_count():
+    """Which requests coalesce depends on timing; the policy must still see one batch size, always."""
+    policy = _Sizes()
+    batcher = Batcher(policy, "test:feedback", max_batch=8, max_wait_s=0.0, pad_to=3)
+    try:
+        for k in range(4):  # one request at a time: each call would be a batch of 1 unpadded
+            np.testing.assert_array_equal(batcher.act(_obs(k)), policy.inner.act([_obs(k)])[0])
+        assert policy.sizes == [3, 3, 3, 3] and batcher.batch_sizes == [1, 1, 1, 1]
+    finally:
+        batcher.close()
+    assert Batcher(policy, "p", max_batch=2, max_wait_s=0.0, pad_to=5).pad_to == 2  # never above max_batch
+
+
 def test_policy_actor_replies_errors_as_the_local_engine_describes_them():
     """The policy actor's logic without Ray: per-client instances of a per-episode policy, and a policy error
     comes back as a value that still names where it was raised after pickling (error rows equal local ones)."""
