@@ -29,6 +29,33 @@ def _headline(cmp: dict, axis: str, primary: bool) -> str:
     return "\n".join(lines)
 
 
+def feasibility(results: dict, axes: list[str]) -> str:
+    """Which evaluated levels the oracle's certificate covers (a failure at an uncertified level may be the scene's)."""
+    import json
+    from pathlib import Path
+
+    from scenes.certify import certified_levels
+    from scenes.certify_io import find_certification
+
+    parts = []
+    for axis in axes:
+        manifest = json.loads((Path(results[axis][0]["runs_a"][0]) / "manifest.json").read_text())
+        scene, (task, *_), levels = (
+            manifest["scene"],
+            manifest["plan"]["tasks"],
+            manifest["plan"]["levels"][axis],
+        )
+        cert = find_certification(scene, task, axis)
+        ok = set(certified_levels(cert)) if cert else set()
+        missing = [k for k in levels if k not in ok]
+        parts.append(f"`{axis}` ({scene}/{task}): " + ("every evaluated level certified" if not missing else
+                     f"levels {', '.join(f'{k:+d}' for k in missing)} not certified when this was written"))  # fmt: skip
+    return (
+        "Feasibility (oracle certificates, one-sided 95 % Clopper-Pearson lower bound ≥ 0.95, "
+        "scenes/certification): " + "; ".join(parts) + "."
+    )
+
+
 def wall_text(wall: float, invocations: int, unrecorded: bool = False) -> str:
     """How long the study took, as the clock saw it (a lower bound when earlier invocations were not recorded)."""
     text = ("at least " if unrecorded else "") + f"{wall / 60:.1f} min"
@@ -64,6 +91,7 @@ def render(
         "## Result", "",
         *(_headline(results[a][0], a, i == 0) for i, a in enumerate(axes)), "",
     ]  # fmt: skip
+    lines += [feasibility(results, axes), ""]
     if len(axes) == 1:
         lines += [f"No secondary axis was run (the protocol's `scale` is optional; `--axes {axes[0]},scale` adds "
                   "it: finished runs are reused).", ""]  # fmt: skip
