@@ -61,11 +61,12 @@ def wall_text(wall: float, invocations: int, unrecorded: bool = False) -> str:
     text = ("at least " if unrecorded else "") + f"{wall / 60:.1f} min"
     if invocations > 1:
         text += f" over {invocations} invocations (resumed)"
+    text += ", on a 2-core CPU machine shared with other jobs"
     if unrecorded:
         text += ("; invocations before the per-invocation clock (2026-11-23, session 6) counted only when they "
                  "reached the document, so the earlier training and pick_y runs (logged 16:15-20:53 UTC) are "
                  "mostly missing")  # fmt: skip
-    return text
+    return text + "."
 
 
 def render(
@@ -82,12 +83,17 @@ def render(
                   "MimicGen data does not help (see the power section of the protocol).")  # fmt: skip
     else:
         status = f"No level differs, and the regimes are equivalent within ±{primary['margin']:.2f} in OOD mean success."
+    status = f"Primary axis {axes[0]}: {status[0].lower()}{status[1:]}"
+    for axis in axes[1:]:  # a secondary finding belongs in the first lines too, labelled as secondary
+        cmp = results[axis][0]
+        if any(r["p_holm"] < cmp["alpha"] for r in cmp["axes"][axis]["levels"]):
+            status += f" Secondary axis {cmp['verdicts'][axis]}"
     lines = [
         "# Data regimes: human-only vs human+MimicGen (pick_place, object-observing ACT)", "",
         f"**Status: run {time.strftime('%Y-%m-%d')} under the protocol below, pre-specified before the run. {status}**",
         "", f"`scripts/study_data_regimes.py --episodes {args.episodes} --seeds {args.seeds}`: wall time "
-        + wall_text(wall, invocations, unrecorded) + " on a 2-core CPU machine shared with other jobs.", "",
-        "## Question", _protocol().rstrip(), "",
+        + wall_text(wall, invocations, unrecorded), "",
+        "## Question", "", _protocol().strip(), "",
         "## Result", "",
         *(_headline(results[a][0], a, i == 0) for i, a in enumerate(axes)), "",
     ]  # fmt: skip

@@ -50,4 +50,4 @@ def test_study_clock_counts_every_invocation_even_a_killed_one(tmp_path):
     assert n == 3 and unrecorded and 100.2 <= total <= 110
     doc = _script("study_regimes_doc")
     assert doc.wall_text(total, n, unrecorded).startswith("at least 1.7 min over 3 invocations")
-    assert doc.wall_text(90.0, 1) == "1.5 min"
+    assert doc.wall_text(90.0, 1) == "1.5 min, on a 2-core CPU machine shared with other jobs."
