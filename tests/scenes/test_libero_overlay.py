@@ -3,7 +3,13 @@ are linked, and a filled mesh that is not named as visual is reported as a possi
 
 import mujoco
 
-from scenes.libero.overlay import collision_suspects, main, overlay_assets, referenced_missing
+from scenes.libero.overlay import (
+    collision_suspects,
+    main,
+    overlay_assets,
+    placeholder_bytes,
+    referenced_missing,
+)
 
 OBJ = "v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 0 0 0.02\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
 
@@ -54,3 +60,32 @@ def test_overlay_cli(tmp_path, capsys):
     assert "3 placeholder file(s)" in out and "1 may be collision meshes: thing/frame.stl" in out
     assert main([str(tmp_path / "nope"), str(tmp_path / "dst2")]) == 2
     assert "is not a folder" in capsys.readouterr().err
+
+
+def test_placeholders_compile_in_mujoco(tmp_path):
+    import mujoco
+
+    for suffix in (".msh", ".stl", ".obj", ".png"):
+        (tmp_path / f"p{suffix}").write_bytes(placeholder_bytes(suffix))
+    xml = f"""<mujoco><asset>
+      <mesh name="a" file="{tmp_path}/p.msh"/><mesh name="b" file="{tmp_path}/p.stl"/>
+      <mesh name="c" file="{tmp_path}/p.obj"/><texture name="t" type="2d" file="{tmp_path}/p.png"/>
+      <material name="m" texture="t"/></asset><worldbody>
+      <geom type="mesh" mesh="a"/><geom type="mesh" mesh="b"/><geom type="mesh" mesh="c" material="m"/>
+      </worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    assert list(m.mesh_vertnum) == [4, 4, 4]
+
+
+def test_overlay_links_present_files_and_fills_only_missing_ones(tmp_path):
+    src = tmp_path / "src"
+    (src / "obj").mkdir(parents=True)
+    (src / "obj" / "col.obj").write_text("v 0 0 0\n")
+    (src / "obj" / "o.xml").write_text(
+        '<mujoco><mesh file="col.obj"/><mesh file="visual/vis.msh"/><texture file="/abs/elsewhere.png"/></mujoco>'
+    )
+    dst = tmp_path / "dst"
+    assert overlay_assets(src, dst) == ["obj/visual/vis.msh"]
+    assert (dst / "obj" / "col.obj").is_symlink() and (dst / "obj" / "col.obj").read_text() == "v 0 0 0\n"
+    assert (dst / "obj" / "visual" / "vis.msh").read_bytes() == placeholder_bytes(".msh")
+    assert not (src / "obj" / "visual").exists()  # the source tree is left alone

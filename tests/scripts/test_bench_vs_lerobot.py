@@ -1,4 +1,5 @@
-"""The pure helpers of scripts/bench_vs_lerobot.py: placeholder assets, profile categories, paired ratios."""
+"""The pure helpers of scripts/bench_vs_lerobot.py: profile categories, paired ratios (its placeholder assets are
+scenes.libero.overlay, tested in tests/scenes/test_libero_overlay.py)."""
 
 import importlib.util
 from pathlib import Path
@@ -17,35 +18,6 @@ def test_parse_sizes_accepts_lists_and_refuses_bad_input():
     for bad in ("", "128,x", "0", "-5"):
         with pytest.raises(SystemExit, match="--sizes"):
             bench.parse_sizes(bad)
-
-
-def test_placeholders_compile_in_mujoco(tmp_path):
-    import mujoco
-
-    for suffix in (".msh", ".stl", ".obj", ".png"):
-        (tmp_path / f"p{suffix}").write_bytes(bench.placeholder_bytes(suffix))
-    xml = f"""<mujoco><asset>
-      <mesh name="a" file="{tmp_path}/p.msh"/><mesh name="b" file="{tmp_path}/p.stl"/>
-      <mesh name="c" file="{tmp_path}/p.obj"/><texture name="t" type="2d" file="{tmp_path}/p.png"/>
-      <material name="m" texture="t"/></asset><worldbody>
-      <geom type="mesh" mesh="a"/><geom type="mesh" mesh="b"/><geom type="mesh" mesh="c" material="m"/>
-      </worldbody></mujoco>"""
-    m = mujoco.MjModel.from_xml_string(xml)
-    assert list(m.mesh_vertnum) == [4, 4, 4]
-
-
-def test_overlay_links_present_files_and_fills_only_missing_ones(tmp_path):
-    src = tmp_path / "src"
-    (src / "obj").mkdir(parents=True)
-    (src / "obj" / "col.obj").write_text("v 0 0 0\n")
-    (src / "obj" / "o.xml").write_text(
-        '<mujoco><mesh file="col.obj"/><mesh file="visual/vis.msh"/><texture file="/abs/elsewhere.png"/></mujoco>'
-    )
-    dst = tmp_path / "dst"
-    assert bench.overlay_assets(src, dst) == ["obj/visual/vis.msh"]
-    assert (dst / "obj" / "col.obj").is_symlink() and (dst / "obj" / "col.obj").read_text() == "v 0 0 0\n"
-    assert (dst / "obj" / "visual" / "vis.msh").read_bytes() == bench.placeholder_bytes(".msh")
-    assert not (src / "obj" / "visual").exists()  # the source tree is left alone
 
 
 def test_categorize_takes_the_first_matching_rule_over_the_whole_stack(tmp_path):
