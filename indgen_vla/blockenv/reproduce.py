@@ -43,9 +43,12 @@ class ReproduceConfig:
     # the local invariant grasping rule" and its gate "structurally" prevents blocked grasps, which a linear
     # read-out of the trunk's global embedding does not do even in distribution (docs/blockenv.md, ind_gate).
     # MAML's memoryless net scores (r, c, θ) jointly: factored heads mix the two chain tips into a blocked grasp.
+    # TRM reads 2x2-cell patch tokens, the nearest to the original one token per cell that fits the budget: its
+    # patch size is our deviation, and 3x3 or 4x4 patches extrapolate further than a per-cell model (trm_patch).
     method_extra: tuple[tuple[str, tuple[tuple[str, object], ...]], ...] = (
         ("ind", (("legal_head", "local"),)),
         ("maml", (("head", "joint"),)),
+        ("trm", (("patch", 2),)),
     )
     methods: tuple[str, ...] = BASELINES + OURS
     gamma: float = 0.2

@@ -49,7 +49,7 @@ METHODS = {
     "transformer": "causal Transformer with learned absolute positions, whole history each step",
     "transformer_rope": "causal pre-norm Transformer with rotary position embeddings",
     "transformer_goal_act": "RoPE Transformer + o_0 goal token + previous action in each token",
-    "trm": "Tiny Recursive Model on 3x3-patch tokens: latent z and answer y refined recursively, deep supervision",
+    "trm": "Tiny Recursive Model on p×p-patch tokens (option patch, default 3): latent z and answer y refined recursively, deep supervision",
     "maml": "first-order MAML over levels 0-2, one inner step (alpha 0.05), adapted on the test level",
     "ind": "RoPE Transformer + analytic legality head + factored joint head, masked and gated",
     "local_equivariant": "ours: fully convolutional local scorer of (cell, θ), translation-equivariant",
