@@ -65,6 +65,14 @@ def validate_chunk(chunk: np.ndarray, batch: int, who: str) -> np.ndarray:
     return arr.astype(np.float32, copy=False)
 
 
+def act_padded(policy, observations: list, size: int, who: str) -> np.ndarray:
+    """One batched ``act`` over ``observations`` padded to ``size`` rows (the first repeated), checked; the chunks
+    of the real rows. Which observations share a batch depends on timing, and a batched forward can round
+    differently with the batch size (BLAS blocking), so a fixed size keeps outcomes the same from run to run."""
+    rows = list(observations) + list(observations[:1]) * (size - len(observations))
+    return validate_chunk(policy.act(rows), len(rows), who)[: len(observations)]
+
+
 @dataclass(frozen=True)
 class PolicySpec:
     """What a policy needs and returns, declared by its adapter so the engine can serve it.

@@ -23,7 +23,7 @@ from indgen_vla.engine.config import EpisodeJob
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, _describe, make_record
 from indgen_vla.errors import PolicyConnectionError
-from indgen_vla.interface import validate_chunk
+from indgen_vla.interface import act_padded, validate_chunk
 from indgen_vla.records import EpisodeRecord
 
 LANES = 2  # environments per worker when pipelined: one steps while the policy computes the other's chunk
@@ -315,17 +315,13 @@ def _act(
 ) -> list[tuple[int, np.ndarray | Exception]]:
     """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, the exception).
 
-    A batched policy always gets ``pad_to`` rows (the worker count; missing rows repeat the first observation):
-    which workers are waiting depends on timing, and a batched forward can round differently with the batch
-    size (BLAS blocking), so a fixed size keeps a run's outcomes the same from one invocation to the next.
+    A batched policy always gets ``pad_to`` rows (the worker count; see ``act_padded``).
     """
     if not waiting:
         return []
     if spec.batched:
-        obs = [t.obs for _, t in waiting]
-        obs += obs[:1] * (pad_to - len(obs))
         try:
-            chunks = validate_chunk(policies[0].act(obs), len(obs), who)
+            chunks = act_padded(policies[0], [t.obs for _, t in waiting], pad_to, who)
         except Exception as e:
             return [(i, e) for i, _ in waiting]
         return [(i, chunks[j]) for j, (i, _) in enumerate(waiting)]

@@ -51,9 +51,8 @@ def ray_knobs(environ=os.environ) -> dict[str, float]:
 class Batcher:
     """Coalesces ``act`` requests from many threads into batched calls of one stateless policy.
 
-    Every call gets at least ``pad_to`` rows (the first observation repeated): which requests coalesce depends
-    on timing, and a batched forward can round differently with the batch size, so a fixed size keeps outcomes
-    the same from one run to the next (the local engine pads to its worker count the same way).
+    Every call gets at least ``pad_to`` rows (``act_padded``; the local engine pads to its worker count the same
+    way), never more than ``max_batch``.
     """
 
     def __init__(self, policy, who: str, max_batch: int, max_wait_s: float, pad_to: int = 1):
@@ -63,11 +62,15 @@ class Batcher:
             int(max_batch),
             float(max_wait_s),
         )
-        self.pad_to = min(int(pad_to), self.max_batch)
+        self.pad(pad_to)
         self._queue: queue.Queue = queue.Queue()
         self.batch_sizes: list[int] = []  # what was served (benchmarks and tests read it)
         self._thread = threading.Thread(target=self._loop, name="indgen-batcher", daemon=True)
         self._thread.start()
+
+    def pad(self, rows: int) -> None:
+        """Pad every batch to ``rows`` (at most ``max_batch``): the number of simulators this batcher serves."""
+        self.pad_to = min(int(rows), self.max_batch)
 
     def act(self, obs):
         """One observation's (T, 7) chunk, computed in a batch with whatever else arrived meanwhile."""
@@ -80,7 +83,7 @@ class Batcher:
         self._thread.join(timeout=10)
 
     def _loop(self) -> None:
-        from indgen_vla.interface import validate_chunk
+        from indgen_vla.interface import act_padded
 
         while (item := self._queue.get()) is not None:
             batch, deadline = [item], time.monotonic() + self.max_wait_s
@@ -94,9 +97,7 @@ class Batcher:
                     break
                 batch.append(nxt)
             try:
-                obs = [o for o, _ in batch]
-                obs += obs[:1] * (self.pad_to - len(obs))
-                chunks = validate_chunk(self.policy.act(obs), len(obs), self.who)
+                chunks = act_padded(self.policy, [o for o, _ in batch], self.pad_to, self.who)
             except Exception as e:  # every waiting request sees the failure, as in the local engine
                 for _, fut in batch:
                     fut.set_exception(e)
@@ -124,7 +125,7 @@ class _PolicyActor:
     def set_clients(self, count: int) -> None:
         """How many simulators this actor serves: every batch is padded to that many rows (see Batcher)."""
         if self._batcher is not None:
-            self._batcher.pad_to = min(int(count), self._batcher.max_batch)
+            self._batcher.pad(count)
 
     def node_id(self) -> str:
         return _node()
