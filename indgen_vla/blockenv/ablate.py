@@ -179,7 +179,7 @@ def render(result: dict, focus: int = 3) -> str:
     if top1:  # Ind's legality head alone: a column per level, the mean over seeds
         lines[2] += (" Legality top-1: how often the head's most confident occupied (cell, θ) is legal on the "
                      "oracle's states at L2 / L3 / L4 (mean over seeds; 1 = a perfect head).")  # fmt: skip
-        lines[4] = lines[4][:-1] + " legality top-1 L2 / L3 / L4 |"
+        lines[4] += " legality top-1 L2 / L3 / L4 |"
         lines[5] += "---|"
     for row in result["variants"]:
         f = row["levels"][str(focus)]

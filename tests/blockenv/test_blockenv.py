@@ -365,6 +365,20 @@ def test_legality_top1_scores_the_head_on_oracle_states():
     assert legality_top1(model, 5, 4, cfg, seed=0) == 0.0
 
 
+def test_ablation_table_rows_match_the_header_with_the_legality_column():
+    """The committed result's Ind table: header, rule and every row have the same number of cells."""
+    from pathlib import Path
+
+    from indgen_vla.blockenv.ablate import render
+
+    results = json.loads(
+        (Path(__file__).resolve().parents[2] / "docs/results/blockenv_ablations.json").read_text()
+    )
+    table = [ln for ln in render(results["ind_local_gate"]).splitlines() if ln.startswith("|")]
+    assert "| legality top-1 L2 / L3 / L4 |" in table[0]
+    assert len({ln.count("|") for ln in table}) == 1
+
+
 def test_train_cli_passes_variant_options(tmp_path):
     from indgen_vla.blockenv.train import load_checkpoint
 
