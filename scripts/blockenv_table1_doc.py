@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+from indgen_vla.blockenv.ablate import replace_section
 from indgen_vla.blockenv.reproduce import PAPER, render_markdown
+from indgen_vla.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
 BEGIN, END = "<!-- table1-compare -->", "<!-- table1-compare:end -->"
@@ -74,16 +75,10 @@ def main() -> None:
             f"error: cannot read docs/results/blockenv_table1.json at {args.before}; pass --before COMMIT"
         )
     lines = compare_lines(json.loads(shown), result["methods"])
-    doc = ROOT / "docs/blockenv.md"
-    text = doc.read_text()
-    if BEGIN not in text:
-        sys.exit(f"error: {doc} has no {BEGIN} marker to fill")
-    block = BEGIN + "\n\n" + "\n".join(lines) + "\n\n" + END
-    if END in text:
-        text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.replace(BEGIN, block)
-    doc.write_text(text)
+    try:
+        replace_section(ROOT / "docs/blockenv.md", BEGIN, END, "\n".join(lines) + "\n", "table1-compare")
+    except ConfigError as e:
+        sys.exit(f"error: {e}")
     print("\n".join(lines))
     print(f"wall {result['wall_s'] / 60:.1f} min")
 

@@ -229,16 +229,19 @@ def legality_top1(model, level: int, episodes: int, cfg: BlockEnvConfig, seed: i
 BEGIN, END = "<!-- ablations:begin (indgen blockenv ablate writes this) -->", "<!-- ablations:end -->"
 
 
+def replace_section(doc: Path, begin: str, end: str, body: str, what: str) -> None:
+    """Rewrite what lies between the ``begin`` and ``end`` marker lines of ``doc`` (generated doc sections)."""
+    text = doc.read_text()
+    if begin not in text or end not in text:
+        raise ConfigError(f"{doc} has no {what} markers; add the lines {begin!r} and {end!r} where tables go")
+    doc.write_text(re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: f"{begin}\n\n{body}\n{end}", text,
+                          flags=re.S))  # fmt: skip
+
+
 def write_doc(results: dict[str, dict], doc: Path) -> None:
     """Replace the section between BEGIN and END of ``doc`` by the tables of ``results`` (in ABLATIONS order)."""
-    text = doc.read_text()
-    if BEGIN not in text or END not in text:
-        raise ConfigError(
-            f"{doc} has no ablation markers; add the lines {BEGIN!r} and {END!r} where tables go"
-        )
     tables = "\n".join(render(results[k], FOCUS.get(k, 3)) for k in ABLATIONS if k in results)
-    doc.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: f"{BEGIN}\n\n{tables}\n{END}", text,
-                          flags=re.S))  # fmt: skip
+    replace_section(doc, BEGIN, END, tables, "ablation")
 
 
 def ablate(names: list[str], scale: AblationScale, results_path: Path, doc: Path | None, log=print) -> dict:

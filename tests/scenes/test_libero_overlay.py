@@ -63,8 +63,6 @@ def test_overlay_cli(tmp_path, capsys):
 
 
 def test_placeholders_compile_in_mujoco(tmp_path):
-    import mujoco
-
     for suffix in (".msh", ".stl", ".obj", ".png"):
         (tmp_path / f"p{suffix}").write_bytes(placeholder_bytes(suffix))
     xml = f"""<mujoco><asset>
