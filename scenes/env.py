@@ -16,7 +16,7 @@ from indgen_vla.errors import ConfigError, SceneError
 from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
 from scenes.failure import FailureTrace
-from scenes.privileged import PrivilegedState
+from scenes.privileged import PrivilegedState, with_privileged
 from scenes.registry import Scene
 from scenes.sim import CAMERA_NAMES, IndgenRobosuiteEnv
 
@@ -230,6 +230,10 @@ class BaseSceneEnv(gym.Env):
     def privileged_state(self) -> PrivilegedState:
         """The simulator facts oracles and the success predicate read, now (``scenes.privileged``)."""
         raise NotImplementedError
+
+    def with_privileged(self, obs: Observation) -> Observation:
+        """``obs`` with this env's privileged state attached, for privileged policies only (the engine's call)."""
+        return with_privileged(obs, self)
 
     def _mj_model(self):
         return self._sim_env.sim.model._model

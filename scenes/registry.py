@@ -42,6 +42,8 @@ class Scene:
         committed_certificates: True when its oracle certificates ship with the package (``certification_dir``);
             False when they are made per machine (e.g. per LIBERO asset tree).
         certified_compositions: compositions certified beside the single axes by ``certify_all``.
+        preload: modules a worker process imports before its first env (the local backend's forkserver); a
+            family whose simulator runs in another environment names none of that simulator's modules.
     """
 
     name: ClassVar[str]
@@ -53,6 +55,7 @@ class Scene:
     success_predicate: ClassVar[Callable[[Any], bool]]
     committed_certificates: ClassVar[bool] = True
     certified_compositions: ClassVar[tuple[str, ...]] = ()
+    preload: ClassVar[tuple[str, ...]] = ("scenes.env", "robosuite", "mujoco")
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
