@@ -8,16 +8,24 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError, RunDirError
-from indgen_vla.failures import failure_counts, plot_failures, render_breakdown
+from indgen_vla.failures import plot_failures, render_breakdown
+from indgen_vla.levels import (
+    decide,
+    episodes_used,
+    kstar_status_of,
+    level_rows,
+    pool_ladders,
+    sequential,
+    task_entry,
+    usable_rates,
+)
 from indgen_vla.metrics import (
     DEFAULT_GAMMA,
     MIN_N,
     UNDETERMINED,
-    below_floor,
     break_levels,
     cochran_armitage,
     monotone_decreasing_test,
-    success_rate,
 )
 from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 
@@ -25,34 +33,6 @@ from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomi
 def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> bool:
     info = manifest.get("axes", {}).get(axis, {})
     return bool(info["signed"]) if "signed" in info else any(k < 0 for k in levels)
-
-
-def _level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
-    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor."""
-    rows = []
-    for level in levels:
-        d = df[df["level"] == level]
-        ok = d[d["status"] == "ok"]
-        r = success_rate(int(ok["success"].sum()), len(ok), method=ci)
-        rows.append({
-            "level": int(level), "param": _one_param(d), "n": r.n,
-            "successes": r.successes, "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high,
-            "errors": int(len(d) - len(ok)), "planned": planned, "insufficient": below_floor(r.n, planned),
-            "failures": failure_counts(d),
-        })  # fmt: skip
-    return rows
-
-
-def _one_param(d) -> float | None:
-    """The level's axis parameter; None when no episode ran or the pooled tasks disagree (absolute positions
-    such as pick_y differ per task: each task's rows carry their own)."""
-    values = d["param"].unique()
-    return float(values[0]) if len(values) and (values.max() - values.min()) <= 1e-12 else None
-
-
-def _usable_rates(rows: list[dict]) -> dict[int, float]:
-    """Rates for k*: a level below the data floor counts as missing (NaN), never as a measurement."""
-    return {r["level"]: float("nan") if r["insufficient"] else r["rate"] for r in rows}
 
 
 def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
@@ -72,62 +52,30 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         df = episodes[episodes["axis"] == axis]
         tasks = sorted(set(plan.get("tasks") or []) | set(df["task"].unique()))
         levels = sorted({int(k) for k in df["level"].unique()} | {int(k) for k in plan_levels.get(axis, [])})
-        pooled = _level_rows(df, levels, per_task * len(tasks) if per_task else None, ci)
         signed = _axis_signed(manifest, axis, levels)
-        _decide(pooled, gamma)
-        if plan.get("adaptive") and per_task:
-            _sequential(pooled, df, plan["adaptive"], per_task)
+        adaptive = plan.get("adaptive") if per_task else None
+        task_entries = {t: task_entry(df[df["task"] == t], levels, per_task, ci, gamma, signed, adaptive)
+                        for t in tasks}  # fmt: skip
+        pooled = level_rows(df, levels, per_task * len(tasks) if per_task else None, ci)
+        decide(pooled, gamma)
+        if adaptive and len(tasks) == 1:
+            sequential(pooled, df, adaptive, per_task)
+        elif adaptive:  # each task's ladder was decided on its own; pool what they ran
+            pool_ladders(pooled, task_entries)
+            decide(pooled, gamma)
         out["axes"][axis] = {
             "signed": signed,
             "pooled_tasks": tasks,
             "levels": pooled,
-            "break_level": break_levels(_usable_rates(pooled), gamma, signed=signed),
+            "break_level": break_levels(usable_rates(pooled), gamma, signed=signed),
             "trend": _trend(pooled, signed),
             "monotone": _monotone(pooled, signed),
-            "kstar_status": _kstar_status(pooled, signed),
+            "kstar_status": kstar_status_of(pooled, signed),
             "break_point": _break_point(df, gamma, multi_task=len(tasks) > 1),
-            "tasks": {
-                t: {"levels": (rows := _level_rows(df[df["task"] == t], levels, per_task, ci)),
-                    "break_level": break_levels(_usable_rates(rows), gamma, signed=signed)}
-                for t in tasks
-            },
-        }  # fmt: skip
+            "episodes": episodes_used(df, per_task, len(tasks), len(levels)),
+            "tasks": task_entries,
+        }
     return out
-
-
-def _decide(rows: list[dict], gamma: float) -> None:
-    """Each level's three-way verdict from its CI (broken / intact / undetermined; below the floor: undetermined)."""
-    from indgen_vla.breakpoint import verdict_from_ci
-
-    for r in rows:
-        r["decision"] = (
-            "undetermined" if r["insufficient"] else verdict_from_ci(r["ci_low"], r["ci_high"], gamma)
-        )
-
-
-def _sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
-    """Adaptive runs: each level's verdict is the sequential rule's, on its episodes in index order; the data
-    floor counts against the episodes the rule used, not the cap (a level past a decided k* was never run)."""
-    from indgen_vla.sequential import level_outcomes, outcome_prefix, rule_from_plan
-
-    rule = rule_from_plan(adaptive, episodes)
-    per_level = level_outcomes(df)
-    for r in rows:
-        outcomes = outcome_prefix(per_level.get(r["level"], {}))
-        dec = rule.decide(outcomes)
-        r["sequential"] = dec.as_dict()
-        r["decision"] = "undetermined" if dec.verdict == "continue" else dec.verdict
-        r["planned"] = dec.episodes if dec.final else dec.next_boundary
-        r["insufficient"] = dec.n == 0 or (not dec.final and below_floor(r["n"], r["planned"]))
-
-
-def _kstar_status(rows: list[dict], signed: bool) -> dict:
-    """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]")."""
-    from indgen_vla.breakpoint import kstar_status
-
-    verdicts = {r["level"]: r["decision"] for r in rows}
-    sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
-    return {d: kstar_status(verdicts, sorted((k for k in verdicts if s * k >= 0), key=abs)) for d, s in sides}
 
 
 def _break_point(df, gamma: float, multi_task: bool) -> dict:

@@ -1,6 +1,8 @@
 """``indgen evaluate --adaptive kstar|curve``: run episodes in rounds and stop each level once it is decided.
 
-Between rounds the sequential rule (``indgen_vla.sequential``, docs/adaptive.md) reads the finished episodes
+Every (task, axis) is a ladder with its own decisions; a round holds the next episodes of every ladder still open,
+so a whole protocol (``--task all --axis pick_y,goal_y,scale``) runs as one interleaved schedule. Between rounds the
+sequential rule (``indgen_vla.sequential``, docs/adaptive.md) reads the finished episodes
 of every level in episode-index order and says which episodes to run next; the engine runs exactly those
 (any workers, any backend) and asks again. Decisions depend only on finished outcomes at round boundaries,
 so 1 or N workers, and a run killed and resumed, give the same episodes and the same decisions.
@@ -8,7 +10,7 @@ so 1 or N workers, and a run killed and resumed, give the same episodes and the 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.plan import EvalPlan
@@ -27,22 +29,24 @@ def outcomes_of(episodes, task: str, axis: str) -> dict[int, dict[int, bool | No
     return level_outcomes(episodes[(episodes["task"] == task) & (episodes["axis"] == axis)])
 
 
-def plans(
-    episodes, task: str, axes: Sequence[str], levels: dict[str, list[int]], rule, mode
-) -> dict[str, Plan]:
-    """The sequential plan of every axis given the episodes finished so far."""
-    return {a: plan_next(rule, levels[a], outcomes_of(episodes, task, a), mode) for a in axes}
+def ladder_plans(plan: EvalPlan, episodes, cfg) -> dict[tuple[str, str], Plan]:
+    """The sequential plan of every (task, axis) ladder (both directions of a signed axis), from the episodes
+    finished so far; each ladder is decided on its own episodes only."""
+    rule = cfg.sequential_rule()
+    return {
+        (t, a): plan_next(rule, sorted(plan.levels[a]), outcomes_of(episodes, t, a), cfg.adaptive)
+        for a in plan.axes
+        for t in plan.tasks
+    }
 
 
 def next_round(plan: EvalPlan, episodes, cfg) -> list:
-    """The planned episodes the sequential rule wants next, given the episodes finished so far ([] = settled)."""
+    """The planned episodes every ladder's rule wants next, in one round ([] = all settled): the ladders of all
+    tasks and axes run side by side, so a protocol-sized round keeps every worker busy."""
     by_key = {j.key: j for j in plan.jobs}
-    task = plan.tasks[0]  # --adaptive decides one task (EvalConfig refuses --task all)
-    levels = {a: sorted(plan.levels[a]) for a in plan.axes}
-    current = plans(episodes, task, list(plan.axes), levels, cfg.sequential_rule(), cfg.adaptive)
     return [
-        by_key[(task, a, k, i)]
-        for a, p in current.items()
+        by_key[(t, a, k, i)]
+        for (t, a), p in ladder_plans(plan, episodes, cfg).items()
         for k, eps in sorted(p.to_run.items())
         for i in eps
     ]

@@ -95,10 +95,6 @@ class EvalConfig:
             raise ConfigError(f"--server-patience must be >= 0 seconds, got {self.server_patience}")
         if self.adaptive is not None:
             self.sequential_rule()  # validates mode and rule parameters in one clear line each
-            if self.task == "all":
-                raise ConfigError(
-                    "--adaptive decides one task's levels; run one --task at a time (or drop --adaptive)"
-                )
 
     def sequential_rule(self):
         """The sequential rule of an ``--adaptive`` run (its cap is ``--episodes``)."""

@@ -192,9 +192,8 @@ def _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, met
     columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
                TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
     with Progress(*columns, console=console, transient=False) as progress:
-        total = progress.add_task(
-            "all episodes", total=len(plan.jobs), completed=len(plan.jobs) - len(todo), info=""
-        )
+        done = sum(s[1] for s in stats.values())  # what finished: an adaptive run skips planned episodes
+        total = progress.add_task("all episodes", total=len(plan.jobs), completed=done, info="")
         rows = {}
         for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
             s = stats[key]

@@ -51,8 +51,6 @@ def test_kstar_mode_stops_at_a_decided_break_and_records_decisions(tmp_path):
 def test_adaptive_config_errors(tmp_path):
     with pytest.raises(ConfigError, match="--adaptive must be one of"):
         cfg(tmp_path, adaptive="fast")
-    with pytest.raises(ConfigError, match="one --task at a time"):
-        cfg(tmp_path, task="all")
     with pytest.raises(ConfigError, match="delta"):
         cfg(tmp_path, adaptive_delta=0.5)
 
@@ -109,3 +107,73 @@ def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
     )  # 3 rounds of 5 on one policy
     run_local(jobs[15:16], rc, lambda: policy, meta, lambda rec: None, workers=1, replan_steps=4)
     assert policy.closed  # by default run_local closes what it was given
+
+
+def _ladder_frame(rows):
+    return pd.DataFrame(rows, columns=["task", "axis", "level", "episode", "success", "status"])
+
+
+def test_every_task_axis_ladder_is_decided_on_its_own_episodes(tmp_path):
+    """Two tasks of stack side by side: the rule stops one task's ladder at a broken level 0 while the other
+    task's intact level 0 moves it on to level 1; hand-computed from the rule's decisions."""
+    from indgen_vla.engine.adaptive import ladder_plans, next_round
+    from indgen_vla.engine.run import build_plan
+
+    c = cfg(tmp_path, scene="stack", task="all", axes=("stack",), levels="0:2", episodes=20)
+    plan = build_plan(c)
+    a, b = plan.tasks[:2]
+    rule = c.sequential_rule()
+    broken, intact = rule.decide([False] * 20).episodes, rule.decide([True] * 20).episodes
+    rows = [(a, "stack", 0, i, False, "ok") for i in range(broken)] + [
+        (b, "stack", 0, i, True, "ok") for i in range(intact)
+    ]
+    plans = ladder_plans(plan, _ladder_frame(rows), c)
+    assert plans[(a, "stack")].done and plans[(a, "stack")].decisions[0].verdict == "broken"
+    assert plans[(b, "stack")].to_run == {1: list(range(rule.round_size))}
+    untouched = [t for t in plan.tasks if t not in (a, b)]
+    assert all(plans[(t, "stack")].to_run == {0: list(range(rule.round_size))} for t in untouched)
+    todo = next_round(plan, _ladder_frame(rows), c)  # one round holds every open ladder's next episodes
+    assert {(j.task, j.level) for j in todo} == {(b, 1)} | {(t, 0) for t in untouched}
+
+
+def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_kill(tmp_path):
+    """--task all: every task's ladder decided in one run; a 1-worker run killed with SIGKILL mid-protocol and
+    resumed gives the same episodes, outcomes and per-task decisions as a 2-worker run."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    flags = dict(scene="stack", task="all", axes=("stack",), levels="0:1", episodes=20, max_steps=2)
+    need = SequentialRule(max_episodes=20).decide([False] * 20).episodes
+    b = Path(evaluate(cfg(tmp_path / "w2", workers=2, **flags), quiet=True))
+    df = pd.read_parquet(b / "episodes.parquet")
+    s = json.loads((b / "summary.json").read_text())["axes"]["stack"]
+    assert (
+        set(df["level"]) == {0} and len(df) == 4 * need
+    )  # each of the 4 ladders stops at its broken level 0
+    assert {
+        t: (e["kstar_status"]["pos"]["text"], e["break_level"]["pos"]) for t, e in s["tasks"].items()
+    } == dict.fromkeys(s["tasks"], ("k* = 0, determined", 0))
+    assert s["episodes"] == {"used": 4 * need, "fixed_design": 4 * 2 * 20}
+    killed = tmp_path / "killed"
+    argv = ["evaluate", "--policy", "standin:random", "--scene", "stack", "--task", "all", "--axis", "stack",
+            "--levels", "0:1", "--episodes", "20", "--max-steps", "2", "--workers", "1", "--adaptive", "kstar"]  # fmt: skip
+    proc = subprocess.Popen([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(killed)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    deadline = time.time() + 120
+    while time.time() < deadline:  # kill once some, not all, of the protocol's episodes are on disk
+        try:
+            if len(pd.read_parquet(killed / "episodes.parquet")) >= 3:
+                break
+        except (OSError, ValueError):
+            pass
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert 0 < len(pd.read_parquet(killed / "episodes.parquet")) < 4 * need
+    evaluate(cfg(tmp_path, out=str(killed), **flags), quiet=True)
+    cols, key = ["task", "level", "episode", "seed", "success", "steps"], ["task", "level", "episode"]
+    got = pd.read_parquet(killed / "episodes.parquet")[cols].sort_values(key).reset_index(drop=True)
+    pd.testing.assert_frame_equal(df[cols].sort_values(key).reset_index(drop=True), got)
+    assert json.loads((killed / "summary.json").read_text())["axes"]["stack"]["tasks"] == s["tasks"]

@@ -1,0 +1,113 @@
+"""Per-level rows and verdicts of one axis: rates with CIs, the data floor, CI or sequential verdicts, k* status.
+
+``report.summarize`` builds the pooled rows and one entry per task with these. An adaptive run decides each
+(task, axis) ladder with the sequential rule; several tasks' ladders are pooled per level afterwards
+(``pool_ladders``), counting only the tasks that ran that level.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from indgen_vla.failures import failure_counts
+from indgen_vla.metrics import below_floor, break_levels, success_rate
+
+
+def level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
+    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor."""
+    rows = []
+    for level in levels:
+        d = df[df["level"] == level]
+        ok = d[d["status"] == "ok"]
+        r = success_rate(int(ok["success"].sum()), len(ok), method=ci)
+        rows.append({
+            "level": int(level), "param": one_param(d), "n": r.n,
+            "successes": r.successes, "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high,
+            "errors": int(len(d) - len(ok)), "planned": planned, "insufficient": below_floor(r.n, planned),
+            "failures": failure_counts(d),
+        })  # fmt: skip
+    return rows
+
+
+def one_param(d) -> float | None:
+    """The level's axis parameter; None when no episode ran or the pooled tasks disagree (absolute positions
+    such as pick_y differ per task: each task's rows carry their own)."""
+    values = d["param"].unique()
+    return float(values[0]) if len(values) and (values.max() - values.min()) <= 1e-12 else None
+
+
+def usable_rates(rows: list[dict]) -> dict[int, float]:
+    """Rates for k*: a level below the data floor counts as missing (NaN), never as a measurement."""
+    return {r["level"]: float("nan") if r["insufficient"] else r["rate"] for r in rows}
+
+
+def decide(rows: list[dict], gamma: float) -> None:
+    """Each level's three-way verdict from its CI (broken / intact / undetermined; below the floor: undetermined)."""
+    from indgen_vla.breakpoint import verdict_from_ci
+
+    for r in rows:
+        r["decision"] = (
+            "undetermined" if r["insufficient"] else verdict_from_ci(r["ci_low"], r["ci_high"], gamma)
+        )
+
+
+def sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
+    """Adaptive runs: each level's verdict is the sequential rule's, on its episodes in index order; the data
+    floor counts against the episodes the rule used, not the cap (a level past a decided k* was never run).
+    ``df`` holds one ladder: one task's episodes of one axis."""
+    from indgen_vla.sequential import level_outcomes, outcome_prefix, rule_from_plan
+
+    rule = rule_from_plan(adaptive, episodes)
+    per_level = level_outcomes(df)
+    for r in rows:
+        outcomes = outcome_prefix(per_level.get(r["level"], {}))
+        dec = rule.decide(outcomes)
+        r["sequential"] = dec.as_dict()
+        r["decision"] = "undetermined" if dec.verdict == "continue" else dec.verdict
+        r["planned"] = dec.episodes if dec.final else dec.next_boundary
+        r["insufficient"] = dec.n == 0 or (not dec.final and below_floor(r["n"], r["planned"]))
+
+
+def kstar_status_of(rows: list[dict], signed: bool) -> dict:
+    """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]")."""
+    from indgen_vla.breakpoint import kstar_status
+
+    verdicts = {r["level"]: r["decision"] for r in rows}
+    sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
+    return {d: kstar_status(verdicts, sorted((k for k in verdicts if s * k >= 0), key=abs)) for d, s in sides}
+
+
+def episodes_used(df, per_task: int | None, n_tasks: int, n_levels: int) -> dict:
+    """Episodes run (finished rows, errors included) against the fixed design's tasks × levels × episodes."""
+    fixed = per_task * n_tasks * n_levels if per_task else None
+    return {"used": int(len(df)), "fixed_design": fixed}
+
+
+def task_entry(df, levels, per_task, ci, gamma, signed, adaptive: dict | None) -> dict:
+    """One task's rows of one axis: CI verdicts, or the sequential rule's for an adaptive run, with its k*."""
+    rows = level_rows(df, levels, per_task, ci)
+    if adaptive and per_task:
+        sequential(rows, df, adaptive, per_task)
+    else:
+        decide(rows, gamma)
+    return {
+        "levels": rows,
+        "break_level": break_levels(usable_rates(rows), gamma, signed=signed),
+        "kstar_status": kstar_status_of(rows, signed),
+        "episodes": episodes_used(df, per_task, 1, len(levels)),
+    }
+
+
+def pool_ladders(pooled: list[dict], tasks: dict[str, dict]) -> None:
+    """Pooled rows of a several-task adaptive run: a level pools the tasks whose ladder ran it, and its data floor
+    counts against what their rules planned (a task whose ladder broke earlier never runs the level)."""
+    for r in pooled:
+        ran = [
+            row
+            for e in tasks.values()
+            for row in e["levels"]
+            if row["level"] == r["level"] and row["n"] + row["errors"]
+        ]
+        r["planned"] = sum(int(row["planned"] or 0) for row in ran) or None
+        r["pooled_from"] = len(ran)
+        r["insufficient"] = r["n"] == 0 or below_floor(r["n"], r["planned"])
