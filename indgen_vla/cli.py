@@ -140,7 +140,7 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--config",
         default=None,
-        help="shipped preset name (indgen_vla/configs/paper) or YAML path; flags override it",
+        help="shipped preset name (configs/paper) or YAML path; flags override it",
     )
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
 

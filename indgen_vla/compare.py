@@ -9,47 +9,19 @@ import math
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
+from indgen_vla.pairing import pair_episodes
 from indgen_vla.records import RunDir, write_result
 from indgen_vla.report import plot_axis, run_label, summarize
 
-PAIR_KEY = ("scene", "task", "axis", "level", "episode")
 TESTS = ("auto", "mcnemar", "boschloo", "barnard")
 
 
 def _counts(axis_summary: dict) -> dict[int, tuple[int, int]]:
     return {r["level"]: (r["successes"], r["n"]) for r in axis_summary["levels"]}
-
-
-def pair_episodes(ea, eb, axis: str) -> tuple[dict[int, list[tuple[bool, bool]]] | None, str]:
-    """Episode-by-episode pairs of one axis, or None and the reason when the runs are not paired.
-
-    Runs are paired when they planned the same episodes (same scene, tasks, levels and episode indices) and
-    every episode has the same seed and level parameter in both, i.e. the same initial state. Pairs are the
-    episodes finished ``ok`` in both runs; an episode that errored in either run drops out of its pair.
-    """
-    a, b = ea[ea["axis"] == axis], eb[eb["axis"] == axis]
-    ia, ib = a.set_index(list(PAIR_KEY)), b.set_index(list(PAIR_KEY))
-    if ia.index.has_duplicates or ib.index.has_duplicates:
-        return None, "a run holds duplicate episodes"
-    if set(ia.index) != set(ib.index):
-        return (
-            None,
-            f"the runs did not plan the same episodes on {axis} (tasks, levels or episode counts differ)",
-        )
-    ib = ib.loc[ia.index]
-    if (ia["seed"].to_numpy() != ib["seed"].to_numpy()).any():
-        return None, f"episode seeds differ on {axis} (different --seed)"
-    pa, pb = ia["param"].to_numpy(dtype=float), ib["param"].to_numpy(dtype=float)
-    if (abs(pa - pb) > 1e-9 * (1 + abs(pa))).any():
-        return None, f"level parameters differ on {axis} (different --step)"
-    both = ((ia["status"] == "ok") & (ib["status"] == "ok")).to_numpy()
-    pairs: dict[int, list[tuple[bool, bool]]] = {int(k): [] for k in ia.index.get_level_values("level")}
-    for key, sa, sb in zip(ia.index[both], ia["success"][both], ib["success"][both], strict=True):
-        pairs[int(key[3])].append((bool(sa), bool(sb)))
-    return pairs, f"{int(both.sum())} episode pairs ({int((~both).sum())} dropped: error in either run)"
 
 
 def compare_summaries(
@@ -219,8 +191,6 @@ def compare_main(args: argparse.Namespace) -> int:
     if getattr(args, "a", None) or getattr(args, "b", None):
         if args.run_a or args.run_b:
             raise ConfigError("give either RUN_A RUN_B or --a RUN... --b RUN..., not both")
-        from indgen_vla.compare_groups import groups_main
-
         return groups_main(args)
     if not (args.run_a and args.run_b):
         raise ConfigError(

@@ -16,6 +16,7 @@ from typing import Any
 from indgen_vla.errors import RunDirError
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
 from indgen_vla.metrics import UndeterminedBreakError, holm, kstar
+from indgen_vla.pairing import pair_episodes
 
 
 def _ok(df):
@@ -24,8 +25,6 @@ def _ok(df):
 
 def _pairs(a, b, axis: str) -> dict[int, list[tuple[bool, bool]]]:
     """Level -> (success A, success B) per episode pair of one stratum; refuses runs that are not paired."""
-    from indgen_vla.compare import pair_episodes
-
     pairs, why = pair_episodes(a, b, axis)
     if pairs is None:
         raise RunDirError(f"a pair of runs is not paired: {why}; evaluate both with the same --seed and plan")

@@ -1,4 +1,4 @@
-"""Files shipped inside the package (presets, committed certificates), found the same way from a checkout or a wheel."""
+"""Files shipped with the package (presets, committed certificates), found the same way from a checkout or a wheel."""
 
 from __future__ import annotations
 
@@ -10,10 +10,13 @@ CONFIG_KINDS = ("paper", "axes")  # evaluate --config presets; --axes-preset ste
 
 
 def config_dir(kind: str) -> Path:
-    """The shipped preset folder ``indgen_vla/configs/<kind>`` (package data, so a wheel install has it too)."""
+    """The shipped preset folder ``configs/<kind>``: top-level ``configs/`` beside the package in a checkout
+    (editable install included), ``indgen_vla/configs/`` in an installed wheel (pyproject maps it there)."""
     if kind not in CONFIG_KINDS:
         raise ValueError(f"unknown config kind {kind!r}; expected one of {', '.join(CONFIG_KINDS)}")
-    return Path(str(files("indgen_vla").joinpath("configs", kind)))
+    package = Path(str(files("indgen_vla")))
+    wheel, checkout = package / "configs" / kind, package.parent / "configs" / kind
+    return checkout if not wheel.is_dir() and checkout.is_dir() else wheel
 
 
 def certification_dir() -> Path:

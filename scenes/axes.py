@@ -181,7 +181,7 @@ def get_successor(
     if step is not None:
         raise ConfigError(
             f"axis {name!r} is a composition: --step applies to single axes only; set its components' steps "
-            f"with --axes-preset NAME|PATH (a YAML like indgen_vla/configs/axes/paper.yaml; shipped: "
+            f"with --axes-preset NAME|PATH (a YAML like configs/axes/paper.yaml; shipped: "
             f"{', '.join(preset_names()) or 'none'})"
         )
     signed = any(p.axis.signed for p in parts)
@@ -247,7 +247,7 @@ def preset_names() -> list[str]:
 
 
 def load_preset(preset: str | Path) -> dict[str, dict[str, float]]:
-    """Read an axes preset (``indgen_vla/configs/axes``) (a name or a path): ``{axis: {"step": s, "max_level": K}}``."""
+    """Read an axes preset (``configs/axes``) (a name or a path): ``{axis: {"step": s, "max_level": K}}``."""
     import yaml
 
     path = Path(preset)

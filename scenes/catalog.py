@@ -33,7 +33,7 @@ class RobosuiteScene(Scene):
 
     def layout(self, spec: SceneSpec) -> Layout:
         """The simulator layout of one level (imports robosuite)."""
-        from scenes import layouts
+        import scenes.layouts as layouts
 
         return getattr(layouts, self.builder)(spec)
 

@@ -14,7 +14,14 @@ import os
 from pathlib import Path
 
 from indgen_vla.errors import RunDirError
-from scenes.certify import certified_levels, certify, infeasible_levels, level_status, load_certification
+from scenes.certify_run import (
+    certified_levels,
+    certify,
+    episodes_needed,
+    infeasible_levels,
+    level_status,
+    load_certification,
+)
 from scenes.registry import get_scene, registered_scenes
 
 
@@ -131,8 +138,6 @@ def certify_main(args) -> int:
 
 
 def _needed(cert: dict) -> int:
-    from scenes.certify import episodes_needed
-
     rule = cert.get("rule", {})
     return episodes_needed(cert["threshold"], rule.get("confidence", 0.95))
 

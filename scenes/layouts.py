@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import objects as O
+import scenes.objects as O
 from scenes.mujoco_geom import grasp_height
 from scenes.privileged import GoalState, PickState, SceneFacts, Targets
 from scenes.registry import get_scene

@@ -19,8 +19,9 @@ from scenes.axes import base_axis_names
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    import gymnasium as gym
+
     from scenes.axes import Successor
-    from scenes.env import BaseSceneEnv
 
 DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
 
@@ -74,14 +75,15 @@ class Scene:
         """The language instruction of ``task`` (the same at every level)."""
         raise NotImplementedError
 
-    def env_class(self) -> type[BaseSceneEnv]:
-        """The env class that builds this family's levels (imported only here: it loads the simulator)."""
+    def env_class(self) -> type[gym.Env]:
+        """The ``scenes.env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this method
+        (it loads the simulator); typed ``gym.Env`` here because ``scenes.env`` imports this module."""
         raise NotImplementedError
 
     def make_env(
         self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
-    ) -> BaseSceneEnv:  # fmt: skip
+    ) -> gym.Env:  # fmt: skip
         """Build one level of one (resolved) task along ``successor``."""
         return self.env_class()(
             self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps

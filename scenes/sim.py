@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import scenes.mujoco_geom as geom
 from indgen_vla.errors import SceneError
-from scenes import mujoco_geom as geom
 from scenes.privileged import NO_FACTS, GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
 os.environ.setdefault("MUJOCO_GL", "egl")

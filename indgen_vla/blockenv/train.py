@@ -34,7 +34,7 @@ class TrainConfig:
     extra: dict = field(default_factory=dict)  # the method's variant options (models.base.OPTIONS)
 
     def __post_init__(self) -> None:
-        from indgen_vla.blockenv.models import METHODS
+        from indgen_vla.blockenv.models.base import METHODS
 
         if self.method not in METHODS:
             from indgen_vla.errors import UnknownNameError

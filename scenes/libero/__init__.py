@@ -23,8 +23,6 @@ if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.libero.env import LiberoSceneEnv
 
-NUM_STEPS_WAIT = 10  # lerobot's LiberoEnv settles the scene with this many no-op steps after each reset
-
 
 @dataclass(frozen=True)
 class LiberoSpec:

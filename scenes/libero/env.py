@@ -13,21 +13,22 @@ import contextlib
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
+import scenes.mujoco_geom as geom
 from indgen_vla.errors import SceneError
 from indgen_vla.interface import Observation
 from indgen_vla.progression import check_strictly_harder
-from scenes import mujoco_geom as geom
 from scenes.axes import Successor, axis_param, spec_at_level
 from scenes.env import BaseSceneEnv
-from scenes.libero import NUM_STEPS_WAIT, LiberoSuite
 from scenes.libero.assets import config_dir, find_assets, import_libero
-from scenes.libero.bddl import add_fixtures, shift_region
+from scenes.libero.bddl import LiberoTask, add_fixtures, shift_region
 from scenes.privileged import GoalState, PickState, PrivilegedState, Targets
 from scenes.sim import CAMERA_NAMES
 
+NUM_STEPS_WAIT = 10  # lerobot's LiberoEnv settles the scene with this many no-op steps after each reset
 DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
 DISTRACTOR_PREFIX = "indgen_distractor_"
 
@@ -124,12 +125,25 @@ class Support:
     goal_y: tuple[float, float]
 
 
+class Suite(Protocol):
+    """What the env reads from the ``scenes.libero.LiberoSuite`` that builds it (that module imports this one)."""
+
+    name: str
+    max_steps: int
+    success_predicate: object
+    distractor_slots: tuple[tuple[float, float], ...]
+
+    def task_info(self, task: str) -> LiberoTask: ...
+
+    def base(self, task: str): ...
+
+
 class LiberoSceneEnv(BaseSceneEnv):
     """One level of one LIBERO task; ``reset(seed=, options={"episode": i})`` starts from fixed init state i."""
 
     fast_physics = True  # scenes.sim.fast_step: stock robosuite states bit for bit (False: LIBERO's own step)
 
-    def _load(self, scene: LiberoSuite, task: str, successor: Successor) -> None:
+    def _load(self, scene: Suite, task: str, successor: Successor) -> None:
         self.info = scene.task_info(task)
         self.instruction = self.info.language
         self.base = scene.base(task)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenes.libero import miniature_common as common
+import scenes.libero.miniature_common as common
 from scenes.libero.assets import HOPE_OBJECTS
 from scenes.libero.miniature_spatial import write_spatial_assets
 

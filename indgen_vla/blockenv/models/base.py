@@ -110,25 +110,3 @@ def check_options(method: str, extra: dict) -> dict:
     if method == "trm" and out["patch"] < 1:
         raise ConfigError(f"trm option patch must be >= 1, got {out['patch']}")
     return out
-
-
-def build_model(method: str, grid: int, hidden: int = 128, extra: dict | None = None) -> nn.Module:
-    """Instantiate a learner by method key; ``extra`` holds its OPTIONS (defaults when absent)."""
-    from indgen_vla.blockenv.models import local, recursive, sequence
-
-    o = check_options(method, extra or {}) if method in METHODS else {}
-    table = {
-        "rnn": lambda: sequence.RNNPolicy(grid, hidden),
-        "transformer": lambda: sequence.TransformerPolicy(grid, hidden, rope=False),
-        "transformer_rope": lambda: sequence.TransformerPolicy(grid, hidden, rope=True),
-        "transformer_goal_act": lambda: sequence.TransformerPolicy(grid, hidden, rope=True, goal_act=True),
-        "ind": lambda: sequence.IndPolicy(
-            grid, hidden, gate_scale=o["gate_scale"], mask=o["mask"], legal_head=o["legal_head"]
-        ),
-        "trm": lambda: recursive.TRMPolicy(grid, hidden, patch=o["patch"]),
-        "maml": lambda: local.StepMLPPolicy(grid, hidden * 2, joint=o["head"] == "joint"),
-        "local_equivariant": lambda: local.LocalConvPolicy(),
-    }
-    from indgen_vla.registry import lookup
-
-    return lookup("BlockEnv method", method, table)()

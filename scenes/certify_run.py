@@ -1,0 +1,289 @@
+"""Run the privileged oracle on every level of an axis and certify the feasible levels (``indgen certify``).
+
+A level is certified (the paper's Assumption 2, stated statistically) when the one-sided 95 %
+Clopper–Pearson lower bound of the oracle's success rate is >= the threshold (0.95: 59/59 episodes).
+Episodes run one after another up to ``n_max`` and stop as soon as a failure makes certification
+unreachable even if every remaining episode succeeded (scenes/certification/README.md). Certification is
+per (scene, task, axis, component steps), physics only, resumable, and deterministic: episode i of level
+k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+from indgen_vla.errors import ConfigError, RunDirError
+from indgen_vla.metrics import clopper_pearson_ci
+from indgen_vla.progression import parse_levels
+from indgen_vla.seeding import episode_seed
+from scenes.privileged import with_privileged
+
+THRESHOLD = 0.95
+CONFIDENCE = 0.95
+FEASIBLE_RATE = THRESHOLD  # the old name, kept for readers
+RULE_NAME = "clopper-pearson-sequential"
+
+
+def lower_bound(successes: int, n: int, confidence: float = CONFIDENCE) -> float:
+    """One-sided lower confidence bound: the two-sided interval at 2*conf-1 has the same lower end."""
+    return 0.0 if n == 0 else clopper_pearson_ci(successes, n, conf=2 * confidence - 1)[0]
+
+
+def episodes_needed(threshold: float = THRESHOLD, confidence: float = CONFIDENCE) -> int:
+    """The smallest n at which n/n successes certify (59 for 0.95 at 95 %)."""
+    n = 1
+    while lower_bound(n, n, confidence) < threshold:
+        n += 1
+    return n
+
+
+@dataclasses.dataclass(frozen=True)
+class Rule:
+    """The certification rule: run up to ``n_max`` episodes, certify when the CP lower bound >= threshold."""
+
+    threshold: float = THRESHOLD
+    confidence: float = CONFIDENCE
+    n_max: int = 0  # 0: the smallest n that can certify
+
+    def __post_init__(self) -> None:
+        if not 0 < self.threshold < 1:
+            raise ConfigError(f"--threshold must be in (0, 1), got {self.threshold}")
+        if not 0.5 < self.confidence < 1:
+            raise ConfigError(f"the confidence must be in (0.5, 1), got {self.confidence}")
+        if self.n_max < 0:
+            raise ConfigError(f"--episodes must be >= 1, got {self.n_max}")
+        if self.n_max == 0:
+            object.__setattr__(self, "n_max", episodes_needed(self.threshold, self.confidence))
+
+    def as_dict(self) -> dict:
+        return {
+            "name": RULE_NAME,
+            "threshold": self.threshold,
+            "confidence": self.confidence,
+            "n_max": self.n_max,
+        }
+
+    def reachable(self, successes: int, n: int) -> bool:
+        """Could the level still certify if every remaining episode up to n_max succeeded?"""
+        return lower_bound(successes + self.n_max - n, self.n_max, self.confidence) >= self.threshold
+
+    def stop(self, successes: int, n: int) -> bool:
+        """Stop at n_max, or early once a failure has made certification unreachable."""
+        return n >= self.n_max or (successes < n and not self.reachable(successes, n))
+
+    def status(self, successes: int, n: int) -> str:
+        """certified | failed (the oracle failed and the bound cannot be reached) | insufficient evidence."""
+        if n >= self.n_max and lower_bound(successes, n, self.confidence) >= self.threshold:
+            return "certified"
+        if successes < n and not self.reachable(successes, n):
+            return "failed"
+        return "insufficient"
+
+
+def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tuple[bool, int]:
+    """One oracle episode, passing privileged state the way the engine does; returns (success, steps)."""
+    obs, _ = env.reset(seed=seed, options=None if episode is None else {"episode": episode})
+    policy.reset(env.instruction, seed)
+    info = {"success": False}
+    for _ in range(env.max_steps):
+        obs = with_privileged(obs, env)
+        action = policy.act([obs])[0, 0]
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    return bool(info["success"]), env.steps
+
+
+def level_row(level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float) -> dict:
+    """The certification row of one level from its episodes' (success, steps)."""
+    n, successes = len(results), sum(ok for ok, _ in results)
+    status = rule.status(successes, n)
+    return {
+        "level": level, "param": param, "n": n, "successes": successes, "rate": successes / n if n else 0.0,
+        "lower_bound": round(lower_bound(successes, n, rule.confidence), 6), "status": status,
+        "certified": status == "certified", "feasible": status == "certified",
+        "stopped_early": n < rule.n_max, "mean_steps": sum(s for _, s in results) / n if n else 0.0,
+        "wall_s": round(wall_s, 1),
+    }  # fmt: skip
+
+
+def certify_level(
+    scene: str, task: str, axis: str, level: int, step: float | None, preset: str | None, seed: int,
+    max_steps: int | None, rule: Rule,
+) -> dict:  # fmt: skip
+    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility)."""
+    import scenes
+    from scenes.oracle import OraclePolicy
+
+    t0 = time.time()
+    env = scenes.make_env(
+        scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps, preset=preset
+    )
+    results: list[tuple[bool, int]] = []
+    try:
+        policy = OraclePolicy()
+        while not rule.stop(sum(ok for ok, _ in results), len(results)):
+            i = len(results)
+            results.append(
+                run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
+            )
+        param = env.axis_param
+    finally:
+        env.close()
+    return level_row(level, param, results, rule, time.time() - t0)
+
+
+def _certify_job(args: tuple) -> dict:
+    return certify_level(*args)
+
+
+def write_json_atomic(path: Path, data: dict) -> None:
+    """Write JSON so that ``path`` is always either the old or the new complete file (its folder is made)."""
+    from indgen_vla.records import atomic_write_json
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(path, data)
+
+
+def _key(cert: dict) -> tuple:
+    """What must match for a stored level to be reused: component steps, seed, rule and episode length."""
+    return (
+        json.dumps(cert.get("steps"), sort_keys=True), cert.get("seed"),
+        json.dumps(cert.get("rule"), sort_keys=True), cert.get("max_steps"),
+    )  # fmt: skip
+
+
+def certify(
+    scene: str,
+    axis: str,
+    *,
+    task: str | None = None,
+    levels: str | list[int] | None = None,
+    step: float | None = None,
+    episodes: int | None = None,
+    seed: int = 0,
+    max_steps: int | None = None,
+    workers: int = 1,
+    threshold: float = THRESHOLD,
+    preset: str | None = None,
+    out: str | Path | None = None,
+    log=None,
+) -> dict:
+    """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
+    levels already certified there under the same steps/seed/rule and write after every level."""
+    import scenes
+    from scenes.axes import successor_steps
+    from scenes.registry import get_scene
+
+    sc = get_scene(scene)
+    task = sc.resolve_task(task)
+    sc.check_axis(axis)
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    if episodes is not None and episodes < 1:
+        raise ConfigError(f"--episodes must be >= 1, got {episodes}")
+    rule = Rule(threshold=threshold, n_max=episodes or 0)
+    successor = scenes.successor_for(axis, step, preset)
+    spec = successor.axis
+    lv = parse_levels(levels, spec)
+    scenes.check_axis_progression(scene, task, axis, step, preset)  # before any episode runs
+    scenes.check_ready(scene)
+    cert = {
+        "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
+        "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
+        "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
+    }  # fmt: skip
+    path = Path(out) if out is not None else None
+    done: dict[int, dict] = {}
+    if path is not None and path.is_file():
+        try:
+            old = load_certification(path)
+        except RunDirError:
+            old = {}
+        if old and _key(old) == _key(cert) and old.get("task") == task:
+            done = {int(r["level"]): r for r in old["levels"] if r.get("status") in ("certified", "failed")
+                    or r["n"] >= rule.n_max}  # fmt: skip
+            cert["wall_s"] = float(old.get("wall_s", 0.0))
+            cert["levels"] = sorted(old["levels"], key=lambda r: r["level"])
+        elif old and log:
+            log(f"{path}: made under other steps/seed/rule; replacing it")
+    todo = [k for k in lv if k not in done]
+    if log and done:
+        log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
+
+    def merge(row: dict) -> None:
+        rows = {int(r["level"]): r for r in cert["levels"]}
+        rows[int(row["level"])] = row
+        cert["levels"] = [rows[k] for k in sorted(rows)]
+        cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
+        if path is not None:
+            write_json_atomic(path, cert)
+        if log:
+            log(f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
+                f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
+
+    jobs = [(scene, task, axis, k, step, preset, seed, max_steps, rule) for k in todo]
+    if workers == 1 or len(jobs) <= 1:
+        for j in jobs:
+            merge(_certify_job(j))
+    else:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+            for row in pool.imap_unordered(_certify_job, jobs, chunksize=1):
+                merge(row)
+    result = dict(cert)
+    result["levels"] = [r for r in cert["levels"] if int(r["level"]) in lv]
+    return result
+
+
+def load_certification(path: str | Path) -> dict:
+    """Read a certify.json (or the directory holding one) and check its shape."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "certify.json"
+    if not p.is_file():
+        raise RunDirError(f"no certification at {p}; run 'indgen certify --scene S --axis A' first")
+    try:
+        cert = json.loads(p.read_text())
+    except json.JSONDecodeError as e:
+        raise RunDirError(
+            f"{p} is not valid JSON ({e.msg} at line {e.lineno}); re-run 'indgen certify'"
+        ) from None
+    if (
+        not isinstance(cert, dict)
+        or not {"scene", "axis", "levels"} <= cert.keys()
+        or not isinstance(cert["levels"], list)
+    ):
+        raise RunDirError(f"{p} is not a certification (needs scene, axis, levels); re-run 'indgen certify'")
+    for row in cert["levels"]:
+        if not isinstance(row, dict) or not {"level", "n", "successes", "rate", "feasible"} <= row.keys():
+            raise RunDirError(
+                f"{p}: a level row lacks level/n/successes/rate/feasible; re-run 'indgen certify'"
+            )
+    return cert
+
+
+def level_status(row: dict) -> str:
+    """A row's verdict; rows written before the statistical rule count as failed/insufficient evidence."""
+    if "status" in row:
+        return str(row["status"])
+    return "insufficient" if row["feasible"] else "failed"
+
+
+def infeasible_levels(cert: dict) -> list[int]:
+    """Levels where the oracle failed so that the rule can no longer certify them."""
+    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "failed")
+
+
+def certified_levels(cert: dict) -> list[int]:
+    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "certified")
+
+
+__all__ = [
+    "Rule", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
+    "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode",
+]  # fmt: skip
