@@ -80,7 +80,7 @@ def resolve_scene_plan(
         step: ``--step``, overriding a single axis's step.
         preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
     """
-    from scenes.certify import certified_levels, infeasible_levels, level_status
+    from scenes.certify_run import certified_levels, infeasible_levels, level_status
     from scenes.certify_io import find_certification
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest

@@ -29,7 +29,7 @@ class EvalConfig:
     task: str | None = None
     levels: str | None = None
     step: float | None = None
-    axes_preset: str | None = None  # preset NAME (indgen_vla/configs/axes) or YAML PATH: steps, level ranges
+    axes_preset: str | None = None  # preset NAME (configs/axes) or YAML PATH: steps, level ranges
     episodes: int = DEFAULT_EPISODES
     workers: int = 1
     backend: str = "local"
@@ -129,7 +129,7 @@ EXPLICIT_FALSE = {"pipeline"}  # --no-pipeline (False) overrides a preset; other
 
 
 def load_config_preset(path: str) -> dict[str, Any]:
-    """Read a YAML preset; a bare name like ``libero_object`` is looked up in the shipped indgen_vla/configs/paper/."""
+    """Read a YAML preset; a bare name like ``libero_object`` is looked up in the shipped configs/paper/."""
     import yaml
 
     p = Path(path)
