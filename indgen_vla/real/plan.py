@@ -183,7 +183,13 @@ class RealRun:
 
     @classmethod
     def open(cls, path: str | Path) -> RealRun:
-        return cls(RunDir.open(path))
+        """Open a planned run (its Parquet view is not read: the journal is the source of truth)."""
+        run = RunDir(path)
+        if not (run.path / "manifest.json").is_file():
+            raise RunDirError(
+                f"{run.path} is not a run directory; create it with 'indgen real plan --out {run.path}'"
+            )
+        return cls(run)
 
     def sequential(self, state: State) -> Plan | None:
         """The sequential rule's view of the counted outcomes (voids never count: they are re-run)."""
@@ -210,7 +216,12 @@ class RealRun:
             voids = len(state.voids.get(item, ()))
             if self.order == "blocked":
                 return (rank[k], voids, i)
-            return (i + voids, self._cycle_position(i + voids, k), i)
+            return (
+                i + voids,
+                voids,
+                self._cycle_position(i + voids, k),
+                i,
+            )  # re-runs after the cycle's fresh ones
 
         return sorted(pending, key=key)
 

@@ -17,6 +17,7 @@ from indgen_vla.metrics import success_rate
 from indgen_vla.real.plan import RealRun
 from indgen_vla.real.store import (
     FAILURE_HELP,
+    JOURNAL,
     OPERATOR_FAILURES,
     Entry,
     State,
@@ -28,6 +29,7 @@ from indgen_vla.real.store import (
     records,
     replay,
 )
+from indgen_vla.records import EPISODES
 
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi", ".webm", ".mov", ".h264")
 HELP = """\
@@ -100,10 +102,16 @@ class Recorder:
     def state(self) -> State:
         return replay(read_journal(self.path), self.rr.axis.name)
 
-    def sync(self, state: State | None = None) -> State:
-        """Rebuild ``episodes.parquet`` from the journal (also repairs a kill between journal and Parquet)."""
-        state = state or self.state()
-        rebuild(self.rr.run, records(state, self.rr.manifest, self.rr.seeds, self.rr.params))
+    def sync(self, force: bool = True) -> State:
+        """Rebuild ``episodes.parquet`` from the journal; unless forced, only when the Parquet view is older
+        (missing, or a process was killed between a journal line and its rebuild)."""
+        state = self.state()
+        journal, view = self.path / JOURNAL, self.path / EPISODES
+        stale = journal.exists() and (
+            not view.exists() or view.stat().st_mtime_ns <= journal.stat().st_mtime_ns
+        )
+        if force or stale:
+            rebuild(self.rr.run, records(state, self.rr.manifest, self.rr.seeds, self.rr.params))
         return state
 
     def record(self, level: int, episode: int, v: Verdict, wall_s: float = 0.0) -> Entry:
@@ -120,7 +128,7 @@ class Recorder:
                                               task=self.rr.task, attempt=len(state.voids.get((level, episode), ())))  # fmt: skip
         entry = Entry(seq=(entries[-1].seq if entries else 0) + 1, kind=v.kind, axis=self.rr.axis.name, level=level,
                       episode=episode, failure=v.failure, reason=v.reason, note=v.note, video=video,
-                      operator=self.operator, time=now(), wall_s=round(wall_s, 1))  # fmt: skip
+                      operator=self.operator, time=now(), wall_s=round(wall_s, 3))  # fmt: skip
         append_entry(self.path, entry)
         self.sync()
         return entry
@@ -207,7 +215,7 @@ def record_once(rr: RealRun, verdict: Verdict, episode: tuple[int, int] | None =
     """The script form: journal one verdict for the next queued episode (or the one named), say what follows."""
     rec = Recorder(rr, operator, video_pattern)
     with recording_lock(rec.path):
-        state = rec.sync()
+        state = rec.sync(force=False)
         queue = rr.queue(state)
         if not queue:
             raise RunDirError(f"{rec.path}: every episode the plan needs is recorded; nothing to record")
@@ -232,7 +240,7 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
     """Run the keyboard session until the plan is complete (True) or the operator quits (False)."""
     rec = Recorder(rr, operator, video_pattern)
     with recording_lock(rec.path):
-        state = rec.sync()
+        state = rec.sync(force=False)
         say(f"recording {rec.path}: task {rr.task} \"{rr.setup.instruction}\", axis {rr.axis.name} levels "
             f"{rr.levels[0]}..{rr.levels[-1]}, {rr.order}, "
             + (f"adaptive {rr.mode} (at most {rr.episodes} per level)" if rr.mode else f"{rr.episodes} per level")
