@@ -319,8 +319,10 @@ def _read_verdict(line: str, rec: Recorder, ask, say):
             )
             for m in OPERATOR_FAILURES:
                 say(f"    {m}: {FAILURE_HELP[m]}")
-            got = ask("mode> ").strip()
-            mode = "" if got == "0" else failure_mode(got)
+            first, *more = ask("mode> ").split() or [""]
+            mode = "" if first == "0" else failure_mode(first)
+            if mode is not None:
+                rest = [*rest, *more]  # "4 toppled the stack": the mode, then a note
         note, video = _split_video(rest)
         return Verdict("failure", failure=mode, note=note, video=video)
     if word in ("v", "void"):
