@@ -31,6 +31,7 @@ HANDLERS: dict[str, str] = {
     "demos": "indgen_vla.regimes.demos:demos_main",
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.regimes.train:train_main",
+    "real": "indgen_vla.real.cli:real_main",
 }
 
 
@@ -247,7 +248,7 @@ def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argpar
     return p
 
 
-PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train"}  # subcommands that parse their own arguments
+PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments
 
 
 def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
@@ -275,6 +276,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_passthrough(sp, "demos", "record T0 demonstrations as a LeRobotDataset")
     _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of T0 demonstrations")
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
+    _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
     return parser
 
 

@@ -226,6 +226,19 @@ class RunDir:
             rows[rec.key] = asdict(rec)
         self._flush()
 
+    def rewrite(self, records: Iterable[EpisodeRecord]) -> None:
+        """Replace every row by ``records`` at once (atomic), for runs whose source of truth is another file
+        (the real-robot journal, ``indgen_vla.real.store``): the Parquet file is a view rebuilt from it."""
+        rows = {}
+        for rec in records:
+            if rec.key in rows:
+                raise RunDirError(
+                    f"episode {rec.key} appears twice; refusing to write {self.path / EPISODES}"
+                )
+            rows[rec.key] = asdict(rec)
+        self._rows = rows
+        self._flush()
+
     def _flush(self) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq

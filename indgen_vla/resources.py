@@ -6,7 +6,7 @@ import importlib.util
 from importlib.resources import files
 from pathlib import Path
 
-CONFIG_KINDS = ("paper", "axes")  # evaluate --config presets; --axes-preset step/range presets
+CONFIG_KINDS = ("paper", "axes", "real")  # evaluate --config; --axes-preset step/range; indgen real --setup
 
 
 def config_dir(kind: str) -> Path:
