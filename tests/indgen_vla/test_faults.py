@@ -214,8 +214,8 @@ class DropsOnce:
 def test_reference_loop_reruns_after_connection_fault_without_using_a_retry():
     """``run_episode`` (the Ray backend's loop): the interrupted episode restarts from its seed."""
     import scenes
-    from indgen_vla.engine.config import EpisodeJob
     from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, run_episode
+    from indgen_vla.plan import EpisodeJob
 
     runner = EnvRunner(
         RunnerConfig(scene_levels("pick_place", ["pick_y"]), (), (64, 64), max_steps=8, privileged=False)
@@ -233,9 +233,9 @@ def test_reference_loop_reruns_after_connection_fault_without_using_a_retry():
 
 def test_local_engine_pauses_shows_the_wait_and_reruns_from_seed():
     import scenes
-    from indgen_vla.engine.config import EpisodeJob
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.plan import EpisodeJob
 
     task = list(scenes.tasks("pick_place"))[0]
     jobs = [EpisodeJob(task, "pick_y", 0, e, seed=10 + e, param=0.0) for e in range(2)]

@@ -72,7 +72,7 @@ def test_an_installed_wheel_carries_the_presets(tmp_path):
     code = (
         "import json, indgen_vla, scenes.axes; from indgen_vla.resources import config_dir; "
         "from indgen_vla.engine.config import load_config_preset; "
-        "print(json.dumps({'pkg': indgen_vla.__file__, 'dirs': {k: str(config_dir(k)) for k in ('paper', 'axes')}, "
+        "print(json.dumps({'pkg': indgen_vla.__file__, 'dirs': {k: str(config_dir(k)) for k in ('paper', 'axes', 'real')}, "
         "'paper': sorted(p.name for p in config_dir('paper').glob('*.yaml')), "
         "'axes': sorted(p.name for p in config_dir('axes').glob('*.yaml')), "
         "'scene': load_config_preset('libero_object')['scene'], 'quick': scenes.axes.load_preset('quick')}))"

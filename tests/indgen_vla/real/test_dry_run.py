@@ -20,9 +20,11 @@ def robot():
     import indgen_vla.engine  # noqa: F401 - registers standin:oracle
     from indgen_vla.engine.rollout import EnvRunner, RunnerConfig
     from policy_wrappers.registry import load_policy
+    from scenes.planning import scene_levels
 
     policy = load_policy("standin:oracle", scene="stack")
-    runners = {n: EnvRunner(RunnerConfig(scene="stack", cameras=(), image_size=(32, 32), max_steps=n, step=None,
+    levels = scene_levels("stack", ["stack"])
+    runners = {n: EnvRunner(RunnerConfig(levels=levels, cameras=(), image_size=(32, 32), max_steps=n,
                                          privileged=True)) for n in (None, 30)}  # fmt: skip
     yield policy, runners
     for r in runners.values():
@@ -32,8 +34,8 @@ def robot():
 
 def test_plan_record_report_against_a_simulated_robot(tmp_path, capsys, robot):
     import scenes
-    from indgen_vla.engine.config import EpisodeJob
     from indgen_vla.engine.rollout import RunMeta, run_episode
+    from indgen_vla.plan import EpisodeJob
 
     policy, runners = robot
     run = tmp_path / "run"
