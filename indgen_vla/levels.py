@@ -111,3 +111,77 @@ def pool_ladders(pooled: list[dict], tasks: dict[str, dict]) -> None:
         r["planned"] = sum(int(row["planned"] or 0) for row in ran) or None
         r["pooled_from"] = len(ran)
         r["insufficient"] = r["n"] == 0 or below_floor(r["n"], r["planned"])
+
+
+MAX_MORE = 5000  # beyond this many extra episodes a level is called "not decidable at this rate"
+
+
+def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson") -> int | None:
+    """How many more episodes at the observed rate make the CI's upper bound fall below γ (None: > MAX_MORE)."""
+    rate = successes / n if n else 0.0
+    for total in range(max(n, 1) + 1, n + MAX_MORE + 1):
+        if success_rate(round(rate * total), total, method=ci).ci_high < gamma:
+            return total - n
+    return None
+
+
+def _signed(k: int) -> str:
+    return f"+{k}" if k > 0 else str(k)
+
+
+def _rate(r: dict) -> str:
+    return (
+        f"{100 * r['rate']:.0f} %, n = {r['n']}, 95 % CI [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
+    )
+
+
+def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> str:
+    """One direction's break level as a reviewer would state it, from its rows (outward from level 0) and the
+    point k* (a level, None for no break in range, or "undetermined")."""
+    if not rows:
+        return "no levels"
+    if k == "undetermined":
+        hole = next(r for r in rows if r["insufficient"])
+        of = f" of {hole['planned']}" if hole.get("planned") else ""
+        return f"undetermined: level {_signed(hole['level'])} has too little data (n = {hole['n']}{of}); finish it"
+    if k is None:
+        last = _signed(rows[-1]["level"])
+        open_ = [_signed(r["level"]) for r in rows if r.get("decision") != "intact" and not r["insufficient"]]
+        if not open_:
+            return f"no break through {last}: every level is significantly at or above γ = {gamma:g}"
+        return (
+            f"no level below γ = {gamma:g} through {last} ({', '.join(open_)} not yet significantly above it)"
+        )
+    r = next(x for x in rows if x["level"] == k)
+    head = f"{_signed(k)} ({_rate(r)})"
+    if r.get("decision") == "broken":
+        return f"breaks at {head}, significantly below γ = {gamma:g}"
+    seq = r.get("sequential")
+    if seq is not None:  # an adaptive run: the sequential rule says when it looks next
+        if r["planned"] and r["planned"] > r["n"]:
+            return f"first level below γ: {head}; not yet decided: the rule looks again at {r['planned']} episodes"
+        return f"first level below γ: {head}; undecided at the cap of {r['n']} episodes"
+    more = episodes_to_decide(r["successes"], r["n"], gamma, ci)
+    if more is None:
+        return f"first level below γ: {head}; not significant, and no feasible number of episodes at this rate decides it"
+    return f"first level below γ: {head}; not yet significant: about {more} more episodes at {_signed(k)} would decide it if the rate holds"
+
+
+def axis_verdicts(
+    rows: list[dict], break_level: dict, gamma: float, signed: bool, ci: str = "wilson"
+) -> dict:
+    """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``."""
+    out = {}
+    for d, keep in (
+        (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
+    ):
+        side = sorted((r for r in rows if keep(r["level"])), key=lambda r: abs(r["level"]))
+        out[d] = direction_verdict(side, break_level.get(d), gamma, ci)
+    return out
+
+
+def verdict_line(verdict: dict, signed: bool) -> str:
+    """The verdicts of both directions on one line: "+: …; −: …"."""
+    if not signed:
+        return verdict.get("pos", "—")
+    return "; ".join(f"{'+' if d == 'pos' else '−'}: {verdict[d]}" for d in ("pos", "neg") if d in verdict)

@@ -10,6 +10,7 @@ from typing import Any
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.levels import (
+    axis_verdicts,
     decide,
     episodes_used,
     kstar_status_of,
@@ -18,6 +19,7 @@ from indgen_vla.levels import (
     sequential,
     task_entry,
     usable_rates,
+    verdict_line,
 )
 from indgen_vla.metrics import (
     DEFAULT_GAMMA,
@@ -75,6 +77,10 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "episodes": episodes_used(df, per_task, len(tasks), len(levels)),
             "tasks": task_entries,
         }
+        a = out["axes"][axis]
+        a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci)
+        for e in task_entries.values():
+            e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
     return out
 
 
@@ -185,6 +191,15 @@ def _fmt_status(status: dict, signed: bool) -> str:
     )
 
 
+def _verdict_or_status(a: dict) -> str:
+    """The axis's verdict sentence; a summary written before verdicts existed shows its k* status instead."""
+    if "verdict" in a:
+        return verdict_line(a["verdict"], a["signed"])
+    return (
+        f"{_fmt_break(a['break_level'], a['signed'])} ({_fmt_status(a.get('kstar_status', {}), a['signed'])})"
+    )
+
+
 def _fmt_point(bp: dict, signed: bool) -> str:
     """Where the fitted curve crosses γ per direction: fractional level, parameter and bootstrap CI."""
     parts = []
@@ -264,11 +279,7 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
             + " | ".join(_fmt_break(a["break_level"], a["signed"]) for _, a in present)
             + " |"
         )
-        lines.append(
-            "| k\\* status | | "
-            + " | ".join(_fmt_status(a.get("kstar_status", {}), a["signed"]) for _, a in present)
-            + " |"
-        )
+        lines.append("| verdict | | " + " | ".join(_verdict_or_status(a) for _, a in present) + " |")
         lines.append(
             "| break point (S = γ) | | "
             + " | ".join(_fmt_point(a.get("break_point", {}), a["signed"]) for _, a in present)
@@ -311,6 +322,14 @@ def _usable(rows: list[dict]) -> list[dict]:
     return [r for r in rows if r["n"] > 0 and not r.get("insufficient", False)]
 
 
+def _once(shown: set[str], label: str) -> str | None:
+    """``label`` the first time, None after (one legend entry for a marker every curve draws)."""
+    if label in shown:
+        return None
+    shown.add(label)
+    return label
+
+
 def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Path) -> Path:
     """Success vs level in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands; each task's
     curve drawn faintly behind the pooled one when a run pools several tasks; levels without enough data
@@ -320,7 +339,8 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.4, 3.6), dpi=120)
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
+    marked: set[str] = set()  # legend entries already shown (the break-point marker is explained once)
     all_levels: list[int] = []
     signed = False
     for label, a in curves:
@@ -331,12 +351,12 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
         line = ax.plot(ks, [r["rate"] for r in rows], marker="o", label=label, zorder=3)[0]
         ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], alpha=0.2,
                         color=line.get_color(), zorder=2)  # fmt: skip
-        for d, b in a.get("break_point", {}).items():  # where the fitted curve crosses γ, with its interval
+        for b in a.get("break_point", {}).values():  # where the fitted curve crosses γ, with its interval
             lo, hi = b.get("ci", {}).get("level", [None, None])
             if b.get("level") is not None and lo is not None and hi is not None:
                 ax.errorbar([b["level"]], [gamma], xerr=[[b["level"] - lo], [hi - b["level"]]], fmt="D", ms=4,
                             color=line.get_color(), capsize=3, zorder=4,
-                            label=f"{label}: break point (95% CI)" if d == "pos" else None)  # fmt: skip
+                            label=_once(marked, "break point (S = γ), 95% CI"))  # fmt: skip
         tasks = a.get("tasks", {})
         if len(tasks) > 1:
             for i, t in enumerate(sorted(tasks)):
@@ -355,8 +375,10 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     ax.set_ylabel("success rate")
     ax.set_title(axis)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
-    fig.tight_layout()
+    handles, labels = ax.get_legend_handles_labels()  # below the axes, so the curves keep the full width
+    ncol = 2 if len(labels) > 1 and max(map(len, labels)) <= 48 else 1
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
+    fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
@@ -434,8 +456,12 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                     ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
                 t.add_row(str(r["level"]), _param(r["param"]), str(r["n"]), str(r["errors"]), rate, ci)
             console.print(t)
-            console.print(f"break level k*: {_fmt_break(a['break_level'], a['signed'])} "
-                          f"({_fmt_status(a.get('kstar_status', {}), a['signed'])})")  # fmt: skip
+            if a["signed"] and "verdict" in a:
+                console.print("break level k* (first level below γ):")
+                for d, side in (("pos", "+"), ("neg", "−")):
+                    console.print(f"  {side}: {a['verdict'][d]}")
+            else:
+                console.print(f"break level k* (first level below γ): {_verdict_or_status(a)}")
             console.print(f"break point (S = γ): {_fmt_point(a.get('break_point', {}), a['signed'])}")
             console.print(
                 f"monotone decrease (isotonic LRT): {_fmt_tests(a.get('monotone', {}), a['signed'], True)}"
