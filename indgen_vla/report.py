@@ -279,6 +279,11 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
             + " | ".join(_fmt_break(a["break_level"], a["signed"]) for _, a in present)
             + " |"
         )
+        lines.append(
+            "| k\\* status | | "
+            + " | ".join(_fmt_status(a.get("kstar_status", {}), a["signed"]) for _, a in present)
+            + " |"
+        )
         lines.append("| verdict | | " + " | ".join(_verdict_or_status(a) for _, a in present) + " |")
         lines.append(
             "| break point (S = γ) | | "
