@@ -16,7 +16,7 @@ from indgen_vla.errors import ConfigError, SceneError
 from indgen_vla.interface import CAMERAS, STATE_DIM, TABLETOP, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
 from scenes.failure import FailureTrace
-from scenes.privileged import PrivilegedState
+from scenes.privileged import PrivilegedState, with_privileged
 from scenes.registry import Scene
 
 # interface camera -> MuJoCo camera of the robosuite tabletop scenes (scenes.sim.CAMERA_NAMES; kept here so that
@@ -245,6 +245,10 @@ class BaseSceneEnv(gym.Env):
     def privileged_state(self) -> PrivilegedState:
         """The simulator facts oracles and the success predicate read, now (``scenes.privileged``)."""
         raise NotImplementedError
+
+    def with_privileged(self, obs: Observation) -> Observation:
+        """``obs`` with this env's privileged state attached, for privileged policies only (the engine's call)."""
+        return with_privileged(obs, self)
 
     def _mj_model(self):
         return self._sim_env.sim.model._model

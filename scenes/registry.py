@@ -47,8 +47,8 @@ class Scene:
             7-d action, cameras agentview/wrist).
         runtime: None when the simulator runs in our venv; else a ``scenes.runtime.ExternalRuntime`` naming the
             family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
-        preload: modules the engine's forkserver imports once before starting workers (none for an external
-            runtime: the simulator lives in the worker's own venv).
+        preload: modules a worker process imports before its first env (the local backend's forkserver); a
+            family whose simulator runs in another environment names none of that simulator's modules.
     """
 
     name: ClassVar[str]

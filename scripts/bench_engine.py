@@ -53,9 +53,14 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
+    from scenes.planning import scene_levels
 
     rc = RunnerConfig(
-        scene=scene, cameras=(), image_size=(64, 64), max_steps=max_steps, step=None, privileged=False
+        levels=scene_levels(scene, ["pick_y"]),
+        cameras=(),
+        image_size=(64, 64),
+        max_steps=max_steps,
+        privileged=False,
     )
     records = []
     t0 = time.perf_counter()
@@ -124,6 +129,7 @@ def pipeline_bench(scene: str, size: int, episodes: int, max_steps: int, repeats
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
+    from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     task = scenes.tasks(scene)[0]
@@ -149,7 +155,11 @@ def pipeline_bench(scene: str, size: int, episodes: int, max_steps: int, repeats
         t_step = (time.perf_counter() - t0) / 10
         env.close()
         rc = RunnerConfig(
-            scene=scene, cameras=cams, image_size=hw, max_steps=max_steps, step=None, privileged=False
+            levels=scene_levels(scene, ["pick_y"]),
+            cameras=cams,
+            image_size=hw,
+            max_steps=max_steps,
+            privileged=False,
         )
         meta = RunMeta("bench", "act", "", scene)
         warm = [j for j in jobs[:2]]  # start the forkserver (imports) before timing: a one-off per process
@@ -226,6 +236,7 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
+    from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     task = scenes.tasks(scene)[0]
@@ -242,8 +253,7 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
         replan = policy.spec.replan_steps
         for _ in range(repeats):
             for lazy in (False, True):
-                rc = RunnerConfig(scene=scene, cameras=policy.spec.cameras, image_size=hw, max_steps=max_steps,
-                                  step=None, privileged=False, lazy_render=lazy)  # fmt: skip
+                rc = RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=policy.spec.cameras, image_size=hw, max_steps=max_steps, privileged=False, lazy_render=lazy)  # fmt: skip
                 records: list = []
                 t0 = time.perf_counter()
                 with CpuMeter() as meter:

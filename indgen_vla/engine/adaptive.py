@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.plan import EvalPlan
 from indgen_vla.sequential import MODES, RULE_FIELDS, Plan, SequentialRule, level_outcomes, plan_next
 
 
@@ -33,12 +34,12 @@ def plans(
     return {a: plan_next(rule, levels[a], outcomes_of(episodes, task, a), mode) for a in axes}
 
 
-def next_round(jobs: list, episodes, cfg) -> list:
+def next_round(plan: EvalPlan, episodes, cfg) -> list:
     """The planned episodes the sequential rule wants next, given the episodes finished so far ([] = settled)."""
-    by_key = {j.key: j for j in jobs}
-    task = jobs[0].task
-    levels = {a: sorted({j.level for j in jobs if j.axis == a}) for a in cfg.axes}
-    current = plans(episodes, task, cfg.axes, levels, cfg.sequential_rule(), cfg.adaptive)
+    by_key = {j.key: j for j in plan.jobs}
+    task = plan.tasks[0]  # --adaptive decides one task (EvalConfig refuses --task all)
+    levels = {a: sorted(plan.levels[a]) for a in plan.axes}
+    current = plans(episodes, task, list(plan.axes), levels, cfg.sequential_rule(), cfg.adaptive)
     return [
         by_key[(task, a, k, i)]
         for a, p in current.items()
@@ -47,17 +48,17 @@ def next_round(jobs: list, episodes, cfg) -> list:
     ]
 
 
-def run_adaptive(jobs: list, read_episodes: Callable, run_jobs: Callable[[list], None], cfg) -> None:
+def run_adaptive(plan: EvalPlan, read_episodes: Callable, run_jobs: Callable[[list], None], cfg) -> None:
     """Round after round: ask the rule which planned episodes to run, run them, until every level is settled.
 
     Args:
-        jobs: every planned episode (``plan_episodes``), of which a subset runs.
+        plan: the resolved plan; a subset of its episodes runs.
         read_episodes: () -> the run directory's episodes so far (a DataFrame).
         run_jobs: runs a list of jobs and records them (the local or Ray backend under the progress display).
         cfg: the ``EvalConfig`` (mode, rule and axes).
     """
     last: list = []
-    while todo := next_round(jobs, read_episodes(), cfg):
+    while todo := next_round(plan, read_episodes(), cfg):
         assert todo != last, "the backend ran a round without recording its episodes"
         run_jobs(todo)
         last = todo

@@ -1,4 +1,5 @@
-"""Evaluation configs: a frozen, validated ``EvalConfig``, YAML presets, and the deterministic episode plan."""
+"""Evaluation configs: a frozen, validated ``EvalConfig`` and its YAML presets (``EpisodeJob`` lives in
+``indgen_vla.plan`` and is imported here for the backends)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.plan import EpisodeJob, plan_jobs
 from indgen_vla.resources import config_dir
-from indgen_vla.seeding import episode_seed
 
 DEFAULT_EPISODES = 50
 PRESET_DIR = config_dir("paper")
@@ -182,38 +183,10 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
     return EvalConfig(**values)
 
 
-@dataclass(frozen=True)
-class EpisodeJob:
-    """One planned episode; its seed depends only on the plan, never on workers or order."""
-
-    task: str
-    axis: str
-    level: int
-    episode: int
-    seed: int
-    param: float
-    video: bool = False
-
-    @property
-    def key(self) -> tuple[str, str, int, int]:
-        return (self.task, self.axis, self.level, self.episode)
-
-
 def plan_episodes(
     cfg: EvalConfig, tasks: list[str], levels: dict[str, list[int]], params: dict[tuple[str, str, int], float]
 ) -> list[EpisodeJob]:
-    """Every episode of the run in a fixed order (axis, task, level by |k|, episode).
-
-    The seed depends on (run seed, scene, task, episode) but not on the axis or level: episode i sees
-    the same random draws at every level, so levels differ only in the axis parameter (common random
-    numbers, a paired design that also makes level 0 identical across axes).
-    """
-    jobs = []
-    for axis in cfg.axes:
-        for task in tasks:
-            for level in sorted(levels[axis], key=lambda k: (abs(k), k)):
-                for ep in range(cfg.episodes):
-                    seed = episode_seed(cfg.seed, cfg.scene, task, ep)
-                    video = cfg.video and ep < cfg.video_per_level
-                    jobs.append(EpisodeJob(task, axis, level, ep, seed, params[(task, axis, level)], video))
-    return jobs
+    """``cfg``'s episodes over the given tasks, levels and parameters (``indgen_vla.plan.plan_jobs``), for callers
+    that drive a backend without a resolved plan (benchmarks, tests); ``evaluate`` builds them with its plan."""
+    return list(plan_jobs(cfg.scene, tasks, {a: levels[a] for a in cfg.axes}, params, cfg.episodes, cfg.seed,
+                          cfg.video, cfg.video_per_level))  # fmt: skip

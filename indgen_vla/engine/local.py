@@ -19,11 +19,11 @@ from multiprocessing.connection import wait
 
 import numpy as np
 
-from indgen_vla.engine.config import EpisodeJob
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, _describe, make_record
 from indgen_vla.errors import PolicyConnectionError
 from indgen_vla.interface import act_padded, validate_chunk
+from indgen_vla.plan import EpisodeJob
 from indgen_vla.records import EpisodeRecord
 
 LANES = 2  # environments per worker when pipelined: one steps while the policy computes the other's chunk
@@ -121,11 +121,12 @@ class _ProcessWorker:
             self.proc.join(timeout=5)
 
 
-def _context():
-    """A forkserver that has imported the simulator once, so W workers start fast and clean
-    (no threads inherited from the main process, no EGL context shared across processes)."""
+def _context(preload: Sequence[str]):
+    """A forkserver that has imported the simulator once (``preload``: the scene family's modules, from the
+    plan's builder), so W workers start fast and clean (no threads inherited from the main process, no EGL
+    context shared across processes)."""
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["indgen_vla.engine.local", "scenes.env", "robosuite", "mujoco"])
+    ctx.set_forkserver_preload(["indgen_vla.engine.local", *preload])
     return ctx
 
 
@@ -176,7 +177,7 @@ def run_local(
         return
     lanes = LANES if pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
-    ctx = _context()
+    ctx = _context(runner_cfg.levels.preload)
     pool: list = []
     policies: list = []
     threads: ThreadPoolExecutor | None = None

@@ -20,9 +20,10 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 
-from indgen_vla.engine.config import EpisodeJob, EvalConfig
+from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.errors import ConfigError, ServerUnreachableError
+from indgen_vla.plan import EpisodeJob
 from indgen_vla.records import EpisodeRecord
 
 ENV_KNOBS = {  # environment variable: (default, what it sets)

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from indgen_vla.engine.config import EpisodeJob
 from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
+from indgen_vla.plan import EpisodeJob, LevelBuilder
 from indgen_vla.records import EpisodeRecord
 
 WARMUP_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32)  # openpi's LIBERO client waits like this
@@ -23,18 +23,20 @@ WARMUP_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32)  # openpi's L
 class RunnerConfig:
     """How a worker builds scenes: identical in every worker so outcomes do not depend on placement."""
 
-    scene: str
+    levels: LevelBuilder  # the plan's builder (``EvalPlan.builder``): builds each (task, axis, level)
     cameras: tuple[str, ...]
     image_size: tuple[int, int]
     max_steps: int | None
-    step: float | None
     privileged: bool
-    axes_preset: str | None = None  # configs/axes preset (component steps of compositions)
     warmup_steps: int = 0
     objects: bool = False  # attach Observation.objects (low-dim policies that declare observes_objects)
     video_dir: str | None = None
     video_size: tuple[int, int] = (256, 256)
     lazy_render: bool = True  # render cameras only for the observation a chunk slice ends on (the one read)
+
+    @property
+    def scene(self) -> str:
+        return self.levels.scene
 
 
 @dataclass
@@ -78,14 +80,10 @@ class EnvRunner:
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)
         if key != self._env_key:
-            import scenes
-
             self.close()
-            cams = tuple(self.cfg.cameras)
-            self._env = scenes.make_env(
-                self.cfg.scene, task=job.task, axis=job.axis, level=job.level, step=self.cfg.step,
-                cameras=cams, image_size=self.cfg.image_size, max_steps=self.cfg.max_steps,
-                preset=self.cfg.axes_preset,
+            self._env = self.cfg.levels.make_env(
+                job.task, job.axis, job.level, cameras=tuple(self.cfg.cameras), image_size=self.cfg.image_size,
+                max_steps=self.cfg.max_steps,
             )  # fmt: skip
             self._env_key = key
             self._can_skip_render = _takes_observe(self._env)
@@ -97,9 +95,7 @@ class EnvRunner:
         if self.cfg.objects:
             obs = dataclasses.replace(obs, objects=self._env.object_observation())
         if self.cfg.privileged:
-            from scenes.privileged import with_privileged
-
-            obs = with_privileged(obs, self._env)
+            obs = self._env.with_privileged(obs)
         return obs
 
     def _record_frame(self) -> None:
@@ -153,7 +149,7 @@ class EnvRunner:
     def _write_video(self, job: EpisodeJob, success: bool) -> str:
         if not job.video or not self._frames or not self.cfg.video_dir:
             return ""
-        from scenes.video import write_mp4
+        from indgen_vla.video import write_mp4
 
         name = f"{job.axis}_L{job.level}_{job.task}_ep{job.episode}_{'success' if success else 'fail'}.mp4"
         path = Path(self.cfg.video_dir) / name

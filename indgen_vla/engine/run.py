@@ -12,9 +12,9 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.engine.config import EvalConfig, plan_episodes
+from indgen_vla.engine.config import EvalConfig
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
-from indgen_vla.progression import AxisSpec, parse_levels
+from indgen_vla.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.records import RunDir
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
@@ -43,52 +43,33 @@ def git_sha() -> str:
         return ""
 
 
-@dataclasses.dataclass(frozen=True)
-class ResolvedPlan:
-    """Scene-side facts the plan needs, resolved once in the main process."""
+def build_plan(cfg: EvalConfig) -> EvalPlan:
+    """Resolve ``cfg`` once: the scene layer's answer (tasks, successors, parameters, certificates) plus every
+    planned episode. The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
+    from scenes.planning import resolve_scene_plan
 
-    tasks: list[str]
-    axes: dict[str, AxisSpec]
-    levels: dict[str, list[int]]
-
-
-def resolve(cfg: EvalConfig) -> ResolvedPlan:
-    """Check scene, tasks, axes and levels against the scene registry (its rules, its one-line errors)."""
-    import scenes
-
-    scene = scenes.get_scene(cfg.scene)  # unknown name: one line suggesting the closest
-    scene.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
-    tasks = scene.select_tasks(cfg.task)
-    axes, levels = {}, {}
-    for name in cfg.axes:
-        spec = scenes.get_axis(name, step=cfg.step, preset=cfg.axes_preset)
-        scene.check_axis(name)  # every component must be one of the scene's axes
-        axes[name] = spec
-        levels[name] = parse_levels(cfg.levels, spec)
-        for task in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
-            scenes.check_axis_progression(cfg.scene, task, name, cfg.step, cfg.axes_preset)
-    return ResolvedPlan(tasks, axes, levels)
+    sp = resolve_scene_plan(cfg.scene, cfg.task, cfg.axes, cfg.levels, cfg.step, cfg.axes_preset)
+    jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), cfg.episodes, cfg.seed, cfg.video,
+                     cfg.video_per_level)  # fmt: skip
+    return EvalPlan(sp, jobs)
 
 
 def _levels_text(levels: list[int]) -> str:
     return ", ".join(f"{k:+d}" if k else "0" for k in levels)
 
 
-def check_feasible(cfg: EvalConfig, plan: ResolvedPlan) -> list[str]:
+def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
     """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
     line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
-    from scenes.certify import certified_levels, find_certification, infeasible_levels
-
     warnings = []
     for name, spec in plan.axes.items():
-        want = plan.levels[name]
+        want = list(plan.levels[name])
         failed: dict[str, list[int]] = {}
         missing: dict[str, list[int]] = {}
         for task in plan.tasks:
-            cert = find_certification(cfg.scene, task, name, cfg.step, preset=cfg.axes_preset)
-            bad = sorted(set(infeasible_levels(cert)) & set(want)) if cert else []
-            ok = set(certified_levels(cert)) if cert else set()
-            short = [k for k in want if k not in ok and k not in bad]
+            cells = [plan.scene_plan.cell(task, name, k) for k in want]
+            bad = sorted(c.level for c in cells if c.certificate == FAILED)
+            short = [c.level for c in cells if c.certificate == UNCERTIFIED]
             if bad:
                 failed[task] = bad
             if short:
@@ -116,8 +97,9 @@ def check_feasible(cfg: EvalConfig, plan: ResolvedPlan) -> list[str]:
     return warnings
 
 
-def build_manifest(cfg: EvalConfig, plan: ResolvedPlan, run_id: str) -> dict[str, Any]:
-    """manifest.json: the plan a resume must match, plus provenance (config, versions, commit, command)."""
+def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
+    """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
+    certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -125,8 +107,9 @@ def build_manifest(cfg: EvalConfig, plan: ResolvedPlan, run_id: str) -> dict[str
         "data_regime": cfg.data_regime,
         "scene": cfg.scene,
         "seed": cfg.seed,
-        "plan": cfg.plan_dict(plan.tasks, plan.levels, cfg.max_steps),
+        "plan": cfg.plan_dict(list(plan.tasks), {a: list(v) for a, v in plan.levels.items()}, cfg.max_steps),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
+        "resolved": plan.record(),
         "config": dataclasses.asdict(cfg),
         "versions": package_versions(),
         "git_sha": git_sha(),
@@ -142,7 +125,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     from indgen_vla.report import write_run_report
 
     console = Console(stderr=True, quiet=quiet)
-    plan = resolve(cfg)
+    plan = build_plan(cfg)
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
     out = Path(cfg.out)
@@ -151,19 +134,13 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
     ) or uuid.uuid4().hex[:12]
     run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
-    import scenes
-
-    params = {(t, a, k): scenes.level_param(cfg.scene, t, a, k, cfg.step, cfg.axes_preset) for t in plan.tasks
-              for a in cfg.axes
-              for k in plan.levels[a]}  # fmt: skip
-    jobs = plan_episodes(cfg, plan.tasks, plan.levels, params)
     if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
         from indgen_vla.engine.adaptive import next_round
 
-        todo = next_round(jobs, run.episodes(), cfg)
+        todo = next_round(plan, run.episodes(), cfg)
     else:
         done = run.done_keys()
-        todo = [j for j in jobs if j.key not in done]
+        todo = [j for j in plan.jobs if j.key not in done]
     if todo:
         from policy_wrappers.registry import load_policy
 
@@ -179,33 +156,33 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
         side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
         runner_cfg = RunnerConfig(
-            scene=cfg.scene, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
-            step=cfg.step, axes_preset=cfg.axes_preset, privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
+            levels=plan.builder, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
+            privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
             video_dir=str(out / "videos") if cfg.video else None,
         )  # fmt: skip
         meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
         try:
-            _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console)
+            _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console)
         except ServerUnreachableError as e:
             raise ServerUnreachableError(f"{e} (run directory {out})") from None
     elif not quiet:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
             if cfg.adaptive
-            else f"all {len(jobs)} planned episodes are"
+            else f"all {len(plan.jobs)} planned episodes are"
         )
         console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
     return out
 
 
-def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
+def _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
     far, and a total row with the ETA."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
-    for j in jobs:
+    for j in plan.jobs:
         planned[(j.axis, j.level)] += 1
     stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
     for r in run.episodes().itertuples():  # earlier error rows are re-run now: only ok rows count as done
@@ -215,7 +192,9 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
     columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
                TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
     with Progress(*columns, console=console, transient=False) as progress:
-        total = progress.add_task("all episodes", total=len(jobs), completed=len(jobs) - len(todo), info="")
+        total = progress.add_task(
+            "all episodes", total=len(plan.jobs), completed=len(plan.jobs) - len(todo), info=""
+        )
         rows = {}
         for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
             s = stats[key]
@@ -258,7 +237,7 @@ def _run_with_progress(cfg, run, jobs, todo, runner_cfg, make_policy, probe, met
             if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
                 from indgen_vla.engine.adaptive import run_adaptive
 
-                run_adaptive(jobs, run.episodes, run_jobs, cfg)
+                run_adaptive(plan, run.episodes, run_jobs, cfg)
             else:
                 run_jobs(todo)
         finally:

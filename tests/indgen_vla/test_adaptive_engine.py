@@ -83,18 +83,17 @@ class ClosablePolicy:
 
 def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
     from indgen_vla.engine.adaptive import run_adaptive
-    from indgen_vla.engine.config import plan_episodes
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.engine.run import build_plan
     from indgen_vla.records import RunDir
 
     c = cfg(tmp_path, levels="0", episodes=20)
-    jobs = plan_episodes(c, ["milk"], {"pick_y": [0]}, {("milk", "pick_y", 0): -0.13})
+    plan = build_plan(c)
+    jobs = plan.jobs
     run = RunDir.create_or_resume(tmp_path / "run", {"plan": c.plan_dict(["milk"], {"pick_y": [0]}, 6)})
     policy = ClosablePolicy()
-    rc = RunnerConfig(
-        scene="pick_place", cameras=(), image_size=(64, 64), max_steps=6, step=None, privileged=False
-    )
+    rc = RunnerConfig(levels=plan.builder, cameras=(), image_size=(64, 64), max_steps=6, privileged=False)
     meta = RunMeta("r", "test:closable", "", "pick_place")
     rounds = []
 
@@ -103,7 +102,7 @@ def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
         run_local(batch, rc, lambda: policy, meta, lambda rec: run.append([rec]), workers=1, replan_steps=4,
                   close_policies=False)  # fmt: skip
 
-    run_adaptive(jobs, run.episodes, run_jobs, c)
+    run_adaptive(plan, run.episodes, run_jobs, c)
     df = run.episodes()
     assert (
         len(rounds) == 3 and (df["status"] == "ok").all() and not policy.closed

@@ -144,17 +144,17 @@ def test_presets_ship_inside_the_package_and_resolve_by_name():
 def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
     """evaluate and certify share one rule for tasks and axes: the same one-line errors."""
     from indgen_vla.engine.config import EvalConfig
-    from indgen_vla.engine.run import resolve
+    from indgen_vla.engine.run import build_plan
     from indgen_vla.errors import UnknownNameError
 
     def cfg(**kw):
         base = dict(policy="standin:oracle", scene="stack", axes=("stack",), out=str(tmp_path), levels="0:1")
         return EvalConfig(**{**base, **kw})
 
-    plan = resolve(cfg(task="all"))
-    assert len(plan.tasks) > 1 and plan.levels == {"stack": [0, 1]}
-    assert resolve(cfg()).tasks == plan.tasks[:1]
+    plan = build_plan(cfg(task="all"))
+    assert len(plan.tasks) > 1 and plan.levels == {"stack": (0, 1)}
+    assert build_plan(cfg()).tasks == plan.tasks[:1]
     with pytest.raises(UnknownNameError, match=r"unknown task of scene stack 'nope'.*all"):
-        resolve(cfg(task="nope"))
+        build_plan(cfg(task="nope"))
     with pytest.raises(UnknownNameError, match=r"unknown axis of scene cabinet_pick 'pick_y'"):
-        resolve(cfg(scene="cabinet_pick", axes=("pick_y",)))
+        build_plan(cfg(scene="cabinet_pick", axes=("pick_y",)))

@@ -17,6 +17,7 @@ from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.engine.run import evaluate
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.interface import ACTION_DIM, PolicySpec
+from scenes.planning import scene_levels
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -127,7 +128,11 @@ def test_retry_then_error_rows(tmp_path):
     policy = FlakyPolicy(always_fail_seeds={stubborn})
     records = []
     rc = RunnerConfig(
-        scene="pick_place", cameras=(), image_size=(64, 64), max_steps=6, step=None, privileged=False
+        levels=scene_levels("pick_place", ["pick_y"]),
+        cameras=(),
+        image_size=(64, 64),
+        max_steps=6,
+        privileged=False,
     )
     run_local(jobs, rc, lambda: policy, RunMeta("r", "test:flaky", "", "pick_place"), records.append,
               workers=1, replan_steps=4, max_retries=2)  # fmt: skip

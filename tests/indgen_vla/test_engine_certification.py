@@ -9,7 +9,7 @@ import pytest
 
 from indgen_vla.cli import main
 from indgen_vla.engine.config import EvalConfig, config_from_args
-from indgen_vla.engine.run import check_feasible, evaluate, resolve
+from indgen_vla.engine.run import build_plan, check_feasible, evaluate
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, UnknownNameError
 from scenes.certify import write_json_atomic
 
@@ -58,9 +58,9 @@ def test_certificates_are_checked_per_task(tmp_path, monkeypatch):
     ok = {"n": 59, "successes": 59, "status": "certified"}
     _cert(root, "orange_on_blue", [{"level": k, **ok} for k in (0, 1, 2)])
     c = cfg(tmp_path)
-    assert check_feasible(c, resolve(c)) == []  # every requested level certified for the first task
+    assert check_feasible(c, build_plan(c)) == []  # every requested level certified for the first task
     c_all = cfg(tmp_path, task="all")
-    plan = resolve(c_all)
+    plan = build_plan(c_all)
     warnings = check_feasible(c_all, plan)
     assert len(warnings) == 1 and "axis stack" in warnings[0] and "uncertified" in warnings[0]
     assert "orange_on_blue" not in warnings[0] and all(t in warnings[0] for t in plan.tasks[1:])
@@ -68,9 +68,9 @@ def test_certificates_are_checked_per_task(tmp_path, monkeypatch):
     _cert(root, second, [{"level": 0, **ok}, {"level": 1, "n": 3, "successes": 2, "status": "failed"},
                          {"level": 2, "n": 20, "successes": 20, "status": "insufficient"}])  # fmt: skip
     with pytest.raises(InfeasibleLevelError, match=f"task {second}: levels \\+1"):
-        check_feasible(c_all, plan)
+        check_feasible(c_all, build_plan(c_all))  # the plan holds the certificates as resolved: resolve again
     allowed = cfg(tmp_path, task="all", allow_infeasible=True)
-    warnings = check_feasible(allowed, resolve(allowed))
+    warnings = check_feasible(allowed, build_plan(allowed))
     assert len(warnings) == 2 and "(--allow-infeasible)" in warnings[0]
     assert f"task {second}: levels +2" in warnings[1]  # 20/20 is not enough evidence
 
@@ -85,7 +85,7 @@ def test_axes_preset_option_reaches_config_and_plan(tmp_path):
         preset
     )
     assert "axes_preset" not in cfg(tmp_path).plan_dict(["t"], {"stack": [0]}, 3)  # old runs still resume
-    assert resolve(c).levels == {"stack": [2]} and resolve(c).axes["stack"].step == 0.5
+    assert build_plan(c).levels == {"stack": (2,)} and build_plan(c).axes["stack"].step == 0.5
     with pytest.raises(UnknownNameError, match="did you mean 'quick'"):
         cfg(tmp_path, axes_preset="quik")
     (tmp_path / "bad.yaml").write_text("axes: 3\n")
@@ -107,6 +107,6 @@ def test_axes_preset_reaches_the_workers(tmp_path):
 @pytest.mark.parametrize("name,levels", [("quick", [-1, 0, 1]), ("paper", [-3, -2, -1, 0, 1, 2, 3])])
 def test_shipped_axes_presets_resolve_for_compositions(tmp_path, name, levels):
     c = cfg(tmp_path, scene="pick_place", axes=("pick_y+distractor",), levels=None, axes_preset=name)
-    plan = resolve(c)
-    assert plan.levels["pick_y+distractor"] == levels
+    plan = build_plan(c)
+    assert list(plan.levels["pick_y+distractor"]) == levels
     assert "pick_y (0.025 m)" in plan.axes["pick_y+distractor"].description

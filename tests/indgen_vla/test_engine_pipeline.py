@@ -10,6 +10,7 @@ from indgen_vla.engine.config import EvalConfig, plan_episodes
 from indgen_vla.engine.local import run_local
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.interface import PolicySpec
+from scenes.planning import scene_levels
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -44,7 +45,7 @@ def _run(make_inner, privileged: bool, workers: int, pipeline: bool, max_steps: 
 
     task = list(scenes.tasks("pick_place"))[:1]
     jobs = plan_episodes(c, task, {"pick_y": [0, 1]}, {(task[0], "pick_y", k): 0.03 * k for k in (0, 1)})
-    rc = RunnerConfig(scene="pick_place", cameras=(), image_size=(64, 64), max_steps=max_steps, step=None,
+    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=max_steps,
                       privileged=privileged)  # fmt: skip
     log, instances, records = Counter(), [], []
     run_local(jobs, rc, lambda: Logged(make_inner(), log, instances), RunMeta("r", "test", "", "pick_place"),
@@ -131,7 +132,7 @@ def test_lazy_render_reads_the_same_observations(monkeypatch):
     logs = {}
     for lazy in (False, True):
         log, records = Counter(), []
-        rc = RunnerConfig(scene="pick_place", cameras=("agentview",), image_size=(32, 32), max_steps=10, step=None,
+        rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=(32, 32), max_steps=10,
                           privileged=False, lazy_render=lazy)  # fmt: skip
         c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
         import scenes

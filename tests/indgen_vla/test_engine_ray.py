@@ -12,6 +12,7 @@ from indgen_vla.engine.config import EvalConfig, plan_episodes
 from indgen_vla.engine.ray_backend import Batcher, ray_knobs
 from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import Observation
+from scenes.planning import scene_levels
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -140,7 +141,7 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     from scenes.oracle import OraclePolicy
 
     c, jobs = _jobs("standin:oracle", 2, 1)
-    rc = RunnerConfig(scene="pick_place", cameras=(), image_size=(64, 64), max_steps=25, step=None,
+    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,
                       privileged=True)  # fmt: skip
     ref = []
     run_local(jobs, rc, OraclePolicy, RunMeta("r", "standin:oracle", "", "pick_place"), ref.append, workers=1,
@@ -162,7 +163,7 @@ def test_ray_batched_policy_actor_matches_local(ray_session):
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 
     c, jobs = _jobs("test:feedback", 2, 2)
-    rc = RunnerConfig(scene="pick_place", cameras=(), image_size=(64, 64), max_steps=15, step=None,
+    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=15,
                       privileged=False)  # fmt: skip
     meta, cls = RunMeta("r", "test:feedback", "", "pick_place"), feedback_policy_class()
     ref, got, stats = [], [], {}

@@ -18,6 +18,7 @@ from indgen_vla.engine.reconnect import Outage
 from indgen_vla.errors import EXIT_EPISODE_ERRORS, EXIT_STOPPED, PolicyConnectionError, PolicyError
 from indgen_vla.interface import Observation
 from policy_wrappers.registry import load_policy
+from scenes.planning import scene_levels
 
 pytestmark = [pytest.mark.filterwarnings("ignore"), pytest.mark.timeout(300)]
 _spec = importlib.util.spec_from_file_location(
@@ -216,7 +217,9 @@ def test_reference_loop_reruns_after_connection_fault_without_using_a_retry():
     from indgen_vla.engine.config import EpisodeJob
     from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, run_episode
 
-    runner = EnvRunner(RunnerConfig("pick_place", (), (64, 64), max_steps=8, step=None, privileged=False))
+    runner = EnvRunner(
+        RunnerConfig(scene_levels("pick_place", ["pick_y"]), (), (64, 64), max_steps=8, privileged=False)
+    )
     job = EpisodeJob(list(scenes.tasks("pick_place"))[0], "pick_y", 0, 0, seed=7, param=0.0)
     policy = DropsOnce()
     try:
@@ -237,7 +240,7 @@ def test_local_engine_pauses_shows_the_wait_and_reruns_from_seed():
     task = list(scenes.tasks("pick_place"))[0]
     jobs = [EpisodeJob(task, "pick_y", 0, e, seed=10 + e, param=0.0) for e in range(2)]
     policy, records, shown = DropsOnce(), [], []
-    rc = RunnerConfig("pick_place", (), (64, 64), max_steps=8, step=None, privileged=False)
+    rc = RunnerConfig(scene_levels("pick_place", ["pick_y"]), (), (64, 64), max_steps=8, privileged=False)
     run_local(jobs, rc, lambda: policy, RunMeta("r", "test:drops", "", "pick_place"), records.append,
               workers=1, replan_steps=4, max_retries=0, on_wait=shown.append)  # fmt: skip
     assert [(r.episode, r.status, r.steps) for r in records] == [(0, "ok", 8), (1, "ok", 8)]

@@ -150,7 +150,7 @@ def test_infeasible_levels_and_corrupt_files(tmp_path):
 def test_write_mp4(tmp_path):
     import imageio.v2 as imageio
 
-    from scenes.video import write_mp4
+    from indgen_vla.video import write_mp4
 
     env = scenes.make_env("pick_place", cameras=(), max_steps=4)
     try:

@@ -1,0 +1,177 @@
+"""The resolved evaluation plan: the seam between the application and the scene layer.
+
+``indgen evaluate`` asks the scene layer once (``scenes.planning.resolve_scene_plan``) what its config means:
+the scene family and the environment it runs in, the tasks, each axis's successor and level parameters, and
+the certificate behind every level. The engine then adds the episode jobs with their seeds and from there on
+reads only this frozen object: the backends build environments through its ``builder``, the adaptive scheduler
+and resume read its levels and jobs, and the manifest records it (``EvalPlan.record``). Core code: it imports
+neither ``scenes`` nor ``policy_wrappers``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from indgen_vla.progression import AxisSpec
+from indgen_vla.seeding import episode_seed
+
+CERTIFIED, FAILED, UNCERTIFIED = "certified", "failed", "uncertified"
+
+
+class LevelBuilder(Protocol):
+    """Builds one level's environment in whichever process runs it; frozen and picklable (it travels to
+    worker processes and Ray actors). The scene layer provides it; the engine only calls it."""
+
+    scene: str
+
+    @property
+    def preload(self) -> tuple[str, ...]:
+        """Modules a worker process may import ahead of its first env (a forkserver's preload list)."""
+        ...
+
+    def make_env(
+        self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
+        max_steps: int | None,
+    ) -> Any:  # fmt: skip
+        """One level of one task along one planned axis."""
+        ...
+
+    def describe(self) -> dict[str, Any]:
+        """The family, its environment and each axis's successor, as JSON for the manifest."""
+        ...
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One (task, axis, level) of the plan: its axis parameter and the certificate it relies on."""
+
+    task: str
+    axis: str
+    level: int
+    param: float
+    certificate: str  # CERTIFIED | FAILED | UNCERTIFIED (no certificate, or not enough evidence)
+    evidence: str = ""  # the oracle's successes/n behind the certificate, "" when there is none
+
+
+@dataclass(frozen=True)
+class ScenePlan:
+    """What the scene layer resolves from a config: everything scene-side an evaluation needs."""
+
+    scene: str
+    tasks: tuple[str, ...]
+    axes: Mapping[str, AxisSpec]  # in the config's order
+    levels: Mapping[str, tuple[int, ...]]
+    cells: tuple[Cell, ...]
+    builder: LevelBuilder
+
+    def cell(self, task: str, axis: str, level: int) -> Cell:
+        return self._by_key[(task, axis, level)]
+
+    @functools.cached_property
+    def _by_key(self) -> dict[tuple[str, str, int], Cell]:
+        return {(c.task, c.axis, c.level): c for c in self.cells}
+
+    def params(self) -> dict[tuple[str, str, int], float]:
+        """The axis parameter of every (task, axis, level)."""
+        return {k: c.param for k, c in self._by_key.items()}
+
+
+@dataclass(frozen=True)
+class EpisodeJob:
+    """One planned episode; its seed depends only on the plan, never on workers or order."""
+
+    task: str
+    axis: str
+    level: int
+    episode: int
+    seed: int
+    param: float
+    video: bool = False
+
+    @property
+    def key(self) -> tuple[str, str, int, int]:
+        return (self.task, self.axis, self.level, self.episode)
+
+
+@dataclass(frozen=True)
+class EvalPlan:
+    """A resolved config: the scene plan plus every planned episode, in a fixed order."""
+
+    scene_plan: ScenePlan
+    jobs: tuple[EpisodeJob, ...]
+
+    @property
+    def scene(self) -> str:
+        return self.scene_plan.scene
+
+    @property
+    def tasks(self) -> tuple[str, ...]:
+        return self.scene_plan.tasks
+
+    @property
+    def axes(self) -> Mapping[str, AxisSpec]:
+        return self.scene_plan.axes
+
+    @property
+    def levels(self) -> Mapping[str, tuple[int, ...]]:
+        return self.scene_plan.levels
+
+    @property
+    def builder(self) -> LevelBuilder:
+        return self.scene_plan.builder
+
+    def jobs_hash(self) -> str:
+        """SHA-256 of every planned episode (key, seed, parameter, video flag): equal plans, equal hashes."""
+        rows = [[j.task, j.axis, j.level, j.episode, j.seed, repr(j.param), j.video] for j in self.jobs]
+        return hashlib.sha256(json.dumps(rows).encode()).hexdigest()
+
+    def record(self) -> dict[str, Any]:
+        """The manifest's ``resolved`` entry: the environment, every cell with its certificate, the jobs' hash."""
+        return {
+            "environment": self.builder.describe(),
+            "cells": [dataclasses.asdict(c) for c in self.scene_plan.cells],
+            "episodes": len(self.jobs),
+            "jobs_sha256": self.jobs_hash(),
+        }
+
+
+def plan_jobs(
+    scene: str,
+    tasks: Sequence[str],
+    levels: Mapping[str, Sequence[int]],
+    params: Mapping[tuple[str, str, int], float],
+    episodes: int,
+    seed: int,
+    video: bool = False,
+    video_per_level: int = 1,
+) -> tuple[EpisodeJob, ...]:
+    """Every episode of the run in a fixed order (axis in ``levels``' order, task, level by |k|, episode).
+
+    The seed depends on (run seed, scene, task, episode) but not on the axis or level: episode i sees
+    the same random draws at every level, so levels differ only in the axis parameter (common random
+    numbers, a paired design that also makes level 0 identical across axes).
+    """
+    jobs = []
+    for axis, axis_levels in levels.items():
+        for task in tasks:
+            for level in sorted(axis_levels, key=lambda k: (abs(k), k)):
+                for ep in range(episodes):
+                    s = episode_seed(seed, scene, task, ep)
+                    jobs.append(
+                        EpisodeJob(
+                            task,
+                            axis,
+                            level,
+                            ep,
+                            s,
+                            params[(task, axis, level)],
+                            video and ep < video_per_level,
+                        )
+                    )
+    return tuple(jobs)

@@ -1,0 +1,113 @@
+"""Resolve what an evaluation asks of the scene layer, once: the scene side of ``indgen_vla.plan``.
+
+``resolve_scene_plan`` is the one call the engine makes into ``scenes`` for a run. It checks the scene, tasks,
+axes, levels and condition 2 with the registry's one-line errors, computes every level's axis parameter, looks up
+the certificate behind every level, and returns a frozen ``ScenePlan`` whose ``SceneLevels`` builder later builds
+each level's env in the worker processes (so nothing downstream looks a scene up by name again).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from indgen_vla.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
+from indgen_vla.progression import parse_levels
+from scenes.axes import axis_param, get_successor, load_preset, spec_at_level, successor_steps
+from scenes.registry import get_scene
+
+if TYPE_CHECKING:
+    from scenes.axes import Successor
+    from scenes.env import BaseSceneEnv
+
+
+@dataclass(frozen=True)
+class SceneLevels:
+    """Builds the planned levels of one scene family: its successors resolved once, picklable for workers.
+
+    Implements ``indgen_vla.plan.LevelBuilder``.
+    """
+
+    scene: str
+    successors: Mapping[str, Successor] = field(default_factory=dict)
+
+    @property
+    def preload(self) -> tuple[str, ...]:
+        return tuple(get_scene(self.scene).preload)
+
+    def make_env(
+        self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
+        max_steps: int | None,
+    ) -> BaseSceneEnv:  # fmt: skip
+        sc = get_scene(self.scene)
+        return sc.make_env(task, self.successors[axis], level, cameras=cameras, image_size=image_size,
+                           max_steps=max_steps)  # fmt: skip
+
+    def describe(self) -> dict[str, Any]:
+        sc = get_scene(self.scene)
+        return {
+            "scene": self.scene,
+            "family": f"{type(sc).__module__}.{type(sc).__qualname__}",
+            "preload": list(self.preload),
+            "successors": {a: {"type": type(s).__name__, "steps": successor_steps(s)} for a, s in self.successors.items()},
+        }  # fmt: skip
+
+
+def scene_levels(
+    scene: str, axes: Sequence[str], step: float | None = None, preset: str | None = None
+) -> SceneLevels:
+    """A builder for ``axes`` of ``scene`` without a full plan (benchmarks and tests that drive workers directly)."""
+    overrides = load_preset(preset) if preset else None
+    return SceneLevels(scene, {a: get_successor(a, step, overrides) for a in axes})
+
+
+def resolve_scene_plan(
+    scene: str,
+    task: str | None,
+    axes: Sequence[str],
+    levels: str | None = None,
+    step: float | None = None,
+    preset: str | None = None,
+) -> ScenePlan:
+    """Resolve a run's scene side once (one-line errors for unknown names, bad levels, condition 2).
+
+    Args:
+        scene: a registered scene name (``indgen scenes``).
+        task: a task name, ``"all"``, or None for the scene's default task.
+        axes: axis names or compositions, in the run's order.
+        levels: the ``--levels`` text (``-3:3``, ``0,2``), None for each axis's default range.
+        step: ``--step``, overriding a single axis's step.
+        preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
+    """
+    from scenes.certify import certified_levels, infeasible_levels, level_status
+    from scenes.certify_io import find_certification
+
+    sc = get_scene(scene)  # unknown name: one line suggesting the closest
+    sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
+    tasks = sc.select_tasks(task)
+    overrides = load_preset(preset) if preset else None
+    overridden = step is not None or preset is not None
+    successors, specs, planned = {}, {}, {}
+    for name in axes:
+        successor = get_successor(name, step, overrides)
+        sc.check_axis(name)  # every component must be one of the scene's axes
+        successors[name], specs[name] = successor, successor.axis
+        planned[name] = tuple(parse_levels(levels, successor.axis))
+        for t in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
+            sc.check_progression(t, successor, overridden)
+    cells = []
+    for name, successor in successors.items():
+        for t in tasks:
+            cert = find_certification(scene, t, name, step, preset=preset)
+            failed = set(infeasible_levels(cert)) if cert else set()
+            certified = set(certified_levels(cert)) if cert else set()
+            rows = {int(r["level"]): r for r in cert["levels"]} if cert else {}
+            base = sc.base(t)
+            for k in planned[name]:
+                status = FAILED if k in failed else CERTIFIED if k in certified else UNCERTIFIED
+                row = rows.get(k)
+                evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
+                param = axis_param(spec_at_level(base, successor, k), successor, k)
+                cells.append(Cell(t, name, k, param, status, evidence))
+    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), SceneLevels(scene, successors))

@@ -1,0 +1,80 @@
+"""The scene side of the plan: one resolution gives parameters, certificates and a builder that workers use."""
+
+import pickle
+import sys
+
+import pytest
+
+import scenes
+from indgen_vla.plan import CERTIFIED, FAILED, UNCERTIFIED
+from scenes.planning import resolve_scene_plan, scene_levels
+
+
+def test_parameters_are_t0_plus_k_steps_and_certificates_come_from_the_committed_files():
+    sp = resolve_scene_plan("pick_place", "lemon", ["pick_y", "goal_y"], "-3:3")
+    y0 = scenes.get_scene("pick_place").base("lemon").pick.y
+    for k in range(-3, 4):
+        assert sp.cell("lemon", "pick_y", k).param == pytest.approx(y0 + 0.025 * k)
+    assert sp.cell("lemon", "goal_y", -3).certificate == FAILED  # 0/1 in the committed certificate
+    assert sp.cell("lemon", "goal_y", -3).evidence == "0/1 (failed)"
+    assert sp.cell("lemon", "goal_y", 2).certificate == CERTIFIED
+    assert sp.cell("lemon", "goal_y", 2).evidence == "59/59 (certified)"
+    assert sp.levels == {"pick_y": tuple(range(-3, 4)), "goal_y": tuple(range(-3, 4))}
+
+
+def test_a_step_no_certificate_was_made_at_leaves_every_level_uncertified():
+    sp = resolve_scene_plan("pick_place", None, ["pick_y"], "0:2", step=0.03)
+    assert {c.certificate for c in sp.cells} == {UNCERTIFIED} and {c.evidence for c in sp.cells} == {""}
+    assert sp.cell("milk", "pick_y", 2).param == pytest.approx(sp.cell("milk", "pick_y", 0).param + 0.06)
+
+
+def test_the_builder_pickles_and_builds_the_same_level_as_make_env():
+    sp = resolve_scene_plan("pick_place", "milk", ["scale"], "2")
+    builder = pickle.loads(pickle.dumps(sp.builder))
+    assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
+    assert builder.preload == ("scenes.env", "robosuite", "mujoco")
+    env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
+    ref = scenes.make_env(
+        "pick_place", task="milk", axis="scale", level=2, cameras=(), image_size=(64, 64), max_steps=5
+    )
+    try:
+        assert env.spec == ref.spec and env.axis_param == sp.cell("milk", "scale", 2).param
+    finally:
+        env.close()
+        ref.close()
+
+
+def test_scene_levels_needs_no_plan_and_refuses_an_unknown_axis_in_one_line():
+    assert scene_levels("pick_place", ["pick_y"]).successors["pick_y"].axis.step == 0.025
+    with pytest.raises(Exception, match=r"unknown axis 'pick_q'"):
+        scene_levels("pick_place", ["pick_q"])
+
+
+def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
+    """Follow cfg from evaluate: the engine calls one module-level function of scenes (the resolution);
+    everything else it does with scenes is a method of an object the plan handed it (builder, env)."""
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import evaluate
+
+    cfg = EvalConfig(policy="standin:random", scene="pick_place", axes=("pick_y", "scale"), levels="0:1",
+                     episodes=1, max_steps=2, workers=1, out=str(tmp_path / "run"))  # fmt: skip
+    entered = set()
+
+    def tracer(frame, event, arg):
+        if event == "call":
+            code, caller = frame.f_code, frame.f_back
+            if (
+                caller is not None
+                and "/indgen_vla/engine/" in caller.f_code.co_filename
+                and "/scenes/" in code.co_filename
+                and "."
+                not in code.co_qualname  # a module-level function, not a method of a handed-out object
+            ):
+                entered.add(f"{code.co_filename.split('/scenes/')[1]}:{code.co_qualname}")
+
+    sys.setprofile(tracer)
+    try:
+        evaluate(cfg, quiet=True)
+    finally:
+        sys.setprofile(None)
+    assert entered == {"planning.py:resolve_scene_plan"}
