@@ -127,11 +127,10 @@ class RoboCasaLevel:
         key = (self.cfg["task"], str(self.cfg.get("layout_ids")), str(self.cfg.get("style_ids")), int(seed))
         t0 = _T0_META.get(key)
         if t0 is None:
-            raw = self._reset_from(seed, None)
+            self._reset_from(seed, None)
             t0 = _T0_META[key] = self.env.get_ep_meta()
-            if not edits:
-                self.meta = t0
-                return self._obs(raw)
+        # every level, level 0 included, replays T0's metadata with the same rng stream: a replay draws nothing
+        # for the layout/style/objects, so object poses agree across levels only if level 0 is replayed too
         meta = edit_ep_meta(t0, edits)
         raw = self._reset_from(seed, meta)
         self.meta = self.env.get_ep_meta()
