@@ -7,7 +7,7 @@ export MUJOCO_GL ?= egl
 export HF_HUB_OFFLINE ?= 1
 export TOKENIZERS_PARALLELISM ?= false
 
-.PHONY: demo test test-all lint clean-venv
+.PHONY: demo test test-all lint clean-venv robocasa
 
 # Find a Python 3.12 interpreter: pyenv's, then python3.12 on PATH, then a pyenv install dir.
 PYTHON312 := $(shell (command -v pyenv >/dev/null 2>&1 && pyenv which python3.12 2>/dev/null) \
@@ -30,7 +30,12 @@ $(STAMP): $(PY) pyproject.toml
 demo: $(STAMP)
 	@bash scripts/demo.sh
 
-test: $(STAMP)
+# RoboCasa365's own venv (robosuite 1.5, mujoco 3.3.1; ~1 min): the RoboCasa smoke tests run on it
+ROBOCASA_VENV ?= $(or $(INDGEN_ROBOCASA_VENV),$(HOME)/.cache/indgen/robocasa-venv)
+robocasa: $(STAMP)
+	@INDGEN_ROBOCASA_VENV=$(ROBOCASA_VENV) $(VENV)/bin/indgen setup robocasa
+
+test: $(STAMP) robocasa
 	@$(PY) -m pytest -q
 
 test-all: $(STAMP)

@@ -27,6 +27,7 @@ HANDLERS: dict[str, str] = {
     "scenes": "scenes.catalog:scenes_main",
     "axes": "scenes.catalog:axes_main",
     "policies": "policy_wrappers.registry:policies_main",
+    "setup": "scenes.robocasa.setup:setup_main",
     "blockenv": "indgen_vla.blockenv.cli:blockenv_main",
     "demos": "indgen_vla.regimes.demos:demos_main",
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
@@ -272,6 +273,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
     _add_simple(sp, "policies", "list policy spec families and stand-ins")
+    p = sp.add_parser(
+        "setup", help="create a scene family's own simulator environment (robocasa: a pinned venv)"
+    )
+    p.add_argument("family", choices=["robocasa"], help="the scene family whose environment to create")
+    p.add_argument("--venv", default=None, help="where to create it (default: $INDGEN_ROBOCASA_VENV or "
+                   "~/.cache/indgen/robocasa-venv)")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
     _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
     _add_passthrough(sp, "demos", "record T0 demonstrations as a LeRobotDataset")
     _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of T0 demonstrations")

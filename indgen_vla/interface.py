@@ -25,8 +25,35 @@ FAILURE_MODES = ("none", "no_contact", "no_grasp", "dropped", "misplaced", "time
 
 
 @dataclass(frozen=True)
+class EnvSpec:
+    """A scene family's observation/action contract: its camera names and state/action sizes (DESIGN.md).
+
+    The tabletop families (built-in, LIBERO) share ``TABLETOP``; a family with another robot declares its own
+    (RoboCasa365's PandaOmron: three cameras, 16-d state, 12-d action) and names the layout in ``layout``.
+    """
+
+    name: str
+    cameras: tuple[str, ...] = CAMERAS
+    state_dim: int = STATE_DIM
+    action_dim: int = ACTION_DIM
+    layout: str = (
+        "state: eef pos 3 + eef axis-angle 3 + gripper qpos 2; action: delta pos 3 + delta rot 3 + gripper 1"
+    )
+
+    def __post_init__(self) -> None:
+        if self.state_dim < 1 or self.action_dim < 1 or not self.cameras:
+            raise ConfigError(f"env spec {self.name}: needs cameras and positive state/action sizes")
+
+
+TABLETOP = EnvSpec("tabletop")
+
+
+@dataclass(frozen=True)
 class Observation:
-    """What a learned policy may see: raw-orientation camera images, 8-d state and the instruction.
+    """What a learned policy may see: camera images, the robot state and the instruction.
+
+    The tabletop families give raw-orientation images and the 8-d state; another family's ``EnvSpec`` fixes its
+    own sizes (its env's observation space checks them).
 
     Privileged simulator state never appears here; oracles read it from the scene directly. ``objects``
     (the pick object's and the target's pose, ``OBJECT_NAMES``) is filled only for low-dimensional policies
@@ -40,8 +67,10 @@ class Observation:
     objects: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        if self.state.shape != (STATE_DIM,):
-            raise ValueError(f"state must have shape ({STATE_DIM},), got {self.state.shape}")
+        if np.ndim(self.state) != 1:
+            raise ValueError(
+                f"state must be a 1-d array (e.g. ({STATE_DIM},)), got shape {np.shape(self.state)}"
+            )
         if self.objects is not None and np.shape(self.objects) != (OBJECT_DIM,):
             raise ValueError(f"objects must have shape ({OBJECT_DIM},), got {np.shape(self.objects)}")
         for name, img in self.images.items():
@@ -49,28 +78,29 @@ class Observation:
                 raise ValueError(f"image {name!r} must be uint8 HxWx3, got {img.dtype} {img.shape}")
 
 
-def validate_chunk(chunk: np.ndarray, batch: int, who: str) -> np.ndarray:
-    """Check a policy's (B, T, 7) action chunk; raise ``PolicyError`` naming the policy otherwise."""
+def validate_chunk(chunk: np.ndarray, batch: int, who: str, action_dim: int = ACTION_DIM) -> np.ndarray:
+    """Check a policy's (B, T, action_dim) action chunk (7 on the tabletop families); raise ``PolicyError`` naming
+    the policy otherwise."""
     from indgen_vla.errors import PolicyError
 
     arr = np.asarray(chunk)
     if arr.ndim == 2 and batch == 1:
         arr = arr[None]
-    if arr.ndim != 3 or arr.shape[0] != batch or arr.shape[2] != ACTION_DIM or arr.shape[1] < 1:
+    if arr.ndim != 3 or arr.shape[0] != batch or arr.shape[2] != action_dim or arr.shape[1] < 1:
         raise PolicyError(
-            f"policy {who} returned actions of shape {arr.shape}; expected ({batch}, T, {ACTION_DIM})"
+            f"policy {who} returned actions of shape {arr.shape}; expected ({batch}, T, {action_dim})"
         )
     if not np.all(np.isfinite(arr)):
         raise PolicyError(f"policy {who} returned non-finite actions (NaN or inf)")
     return arr.astype(np.float32, copy=False)
 
 
-def act_padded(policy, observations: list, size: int, who: str) -> np.ndarray:
+def act_padded(policy, observations: list, size: int, who: str, action_dim: int = ACTION_DIM) -> np.ndarray:
     """One batched ``act`` over ``observations`` padded to ``size`` rows (the first repeated), checked; the chunks
     of the real rows. Which observations share a batch depends on timing, and a batched forward can round
     differently with the batch size (BLAS blocking), so a fixed size keeps outcomes the same from run to run."""
     rows = list(observations) + list(observations[:1]) * (size - len(observations))
-    return validate_chunk(policy.act(rows), len(rows), who)[: len(observations)]
+    return validate_chunk(policy.act(rows), len(rows), who, action_dim)[: len(observations)]
 
 
 @dataclass(frozen=True)

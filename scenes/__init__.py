@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 from indgen_vla.interface import CAMERAS
 from indgen_vla.progression import AxisSpec
-from scenes import catalog, libero  # noqa: F401  (importing them registers the built-in families, the LIBERO suites)
+from scenes import catalog, libero, robocasa  # noqa: F401  (registers the built-ins, the LIBERO suites, RoboCasa365)
 from scenes.axes import get_axis as _get_axis
 from scenes.axes import get_successor
 from scenes.registry import get_scene, registered_scenes

@@ -67,6 +67,16 @@ _AXIS_TABLE: dict[str, tuple[str, str, float, str, bool, int]] = {
     "distractor": ("add one visual-only distractor (no collision)", "distractors", 1.0, "objects", False, 4),
 }
 
+# Other names of an axis (the name a benchmark's paper or code uses); the registry resolves them to the one axis,
+# so a family lists the axis once. RoboCasa365's horizon axis moves the robot base along its y: ``base_y``.
+AXIS_ALIASES: dict[str, str] = {"base_y": "horizon"}
+
+
+def resolve_alias(name: str) -> str:
+    """The axis ``name`` stands for (itself unless it is an alias)."""
+    return AXIS_ALIASES.get(name, name)
+
+
 # Axes that translate a jittered item: their support at level k is param +- spec.jitter.
 JITTERED_FIELDS = ("pick.x", "pick.y", "goal.y")
 INTEGER_FIELDS = ("clutter", "distractors")
@@ -77,6 +87,7 @@ def base_axis_names() -> list[str]:
 
 
 def _base_axis(name: str) -> AxisSpec:
+    name = resolve_alias(name)
     if name not in _AXIS_TABLE:
         raise UnknownNameError("axis", name, list(_AXIS_TABLE))
     desc, fld, step, unit, signed, max_level = _AXIS_TABLE[name]
@@ -158,7 +169,7 @@ def get_successor(
     ``step`` overrides a single axis's step; a composition's components take steps from presets only.
     """
     overrides = overrides or {}
-    names = name.split("+")
+    names = [resolve_alias(n) for n in name.split("+")]
     if any(not n for n in names):
         raise ConfigError(f"axis {name!r}: write compositions as 'pick_y+distractor'")
     if len(set(names)) != len(names):

@@ -13,12 +13,15 @@ import gymnasium as gym
 import numpy as np
 
 from indgen_vla.errors import ConfigError, SceneError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, STATE_DIM, Observation
+from indgen_vla.interface import CAMERAS, STATE_DIM, TABLETOP, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
 from scenes.failure import FailureTrace
 from scenes.privileged import PrivilegedState, with_privileged
 from scenes.registry import Scene
-from scenes.sim import CAMERA_NAMES, IndgenRobosuiteEnv
+
+# interface camera -> MuJoCo camera of the robosuite tabletop scenes (scenes.sim.CAMERA_NAMES; kept here so that
+# importing scenes.env does not import robosuite: an external family's proxy env must not load robosuite 1.4)
+CAMERA_NAMES = {"agentview": "agentview", "wrist": "robot0_eye_in_hand"}
 
 
 def _check_size(size: tuple[int, int], what: str) -> tuple[int, int]:
@@ -31,12 +34,15 @@ def _check_size(size: tuple[int, int], what: str) -> tuple[int, int]:
     return h, w
 
 
-def check_env_args(cameras: Sequence[str], max_steps: int | None) -> tuple[str, ...]:
-    """Validate the camera names and step limit every scene env accepts; returns the cameras as a tuple."""
+def check_env_args(
+    cameras: Sequence[str], max_steps: int | None, known: Sequence[str] = CAMERAS
+) -> tuple[str, ...]:  # fmt: skip
+    """Validate the camera names (``known``: the family's ``EnvSpec.cameras``) and step limit every scene env
+    accepts; returns the cameras as a tuple."""
     cams = tuple(cameras)
-    bad = [c for c in cams if c not in CAMERAS]
+    bad = [c for c in cams if c not in known]
     if bad:
-        raise ConfigError(f"unknown camera(s) {bad}; cameras are {list(CAMERAS)}")
+        raise ConfigError(f"unknown camera(s) {bad}; cameras are {list(known)}")
     if max_steps is not None and int(max_steps) < 1:
         raise ConfigError(f"max_steps must be >= 1, got {max_steps}")
     return cams
@@ -46,10 +52,13 @@ class ObservationSpace(gym.spaces.Space):
     """What a scene env's ``reset``/``step`` return: an ``Observation`` with one uint8 HxWx3 image per requested
     camera and the float32 robot state (``DictObservation`` gives the same as a ``spaces.Dict``)."""
 
-    def __init__(self, cameras: tuple[str, ...], image_size: tuple[int, int], seed: int | None = None):
+    def __init__(
+        self, cameras: tuple[str, ...], image_size: tuple[int, int], seed: int | None = None,
+        state_dim: int = STATE_DIM,
+    ):  # fmt: skip
         h, w = image_size
         self.images = {c: gym.spaces.Box(0, 255, (h, w, 3), np.uint8) for c in cameras}
-        self.state = gym.spaces.Box(-np.inf, np.inf, (STATE_DIM,), np.float32)
+        self.state = gym.spaces.Box(-np.inf, np.inf, (state_dim,), np.float32)
         super().__init__(seed=seed)
 
     def as_dict(self) -> gym.spaces.Dict:
@@ -105,7 +114,10 @@ class BaseSceneEnv(gym.Env):
         image_size: tuple[int, int] = (128, 128),
         max_steps: int | None = None,
     ):
-        self.cameras = check_env_args(cameras, max_steps)
+        self.env_spec = getattr(scene, "env_spec", TABLETOP)
+        if tuple(cameras) == CAMERAS and self.env_spec.cameras != CAMERAS:
+            cameras = self.env_spec.cameras  # the default camera set is the family's own
+        self.cameras = check_env_args(cameras, max_steps, self.env_spec.cameras)
         self.scene, self.task, self.level = scene.name, task, int(level)
         self.axis = successor.axis
         self.image_size = _check_size(image_size, "image_size")
@@ -116,8 +128,10 @@ class BaseSceneEnv(gym.Env):
         self._done = True
         self.episode_seed: int | None = None
         self._load(scene, task, successor)
-        self.observation_space = ObservationSpace(self.cameras, self.image_size)
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (ACTION_DIM,), np.float32)
+        self.observation_space = ObservationSpace(
+            self.cameras, self.image_size, state_dim=self.env_spec.state_dim
+        )
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.env_spec.action_dim,), np.float32)
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.scene}/{self.task} axis={self.axis.name} level={self.level}>"
@@ -131,8 +145,9 @@ class BaseSceneEnv(gym.Env):
         if self._done:
             raise SceneError("step() after the episode ended; call reset() first")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (ACTION_DIM,) or not np.all(np.isfinite(a)):
-            raise SceneError(f"action must be {ACTION_DIM} finite numbers, got shape {np.shape(action)}")
+        dim = self.action_space.shape[0]
+        if a.shape != (dim,) or not np.all(np.isfinite(a)):
+            raise SceneError(f"action must be {dim} finite numbers, got shape {np.shape(action)}")
         if self._t == 0:  # the episode's first step: the trace starts from the reset state
             self._trace = FailureTrace(start_bottom=self._failure_signals()[1])
         self._observing = observe
@@ -257,6 +272,8 @@ class SceneEnv(BaseSceneEnv):
         self.success_predicate = scene.success_predicate
         layout = scene.layout(self.spec)
         try:
+            from scenes.sim import IndgenRobosuiteEnv
+
             self._sim_env = IndgenRobosuiteEnv(layout)
         except Exception as e:  # robosuite raises bare assertions and mujoco errors
             raise SceneError(f"scene {scene.name}/{task} level {self.level} failed to build: {e}") from e
@@ -279,7 +296,7 @@ class SceneEnv(BaseSceneEnv):
 
     # ---- the robosuite backend -------------------------------------------------------------------
     @property
-    def _rs(self) -> IndgenRobosuiteEnv | None:
+    def _rs(self):
         """The robosuite env (None once closed)."""
         return self._sim_env
 

@@ -36,6 +36,11 @@ class SceneLevels:
     def preload(self) -> tuple[str, ...]:
         return tuple(get_scene(self.scene).preload)
 
+    @property
+    def action_dim(self) -> int:
+        """The family's action size (``EnvSpec.action_dim``: 7 on the tabletop families, 12 on RoboCasa365)."""
+        return int(get_scene(self.scene).env_spec.action_dim)
+
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
@@ -50,6 +55,9 @@ class SceneLevels:
             "scene": self.scene,
             "family": f"{type(sc).__module__}.{type(sc).__qualname__}",
             "preload": list(self.preload),
+            "env_spec": {"name": sc.env_spec.name, "state_dim": sc.env_spec.state_dim,
+                         "action_dim": sc.env_spec.action_dim, "layout": sc.env_spec.layout},
+            "environment": sc.environment_versions(),  # the worker venv's versions when the family runs in its own
             "successors": {a: {"type": type(s).__name__, "steps": successor_steps(s)} for a, s in self.successors.items()},
         }  # fmt: skip
 

@@ -14,7 +14,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.errors import ConfigError, UnknownNameError
-from scenes.axes import base_axis_names
+from indgen_vla.interface import TABLETOP, EnvSpec
+from scenes.axes import base_axis_names, resolve_alias
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -43,6 +44,10 @@ class Scene:
         committed_certificates: True when its oracle certificates ship with the package (``certification_dir``);
             False when they are made per machine (e.g. per LIBERO asset tree).
         certified_compositions: compositions certified beside the single axes by ``certify_all``.
+        env_spec: the family's observation/action contract (``indgen_vla.interface.EnvSpec``; tabletop: 8-d state,
+            7-d action, cameras agentview/wrist).
+        runtime: None when the simulator runs in our venv; else a ``scenes.runtime.ExternalRuntime`` naming the
+            family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
         preload: modules a worker process imports before its first env (the local backend's forkserver); a
             family whose simulator runs in another environment names none of that simulator's modules.
     """
@@ -56,6 +61,8 @@ class Scene:
     success_predicate: ClassVar[Callable[[Any], bool]]
     committed_certificates: ClassVar[bool] = True
     certified_compositions: ClassVar[tuple[str, ...]] = ()
+    env_spec: ClassVar[EnvSpec] = TABLETOP
+    runtime: ClassVar[Any] = None
     preload: ClassVar[tuple[str, ...]] = ("scenes.env", "robosuite", "mujoco")
 
     def __repr__(self) -> str:
@@ -92,6 +99,14 @@ class Scene:
     def check_ready(self) -> None:
         """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
 
+    def environment_versions(self) -> dict[str, str]:
+        """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
+        if self.runtime is None:
+            return {}
+        from scenes.runtime import worker_versions
+
+        return worker_versions(self.runtime)
+
     def needs(self) -> str | None:
         """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
         return None
@@ -126,6 +141,7 @@ class Scene:
     def check_axis(self, axis: str) -> None:
         """Every component of ``axis`` must be one of the family's axes (one line naming the right ones)."""
         for part in axis.split("+"):
+            part = resolve_alias(part)
             if part not in self.axes:
                 if part not in base_axis_names():
                     raise UnknownNameError("axis", part, base_axis_names())

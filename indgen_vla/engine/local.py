@@ -20,7 +20,15 @@ from multiprocessing.connection import wait
 import numpy as np
 
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
-from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, _describe, make_record
+from indgen_vla.engine.rollout import (
+    EnvRunner,
+    RunMeta,
+    RunnerConfig,
+    Transition,
+    _describe,
+    action_dim,
+    make_record,
+)
 from indgen_vla.errors import PolicyConnectionError
 from indgen_vla.interface import act_padded, validate_chunk
 from indgen_vla.plan import EpisodeJob
@@ -286,7 +294,9 @@ def run_local(
             waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
             for lane in sorted({i // n for i, _ in waiting}):  # a lane's chunk leaves once computed
                 group = [(i, t) for i, t in waiting if i // n == lane]
-                for i, result in _act(policies, spec, group, meta.policy, threads, pad_to=n):
+                for i, result in _act(
+                    policies, spec, group, meta.policy, threads, pad_to=n, dim=action_dim(runner_cfg.levels)
+                ):
                     if isinstance(result, PolicyConnectionError):
                         conn_fault(i, result)
                     elif isinstance(result, Exception):
@@ -312,7 +322,7 @@ def run_local(
 
 
 def _act(
-    policies, spec, waiting, who: str, threads, pad_to: int = 1
+    policies, spec, waiting, who: str, threads, pad_to: int = 1, dim: int = 7
 ) -> list[tuple[int, np.ndarray | Exception]]:
     """Actions for every waiting environment: (worker index, (T, 7) chunk) or (index, the exception).
 
@@ -322,7 +332,7 @@ def _act(
         return []
     if spec.batched:
         try:
-            chunks = act_padded(policies[0], [t.obs for _, t in waiting], pad_to, who)
+            chunks = act_padded(policies[0], [t.obs for _, t in waiting], pad_to, who, dim)
         except Exception as e:
             return [(i, e) for i, _ in waiting]
         return [(i, chunks[j]) for j, (i, _) in enumerate(waiting)]
@@ -330,7 +340,7 @@ def _act(
     def one(item):
         i, t = item
         try:
-            return i, validate_chunk(policies[i].act([t.obs]), 1, who)[0]
+            return i, validate_chunk(policies[i].act([t.obs]), 1, who, dim)[0]
         except Exception as e:
             return i, e
 

@@ -124,7 +124,7 @@ class EnvRunner:
         try:
             env = self._env
             obs, done, success = None, False, False
-            rows = np.asarray(actions, dtype=np.float32).reshape(-1, ACTION_DIM)
+            rows = np.asarray(actions, dtype=np.float32).reshape(-1, env.action_space.shape[0])
             lazy = self.cfg.lazy_render and self._can_skip_render
             for j, a in enumerate(rows):
                 if lazy and j < len(rows) - 1:  # nobody reads this step's images: physics only
@@ -164,6 +164,11 @@ class EnvRunner:
                 self._env.close()
             finally:
                 self._env, self._env_key = None, None
+
+
+def action_dim(levels) -> int:
+    """The action size of the planned scene family (``LevelBuilder.action_dim``; 7 when a builder has none)."""
+    return int(getattr(levels, "action_dim", ACTION_DIM))
 
 
 def _takes_observe(env) -> bool:
@@ -224,7 +229,7 @@ def run_episode(
             if not t.error:
                 policy.reset(t.obs.instruction, seed=job.seed)
             while not t.done and not t.error:
-                chunk = validate_chunk(policy.act([t.obs]), 1, meta.policy)
+                chunk = validate_chunk(policy.act([t.obs]), 1, meta.policy, action_dim(runner.cfg.levels))
                 outage.ok()
                 t = runner.execute(chunk[0, :replan_steps])
         except PolicyConnectionError as e:

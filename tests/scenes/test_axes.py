@@ -132,7 +132,14 @@ def test_one_predicate_per_scene_is_shared():
 
 
 def test_api_lists():
-    assert scenes.scene_names() == ["pick_place", "stack", "cabinet_pick", "libero_object", "libero_spatial"]
+    assert scenes.scene_names() == [
+        "pick_place",
+        "stack",
+        "cabinet_pick",
+        "libero_object",
+        "libero_spatial",
+        "robocasa",
+    ]
     assert len(scenes.tasks("pick_place")) >= 6
     assert "stack" in scenes.axes_for("stack")
     for t in scenes.tasks("pick_place"):

@@ -1,0 +1,119 @@
+"""Scene families whose simulator runs in another Python environment, driven over a pipe.
+
+A family declares ``runtime`` (an ``ExternalRuntime``: the interpreter of its own venv and the backend file that
+worker loads) and its own ``EnvSpec`` (cameras, state and action sizes). ``ExternalSceneEnv`` is the proxy
+``BaseSceneEnv`` in our process: it starts ``scenes/external_worker.py`` with that interpreter and sends it
+``build`` / ``reset`` / ``step`` / ``privileged`` requests (length-prefixed pickles, numpy arrays inside). A worker
+error reaches the caller as a one-line ``SceneError`` naming the task, level and cause; a worker that died is
+restarted on the next ``reset`` (the engine retries the episode like any other episode error).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from indgen_vla.errors import SceneError
+from indgen_vla.interface import Observation
+from scenes.env import BaseSceneEnv
+from scenes.runtime import ExternalRuntime, WorkerDied, WorkerProcess
+
+if TYPE_CHECKING:
+    from scenes.axes import Successor
+    from scenes.registry import Scene
+
+
+class ExternalSceneEnv(BaseSceneEnv):
+    """The proxy env of a family with ``runtime``: one level of one task, simulated in the family's own venv.
+
+    The family provides ``level_config(task, successor, level, cameras, image_size) -> dict`` (what the backend's
+    ``build`` receives) and ``env_spec`` (its cameras and state/action sizes); images and state arrive as numpy.
+    """
+
+    _worker: WorkerProcess | None = None
+    _last: dict | None = None
+
+    def _load(self, scene: Scene, task: str, successor: Successor) -> None:
+        self.runtime: ExternalRuntime = scene.runtime
+        self.config = scene.level_config(task, successor, self.level, self.cameras, self.image_size)
+        self.spec = self.config.get("spec")
+        self.axis_param = float(self.config.get("axis_param", self.level))
+        self.instruction = scene.instruction(task)
+        self.success_predicate = scene.success_predicate
+        self._build()
+
+    def _where(self) -> str:
+        return f"scene {self.scene}/{self.task} axis {self.axis.name} level {self.level}"
+
+    def _call(self, op: str, arg: Any = None) -> Any:
+        try:
+            return self._worker.request(op, arg)
+        except WorkerDied as e:
+            self._worker.close()
+            self._worker = None
+            raise WorkerDied(f"{self._where()}: {e}") from None
+        except SceneError as e:
+            raise SceneError(f"{self._where()}: {e}") from None
+
+    def _build(self) -> None:
+        if self._worker is None or not self._worker.alive:
+            self._worker = WorkerProcess(self.runtime)
+        self._call("build", {k: v for k, v in self.config.items() if k != "spec"})
+
+    # ---- gymnasium API -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Observation, dict]:
+        super().reset(seed=seed)
+        if seed is None:
+            seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.episode_seed = int(seed)
+        if self._worker is None or not self._worker.alive:  # a worker that died: a fresh one, rebuilt
+            self._worker = None
+            self._build()
+        self._last = self._call("reset", self.episode_seed)
+        self.instruction = self._last.get("instruction") or self.instruction
+        self._t, self._done = 0, False
+        return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
+
+    def _advance(self, action: np.ndarray) -> bool:
+        self._last = self._call("step", action.astype(np.float64))
+        return bool(self._last.get("success", False))
+
+    def _failure_signals(self) -> tuple[bool, float]:
+        return False, 0.0
+
+    def _observation(self) -> Observation:
+        last = self._last or {}
+        return Observation(
+            images=dict(last.get("images", {})),
+            state=np.asarray(last["state"], dtype=np.float32),
+            instruction=self.instruction,
+            extras={"step": self._t},
+        )
+
+    def privileged_state(self):
+        return self._call("privileged")
+
+    def call(self, name: str, **kwargs) -> Any:
+        """A backend extra by name (e.g. ``ep_meta``), for tests and the oracle."""
+        return self._call("call", (name, kwargs))
+
+    def kill_worker(self) -> None:
+        """Make the worker exit now (tests: the worker dying mid-episode)."""
+        try:
+            self._worker.request("exit", 9)
+        except WorkerDied:
+            pass
+
+    def render_frame(self, camera: str | None = None, size: Sequence[int] = (256, 256)) -> np.ndarray:
+        last = self._last or {}
+        images = last.get("images", {})
+        if not images:
+            raise SceneError(f"{self._where()}: no camera was rendered; request cameras to record video")
+        return images[camera] if camera in images else next(iter(images.values()))
+
+    def close(self) -> None:
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None

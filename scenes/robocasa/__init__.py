@@ -1,0 +1,187 @@
+"""RoboCasa365 (the paper's second benchmark): RoboCasa's own kitchen tasks moved along the paper's axes, simulated in
+RoboCasa's own venv (robosuite 1.5, mujoco 3.3.1) that ``scenes.external`` drives over a pipe.
+
+Level 0 is RoboCasa's task as RoboCasa samples it from the episode's seed (layout, style, objects); level k resets
+from T0's episode metadata with one field moved (``scenes/robocasa/backend.py``). Importing this is cheap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar
+
+from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.interface import EnvSpec
+from scenes.registry import Scene, register_scene
+from scenes.runtime import ExternalRuntime
+
+if TYPE_CHECKING:
+    from scenes.axes import Successor
+    from scenes.external import ExternalSceneEnv
+
+# The paper's task lists per axis (appendix B; issue 25). ``horizon`` is RoboCasa365's ``base_y`` (an alias).
+AXIS_TASKS: dict[str, tuple[str, ...]] = {
+    "pick_x": (
+        "CheesyBread", "CoffeeSetupMug", "PickPlaceCabinetToCounter", "PickPlaceCounterToBlender",
+        "PickPlaceCounterToCabinet", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink",
+        "PickPlaceCounterToStandMixer", "PickPlaceSinkToCounter",
+    ),
+    "fixture_x": (
+        "CloseStandMixerHead", "OpenStandMixerHead", "TurnOnElectricKettle", "OpenElectricKettleLid",
+        "CloseElectricKettleLid", "TurnOnBlender",
+    ),
+    "horizon": (
+        "PickPlaceFridgeDrawerToShelf", "CloseToasterOvenDoor", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink",
+        "PickPlaceCounterToCabinet", "PickPlaceCounterToBlender",
+    ),
+    "clutter": ("PickPlaceCabinetToCounter",),
+}  # fmt: skip
+# Axes whose successor edits are wired in the backend so far (the others build level 0 only; see the README).
+WIRED_AXES = ("pick_x", "horizon")
+
+PANDA_OMRON = EnvSpec(
+    name="robocasa_panda_omron",
+    cameras=("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand"),
+    state_dim=16,
+    action_dim=12,
+    layout=(
+        "state: base-to-eef pos 3 + base-to-eef quat 4 + base pos 3 + base quat 4 + gripper qpos 2; action: eef pos 3 "
+        "+ eef rot 3 + gripper 1 + base motion 4 + control mode 1 (RoboCasa's convert_action order); images upright"
+    ),
+)
+
+
+@dataclass(frozen=True)
+class RoboCasaPick:
+    """The pick object's offset (metres, the placement's fixture frame) from T0's sampled placement."""
+
+    x: float = 0.0
+
+
+@dataclass(frozen=True)
+class RoboCasaSpec:
+    """One RoboCasa task at one level: the offsets each axis moves away from T0 (all zero at level 0)."""
+
+    task: str
+    pick: RoboCasaPick = RoboCasaPick()
+    fixture_x: float = 0.0
+    robot_back: float = 0.0
+    clutter: int = 0
+    jitter: float = 0.0  # T0's own spread of the axis parameter is RoboCasa's; levels are offsets from it
+
+
+@dataclass(frozen=True)
+class RoboCasaSuccess:
+    """RoboCasa's own ``_check_success`` of the task, read from the worker (one predicate for every level)."""
+
+    def __call__(self, state) -> bool:
+        return bool(state["success"])
+
+
+def _python() -> Path:
+    from scenes.robocasa.environment import find_python
+
+    return find_python()
+
+
+def _worker_env() -> dict[str, str]:
+    from scenes.robocasa.environment import find_assets
+
+    return {"ROBOCASA_ASSETS_PATH": str(find_assets()), "MUJOCO_GL": "egl"}
+
+
+@register_scene
+class RoboCasa(Scene):
+    """RoboCasa365 (rlinf-robocasa365 1.0.1 = upstream RoboCasa v1.0.1), PandaOmron in RoboCasa's kitchens.
+
+    **Task Description:**
+    RoboCasa's atomic kitchen tasks the paper moves (appendix B): pick-and-place between counter, cabinet, sink,
+    drawer, blender and stand mixer; the stand-mixer head, the electric kettle and the toaster-oven door.
+
+    **Randomizations:**
+    - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses)
+    - along the axes: the pick object's placement offset in x (``pick_x``), the robot base moved back from T0's
+      pose (``horizon``, alias ``base_y``); ``fixture_x`` and ``clutter`` are listed but build level 0 only so far
+
+    **Success Conditions:**
+    - RoboCasa's own ``_check_success`` of the task (e.g. ``obj_inside_of(obj, cab) and gripper_obj_far``)
+    """
+
+    name = "robocasa"
+    description = "RoboCasa365 kitchens (own venv: indgen setup robocasa), PandaOmron, 12-d action"
+    tasks = tuple(dict.fromkeys(t for ts in AXIS_TASKS.values() for t in ts))
+    axes = ("pick_x", "fixture_x", "horizon", "clutter")
+    max_steps = 500
+    distractor_slots = ()
+    success_predicate = RoboCasaSuccess()
+    committed_certificates = False
+    env_spec: ClassVar[EnvSpec] = PANDA_OMRON
+    runtime: ClassVar[ExternalRuntime] = ExternalRuntime(
+        name="robocasa", python=_python, backend=Path(__file__).with_name("backend.py"), env=_worker_env
+    )
+    preload: ClassVar[tuple[str, ...]] = ()
+
+    def base(self, task: str) -> RoboCasaSpec:
+        return RoboCasaSpec(task=self.resolve_task(task))
+
+    def instruction(self, task: str) -> str:
+        return task  # replaced by RoboCasa's own ep_meta["lang"] at every reset
+
+    def env_class(self) -> type[ExternalSceneEnv]:
+        from scenes.external import ExternalSceneEnv
+
+        return ExternalSceneEnv
+
+    def check_ready(self) -> None:
+        from scenes.robocasa.environment import find_assets, find_python
+
+        find_python()
+        find_assets()
+
+    def needs(self) -> str:
+        from scenes.robocasa.environment import find_assets, find_python, is_placeholder, venv_dir
+
+        py = find_python(required=False)
+        assets = find_assets(required=False)
+        venv = (
+            f"RoboCasa venv ready ({py})"
+            if py
+            else f"RoboCasa venv missing ({venv_dir()}: indgen setup robocasa)"
+        )
+        if assets is None:
+            return f"{venv}; kitchen assets missing (INDGEN_ROBOCASA_ASSETS)"
+        kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
+        return f"{venv}; kitchen assets {kind} ({assets})"
+
+    def check_axis_task(self, task: str, axis: str) -> None:
+        from scenes.axes import resolve_alias
+
+        for part in axis.split("+"):
+            part = resolve_alias(part)
+            if task not in AXIS_TASKS.get(part, ()):
+                raise ConfigError(
+                    f"scene robocasa: task {task} is not on axis {part}'s task list (appendix B); its tasks are "
+                    f"{', '.join(AXIS_TASKS.get(part, ()))}"
+                )
+
+    def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
+        """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
+        from scenes.axes import axis_param, spec_at_level
+
+        self.check_axis_task(task, successor.axis.name)
+        spec = spec_at_level(self.base(task), successor, level)
+        unwired = [f for f, v in (("fixture_x", spec.fixture_x), ("clutter", spec.clutter)) if v]
+        if unwired:
+            raise SceneError(
+                f"scene robocasa/{task} level {level}: the {unwired[0]} successor is not wired to RoboCasa yet "
+                "(level 0 builds); use --levels 0 or the pick_x / base_y axes"
+            )
+        return {
+            "task": task,
+            "cameras": list(cameras),
+            "image_size": tuple(image_size),
+            "edits": {"pick_x": spec.pick.x, "base_back": spec.robot_back},
+            "axis_param": axis_param(spec, successor, level),
+            "spec": spec,
+        }

@@ -1,0 +1,163 @@
+"""Where RoboCasa365 lives: its own venv (pinned, made by ``indgen setup robocasa``) and its kitchen asset tree.
+
+RoboCasa 1.0 needs robosuite 1.5, mujoco 3.3.1 and numpy 2.2.5; our venv has LIBERO's robosuite 1.4, so RoboCasa runs
+in a second venv and ``scenes.external`` drives it over a pipe. Importing this is cheap (no subprocess, no RoboCasa).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from indgen_vla.errors import ConfigError, SceneError
+
+PYTHON_ENV = "INDGEN_ROBOCASA_PYTHON"  # an interpreter of a ready RoboCasa venv
+VENV_ENV = "INDGEN_ROBOCASA_VENV"  # where ``indgen setup robocasa`` makes it
+ASSETS_ENV = "INDGEN_ROBOCASA_ASSETS"  # preferred; rlinf-robocasa365's ROBOCASA_ASSETS_PATH is accepted too
+# Installed with --no-deps: rlinf-robocasa365 declares PyPI's robosuite (1.5.2 fails at reset, pins numpy<2).
+NO_DEPS = ("rlinf-robocasa365==1.0.1", "praxis-robosuite==1.5.2.post1")
+# Their run-time dependencies, pinned exactly (checked on PyPI 2026-11-24) so every set-up is the same.
+PINNED = (
+    "mujoco==3.3.1", "numpy==2.2.5", "scipy==1.15.3", "numba==0.61.2", "llvmlite==0.44.0", "pillow==13.0.0",
+    "opencv-python==5.0.0.93", "termcolor==3.3.0", "tqdm==4.70.1", "gymnasium==1.4.0", "h5py==3.16.0",
+    "imageio==2.38.1", "lxml==6.1.3", "PyYAML==6.0.4", "glfw==2.11.0", "PyOpenGL==3.1.10", "absl-py==2.5.1",
+    "etils==1.15.0", "fsspec==2026.9.0", "typing_extensions==4.16.0", "zipp==4.1.2", "cloudpickle==3.1.3",
+    "Farama-Notifications==0.0.6",
+)  # fmt: skip
+STAMP = ".indgen-robocasa-installed"  # written last: a venv without it is incomplete
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser()
+
+
+def venv_dir() -> Path:
+    return Path(os.environ.get(VENV_ENV) or cache_dir() / "robocasa-venv").expanduser()
+
+
+def stamp_text() -> str:
+    return "\n".join((*NO_DEPS, *PINNED)) + "\n"
+
+
+def find_python(required: bool = True) -> Path | None:
+    """The RoboCasa venv's interpreter: $INDGEN_ROBOCASA_PYTHON, else the set-up venv (complete only)."""
+    explicit = os.environ.get(PYTHON_ENV)
+    if explicit:
+        p = Path(explicit).expanduser()
+        if p.is_file():
+            return p
+        if required:
+            raise SceneError(
+                f"${PYTHON_ENV}={explicit} is not an interpreter; unset it or run 'indgen setup robocasa'"
+            )
+        return None
+    v = venv_dir()
+    if (v / STAMP).is_file() and (v / STAMP).read_text() == stamp_text():
+        return v / "bin" / "python"
+    if required:
+        state = "is out of date" if (v / STAMP).is_file() else "is missing"
+        raise SceneError(
+            f"the RoboCasa venv {v} {state}; run 'indgen setup robocasa' (about a minute: robosuite 1.5, "
+            f"mujoco 3.3.1 from PyPI) or set {PYTHON_ENV} to an interpreter with rlinf-robocasa365 installed"
+        )
+    return None
+
+
+def find_python312() -> str:
+    """A Python 3.12 interpreter, found as the Makefile finds it: pyenv's, python3.12 on PATH, a pyenv install."""
+    if shutil.which("pyenv"):
+        r = subprocess.run(["pyenv", "which", "python3.12"], capture_output=True, text=True)
+        if r.returncode == 0 and r.stdout.strip():
+            return r.stdout.strip()
+    if shutil.which("python3.12"):
+        return shutil.which("python3.12")
+    found = sorted(Path("~/.pyenv/versions").expanduser().glob("3.12*/bin/python3.12"))
+    if found:
+        return str(found[-1])
+    if sys.version_info[:2] == (3, 12):
+        return sys.executable
+    raise ConfigError(
+        "Python 3.12 not found; install it (e.g. 'pyenv install 3.12') and re-run 'indgen setup robocasa'"
+    )
+
+
+def setup_venv(target: Path | None = None, force: bool = False, log=print) -> Path:
+    """Create the pinned RoboCasa venv at ``target`` (idempotent: a complete one is left alone)."""
+    v = (target or venv_dir()).expanduser()
+    if not force and (v / STAMP).is_file() and (v / STAMP).read_text() == stamp_text():
+        log(f"RoboCasa venv ready: {v}")
+        return v / "bin" / "python"
+    t0 = time.perf_counter()
+    if v.exists():
+        shutil.rmtree(v)
+    v.parent.mkdir(parents=True, exist_ok=True)
+    py = find_python312()
+    log(
+        f"creating the RoboCasa venv {v} with {py} (robosuite 1.5, mujoco 3.3.1, numpy 2.2.5; about a minute)"
+    )
+    steps = (
+        [py, "-m", "venv", str(v)],
+        [str(v / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps", *NO_DEPS],
+        [str(v / "bin" / "python"), "-m", "pip", "install", "-q", *PINNED],
+    )
+    for cmd in steps:
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            tail = (r.stderr or r.stdout).strip().splitlines()
+            raise SceneError(
+                f"RoboCasa venv set-up failed at '{' '.join(cmd[2:5])}': {tail[-1] if tail else r.returncode}; "
+                "check that PyPI is reachable and re-run 'indgen setup robocasa'"
+            )
+    (v / STAMP).write_text(stamp_text())
+    log(f"RoboCasa venv ready: {v} ({time.perf_counter() - t0:.0f} s)")
+    return v / "bin" / "python"
+
+
+# ---- assets -------------------------------------------------------------------------------------------------
+PLACEHOLDER_MARKER = "INDGEN_PLACEHOLDER_TREE"  # written by placeholder_tree.py at the tree's root
+
+
+def default_assets() -> Path:
+    return cache_dir() / "robocasa-assets"
+
+
+def is_asset_tree(path: Path) -> bool:
+    return (path / "fixtures" / "fixture_registry").is_dir() and (
+        path / "scenes" / "kitchen_layouts"
+    ).is_dir()
+
+
+def is_placeholder(path: Path) -> bool:
+    return (path / PLACEHOLDER_MARKER).is_file()
+
+
+def find_assets(required: bool = True) -> Path | None:
+    """The kitchen asset tree: $INDGEN_ROBOCASA_ASSETS, $ROBOCASA_ASSETS_PATH, then the default cache path."""
+    for var in (ASSETS_ENV, "ROBOCASA_ASSETS_PATH"):
+        if os.environ.get(var):
+            p = Path(os.environ[var]).expanduser()
+            if is_asset_tree(p):
+                return p.resolve()
+            if required:
+                raise SceneError(
+                    f"${var}={p} is not a RoboCasa asset tree (no fixtures/fixture_registry); {_hint()}"
+                )
+            return None
+    p = default_assets()
+    if is_asset_tree(p):
+        return p.resolve()
+    if required:
+        raise SceneError(f"RoboCasa's kitchen assets are missing (looked in {p}); {_hint()}")
+    return None
+
+
+def _hint() -> str:
+    return (
+        f"download them with RoboCasa's own script in the RoboCasa venv ('python -m robocasa.scripts.download_kitchen_"
+        f"assets') and set {ASSETS_ENV}=DIR, or for smoke runs write placeholders with "
+        f"'python -m scenes.robocasa.placeholders {default_assets()}'"
+    )

@@ -1,0 +1,391 @@
+"""Write RoboCasa's placeholder asset tree; run with the RoboCasa venv's interpreter (``scenes.robocasa.placeholders``
+starts it). Imports only the standard library, numpy, PyYAML and RoboCasa: it is not part of the ``scenes`` package.
+
+The tree is the wheel's own ``models/assets`` (layouts, styles, fixture registry, procedural cabinet XML) plus, for
+every file those reference that the wheel does not ship: a box ``model.xml`` per fixture carrying the joints, sites
+and regions its fixture class looks up; one box object per (registry, category); flat one-colour textures; a
+one-box mesh for any mesh file. Pitfalls handled (issue 25): every joint has its own body (two joints on one body and
+axis make the mass matrix singular); a door sits outside its body's collider (inside, MuJoCo resets mjData to qpos0
+with only mjWARN_BADQACC set); the tree is written writable (objects write temporary XML into their folders).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import runpy
+import shutil
+import struct
+import sys
+import zlib
+from pathlib import Path
+
+MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
+VERSION = 1
+
+# nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
+SIZES = {
+    "sink": (0.8, 0.53, 0.2), "stove": (0.76, 0.66, 0.9), "stove_wide": (0.9, 0.66, 0.9), "stovetop": (0.76, 0.53, 0.05),
+    "oven": (0.76, 0.66, 0.7), "microwave": (0.6, 0.4, 0.35), "hood": (0.76, 0.5, 0.4), "dishwasher": (0.6, 0.6, 0.85),
+    "fridge_french_door": (0.9, 0.75, 1.8), "fridge_side_by_side": (0.9, 0.75, 1.8),
+    "fridge_bottom_freezer": (0.76, 0.75, 1.8), "coffee_machine": (0.25, 0.35, 0.4), "toaster": (0.3, 0.2, 0.2),
+    "toaster_oven": (0.45, 0.35, 0.28), "blender": (0.18, 0.18, 0.4), "blender_lid": (0.12, 0.12, 0.04),
+    "stand_mixer": (0.22, 0.36, 0.36), "electric_kettle": (0.2, 0.16, 0.25), "stool": (0.4, 0.4, 0.65),
+    "window": (1.0, 0.05, 1.0), "dish_rack": (0.45, 0.35, 0.15), "utensil_rack": (0.5, 0.05, 0.08),
+    "wall_accessory": (0.08, 0.02, 0.12), "handle": (0.02, 0.03, 0.2), "panel": (0.5, 0.02, 0.7),
+}  # fmt: skip
+DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
+
+
+def fmt(*v: float) -> str:
+    return " ".join(f"{x:.5g}" for x in v)
+
+
+class Model:
+    """One fixture's MJCF: a root body ``object`` with a collision box and children with one joint each."""
+
+    def __init__(self, name: str, size: tuple[float, float, float]):
+        self.name, (w, d, h) = name, size
+        self.hx, self.hy, self.hz = w / 2, d / 2, h / 2
+        self.geoms: list[str] = []
+        self.bodies: list[str] = []
+        self.sites: list[str] = []
+        self.box("body", (0, 0, 0), (self.hx, self.hy, self.hz))
+        self.region("main", (0, 0, 0), (self.hx, self.hy, self.hz))
+
+    def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1") -> None:
+        self.geoms.append(
+            f'<geom name="{name}" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="{rgba}" group="0" '
+            'density="100"/>'
+        )
+        self.geoms.append(
+            f'<geom name="{name}_visual" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="{rgba}" group="1" '
+            'contype="0" conaffinity="0" density="0"/>'
+        )
+
+    def region(self, name: str, pos, half) -> None:
+        self.geoms.append(
+            f'<geom name="reg_{name}" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="0 1 0 0" group="1" '
+            'contype="0" conaffinity="0" density="0"/>'
+        )
+
+    def site(self, name: str, pos, size=0.01) -> None:
+        self.sites.append(f'<site name="{name}" pos="{fmt(*pos)}" size="{size}" rgba="1 0 0 0"/>')
+
+    def part(self, name: str, joint: str | None, pos, half, kind="hinge", axis=(1, 0, 0), rng=(0.0, 1.57),
+             sites=(), geom_names=(), children="") -> None:  # fmt: skip
+        """A child body at ``pos`` (outside the root box) with one joint and a small box of its own."""
+        j = (
+            f'<joint name="{joint}" type="{kind}" axis="{fmt(*axis)}" range="{fmt(*rng)}" limited="true" '
+            'damping="2" armature="0.01" frictionloss="0.2"/>'
+            if joint
+            else ""
+        )
+        gname = geom_names[0] if geom_names else f"{name}_g"
+        g = (
+            f'<geom name="{gname}" type="box" pos="0 0 0" size="{fmt(*half)}" rgba="0.5 0.5 0.55 1" group="0" density="200"/>'
+            f'<geom name="{gname}_visual" type="box" pos="0 0 0" size="{fmt(*half)}" rgba="0.5 0.5 0.55 1" group="1" '
+            'contype="0" conaffinity="0" density="0"/>'
+        )
+        s = "".join(f'<site name="{n}" pos="{fmt(*p)}" size="0.01" rgba="1 0 0 0"/>' for n, p in sites)
+        self.bodies.append(f'<body name="{name}" pos="{fmt(*pos)}">{j}{g}{s}{children}</body>')
+
+    def xml(self) -> str:
+        hx, hy, hz = self.hx, self.hy, self.hz
+        inner = "\n        ".join(self.geoms + self.sites + self.bodies)
+        return f"""<mujoco model="{self.name}">
+  <compiler angle="radian"/>
+  <asset>
+    <texture name="tex" type="2d" file="tex.png"/>
+    <material name="mat" texture="tex"/>
+  </asset>
+  <worldbody>
+    <body>
+      <body name="object">
+        {inner}
+      </body>
+      <site rgba="0 0 0 0" size="0.005" pos="0 0 {-hz:.5g}" name="bottom_site"/>
+      <site rgba="0 0 0 0" size="0.005" pos="0 0 {hz:.5g}" name="top_site"/>
+      <site rgba="0 0 0 0" size="0.005" pos="{hx:.5g} {hy:.5g} 0" name="horizontal_radius_site"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def fixture_model(kind: str, name: str) -> str:
+    """The placeholder model.xml of one fixture of ``kind`` (the fixture registry file's name)."""
+    w, d, h = SIZES.get(kind, DEFAULT_SIZE)
+    if kind.startswith("fridge"):
+        kind = "fridge"
+    m = Model(name, (w, d, h))
+    hx, hy, hz = m.hx, m.hy, m.hz
+    front = -hy - 0.03  # child parts sit in front of (outside) the root box: never inside a collider
+    small = (0.015, 0.01, 0.015)
+    if kind == "sink":
+        m.region("basin", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.6, hz * 0.6))
+        # the class finds ./body/body/body/joint[@name=handle_joint] and ./body/body/body/site[@name=water]
+        m.bodies.append(
+            f'<body name="spout" pos="0 {hy + 0.05:.4g} {hz + 0.1:.4g}">'
+            '<joint name="handle_joint" type="hinge" axis="1 0 0" range="0 0.8" limited="true" damping="2" '
+            'armature="0.01"/><geom name="spout_g" type="box" size="0.02 0.02 0.02" group="0" density="200"/>'
+            f'<site name="water" pos="0 -0.12 -0.1" size="0.03 0.05" type="cylinder" rgba="0 0 1 0"/>'
+            '<body name="spout2" pos="0 0 0.05"><joint name="spout_joint" type="hinge" axis="0 0 1" '
+            'range="-1.57 1.57" limited="true" damping="2" armature="0.01"/>'
+            '<geom name="spout2_g" type="box" size="0.01 0.01 0.01" group="0" density="200"/>'
+            '<body name="handle_temp" pos="0 0 0.03"><joint name="handle_temp_joint" type="hinge" axis="0 1 0" '
+            'range="-0.8 0.8" limited="true" damping="2" armature="0.01"/>'
+            '<geom name="handle_temp_g" type="box" size="0.005 0.005 0.005" group="0" density="200"/></body>'
+            "</body></body>"
+        )
+    elif kind == "stand_mixer":
+        m.region("bowl", (0, -hy * 0.3, -hz * 0.5), (hx * 0.6, hy * 0.4, hz * 0.3))
+        m.part("head", "head_joint", (0, hy * 0.2, hz + 0.05), (hx * 0.8, hy * 0.7, 0.04),
+               axis=(1, 0, 0), rng=(0.0, 0.8))  # fmt: skip
+        m.part(
+            "bowl_b",
+            "bowl_joint",
+            (0, front, -hz * 0.5),
+            small,
+            kind="hinge",
+            axis=(0, 0, 1),
+            rng=(-3.2, 3.2),
+        )
+        m.part("knob_speed", "knob_speed_joint", (hx + 0.03, 0, 0), small, axis=(1, 0, 0), rng=(0.0, 1.57))
+        m.part("button_head_lock", "button_head_lock_joint", (-hx - 0.03, 0, 0), small, kind="slide",
+               axis=(1, 0, 0), rng=(-0.01, 0.0))  # fmt: skip
+    elif kind == "electric_kettle":
+        m.part(
+            "lid", "lid_joint", (0, 0, hz + 0.02), (hx * 0.7, hy * 0.7, 0.01), axis=(1, 0, 0), rng=(0.0, 1.57)
+        )
+        m.part("switch", "switch_joint", (0, front, -hz * 0.6), small, axis=(1, 0, 0), rng=(0.0, 0.3))
+        m.part("button_lid", "button_lid_joint", (hx + 0.03, 0, hz * 0.5), small, kind="slide", axis=(0, 0, 1),
+               rng=(-0.01, 0.0))  # fmt: skip
+    elif kind == "microwave":
+        m.region("int", (0, 0, 0), (hx * 0.8, hy * 0.8, hz * 0.8))
+        m.part("door", "microjoint", (-hx, front, 0), (hx * 0.9, 0.01, hz * 0.9), axis=(0, 0, 1), rng=(-1.57, 0.0),
+               geom_names=("door",))  # fmt: skip
+        m.box("start_button", (hx * 0.9, -hy - 0.005, hz * 0.3), (0.01, 0.005, 0.01))
+        m.box("stop_button", (hx * 0.9, -hy - 0.005, -hz * 0.3), (0.01, 0.005, 0.01))
+    elif kind in ("oven", "toaster_oven", "dishwasher"):
+        for i, z in enumerate((-0.3, 0.3)):
+            m.region(f"rack{i}", (0, 0, hz * z), (hx * 0.8, hy * 0.8, hz * 0.15))
+            m.part(f"rack{i}", f"rack{i}_joint", (0, front - 0.05 * (i + 1), hz * z), (hx * 0.5, 0.005, 0.005),
+                   kind="slide", axis=(0, -1, 0), rng=(0.0, 0.3))  # fmt: skip
+        if kind == "toaster_oven":
+            m.region("tray0", (0, 0, -hz * 0.6), (hx * 0.8, hy * 0.8, hz * 0.1))
+            m.part("tray0", "tray0_joint", (0, front - 0.15, -hz * 0.6), (hx * 0.5, 0.005, 0.005), kind="slide",
+                   axis=(0, -1, 0), rng=(0.0, 0.3))  # fmt: skip
+        m.part("door", "door_joint", (0, front - 0.2, -hz), (hx * 0.9, 0.01, hz * 0.9), axis=(1, 0, 0),
+               rng=(0.0, 1.57))  # fmt: skip
+        knobs = ("time", "temp") if kind == "oven" else ("doneness", "function", "temp", "time")
+        for i, k in enumerate(knobs):
+            m.part(f"knob_{k}", f"knob_{k}_joint", (hx + 0.03, 0, hz * (0.6 - 0.3 * i)), small, axis=(1, 0, 0),
+                   rng=(0.0, 3.14))  # fmt: skip
+    elif kind == "fridge":
+        m.region("fridge_shelf0", (0, 0, hz * 0.4), (hx * 0.8, hy * 0.8, hz * 0.2))
+        m.region("freezer_shelf0", (0, 0, -hz * 0.5), (hx * 0.8, hy * 0.8, hz * 0.2))
+        m.part("fridge_door", "fridge_door_joint", (-hx, front, hz * 0.4), (hx * 0.9, 0.01, hz * 0.5),
+               axis=(0, 0, 1), rng=(-1.57, 0.0))  # fmt: skip
+        m.part("freezer_door", "freezer_door_joint", (-hx, front - 0.05, -hz * 0.5), (hx * 0.9, 0.01, hz * 0.4),
+               axis=(0, 0, 1), rng=(-1.57, 0.0))  # fmt: skip
+    elif kind in ("stove", "stove_wide", "stovetop"):
+        for i, loc in enumerate(("front_left", "front_right", "rear_left", "rear_right", "center")):
+            x = (-0.5 if "left" in loc else 0.5 if "right" in loc else 0.0) * hx
+            y = (-0.5 if "front" in loc else 0.5 if "rear" in loc else 0.0) * hy
+            m.site(f"burner_on_{loc}", (x, y, hz))
+            m.site(f"burner_{loc}_place_site", (x, y, hz))
+            m.part(f"knob_{loc}", f"knob_{loc}_joint", (hx * (-0.8 + 0.4 * i), front, hz * 0.7), small,
+                   axis=(0, 1, 0), rng=(-6.3, 6.3))  # fmt: skip
+    elif kind == "coffee_machine":
+        m.site("receptacle_place_site", (0, front - 0.05, -hz * 0.8))
+        m.box("start_button", (0, -hy - 0.005, hz * 0.6), (0.01, 0.005, 0.01))
+    elif kind == "blender":
+        m.box("power_button", (0, -hy - 0.005, -hz * 0.8), (0.01, 0.005, 0.01))
+        m.region("int", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.7, hz * 0.6))
+    elif kind == "toaster":
+        for i, pair in enumerate(("0_0", "0_1")):
+            m.part(f"knob_{pair}", f"knob_{pair}_joint", (hx + 0.03, -hy * 0.5 + i * hy, 0), small, axis=(1, 0, 0),
+                   rng=(0.0, 3.14))  # fmt: skip
+            m.part(f"lever_{pair}", f"lever_{pair}_joint", (-hx - 0.03, -hy * 0.5 + i * hy, 0), small,
+                   kind="slide", axis=(0, 0, 1), rng=(-0.05, 0.0))  # fmt: skip
+        m.box("button_cancel", (0, -hy - 0.005, 0), (0.01, 0.005, 0.01))
+    elif kind in ("dish_rack", "fruit_bowl", "tiered_basket", "utensil_set", "knife_block"):
+        m.region("int", (0, 0, hz), (hx * 0.8, hy * 0.8, 0.02))
+    return m.xml()
+
+
+def simple_model(name: str, size: tuple[float, float, float]) -> str:
+    """A box with only ``reg_main`` (cabinet panels, handles, wall accessories, anything else)."""
+    return Model(name, size).xml()
+
+
+def object_model(name: str, half: tuple[float, float, float]) -> str:
+    """One kitchen object: a free box with robosuite's bottom/top/horizontal-radius sites and a ``reg_bbox``."""
+    hx, hy, hz = half
+    return f"""<mujoco model="{name}">
+  <asset/>
+  <worldbody>
+    <body>
+      <body name="object">
+        <geom name="col" type="box" pos="0 0 0" size="{fmt(hx, hy, hz)}" rgba="0.8 0.4 0.2 1" group="0" density="100"
+              solimp="0.998 0.998 0.001" solref="0.001 1" friction="0.95 0.3 0.1" condim="4"/>
+        <geom name="vis" type="box" pos="0 0 0" size="{fmt(hx, hy, hz)}" rgba="0.8 0.4 0.2 1" group="1" contype="0"
+              conaffinity="0" density="0"/>
+        <geom name="reg_bbox" type="box" pos="0 0 0" size="{fmt(hx, hy, hz)}" rgba="0 1 0 0" group="1" contype="0"
+              conaffinity="0" density="0"/>
+      </body>
+      <site rgba="0 0 0 0" size="0.005" pos="0 0 {-hz:.5g}" name="bottom_site"/>
+      <site rgba="0 0 0 0" size="0.005" pos="0 0 {hz:.5g}" name="top_site"/>
+      <site rgba="0 0 0 0" size="0.005" pos="{hx:.5g} {hy:.5g} 0" name="horizontal_radius_site"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def flat_png(rgb: tuple[int, int, int], n: int = 4) -> bytes:
+    """An n x n single-colour PNG (stdlib only)."""
+    raw = b"".join(b"\x00" + bytes(rgb) * n for _ in range(n))
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+        )
+
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", n, n, 8, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw))
+        + chunk(b"IEND", b"")
+    )
+
+
+def colour(path: str) -> tuple[int, int, int]:
+    """A stable muted colour per texture path (so surfaces are told apart in a render)."""
+    h = hashlib.sha1(path.encode()).digest()
+    return tuple(90 + b % 120 for b in h[:3])  # type: ignore[return-value]
+
+
+BOX_OBJ = (
+    "\n".join(
+        [f"v {x:g} {y:g} {z:g}" for x in (-0.05, 0.05) for y in (-0.05, 0.05) for z in (-0.05, 0.05)]
+        + ["f 1 3 4 2", "f 5 6 8 7", "f 1 2 6 5", "f 3 7 8 4", "f 1 5 7 3", "f 2 4 8 6"]
+    )
+    + "\n"
+)
+
+
+class Writer:
+    def __init__(self, dst: Path):
+        self.dst = dst
+        self.counts = {"fixtures": 0, "objects": 0, "textures": 0, "meshes": 0, "other": 0}
+
+    def write(self, rel: str, data: str | bytes, kind: str) -> None:
+        p = self.dst / rel
+        if p.exists():
+            return
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+        self.counts[kind] += 1
+
+    def texture(self, rel: str) -> None:
+        self.write(rel, flat_png(colour(rel)), "textures")
+
+
+def registry_entries(assets: Path):
+    import yaml
+
+    for f in sorted((assets / "fixtures" / "fixture_registry").glob("*.yaml")):
+        data = yaml.safe_load(f.read_text()) or {}
+        for key, cfg in data.items():
+            if isinstance(cfg, dict):
+                yield f.stem, key, cfg
+
+
+def referenced_in_sources(pkg: Path) -> set[str]:
+    """Asset paths written as literals in RoboCasa's (and robosuite's kitchen-facing) Python sources."""
+    pat = re.compile(r"""["']((?:fixtures|textures|objects|generative_textures|arenas)/[^"'\s{}]+)["']""")
+    out: set[str] = set()
+    for py in pkg.rglob("*.py"):
+        if "scripts" in py.parts or "demos" in py.parts:
+            continue
+        out.update(pat.findall(py.read_text(errors="ignore")))
+    return out
+
+
+def object_categories() -> dict:
+    """RoboCasa's raw OBJ_CATEGORIES (before its ObjCat conversion), read from its source file."""
+    import robocasa.models.objects as objs
+
+    ns = runpy.run_path(str(Path(objs.__file__).parent / "kitchen_objects.py"))
+    return ns["OBJ_CATEGORIES"]
+
+
+REGISTRY_FOLDERS = {"objaverse": "objaverse", "aigen": "aigen_objs", "lightwheel": "lightwheel"}
+
+
+def write_tree(dst: Path) -> dict:
+    import robocasa
+
+    pkg = Path(robocasa.__file__).parent
+    wheel_assets = pkg / "models" / "assets"
+    dst.mkdir(parents=True, exist_ok=True)
+    shutil.copytree(wheel_assets, dst, dirs_exist_ok=True)
+    w = Writer(dst)
+    for kind, key, cfg in registry_entries(wheel_assets):
+        xml = cfg.get("xml")
+        if isinstance(xml, str):
+            rel = xml if xml.endswith(".xml") else f"{xml}/model.xml"
+            body = (
+                fixture_model(kind, key)
+                if not xml.startswith("objects/")
+                else object_model(key, (0.04, 0.04, 0.06))
+            )
+            w.write(rel, body, "fixtures")
+            w.texture(str(Path(rel).parent / "tex.png"))
+        for v in cfg.values():
+            if isinstance(v, str) and v.endswith((".png", ".jpg")):
+                w.texture(v)
+    for rel in sorted(referenced_in_sources(pkg)):
+        if rel.endswith((".png", ".jpg")):
+            w.texture(rel)
+        elif rel.endswith(".xml"):
+            kind = "handle" if "/handles/" in rel else "panel" if "panel" in rel else "other"
+            w.write(rel, simple_model(Path(rel).parent.name, SIZES.get(kind, DEFAULT_SIZE)), "fixtures")
+            w.texture(str(Path(rel).parent / "tex.png"))
+        elif rel.startswith("fixtures/") and not Path(rel).suffix:
+            w.write(f"{rel}/model.xml", simple_model(Path(rel).name, DEFAULT_SIZE), "fixtures")
+            w.texture(f"{rel}/tex.png")
+    for cat, cfg in object_categories().items():
+        aux = bool(cfg.get("is_auxiliary_obj"))
+        for reg, folder in REGISTRY_FOLDERS.items():
+            if reg not in cfg:
+                continue
+            folders = cfg[reg].get("model_folders") or [f"{folder}/{cat}"]
+            for fold in folders:
+                model = f"objects/{fold}/{cat}_ph" + ("/part" if aux else "") + "/model.xml"
+                w.write(model, object_model(cat, (0.03, 0.03, 0.04)), "objects")
+    # files the wheel's own XML points at (cabinet textures, meshes) that the wheel does not ship
+    for xml in list(dst.rglob("*.xml")):
+        text = xml.read_text(errors="ignore")
+        for ref in re.findall(r'file="([^"]+)"', text):
+            target = (xml.parent / ref).resolve()
+            if target.exists() or not str(target).startswith(str(dst.resolve())):
+                continue
+            rel = str(target.relative_to(dst.resolve()))
+            if ref.endswith((".png", ".jpg")):
+                w.texture(rel)
+            elif ref.endswith((".obj", ".stl", ".msh")):
+                w.write(rel, BOX_OBJ, "meshes")
+    (dst / MARKER).write_text(f"version {VERSION}\nrobocasa {getattr(robocasa, '__version__', '?')}\n")
+    for root, dirs, files in os.walk(dst):  # writable: objects write temporary XML into their folders
+        for n in dirs + files:
+            p = os.path.join(root, n)
+            os.chmod(p, os.stat(p).st_mode | 0o200)
+    return w.counts
+
+
+if __name__ == "__main__":
+    print(write_tree(Path(sys.argv[1])))
