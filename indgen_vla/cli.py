@@ -208,6 +208,12 @@ def _add_compare(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
     p.add_argument("--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)")
+    p.add_argument(
+        "--allow-protocol-mismatch",
+        action="store_true",
+        help="compare runs whose protocol fingerprints differ in a field that changes outcomes (horizon, assets, "
+        "simulator versions, cameras, render backend, conventions of one policy family); the output lists them",
+    )
     p.add_argument("--out", default=None, help="output folder (default: RUN_A/compare)")
 
 

@@ -12,6 +12,7 @@ from typing import Any
 from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
+from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.records import RunDir, write_result
@@ -161,6 +162,7 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
              "a level below the data floor never yields a k* (\"undetermined\" when one precedes the break).", "",
              f"Test: {test_description(result)}; Holm-corrected per axis.", "",
              f"**Verdict.** {text}", ""]  # fmt: skip
+    lines += protocol_section(result.get("protocol", []))
     for axis, ax in result["axes"].items():
         lines += [f"## Axis `{axis}`", ""]
         if paired:
@@ -204,8 +206,11 @@ def compare_main(args: argparse.Namespace) -> int:
     la, lb = getattr(args, "label_a", None) or run_label(ra), getattr(args, "label_b", None) or run_label(rb)
     if la == lb:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
+    protocol = check_comparable([(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
+                                getattr(args, "allow_protocol_mismatch", False), "paired or compared")  # fmt: skip
     result = compare_summaries(sa, sb, args.test, args.gamma, episodes=(ra.episodes(), rb.episodes()))
     result["label_a"], result["label_b"] = la, lb
+    result["protocol"] = protocol
     for axis, ax in result["axes"].items():
         ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma)
     result["verdict"] = verdict(result, la, lb, args.alpha)

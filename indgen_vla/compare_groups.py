@@ -14,6 +14,7 @@ import math
 from typing import Any
 
 from indgen_vla.errors import RunDirError
+from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
 from indgen_vla.metrics import UndeterminedBreakError, holm, kstar
 from indgen_vla.pairing import pair_episodes
@@ -146,6 +147,7 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
              "exact matched-pairs test on the discordant pairs pooled over strata (stratified McNemar), Holm-corrected "
              "per axis. Seed-level endpoints: Welch t-intervals across runs; TOST for equivalence.", "",
              f"**Verdict.** {result['verdict']}", ""]  # fmt: skip
+    lines += protocol_section(result.get("protocol", []))
     for axis, ax in result["axes"].items():
         lines += [f"## Axis `{axis}`", "", "| level | pairs | A | B | A only | B only | p | p (Holm) |",
                   "|---|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -177,12 +179,15 @@ def groups_main(args) -> int:
     if not 0 < args.margin < 1:
         raise ConfigError(f"--margin must be in (0, 1), got {args.margin}")
     runs_a, runs_b = [RunDir.open(p) for p in args.a], [RunDir.open(p) for p in args.b]
+    protocol = check_comparable([(str(r.path), r.manifest.get("fingerprint")) for r in runs_a + runs_b],
+                                getattr(args, "allow_protocol_mismatch", False), "pooled or paired")  # fmt: skip
     result = compare_groups([r.episodes() for r in runs_a], [r.episodes() for r in runs_b], args.gamma,
                             args.margin, args.alpha)  # fmt: skip
     la, lb = args.label_a or "A", args.label_b or "B"
     result.update(
         label_a=la, label_b=lb, runs_a=[str(r.path) for r in runs_a], runs_b=[str(r.path) for r in runs_b]
     )
+    result["protocol"] = protocol
     result["verdicts"] = axis_verdicts(result, la, lb)
     result["verdict"] = " ".join(result["verdicts"].values())
     out = Path(args.out) if args.out else runs_a[0].path / "compare_groups"

@@ -46,6 +46,10 @@ class LevelBuilder(Protocol):
         """The family, its environment and each axis's successor, as JSON for the manifest."""
         ...
 
+    def render_backend(self) -> str:
+        """The GL vendor/renderer the family's envs render with on this machine (the protocol fingerprint)."""
+        ...
+
 
 @dataclass(frozen=True)
 class Cell:

@@ -226,6 +226,12 @@ class RunDir:
             rows[rec.key] = asdict(rec)
         self._flush()
 
+    def update_manifest(self, **fields: Any) -> None:
+        """Add top-level fields to manifest.json (atomic); the ``plan`` a resume matches is never changed here."""
+        if "plan" in fields:
+            raise RunDirError("the manifest's plan is fixed when the run is created")
+        atomic_write_json(self.path / MANIFEST, {**self.manifest, **fields})
+
     def rewrite(self, records: Iterable[EpisodeRecord]) -> None:
         """Replace every row by ``records`` at once (atomic), for runs whose source of truth is another file
         (the real-robot journal, ``indgen_vla.real.store``): the Parquet file is a view rebuilt from it."""

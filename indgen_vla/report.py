@@ -430,7 +430,16 @@ def report_main(args: argparse.Namespace) -> int:
             raise RunDirError(
                 f"cannot write to --out {out}: {e.strerror}; choose another directory"
             ) from None
-        atomic_write_text(out / REPORT, render_markdown(results, "Inductive generalization: run comparison"))
+        from indgen_vla.fingerprint import check_comparable, protocol_section
+
+        protocol = check_comparable(
+            [(lbl, r.manifest.get("fingerprint")) for (lbl, _), r in zip(results, runs, strict=True)],
+            allow=True,
+        )  # side by side, never pooled: differences are shown, not refused
+        text = render_markdown(results, "Inductive generalization: run comparison")
+        atomic_write_text(
+            out / REPORT, text + "\n" + "\n".join(protocol_section(protocol)) if protocol else text
+        )
         for axis in sorted({a for _, s in results for a in s["axes"]}):
             curves = [(lbl, s["axes"][axis]) for lbl, s in results if axis in s["axes"]]
             plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")

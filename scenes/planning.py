@@ -58,8 +58,15 @@ class SceneLevels:
             "env_spec": {"name": sc.env_spec.name, "state_dim": sc.env_spec.state_dim,
                          "action_dim": sc.env_spec.action_dim, "layout": sc.env_spec.layout},
             "environment": sc.environment_versions(),  # the worker venv's versions when the family runs in its own
+            "protocol": sc.protocol_facts(),
             "successors": {a: {"type": type(s).__name__, "steps": successor_steps(s)} for a, s in self.successors.items()},
         }  # fmt: skip
+
+    def render_backend(self) -> str:
+        """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""
+        from scenes.render_info import gl_renderer
+
+        return gl_renderer()
 
 
 def scene_levels(

@@ -111,6 +111,16 @@ class Scene:
         """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
         return None
 
+    def protocol_facts(self) -> dict[str, Any]:
+        """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
+        settling steps after reset, where initial states come from, and the identity of the asset tree."""
+        return {
+            "max_steps": self.max_steps,
+            "settle_steps": 0,
+            "initial_states": "sampled from each episode's seed (T0 jitter)",
+            "assets": "shipped with the simulator packages (their versions identify them)",
+        }
+
     def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
         """Condition 2 (strictly harder levels) before any episode runs, from the frozen specs; ``overridden``
         says --step / --axes-preset changed a step (a family that needs a built env checks only then)."""

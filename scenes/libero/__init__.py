@@ -116,6 +116,18 @@ class LiberoSuite(Scene):
             return f"LIBERO's assets (missing: hf download {HUB_REPO} --repo-type dataset, or set INDGEN_LIBERO_ASSETS)"
         return f"LIBERO's assets (found: {assets})"
 
+    def protocol_facts(self) -> dict:
+        from scenes.libero.assets import find_assets, tree_identity
+        from scenes.libero.env import NUM_STEPS_WAIT
+
+        assets = find_assets()
+        return {
+            **super().protocol_facts(),
+            "settle_steps": NUM_STEPS_WAIT,
+            "initial_states": "LIBERO's fixed initial states of hf-libero's init files, episode % 50",
+            "assets": {"root": str(assets), "listing_sha256": tree_identity(assets)},
+        }
+
     def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
         """Condition 2 is checked against LIBERO's fixed initial states, which needs level 0 built (physics only,
         ~10 s): up front only when --step / --axes-preset changed a pick_y/goal_y step; the env repeats the check

@@ -6,6 +6,8 @@ for on stdin, then imports it and points its asset lookup at the resolved asset 
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import importlib.util
 import os
 from pathlib import Path
@@ -77,6 +79,19 @@ def find_assets(required: bool = True) -> Path | None:
     if required:
         raise SceneError(missing_assets_message())
     return None
+
+
+@functools.cache
+def tree_identity(root: Path) -> str:
+    """SHA-256 over every file's relative path and size under ``root``: tells two asset trees apart (the real
+    download, a miniature or placeholder tree, an overlay) without reading gigabytes of meshes."""
+    h = hashlib.sha256()
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        dirnames.sort()
+        for name in sorted(filenames):
+            p = Path(dirpath, name)
+            h.update(f"{p.relative_to(root)}\0{p.stat().st_size}\n".encode())
+    return h.hexdigest()
 
 
 def config_dir() -> Path:

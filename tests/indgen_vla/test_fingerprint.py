@@ -1,0 +1,91 @@
+"""Protocol fingerprints: one field differing at a time refuses pairing when it changes outcomes, never otherwise."""
+
+import copy
+import json
+
+import pytest
+
+from indgen_vla.cli import main
+from indgen_vla.fingerprint import OUTCOME_FIELDS, ProtocolMismatchError, check_comparable, differences
+
+
+def base() -> dict:
+    return {
+        "scene": "pick_place", "family": "scenes.catalog.PickPlace",
+        "simulator": {"robosuite": "1.4.0", "mujoco": "3.8.1"}, "assets": "shipped", "horizon": 280,
+        "settle_steps": 0, "initial_states": "seeded", "cameras": ["agentview"], "image_size": [128, 128],
+        "render_backend": "Mesa / llvmpipe (egl)",
+        "policy": {"family": "lerobot", "chunk_size": 10, "replan_steps": 5, "flip_180": True, "conventions": "C()"},
+        "certificates": {"milk/pick_y/0": "certified"}, "plan_sha256": "ab",
+    }  # fmt: skip
+
+
+EDITS = {
+    "scene": "stack", "family": "x.Other", "simulator": {"robosuite": "1.5.2", "mujoco": "3.8.1"},
+    "assets": {"root": "/mini", "listing_sha256": "cd"}, "horizon": 300, "settle_steps": 10,
+    "initial_states": "LIBERO init files", "cameras": ["agentview", "wrist"], "image_size": [256, 256],
+    "render_backend": "NVIDIA Corporation / NVIDIA H100 (egl)",
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("field", OUTCOME_FIELDS)
+def test_each_outcome_field_alone_refuses_pairing_in_one_line_naming_it(field):
+    other = {**base(), field: EDITS[field]}
+    assert [(f, changes) for f, _, _, changes in differences(base(), other)] == [(field, True)]
+    with pytest.raises(
+        ProtocolMismatchError, match=rf"^A and B were made under different protocols.*: {field} is "
+    ) as e:
+        check_comparable([("A", base()), ("B", other)])
+    assert "\n" not in str(e.value) and "--allow-protocol-mismatch" in str(e.value)
+    lines = check_comparable([("A", base()), ("B", other)], allow=True)
+    assert len(lines) == 1 and f"{field} differs (changes outcomes)" in lines[0]
+
+
+def test_conventions_refuse_within_one_policy_family_only():
+    flipped = copy.deepcopy(base())
+    flipped["policy"]["flip_180"] = False
+    with pytest.raises(ProtocolMismatchError, match="policy.flip_180 is true vs false"):
+        check_comparable([("A", base()), ("B", flipped)])
+    other_family = copy.deepcopy(flipped)
+    other_family["policy"]["family"] = "openpi"
+    lines = check_comparable([("A", base()), ("B", other_family)])  # comparing two families is the point
+    assert any("policy.flip_180 differs (informational)" in x for x in lines)
+
+
+def test_certificates_and_plan_are_shown_but_never_refuse():
+    other = {**base(), "certificates": {}, "plan_sha256": "ef"}
+    lines = check_comparable([("A", base()), ("B", other)])
+    assert [x.split(":")[1].strip() for x in lines] == [
+        "certificates differs (informational)",
+        "plan_sha256 differs (informational)",
+    ]
+    assert check_comparable([("A", base()), ("B", None)]) == [
+        "B: no protocol fingerprint (made before they were recorded); comparability not checked"
+    ]
+
+
+def test_compare_refuses_runs_with_different_horizons_and_the_flag_lets_it_through(tmp_path, capsys):
+    common = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
+              "--episodes", "2", "--workers", "1"]  # fmt: skip
+    assert main([*common, "--max-steps", "2", "--out", str(tmp_path / "a")]) == 0
+    assert main([*common, "--max-steps", "3", "--out", str(tmp_path / "b")]) == 0
+    fp = json.loads((tmp_path / "a" / "manifest.json").read_text())["fingerprint"]
+    assert (
+        fp["horizon"] == 2
+        and fp["render_backend"].startswith("none")
+        and fp["certificates"] == {"milk/pick_y/0": "certified"}
+    )
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(tmp_path / "c")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "horizon is 2 vs 3" in err[0]
+    args = [
+        "compare",
+        str(tmp_path / "a"),
+        str(tmp_path / "b"),
+        "--out",
+        str(tmp_path / "c"),
+        "--allow-protocol-mismatch",
+    ]
+    assert main(args) == 0
+    assert "horizon differs (changes outcomes): 2 vs 3" in (tmp_path / "c" / "compare.md").read_text()
