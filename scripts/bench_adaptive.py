@@ -10,6 +10,12 @@ Bernoulli outcomes per level (no simulator). The fixed design uses all 50 per le
 is paired. True k* = first level outward whose TRUE rate is below γ. "easy" curves have no true rate inside
 the indifference zone [γ − δ, γ + δ] at levels 0..k* of either direction; "hard" curves are unrestricted.
 Per-level error rates of the rule are checked by Monte Carlo at S = γ ± δ against the exact OC.
+
+``--protocol P`` also simulates P whole protocols of the paper's LIBERO-Object shape (10 tasks × 3 signed axes, 30
+ladders of levels -3..3, 10,500 episodes fixed) run the way ``evaluate --adaptive kstar --task all`` runs them: every
+round holds every open ladder's next episodes. It reports the episodes used against the fixed design, k* accuracy
+per ladder for both, the rounds, and the wall time in episode durations for 1/2/8 workers (equal episode durations
+assumed; rounds are barriers), beside running the ladders one after another.
 """
 
 from __future__ import annotations
@@ -153,6 +159,67 @@ def simulate(rule: SequentialRule, family: str, replicates: int, seed: int) -> d
     }
 
 
+PROTOCOL_LADDERS = 10 * 3  # LIBERO-Object: 10 tasks x (pick_y, goal_y, scale)
+
+
+def simulate_protocol(rule: SequentialRule, protocols: int, seed: int, workers=(1, 2, 8)) -> dict:
+    """Whole protocols, interleaved as the engine runs them (a round = every open ladder's next episodes)."""
+    rng = np.random.default_rng(seed)
+    eps_fixed = eps_adapt = right_fixed = right_adapt = ladders = rounds_total = 0
+    wall = {w: [0, 0, 0] for w in workers}  # fixed, interleaved adaptive, one ladder after another
+    for _ in range(protocols):
+        curves = [draw_curve(rng) for _ in range(PROTOCOL_LADDERS)]
+        outcomes = [{k: rng.random(FIXED_N) < c[k] for k in LEVELS} for c in curves]
+        seen: list[dict[int, dict[int, bool]]] = [{} for _ in curves]
+        per_ladder_rounds: list[list[int]] = [[] for _ in curves]
+        round_sizes = []
+        while True:
+            plans = [plan_next(rule, LEVELS, s, "kstar", signed=True) for s in seen]
+            todo = [(i, k, e) for i, p in enumerate(plans) for k, eps in p.to_run.items() for e in eps]
+            if not todo:
+                break
+            round_sizes.append(len(todo))
+            for i, p in enumerate(plans):
+                if p.to_run:
+                    per_ladder_rounds[i].append(sum(len(v) for v in p.to_run.values()))
+            for i, k, e in todo:
+                seen[i].setdefault(k, {})[e] = bool(outcomes[i][k][e])
+        for i, c in enumerate(curves):
+            truth = true_kstar(c, rule.gamma)
+            fixed = break_levels({k: float(outcomes[i][k].mean()) for k in LEVELS}, rule.gamma, signed=True)
+            right_fixed += fixed == truth
+            right_adapt += {d: plans[i].kstar[d]["k"] for d in plans[i].kstar} == truth
+        ladders += len(curves)
+        eps_fixed += len(curves) * len(LEVELS) * FIXED_N
+        eps_adapt += sum(sum(len(v) for v in s.values()) for s in seen)
+        rounds_total += len(round_sizes)
+        for w in workers:
+            wall[w][0] += math.ceil(len(curves) * len(LEVELS) * FIXED_N / w)
+            wall[w][1] += sum(math.ceil(n / w) for n in round_sizes)
+            wall[w][2] += sum(math.ceil(n / w) for r in per_ladder_rounds for n in r)
+    return {
+        "protocols": protocols,
+        "ladders": ladders,
+        "episodes_fixed_per_protocol": eps_fixed / protocols,
+        "episodes_adaptive_per_protocol": eps_adapt / protocols,
+        "adaptive_share_of_fixed": eps_adapt / eps_fixed,
+        "kstar_recovered_per_ladder": {
+            "fixed": _rate(right_fixed, ladders),
+            "kstar": _rate(right_adapt, ladders),
+        },
+        "rounds_per_protocol": rounds_total / protocols,
+        "wall_episode_durations_per_protocol": {
+            str(w): {
+                "fixed": v[0] / protocols,
+                "adaptive_interleaved": v[1] / protocols,
+                "adaptive_one_ladder_at_a_time": v[2] / protocols,
+            }
+            for w, v in wall.items()
+        },  # fmt: skip
+        "adaptive_speedup_2_vs_1_worker": wall[1][1] / wall[2][1] if 2 in wall else None,
+    }
+
+
 def error_check(rule: SequentialRule, sequences: int, seed: int) -> dict:
     """Per-level verdict frequencies at S = γ + δ and γ − δ (Monte Carlo) beside the exact OC."""
     rng = np.random.default_rng(seed)
@@ -260,6 +327,9 @@ def main() -> None:
     p.add_argument("--thresholds", choices=("wald", "exact"), default="exact")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", default=None, help="also write the results here")
+    p.add_argument(
+        "--protocol", type=int, default=0, help="also simulate this many whole LIBERO-Object protocols"
+    )
     a = p.parse_args()
     rule = SequentialRule(a.gamma, a.delta, a.alpha, a.beta, a.round_size, FIXED_N, a.thresholds)
     t0 = time.perf_counter()
@@ -267,6 +337,8 @@ def main() -> None:
     res["error_check"] = error_check(rule, a.sequences, a.seed)
     for i, fam in enumerate(("easy", "hard")):
         res[fam] = simulate(rule, fam, a.replicates, a.seed + 1 + i)
+    if a.protocol:
+        res["protocol"] = simulate_protocol(rule, a.protocol, a.seed + 7)
     res["wall_s"] = round(time.perf_counter() - t0, 1)
     text = json.dumps(res, indent=1)
     if a.json:
@@ -274,6 +346,8 @@ def main() -> None:
             f.write(text + "\n")
     for line in summary(res):
         print(line)
+    if "protocol" in res:
+        print("protocol:", json.dumps(res["protocol"]))
 
 
 if __name__ == "__main__":
