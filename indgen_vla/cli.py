@@ -100,6 +100,15 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
     p.add_argument(
+        "--device", default=None, help="where in-process policies run: cpu, cuda, cuda:N (default cpu)"
+    )
+    p.add_argument(
+        "--precision",
+        choices=["fp32", "bf16"],
+        default=None,
+        help="bf16: autocast forward (lerobot: policies)",
+    )
+    p.add_argument(
         "--pipeline",
         action=argparse.BooleanOptionalAction,
         default=None,

@@ -98,7 +98,12 @@ def validate_chunk(chunk: np.ndarray, batch: int, who: str, action_dim: int = AC
 def act_padded(policy, observations: list, size: int, who: str, action_dim: int = ACTION_DIM) -> np.ndarray:
     """One batched ``act`` over ``observations`` padded to ``size`` rows (the first repeated), checked; the chunks
     of the real rows. Which observations share a batch depends on timing, and a batched forward can round
-    differently with the batch size (BLAS blocking), so a fixed size keeps outcomes the same from run to run."""
+    differently with the batch size (BLAS blocking), so a fixed size keeps outcomes the same from run to run.
+
+    A policy whose ``act`` takes ``pad_to`` pads after its per-row pre-processing (the padded rows then cost
+    the forward only, not another decode/resize each) and returns the real rows alone."""
+    if size > len(observations) and getattr(policy, "pads_batches", False):
+        return validate_chunk(policy.act(list(observations), pad_to=size), len(observations), who)
     rows = list(observations) + list(observations[:1]) * (size - len(observations))
     return validate_chunk(policy.act(rows), len(rows), who, action_dim)[: len(observations)]
 

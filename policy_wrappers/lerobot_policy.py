@@ -28,7 +28,7 @@ from indgen_vla.interface import (
     PolicySpec,
     validate_chunk,
 )
-from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions
+from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 
 IMAGE_PREFIX = "observation.images."
 # Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).
@@ -52,6 +52,7 @@ LIBERO_CAMERA_NAMES = {
 }  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
+PRECISIONS = ("fp32", "bf16")
 
 
 @dataclass(frozen=True)
@@ -68,8 +69,13 @@ class LeRobotConfig:
     replan_steps: int | None = None  # None: the checkpoint's n_action_steps
     vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
     tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
+    precision: str = "fp32"  # "bf16": the forward runs under torch.autocast(bfloat16)
 
     def __post_init__(self) -> None:
+        if self.precision not in PRECISIONS:
+            raise ConfigError(
+                f"lerobot {self.path}: precision must be one of {list(PRECISIONS)}, got {self.precision!r}"
+            )
         for feature, cam in self.camera_map:
             if cam not in (*CAMERAS, ZEROS):
                 raise ConfigError(
@@ -130,6 +136,7 @@ class LeRobotPolicy:
             observes_objects=self._objects,
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
+        self.pads_batches = self.spec.batched  # act(..., pad_to=N): see interface.act_padded
 
     def _fail(self, what: str, err: BaseException) -> PolicyError:
         detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
@@ -172,7 +179,9 @@ class LeRobotPolicy:
             overrides["tokenizer_processor"] = {"tokenizer_name": tokenizer}
         try:
             policy_cls = get_policy_class(cfg.type)
-            policy = policy_cls.from_pretrained(path, config=cfg, revision=rev)
+            # random init on the target device before the weights load over it: a VLA's CPU init takes minutes
+            with torch.device(self.config.device), _sizes(path):
+                policy = policy_cls.from_pretrained(path, config=cfg, revision=rev)
         except Exception as e:
             raise self._fail(f"the {cfg.type!r} weights", e) from None
         policy.eval()
@@ -267,40 +276,58 @@ class LeRobotPolicy:
         if seed is not None:  # flow-matching / diffusion noise is drawn from torch's global generator
             self._torch.manual_seed(int(seed))
 
-    def to_batch(self, observations: Sequence[Observation]) -> dict:
-        """Our observations -> lerobot's raw batch (float CHW images in [0, 1] at the declared size, state, task)."""
+    def to_batch(self, observations: Sequence[Observation], pad_to: int | None = None) -> dict:
+        """Our observations -> lerobot's raw batch (float CHW images in [0, 1] at the declared size, state, task).
+
+        Images cross to the policy's device once, as uint8 (a quarter of the float bytes), and are flipped,
+        scaled and resized there in one batched call per camera. ``pad_to``: repeat the first row up to that
+        many rows after this per-row work (``interface.act_padded``; equal to padding the observations).
+        """
         torch = self._torch
         import torch.nn.functional as F  # noqa: N812
+
+        device = torch.device(self.config.device)
+        rows = len(observations)
+        pad = max(0, (pad_to or rows) - rows)
+        only_flip = all(isinstance(s, Flip180) for s in self.conventions.images.steps)
+
+        def padded(t):
+            return torch.cat([t, t[:1].expand(pad, *t.shape[1:])]) if pad else t
 
         batch: dict = {}
         for feat, cam, (_, h, w) in self._cams:
             if cam == ZEROS:
-                batch[IMAGE_PREFIX + feat] = torch.zeros((len(observations), 3, h, w))
+                batch[IMAGE_PREFIX + feat] = torch.zeros((rows + pad, 3, h, w), device=device)
                 continue
             try:
-                imgs = np.stack([self.conventions.images(obs.images[cam]) for obs in observations])
+                if only_flip:
+                    imgs = np.stack([obs.images[cam] for obs in observations])
+                else:
+                    imgs = np.stack([self.conventions.images(obs.images[cam]) for obs in observations])
             except KeyError:
                 raise PolicyError(
                     f"policy {self._name} needs camera {cam!r}; observation has "
                     f"{sorted(observations[0].images)}"
                 ) from None
-            t = torch.from_numpy(np.ascontiguousarray(imgs)).permute(0, 3, 1, 2).float().div_(255.0)
+            t = torch.from_numpy(imgs).to(device, non_blocking=True)
+            if only_flip and self.conventions.flips:
+                t = t.flip(1, 2)
+            t = t.permute(0, 3, 1, 2).float().div_(255.0)
             if t.shape[-2:] != (h, w):
                 t = F.interpolate(
                     t, size=(h, w), mode="bilinear", align_corners=False, antialias=True
                 ).clamp_(0, 1)
-            batch[IMAGE_PREFIX + feat] = t
+            batch[IMAGE_PREFIX + feat] = padded(t)
         if self.cfg.robot_state_feature is not None:
-            batch["observation.state"] = torch.from_numpy(
-                np.stack([o.state for o in observations]).astype(np.float32)
-            )
+            state = np.stack([o.state for o in observations]).astype(np.float32)
+            batch["observation.state"] = padded(torch.from_numpy(state).to(device, non_blocking=True))
         if self._objects:
             if any(o.objects is None for o in observations):
                 raise PolicyError(f"policy {self._name} reads object poses; the observation carries none")
-            batch["observation.environment_state"] = torch.from_numpy(
-                np.stack([o.objects for o in observations]).astype(np.float32)
-            )
-        batch["task"] = [o.instruction for o in observations]
+            objects = np.stack([o.objects for o in observations]).astype(np.float32)
+            batch["observation.environment_state"] = padded(torch.from_numpy(objects).to(device))
+        tasks = [o.instruction for o in observations]
+        batch["task"] = tasks + tasks[:1] * pad
         return batch
 
     def _with_history(self, batch: dict) -> dict:
@@ -318,10 +345,15 @@ class LeRobotPolicy:
             out[k] = self._torch.stack([h[k] for h in self._history], dim=1)
         return out
 
-    def act(self, observations: Sequence[Observation]) -> np.ndarray:
+    def act(self, observations: Sequence[Observation], pad_to: int | None = None) -> np.ndarray:
+        """(B, T, 7) chunks. ``pad_to`` (batched policies): the forward runs on that many rows, the first
+        observation's repeated after pre-processing, and only the real rows come back (``act_padded``)."""
+        if pad_to is not None and self.spec.batched:
+            return self._predict(observations, pad_to)
         if self._ensemble:  # lerobot's select_action: predict a chunk, fold it into the ensemble, one action
             with self._torch.inference_mode():
-                action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
+                with self._autocast():
+                    action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
             chunk = action.detach().to("cpu", self._torch.float32).numpy()[:, None]
             return validate_chunk(chunk, len(observations), self._name)
         if not self._replan_inside:
@@ -337,25 +369,43 @@ class LeRobotPolicy:
         self._queue.popleft()
         return out
 
-    def _predict(self, observations: Sequence[Observation]) -> np.ndarray:
+    def _predict(self, observations: Sequence[Observation], pad_to: int | None = None) -> np.ndarray:
         torch = self._torch
         with torch.inference_mode():
-            batch = self.pre(self.to_batch(observations))
+            batch = self.pre(self.to_batch(observations, pad_to))
             if self.n_obs_steps > 1:
                 batch = self._with_history(batch)
             try:
-                actions = self.policy.predict_action_chunk(batch)
+                with self._autocast():
+                    actions = self.policy.predict_action_chunk(batch)
             except Exception as e:
                 first = (str(e).strip().splitlines() or [""])[0][:300]
                 raise PolicyError(f"policy {self._name} failed to act: {type(e).__name__}: {first}") from e
             if actions.ndim == 2:
                 actions = actions[:, None]
             actions = self.post(actions)
-        chunk = actions.detach().to("cpu", torch.float32).numpy()
+        chunk = actions[: len(observations)].detach().to("cpu", torch.float32).numpy()
         return validate_chunk(chunk, len(observations), self._name)
+
+    def _autocast(self):
+        """bf16 autocast when asked (``precision=bf16``); otherwise nothing changes."""
+        import contextlib
+
+        if self.config.precision != "bf16":
+            return contextlib.nullcontext()
+        return self._torch.autocast(self._torch.device(self.config.device).type, dtype=self._torch.bfloat16)
 
     def close(self) -> None:
         self.policy = self.pre = self.post = None
+
+
+def _sizes(path: str):
+    """lerobot's own sizes, or the reduced ones for a ``build_real_size.py --reduced`` directory."""
+    import contextlib
+
+    from policy_wrappers import lerobot_variants
+
+    return lerobot_variants.reduced() if lerobot_variants.is_reduced(path) else contextlib.nullcontext()
 
 
 def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
@@ -386,11 +436,12 @@ OPTIONS = {  # LeRobotConfig field -> spec option
     "replan_steps": "replan",
     "vlm": "vlm",
     "tokenizer": "tokenizer",
+    "precision": "precision",
 }
 
 
 def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot"):
-    """``lerobot:<hub id or dir>[?cameras=feat:agentview,..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR]``.
+    """``lerobot:<hub id or dir>[?cameras=..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR&precision=bf16]``.
 
     LeRobot policies are plain PyTorch modules loaded from safetensors: no Hub code is executed, so
     ``trust_remote_code`` has nothing to enable here.

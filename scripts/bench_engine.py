@@ -117,7 +117,9 @@ class CpuMeter:
         self.main_s, self.workers_s = time.process_time() - self._t0, sum(self._seen.values())
 
 
-def pipeline_bench(scene: str, size: int, episodes: int, max_steps: int, repeats: int) -> dict:
+def pipeline_bench(
+    scene: str, size: int, episodes: int, max_steps: int, repeats: int, device: str = "cpu"
+) -> dict:
     """A LeRobot ACT (ResNet-18 backbone, random init) on one ``size``-px camera, acting every control step:
     its forward costs about one control step (physics + render). 1 worker, unpipelined vs pipelined, interleaved
     repeats; the records of both must be equal (the pipelined engine changes speed only)."""
@@ -137,7 +139,7 @@ def pipeline_bench(scene: str, size: int, episodes: int, max_steps: int, repeats
     jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
     with tempfile.TemporaryDirectory() as d:
         path = build_tiny_checkpoint("act", d, cameras=("agentview",), size=size)
-        policy = load_policy(f"lerobot:{path}", scene=scene)
+        policy = load_policy(f"lerobot:{path}", scene=scene, device=device)
         cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
         env = scenes.make_env(
             scene, task=task, cameras=cams, image_size=hw
@@ -323,6 +325,218 @@ def gil_overlap(scene: str, size: int, n: int) -> dict:
     return out
 
 
+def runner_config(scene: str, cameras, hw, max_steps: int):
+    """The RunnerConfig of the GPU-era parts below (one place to adapt when RunnerConfig changes)."""
+    from indgen_vla.engine.rollout import RunnerConfig
+    from scenes.planning import scene_levels
+
+    return RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
+                        max_steps=max_steps, privileged=False)  # fmt: skip
+
+
+class GpuBusy:
+    """Mean GPU utilisation (%) over a block, sampled by ``nvidia-smi`` every 100 ms (None without a GPU)."""
+
+    def __enter__(self):
+        import shutil
+        import subprocess
+
+        self.proc = None
+        if shutil.which("nvidia-smi"):
+            cmd = [
+                "nvidia-smi",
+                "--query-gpu=utilization.gpu",
+                "--format=csv,noheader,nounits",
+                "-lms",
+                "100",
+            ]
+            self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.mean = None
+        if self.proc is not None:
+            self.proc.terminate()
+            out, _ = self.proc.communicate(timeout=5)
+            vals = [float(x) for x in out.split() if x.strip().replace(".", "").isdigit()]
+            self.mean = round(sum(vals) / len(vals), 1) if vals else None
+
+
+def _random_obs(spec, n: int, seed: int = 0):
+    import numpy as np
+
+    from indgen_vla.interface import Observation
+
+    h, w = spec.image_size or (128, 128)
+    rng = np.random.default_rng(seed)
+    return [Observation({c: rng.integers(0, 255, (h, w, 3), dtype=np.uint8) for c in spec.cameras},
+                        rng.normal(size=8).astype(np.float32), "pick up the milk") for _ in range(n)]  # fmt: skip
+
+
+def model_alone(spec_str: str, batches: list[int], device: str, precision: str, seconds: float) -> dict:
+    """The policy's own ``act`` (pre-processing, forward, post-processing) on random observations: obs/s by batch
+    size, and the GPU's busy share while it runs; the ceiling an in-engine run is compared with."""
+    from policy_wrappers.registry import load_policy
+
+    t0 = time.perf_counter()
+    policy = load_policy(spec_str, device=device, **({"precision": precision} if precision != "fp32" else {}))
+    out: dict = {"model": spec_str, "device": device, "precision": precision,
+                 "load_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
+    for b in batches:
+        obs = _random_obs(policy.spec, b, seed=b)
+        policy.reset(obs[0].instruction, seed=0)
+        policy.act(obs)  # warm-up (kernels, autotuning, allocator)
+        n, t0 = 0, time.perf_counter()
+        with GpuBusy() as busy:
+            while n < 3 or time.perf_counter() - t0 < seconds:
+                policy.act(obs)
+                n += 1
+        dt = (time.perf_counter() - t0) / n
+        out[f"b{b}"] = {"ms_per_act": round(1000 * dt, 1), "obs_per_s": round(b / dt, 1), "calls": n,
+                        "gpu_busy_pct": busy.mean}  # fmt: skip
+    try:
+        import torch
+
+        if torch.cuda.is_available():
+            out["max_gpu_mem_gib"] = round(torch.cuda.max_memory_allocated() / 2**30, 2)
+    except Exception:
+        pass
+    policy.close()
+    return out
+
+
+def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_steps: int, cameras, size: int,
+            device: str, precision: str) -> dict:  # fmt: skip
+    """Engine steps/s at each worker count with cameras rendered, the policy in the main process on ``device``;
+    CPU seconds of the main process (the coordinator) and the GPU's busy share per run."""
+    import scenes
+    from indgen_vla.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.engine.local import run_local
+    from indgen_vla.engine.rollout import RunMeta
+    from policy_wrappers.registry import load_policy
+
+    task = scenes.tasks(scene)[0]
+    cfg = EvalConfig(policy=spec_str, scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    extra = {"precision": precision} if precision != "fp32" else {}
+    policy = load_policy(spec_str, device=device, **extra)
+    cams = tuple(policy.spec.cameras) or tuple(cameras)
+    hw = tuple(policy.spec.image_size or (size, size))
+    replan = policy.spec.replan_steps
+    meta = RunMeta("bench", spec_str, "", scene)
+    run_local(jobs[:2], runner_config(scene, cams, hw, 2), lambda: policy, meta, lambda r: None, workers=2,
+              replan_steps=replan, close_policies=False)  # warm-up: fork server, kernels  # fmt: skip
+    out: dict = {"scaling_policy": spec_str, "scaling_cameras": list(cams), "scaling_image": hw[0],
+                 "scaling_episodes": len(jobs), "scaling_max_steps": max_steps, "replan": replan}  # fmt: skip
+    for w in workers:
+        records: list = []
+        t0 = time.perf_counter()
+        with CpuMeter() as meter, GpuBusy() as busy:
+            run_local(jobs, runner_config(scene, cams, hw, max_steps), lambda: policy, meta, records.append,
+                      workers=w, replan_steps=replan, close_policies=False)  # fmt: skip
+        wall = time.perf_counter() - t0
+        steps = sum(r.steps for r in records)
+        assert all(r.status == "ok" for r in records), [r.error for r in records if r.status != "ok"][:1]
+        out[f"w{w}"] = {"wall_s": round(wall, 2), "control_steps": steps, "steps_per_s": round(steps / wall, 1),
+                        "main_cpu_s": round(meter.main_s, 2), "workers_cpu_s": round(meter.workers_s, 2),
+                        "main_cpu_ms_per_step": round(1000 * meter.main_s / steps, 3),
+                        "gpu_busy_pct": busy.mean}  # fmt: skip
+        print(json.dumps({f"w{w}": out[f"w{w}"]}), flush=True)
+    policy.close()
+    return out
+
+
+PROFILE_PARTS = (  # (label, function name, file suffix): cumulative CPU inside these calls of the main process
+    ("forward (model, excluded)", "predict_action_chunk", ""),
+    ("pre-processing (to_batch: stack, device copy, resize)", "to_batch", "lerobot_policy.py"),
+    ("lerobot processors (normalise, tokenise, unnormalise)", "__call__", "pipeline.py"),
+    ("receive (unpickle observations)", "recv", "connection.py"),
+    ("send (pickle requests)", "send", "connection.py"),
+    ("records + Parquet", "append", "records.py"),
+)
+
+
+def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes: int, max_steps: int,
+                        size: int, device: str) -> dict:  # fmt: skip
+    """CPU of the main process per control step, the model's forward excluded: what bounds one coordinator
+    (1000 / ms-per-step steps/s). A tiny LeRobot ACT with two ``size``-px cameras (or ``spec_str``), real records
+    and Parquet (``RunDir``), ``workers`` worker processes; a cProfile (CPU clock) run splits the time."""
+    import cProfile
+    import pstats
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    import scenes
+    from indgen_vla.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.engine.local import run_local
+    from indgen_vla.engine.rollout import RunMeta
+    from indgen_vla.records import RunDir
+    from policy_wrappers.registry import load_policy
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    task = scenes.tasks(scene)[0]
+    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    with tempfile.TemporaryDirectory() as d:
+        spec_str = (
+            spec_str
+            or f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview', 'wrist'), size=size)}"
+        )
+        policy = load_policy(spec_str, device=device)
+        forward = {"s": 0.0}
+        inner = getattr(policy, "policy", None)
+        if inner is not None and hasattr(inner, "predict_action_chunk"):
+            real = inner.predict_action_chunk
+
+            def timed(*a, **k):
+                t0 = time.process_time()
+                try:
+                    return real(*a, **k)
+                finally:
+                    forward["s"] += time.process_time() - t0
+
+            inner.predict_action_chunk = timed
+        cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
+        rc, meta = runner_config(scene, cams, hw, max_steps), RunMeta("bench", spec_str, "", scene)
+        run_local(jobs[:workers], runner_config(scene, cams, hw, 1), lambda: policy, meta, lambda r: None,
+                  workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False)  # warm-up  # fmt: skip
+        out: dict = {"profile_policy": spec_str if "tmp" not in spec_str else f"lerobot ACT (tiny), 2 cameras {hw[0]}px",
+                     "profile_workers": workers, "profile_episodes": len(jobs), "profile_max_steps": max_steps,
+                     "replan": policy.spec.replan_steps, "device": device}  # fmt: skip
+        for label, prof in (("plain", None), ("cprofile", cProfile.Profile(time.process_time))):
+            run = RunDir.create_or_resume(Path(d) / f"run_{label}", {"run_id": label, "plan": {}})
+            records: list = []
+
+            def on_record(r, run=run, records=records):
+                run.append([r])
+                records.append(r)
+
+            forward["s"] = 0.0
+            t0, c0 = time.perf_counter(), time.process_time()
+            if prof is not None:
+                prof.enable()
+            run_local(jobs, rc, lambda: policy, meta, on_record, workers=workers,
+                      replan_steps=policy.spec.replan_steps, close_policies=False)  # fmt: skip
+            if prof is not None:
+                prof.disable()
+            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
+            steps = sum(r.steps for r in records)
+            acts = max(1, round(steps / policy.spec.replan_steps))
+            if prof is None:
+                out.update({"coordinator_cpu_s": round(cpu - forward["s"], 3), "forward_cpu_s": round(forward["s"], 3),
+                            "control_steps": steps, "wall_s": round(wall, 2),
+                            "coordinator_ms_per_step": round(1000 * (cpu - forward["s"]) / steps, 4),
+                            "coordinator_ms_per_act": round(1000 * (cpu - forward["s"]) / acts, 3)})  # fmt: skip
+                continue
+            stats = pstats.Stats(prof).stats  # (file, line, name) -> (cc, nc, tt, ct, callers)
+            parts = {}
+            for name, func, suffix in PROFILE_PARTS:
+                parts[name] = round(1000 * sum(v[3] for k, v in stats.items()
+                                               if k[2] == func and k[0].endswith(suffix)) / steps, 4)  # fmt: skip
+            out["profile_ms_per_step"] = parts
+        policy.close()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="few short episodes (CI smoke run)")
@@ -331,9 +545,19 @@ def main() -> None:
     ap.add_argument(
         "--repeats", type=int, default=None, help="interleaved repeats, best kept (default 3; quick 1)"
     )
+    ap.add_argument("--only", choices=["engine", "pipeline", "render", "gil", "model", "scaling"], default=None,
+                    help="run one part only (model: --policy alone by --batches; scaling: --workers with cameras)")  # fmt: skip
+    ap.add_argument("--device", default="cpu", help="where the policy runs (model, scaling, pipeline parts)")
+    ap.add_argument("--precision", default="fp32", choices=["fp32", "bf16"], help="bf16: autocast forward")
+    ap.add_argument("--batches", default="1,4,16,64", help="model part: batch sizes")
+    ap.add_argument("--workers", default="1,2,4,8,16", help="scaling part: worker counts")
     ap.add_argument(
-        "--only", choices=["engine", "pipeline", "render", "gil"], default=None, help="run one part only"
+        "--cameras", default="agentview,wrist", help="scaling part: cameras of a camera-less policy"
     )
+    ap.add_argument("--seconds", type=float, default=5.0, help="model part: timed seconds per batch size")
+    ap.add_argument("--profile-coordinator", action="store_true",
+                    help="main-process CPU per control step (forward excluded) with a cProfile split")  # fmt: skip
+    ap.add_argument("--profile-workers", type=int, default=2, help="--profile-coordinator: worker processes")
     ap.add_argument("--pipeline-size", type=int, default=128, help="camera size of the pipelining ACT")
     ap.add_argument("--episodes", type=int, default=None, help="engine part: episodes (default 16; quick 4)")
     ap.add_argument(
@@ -346,6 +570,25 @@ def main() -> None:
     repeats = args.repeats or (1 if args.quick else 3)
     head = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "load_avg_start": os.getloadavg()[0],
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}  # fmt: skip
+    ints = lambda text: [int(x) for x in text.split(",") if x.strip()]  # noqa: E731
+    if args.profile_coordinator:
+        eps, steps = (4, 40) if args.quick else (args.episodes or 8, args.max_steps or 100)
+        spec = None if args.policy == "standin:random" else args.policy
+        res = profile_coordinator(
+            spec, args.scene, args.profile_workers, eps, steps, args.pipeline_size, args.device
+        )
+        print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
+        return
+    if args.only == "model":
+        res = model_alone(args.policy, ints(args.batches), args.device, args.precision, args.seconds)
+        print(json.dumps({**head, **res}))
+        return
+    if args.only == "scaling":
+        eps, steps = (4, 40) if args.quick else (args.episodes or 32, args.max_steps or 100)
+        res = scaling(args.policy, args.scene, ints(args.workers), eps, steps, args.cameras.split(","),
+                      args.pipeline_size, args.device, args.precision)  # fmt: skip
+        print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
+        return
     if args.only == "gil":
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         print(json.dumps({**head, **gil_overlap(args.scene, args.pipeline_size, 20 if args.quick else 60)}))
@@ -357,7 +600,7 @@ def main() -> None:
         return
     if args.only == "pipeline":
         eps, steps = (2, 20) if args.quick else (4, 60)
-        res = pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats)
+        res = pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats, args.device)
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
     from indgen_vla.engine.config import EvalConfig, plan_episodes
@@ -400,7 +643,7 @@ def main() -> None:
     }  # fmt: skip
     if args.only is None:
         eps, steps = (2, 20) if args.quick else (4, 60)
-        result.update(pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats))
+        result.update(pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats, args.device))
     result["load_avg_end"] = os.getloadavg()[0]
     print(json.dumps(result))
 

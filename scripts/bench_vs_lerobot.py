@@ -168,8 +168,8 @@ def tool_command(tool: str, a, ckpt: Path, size: int, task_id: int, out: Path) -
         return [str(Path(py).parent / "indgen"), "evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object",
                 "--task", a.task, "--axis", "pick_y", "--levels", "0", "--episodes", str(a.episodes),
                 "--workers", str(a.cores), "--max-steps", str(a.max_steps), "--image-size", str(size),
-                "--seed", "0", "--out", str(out)]  # fmt: skip
-    args = [f"--policy.path={ckpt}", "--policy.device=cpu", "--env.type=libero", "--env.task=libero_object",
+                "--seed", "0", "--device", a.device, "--out", str(out)]  # fmt: skip
+    args = [f"--policy.path={ckpt}", f"--policy.device={a.device}", "--env.type=libero", "--env.task=libero_object",
             f"--env.task_ids=[{task_id}]", f"--env.observation_height={size}", f"--env.observation_width={size}",
             f"--env.episode_length={a.max_steps}", f"--eval.n_episodes={a.episodes}",
             f"--eval.batch_size={a.lerobot_batch or min(a.cores, a.episodes)}", "--eval.use_async_envs=true",
@@ -359,6 +359,7 @@ def main(argv: list[str] | None = None) -> dict:
                     help="indgen --workers and lerobot-eval's env count (default: all cores)")  # fmt: skip
     ap.add_argument("--lerobot-batch", type=int, default=0,
                     help="lerobot-eval --eval.batch_size (default min(cores, episodes), async envs)")  # fmt: skip
+    ap.add_argument("--device", default="cpu", help="both tools' policy device (cpu, cuda): equal terms")
     ap.add_argument("--tools", default=",".join(TOOLS), help=f"comma list of {', '.join(TOOLS)}")
     ap.add_argument(
         "--assets", default=None, help="LIBERO asset tree (default: $INDGEN_LIBERO_ASSETS or found)"

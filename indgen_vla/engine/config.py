@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from indgen_vla.plan import EpisodeJob, plan_jobs
 from indgen_vla.resources import config_dir
 
 DEFAULT_EPISODES = 50
+PRECISIONS = ("fp32", "bf16")
 PRESET_DIR = config_dir("paper")
 
 
@@ -46,7 +48,8 @@ class EvalConfig:
     allow_infeasible: bool = False
     trust_remote_code: bool = False
     max_retries: int = 2
-    device: str = "cpu"
+    device: str = "cpu"  # where in-process policies run: cpu, cuda, cuda:N
+    precision: str = "fp32"  # "bf16": autocast forward, for policies that support it (lerobot:)
     server_patience: float = 600.0  # seconds a remote policy server may stay unreachable before the run stops
     adaptive: str | None = None  # "kstar" | "curve": sequential episodes per level (docs/adaptive.md)
     adaptive_delta: float = 0.1  # indifference half-width around gamma
@@ -91,6 +94,10 @@ class EvalConfig:
             raise ConfigError("warmup_steps, max_retries and video_per_level must be >= 0")
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
+        if not (self.device in ("cpu", "cuda", "mps") or re.fullmatch(r"cuda:\d+", self.device)):
+            raise ConfigError(f"--device must be cpu, cuda, cuda:N or mps, got {self.device!r}")
+        if self.precision not in PRECISIONS:
+            raise ConfigError(f"--precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
         if not self.server_patience >= 0:
             raise ConfigError(f"--server-patience must be >= 0 seconds, got {self.server_patience}")
         if self.adaptive is not None:

@@ -49,12 +49,14 @@ def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tup
     raise ValueError(f"unknown worker op {op!r}")
 
 
-def _worker_main(conn, cfg: RunnerConfig, render_threads: int) -> None:
+def _worker_main(conn, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None) -> None:
     """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process handles Ctrl-C and closes us
     os.environ.setdefault("MUJOCO_GL", "egl")
+    if egl_device is not None:  # several GPUs: workers render round-robin on them (read at context creation)
+        os.environ.setdefault("MUJOCO_EGL_DEVICE_ID", str(egl_device))
     # llvmpipe starts one render thread per core in every process: W workers would oversubscribe the cores
     # (pixels do not depend on the thread count; docs/benchmarks.md "Where a CPU frame goes")
     os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
@@ -98,9 +100,11 @@ class _InProcessWorker:
 
 
 class _ProcessWorker:
-    def __init__(self, ctx, cfg: RunnerConfig, render_threads: int):
+    def __init__(self, ctx, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None):
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_main, args=(child, cfg, render_threads), daemon=True)
+        self.proc = ctx.Process(
+            target=_worker_main, args=(child, cfg, render_threads, egl_device), daemon=True
+        )
         self.proc.start()
         child.close()
 
@@ -129,13 +133,43 @@ class _ProcessWorker:
             self.proc.join(timeout=5)
 
 
+# Each worker is one single-threaded simulator: BLAS/OpenMP pools sized to the whole machine in each of W
+# processes oversubscribe the cores (16 workers on 16 cores: +45 % worker CPU per step, docs/benchmarks.md).
+WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
 def _context(preload: Sequence[str]):
     """A forkserver that has imported the simulator once (``preload``: the scene family's modules, from the
     plan's builder), so W workers start fast and clean (no threads inherited from the main process, no EGL
-    context shared across processes)."""
+    context shared across processes). It starts with one
+    BLAS/OpenMP thread per process (``WORKER_THREAD_ENV``, unless the user set them); the main process keeps its own."""
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["indgen_vla.engine.local", *preload])
+    from multiprocessing import forkserver
+
+    if (
+        getattr(forkserver._forkserver, "_forkserver_pid", None) is None
+    ):  # not started yet: its env is ours now
+        saved = {k: os.environ.get(k) for k in WORKER_THREAD_ENV}
+        for k in WORKER_THREAD_ENV:
+            os.environ.setdefault(k, "1")
+        try:
+            forkserver.ensure_running()
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
     return ctx
+
+
+def egl_devices() -> int:
+    """GPUs visible to this process (``CUDA_VISIBLE_DEVICES``, else /dev/nvidiaN), 0 without any; no CUDA import."""
+    visible = os.environ.get("CUDA_VISIBLE_DEVICES")
+    if visible is not None:
+        return len([d for d in visible.split(",") if d.strip() and d.strip() != "-1"])
+    import glob
+
+    return len([p for p in glob.glob("/dev/nvidia[0-9]*") if p[len("/dev/nvidia") :].isdigit()])
 
 
 @dataclass
@@ -193,10 +227,14 @@ def run_local(
     notify = on_wait or (lambda text: None)
     try:
         render_threads = max(1, (os.cpu_count() or 1) // n)
+        gpus = egl_devices()
         pool = (
             [_InProcessWorker(runner_cfg)]
             if n == 1 and lanes == 1
-            else [_ProcessWorker(ctx, runner_cfg, render_threads) for _ in range(n)]
+            else [
+                _ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None)
+                for w in range(n)
+            ]
         )
         queue = deque(jobs)
         slots: dict[int, _Slot] = {}
@@ -248,6 +286,7 @@ def run_local(
         spec = first.spec
         policies = [first] if spec.batched else [first] + [make_policy() for _ in range(n_slots - 1)]
         threads = ThreadPoolExecutor(max_workers=n_slots) if not spec.batched and n_slots > 1 else None
+        gather = _Gather() if spec.batched and n > 1 else None
         while slots:
             now = time.monotonic()
             for i in [i for i, s in slots.items() if s.wake and s.wake <= now]:
@@ -265,6 +304,8 @@ def run_local(
                     continue
                 conns = {pool[w].conn: w for w in busy_workers}
                 ready = [conns[c] for c in wait(list(conns), timeout)]
+            if gather and lanes == 1 and ready and len(ready) < len(busy_workers):
+                ready = _gather(pool, busy_workers, ready, gather.window())
             waiting: list[tuple[int, Transition]] = []
             for w in ready:  # one reply per worker and round (a pipelined worker's other lane: next round)
                 lane, t = pool[w].recv()
@@ -294,9 +335,13 @@ def run_local(
             waiting = [(i, t) for i, t in waiting if i in slots and not slots[i].fresh]  # drop failed resets
             for lane in sorted({i // n for i, _ in waiting}):  # a lane's chunk leaves once computed
                 group = [(i, t) for i, t in waiting if i // n == lane]
-                for i, result in _act(
+                t_act = time.monotonic()
+                acted = _act(
                     policies, spec, group, meta.policy, threads, pad_to=n, dim=action_dim(runner_cfg.levels)
-                ):
+                )
+                if gather:
+                    gather.observe(time.monotonic() - t_act)
+                for i, result in acted:
                     if isinstance(result, PolicyConnectionError):
                         conn_fault(i, result)
                     elif isinstance(result, Exception):
@@ -319,6 +364,39 @@ def run_local(
                     close()
                 except Exception:  # closing must not mask the run's own outcome
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
+
+
+class _Gather:
+    """How long a batched round waits for the workers still stepping once the first has replied: up to half a
+    forward (running of its recent cost). A forward costs the same at 1 or W rows, so acting on the first replies
+    alone makes the rest wait a whole forward (pi0.5 on an H100: 2 forwards per cycle instead of 1)."""
+
+    CAP_S = 0.5  # never hold replies longer than this
+
+    def __init__(self) -> None:
+        self.cost = 0.0
+
+    def observe(self, seconds: float) -> None:
+        self.cost = seconds if not self.cost else 0.8 * self.cost + 0.2 * seconds
+
+    def window(self) -> float:
+        return min(self.CAP_S, 0.5 * self.cost)
+
+
+def _gather(pool, busy_workers: list[int], ready: list[int], window_s: float) -> list[int]:
+    """``ready`` plus the busy workers that reply within ``window_s`` (all of them: no waiting at all)."""
+    if window_s <= 0:
+        return ready
+    deadline = time.monotonic() + window_s
+    ready = list(ready)
+    rest = {pool[w].conn: w for w in busy_workers if w not in ready}
+    while rest:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        for c in wait(list(rest), left):
+            ready.append(rest.pop(c))
+    return sorted(ready)
 
 
 def _act(

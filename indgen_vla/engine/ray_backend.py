@@ -238,8 +238,9 @@ def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
 
     from policy_wrappers.registry import load_policy
 
+    extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}
     return partial(load_policy, cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device,
-                   scene=scene)  # fmt: skip
+                   scene=scene, **extra)  # fmt: skip
 
 
 def run_ray(

@@ -145,8 +145,13 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         from policy_wrappers.registry import load_policy
 
         def make_policy():
+            extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}  # families that take it
             return load_policy(
-                cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene
+                cfg.policy,
+                trust_remote_code=cfg.trust_remote_code,
+                device=cfg.device,
+                scene=cfg.scene,
+                **extra,
             )
 
         probe = make_policy()

@@ -159,3 +159,25 @@ def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
         build_plan(cfg(task="nope"))
     with pytest.raises(UnknownNameError, match=r"unknown axis of scene cabinet_pick 'pick_y'"):
         build_plan(cfg(scene="cabinet_pick", axes=("pick_y",)))
+
+
+def test_device_and_precision_are_checked_and_recorded():
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.errors import ConfigError
+
+    base = dict(policy="standin:random", scene="pick_place", axes=("pick_y",), out="x")
+    cfg = EvalConfig(**base, device="cuda:1", precision="bf16")
+    assert (cfg.device, cfg.precision) == ("cuda:1", "bf16")  # manifest "config" is dataclasses.asdict(cfg)
+    with pytest.raises(ConfigError, match="--device"):
+        EvalConfig(**base, device="gpu")
+    with pytest.raises(ConfigError, match="--precision"):
+        EvalConfig(**base, precision="fp16")
+
+
+def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
+    from indgen_vla.engine.local import egl_devices
+
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0,3")
+    assert egl_devices() == 2
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "-1")
+    assert egl_devices() == 0
