@@ -15,6 +15,7 @@ from indgen_vla.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
 from indgen_vla.pairing import pair_episodes
+from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
 from indgen_vla.report import plot_axis, run_label, summarize
 
@@ -72,6 +73,8 @@ def compare_summaries(
         }
         if paired:
             out["axes"][axis]["pairing"] = pairing[axis][1]
+        if episodes is not None:  # partial credit, beside the binary test (indgen_vla.progress)
+            out["axes"][axis]["progress"] = compare_progress(episodes[0], episodes[1], axis, paired)
     return out
 
 
@@ -180,7 +183,8 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
         if ax.get("break_point_diff"):
             lines += ["", f"Break point B − A (where the fitted curve crosses γ; 95 % bootstrap CI): "
                       f"{_fmt_bp_diff(ax['break_point_diff'])}"]  # fmt: skip
-        lines += [*render_shift(ax.get("failures", {"modes": []}), label_a, label_b), ""]
+        lines += [*render_shift(ax.get("failures", {"modes": []}), label_a, label_b)]
+        lines += [*render_compare(ax.get("progress")), ""]
     return "\n".join(lines)
 
 
@@ -220,6 +224,7 @@ def compare_main(args: argparse.Namespace) -> int:
         curves = [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]
         plot_axis(curves, axis, args.gamma, out / "plots" / f"{axis}.png")
         plot_failures(curves, axis, out / "plots" / f"{axis}_failures.png")
+        plot_progress(curves, axis, out / "plots" / f"{axis}_progress.png")
     print(render_markdown(result, la, lb, result["verdict"]))
     print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
     return 0

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 from indgen_vla.failures import failure_counts
 from indgen_vla.metrics import below_floor, break_levels, success_rate
+from indgen_vla.progress import level_progress
 
 
 def level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
@@ -24,7 +25,7 @@ def level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[
             "level": int(level), "param": one_param(d), "n": r.n,
             "successes": r.successes, "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high,
             "errors": int(len(d) - len(ok)), "planned": planned, "insufficient": below_floor(r.n, planned),
-            "failures": failure_counts(d),
+            "failures": failure_counts(d), "progress": level_progress(d),
         })  # fmt: skip
     return rows
 

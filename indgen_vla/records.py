@@ -19,9 +19,10 @@ REPORT = "report.md"
 
 COLUMNS = (
     "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",
-    "episode", "seed", "success", "steps", "status", "error", "wall_s", "video", "failure",
+    "episode", "seed", "success", "steps", "status", "error", "wall_s", "video", "failure", "progress",
 )  # fmt: skip
-OPTIONAL = {"failure": ""}  # columns added after the first release: older run dirs read with this default
+# columns added after the first release: older run dirs read with this default (progress: missing, never 0)
+OPTIONAL = {"failure": "", "progress": None}
 KEY = ("task", "axis", "level", "episode")
 
 
@@ -46,10 +47,14 @@ class EpisodeRecord:
     wall_s: float = 0.0
     video: str = ""
     failure: str = ""  # scenes.failure mode ("none" on success, "error" for error rows; "" = not classified)
+    # scenes.failure progress 0..5 (indgen_vla.progress.STAGES); None = not scored (stored as missing, never 0)
+    progress: int | None = None
 
     def __post_init__(self) -> None:
         if self.status not in ("ok", "error"):
             raise ValueError(f"episode status must be 'ok' or 'error', got {self.status!r}")
+        if self.progress is not None and (isinstance(self.progress, bool) or self.progress not in range(6)):
+            raise ValueError(f"episode progress must be an integer 0..5 or None, got {self.progress!r}")
 
     @property
     def key(self) -> tuple[str, str, int, int]:
@@ -105,7 +110,7 @@ def _schema():
         ("scene", pa.string()), ("task", pa.string()), ("axis", pa.string()),
         ("level", pa.int64()), ("param", pa.float64()), ("episode", pa.int64()), ("seed", pa.int64()),
         ("success", pa.bool_()), ("steps", pa.int64()), ("status", pa.string()), ("error", pa.string()),
-        ("wall_s", pa.float64()), ("video", pa.string()), ("failure", pa.string()),
+        ("wall_s", pa.float64()), ("video", pa.string()), ("failure", pa.string()), ("progress", pa.int8()),
     ])  # fmt: skip
 
 
@@ -262,6 +267,5 @@ class RunDir:
 
         rows = list(self._load().values())
         df = pd.DataFrame(rows, columns=list(COLUMNS))
-        return df.astype(
-            {"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64", "success": "bool"}
-        )
+        return df.astype({"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64",
+                          "success": "bool", "progress": "Int8"})  # fmt: skip

@@ -29,6 +29,7 @@ from indgen_vla.metrics import (
     cochran_armitage,
     monotone_decreasing_test,
 )
+from indgen_vla.progress import plot_progress, render_levels
 from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 
 
@@ -304,6 +305,7 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
         if warnings:
             lines += ["", *warnings]
         lines += render_breakdown(present)
+        lines += render_levels(present)
         if any(len(a.get("tasks", {})) > 1 for _, a in present):
             tasks = sorted({t for _, a in present for t in a.get("tasks", {})})
             lines += [
@@ -399,6 +401,7 @@ def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilso
     for axis, a in summary["axes"].items():
         plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
+        plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
     return summary
 
 
@@ -444,6 +447,7 @@ def report_main(args: argparse.Namespace) -> int:
             curves = [(lbl, s["axes"][axis]) for lbl, s in results if axis in s["axes"]]
             plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")
             plot_failures(curves, axis, out / "plots" / f"{_safe(axis)}_failures.png")
+            plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
         print(f"overlay: {out / REPORT}, {out / 'plots'}/")
     print_tables(results)
     return 0

@@ -100,6 +100,9 @@ class BaseSceneEnv(gym.Env):
     _sim_env = None  # the backend's robosuite-style env; None before it is built and once closed
     _trace: FailureTrace | None = None  # this episode's contacts and lifts (privileged; never observed)
     _observing: bool = True  # whether the step in progress must produce camera images (``step(observe=...)``)
+    has_progress: bool = (
+        True  # the failure trace's signals are real (external proxies have none: no progress)
+    )
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
     render_mode = "rgb_array"  # render() returns an upright agentview frame (``render_frame``)
@@ -152,7 +155,9 @@ class BaseSceneEnv(gym.Env):
             self._trace = FailureTrace(start_bottom=self._failure_signals()[1])
         self._observing = observe
         success = self._advance(np.clip(a, -1.0, 1.0))
-        self._trace.update(*self._failure_signals(), gripper_closed=bool(a[-1] > 0))
+        self._trace.update(
+            *self._failure_signals(), gripper_closed=bool(a[-1] > 0), over_goal=self._over_goal
+        )
         self._t += 1
         terminated = success
         truncated = (not success) and self._t >= self.max_steps
@@ -190,6 +195,13 @@ class BaseSceneEnv(gym.Env):
     def failure_mode(self, success: bool) -> str:
         """Why the episode so far failed (``scenes.failure``); ``none`` on success or before any step."""
         return "none" if success or self._trace is None or self._t == 0 else self._trace.classify(success)
+
+    def progress(self, success: bool) -> int | None:
+        """The episode's ordinal progress 0..5 so far (``scenes.failure``); None where the family has no
+        contact signals (``has_progress``) or before any step."""
+        if not self.has_progress or self._trace is None or self._t == 0:
+            return 5 if success and self.has_progress else None
+        return self._trace.progress(success)
 
     def render_frame(self, camera: str = "agentview", size: tuple[int, int] = (256, 256)) -> np.ndarray:
         """One upright (human-viewable) uint8 HxWx3 frame from ``camera`` for videos, whatever ``cameras`` is.
@@ -234,6 +246,10 @@ class BaseSceneEnv(gym.Env):
     def _failure_signals(self) -> tuple[bool, float]:
         """(a finger touches the pick object, the pick object's lowest z) now, for the failure trace."""
         raise NotImplementedError
+
+    def _over_goal(self) -> bool | None:
+        """Whether the pick object's centre is over the goal region now (progress stage 4); None: no such region."""
+        return None
 
     def _observation(self) -> Observation:
         raise NotImplementedError
@@ -308,6 +324,12 @@ class SceneEnv(BaseSceneEnv):
     def _failure_signals(self) -> tuple[bool, float]:
         s = self._state if self._state is not None else self._rs.privileged_state()
         return bool(s.pick.touching_gripper), float(s.pick.bottom)
+
+    def _over_goal(self) -> bool | None:
+        over = getattr(self.success_predicate, "over_goal", None)
+        if over is None:
+            return None
+        return over(self._state if self._state is not None else self._rs.privileged_state())
 
     def _observation(self) -> Observation:
         images = {c: self._render(CAMERA_NAMES[c], self.image_size) for c in self.cameras}

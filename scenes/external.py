@@ -34,6 +34,7 @@ class ExternalSceneEnv(BaseSceneEnv):
 
     _worker: WorkerProcess | None = None
     _last: dict | None = None
+    has_progress = False  # no contact signals over the pipe: progress is missing, never 0
 
     def _load(self, scene: Scene, task: str, successor: Successor) -> None:
         self.runtime: ExternalRuntime = scene.runtime

@@ -3,6 +3,8 @@
 
 The same instance judges every level of every axis (the paper's semantics-preservation condition);
 anything level-dependent (where the basket is, how tall the target stack is) is read from the state.
+``over_goal`` is the horizontal part of a predicate: where the progress score's ``transport`` stage holds
+(``scenes.failure``).
 """
 
 from __future__ import annotations
@@ -41,6 +43,12 @@ class InReceptacle:
         low = s.target.floor_z - 0.01 <= s.pick.bottom <= s.goal.top
         return bool(inside and low and _released_and_still(s, self.max_speed))
 
+    def over_goal(self, s: PrivilegedState) -> bool:
+        """The object's centre is within the receptacle's walls (in its frame), at any height."""
+        rel = _in_frame(s.pick.pos[:2], s.goal.pos, s.goal.quat_wxyz)
+        ix, iy = s.facts.receptacle_inner
+        return bool(abs(rel[0]) <= ix and abs(rel[1]) <= iy)
+
 
 @dataclass(frozen=True)
 class OnTarget:
@@ -56,6 +64,11 @@ class OnTarget:
         touching = abs(s.pick.bottom - s.goal.top) <= self.z_tol
         return bool(on_top and touching and _released_and_still(s, self.max_speed))
 
+    def over_goal(self, s: PrivilegedState) -> bool:
+        """The block's centre is within twice the placement tolerance of the target's centre (footprints overlap)."""
+        rel = _in_frame(s.pick.pos[:2], s.goal.pos, s.goal.quat_wxyz)
+        return bool(abs(rel[0]) <= 2 * self.xy_tol and abs(rel[1]) <= 2 * self.xy_tol)
+
 
 @dataclass(frozen=True)
 class OnTableOutside:
@@ -70,6 +83,12 @@ class OnTableOutside:
         hx, hy = s.facts.fixture_half
         outside = rel[0] > hx or rel[1] > hy
         return bool(on_table and outside and _released_and_still(s, self.max_speed))
+
+    def over_goal(self, s: PrivilegedState) -> bool:
+        """The object's centre has left the fixture's footprint (carried out of the cabinet)."""
+        rel = np.abs(np.asarray(s.pick.pos[:2]) - np.asarray(s.facts.fixture_centre[:2]))
+        hx, hy = s.facts.fixture_half
+        return bool(rel[0] > hx or rel[1] > hy)
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,7 @@ class Transition:
     video: str = ""
     wall_s: float = 0.0
     failure: str = ""  # scenes.failure mode, set when the episode ends
+    progress: int | None = None  # scenes.failure progress score 0..5, set when the episode ends (None: none)
 
 
 @dataclass(frozen=True)
@@ -142,6 +143,7 @@ class EnvRunner:
             return Transition(job.key, None, done=True, error=_describe(e), steps=self._steps)
         if done:
             t.failure = env.failure_mode(success)
+            t.progress = env.progress(success) if hasattr(env, "progress") else None
             t.video = self._write_video(job, success)
             t.wall_s = time.perf_counter() - self._t0
         return t
@@ -200,6 +202,7 @@ def make_record(
         axis=job.axis, level=job.level, param=job.param, episode=job.episode, seed=job.seed,
         success=bool(t.success) and status == "ok", steps=int(t.steps), status=status, error=error,
         wall_s=float(t.wall_s), video=t.video, failure="error" if status == "error" else t.failure,
+        progress=None if status == "error" else t.progress,
     )  # fmt: skip
 
 

@@ -413,6 +413,21 @@ class LiberoSceneEnv(BaseSceneEnv):
     def _failure_signals(self) -> tuple[bool, float]:
         return self._pick_touching(), self._lowest(self._pick_geoms)
 
+    def _over_goal(self) -> bool:
+        """The pick object's body position is inside the xy box of the goal's contain region, as LIBERO's own
+        ``In`` test measures it (libero/envs/objects/site_object.py ``in_box``: |R·size| around the site; here
+        without its z bound), or inside the goal object's xy AABB when the goal has no such region."""
+        d = self._env.sim.data
+        xy = np.asarray(d.body_xpos[self._pick_body][:2])
+        if self._contain_site is not None:
+            half = np.abs(
+                d.site_xmat[self._contain_site].reshape(3, 3)
+                @ self._env.sim.model.site_size[self._contain_site]
+            )
+            return bool(np.all(np.abs(xy - d.site_xpos[self._contain_site][:2]) < half[:2]))
+        lo, hi = self._extent(self._goal_geoms)
+        return bool(np.all(xy > lo[:2]) and np.all(xy < hi[:2]))
+
     # ---- observations and privileged state -------------------------------------------------------
     def _observation(self, with_images: bool = True) -> Observation:
         from robosuite.utils.transform_utils import quat2axisangle

@@ -111,3 +111,15 @@ def test_run_dir_from_before_the_failure_column_still_reads_and_resumes(tmp_path
     assert again.episodes()["failure"].tolist() == [""]  # not classified, not invented
     again.append([rec(0, 1)])
     assert pa.parquet.read_table(tmp_path / "run" / EPISODES).column("failure").to_pylist() == ["", ""]
+
+
+def test_progress_column_round_trips_and_is_validated(tmp_path):
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    r = rec(0, 0)
+    run.append([type(r)(**{**r.__dict__, "progress": 4}), rec(0, 1)])  # rec() leaves progress unscored
+    df = RunDir.open(tmp_path / "run").episodes()
+    assert str(df["progress"].dtype) == "Int8"
+    assert df["progress"].iloc[0] == 4 and df["progress"].isna().iloc[1]  # unscored stays missing, never 0
+    for bad in (6, -1, True, 2.5):
+        with pytest.raises(ValueError, match="progress must be an integer 0..5"):
+            type(r)(**{**r.__dict__, "progress": bad})

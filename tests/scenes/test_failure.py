@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from scenes.failure import FAILURE_MODES, LIFT_M, FailureTrace
+from scenes.failure import FAILURE_MODES, GRASP_STEPS, LIFT_M, FailureTrace
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -34,8 +34,51 @@ def test_trace_on_hand_sequences():
     assert set(FAILURE_MODES) >= {"none", "no_contact", "no_grasp", "dropped", "misplaced", "timeout_holding"}
 
 
-def _scripted(env, variant: str, steps: int, seed: int = 1) -> tuple[bool, str]:
-    """The oracle, altered to fail one way on purpose, for at most ``steps``; returns (success, failure mode)."""
+def progress(steps, success=False, over=()):
+    """Progress of a sequence of (touching, bottom_z, gripper_closed) samples; ``over``: the step indices at
+    which the object is over the goal region."""
+    t = FailureTrace(start_bottom=Z0)
+    for i, s in enumerate(steps):
+        t.update(*s, over_goal=lambda i=i: i in over)
+    return t.progress(success)
+
+
+def test_progress_on_hand_sequences():
+    assert progress([(False, Z0, False)] * 5) == 0
+    assert progress([(False, Z0, True), (True, Z0, False), (False, Z0, False)]) == 1  # a touch, open gripper
+    closed = [(True, Z0, True)] * GRASP_STEPS
+    assert progress(closed[:-1] + [(False, Z0, True)]) == 1  # closed contact one step too short
+    assert progress(closed) == 2
+    lift = [*closed, (True, UP, True)]
+    assert progress(lift + [(False, Z0, False)]) == 3
+    assert progress(lift + [(True, UP, True)], over={4}) == 4  # carried over the goal region while lifted
+    assert progress(lift + [(False, UP, True)], over={4}) == 3  # over the goal only after it left the fingers
+    assert progress([*closed, (True, Z0, True)], over={3}) == 2  # over the goal but never lifted
+    assert progress(lift, success=True) == 5 and progress([], success=True) == 5
+    t = FailureTrace(start_bottom=Z0)
+    t.update(True, UP, True, over_goal=lambda: None)  # a family without a goal region: no stage 4
+    assert t.progress(False) == 3
+
+
+def test_progress_agrees_with_failure_modes_on_random_traces():
+    rng = np.random.default_rng(0)
+    band = {
+        "no_contact": {0},
+        "no_grasp": {1, 2},
+        "dropped": {3, 4},
+        "misplaced": {3, 4},
+        "timeout_holding": {3, 4},
+    }
+    for _ in range(500):
+        steps = [(bool(rng.random() < 0.5), Z0 + rng.choice([0, LIFT_M + 0.01]), bool(rng.random() < 0.6))
+                 for _ in range(rng.integers(1, 12))]  # fmt: skip
+        over = {i for i in range(12) if rng.random() < 0.3}
+        assert progress(steps, over=over) in band[trace(steps)]
+
+
+def _scripted(env, variant: str, steps: int, seed: int = 1) -> tuple[bool, str, int]:
+    """The oracle, altered to fail one way on purpose, for at most ``steps``; returns (success, failure mode,
+    progress)."""
     from scenes.oracle import OraclePolicy
 
     pol = OraclePolicy()
@@ -68,7 +111,7 @@ def _scripted(env, variant: str, steps: int, seed: int = 1) -> tuple[bool, str]:
         _, _, term, _, info = env.step(a)
         if term:
             break
-    return bool(info["success"]), env.failure_mode(bool(info["success"]))
+    return bool(info["success"]), env.failure_mode(bool(info["success"])), env.progress(bool(info["success"]))
 
 
 def test_scripted_episodes_fail_each_way():
@@ -87,11 +130,11 @@ def test_scripted_episodes_fail_each_way():
         got = {v: _scripted(env, v, n) for v, n in budget.items()}
     finally:
         env.close()
-    assert got == {
-        "oracle": (True, "none"),
-        "noop": (False, "no_contact"),
-        "closed_always": (False, "no_grasp"),
-        "release_early": (False, "misplaced"),
-        "hold": (False, "timeout_holding"),
-        "slip": (False, "dropped"),
+    assert got == {  # progress: 2 for closed fingers pushing the object (docs/adaptive.md: a known limit)
+        "oracle": (True, "none", 5),
+        "noop": (False, "no_contact", 0),
+        "closed_always": (False, "no_grasp", 2),
+        "release_early": (False, "misplaced", 3),
+        "hold": (False, "timeout_holding", 4),  # held closed over the basket: transported
+        "slip": (False, "dropped", 3),
     }
