@@ -16,6 +16,7 @@ MANIFEST = "manifest.json"
 EPISODES = "episodes.parquet"
 SUMMARY = "summary.json"
 REPORT = "report.md"
+SECTIONS = "report.d"  # extra report.md sections other tools keep in the run dir (*.md, appended)
 
 COLUMNS = (
     "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",

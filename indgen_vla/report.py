@@ -29,7 +29,7 @@ from indgen_vla.metrics import (
     cochran_armitage,
     monotone_decreasing_test,
 )
-from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomic_write_text
+from indgen_vla.records import REPORT, SECTIONS, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 
 
 def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> bool:
@@ -395,7 +395,10 @@ def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilso
     summary = summarize(run.episodes(), run.manifest, gamma, ci)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
-    atomic_write_text(run.path / REPORT, render_markdown([(label, summary)], f"Report: {label}"))
+    extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
+    atomic_write_text(
+        run.path / REPORT, "\n".join([render_markdown([(label, summary)], f"Report: {label}"), *extra])
+    )
     for axis, a in summary["axes"].items():
         plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
