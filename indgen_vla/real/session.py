@@ -316,7 +316,7 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
             for t in triggers:
                 say(t.describe(ctx))
             shown = time.monotonic()
-            verdict, started = None, None
+            verdict, started, runs = None, None, 0
             while verdict is None:
                 prompt = PROMPT if not triggers else AGAIN_PROMPT if started else START_PROMPT
                 try:
@@ -330,7 +330,10 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                     )
                     return False
                 if verdict == "run":
+                    runs += 1  # the journal keeps the last start and how many there were
                     started = start_episode(triggers, ctx, say, write) or started
+                    if started:
+                        started["starts"] = runs
                     verdict = None
                 if verdict == "undo":
                     state = rec.state()

@@ -10,14 +10,17 @@ import ``policy_wrappers``) plugs in through the same ``Trigger`` protocol, so t
 from __future__ import annotations
 
 import os
+import select
 import shlex
 import shutil
 import signal
 import string
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Protocol
@@ -146,14 +149,14 @@ class EpisodeCommand:
         return Path(self.run_dir) / LOGS / f"L{ctx.level}_e{ctx.episode}_a{ctx.attempt}.log"
 
     def start(self, ctx: EpisodeContext, write: Callable[[str], None]) -> dict:
-        """Run the command to its end, its output shown as it comes and kept in the log; Ctrl-C stops it."""
+        """Run the command to its end, its output shown as it comes and kept in the log. Ctrl-C reaches the
+        command (it shares the terminal's process group); it gets STOP_GRACE_S to exit, then it is killed."""
         argv = self.argv(ctx)
         log = self.log_path(ctx)
         log.parent.mkdir(parents=True, exist_ok=True)
         t0 = time.monotonic()
         chunks: list[bytes] = []
-        interrupted = False
-        with log.open("ab") as f:
+        with log.open("ab") as f, _sigint_noted() as interrupted:
             f.write(f"# {time.strftime('%Y-%m-%dT%H:%M:%S')} $ {shlex.join(argv)}\n".encode())
             try:  # stdin stays the terminal: an eval script may ask the operator things itself
                 proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -165,24 +168,18 @@ class EpisodeCommand:
             assert proc.stdout is not None
             fd = proc.stdout.fileno()
             while True:
-                try:
-                    data = os.read(fd, 65536)
-                except KeyboardInterrupt:  # Ctrl-C reached the command too (same process group)
-                    interrupted = True
-                    _stop(proc)
+                if interrupted and time.monotonic() - interrupted[0] > STOP_GRACE_S and proc.poll() is None:
+                    proc.send_signal(signal.SIGKILL)
+                if not select.select([fd], [], [], 0.2)[0]:
                     continue
+                data = os.read(fd, 65536)
                 if not data:
                     break
                 chunks.append(data)
                 f.write(data)
                 f.flush()
                 write(data.decode(errors="replace"))
-            try:
-                rc = proc.wait()
-            except KeyboardInterrupt:
-                interrupted = True
-                _stop(proc)
-                rc = proc.wait()
+            rc = proc.wait()
             proc.stdout.close()
             f.write(f"# exit {rc}\n".encode())
         output = b"".join(chunks).decode(errors="replace")
@@ -196,16 +193,18 @@ class EpisodeCommand:
         pass
 
 
-def _stop(proc: subprocess.Popen) -> None:
-    """Give the command STOP_GRACE_S to exit after the Ctrl-C it received, then kill it."""
-    if proc.poll() is not None:
+@contextmanager
+def _sigint_noted() -> Iterator[list[float]]:
+    """While a command runs, Ctrl-C is noted (the list gets its time) instead of raising in this process."""
+    noted: list[float] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield noted
         return
+    old = signal.signal(signal.SIGINT, lambda *_: noted.append(time.monotonic()))
     try:
-        proc.wait(timeout=STOP_GRACE_S)
-    except subprocess.TimeoutExpired:
-        proc.send_signal(signal.SIGKILL)
-    except KeyboardInterrupt:
-        proc.send_signal(signal.SIGKILL)
+        yield noted
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def summary_line(info: dict) -> str:
