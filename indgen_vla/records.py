@@ -87,6 +87,16 @@ def atomic_write_text(path: Path, text: str) -> None:
     _atomic_write_bytes(Path(path), text.encode())
 
 
+def atomic_savefig(fig, path: Path) -> None:
+    """``fig.savefig(path)`` through a temp file and a rename: two reports written at once (``indgen report``
+    while ``indgen real record`` completes a run) never leave a half-written plot."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png")
+    _atomic_write_bytes(Path(path), buf.getvalue())
+
+
 def write_result(out: Path, stem: str, data: Any, markdown: str) -> None:
     """``out/<stem>.json`` and ``out/<stem>.md`` of an analysis command, atomically; one clear line if ``out``
     cannot be written."""

@@ -29,7 +29,15 @@ from indgen_vla.metrics import (
     cochran_armitage,
     monotone_decreasing_test,
 )
-from indgen_vla.records import REPORT, SECTIONS, SUMMARY, RunDir, atomic_write_json, atomic_write_text
+from indgen_vla.records import (
+    REPORT,
+    SECTIONS,
+    SUMMARY,
+    RunDir,
+    atomic_savefig,
+    atomic_write_json,
+    atomic_write_text,
+)
 
 
 def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> bool:
@@ -385,7 +393,7 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    atomic_savefig(fig, path)
     plt.close(fig)
     return path
 
