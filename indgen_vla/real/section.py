@@ -23,7 +23,7 @@ def render_section(rr: RealRun, state: State) -> str:
     n_voids = sum(len(v) for v in state.voids.values())
     last = state.live[-1].time if state.live else "none yet"
     lines = ["## Real-robot run (`indgen real`)", "",
-             f"Set-up `{m['setup_name']}` ({rr.axis.name} in {rr.axis.unit}), robot {m['robot'] or 'not named'}, "
+             f"Set-up `{m['setup_name']}` (axis {rr.axis.name}, unit {rr.axis.unit}), robot {m['robot'] or 'not named'}, "
              f"operator {m['operator'] or 'not named'}; verdicts from `{JOURNAL}` (last {last}).", "",
              f"- episodes counted: {len(state.counted)}; still queued: {len(queue)}"
              + (" (the run is complete)" if not queue else " (the run is not complete: the rates above are provisional)"),

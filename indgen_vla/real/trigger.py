@@ -119,6 +119,7 @@ class EpisodeCommand:
 
     The template is split like a shell line (``shlex``) and each word is then filled in, so ``{instruction}``
     stays one argument whatever it contains; no shell runs (write ``sh -c '...'`` to get one).
+    It runs in the directory ``indgen real record`` was started from.
     """
 
     template: str
@@ -160,7 +161,7 @@ class EpisodeCommand:
             f.write(f"# {time.strftime('%Y-%m-%dT%H:%M:%S')} $ {shlex.join(argv)}\n".encode())
             try:  # stdin stays the terminal: an eval script may ask the operator things itself
                 proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        env={**os.environ, **ctx.env()}, cwd=self.run_dir)  # fmt: skip
+                                        env={**os.environ, **ctx.env()})  # fmt: skip
             except OSError as e:
                 raise TriggerError(
                     f"--episode-command could not start {argv[0]!r}: {e.strerror or e}"

@@ -55,15 +55,15 @@ def _plan(run, episodes: int = 2) -> None:
 def test_episode_command_runs_per_episode_in_a_terminal_session(tmp_path, capsys):
     run = tmp_path / "run"
     _plan(run)
-    (tmp_path / "eval.py").write_text(EVAL)
-    template = (f"{shlex.quote(sys.executable)} {tmp_path / 'eval.py'} --level {{level}} --seed {{seed}} "
+    (tmp_path / "eval.py").write_text(EVAL)  # run from where the session was started (the pty cwd)
+    template = (f"{shlex.quote(sys.executable)} eval.py --level {{level}} --seed {{seed}} "
                 "--instruction {instruction} --out {video}")  # fmt: skip
     pattern = "{run}/videos/{axis}_L{level}_e{episode}_a{attempt}.mp4"
     s = PtySession(indgen("real", "record", str(run), "--episode-command", template, "--video-pattern", pattern,
                           "--no-report"), tmp_path)  # fmt: skip
     rr = RealRun.open(run)
     s.expect("episode 0 of level 0")
-    s.expect(f"  run    : {shlex.quote(sys.executable)} {tmp_path / 'eval.py'} --level 0 --seed {rr.seeds[0]} "
+    s.expect(f"  run    : {shlex.quote(sys.executable)} eval.py --level 0 --seed {rr.seeds[0]} "
              f"--instruction '{INSTRUCTION}' --out {run}/videos/stack_L0_e0_a0.mp4")  # fmt: skip
     s.expect(START)
     s.type("")  # Enter: the operator has set the scene up
