@@ -32,7 +32,7 @@ HANDLERS: dict[str, str] = {
     "demos": "indgen_vla.regimes.demos:demos_main",
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.regimes.train:train_main",
-    "real": "indgen_vla.real.cli:real_main",
+    "real": "indgen_vla.real_policy:real_main",
 }
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from indgen_vla.interface import FAILURE_MODES
+from indgen_vla.records import atomic_savefig
 
 UNCLASSIFIED = "unclassified"  # rows of run directories written before the failure column existed
 MODES = (*FAILURE_MODES, UNCLASSIFIED)
@@ -76,7 +77,7 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     fig.legend([handles[m] for m in labels], labels, fontsize=7, loc="upper right", ncol=1)
     fig.tight_layout(rect=(0, 0, 0.82, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    atomic_savefig(fig, path)
     plt.close(fig)
     return path
 

@@ -301,6 +301,8 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     fig.legend(handles + h2, labels + l2, fontsize=7, loc="lower center", ncol=7, frameon=False)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    from indgen_vla.records import atomic_savefig
+
+    atomic_savefig(fig, path)  # a report read while another writes never sees half a PNG
     plt.close(fig)
     return path

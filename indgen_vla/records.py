@@ -16,6 +16,7 @@ MANIFEST = "manifest.json"
 EPISODES = "episodes.parquet"
 SUMMARY = "summary.json"
 REPORT = "report.md"
+SECTIONS = "report.d"  # extra report.md sections other tools keep in the run dir (*.md, appended)
 
 COLUMNS = (
     "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",
@@ -89,6 +90,16 @@ def atomic_write_json(path: Path, obj: Any) -> None:
 
 def atomic_write_text(path: Path, text: str) -> None:
     _atomic_write_bytes(Path(path), text.encode())
+
+
+def atomic_savefig(fig, path: Path) -> None:
+    """``fig.savefig(path)`` through a temp file and a rename: two reports written at once (``indgen report``
+    while ``indgen real record`` completes a run) never leave a half-written plot."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png")
+    _atomic_write_bytes(Path(path), buf.getvalue())
 
 
 def write_result(out: Path, stem: str, data: Any, markdown: str) -> None:

@@ -30,7 +30,15 @@ from indgen_vla.metrics import (
     monotone_decreasing_test,
 )
 from indgen_vla.progress import plot_progress, render_levels
-from indgen_vla.records import REPORT, SUMMARY, RunDir, atomic_write_json, atomic_write_text
+from indgen_vla.records import (
+    REPORT,
+    SECTIONS,
+    SUMMARY,
+    RunDir,
+    atomic_savefig,
+    atomic_write_json,
+    atomic_write_text,
+)
 
 
 def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> bool:
@@ -387,7 +395,7 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    atomic_savefig(fig, path)
     plt.close(fig)
     return path
 
@@ -397,7 +405,10 @@ def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilso
     summary = summarize(run.episodes(), run.manifest, gamma, ci)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
-    atomic_write_text(run.path / REPORT, render_markdown([(label, summary)], f"Report: {label}"))
+    extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
+    atomic_write_text(
+        run.path / REPORT, "\n".join([render_markdown([(label, summary)], f"Report: {label}"), *extra])
+    )
     for axis, a in summary["axes"].items():
         plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")

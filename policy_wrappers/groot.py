@@ -150,6 +150,10 @@ class GrootPolicy(RemotePolicy):
             raise self.fail(f"server error: {first}{hint}")
         return response
 
+    def ping(self) -> None:
+        """GR00T's ``ping`` endpoint."""
+        self.call("ping", requires_input=False, timeout_s=self.config.connect_timeout_s)
+
     def _handshake(self) -> None:
         try:
             self.call("ping", requires_input=False, timeout_s=self.config.connect_timeout_s)

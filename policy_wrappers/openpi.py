@@ -124,6 +124,11 @@ class OpenpiPolicy(RemotePolicy):
                 pass
         self._ws = None
 
+    def ping(self) -> None:
+        """A fresh connection and its metadata frame (openpi's server has no ping message)."""
+        self._drop()
+        self._connect()
+
     def reset(self, instruction: str, seed: int | None = None) -> None:
         """openpi's client reset is a no-op; our own server is told about the new episode on the next request."""
         self._pending_reset = {"instruction": instruction, "seed": -1 if seed is None else int(seed)}

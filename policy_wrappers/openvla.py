@@ -125,6 +125,10 @@ class OpenVLAPolicy(RemotePolicy):
         super().__init__(spec, config)
         self._probe()
 
+    def ping(self) -> None:
+        """A TCP connect (deploy.py has no ping route)."""
+        self._probe()
+
     def _probe(self) -> None:
         """Fail at load time, with one clear line, when nothing listens at the URL (deploy.py has no ping)."""
         import socket

@@ -172,5 +172,10 @@ class RemotePolicy:
     def reset(self, instruction: str, seed: int | None = None) -> None:
         pass
 
+    def ping(self) -> None:
+        """Check that the server answers now (the family's handshake); raise ``PolicyConnectionError`` if not.
+        Used by ``indgen real record --check-policy`` before each real-robot episode."""
+        raise NotImplementedError
+
     def close(self) -> None:
         self._drop()

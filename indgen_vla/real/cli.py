@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.real.setup import presets
+from indgen_vla.real.trigger import FIELDS, Trigger
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,6 +63,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="video path filled in when none is given, e.g. /data/{axis}_L{level}_e{episode}.mp4",
     )
     rc.add_argument("--operator", default="", help="who judges (default: the one named at plan time)")
+    rc.add_argument(
+        "--episode-command",
+        default=None,
+        metavar="TEMPLATE",
+        help="run this command when the operator starts each episode (Enter), e.g. 'python my_eval.py --level "
+        "{level} --seed {seed} --instruction {instruction}'; fields: " + ", ".join(FIELDS) + " (also as "
+        "INDGEN_* env vars); its exit code, log and a printed video=PATH go into the journal",
+    )
+    rc.add_argument(
+        "--check-policy",
+        default=None,
+        metavar="SPEC",
+        help="check that the policy server SPEC answers (openpi:ws://..., groot:tcp://..., openvla-oft:http://...) "
+        "at the start and before each episode, and reset it there",
+    )
     rc.add_argument("--no-report", action="store_true", help="do not write the report when the run completes")
     st = sp.add_parser("status", help="per-level counts, decisions and the next episode of a real run")
     st.add_argument("run", metavar="RUN", help="run directory written by 'indgen real plan'")
@@ -68,10 +85,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def real_main(args: argparse.Namespace) -> int:
-    """Entry point of ``indgen real`` (its arguments are parsed here: a passthrough subcommand)."""
+def real_main(args: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
+    """Entry point of ``indgen real`` (its arguments are parsed here: a passthrough subcommand).
+
+    ``policy_check`` builds the ``--check-policy`` trigger; the application layer passes it
+    (``indgen_vla.real_policy``), since this package never imports the policy registry.
+    """
     ns = build_parser().parse_args(args.rest)
-    return {"plan": _plan, "record": _record, "status": _status}[ns.cmd](ns)
+    if ns.cmd == "record":
+        return _record(ns, policy_check)
+    return {"plan": _plan, "status": _status}[ns.cmd](ns)
 
 
 def _plan(ns: argparse.Namespace) -> int:
@@ -95,7 +118,20 @@ def _episode(text: str | None) -> tuple[int, int] | None:
     return level, index
 
 
-def _record(ns: argparse.Namespace) -> int:
+def _triggers(ns: argparse.Namespace, rr, policy_check) -> list[Trigger]:
+    """The policy check (first: no command starts while the server is down), then the episode command."""
+    from indgen_vla.real.trigger import EpisodeCommand
+
+    command = EpisodeCommand(ns.episode_command, str(rr.run.path)) if ns.episode_command is not None else None
+    out: list[Trigger] = []
+    if ns.check_policy is not None:
+        if policy_check is None:
+            raise ConfigError("--check-policy needs the policy registry; run it as 'indgen real record ...'")
+        out.append(policy_check(ns.check_policy))
+    return [*out, command] if command else out
+
+
+def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
     from indgen_vla.real.plan import RealRun
     from indgen_vla.real.session import Verdict, interactive, parse_outcome, record_once
 
@@ -105,8 +141,16 @@ def _record(ns: argparse.Namespace) -> int:
             raise ConfigError(
                 "--episode, --note and --video go with --outcome (the keyboard session asks for them)"
             )
-        complete = interactive(rr, ns.operator, ns.video_pattern)
+        triggers = _triggers(ns, rr, policy_check)
+        try:
+            complete = interactive(rr, ns.operator, ns.video_pattern, triggers=triggers)
+        finally:
+            for t in triggers:
+                t.close()
     else:
+        if ns.episode_command is not None or ns.check_policy is not None:
+            raise ConfigError("--episode-command and --check-policy start episodes in the keyboard session; "
+                              "with --outcome, run the episode yourself first")  # fmt: skip
         v = parse_outcome(ns.outcome)
         v = Verdict(v.kind, v.failure, v.reason, ns.note, ns.video)
         _, lines = record_once(rr, v, _episode(ns.episode), ns.operator, ns.video_pattern)

@@ -8,13 +8,15 @@ episode (level, the set-up change from the last episode, the instruction), takes
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.metrics import success_rate
 from indgen_vla.real.plan import RealRun
+from indgen_vla.real.section import SECTION, write_section
 from indgen_vla.real.store import (
     FAILURE_HELP,
     JOURNAL,
@@ -29,9 +31,24 @@ from indgen_vla.real.store import (
     records,
     replay,
 )
-from indgen_vla.records import EPISODES
+from indgen_vla.real.trigger import (
+    FIELDS,
+    VIDEO_SUFFIXES,
+    EpisodeContext,
+    Trigger,
+    TriggerError,
+    check_template,
+    echo,
+    fill,
+    summary_line,
+)
+from indgen_vla.records import EPISODES, SECTIONS
 
-VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi", ".webm", ".mov", ".h264")
+PROMPT = "outcome [s f v u q ?]> "
+START_PROMPT = "start the episode [Enter], or s f v u q ?> "  # with a trigger, before it ran
+AGAIN_PROMPT = "outcome [s f v u q ? r]> "  # with a trigger, after it ran (r: run it again)
+RUN_HELP = """\
+  Enter (or r)        start the episode: {what}"""
 HELP = """\
   s [note]            success
   f [mode] [note]     failure; mode = 1-5 or its name (asked if left out)
@@ -97,38 +114,61 @@ class Recorder:
         self.rr = rr
         self.operator = operator or rr.manifest["real"].get("operator", "")
         self.video_pattern = video_pattern
+        if video_pattern is not None:
+            check_template(video_pattern, "--video-pattern", tuple(f for f in FIELDS if f != "video"))
         self.path = rr.run.path
 
     def state(self) -> State:
         return replay(read_journal(self.path), self.rr.axis.name)
 
     def sync(self, force: bool = True) -> State:
-        """Rebuild ``episodes.parquet`` from the journal; unless forced, only when the Parquet view is older
-        (missing, or a process was killed between a journal line and its rebuild)."""
+        """Rebuild ``episodes.parquet`` and the report section from the journal; unless forced, only what is
+        older than the journal (missing, or a process was killed between a journal line and its rebuild)."""
         state = self.state()
-        journal, view = self.path / JOURNAL, self.path / EPISODES
-        stale = journal.exists() and (
-            not view.exists() or view.stat().st_mtime_ns <= journal.stat().st_mtime_ns
-        )
-        if force or stale:
+        journal, view, section = self.path / JOURNAL, self.path / EPISODES, self.path / SECTIONS / SECTION
+        mtime = journal.stat().st_mtime_ns if journal.exists() else -1
+
+        def stale(p) -> bool:
+            return not p.exists() or p.stat().st_mtime_ns <= mtime
+
+        if journal.exists() and (force or stale(view)):
             rebuild(self.rr.run, records(state, self.rr.manifest, self.rr.seeds, self.rr.params))
+        if force or stale(section):
+            write_section(self.rr, state)
         return state
 
-    def record(self, level: int, episode: int, v: Verdict, wall_s: float = 0.0) -> Entry:
-        """Journal one verdict for a queued episode, then rebuild the Parquet view."""
+    def context(self, state: State, level: int, episode: int) -> EpisodeContext:
+        """The episode's fields (``--episode-command`` and ``--video-pattern`` templates, trigger env vars)."""
+        rr = self.rr
+        ctx = EpisodeContext(run=str(self.path), axis=rr.axis.name, task=rr.task, level=level, param=rr.params[level],
+                             unit=rr.axis.unit, episode=episode, attempt=len(state.voids.get((level, episode), ())),
+                             seed=rr.seeds[episode], instruction=rr.setup.instruction,
+                             placement=rr.setup.placement(episode), policy=rr.manifest["policy"], video="")  # fmt: skip
+        if not self.video_pattern:
+            return ctx
+        values = {k: v for k, v in vars(ctx).items() if k != "video"}
+        return dataclasses.replace(ctx, video=fill(self.video_pattern, values, "--video-pattern"))
+
+    def record(
+        self, level: int, episode: int, v: Verdict, wall_s: float = 0.0, trigger: dict | None = None
+    ) -> Entry:
+        """Journal one verdict for a queued episode, then rebuild the Parquet view. The video is the operator's,
+        else the one the episode command printed, else ``--video-pattern``'s."""
         entries = read_journal(self.path)
         state = replay(entries, self.rr.axis.name)
         queue = self.rr.queue(state)
         if (level, episode) not in queue:
             nxt = f"level {queue[0][0]} episode {queue[0][1]}" if queue else "nothing: the run is complete"
             raise RunDirError(f"level {level} episode {episode} is not waiting to be run (next: {nxt})")
-        video = v.video
-        if not video and self.video_pattern:
-            video = self.video_pattern.format(axis=self.rr.axis.name, level=level, episode=episode,
-                                              task=self.rr.task, attempt=len(state.voids.get((level, episode), ())))  # fmt: skip
+        trigger = trigger or {}
+        video = (
+            v.video
+            or trigger.get("command", {}).get("video", "")
+            or self.context(state, level, episode).video
+        )
         entry = Entry(seq=(entries[-1].seq if entries else 0) + 1, kind=v.kind, axis=self.rr.axis.name, level=level,
                       episode=episode, failure=v.failure, reason=v.reason, note=v.note, video=video,
-                      operator=self.operator, time=now(), wall_s=round(wall_s, 3))  # fmt: skip
+                      operator=self.operator, time=now(), wall_s=round(wall_s, 3), trigger=trigger)  # fmt: skip
         append_entry(self.path, entry)
         self.sync()
         return entry
@@ -232,12 +272,31 @@ def _saved(e: Entry) -> str:
     what = {"success": "success", "failure": f"failure ({e.failure or 'mode not given'})",
             "void": f"VOID ({e.reason}): re-queued"}[e.kind]  # fmt: skip
     extra = "".join(f"; {k} {v}" for k, v in (("note", e.note), ("video", e.video)) if v)
+    if "command" in e.trigger:
+        extra += f"; command exit {e.trigger['command']['exit_code']}"
     return f"saved: level {e.level} episode {e.episode} {what}{extra}"
 
 
+def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callable[[str], None],
+                  write: Callable[[str], None]) -> dict | None:  # fmt: skip
+    """Run each trigger in order (policy check, then command); None when one could not start the episode."""
+    info = {}
+    for t in triggers:
+        try:
+            info[t.name] = t.start(ctx, write)
+        except TriggerError as e:
+            say(str(e))
+            say("fix it and press Enter to try again, or type a verdict (e.g. v server down) to go on")
+            return None
+    say(summary_line(info))
+    return info
+
+
 def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = None,
-                ask: Callable[[str], str] = input, say: Callable[[str], None] = print) -> bool:  # fmt: skip
-    """Run the keyboard session until the plan is complete (True) or the operator quits (False)."""
+                ask: Callable[[str], str] = input, say: Callable[[str], None] = print,
+                triggers: Sequence[Trigger] = (), write: Callable[[str], None] = echo) -> bool:  # fmt: skip
+    """Run the keyboard session until the plan is complete (True) or the operator quits (False). With
+    ``triggers`` the operator starts each episode with Enter (``write`` shows the command's output)."""
     rec = Recorder(rr, operator, video_pattern)
     with recording_lock(rec.path):
         state = rec.sync(force=False)
@@ -253,11 +312,15 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
             level, ep = queue[0]
             for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue))):
                 say(line)
+            ctx = rec.context(state, level, ep)
+            for t in triggers:
+                say(t.describe(ctx))
             shown = time.monotonic()
-            verdict = None
+            verdict, started, runs = None, None, 0
             while verdict is None:
+                prompt = PROMPT if not triggers else AGAIN_PROMPT if started else START_PROMPT
                 try:
-                    verdict = _read_verdict(ask("outcome [s f v u q ?]> ").strip(), rec, ask, say)
+                    verdict = _read_verdict(ask(prompt).strip(), rec, ask, say, triggers, started is None)
                 except EOFError:  # Ctrl-D: leave like q
                     say("")
                     verdict = "quit"
@@ -266,12 +329,18 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                         f"stopped; {len(state.counted)} counted episodes are saved. Resume: indgen real record {rec.path}"
                     )
                     return False
+                if verdict == "run":
+                    runs += 1  # the journal keeps the last start and how many there were
+                    started = start_episode(triggers, ctx, say, write) or started
+                    if started:
+                        started["starts"] = runs
+                    verdict = None
                 if verdict == "undo":
                     state = rec.state()
                     break
             if verdict in (None, "undo"):
                 continue
-            entry = rec.record(level, ep, verdict, wall_s=time.monotonic() - shown)
+            entry = rec.record(level, ep, verdict, wall_s=time.monotonic() - shown, trigger=started)
             state = rec.state()
             say(_saved(entry))
             say(rec.level_line(state, level))
@@ -279,15 +348,19 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                 say(line)
 
 
-def _read_verdict(line: str, rec: Recorder, ask, say):
-    """One operator line -> a Verdict, "undo", "quit", or None (shown help / not understood: ask again)."""
+def _read_verdict(line: str, rec: Recorder, ask, say, triggers: Sequence[Trigger] = (), fresh: bool = True):
+    """One operator line -> a Verdict, "run", "undo", "quit", or None (shown help / not understood: ask again)."""
     if not line:
-        return None
+        return "run" if triggers and fresh else None
     word, *rest = line.split()
     word = word.lower()
     if word in ("q", "quit", "exit"):
         return "quit"
+    if word in ("r", "run") and triggers:
+        return "run"
     if word in ("?", "h", "help"):
+        if triggers:
+            say(RUN_HELP.format(what=", then ".join(t.name for t in triggers)))
         say(HELP)
         return None
     if word in ("u", "undo"):

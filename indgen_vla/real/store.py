@@ -13,7 +13,7 @@ import json
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +52,7 @@ class Entry:
     time: str = ""
     wall_s: float = 0.0  # seconds from the episode being shown to its verdict (set-up + run + judging)
     undo: int = 0  # for kind == undo: the seq it cancels
+    trigger: dict = field(default_factory=dict)  # what --episode-command / --check-policy did (real.trigger)
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
