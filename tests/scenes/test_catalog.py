@@ -27,6 +27,7 @@ def test_scenes_json(capsys):
         *(s.name for s in builtin_scenes()),
         "libero_object",
         "libero_spatial",
+        "robocasa",
     ]
     pp = rows[0]
     assert pp["max_steps"] == 280 and "pick_y" in pp["axes"] and "milk" in pp["tasks"] and pp["needs"] is None
@@ -178,7 +179,7 @@ def test_every_family_is_registered_once_with_its_docstring_sections():
     assert (
         names
         == scenes.scene_names()
-        == ["pick_place", "stack", "cabinet_pick", "libero_object", "libero_spatial"]
+        == ["pick_place", "stack", "cabinet_pick", "libero_object", "libero_spatial", "robocasa"]
     )
     for s in registered_scenes():
         assert isinstance(s, Scene) and get_scene(s.name) is s and s.default_axis == s.axes[0]
