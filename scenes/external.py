@@ -10,6 +10,7 @@ restarted on the next ``reset`` (the engine retries the episode like any other e
 
 from __future__ import annotations
 
+import atexit
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,17 @@ from scenes.runtime import ExternalRuntime, WorkerDied, WorkerProcess
 if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.registry import Scene
+
+# One idle worker per runtime, kept by ``close`` for the next env of this process: the next level skips the
+# simulator's import and reuses the worker's T0 cache (RoboCasa: one reset per episode instead of two).
+_IDLE: dict[str, WorkerProcess] = {}
+
+
+@atexit.register
+def close_idle_workers() -> None:
+    """Stop the idle workers (at exit; tests call it to start from a cold worker)."""
+    while _IDLE:
+        _IDLE.popitem()[1].close()
 
 
 class ExternalSceneEnv(BaseSceneEnv):
@@ -59,7 +71,8 @@ class ExternalSceneEnv(BaseSceneEnv):
 
     def _build(self) -> None:
         if self._worker is None or not self._worker.alive:
-            self._worker = WorkerProcess(self.runtime)
+            idle = _IDLE.pop(self.runtime.name, None)
+            self._worker = idle if idle is not None and idle.alive else WorkerProcess(self.runtime)
         self._call("build", {k: v for k, v in self.config.items() if k != "spec"})
 
     # ---- gymnasium API -------------------------------------------------------------------------
@@ -114,6 +127,14 @@ class ExternalSceneEnv(BaseSceneEnv):
         return images[camera] if camera in images else next(iter(images.values()))
 
     def close(self) -> None:
+        """Free the level; its live worker is kept idle for the next env of this runtime (one per runtime)."""
         if self._worker is not None:
-            self._worker.close()
-            self._worker = None
+            worker, self._worker = self._worker, None
+            if worker.alive and self.runtime.name not in _IDLE:
+                try:
+                    worker.request("drop")  # the simulator env goes; the interpreter and T0 cache stay
+                    _IDLE[self.runtime.name] = worker
+                    return
+                except SceneError:
+                    pass
+            worker.close()
