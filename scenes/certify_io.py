@@ -35,9 +35,7 @@ def certification_root(scene: str | None = None) -> Path:
         from indgen_vla.resources import certification_dir
 
         return certification_dir()
-    from scenes.libero.assets import find_assets
-
-    assets = find_assets(required=False)
+    assets = get_scene(scene).asset_tree()
     tag = hashlib.sha1(str(assets.resolve() if assets else "none").encode()).hexdigest()[:12]
     return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser() / "certification" / tag
 

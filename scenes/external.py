@@ -48,6 +48,7 @@ class ExternalSceneEnv(BaseSceneEnv):
     _last: dict | None = None
 
     def _load(self, scene: Scene, task: str, successor: Successor) -> None:
+        self._scene = scene
         self.runtime: ExternalRuntime = scene.runtime
         self.config = scene.level_config(task, successor, self.level, self.cameras, self.image_size)
         self.spec = self.config.get("spec")
@@ -106,7 +107,8 @@ class ExternalSceneEnv(BaseSceneEnv):
         )
 
     def privileged_state(self):
-        return self._call("privileged")
+        """The family's ``PrivilegedState`` of the worker's privileged facts (``Scene.privileged_from``)."""
+        return self._scene.privileged_from(self._call("privileged"))
 
     def call(self, name: str, **kwargs) -> Any:
         """A backend extra by name (e.g. ``ep_meta``), for tests and the oracle."""

@@ -37,6 +37,16 @@ class SceneLevels:
         return tuple(get_scene(self.scene).preload)
 
     @property
+    def env_spec(self):
+        """The family's observation/action contract (``indgen_vla.interface.EnvSpec``): cameras, state, action."""
+        return get_scene(self.scene).env_spec
+
+    @property
+    def placeholder_assets(self) -> bool:
+        """The family simulates placeholder assets (boxes): an image policy's rate there is not a measurement."""
+        return bool(get_scene(self.scene).placeholder_assets())
+
+    @property
     def action_dim(self) -> int:
         """The family's action size (``EnvSpec.action_dim``: 7 on the tabletop families, 12 on RoboCasa365)."""
         return int(get_scene(self.scene).env_spec.action_dim)

@@ -80,7 +80,41 @@ class RoboCasaSuccess:
     """RoboCasa's own ``_check_success`` of the task, read from the worker (one predicate for every level)."""
 
     def __call__(self, state) -> bool:
-        return bool(state["success"])
+        return bool(state.bddl_success)
+
+
+def privileged_state(raw: dict):
+    """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
+
+    ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else that part.
+    """
+    import numpy as np
+
+    from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
+
+    f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
+    if "obj_pos" in raw:
+        pos = f64(raw["obj_pos"])
+        pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],
+                         raw["obj_half_width"], raw["obj_touching"])  # fmt: skip
+    else:
+        pos = f64(raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
+        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, False)
+    goal, facts = None, SceneFacts()
+    if "goal_centre" in raw:
+        c = f64(raw["goal_centre"])
+        goal = GoalState(c, f64([1.0, 0, 0, 0]), float(raw["goal_top"]))
+        target = Targets(c[:2].copy(), float(raw["goal_floor"]), float(raw["goal_floor"]), float(pick.pos[2]),
+                         floor_z=float(raw["goal_floor"]))  # fmt: skip
+        facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
+    else:
+        target = Targets(pick.pos[:2].copy(), float(pick.pos[2]), float(pick.pos[2]), float(pick.pos[2]))
+    return PrivilegedState(
+        eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
+        pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),
+        robot_base=f64([*raw["base_pos"][:2], raw["base_yaw"]]),
+    )  # fmt: skip
 
 
 def _python() -> Path:
@@ -127,6 +161,7 @@ class RoboCasa(Scene):
     )
     preload: ClassVar[tuple[str, ...]] = ()
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
+    oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
 
     def base(self, task: str) -> RoboCasaSpec:
         return RoboCasaSpec(task=self.resolve_task(task))
@@ -138,6 +173,20 @@ class RoboCasa(Scene):
         from scenes.external import ExternalSceneEnv
 
         return ExternalSceneEnv
+
+    def asset_tree(self):
+        from scenes.robocasa.environment import find_assets
+
+        return find_assets(required=False)
+
+    def placeholder_assets(self) -> bool:
+        from scenes.robocasa.environment import find_assets, is_placeholder
+
+        assets = find_assets(required=False)
+        return assets is not None and is_placeholder(assets)
+
+    def privileged_from(self, raw: dict):
+        return privileged_state(raw)
 
     def check_ready(self) -> None:
         from scenes.robocasa.environment import find_assets, find_python

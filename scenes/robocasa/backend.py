@@ -388,21 +388,46 @@ class RoboCasaLevel:
         return {"state": state, "images": images, "instruction": self.env.get_ep_meta().get("lang", "")}
 
     def privileged(self) -> dict:
-        """What oracles and tests read: the pick object's pose, the robot base, and RoboCasa's fixture states."""
+        """What oracles, the success check and tests read (plain numbers; ``RoboCasa.privileged_from`` makes the
+        ``PrivilegedState``): the grip site, the gripper, the mobile base, the pick object with its extents, the
+        target fixture's interior, the moved fixture and the stand mixer's state, and RoboCasa's own success."""
         env = self.env
-        out: dict = {"base_pos": np.array(env.sim.data.get_body_xpos("mobilebase0_base"), dtype=np.float64)}
+        data = env.sim.data
+        robot = env.robots[0]
+        site = robot.eef_site_id["right"]
+        bq = np.array(data.get_body_xquat("mobilebase0_base"))
+        out: dict = {
+            "eef_pos": np.array(data.site_xpos[site]),
+            "eef_mat": np.array(data.site_xmat[site]).reshape(3, 3),
+            "gripper_qpos": np.array([data.qpos[a] for a in robot._ref_gripper_joint_pos_indexes["right"]]),
+            "base_pos": np.array(data.get_body_xpos("mobilebase0_base"), dtype=np.float64),
+            "base_yaw": float(_yaw(bq)),
+        }
         if "obj" in getattr(env, "objects", {}):
-            bid = env.obj_body_id["obj"]
-            out["obj_pos"] = np.array(env.sim.data.body_xpos[bid])
-            out["obj_quat"] = np.array(env.sim.data.body_xquat[bid])
+            obj, bid = env.objects["obj"], env.obj_body_id["obj"]
+            pos = np.array(data.body_xpos[bid])
+            out.update(
+                obj_pos=pos, obj_quat=np.array(data.body_xquat[bid]),
+                obj_linvel=np.array(data.get_body_xvelp(obj.root_body)),
+                obj_bottom=float(pos[2] + obj.bottom_offset[2]), obj_top=float(pos[2] + obj.top_offset[2]),
+                obj_half_width=float(obj.horizontal_radius),
+                obj_touching=bool(env.check_contact(robot.gripper["right"], obj)),
+            )  # fmt: skip
+        cab = getattr(env, "cab", None)
+        if cab is not None and hasattr(
+            cab, "get_int_sites"
+        ):  # the interior the object goes into (obj_inside_of)
+            p0, px, py, pz = next(iter(cab.get_int_sites(relative=False).values()))
+            out.update(goal_pos=np.array(cab.pos, dtype=np.float64), goal_floor=float(p0[2]),
+                       goal_centre=np.array((px + py) / 2.0), goal_top=float(pz[2]),
+                       goal_half=(float(np.linalg.norm(px - p0)) / 2, float(np.linalg.norm(py - p0)) / 2))  # fmt: skip
         moved = MOVED_FIXTURE.get(self.cfg["task"])
         if moved and hasattr(env, moved):  # fixture_x's fixture: its root body's world position
-            out["fixture_pos"] = np.array(
-                env.sim.data.get_body_xpos(getattr(env, moved).naming_prefix + "main")
-            )
+            out["fixture_pos"] = np.array(data.get_body_xpos(getattr(env, moved).naming_prefix + "main"))
         mixer = getattr(env, "stand_mixer", None)
         if mixer is not None:
             out["stand_mixer"] = {k: float(v) for k, v in mixer.get_state(env).items() if np.isscalar(v)}
+            out["mixer_head_pos"] = np.array(data.get_body_xpos(mixer.naming_prefix + "head"))
         out["success"] = bool(env._check_success())
         return out
 

@@ -114,8 +114,9 @@ def _changed(m0: dict, m1: dict) -> set[str]:
     return {k for k in a.keys() | b.keys() if a.get(k) != b.get(k)}
 
 
-def _levels(task: str, axis: str, levels, seed: int) -> list[tuple[dict, dict]]:
-    """(ep_meta, privileged state) after reset(seed) at each level, in order (one pooled worker)."""
+def _levels(task: str, axis: str, levels, seed: int, step_at: int | None = None) -> list[tuple[dict, dict]]:
+    """(ep_meta, privileged state) after reset(seed) at each level, in order (one pooled worker); at level
+    ``step_at`` one 12-d control step after the reset."""
     import scenes
 
     out = []
@@ -124,7 +125,10 @@ def _levels(task: str, axis: str, levels, seed: int) -> list[tuple[dict, dict]]:
         try:
             obs, _ = env.reset(seed=seed)
             assert obs.state.shape == (16,) and obs.images == {}
-            out.append((env.call("ep_meta"), env.privileged_state()))
+            out.append((env.call("ep_meta"), env.call("privileged")))
+            if level == step_at:
+                obs, reward, term, trunc, info = env.step(np.zeros(12))
+                assert obs.state.shape == (16,) and not info["success"] and env.action_space.shape == (12,)
         finally:
             env.close()
     return out
@@ -136,7 +140,7 @@ def base_y(placeholders):
     from scenes.external import close_idle_workers
 
     close_idle_workers()  # a cold worker: level 0 is RoboCasa's own reset from the seed
-    return _levels("PickPlaceCounterToCabinet", "base_y", (0, 1, 0), seed=3)
+    return _levels("PickPlaceCounterToCabinet", "base_y", (0, 1, 0), seed=3, step_at=1)
 
 
 @needs_venv
@@ -162,19 +166,6 @@ def test_a_replay_of_t0_is_t0(base_y):
     assert _changed(m0, m0b) == set()
     np.testing.assert_allclose(s0["obj_pos"], s0b["obj_pos"], atol=1e-9)
     np.testing.assert_allclose(s0["base_pos"], s0b["base_pos"], atol=1e-9)
-
-
-@needs_venv
-def test_a_control_step_moves_the_12d_interface(placeholders):
-    import scenes
-
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=1, cameras=())
-    try:
-        env.reset(seed=3)
-        obs, reward, term, trunc, info = env.step(np.zeros(12))
-        assert obs.state.shape == (16,) and not info["success"] and env.action_space.shape == (12,)
-    finally:
-        env.close()
 
 
 @needs_venv
@@ -258,6 +249,119 @@ def test_a_worker_that_dies_mid_episode_is_an_episode_error_then_restarts(placeh
             env.step(np.zeros(12))
         obs, _ = env.reset(seed=3)  # the engine's retry: a fresh worker, rebuilt, the same episode
         assert obs.state.shape == (16,)
-        assert "obj_pos" in env.privileged_state()
+        assert env.privileged_state().pick.pos.shape == (3,)
+    finally:
+        env.close()
+
+
+# ---- the policy contract: the scene's EnvSpec, checked before any episode ----------------------------------
+def _policy(**kw):
+    from types import SimpleNamespace
+
+    from indgen_vla.interface import PolicySpec
+
+    closed = []
+    spec = PolicySpec("standin", kw.pop("name", "test:p"), **kw)
+    return SimpleNamespace(spec=spec, close=lambda: closed.append(True), closed=closed)
+
+
+def _plan(placeholder: bool):
+    from types import SimpleNamespace
+
+    from scenes.robocasa import PANDA_OMRON
+
+    return SimpleNamespace(builder=SimpleNamespace(env_spec=PANDA_OMRON, placeholder_assets=placeholder))
+
+
+def test_policy_spec_takes_the_scene_families_camera_names():
+    from indgen_vla.interface import TABLETOP, PolicySpec
+    from scenes.robocasa import PANDA_OMRON
+
+    spec = PolicySpec("lerobot", "lerobot:x", cameras=PANDA_OMRON.cameras, action_dim=12)
+    PANDA_OMRON.check_policy(spec, "robocasa")
+    with pytest.raises(
+        ConfigError, match=r"reads camera\(s\) \['robot0_agentview_left'.*scene libero_object"
+    ):
+        TABLETOP.check_policy(spec, "libero_object")
+    with pytest.raises(ConfigError, match="must be identifiers"):
+        PolicySpec("lerobot", "lerobot:x", cameras=("a view",))
+
+
+def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_path):
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import check_policy_contract
+
+    cfg = EvalConfig(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path))
+    seven = _policy(action_dim=7, cameras=())
+    with pytest.raises(ConfigError, match=r"returns 7-d actions but scene robocasa takes 12-d \(eef pos 3"):
+        check_policy_contract(cfg, _plan(False), seven)
+    assert seven.closed
+    wrist = _policy(cameras=("wrist",))
+    with pytest.raises(ConfigError, match=r"camera\(s\) \['wrist'\].*robot0_agentview_left"):
+        check_policy_contract(cfg, _plan(False), wrist)
+    image = _policy(cameras=("robot0_eye_in_hand",), action_dim=12)
+    with pytest.raises(ConfigError, match="placeholder assets.*pass --smoke"):
+        check_policy_contract(cfg, _plan(True), image)
+    check_policy_contract(cfg, _plan(False), image)  # real assets: a measurement
+    smoke = EvalConfig(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path), smoke=True)
+    check_policy_contract(smoke, _plan(True), _policy(cameras=("robot0_eye_in_hand",), action_dim=12))
+    check_policy_contract(cfg, _plan(True), _policy(cameras=(), action_dim=12))  # state-only: no images
+
+
+@needs_venv
+@pytest.mark.slow  # ~7 s: a cold worker in the engine's process
+def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
+    """``indgen evaluate --policy standin:random --scene robocasa ... --levels 0:1`` through the engine: 12-d
+    random actions (the scene's EnvSpec reaches the stand-in), one tiny episode per level."""
+    import json
+
+    import pandas as pd
+
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import evaluate
+
+    cfg = EvalConfig(policy="standin:random", scene="robocasa", task="PickPlaceCounterToCabinet", axes=("base_y",),
+                     levels="0:1", episodes=1, workers=1, max_steps=4, out=str(tmp_path / "run"))  # fmt: skip
+    out = evaluate(cfg, quiet=True)
+    df = pd.read_parquet(out / "episodes.parquet")
+    assert list(df.status) == ["ok", "ok"] and list(df.steps) == [4, 4] and list(df.param) == [0.0, 0.125]
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert (
+        manifest["resolved"]["environment"]["env_spec"]["action_dim"] == 12 and "measurement" not in manifest
+    )
+
+
+@needs_venv
+def test_the_oracle_closes_the_stand_mixer_head(placeholders):
+    """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
+    worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
+    import scenes
+    from scenes.certify_run import run_oracle_episode
+    from scenes.oracle import oracle_for
+    from scenes.robocasa.oracle import RoboCasaOracle
+
+    policy = oracle_for("robocasa")
+    assert isinstance(policy, RoboCasaOracle) and policy.spec.action_dim == 12
+    env = scenes.make_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
+                          max_steps=150)  # fmt: skip
+    try:
+        ok, steps = run_oracle_episode(env, policy, seed=1)
+        assert ok and steps < 150
+        assert env.privileged_state().bddl_success
+    finally:
+        env.close()
+
+
+@needs_venv
+@pytest.mark.slow
+def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
+    import scenes
+    from scenes.certify_run import run_oracle_episode
+    from scenes.oracle import oracle_for
+
+    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                          max_steps=400)  # fmt: skip
+    try:
+        assert run_oracle_episode(env, oracle_for("robocasa"), seed=3)[0]
     finally:
         env.close()
