@@ -22,7 +22,7 @@ import zlib
 from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
-VERSION = 2
+VERSION = 3
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -344,6 +344,9 @@ def write_tree(dst: Path) -> dict:
 
     pkg = Path(robocasa.__file__).parent
     wheel_assets = pkg / "models" / "assets"
+    marker = dst / MARKER
+    if marker.is_file() and not marker.read_text().startswith(f"version {VERSION}\n"):
+        shutil.rmtree(dst)  # a placeholder tree of an older generator: written again, never patched in place
     dst.mkdir(parents=True, exist_ok=True)
     shutil.copytree(wheel_assets, dst, dirs_exist_ok=True)
     w = Writer(dst)
@@ -372,10 +375,12 @@ def write_tree(dst: Path) -> dict:
             w.write(f"{rel}/model.xml", simple_model(Path(rel).name, DEFAULT_SIZE), "fixtures")
             w.texture(f"{rel}/tex.png")
     for cat, cfg in object_categories().items():
-        aux = bool(cfg.get("is_auxiliary_obj"))
         for reg, folder in REGISTRY_FOLDERS.items():
             if reg not in cfg:
                 continue
+            # an auxiliary object (a lid) lives one folder deeper (kitchen_object_utils.ObjCat); the flag is per
+            # registry: without the extra folder its category has no model and sampling draws NaN probabilities
+            aux = bool(cfg.get("is_auxiliary_obj") or cfg[reg].get("is_auxiliary_obj"))
             folders = cfg[reg].get("model_folders") or [f"{folder}/{cat}"]
             for fold in folders:
                 model = f"objects/{fold}/{cat}_ph" + ("/part" if aux else "") + "/model.xml"

@@ -74,6 +74,9 @@ def test_placeholder_tree_is_writable_with_one_joint_per_body(placeholders):
         names.update(j.get("name") for j in joints)
     assert {"head_joint", "knob_speed_joint", "button_head_lock_joint"} <= names
     assert os.access(mixers[0].parent, os.W_OK)
+    # an auxiliary object lives one folder deeper (robocasa/models/objects/kitchen_object_utils.py, ObjCat): a lid
+    # written flat leaves its category without a model, and RoboCasa's sampling then draws NaN probabilities
+    assert (placeholders / "objects/lightwheel/saucepan/saucepan_lid_ph/part/model.xml").is_file()
 
 
 def _box(el) -> tuple[np.ndarray, np.ndarray]:
