@@ -140,6 +140,11 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         "--allow-infeasible", action="store_true", help="evaluate levels the oracle did not certify"
     )
     p.add_argument(
+        "--smoke",
+        action="store_true",
+        help="run an image policy on placeholder assets (RoboCasa's boxes) anyway; recorded as not a measurement",
+    )
+    p.add_argument(
         "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
     )
     p.add_argument(

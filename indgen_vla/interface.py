@@ -44,6 +44,20 @@ class EnvSpec:
         if self.state_dim < 1 or self.action_dim < 1 or not self.cameras:
             raise ConfigError(f"env spec {self.name}: needs cameras and positive state/action sizes")
 
+    def check_policy(self, spec: PolicySpec, scene: str) -> None:
+        """Refuse, in one line and before any episode, a policy whose cameras or action size this family lacks."""
+        unknown = [c for c in spec.cameras if c not in self.cameras]
+        if unknown:
+            raise ConfigError(
+                f"policy {spec.name} reads camera(s) {unknown}, which scene {scene} does not have; its cameras are "
+                f"{list(self.cameras)} (map the policy's image keys to these)"
+            )
+        if spec.action_dim is not None and spec.action_dim != self.action_dim:
+            raise ConfigError(
+                f"policy {spec.name} returns {spec.action_dim}-d actions but scene {scene} takes {self.action_dim}-d "
+                f"({self.layout.split('action: ')[-1]}); evaluate it on a scene with its action space"
+            )
+
 
 TABLETOP = EnvSpec("tabletop")
 
@@ -117,13 +131,16 @@ class PolicySpec:
         name: the full spec string the user passed.
         chunk_size: actions per returned chunk (T).
         replan_steps: actions the engine executes from each chunk before asking again.
-        cameras: our camera names the policy reads (empty for state-only policies: nothing is rendered).
+        cameras: the scene's camera names the policy reads (empty for state-only policies: nothing is rendered);
+            the scene family's ``EnvSpec`` lists them (tabletop: agentview/wrist; RoboCasa365: its three).
         image_size: (H, W) the engine should render at, or None for the scene default.
         batched: one ``act`` call may carry several environments' observations.
         privileged: reads simulator state (oracles only); the engine passes it in ``Observation.extras``.
         flip_180: the model was trained on 180°-rotated images (LIBERO); the adapter applies it.
         observes_objects: a low-dimensional policy that reads ``Observation.objects`` (robomimic's "object"
             observation); never an image policy.
+        action_dim: the size of its actions, when the adapter knows it (checked against the scene's ``EnvSpec``
+            before any episode); None: whatever the scene takes.
     """
 
     family: str
@@ -136,6 +153,7 @@ class PolicySpec:
     privileged: bool = False
     flip_180: bool = False
     observes_objects: bool = False
+    action_dim: int | None = None
 
     def __post_init__(self) -> None:
         if self.chunk_size < 1:
@@ -144,9 +162,11 @@ class PolicySpec:
             raise ConfigError(
                 f"policy {self.name}: replan_steps must be in 1..chunk_size ({self.chunk_size}), got {self.replan_steps}"
             )
-        unknown = [c for c in self.cameras if c not in CAMERAS]
-        if unknown:
-            raise ConfigError(f"policy {self.name}: unknown camera(s) {unknown}; cameras are {list(CAMERAS)}")
+        bad = [c for c in self.cameras if not (isinstance(c, str) and c.replace("_", "").isalnum())]
+        if bad:  # which cameras exist is the scene's (EnvSpec.check_policy, before any episode)
+            raise ConfigError(f"policy {self.name}: camera names must be identifiers, got {bad}")
+        if self.action_dim is not None and self.action_dim < 1:
+            raise ConfigError(f"policy {self.name}: action_dim must be >= 1, got {self.action_dim}")
         if self.observes_objects and self.cameras:
             raise ConfigError(
                 f"policy {self.name}: object poses are for low-dimensional policies only; drop its cameras "

@@ -50,6 +50,10 @@ class LevelBuilder(Protocol):
         """The GL vendor/renderer the family's envs render with on this machine (the protocol fingerprint)."""
         ...
 
+    # also read by the engine, where a builder has them: ``env_spec`` (the family's ``EnvSpec``: a policy whose
+    # cameras or action size it lacks is refused before any episode), ``placeholder_assets`` (bool: an image
+    # policy runs there only with --smoke) and ``action_dim``
+
 
 @dataclass(frozen=True)
 class Cell:

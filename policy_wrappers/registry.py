@@ -8,10 +8,14 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
 
 from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
 from indgen_vla.registry import Registry
+
+if TYPE_CHECKING:
+    from indgen_vla.interface import EnvSpec
 
 FAMILIES: Registry = Registry("policy family")
 FAMILIES.register(
@@ -180,19 +184,26 @@ class Options:
 
 
 def load_policy(
-    spec: str, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None, **kw: object
-):
+    spec: str, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None,
+    env_spec: EnvSpec | None = None, **kw: object,
+):  # fmt: skip
     """Load the policy a spec string names (the engine's and ``indgen serve``'s entry point).
 
     Extra keyword arguments are spec options (the same as ``?key=value``) and override them. ``scene`` (the
-    scene being evaluated) reaches loaders that take it, for scene-dependent defaults (base OpenVLA's unnorm_key).
+    scene being evaluated) reaches loaders that take it, for scene-dependent defaults (base OpenVLA's unnorm_key);
+    ``env_spec`` (the scene family's ``EnvSpec``) reaches loaders that take it.
     """
     import inspect
 
     parsed = parse_spec(spec)
     loader = FAMILIES.load(parsed.family)
     options = Options(parsed.spec, {**parsed.options, **kw})
-    extra = {"scene": scene} if scene and "scene" in inspect.signature(loader).parameters else {}
+    params = inspect.signature(loader).parameters
+    extra = {"scene": scene} if scene and "scene" in params else {}
+    if (
+        env_spec is not None and "env_spec" in params
+    ):  # the scene's cameras and action size (stand-ins act in it)
+        extra["env_spec"] = env_spec
     policy = loader(parsed, options, trust_remote_code=trust_remote_code, device=device, **extra)
     try:
         options.finish()

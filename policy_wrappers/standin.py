@@ -11,21 +11,34 @@ import numpy as np
 from indgen_vla.errors import PolicyError, UnknownNameError
 from indgen_vla.interface import ACTION_DIM, NOOP_ACTION, Observation, PolicySpec, validate_chunk
 
+GRIPPER = 6  # the gripper's index in the tabletop 7-d action and in RoboCasa's 12-d (convert_action order)
+
+
+def _noop(action_dim: int) -> np.ndarray:
+    """No motion, gripper open; on RoboCasa's 12-d action the control mode is the arm's (-1: base still)."""
+    if action_dim == ACTION_DIM:
+        return np.asarray(NOOP_ACTION, np.float32)
+    a = np.zeros(action_dim, np.float32)
+    a[GRIPPER] = -1.0
+    a[-1] = -1.0
+    return a
+
 
 class NoopPolicy:
     """Zero motion with the gripper open; stateless and batched, renders no cameras."""
 
-    def __init__(self, name: str = "standin:noop", chunk_size: int = 8):
+    def __init__(self, name: str = "standin:noop", chunk_size: int = 8, action_dim: int = ACTION_DIM):
         self.spec = PolicySpec(
-            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), batched=True
-        )
+            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), batched=True,
+            action_dim=action_dim,
+        )  # fmt: skip
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
         pass
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        shape = (len(observations), self.spec.chunk_size, ACTION_DIM)
-        return np.broadcast_to(np.asarray(NOOP_ACTION, np.float32), shape).copy()
+        shape = (len(observations), self.spec.chunk_size, self.spec.action_dim)
+        return np.broadcast_to(_noop(self.spec.action_dim), shape).copy()
 
     def close(self) -> None:
         pass
@@ -34,8 +47,16 @@ class NoopPolicy:
 class RandomPolicy:
     """Uniform random deltas in [-scale, scale], gripper ±1; the same episode seed gives the same actions."""
 
-    def __init__(self, name: str = "standin:random", chunk_size: int = 8, scale: float = 0.5):
-        self.spec = PolicySpec("standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=())
+    def __init__(
+        self,
+        name: str = "standin:random",
+        chunk_size: int = 8,
+        scale: float = 0.5,
+        action_dim: int = ACTION_DIM,
+    ):
+        self.spec = PolicySpec(
+            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), action_dim=action_dim
+        )
         self.scale = float(scale)
         self._rng = np.random.default_rng(0)
 
@@ -43,25 +64,27 @@ class RandomPolicy:
         self._rng = np.random.default_rng(0 if seed is None else seed)
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        shape = (len(observations), self.spec.chunk_size, ACTION_DIM)
+        shape = (len(observations), self.spec.chunk_size, self.spec.action_dim)
         chunk = self._rng.uniform(-self.scale, self.scale, size=shape).astype(np.float32)
-        chunk[..., -1] = np.where(self._rng.random(shape[:2]) < 0.5, -1.0, 1.0)
-        return validate_chunk(chunk, len(observations), self.spec.name)
+        chunk[..., GRIPPER] = np.where(self._rng.random(shape[:2]) < 0.5, -1.0, 1.0)
+        return validate_chunk(chunk, len(observations), self.spec.name, self.spec.action_dim)
 
     def close(self) -> None:
         pass
 
 
-def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu"):
-    """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter)."""
+def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec=None, scene=None):
+    """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter);
+    ``random`` and ``noop`` act in the scene's action space (``env_spec``: 7-d tabletop, 12-d RoboCasa365)."""
     from policy_wrappers.registry import STANDINS
 
     name = parsed.target
+    dim = {"action_dim": env_spec.action_dim} if env_spec is not None else {}
     if name == "noop":
-        return NoopPolicy(parsed.spec, **options.fields(NoopPolicy, {"chunk_size": "chunk"}))
+        return NoopPolicy(parsed.spec, **options.fields(NoopPolicy, {"chunk_size": "chunk"}), **dim)
     if name == "random":
         return RandomPolicy(
-            parsed.spec, **options.fields(RandomPolicy, {"chunk_size": "chunk", "scale": "scale"})
+            parsed.spec, **options.fields(RandomPolicy, {"chunk_size": "chunk", "scale": "scale"}), **dim
         )
     if name in STANDINS:
         try:
@@ -70,7 +93,13 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
             raise PolicyError(
                 f"policy {parsed.spec}: needs the {e.name!r} package, which is not installed yet"
             ) from None
-        return cls()
+        import inspect
+
+        try:
+            takes_scene = "scene" in inspect.signature(cls).parameters
+        except (TypeError, ValueError):
+            takes_scene = False
+        return cls(scene=scene) if takes_scene and scene else cls()  # e.g. the scene family's own oracle
     if Path(name).expanduser().is_dir():
         from policy_wrappers import lerobot_policy
 

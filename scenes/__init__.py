@@ -57,11 +57,15 @@ def get_axis(name: str, step: float | None = None, preset: str | None = None) ->
     return _get_axis(name, step, preset)
 
 
-def successor_for(axis: str, step: float | None = None, preset: str | None = None):
-    """The successor of ``axis`` with the --step / --axes-preset overrides applied."""
+def successor_for(axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None):
+    """The successor of ``axis`` with the --step / --axes-preset overrides applied (over ``scene``'s own steps
+    and ranges when a scene is named)."""
     from scenes.axes import load_preset
 
-    return get_successor(axis, step, load_preset(preset) if preset else None)
+    overrides = load_preset(preset) if preset else None
+    if scene is not None:
+        return get_scene(scene).successor(axis, step, overrides)
+    return get_successor(axis, step, overrides)
 
 
 def level_param(
@@ -72,7 +76,7 @@ def level_param(
     from scenes.axes import axis_param, spec_at_level
 
     sc = get_scene(scene)
-    successor = successor_for(axis, step, preset)
+    successor = successor_for(axis, step, preset, scene)
     spec = spec_at_level(sc.base(sc.resolve_task(task)), successor, level)
     return axis_param(spec, successor, level)
 
@@ -88,7 +92,7 @@ def check_axis_progression(
     """
     sc = get_scene(scene)
     sc.check_axis(axis)
-    successor = successor_for(axis, step, preset)
+    successor = successor_for(axis, step, preset, scene)
     sc.check_progression(sc.resolve_task(task), successor, step is not None or preset is not None)
 
 
@@ -110,5 +114,5 @@ def make_env(
     task = sc.resolve_task(task)
     axis = axis or sc.default_axis
     sc.check_axis(axis)
-    successor = successor_for(axis, step, preset)
+    successor = successor_for(axis, step, preset, scene)
     return sc.make_env(task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

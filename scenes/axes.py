@@ -160,6 +160,16 @@ def _validate_step(axis: AxisSpec, step: float) -> None:
         raise ConfigError(f"axis {axis.name} counts {axis.unit}; its step must be a whole number, got {step}")
 
 
+def merge_overrides(
+    family: Mapping[str, Mapping] | None, preset: Mapping[str, Mapping] | None
+) -> dict[str, dict]:
+    """A family's own steps/ranges (``Scene.axis_overrides``) under a preset's: per axis, the preset's keys win."""
+    out = {a: dict(v) for a, v in (family or {}).items()}
+    for a, v in (preset or {}).items():
+        out[a] = {**out.get(a, {}), **v}
+    return out
+
+
 def get_successor(
     name: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None
 ) -> Successor:

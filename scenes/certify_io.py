@@ -35,20 +35,20 @@ def certification_root(scene: str | None = None) -> Path:
         from indgen_vla.resources import certification_dir
 
         return certification_dir()
-    from scenes.libero.assets import find_assets
-
-    assets = find_assets(required=False)
+    assets = get_scene(scene).asset_tree()
     tag = hashlib.sha1(str(assets.resolve() if assets else "none").encode()).hexdigest()[:12]
     return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser() / "certification" / tag
 
 
-def axis_dirname(axis: str, step: float | None = None, preset: str | None = None) -> str:
-    """``axis`` at the default steps, else ``axis@comp=step,...`` so other steps never overwrite it."""
+def axis_dirname(
+    axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None
+) -> str:
+    """``axis`` at the (family's) default steps, else ``axis@comp=step,...`` so other steps never overwrite it."""
     import scenes
-    from scenes.axes import get_successor, successor_steps
+    from scenes.axes import successor_steps
 
-    steps = successor_steps(scenes.successor_for(axis, step, preset))
-    if steps == successor_steps(get_successor(axis)):
+    steps = successor_steps(scenes.successor_for(axis, step, preset, scene))
+    if steps == successor_steps(scenes.successor_for(axis, scene=scene)):
         return axis
     return axis + "@" + ",".join(f"{k}={v:g}" for k, v in steps.items())
 
@@ -60,7 +60,7 @@ def cert_path(
     """The certify.json of (scene, task, axis, steps)."""
     task = get_scene(scene).resolve_task(task)
     base = Path(root) if root is not None else certification_root(scene)
-    return base / scene / task / axis_dirname(axis, step, preset) / "certify.json"
+    return base / scene / task / axis_dirname(axis, step, preset, scene) / "certify.json"
 
 
 def find_certification(

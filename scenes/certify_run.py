@@ -116,7 +116,7 @@ def certify_level(
 ) -> dict:  # fmt: skip
     """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility)."""
     import scenes
-    from scenes.oracle import OraclePolicy
+    from scenes.oracle import oracle_for
 
     t0 = time.time()
     env = scenes.make_env(
@@ -124,7 +124,7 @@ def certify_level(
     )
     results: list[tuple[bool, int]] = []
     try:
-        policy = OraclePolicy()
+        policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not rule.stop(sum(ok for ok, _ in results), len(results)):
             i = len(results)
             results.append(

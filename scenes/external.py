@@ -10,6 +10,7 @@ restarted on the next ``reset`` (the engine retries the episode like any other e
 
 from __future__ import annotations
 
+import atexit
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +25,17 @@ if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.registry import Scene
 
+# One idle worker per runtime, kept by ``close`` for the next env of this process: the next level skips the
+# simulator's import and reuses the worker's T0 cache (RoboCasa: one reset per episode instead of two).
+_IDLE: dict[str, WorkerProcess] = {}
+
+
+@atexit.register
+def close_idle_workers() -> None:
+    """Stop the idle workers (at exit; tests call it to start from a cold worker)."""
+    while _IDLE:
+        _IDLE.popitem()[1].close()
+
 
 class ExternalSceneEnv(BaseSceneEnv):
     """The proxy env of a family with ``runtime``: one level of one task, simulated in the family's own venv.
@@ -37,6 +49,7 @@ class ExternalSceneEnv(BaseSceneEnv):
     has_progress = False  # no contact signals over the pipe: progress is missing, never 0
 
     def _load(self, scene: Scene, task: str, successor: Successor) -> None:
+        self._scene = scene
         self.runtime: ExternalRuntime = scene.runtime
         self.config = scene.level_config(task, successor, self.level, self.cameras, self.image_size)
         self.spec = self.config.get("spec")
@@ -60,7 +73,8 @@ class ExternalSceneEnv(BaseSceneEnv):
 
     def _build(self) -> None:
         if self._worker is None or not self._worker.alive:
-            self._worker = WorkerProcess(self.runtime)
+            idle = _IDLE.pop(self.runtime.name, None)
+            self._worker = idle if idle is not None and idle.alive else WorkerProcess(self.runtime)
         self._call("build", {k: v for k, v in self.config.items() if k != "spec"})
 
     # ---- gymnasium API -------------------------------------------------------------------------
@@ -94,7 +108,8 @@ class ExternalSceneEnv(BaseSceneEnv):
         )
 
     def privileged_state(self):
-        return self._call("privileged")
+        """The family's ``PrivilegedState`` of the worker's privileged facts (``Scene.privileged_from``)."""
+        return self._scene.privileged_from(self._call("privileged"))
 
     def call(self, name: str, **kwargs) -> Any:
         """A backend extra by name (e.g. ``ep_meta``), for tests and the oracle."""
@@ -115,6 +130,14 @@ class ExternalSceneEnv(BaseSceneEnv):
         return images[camera] if camera in images else next(iter(images.values()))
 
     def close(self) -> None:
+        """Free the level; its live worker is kept idle for the next env of this runtime (one per runtime)."""
         if self._worker is not None:
-            self._worker.close()
-            self._worker = None
+            worker, self._worker = self._worker, None
+            if worker.alive and self.runtime.name not in _IDLE:
+                try:
+                    worker.request("drop")  # the simulator env goes; the interpreter and T0 cache stay
+                    _IDLE[self.runtime.name] = worker
+                    return
+                except SceneError:
+                    pass
+            worker.close()

@@ -99,6 +99,11 @@ def serve(backend_path: str, inp, out) -> None:
             elif op == "step":
                 value = env.step(arg)
                 watch.check(env.mj_data(), "a step")
+            elif op == "drop":  # the proxy keeps this worker idle: free the simulator, keep the interpreter
+                if env is not None:
+                    env.close()
+                    env = None
+                value = None
             elif op == "privileged":
                 value = env.privileged()
             elif op == "call":  # a backend extra (e.g. ep_meta): (name, kwargs)

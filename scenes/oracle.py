@@ -125,10 +125,30 @@ class Phase(enum.Enum):
         return o._goto(s, target, -1.0, speed=0.5)
 
 
+def oracle_for(scene: str | None = None):
+    """``standin:oracle``: the privileged oracle of ``scene``'s family (``Scene.oracle``; the tabletop one when no
+    scene is named)."""
+    if scene is None:
+        return OraclePolicy()
+    import importlib
+
+    from scenes.registry import get_scene
+
+    module, _, attr = get_scene(scene).oracle.partition(":")
+    return getattr(importlib.import_module(module), attr)()
+
+
 class OraclePolicy:
     """Scripted pick-and-place from privileged object poses; one instance per environment (not batched)."""
 
-    spec = PolicySpec(family="standin", name="standin:oracle", privileged=True, cameras=(), batched=False)
+    spec = PolicySpec(
+        family="standin",
+        name="standin:oracle",
+        privileged=True,
+        cameras=(),
+        batched=False,
+        action_dim=ACTION_DIM,
+    )
 
     def __init__(self, gain: float = 12.0, max_retries: int = 2):
         self.gain = gain

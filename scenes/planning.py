@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from indgen_vla.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
 from indgen_vla.progression import parse_levels
-from scenes.axes import axis_param, get_successor, load_preset, spec_at_level, successor_steps
+from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
 from scenes.registry import get_scene
 
 if TYPE_CHECKING:
@@ -35,6 +35,16 @@ class SceneLevels:
     @property
     def preload(self) -> tuple[str, ...]:
         return tuple(get_scene(self.scene).preload)
+
+    @property
+    def env_spec(self):
+        """The family's observation/action contract (``indgen_vla.interface.EnvSpec``): cameras, state, action."""
+        return get_scene(self.scene).env_spec
+
+    @property
+    def placeholder_assets(self) -> bool:
+        """The family simulates placeholder assets (boxes): an image policy's rate there is not a measurement."""
+        return bool(get_scene(self.scene).placeholder_assets())
 
     @property
     def action_dim(self) -> int:
@@ -74,7 +84,8 @@ def scene_levels(
 ) -> SceneLevels:
     """A builder for ``axes`` of ``scene`` without a full plan (benchmarks and tests that drive workers directly)."""
     overrides = load_preset(preset) if preset else None
-    return SceneLevels(scene, {a: get_successor(a, step, overrides) for a in axes})
+    sc = get_scene(scene)
+    return SceneLevels(scene, {a: sc.successor(a, step, overrides) for a in axes})
 
 
 def resolve_scene_plan(
@@ -105,7 +116,7 @@ def resolve_scene_plan(
     overridden = step is not None or preset is not None
     successors, specs, planned = {}, {}, {}
     for name in axes:
-        successor = get_successor(name, step, overrides)
+        successor = sc.successor(name, step, overrides)  # the family's own steps/ranges under the preset's
         sc.check_axis(name)  # every component must be one of the scene's axes
         successors[name], specs[name] = successor, successor.axis
         planned[name] = tuple(parse_levels(levels, successor.axis))

@@ -95,7 +95,13 @@ class PrivilegedState:
     target: Targets
     table_top: float | None = None  # z of the table surface (built-in scenes)
     facts: SceneFacts = NO_FACTS
-    bddl_success: bool | None = None  # LIBERO's own BDDL goal check (LIBERO suites)
+    bddl_success: bool | None = (
+        None  # the benchmark's own goal check (LIBERO's BDDL, RoboCasa's _check_success)
+    )
+    robot_base: np.ndarray | None = (
+        None  # (x, y, yaw) of a mobile base (RoboCasa's PandaOmron: arm actions are
+    )
+    # in its frame); None on the fixed-base tabletop arms
 
     def __post_init__(self) -> None:
         _check_shape("eef_pos", self.eef_pos, (3,))

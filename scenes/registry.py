@@ -10,7 +10,7 @@ Importing this is cheap (no simulator); ``make_env`` imports the simulator backe
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.errors import ConfigError, UnknownNameError
@@ -50,6 +50,9 @@ class Scene:
             family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
         preload: modules a worker process imports before its first env (the local backend's forkserver); a
             family whose simulator runs in another environment names none of that simulator's modules.
+        oracle: ``"module:Class"`` of the family's privileged oracle (``standin:oracle``, ``indgen certify``).
+        axis_overrides: the family's own steps and level ranges of shared axes, in an axes preset's form
+            (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them.
     """
 
     name: ClassVar[str]
@@ -64,6 +67,10 @@ class Scene:
     env_spec: ClassVar[EnvSpec] = TABLETOP
     runtime: ClassVar[Any] = None
     preload: ClassVar[tuple[str, ...]] = ("scenes.env", "robosuite", "mujoco")
+    oracle: ClassVar[str] = (
+        "scenes.oracle:OraclePolicy"  # the privileged oracle ("module:attr") standin:oracle runs
+    )
+    axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
@@ -72,6 +79,12 @@ class Scene:
     def default_axis(self) -> str:
         """The axis ``make_env`` moves along when none is given: the family's first axis."""
         return self.axes[0]
+
+    def successor(self, axis: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None):
+        """The successor of ``axis`` on this family: its own ``axis_overrides`` under a preset's and ``--step``."""
+        from scenes.axes import get_successor, merge_overrides
+
+        return get_successor(axis, step, merge_overrides(self.axis_overrides, overrides))
 
     # ---- what a family provides ------------------------------------------------------------------
     def base(self, task: str):
@@ -98,6 +111,19 @@ class Scene:
 
     def check_ready(self) -> None:
         """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
+
+    def asset_tree(self):
+        """The asset tree a per-machine certificate depends on (``committed_certificates = False``), or None."""
+        return None
+
+    def placeholder_assets(self) -> bool:
+        """True when the assets found are placeholders (boxes): images are then no measurement."""
+        return False
+
+    def privileged_from(self, raw: Any):
+        """A ``PrivilegedState`` from what a family in its own runtime sends (``ExternalSceneEnv``); others return
+        one directly."""
+        return raw
 
     def environment_versions(self) -> dict[str, str]:
         """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""

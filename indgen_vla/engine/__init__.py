@@ -7,5 +7,5 @@ The application composes scenes and policies, so the scene-side stand-ins are re
 from policy_wrappers.registry import register_standin
 
 register_standin(
-    "oracle", "scenes.oracle:OraclePolicy", "privileged scripted oracle of the scenes (certifies every level)"
+    "oracle", "scenes.oracle:oracle_for", "privileged scripted oracle of the scenes (certifies every level)"
 )

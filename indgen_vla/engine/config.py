@@ -46,6 +46,9 @@ class EvalConfig:
     data_regime: str = ""
     gamma: float = 0.2
     allow_infeasible: bool = False
+    smoke: bool = (
+        False  # run an image policy on placeholder assets anyway: the manifest says "not a measurement"
+    )
     trust_remote_code: bool = False
     max_retries: int = 2
     device: str = "cpu"  # where in-process policies run: cpu, cuda, cuda:N

@@ -114,7 +114,33 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
         "versions": package_versions(),
         "git_sha": git_sha(),
         "command": " ".join(["indgen", *sys.argv[1:]]) if sys.argv and "indgen" in sys.argv[0] else "",
+        **(
+            {
+                "measurement": "not a measurement (--smoke: a smoke run, e.g. an image policy on placeholder assets)"
+            }
+            if cfg.smoke
+            else {}
+        ),  # fmt: skip
     }
+
+
+def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
+    """Before any episode: the policy's cameras and action size must be the scene family's (``EnvSpec``), and an
+    image policy runs on placeholder assets only with ``--smoke`` (its cameras would see boxes). One line each."""
+    spec, builder = policy.spec, plan.builder
+    env_spec = getattr(builder, "env_spec", None)
+    try:
+        if env_spec is not None:
+            env_spec.check_policy(spec, cfg.scene)
+        if spec.cameras and getattr(builder, "placeholder_assets", False) and not cfg.smoke:
+            raise ConfigError(
+                f"scene {cfg.scene} runs on placeholder assets (boxes, flat textures): an image policy's success "
+                f"there is not a measurement; point the scene at its real assets, or pass --smoke to run "
+                f"{spec.name} anyway (the manifest records 'not a measurement')"
+            )
+    except ConfigError:
+        policy.close()
+        raise
 
 
 def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
@@ -133,6 +159,20 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     run_id = (
         existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
     ) or uuid.uuid4().hex[:12]
+
+    def make_policy():
+        from policy_wrappers.registry import load_policy
+
+        extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}  # families that take it
+        return load_policy(
+            cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene,
+            env_spec=getattr(plan.builder, "env_spec", None), **extra,
+        )  # fmt: skip
+
+    probe = None
+    if not (out / "manifest.json").exists():  # a new run: refuse a policy that does not fit before writing
+        probe = make_policy()
+        check_policy_contract(cfg, plan, probe)
     run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
     if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
         from indgen_vla.engine.adaptive import next_round
@@ -142,19 +182,9 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         done = run.done_keys()
         todo = [j for j in plan.jobs if j.key not in done]
     if todo:
-        from policy_wrappers.registry import load_policy
-
-        def make_policy():
-            extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}  # families that take it
-            return load_policy(
-                cfg.policy,
-                trust_remote_code=cfg.trust_remote_code,
-                device=cfg.device,
-                scene=cfg.scene,
-                **extra,
-            )
-
-        probe = make_policy()
+        if probe is None:
+            probe = make_policy()
+            check_policy_contract(cfg, plan, probe)
         spec = probe.spec
         replan = cfg.replan_steps or spec.replan_steps
         if replan > spec.chunk_size:
@@ -174,7 +204,10 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console)
         except ServerUnreachableError as e:
             raise ServerUnreachableError(f"{e} (run directory {out})") from None
-    elif not quiet:
+    else:
+        if probe is not None:
+            probe.close()
+    if not todo and not quiet:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
             if cfg.adaptive

@@ -99,6 +99,11 @@ class LiberoSuite(Scene):
 
         return LiberoSceneEnv
 
+    def asset_tree(self):
+        from scenes.libero.assets import find_assets
+
+        return find_assets(required=False)
+
     def check_ready(self) -> None:
         """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
         from scenes.libero.assets import find_assets, libero_root

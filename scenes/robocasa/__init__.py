@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
-from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.errors import ConfigError
 from indgen_vla.interface import EnvSpec
 from scenes.registry import Scene, register_scene
 from scenes.runtime import ExternalRuntime
@@ -37,8 +37,12 @@ AXIS_TASKS: dict[str, tuple[str, ...]] = {
     ),
     "clutter": ("PickPlaceCabinetToCounter",),
 }  # fmt: skip
-# Axes whose successor edits are wired in the backend so far (the others build level 0 only; see the README).
-WIRED_AXES = ("pick_x", "horizon")
+# RoboCasa365's own steps and ranges of the shared axes (appendix B): base_y runs 0..3 (12.5 cm a step); pick_x
+# steps 12 cm = 1/5 of the 0.60 m pick region of the counter tasks (robocasa/environments/kitchen/atomic/
+# kitchen_pick_place.py: PickPlaceCounterToCabinet/-ToDrawer, size=(0.60, 0.30)), levels 0..4 stay inside it; a
+# task with a narrower region refuses the levels that would leave it, in one line (scenes/robocasa/backend.py).
+AXIS_OVERRIDES = {"horizon": {"max_level": 3}, "pick_x": {"step": 0.12, "max_level": 4}}
+PICK_JITTER = 0.02  # T0's pick window on pick_x: +-2 cm in x (backend.PICK_JITTER): condition 2 sees it
 
 PANDA_OMRON = EnvSpec(
     name="robocasa_panda_omron",
@@ -68,7 +72,7 @@ class RoboCasaSpec:
     fixture_x: float = 0.0
     robot_back: float = 0.0
     clutter: int = 0
-    jitter: float = 0.0  # T0's own spread of the axis parameter is RoboCasa's; levels are offsets from it
+    jitter: float = PICK_JITTER  # T0's spread of pick.x (the window RoboCasa draws the object's x in)
 
 
 @dataclass(frozen=True)
@@ -76,7 +80,41 @@ class RoboCasaSuccess:
     """RoboCasa's own ``_check_success`` of the task, read from the worker (one predicate for every level)."""
 
     def __call__(self, state) -> bool:
-        return bool(state["success"])
+        return bool(state.bddl_success)
+
+
+def privileged_state(raw: dict):
+    """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
+
+    ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else that part.
+    """
+    import numpy as np
+
+    from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
+
+    f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
+    if "obj_pos" in raw:
+        pos = f64(raw["obj_pos"])
+        pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],
+                         raw["obj_half_width"], raw["obj_touching"])  # fmt: skip
+    else:
+        pos = f64(raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
+        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, False)
+    goal, facts = None, SceneFacts()
+    if "goal_centre" in raw:
+        c = f64(raw["goal_centre"])
+        goal = GoalState(c, f64([1.0, 0, 0, 0]), float(raw["goal_top"]))
+        target = Targets(c[:2].copy(), float(raw["goal_floor"]), float(raw["goal_floor"]), float(pick.pos[2]),
+                         floor_z=float(raw["goal_floor"]))  # fmt: skip
+        facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
+    else:
+        target = Targets(pick.pos[:2].copy(), float(pick.pos[2]), float(pick.pos[2]), float(pick.pos[2]))
+    return PrivilegedState(
+        eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
+        pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),
+        robot_base=f64([*raw["base_pos"][:2], raw["base_yaw"]]),
+    )  # fmt: skip
 
 
 def _python() -> Path:
@@ -101,8 +139,9 @@ class RoboCasa(Scene):
 
     **Randomizations:**
     - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses)
-    - along the axes: the pick object's placement offset in x (``pick_x``), the robot base moved back from T0's
-      pose (``horizon``, alias ``base_y``); ``fixture_x`` and ``clutter`` are listed but build level 0 only so far
+    - along the axes: the pick object's placement window moved in x (``pick_x``), the robot base moved back from
+      T0's pose (``horizon``, alias ``base_y``), the task's appliance slid along its own x with the robot base kept
+      at T0's pose (``fixture_x``), one more object in the cabinet (``clutter``); everything else stays at T0's
 
     **Success Conditions:**
     - RoboCasa's own ``_check_success`` of the task (e.g. ``obj_inside_of(obj, cab) and gripper_obj_far``)
@@ -121,6 +160,8 @@ class RoboCasa(Scene):
         name="robocasa", python=_python, backend=Path(__file__).with_name("backend.py"), env=_worker_env
     )
     preload: ClassVar[tuple[str, ...]] = ()
+    axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
+    oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
 
     def base(self, task: str) -> RoboCasaSpec:
         return RoboCasaSpec(task=self.resolve_task(task))
@@ -132,6 +173,20 @@ class RoboCasa(Scene):
         from scenes.external import ExternalSceneEnv
 
         return ExternalSceneEnv
+
+    def asset_tree(self):
+        from scenes.robocasa.environment import find_assets
+
+        return find_assets(required=False)
+
+    def placeholder_assets(self) -> bool:
+        from scenes.robocasa.environment import find_assets, is_placeholder
+
+        assets = find_assets(required=False)
+        return assets is not None and is_placeholder(assets)
+
+    def privileged_from(self, raw: dict):
+        return privileged_state(raw)
 
     def check_ready(self) -> None:
         from scenes.robocasa.environment import find_assets, find_python
@@ -167,21 +222,23 @@ class RoboCasa(Scene):
 
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
-        from scenes.axes import axis_param, spec_at_level
+        from scenes.axes import axis_param, resolve_alias, spec_at_level
 
         self.check_axis_task(task, successor.axis.name)
         spec = spec_at_level(self.base(task), successor, level)
-        unwired = [f for f, v in (("fixture_x", spec.fixture_x), ("clutter", spec.clutter)) if v]
-        if unwired:
-            raise SceneError(
-                f"scene robocasa/{task} level {level}: the {unwired[0]} successor is not wired to RoboCasa yet "
-                "(level 0 builds); use --levels 0 or the pick_x / base_y axes"
-            )
+        parts = {resolve_alias(p) for p in successor.axis.name.split("+")}
         return {
             "task": task,
             "cameras": list(cameras),
             "image_size": tuple(image_size),
-            "edits": {"pick_x": spec.pick.x, "base_back": spec.robot_back},
+            "edits": {
+                "pick_x": spec.pick.x,
+                "base_back": spec.robot_back,
+                "fixture_x": spec.fixture_x,
+                "clutter": spec.clutter,
+            },  # fmt: skip
+            "pick_window": "pick_x"
+            in parts,  # pick_x's T0: the pick region shrunk to a window (a level shifts it)
             "axis_param": axis_param(spec, successor, level),
             "spec": spec,
         }

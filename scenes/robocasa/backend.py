@@ -15,13 +15,22 @@ from __future__ import annotations
 
 import copy
 import os
+import zlib
 
 import numpy as np
 
 CAMERAS = ("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand")
-_T0_META: dict[
-    tuple, dict
-] = {}  # (task, layouts, styles, seed) -> T0 ep_meta: a worker reuses it across levels
+# the fixture each fixture_x task moves (its fixture_refs / attribute name in RoboCasa's task class)
+MOVED_FIXTURE = {
+    "CloseStandMixerHead": "stand_mixer", "OpenStandMixerHead": "stand_mixer", "TurnOnElectricKettle": "electric_kettle",
+    "OpenElectricKettleLid": "electric_kettle", "CloseElectricKettleLid": "electric_kettle", "TurnOnBlender": "blender",
+}  # fmt: skip
+PICK_JITTER = 0.02  # T0's pick region on pick_x: 2 x 2 cm at the valid region's low-x end (levels shift it)
+FIXTURE_KEY = (
+    "indgen_fixture_offset"  # the ep_meta field fixture_x edits: {"fixture": name, "offset": [dx, 0, 0]}
+)
+# (task, layouts, styles, seed, t0 edits) -> T0: its ep_meta and the placements it sampled, reused across levels
+_T0: dict[tuple, dict] = {}
 
 
 def versions() -> dict:
@@ -44,8 +53,18 @@ def versions() -> dict:
     }
 
 
-def edit_ep_meta(meta: dict, edits: dict) -> dict:
-    """T0's ep_meta with the level's one field moved (each edit touches exactly one ep_meta field)."""
+def _yaw(quat_wxyz) -> float:
+    w, _, _, z = (float(q) for q in quat_wxyz)
+    return 2.0 * np.arctan2(z, w)
+
+
+def edit_ep_meta(meta: dict, edits: dict, fixture: str | None = None, cab: str | None = None) -> dict:
+    """T0's ep_meta with the level's one field moved (each edit touches exactly one ep_meta field).
+
+    ``base_back`` moves ``init_robot_base_pos`` back along the base's heading; ``pick_x`` the ``"obj"`` config's
+    ``placement.offset[0]``; ``fixture_x`` sets ``FIXTURE_KEY`` (the moved fixture and its offset in its own frame);
+    ``clutter`` appends that many object configs placed in the cabinet ``cab`` (``object_cfgs``).
+    """
     meta = copy.deepcopy(meta)
     back = float(edits.get("base_back", 0.0))
     if back:
@@ -61,7 +80,114 @@ def edit_ep_meta(meta: dict, edits: dict) -> dict:
         off = list(cfg["placement"].get("offset", (0.0, 0.0)))
         off[0] = float(off[0]) + dx
         cfg["placement"]["offset"] = off
+    fx = float(edits.get("fixture_x", 0.0))
+    if fx:
+        meta[FIXTURE_KEY] = {"fixture": fixture, "offset": [fx, 0.0, 0.0]}
+    n = int(edits.get("clutter", 0))
+    if n:
+        like = [c for c in meta["object_cfgs"] if c.get("placement", {}).get("fixture") == cab]
+        if not like:
+            raise ValueError(f"the clutter successor needs an object config placed in the cabinet {cab}")
+        model = copy.deepcopy(next((c for c in like if c["name"] != "obj"), like[0]))
+        for k in ("info", "reset_region"):
+            model.pop(k, None)  # a new object: RoboCasa chooses its model and region
+        model["placement"].update(size=(1.0, 0.20), pos=(0.0, 1.0), offset=(0.0, 0.0))  # the cabinet's back
+        model.update(obj_groups="all", graspable=False)
+        meta["object_cfgs"] = meta["object_cfgs"] + [{**copy.deepcopy(model), "name": f"clutter_{i + 1}"}
+                                                     for i in range(n)]  # fmt: skip
     return meta
+
+
+def _pinned_sample(pins: dict):
+    """SequentialCompositeSampler.sample (robocasa/utils/placement_samplers.py) that places each pinned item at
+    T0's pose instead of drawing it, so every draw left is for what the level edited."""
+    from copy import copy as shallow
+
+    def sample(self, placed_objects=None, reference=None, on_top=True):
+        placed = {} if placed_objects is None else shallow(placed_objects)
+        for sampler, s_args in zip(self.samplers.values(), self.sample_args.values(), strict=True):
+            objs = list(sampler.mujoco_objects)
+            if objs and all(o.name in pins for o in objs):
+                placed.update(
+                    {o.name: (np.array(pins[o.name][0]), np.array(pins[o.name][1]), o) for o in objs}
+                )
+                continue
+            s_args = dict(s_args or {})
+            s_args.setdefault("reference", reference)
+            s_args.setdefault("on_top", on_top)
+            placed.update(sampler.sample(placed_objects=placed, **s_args))
+        names = {o.name for s in self.samplers.values() for o in s.mujoco_objects}
+        return {k: v for k, v in placed.items() if k in names}
+
+    return sample
+
+
+def _install_patches() -> None:
+    """Worker-wide: placement samplers honour ``env._indgen_pins``; RoboCasa's fixture style YAML (re-parsed ~100
+    times per reset with the pure-Python loader, ~70 % of a reset) is parsed once with libyaml and copied."""
+    import types
+
+    import robocasa.models.scenes.scene_utils as scene_utils
+    import robocasa.utils.env_utils as env_utils
+    import yaml
+
+    if getattr(env_utils, "_indgen_patched", False):
+        return
+    original = env_utils._get_placement_initializer
+
+    def placement_initializer(env, cfg_list, z_offset=0.01):
+        sampler = original(env, cfg_list, z_offset)
+        seed = getattr(env, "_indgen_seed", None)
+        if seed is not None and all(c.get("type") == "object" for c in cfg_list):
+            # each object draws from its own stream of (seed, name): a level that pins or adds other objects
+            # draws the same numbers for the one it moves, so pick_x's levels are shifts of T0's pose
+            for name, sub in sampler.samplers.items():
+                sub.rng = np.random.default_rng([seed, 2, zlib.crc32(name.encode())])
+        pins = getattr(env, "_indgen_pins", None)
+        if pins:
+            sampler.sample = types.MethodType(_pinned_sample(pins), sampler)
+        return sampler
+
+    env_utils._get_placement_initializer = placement_initializer
+    create = env_utils.create_obj
+
+    def create_obj(env, cfg):
+        """T0's exact object (model and scale): a replay by ``info.mjcf_path`` looks the category up again and can
+        pick another category's scale for a model folder two categories share."""
+        made = getattr(env, "_indgen_made", None)
+        if made and cfg["name"] in made:
+            kwargs, info = copy.deepcopy(made[cfg["name"]])
+            return env_utils.MJCFObject(name=cfg["name"], **kwargs), info
+        drawn: list = []
+        sample = env.sample_object
+        env.sample_object = lambda *a, **k: drawn.append(sample(*a, **k)) or drawn[-1]
+        try:
+            obj, info = create(env, cfg)
+        finally:
+            del env.sample_object
+        env._indgen_drawn[cfg["name"]] = copy.deepcopy(drawn[-1])
+        return obj, info
+
+    env_utils.create_obj = create_obj
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    cache: dict = {}
+
+    class CachedYaml(types.ModuleType):
+        def __getattr__(self, name):
+            return getattr(yaml, name)
+
+        @staticmethod
+        def safe_load(stream):
+            name = getattr(stream, "name", None)
+            if not isinstance(name, str) or not os.path.isfile(name):
+                return yaml.load(stream, Loader=loader)
+            key = (name, os.stat(name).st_mtime_ns)
+            if key not in cache:
+                cache[key] = yaml.load(stream, Loader=loader)
+            return copy.deepcopy(cache[key])
+
+    scene_utils.yaml = CachedYaml("yaml")
+    env_utils._indgen_patched = True
 
 
 def _flat_action(env, action: np.ndarray) -> np.ndarray:
@@ -84,12 +210,20 @@ def _flat_action(env, action: np.ndarray) -> np.ndarray:
 
 
 class RoboCasaLevel:
-    """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed."""
+    """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed.
+
+    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick region
+    shrunk to a 2 x ``PICK_JITTER`` window at its low-x end). Its ep_meta and the placements it drew are kept per
+    worker; a level k > 0 (or a later reset of the same seed) replays that ep_meta with the level's one field edited,
+    every fixture and object placement pinned to T0's except what the edit moves, and the post-load draws
+    (``_setup_scene``) from the same stream, so T0 and level k differ in the one field only.
+    """
 
     def __init__(self, config: dict):
         import robocasa  # noqa: F401  (registers the kitchen tasks with robosuite)
         import robosuite
 
+        _install_patches()
         self.cfg = config
         self.cameras = tuple(config.get("cameras", ()))
         h, w = config.get("image_size", (256, 256))
@@ -110,29 +244,128 @@ class RoboCasaLevel:
             robot_spawn_deviation_pos_y=0.0,
             translucent_robot=False,
         )
+        self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
+        self.env._indgen_drawn = {}  # cfg name -> (object kwargs, info) RoboCasa drew at the last load
         self.meta: dict = {}
+        self._seed = 0
+        self._placed: dict = {}
+        env = self.env
+        load, settle, obj_cfgs = env._load_model, env._reset_internal, env._get_obj_cfgs
+
+        def load_model(*args, **kwargs):  # what T0 drew, before _reset_internal moves sliding-fixture objects
+            load(*args, **kwargs)
+            self._placed = {
+                n: (tuple(map(float, p)), tuple(map(float, q)))
+                for n, (p, q, _) in env.object_placements.items()
+            }
+            shift = getattr(env, "_indgen_fixture_shift", None)
+            if shift:  # fixture_x: the moved fixture, after the objects were placed clear of it at T0's pose
+                name, d = shift
+                fx = env.fixtures[name]
+                pos, quat, _ = env.fxtr_placements[name]
+                fx.set_pos(np.add(pos, d))
+                env.fxtr_placements[name] = (np.add(pos, d), quat, fx)
+
+        def reset_internal():  # the post-load draws (door angles, mixer head) from one stream, fresh or replayed
+            env.rng = np.random.default_rng([self._seed, 1])
+            settle()
+
+        def get_obj_cfgs():  # pick_x's T0: the pick region shrunk to a window at its low-x end
+            cfgs = obj_cfgs()
+            if self.cfg.get("pick_window"):
+                cfg = next(c for c in cfgs if c.get("name") == "obj")
+                pl = cfg["placement"]
+                size, off = list(pl["size"]), list(pl.get("offset", (0.0, 0.0)))
+                self.pick_region = float(size[0])
+                off[0] = float(off[0]) - size[0] / 2 + PICK_JITTER
+                size[0] = 2 * PICK_JITTER
+                # the window bounds the object's centre (upstream shrinks the range by the object's radius)
+                pl.update(size=tuple(size), offset=tuple(off), ensure_object_boundary_in_range=False)
+            return cfgs
+
+        env._load_model, env._reset_internal, env._get_obj_cfgs = load_model, reset_internal, get_obj_cfgs
 
     def mj_data(self):
         return self.env.sim.data._data if self.env.sim is not None else None
 
-    def _reset_from(self, seed: int, meta: dict | None):
+    def _reset(self, seed: int, meta: dict, pins: dict | None = None, made: dict | None = None, shift=None):
+        """RoboCasa's reset from ``meta`` (T0: the layout and style only) with the stream of ``seed`` after the
+        layout draw, so T0 and a replay draw the same fixture placements."""
+        self._seed = self.env._indgen_seed = int(seed)
         self.env.unset_ep_meta()
-        if meta is not None:
-            self.env.set_ep_meta(copy.deepcopy(meta))
-        self.env.rng = np.random.default_rng(seed)
-        return self.env.reset()
+        self.env.set_ep_meta(copy.deepcopy(meta))
+        self.env._indgen_pins, self.env._indgen_made, self.env._indgen_fixture_shift = pins, made, shift
+        self.env.rng = np.random.default_rng([self._seed, 0])
+        try:
+            return self.env.reset()
+        finally:
+            self.env._indgen_pins = self.env._indgen_made = self.env._indgen_fixture_shift = None
+
+    def _t0(self, seed: int) -> tuple[dict, dict | None]:
+        """T0 of ``seed`` (cached per worker) and, when this reset made it, its observation."""
+        key = (self.cfg["task"], str(self.cfg.get("layout_ids")), str(self.cfg.get("style_ids")), int(seed),
+               bool(self.cfg.get("pick_window")))  # fmt: skip
+        if key in _T0:
+            return _T0[key], None
+        # RoboCasa's own layout/style draw (kitchen.py _setup_model: rng.choice(layout_and_style_ids)), from seed
+        layout, style = np.random.default_rng(int(seed)).choice(self.env.layout_and_style_ids)
+        raw = self._reset(seed, {"layout_id": int(layout), "style_id": int(style)})
+        moved = MOVED_FIXTURE.get(self.cfg["task"])
+        t0 = {
+            "meta": self.env.get_ep_meta(),
+            "placed": dict(self._placed),
+            "made": copy.deepcopy(self.env._indgen_drawn),
+            "fixtures": {
+                n: (tuple(map(float, p)), tuple(map(float, q)))
+                for n, (p, q, _) in self.env.fxtr_placements.items()
+            },
+            "fixture": getattr(self.env, moved).name if moved and hasattr(self.env, moved) else None,
+            "pick_region": getattr(self, "pick_region", None),
+        }
+        _T0[key] = t0
+        return t0, raw
+
+    def _pins(self, t0: dict, meta: dict, edits: dict) -> tuple[dict, tuple | None]:
+        """T0's object placements except what the edit moves; fixture_x's moved fixture (objects on it go along)."""
+        pins = dict(t0["placed"])
+        if edits.get("pick_x"):
+            pins.pop("obj", None)  # drawn by RoboCasa in the shifted window, clear of the pinned items
+        shift = meta.get(FIXTURE_KEY)
+        if not shift:
+            return pins, None
+        name = shift["fixture"]
+        if name not in t0["fixtures"]:
+            raise ValueError(
+                f"fixture {name} is placed by the kitchen layout, not sampled: fixture_x cannot move it here"
+            )
+        pos, quat = t0["fixtures"][name]
+        yaw, dx = _yaw(quat), float(shift["offset"][0])
+        d = np.array([np.cos(yaw) * dx, np.sin(yaw) * dx, 0.0])
+        # along the fixture's own x, the way that does not bring it closer to T0's robot base (the base stays put:
+        # toward it, a few levels would put the appliance into the robot)
+        if np.dot(d[:2], np.subtract(pos[:2], meta["init_robot_base_pos"][:2])) < 0:
+            d = -d
+        d = tuple(float(v) for v in d)
+        for c in meta["object_cfgs"]:
+            if c.get("placement", {}).get("fixture") == name and c["name"] in pins:
+                pins[c["name"]] = (tuple(np.add(pins[c["name"]][0], d)), pins[c["name"]][1])
+        return pins, (name, d)
 
     def reset(self, seed: int) -> dict:
         edits = {k: v for k, v in self.cfg.get("edits", {}).items() if v}
-        key = (self.cfg["task"], str(self.cfg.get("layout_ids")), str(self.cfg.get("style_ids")), int(seed))
-        t0 = _T0_META.get(key)
-        if t0 is None:
-            self._reset_from(seed, None)
-            t0 = _T0_META[key] = self.env.get_ep_meta()
-        # every level, level 0 included, replays T0's metadata with the same rng stream: a replay draws nothing
-        # for the layout/style/objects, so object poses agree across levels only if level 0 is replayed too
-        meta = edit_ep_meta(t0, edits)
-        raw = self._reset_from(seed, meta)
+        t0, raw = self._t0(seed)
+        if raw is None or edits:
+            if edits.get("pick_x") and t0.get("pick_region"):
+                room = t0["pick_region"] - 2 * PICK_JITTER
+                if float(edits["pick_x"]) > room + 1e-9:
+                    raise ValueError(
+                        f"pick_x {edits['pick_x']:.3f} m leaves {self.cfg['task']}'s valid pick region "
+                        f"({t0['pick_region']:.2f} m wide: at most {room:.3f} m); use fewer levels or a smaller --step"
+                    )
+            fixture_refs = t0["meta"].get("fixture_refs", {})
+            meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"))
+            pins, shift = self._pins(t0, meta, edits)
+            raw = self._reset(seed, meta, pins, t0["made"], shift)
         self.meta = self.env.get_ep_meta()
         return self._obs(raw)
 
@@ -155,16 +388,46 @@ class RoboCasaLevel:
         return {"state": state, "images": images, "instruction": self.env.get_ep_meta().get("lang", "")}
 
     def privileged(self) -> dict:
-        """What oracles and tests read: the pick object's pose, the robot base, and RoboCasa's fixture states."""
+        """What oracles, the success check and tests read (plain numbers; ``RoboCasa.privileged_from`` makes the
+        ``PrivilegedState``): the grip site, the gripper, the mobile base, the pick object with its extents, the
+        target fixture's interior, the moved fixture and the stand mixer's state, and RoboCasa's own success."""
         env = self.env
-        out: dict = {"base_pos": np.array(env.sim.data.get_body_xpos("mobilebase0_base"), dtype=np.float64)}
+        data = env.sim.data
+        robot = env.robots[0]
+        site = robot.eef_site_id["right"]
+        bq = np.array(data.get_body_xquat("mobilebase0_base"))
+        out: dict = {
+            "eef_pos": np.array(data.site_xpos[site]),
+            "eef_mat": np.array(data.site_xmat[site]).reshape(3, 3),
+            "gripper_qpos": np.array([data.qpos[a] for a in robot._ref_gripper_joint_pos_indexes["right"]]),
+            "base_pos": np.array(data.get_body_xpos("mobilebase0_base"), dtype=np.float64),
+            "base_yaw": float(_yaw(bq)),
+        }
         if "obj" in getattr(env, "objects", {}):
-            bid = env.obj_body_id["obj"]
-            out["obj_pos"] = np.array(env.sim.data.body_xpos[bid])
-            out["obj_quat"] = np.array(env.sim.data.body_xquat[bid])
+            obj, bid = env.objects["obj"], env.obj_body_id["obj"]
+            pos = np.array(data.body_xpos[bid])
+            out.update(
+                obj_pos=pos, obj_quat=np.array(data.body_xquat[bid]),
+                obj_linvel=np.array(data.get_body_xvelp(obj.root_body)),
+                obj_bottom=float(pos[2] + obj.bottom_offset[2]), obj_top=float(pos[2] + obj.top_offset[2]),
+                obj_half_width=float(obj.horizontal_radius),
+                obj_touching=bool(env.check_contact(robot.gripper["right"], obj)),
+            )  # fmt: skip
+        cab = getattr(env, "cab", None)
+        if cab is not None and hasattr(
+            cab, "get_int_sites"
+        ):  # the interior the object goes into (obj_inside_of)
+            p0, px, py, pz = next(iter(cab.get_int_sites(relative=False).values()))
+            out.update(goal_pos=np.array(cab.pos, dtype=np.float64), goal_floor=float(p0[2]),
+                       goal_centre=np.array((px + py) / 2.0), goal_top=float(pz[2]),
+                       goal_half=(float(np.linalg.norm(px - p0)) / 2, float(np.linalg.norm(py - p0)) / 2))  # fmt: skip
+        moved = MOVED_FIXTURE.get(self.cfg["task"])
+        if moved and hasattr(env, moved):  # fixture_x's fixture: its root body's world position
+            out["fixture_pos"] = np.array(data.get_body_xpos(getattr(env, moved).naming_prefix + "main"))
         mixer = getattr(env, "stand_mixer", None)
         if mixer is not None:
             out["stand_mixer"] = {k: float(v) for k, v in mixer.get_state(env).items() if np.isscalar(v)}
+            out["mixer_head_pos"] = np.array(data.get_body_xpos(mixer.naming_prefix + "head"))
         out["success"] = bool(env._check_success())
         return out
 

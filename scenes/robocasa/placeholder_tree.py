@@ -22,7 +22,8 @@ import zlib
 from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
-VERSION = 1
+VERSION = 3
+SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
 SIZES = {
@@ -51,7 +52,12 @@ class Model:
         self.geoms: list[str] = []
         self.bodies: list[str] = []
         self.sites: list[str] = []
-        self.box("body", (0, 0, 0), (self.hx, self.hy, self.hz))
+        # the collider leaves a front and a top slab of the footprint free: moving parts sit there, inside the
+        # footprint RoboCasa's placement checks use, and never inside a collider (MuJoCo would reset to qpos0)
+        s = min(SLAB, self.hy / 2, self.hz / 2)
+        self.front, self.top = -self.hy + s / 2, self.hz - s / 2  # the slabs' mid-planes
+        self.slab = s
+        self.box("body", (0, s / 2, -s / 2), (self.hx, self.hy - s / 2, self.hz - s / 2))
         self.region("main", (0, 0, 0), (self.hx, self.hy, self.hz))
 
     def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1") -> None:
@@ -74,17 +80,20 @@ class Model:
         self.sites.append(f'<site name="{name}" pos="{fmt(*pos)}" size="{size}" rgba="1 0 0 0"/>')
 
     def part(self, name: str, joint: str | None, pos, half, kind="hinge", axis=(1, 0, 0), rng=(0.0, 1.57),
-             sites=(), geom_names=(), children="") -> None:  # fmt: skip
-        """A child body at ``pos`` (outside the root box) with one joint and a small box of its own."""
+             sites=(), geom_names=(), children="", collide=True, pivot=(0, 0, 0), friction=0.2) -> None:  # fmt: skip
+        """A child body at ``pos`` (in a free slab, never inside a collider) with one joint (at ``pivot`` in its
+        frame) and a small box of its own; ``collide=False`` for parts no task touches (racks, knobs)."""
         j = (
-            f'<joint name="{joint}" type="{kind}" axis="{fmt(*axis)}" range="{fmt(*rng)}" limited="true" '
-            'damping="2" armature="0.01" frictionloss="0.2"/>'
+            f'<joint name="{joint}" type="{kind}" pos="{fmt(*pivot)}" axis="{fmt(*axis)}" range="{fmt(*rng)}" '
+            f'limited="true" damping="2" armature="0.01" frictionloss="{friction:g}"/>'
             if joint
             else ""
         )
         gname = geom_names[0] if geom_names else f"{name}_g"
+        flags = "" if collide else ' contype="0" conaffinity="0"'
         g = (
-            f'<geom name="{gname}" type="box" pos="0 0 0" size="{fmt(*half)}" rgba="0.5 0.5 0.55 1" group="0" density="200"/>'
+            f'<geom name="{gname}" type="box" pos="0 0 0" size="{fmt(*half)}" rgba="0.5 0.5 0.55 1" group="0" '
+            f'density="200"{flags}/>'
             f'<geom name="{gname}_visual" type="box" pos="0 0 0" size="{fmt(*half)}" rgba="0.5 0.5 0.55 1" group="1" '
             'contype="0" conaffinity="0" density="0"/>'
         )
@@ -121,96 +130,100 @@ def fixture_model(kind: str, name: str) -> str:
         kind = "fridge"
     m = Model(name, (w, d, h))
     hx, hy, hz = m.hx, m.hy, m.hz
-    front = -hy - 0.03  # child parts sit in front of (outside) the root box: never inside a collider
-    small = (0.015, 0.01, 0.015)
+    front, top, t = m.front, m.top, m.slab / 2 - 0.005  # slab mid-planes; a part's half-thickness in its slab
+    small = (0.015, t * 0.6, 0.015)
     if kind == "sink":
         m.region("basin", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.6, hz * 0.6))
-        # the class finds ./body/body/body/joint[@name=handle_joint] and ./body/body/body/site[@name=water]
+        # the class finds ./body/body/body/joint[@name=handle_joint] and ./body/body/body/site[@name=water];
+        # the spout stands above the basin's rear, inside the footprint (behind it is the wall)
         m.bodies.append(
-            f'<body name="spout" pos="0 {hy + 0.05:.4g} {hz + 0.1:.4g}">'
+            f'<body name="spout" pos="0 {hy * 0.6:.4g} {hz + 0.05:.4g}">'
             '<joint name="handle_joint" type="hinge" axis="1 0 0" range="0 0.8" limited="true" damping="2" '
-            'armature="0.01"/><geom name="spout_g" type="box" size="0.02 0.02 0.02" group="0" density="200"/>'
+            'armature="0.01"/><geom name="spout_g" type="box" size="0.02 0.02 0.02" group="0" density="200" '
+            'contype="0" conaffinity="0"/>'
             f'<site name="water" pos="0 -0.12 -0.1" size="0.03 0.05" type="cylinder" rgba="0 0 1 0"/>'
             '<body name="spout2" pos="0 0 0.05"><joint name="spout_joint" type="hinge" axis="0 0 1" '
             'range="-1.57 1.57" limited="true" damping="2" armature="0.01"/>'
-            '<geom name="spout2_g" type="box" size="0.01 0.01 0.01" group="0" density="200"/>'
-            '<body name="handle_temp" pos="0 0 0.03"><joint name="handle_temp_joint" type="hinge" axis="0 1 0" '
-            'range="-0.8 0.8" limited="true" damping="2" armature="0.01"/>'
-            '<geom name="handle_temp_g" type="box" size="0.005 0.005 0.005" group="0" density="200"/></body>'
-            "</body></body>"
+            '<geom name="spout2_g" type="box" size="0.01 0.01 0.01" group="0" density="200" contype="0" '
+            'conaffinity="0"/><body name="handle_temp" pos="0 0 0.03"><joint name="handle_temp_joint" type="hinge" '
+            'axis="0 1 0" range="-0.8 0.8" limited="true" damping="2" armature="0.01"/>'
+            '<geom name="handle_temp_g" type="box" size="0.005 0.005 0.005" group="0" density="200" contype="0" '
+            'conaffinity="0"/></body></body></body>'
         )
     elif kind == "stand_mixer":
         m.region("bowl", (0, -hy * 0.3, -hz * 0.5), (hx * 0.6, hy * 0.4, hz * 0.3))
-        m.part("head", "head_joint", (0, hy * 0.2, hz + 0.05), (hx * 0.8, hy * 0.7, 0.04),
-               axis=(1, 0, 0), rng=(0.0, 0.8))  # fmt: skip
+        # the head lies in the top slab, hinged at its rear edge: opening (qpos up to 0.8) lifts its front; the
+        # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0)
+        d = hy * 0.5
+        m.part("head", "head_joint", (0, hy - d, top), (hx * 0.6, d, t), axis=(-1, 0, 0), rng=(0.0, 0.8),
+               pivot=(0, d, 0), friction=1.0)  # fmt: skip
         m.part(
             "bowl_b",
             "bowl_joint",
             (0, front, -hz * 0.5),
             small,
-            kind="hinge",
             axis=(0, 0, 1),
             rng=(-3.2, 3.2),
+            collide=False,
         )
-        m.part("knob_speed", "knob_speed_joint", (hx + 0.03, 0, 0), small, axis=(1, 0, 0), rng=(0.0, 1.57))
-        m.part("button_head_lock", "button_head_lock_joint", (-hx - 0.03, 0, 0), small, kind="slide",
-               axis=(1, 0, 0), rng=(-0.01, 0.0))  # fmt: skip
+        m.part("knob_speed", "knob_speed_joint", (hx * 0.6, front, 0), small, rng=(0.0, 1.57), collide=False)
+        m.part("button_head_lock", "button_head_lock_joint", (-hx * 0.6, front, 0), small, kind="slide",
+               axis=(0, 1, 0), rng=(-0.01, 0.0), collide=False)  # fmt: skip
     elif kind == "electric_kettle":
-        m.part(
-            "lid", "lid_joint", (0, 0, hz + 0.02), (hx * 0.7, hy * 0.7, 0.01), axis=(1, 0, 0), rng=(0.0, 1.57)
-        )
+        m.part("lid", "lid_joint", (0, 0, top), (hx * 0.7, hy * 0.7, t), axis=(-1, 0, 0), rng=(0.0, 1.57),
+               pivot=(0, hy * 0.7, 0), friction=0.5)  # fmt: skip
         m.part("switch", "switch_joint", (0, front, -hz * 0.6), small, axis=(1, 0, 0), rng=(0.0, 0.3))
-        m.part("button_lid", "button_lid_joint", (hx + 0.03, 0, hz * 0.5), small, kind="slide", axis=(0, 0, 1),
-               rng=(-0.01, 0.0))  # fmt: skip
+        m.part("button_lid", "button_lid_joint", (hx * 0.6, front, hz * 0.5), small, kind="slide", axis=(0, 1, 0),
+               rng=(-0.01, 0.0), collide=False)  # fmt: skip
     elif kind == "microwave":
         m.region("int", (0, 0, 0), (hx * 0.8, hy * 0.8, hz * 0.8))
-        m.part("door", "microjoint", (-hx, front, 0), (hx * 0.9, 0.01, hz * 0.9), axis=(0, 0, 1), rng=(-1.57, 0.0),
-               geom_names=("door",))  # fmt: skip
-        m.box("start_button", (hx * 0.9, -hy - 0.005, hz * 0.3), (0.01, 0.005, 0.01))
-        m.box("stop_button", (hx * 0.9, -hy - 0.005, -hz * 0.3), (0.01, 0.005, 0.01))
+        m.part("door", "microjoint", (0, front, 0), (hx * 0.9, t, hz * 0.8), axis=(0, 0, 1), rng=(-1.57, 0.0),
+               pivot=(-hx * 0.9, 0, 0), geom_names=("door",))  # fmt: skip
+        m.box("start_button", (hx * 0.9, front, hz * 0.3), (0.01, t * 0.5, 0.01))
+        m.box("stop_button", (hx * 0.9, front, -hz * 0.3), (0.01, t * 0.5, 0.01))
     elif kind in ("oven", "toaster_oven", "dishwasher"):
-        for i, z in enumerate((-0.3, 0.3)):
+        for i, z in enumerate((-0.3, 0.3)):  # racks and trays: inside the box, touched by no task here
             m.region(f"rack{i}", (0, 0, hz * z), (hx * 0.8, hy * 0.8, hz * 0.15))
-            m.part(f"rack{i}", f"rack{i}_joint", (0, front - 0.05 * (i + 1), hz * z), (hx * 0.5, 0.005, 0.005),
-                   kind="slide", axis=(0, -1, 0), rng=(0.0, 0.3))  # fmt: skip
+            m.part(f"rack{i}", f"rack{i}_joint", (0, 0, hz * z), (hx * 0.5, 0.005, 0.005), kind="slide",
+                   axis=(0, -1, 0), rng=(0.0, 0.3), collide=False)  # fmt: skip
         if kind == "toaster_oven":
             m.region("tray0", (0, 0, -hz * 0.6), (hx * 0.8, hy * 0.8, hz * 0.1))
-            m.part("tray0", "tray0_joint", (0, front - 0.15, -hz * 0.6), (hx * 0.5, 0.005, 0.005), kind="slide",
-                   axis=(0, -1, 0), rng=(0.0, 0.3))  # fmt: skip
-        m.part("door", "door_joint", (0, front - 0.2, -hz), (hx * 0.9, 0.01, hz * 0.9), axis=(1, 0, 0),
-               rng=(0.0, 1.57))  # fmt: skip
+            m.part("tray0", "tray0_joint", (0, 0, -hz * 0.6), (hx * 0.5, 0.005, 0.005), kind="slide",
+                   axis=(0, -1, 0), rng=(0.0, 0.3), collide=False)  # fmt: skip
+        m.part("door", "door_joint", (0, front, 0), (hx * 0.7, t, hz * 0.8), axis=(1, 0, 0), rng=(0.0, 1.57),
+               pivot=(0, 0, -hz * 0.8))  # fmt: skip
         knobs = ("time", "temp") if kind == "oven" else ("doneness", "function", "temp", "time")
         for i, k in enumerate(knobs):
-            m.part(f"knob_{k}", f"knob_{k}_joint", (hx + 0.03, 0, hz * (0.6 - 0.3 * i)), small, axis=(1, 0, 0),
-                   rng=(0.0, 3.14))  # fmt: skip
+            m.part(f"knob_{k}", f"knob_{k}_joint", (hx * 0.85, front, hz * (0.6 - 0.3 * i)), small, axis=(0, 1, 0),
+                   rng=(0.0, 3.14), collide=False)  # fmt: skip
     elif kind == "fridge":
         m.region("fridge_shelf0", (0, 0, hz * 0.4), (hx * 0.8, hy * 0.8, hz * 0.2))
         m.region("freezer_shelf0", (0, 0, -hz * 0.5), (hx * 0.8, hy * 0.8, hz * 0.2))
-        m.part("fridge_door", "fridge_door_joint", (-hx, front, hz * 0.4), (hx * 0.9, 0.01, hz * 0.5),
-               axis=(0, 0, 1), rng=(-1.57, 0.0))  # fmt: skip
-        m.part("freezer_door", "freezer_door_joint", (-hx, front - 0.05, -hz * 0.5), (hx * 0.9, 0.01, hz * 0.4),
-               axis=(0, 0, 1), rng=(-1.57, 0.0))  # fmt: skip
+        m.part("fridge_door", "fridge_door_joint", (0, front, hz * 0.4), (hx * 0.9, t, hz * 0.45),
+               axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+        m.part("freezer_door", "freezer_door_joint", (0, front, -hz * 0.5), (hx * 0.9, t, hz * 0.4),
+               axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
     elif kind in ("stove", "stove_wide", "stovetop"):
         for i, loc in enumerate(("front_left", "front_right", "rear_left", "rear_right", "center")):
             x = (-0.5 if "left" in loc else 0.5 if "right" in loc else 0.0) * hx
             y = (-0.5 if "front" in loc else 0.5 if "rear" in loc else 0.0) * hy
             m.site(f"burner_on_{loc}", (x, y, hz))
             m.site(f"burner_{loc}_place_site", (x, y, hz))
-            m.part(f"knob_{loc}", f"knob_{loc}_joint", (hx * (-0.8 + 0.4 * i), front, hz * 0.7), small,
-                   axis=(0, 1, 0), rng=(-6.3, 6.3))  # fmt: skip
+            m.part(f"knob_{loc}", f"knob_{loc}_joint", (hx * (-0.8 + 0.4 * i), front, 0), small,
+                   axis=(0, 1, 0), rng=(-6.3, 6.3), collide=False)  # fmt: skip
     elif kind == "coffee_machine":
-        m.site("receptacle_place_site", (0, front - 0.05, -hz * 0.8))
-        m.box("start_button", (0, -hy - 0.005, hz * 0.6), (0.01, 0.005, 0.01))
+        m.site("receptacle_place_site", (0, front, -hz * 0.8))
+        m.box("start_button", (0, front, hz * 0.6), (0.01, t * 0.5, 0.01))
     elif kind == "blender":
-        m.box("power_button", (0, -hy - 0.005, -hz * 0.8), (0.01, 0.005, 0.01))
+        m.box("power_button", (0, front, -hz * 0.8), (0.01, t * 0.5, 0.01))
         m.region("int", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.7, hz * 0.6))
     elif kind == "toaster":
         for i, pair in enumerate(("0_0", "0_1")):
-            m.part(f"knob_{pair}", f"knob_{pair}_joint", (hx + 0.03, -hy * 0.5 + i * hy, 0), small, axis=(1, 0, 0),
-                   rng=(0.0, 3.14))  # fmt: skip
-            m.part(f"lever_{pair}", f"lever_{pair}_joint", (-hx - 0.03, -hy * 0.5 + i * hy, 0), small,
-                   kind="slide", axis=(0, 0, 1), rng=(-0.05, 0.0))  # fmt: skip
-        m.box("button_cancel", (0, -hy - 0.005, 0), (0.01, 0.005, 0.01))
+            m.part(f"knob_{pair}", f"knob_{pair}_joint", (hx * (0.3 + 0.3 * i), front, 0), small, axis=(0, 1, 0),
+                   rng=(0.0, 3.14), collide=False)  # fmt: skip
+            m.part(f"lever_{pair}", f"lever_{pair}_joint", (-hx * (0.3 + 0.3 * i), front, 0), small,
+                   kind="slide", axis=(0, 0, 1), rng=(-0.05, 0.0), collide=False)  # fmt: skip
+        m.box("button_cancel", (0, front, -hz * 0.5), (0.01, t * 0.5, 0.01))
     elif kind in ("dish_rack", "fruit_bowl", "tiered_basket", "utensil_set", "knife_block"):
         m.region("int", (0, 0, hz), (hx * 0.8, hy * 0.8, 0.02))
     return m.xml()
@@ -331,6 +344,9 @@ def write_tree(dst: Path) -> dict:
 
     pkg = Path(robocasa.__file__).parent
     wheel_assets = pkg / "models" / "assets"
+    marker = dst / MARKER
+    if marker.is_file() and not marker.read_text().startswith(f"version {VERSION}\n"):
+        shutil.rmtree(dst)  # a placeholder tree of an older generator: written again, never patched in place
     dst.mkdir(parents=True, exist_ok=True)
     shutil.copytree(wheel_assets, dst, dirs_exist_ok=True)
     w = Writer(dst)
@@ -359,10 +375,12 @@ def write_tree(dst: Path) -> dict:
             w.write(f"{rel}/model.xml", simple_model(Path(rel).name, DEFAULT_SIZE), "fixtures")
             w.texture(f"{rel}/tex.png")
     for cat, cfg in object_categories().items():
-        aux = bool(cfg.get("is_auxiliary_obj"))
         for reg, folder in REGISTRY_FOLDERS.items():
             if reg not in cfg:
                 continue
+            # an auxiliary object (a lid) lives one folder deeper (kitchen_object_utils.ObjCat); the flag is per
+            # registry: without the extra folder its category has no model and sampling draws NaN probabilities
+            aux = bool(cfg.get("is_auxiliary_obj") or cfg[reg].get("is_auxiliary_obj"))
             folders = cfg[reg].get("model_folders") or [f"{folder}/{cat}"]
             for fold in folders:
                 model = f"objects/{fold}/{cat}_ph" + ("/part" if aux else "") + "/model.xml"

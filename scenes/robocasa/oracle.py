@@ -1,0 +1,186 @@
+"""The privileged oracle of RoboCasa365 (``standin:oracle`` on ``--scene robocasa``): PandaOmron's arm, base fixed.
+
+It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.privileged_state``) and emits RoboCasa's
+12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
+OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
+base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
+control mode -1 (arm). Two scripts: pick-and-place into a cabinet (counter to cabinet: lift to the cabinet floor,
+slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m) and pushing the stand mixer's head down.
+Deterministic given the episode; one instance per environment.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from indgen_vla.errors import PolicyError
+from indgen_vla.interface import ROT_SCALE, Observation, PolicySpec
+from scenes.oracle import R_DOWN, _axis_angle
+from scenes.privileged import PrivilegedState, privileged_of
+
+ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
+GRIPPER, MODE = 6, 11
+OPEN, CLOSED = -1.0, 1.0
+GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
+TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
+
+
+def _rz(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+class RoboCasaOracle:
+    """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
+
+    spec = PolicySpec(
+        family="standin",
+        name="standin:oracle",
+        privileged=True,
+        cameras=(),
+        batched=False,
+        action_dim=ACTION_DIM,
+    )
+
+    def __init__(self, gain: float = 10.0):
+        self.gain = gain
+        self.reset("")
+
+    def reset(self, instruction: str, seed: int | None = None) -> None:
+        self.phase, self._count, self._trail = "approach", 0, []
+        self._offset = 0.0  # grip site above the object's bottom, measured at the grasp
+        self._hold: np.ndarray | None = None
+        self._clear: np.ndarray | None = None
+        self._grasp_tilt: float | None = None
+        self._hold_release: np.ndarray | None = None
+        self.seed = seed
+
+    def close(self) -> None:
+        pass
+
+    def act(self, observations: Sequence[Observation]) -> np.ndarray:
+        if len(observations) != 1:
+            raise PolicyError(f"standin:oracle is not batched; got {len(observations)} observations")
+        s = privileged_of(observations[0], "standin:oracle")
+        if s.robot_base is None:
+            raise PolicyError("standin:oracle (RoboCasa): the privileged state has no mobile base pose")
+        return self.action(s)[None, None, :].astype(np.float32)
+
+    # ---- motion ------------------------------------------------------------------------------
+    def _goto(
+        self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0
+    ) -> np.ndarray:
+        """One action toward the world point ``target``, gripper pointing down (tipped forward, toward the base's
+        +x, by ``tilt`` radians), in the base's frame."""
+        base = _rz(float(s.robot_base[2]))
+        c, sn = np.cos(-tilt), np.sin(-tilt)
+        pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+        a = np.zeros(ACTION_DIM)
+        err = base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)
+        a[:3] = np.clip(self.gain * err, -speed, speed)
+        rot = _axis_angle((base @ pitch @ R_DOWN) @ s.eef_mat.T)  # world frame
+        a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
+        a[GRIPPER], a[MODE] = grip, -1.0
+        return a
+
+    def _next(self, phase: str) -> None:
+        self.phase, self._count, self._trail = phase, 0, self._trail[-1:]
+
+    def _near(self, s: PrivilegedState, target, tol: float = 0.012) -> bool:
+        """At ``target``, or stalled short of it (moved < 2 mm in 10 steps: a reach limit or a contact)."""
+        if np.linalg.norm(np.asarray(target) - s.eef_pos) < tol:
+            return True
+        return self._count > 12 and bool(np.linalg.norm(s.eef_pos - self._trail[-10]) < 0.002)
+
+    def action(self, s: PrivilegedState) -> np.ndarray:
+        """One action from the privileged state ``s`` (advances the phase machine)."""
+        self._count += 1
+        self._trail = [*self._trail[-9:], s.eef_pos.copy()]
+        if s.goal is None:
+            return self._press(s)
+        return self._pick_place(s)
+
+    # ---- stand mixer: push the head down --------------------------------------------------------
+    def _press(self, s: PrivilegedState) -> np.ndarray:
+        head = s.pick.pos
+        above = head + np.array([0.0, 0.0, 0.12])
+        if self.phase == "approach":
+            if self._near(s, above, 0.02) or self._count > 150:
+                self._next("press")
+            return self._goto(s, above, CLOSED)
+        if self.phase == "press":  # down onto the head until RoboCasa says it is closed
+            if s.bddl_success or self._count > 150:
+                self._next("retreat")
+            return self._goto(s, head - np.array([0.0, 0.0, 0.15]), CLOSED, speed=0.4)
+        return self._goto(s, head + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
+
+    # ---- pick and place into a cabinet ---------------------------------------------------------
+    def _pick_place(self, s: PrivilegedState) -> np.ndarray:
+        p, t = s.pick, s.target
+        yaw = float(s.robot_base[2])
+        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])  # the base faces the cabinet
+        front = float(np.dot(s.goal.pos, fwd)) - float(
+            s.facts.receptacle_inner[1]
+        )  # the cabinet's front face
+        carry_z = t.place_bottom + 0.025 + self._offset  # the object's bottom 2.5 cm above the cabinet floor
+        if (
+            self._grasp_tilt is None
+        ):  # under the cabinet's front: tip the hand so the wrist stays out from under
+            under = float(np.dot(p.pos, fwd)) + p.half_width + 0.08 > front
+            self._grasp_tilt = GRASP_TILT if under else 0.0
+        gt = self._grasp_tilt
+        if self.phase == "approach":
+            target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
+            if self._near(s, target, 0.015) or self._count > 120:
+                self._next("descend")
+            return self._goto(s, target, OPEN, tilt=gt)
+        if self.phase == "descend":
+            target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
+            if self._near(s, target, 0.012) or self._count > 50:
+                self._next("grasp")
+            return self._goto(s, target, OPEN, speed=0.5, tilt=gt)
+        if self.phase == "grasp":
+            if self._hold is None:
+                self._hold = s.eef_pos.copy()
+            if self._count > 15:
+                self._offset = float(s.eef_pos[2] - p.bottom)
+                self._next("pull")
+            return self._goto(s, self._hold, CLOSED, tilt=gt)
+        if self.phase == "pull":  # out from under the cabinet, toward the robot, before lifting
+            out = min(0.0, front - 0.05 - p.half_width - float(np.dot(p.pos, fwd)))
+            target = self._hold + fwd * out + np.array([0.0, 0.0, 0.01])
+            self._clear = target
+            if self._near(s, target, 0.012) or self._count > 60:
+                self._next("lift")
+            return self._goto(s, target, CLOSED, speed=0.5, tilt=gt)
+        if self.phase == "lift":  # up to the carry height, tipping the hand toward the cabinet on the way
+            target = np.array([self._clear[0], self._clear[1], carry_z])
+            if (self._near(s, target, 0.03) and self._count > 20) or self._count > 120:
+                self._next("transport")
+            return self._goto(s, target, CLOSED, tilt=min(TILT, gt + 0.03 * self._count))
+        inside = np.array([t.place_xy[0], t.place_xy[1], carry_z])
+        if self.phase == "transport":  # slide in at the carry height
+            if self._near(s, inside, 0.03) or self._count > 150:
+                self._next("lower")
+            return self._goto(s, inside, CLOSED, speed=0.6, tilt=TILT)
+        if self.phase == "lower":
+            target = np.array([s.eef_pos[0], s.eef_pos[1], t.place_bottom + 0.005 + self._offset])
+            if self._near(s, target, 0.015) or self._count > 40:
+                self._next("release")
+            return self._goto(s, target, CLOSED, speed=0.3, tilt=TILT)
+        if self.phase == "release":
+            if self._hold_release is None or self._count == 1:
+                self._hold_release = s.eef_pos.copy()
+            if self._count > 12:
+                self._next("rise")
+            return self._goto(s, self._hold_release, OPEN, tilt=TILT)
+        up = self._hold_release + np.array([0.0, 0.0, 0.025])
+        if self.phase == "rise":  # fingers up off the object first: backing out low drags it along
+            if self._near(s, up, 0.008) or self._count > 20:
+                self._next("retreat")
+            return self._goto(s, up, OPEN, speed=0.3, tilt=TILT)
+        return self._goto(
+            s, up - fwd * 0.4, OPEN, speed=0.5, tilt=TILT
+        )  # back out, past gripper_obj_far's 0.25 m
