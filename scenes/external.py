@@ -11,6 +11,7 @@ restarted on the next ``reset`` (the engine retries the episode like any other e
 from __future__ import annotations
 
 import atexit
+import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -27,14 +28,15 @@ if TYPE_CHECKING:
 
 # One idle worker per runtime, kept by ``close`` for the next env of this process: the next level skips the
 # simulator's import and reuses the worker's T0 cache (RoboCasa: one reset per episode instead of two).
-_IDLE: dict[str, WorkerProcess] = {}
+# Keyed by (pid, runtime): a forked child never reuses (or stops) its parent's worker.
+_IDLE: dict[tuple[int, str], WorkerProcess] = {}
 
 
 @atexit.register
 def close_idle_workers() -> None:
-    """Stop the idle workers (at exit; tests call it to start from a cold worker)."""
-    while _IDLE:
-        _IDLE.popitem()[1].close()
+    """Stop this process's idle workers (at exit; tests call it to start from a cold worker)."""
+    for key in [k for k in _IDLE if k[0] == os.getpid()]:
+        _IDLE.pop(key).close()
 
 
 class ExternalSceneEnv(BaseSceneEnv):
@@ -73,7 +75,7 @@ class ExternalSceneEnv(BaseSceneEnv):
 
     def _build(self) -> None:
         if self._worker is None or not self._worker.alive:
-            idle = _IDLE.pop(self.runtime.name, None)
+            idle = _IDLE.pop((os.getpid(), self.runtime.name), None)
             self._worker = idle if idle is not None and idle.alive else WorkerProcess(self.runtime)
         self._call("build", {k: v for k, v in self.config.items() if k != "spec"})
 
@@ -133,10 +135,11 @@ class ExternalSceneEnv(BaseSceneEnv):
         """Free the level; its live worker is kept idle for the next env of this runtime (one per runtime)."""
         if self._worker is not None:
             worker, self._worker = self._worker, None
-            if worker.alive and self.runtime.name not in _IDLE:
+            key = (os.getpid(), self.runtime.name)
+            if worker.alive and key not in _IDLE:
                 try:
                     worker.request("drop")  # the simulator env goes; the interpreter and T0 cache stay
-                    _IDLE[self.runtime.name] = worker
+                    _IDLE[key] = worker
                     return
                 except SceneError:
                     pass

@@ -22,7 +22,7 @@ import zlib
 from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
-VERSION = 3
+VERSION = 4
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -307,6 +307,18 @@ class Writer:
         self.write(rel, flat_png(colour(rel)), "textures")
 
 
+def _strings(value):
+    """Every string in a nested YAML value."""
+    if isinstance(value, str):
+        yield value
+    elif isinstance(value, dict):
+        for v in value.values():
+            yield from _strings(v)
+    elif isinstance(value, list | tuple):
+        for v in value:
+            yield from _strings(v)
+
+
 def registry_entries(assets: Path):
     import yaml
 
@@ -361,8 +373,8 @@ def write_tree(dst: Path) -> dict:
             )
             w.write(rel, body, "fixtures")
             w.texture(str(Path(rel).parent / "tex.png"))
-        for v in cfg.values():
-            if isinstance(v, str) and v.endswith((".png", ".jpg")):
+        for v in _strings(cfg):  # nested too: a handle style's handle_config.texture
+            if v.endswith((".png", ".jpg")):
                 w.texture(v)
     for rel in sorted(referenced_in_sources(pkg)):
         if rel.endswith((".png", ".jpg")):

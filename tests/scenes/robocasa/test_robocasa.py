@@ -77,6 +77,18 @@ def test_placeholder_tree_is_writable_with_one_joint_per_body(placeholders):
     # an auxiliary object lives one folder deeper (robocasa/models/objects/kitchen_object_utils.py, ObjCat): a lid
     # written flat leaves its category without a model, and RoboCasa's sampling then draws NaN probabilities
     assert (placeholders / "objects/lightwheel/saucepan/saucepan_lid_ph/part/model.xml").is_file()
+    # every texture the fixture registry names, nested ones too (a handle style's handle_config.texture)
+    import yaml
+
+    def strings(v):
+        if isinstance(v, str):
+            yield v
+        for x in v.values() if isinstance(v, dict) else v if isinstance(v, list) else ():
+            yield from strings(x)
+
+    for f in (placeholders / "fixtures" / "fixture_registry").glob("*.yaml"):
+        for t in strings(yaml.safe_load(f.read_text()) or {}):
+            assert not t.endswith(".png") or (placeholders / t).is_file(), f"{f.name}: {t} missing"
 
 
 def _box(el) -> tuple[np.ndarray, np.ndarray]:
