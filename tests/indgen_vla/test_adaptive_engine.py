@@ -21,6 +21,7 @@ def cfg(tmp_path, **kw):
     return EvalConfig(**base)
 
 
+@pytest.mark.slow  # 9 s; the 4-task protocol test covers a kstar stop, 1 vs 2 workers and resume by default
 def test_kstar_mode_stops_at_a_decided_break_and_records_decisions(tmp_path):
     rule = SequentialRule(max_episodes=50)
     need = rule.decide([False] * 50).episodes  # a policy that never succeeds: decided broken after this many

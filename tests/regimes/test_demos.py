@@ -7,6 +7,7 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.regimes.demos import HumanNoise, record_demos
 
 
+@pytest.mark.slow  # ~30 s (32-px rendering + dataset write); test_train covers the state-only round trip by default
 def test_demos_round_trip_through_lerobot(one_demo):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 

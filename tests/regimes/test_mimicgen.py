@@ -133,6 +133,7 @@ def test_new_seeds_are_deterministic_and_avoid_source_seeds():
     assert _new_seed(cfg, "pick_place", "lemon", 0, {a[0]}) != a[0]
 
 
+@pytest.mark.slow  # ~30 s with images; test_train carries object poses through mimicgen by default
 def test_mimicgen_round_trip_through_lerobot(tmp_path, one_demo):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 

@@ -145,9 +145,12 @@ def test_object_poses_are_recorded_and_carried_through_mimicgen(demos, tmp_path)
         np.testing.assert_allclose(ds[0][ENV_STATE].numpy()[7:10], [gx, gy, gz], atol=1e-5)
 
 
-def test_objects_need_recorded_poses(one_demo, tmp_path):
-    with pytest.raises(ConfigError, match="indgen demos --objects"):  # one_demo was recorded without poses
-        train_policy([one_demo[0]], tmp_path / "out", steps=1, objects=True)
+def test_objects_need_recorded_poses(tmp_path):
+    from indgen_vla.regimes.demos import record_demos
+
+    record_demos("pick_place", tmp_path / "demos", n=1, seed=3, cameras=())  # state only, without poses
+    with pytest.raises(ConfigError, match="indgen demos --objects"):
+        train_policy([tmp_path / "demos"], tmp_path / "out", steps=1, objects=True)
 
 
 @pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped checkpoint not built yet")

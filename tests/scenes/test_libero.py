@@ -203,6 +203,7 @@ def test_oracle_certifies_extreme_levels(mini):
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert
 
 
+@pytest.mark.slow  # 9 s; test_libero_adaptive runs evaluate on LIBERO end to end by default
 def test_evaluate_cli_with_oracle(mini, tmp_path):
     out = tmp_path / "run"
     args = ["--axis", "scale", "--levels", "-3,3", "--episodes", "1", "--out", str(out)]

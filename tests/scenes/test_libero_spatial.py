@@ -49,6 +49,7 @@ def test_moving_axes_are_refused_with_the_supported_ones(axis):
     assert "\n" not in msg and f"axis of scene {SCENE}" in msg and "known: distractor, scale" in msg
 
 
+@pytest.mark.slow  # 10 s: all ten tasks; level 0 of one task is checked pixel for pixel by default
 def test_every_task_builds_and_steps_at_level_0(mini):
     for task in scenes.tasks(SCENE):
         env = _env(task=task, max_steps=2)
