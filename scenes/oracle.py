@@ -138,17 +138,22 @@ def oracle_for(scene: str | None = None):
     return getattr(importlib.import_module(module), attr)()
 
 
-class OraclePolicy:
-    """Scripted pick-and-place from privileged object poses; one instance per environment (not batched)."""
-
-    spec = PolicySpec(
+def oracle_spec(action_dim: int) -> PolicySpec:
+    """What every scene family's scripted oracle declares: privileged, camera-free, one instance per env."""
+    return PolicySpec(
         family="standin",
         name="standin:oracle",
         privileged=True,
         cameras=(),
         batched=False,
-        action_dim=ACTION_DIM,
+        action_dim=action_dim,
     )
+
+
+class OraclePolicy:
+    """Scripted pick-and-place from privileged object poses; one instance per environment (not batched)."""
+
+    spec = oracle_spec(ACTION_DIM)
 
     def __init__(self, gain: float = 12.0, max_retries: int = 2):
         self.gain = gain

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from indgen_vla.errors import PolicyError
-from indgen_vla.interface import ROT_SCALE, Observation, PolicySpec
-from scenes.oracle import R_DOWN, _axis_angle
+from indgen_vla.interface import ROT_SCALE, Observation
+from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
@@ -35,14 +35,7 @@ def _rz(yaw: float) -> np.ndarray:
 class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
-    spec = PolicySpec(
-        family="standin",
-        name="standin:oracle",
-        privileged=True,
-        cameras=(),
-        batched=False,
-        action_dim=ACTION_DIM,
-    )
+    spec = oracle_spec(ACTION_DIM)
 
     def __init__(self, gain: float = 10.0):
         self.gain = gain
