@@ -51,6 +51,7 @@ def test_two_level_run_writes_run_dir(tmp_path):
     assert (out / "report.md").exists() and (out / "plots" / "pick_y.png").exists()
 
 
+@pytest.mark.slow  # 8 s; 1 vs 2 workers stay covered by default (pipeline, Ray and adaptive-protocol tests)
 def test_oracle_workers_1_vs_2_identical(tmp_path):
     kw = dict(policy="standin:oracle", levels="-1:1", episodes=1, max_steps=None)
     a = evaluate(cfg(tmp_path / "w1", workers=1, **kw), quiet=True)

@@ -56,8 +56,8 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
     from indgen_vla.engine.config import EvalConfig
     from indgen_vla.engine.run import evaluate
 
-    cfg = EvalConfig(policy="standin:random", scene="pick_place", axes=("pick_y", "scale"), levels="0:1",
-                     episodes=1, max_steps=2, workers=1, out=str(tmp_path / "run"))  # fmt: skip
+    cfg = EvalConfig(policy="standin:random", scene="pick_place", axes=("pick_y", "scale"), levels="0",
+                     episodes=1, max_steps=1, workers=1, out=str(tmp_path / "run"))  # fmt: skip
     entered = set()
 
     def tracer(frame, event, arg):
