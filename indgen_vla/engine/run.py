@@ -195,10 +195,10 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
             video_dir=str(out / "videos") if cfg.video else None,
         )  # fmt: skip
-        if (
-            "fingerprint" not in run.manifest
-        ):  # what fixes the outcomes, once the policy's conventions are known
-            run.update_manifest(fingerprint=_fingerprint(cfg, plan, runner_cfg, probe))
+        manifest = run.manifest
+        if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
+            resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
+            run.update_manifest(fingerprint=_fingerprint(cfg, plan, resolved, runner_cfg, probe))
         meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
         try:
             _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console)
@@ -218,14 +218,14 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     return out
 
 
-def _fingerprint(cfg: EvalConfig, plan: EvalPlan, runner_cfg, policy) -> dict[str, Any]:
+def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
     """The run's protocol fingerprint (``indgen_vla.fingerprint``); the render backend is probed only when a
     camera is read."""
     from indgen_vla.fingerprint import build_fingerprint, policy_conventions
 
     cams = tuple(runner_cfg.cameras)
     return build_fingerprint(
-        plan.record(), package_versions(), max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps, cameras=cams,
+        resolved, package_versions(), max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps, cameras=cams,
         image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
         policy=policy_conventions(policy.spec, policy),
     )  # fmt: skip
