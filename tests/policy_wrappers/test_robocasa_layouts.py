@@ -1,0 +1,180 @@
+"""Each policy family's RoboCasa365 convention against its upstream formula (never against our helpers).
+
+Our native RoboCasa365 vectors follow RoboCasa's own code: robocasa v1.0.1 ``robocasa/utils/env_utils.py``
+``convert_action`` splits the flat action arm first (end_effector_position 0:3, end_effector_rotation 3:6,
+gripper_close 6:7, base_motion 7:11, control_mode 11:12) and our state is robot0_base_to_eef_pos (3),
+robot0_base_to_eef_quat (4), robot0_base_pos (3), robot0_base_quat (4), robot0_gripper_qpos (2)
+(scenes/robocasa/backend.py ``step``). The expected values below are those upstream formulas written out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from indgen_vla.errors import ConfigError
+from indgen_vla.interface import TABLETOP, Observation
+
+CAMS = ("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand")
+
+
+def _spec():
+    from scenes.robocasa import PANDA_OMRON
+
+    return PANDA_OMRON
+
+
+def robocasa_convert_action(flat: np.ndarray) -> dict:
+    """robocasa/robocasa (v1.0.1, be22d659) robocasa/utils/env_utils.py ``convert_action``, verbatim slices."""
+    return {
+        "action.end_effector_position": flat[0:3],
+        "action.end_effector_rotation": flat[3:6],
+        "action.gripper_close": flat[6:7],
+        "action.base_motion": flat[7:11],
+        "action.control_mode": flat[11:12],
+    }
+
+
+def robocasa_raw_obs(rng) -> dict:
+    """The robosuite observation keys RoboCasa's gym wrapper reads (PandaOmronKeyConverter.map_obs)."""
+    return {
+        "robot0_base_to_eef_pos": rng.normal(size=3), "robot0_base_to_eef_quat": rng.normal(size=4),
+        "robot0_base_pos": rng.normal(size=3), "robot0_base_quat": rng.normal(size=4),
+        "robot0_gripper_qpos": rng.normal(size=2),
+    }  # fmt: skip
+
+
+def our_state(raw: dict) -> np.ndarray:
+    """Our 16-d state as scenes/robocasa/backend.py ``step`` concatenates it."""
+    keys = ("robot0_base_to_eef_pos", "robot0_base_to_eef_quat", "robot0_base_pos", "robot0_base_quat",
+            "robot0_gripper_qpos")  # fmt: skip
+    return np.concatenate([raw[k] for k in keys]).astype(np.float32)
+
+
+def test_the_native_action_is_robocasas_convert_action_order():
+    """Our EnvSpec's action_parts, sliced in order, are RoboCasa's convert_action dict."""
+    spec, flat = _spec(), np.arange(12.0)
+    upstream, lo = robocasa_convert_action(flat), 0
+    for name, size in spec.action_parts:
+        np.testing.assert_array_equal(upstream[f"action.{name}"], flat[lo : lo + size])
+        lo += size
+
+
+def test_lerobot_state_and_action_follow_lerobots_robocasa_wrapper():
+    """huggingface/lerobot 0.6.1 src/lerobot/envs/robocasa.py: ``_format_raw_obs`` builds agent_pos from
+    state.base_position, state.base_rotation, state.end_effector_position_relative,
+    state.end_effector_rotation_relative, state.gripper_qpos (PandaOmronKeyConverter.map_obs: robot0_base_pos,
+    robot0_base_quat, robot0_base_to_eef_pos, robot0_base_to_eef_quat, robot0_gripper_qpos); ``convert_action``
+    reads base_motion 0:4, control_mode 4:5, end_effector_position 5:8, end_effector_rotation 8:11, gripper 11:12."""
+    from lerobot.envs.robocasa import convert_action as lerobot_convert_action
+
+    from policy_wrappers.layouts import layout_for
+
+    spec = _spec()
+    layout = layout_for("lerobot", spec)
+    raw = robocasa_raw_obs(np.random.default_rng(0))
+    agent_pos = np.concatenate([raw["robot0_base_pos"], raw["robot0_base_quat"], raw["robot0_base_to_eef_pos"],
+                                raw["robot0_base_to_eef_quat"], raw["robot0_gripper_qpos"]]).astype(np.float32)  # fmt: skip
+    np.testing.assert_array_equal(layout.state_to_policy(spec)(our_state(raw)), agent_pos)
+    theirs = np.random.default_rng(1).normal(size=(2, 3, 12))  # a (B, T, 12) chunk in lerobot's order
+    ours = layout.action_to_scene(spec)(theirs)
+    for b in range(2):
+        for t in range(3):
+            want, got = lerobot_convert_action(theirs[b, t]), robocasa_convert_action(ours[b, t])
+            assert set(want) == set(got)
+            for key in want:
+                np.testing.assert_array_equal(got[key], want[key])
+    assert dict(layout.cameras) == {c: c for c in CAMS}  # envs/configs.py: observation.images.<raw name>
+
+
+def test_openpi_and_groot_layouts_follow_their_upstream_clients():
+    """openpi: robocasa-benchmark/openpi examples/robocasa/main.py (read from its copy J-Oyasumi/openpi_robocasa)
+    sends state = concat(state.end_effector_position_relative, state.end_effector_rotation_relative,
+    state.base_position, state.base_rotation, state.gripper_qpos) and steps ``convert_action(action)`` (RoboCasa's,
+    arm first). GR00T: squarefk/robocasa robocasa/models/robots/__init__.py PandaOmronKeyConverter.unmap_action
+    reads action.end_effector_position/rotation, gripper_close, base_motion, control_mode by key."""
+    from policy_wrappers.layouts import layout_for
+
+    spec = _spec()
+    raw = robocasa_raw_obs(np.random.default_rng(2))
+    openpi = layout_for("openpi", spec)
+    sent = np.concatenate([raw["robot0_base_to_eef_pos"], raw["robot0_base_to_eef_quat"], raw["robot0_base_pos"],
+                           raw["robot0_base_quat"], raw["robot0_gripper_qpos"]]).astype(np.float32)  # fmt: skip
+    np.testing.assert_array_equal(openpi.state_to_policy(spec)(our_state(raw)), sent)
+    flat = np.arange(12.0)
+    np.testing.assert_array_equal(openpi.action_to_scene(spec)(flat), flat)  # convert_action's own order
+    assert dict(openpi.cameras) == {"observation/image": "robot0_agentview_left",
+                                    "observation/wrist_image": "robot0_eye_in_hand",
+                                    "observation/right_image": "robot0_agentview_right"}  # fmt: skip
+    groot = layout_for("groot", spec)
+    assert dict(groot.cameras) == {"res256_image_side_0": "robot0_agentview_left",
+                                   "res256_image_side_1": "robot0_agentview_right",
+                                   "res256_image_wrist_0": "robot0_eye_in_hand"}  # fmt: skip
+
+
+def test_layouts_are_chosen_by_the_scene_family():
+    from policy_wrappers.layouts import layout_for
+
+    assert layout_for("lerobot", TABLETOP) is None and layout_for("lerobot", None) is None
+    with pytest.raises(
+        ConfigError, match="openvla-oft has no convention for scene family robocasa_panda_omron"
+    ):
+        layout_for("openvla-oft", _spec())
+
+
+def _robocasa_obs(seed: int, size: int = 16) -> tuple[Observation, dict]:
+    """An observation in our layout and the robosuite keys it came from."""
+    rng = np.random.default_rng(seed)
+    images = {c: rng.integers(0, 256, (size, size, 3), dtype=np.uint8) for c in CAMS}
+    raw = robocasa_raw_obs(rng)
+    return Observation(images=images, state=our_state(raw), instruction="open the cabinet"), raw
+
+
+@pytest.fixture(scope="module")
+def tiny_robocasa_act(tmp_path_factory) -> str:
+    """A random-init ACT with RoboCasa365's feature names (lerobot's robocasa env): three raw camera names,
+    16-d observation.state, 12-d action."""
+    pytest.importorskip("lerobot")
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    out = tmp_path_factory.mktemp("robocasa_act")
+    return build_tiny_checkpoint("act", out, cameras=CAMS, size=16, state_dim=16, action_dim=12)
+
+
+def test_a_lerobot_robocasa_checkpoint_gets_lerobots_state_and_returns_our_action(tiny_robocasa_act):
+    """The wrapper feeds the checkpoint lerobot's agent_pos and its images under the raw camera names, and turns
+    the checkpoint's base-first chunk into our arm-first one: the same model, called the way lerobot-eval calls
+    it (its batch built by lerobot's formula), gives lerobot's action dict, which equals RoboCasa's dict of ours."""
+    import torch
+    from lerobot.envs.robocasa import convert_action as lerobot_convert_action
+
+    from policy_wrappers.registry import load_policy
+
+    policy = load_policy(f"lerobot:{tiny_robocasa_act}", env_spec=_spec())
+    assert policy.spec.action_dim == 12 and set(policy.spec.cameras) == set(CAMS) and not policy.spec.flip_180
+    assert policy.layout.name.startswith("lerobot-robocasa")
+    (obs, raw), (other, _) = _robocasa_obs(3), _robocasa_obs(4)
+    ours = policy.act([obs, other])
+    agent_pos = np.concatenate([raw["robot0_base_pos"], raw["robot0_base_quat"], raw["robot0_base_to_eef_pos"],
+                                raw["robot0_base_to_eef_quat"], raw["robot0_gripper_qpos"]]).astype(np.float32)  # fmt: skip
+    batch = {
+        f"observation.images.{c}": torch.from_numpy(obs.images[c]).permute(2, 0, 1)[None].float() / 255
+        for c in CAMS
+    }  # fmt: skip  (lerobot envs/utils.py preprocess_observation: HWC uint8 -> CHW [0, 1])
+    batch["observation.state"] = torch.from_numpy(agent_pos)[None]
+    batch["task"] = ["open the cabinet"]
+    with torch.inference_mode():
+        theirs = policy.post(policy.policy.predict_action_chunk(policy.pre(batch))).numpy()[0]
+    for t in range(ours.shape[1]):
+        want, got = lerobot_convert_action(theirs[t]), robocasa_convert_action(ours[0, t])
+        for key in want:
+            np.testing.assert_allclose(got[key], want[key], atol=1e-5)
+    policy.close()
+
+
+def test_a_lerobot_robocasa_checkpoint_is_refused_on_the_tabletop(tiny_robocasa_act):
+    from indgen_vla.errors import PolicyError
+    from policy_wrappers.registry import load_policy
+
+    with pytest.raises((PolicyError, ConfigError), match="don't know which camera|shape \\(12,\\)"):
+        load_policy(f"lerobot:{tiny_robocasa_act}", env_spec=TABLETOP)
