@@ -178,3 +178,92 @@ def test_a_lerobot_robocasa_checkpoint_is_refused_on_the_tabletop(tiny_robocasa_
 
     with pytest.raises((PolicyError, ConfigError), match="don't know which camera|shape \\(12,\\)"):
         load_policy(f"lerobot:{tiny_robocasa_act}", env_spec=TABLETOP)
+
+
+def upstream_groot_process_img(img: np.ndarray) -> np.ndarray:
+    """squarefk/robocasa robocasa/utils/gym_utils/gymnasium_groot.py ``GrootRoboCasaEnv.process_img``, as written
+    upstream (FINAL_IMAGE_RESOLUTION = (256, 256); the INTER_AREA lands in ``dst``)."""
+    import cv2
+
+    h, w, _ = img.shape
+    if h != w:
+        dim = max(h, w)
+        y_offset, x_offset = (dim - h) // 2, (dim - w) // 2
+        img = np.pad(img, ((y_offset, y_offset), (x_offset, x_offset), (0, 0)))
+        h, w = dim, dim
+    if (h, w) != (256, 256):
+        img = cv2.resize(img, (256, 256), cv2.INTER_AREA)
+    return np.copy(img)
+
+
+GROOT_STATE = {  # squarefk/robocasa PandaOmronKeyConverter.map_obs: state.<name> <- robosuite key
+    "gripper_qpos": "robot0_gripper_qpos", "base_position": "robot0_base_pos", "base_rotation": "robot0_base_quat",
+    "end_effector_position_relative": "robot0_base_to_eef_pos",
+    "end_effector_rotation_relative": "robot0_base_to_eef_quat",
+}  # fmt: skip
+GROOT_ACTION = {"end_effector_position": 3, "end_effector_rotation": 3, "gripper_close": 1, "base_motion": 4,
+                "control_mode": 1}  # fmt: skip
+
+
+def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
+    """A loopback N1.6 server declaring ROBOCASA_PANDA_OMRON's modalities: the client sends video.res256_* (our
+    512 renders through GR00T's process_img), state.<name> (map_obs), and our action is RoboCasa's own
+    convert_action order of the returned action.<name> keys (unmap_action reads them by key)."""
+    from test_groot import GrootServer
+
+    from policy_wrappers.registry import load_policy
+
+    modality = {
+        "video": {"delta_indices": [0], "modality_keys": ["res256_image_side_0", "res256_image_side_1",
+                                                            "res256_image_wrist_0"]},
+        "state": {"delta_indices": [0], "modality_keys": list(GROOT_STATE)},
+        "action": {"delta_indices": list(range(16)), "modality_keys": list(GROOT_ACTION)},
+        "language": {"delta_indices": [0], "modality_keys": ["annotation.human.action.task_description"]},
+    }  # fmt: skip
+    rng = np.random.default_rng(5)
+    reply_actions = {
+        f"action.{k}": rng.normal(size=(1, 16, n)).astype(np.float32) for k, n in GROOT_ACTION.items()
+    }
+
+    def reply(data):
+        return [reply_actions, {}]
+
+    rng = np.random.default_rng(6)
+    images = {c: rng.integers(0, 256, (512, 512, 3), dtype=np.uint8) for c in CAMS}
+    raw = robocasa_raw_obs(rng)
+    obs = Observation(images=images, state=our_state(raw), instruction="close the stand mixer head")
+    with GrootServer(reply, modality=modality) as srv:
+        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}", env_spec=_spec())
+        assert policy.spec.image_size == (512, 512) and (
+            policy.spec.chunk_size,
+            policy.spec.replan_steps,
+        ) == (16, 8)
+        assert set(policy.spec.cameras) == set(CAMS) and policy.spec.action_dim == 12
+        ours = policy.act([obs])
+        policy.close()
+    sent = srv.requests[-1]["data"]["observation"]
+    for key, cam in (("side_0", "robot0_agentview_left"), ("side_1", "robot0_agentview_right"),
+                     ("wrist_0", "robot0_eye_in_hand")):  # fmt: skip
+        np.testing.assert_array_equal(
+            sent[f"video.res256_image_{key}"][0, 0], upstream_groot_process_img(images[cam])
+        )
+    for name, robosuite_key in GROOT_STATE.items():
+        np.testing.assert_allclose(sent[f"state.{name}"][0, 0], raw[robosuite_key], rtol=1e-6)
+    assert sent["annotation.human.action.task_description"] == ["close the stand mixer head"]
+    got = robocasa_convert_action(ours[0, 0])
+    for name in GROOT_ACTION:
+        np.testing.assert_allclose(got[f"action.{name}"], reply_actions[f"action.{name}"][0, 0])
+
+
+def test_groot_on_robocasa_refuses_n15_and_a_server_wanting_other_state():
+    from test_groot import GrootServer
+
+    from indgen_vla.errors import PolicyError
+    from policy_wrappers.registry import load_policy
+
+    with pytest.raises(ConfigError, match="only GR00T N1.6's RoboCasa evaluation"):
+        load_policy("groot:tcp://127.0.0.1:1?api=n1.5", env_spec=_spec())
+    modality = {"state": {"delta_indices": [0], "modality_keys": ["joint_position", "gripper_qpos"]}}
+    with GrootServer(lambda d: None, modality=modality) as srv:
+        with pytest.raises(PolicyError, match="server expects state keys"):
+            load_policy(f"groot:tcp://127.0.0.1:{srv.port}", env_spec=_spec())
