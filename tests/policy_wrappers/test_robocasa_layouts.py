@@ -267,3 +267,49 @@ def test_groot_on_robocasa_refuses_n15_and_a_server_wanting_other_state():
     with GrootServer(lambda d: None, modality=modality) as srv:
         with pytest.raises(PolicyError, match="server expects state keys"):
             load_policy(f"groot:tcp://127.0.0.1:{srv.port}", env_spec=_spec())
+
+
+def test_openpi_on_robocasa_sends_robocasa365s_client_request():
+    """robocasa-benchmark/openpi examples/robocasa/main.py (its copy J-Oyasumi/openpi_robocasa): images
+    video.robot0_agentview_left / _eye_in_hand / _agentview_right through openpi_client's resize_with_pad(224),
+    state = concat(state.end_effector_position_relative, state.end_effector_rotation_relative, state.base_position,
+    state.base_rotation, state.gripper_qpos), replan_steps 5, and each action stepped as convert_action(action)."""
+    from test_openpi import (
+        openpi_resize_with_pad,
+        openpi_server,
+    )  # openpi_client's resize_with_pad, written out
+
+    from policy_wrappers.registry import load_policy
+
+    seen = []
+    actions = np.random.default_rng(7).normal(size=(10, 12)).astype(np.float32)
+    rng = np.random.default_rng(8)
+    images = {c: rng.integers(0, 256, (256, 256, 3), dtype=np.uint8) for c in CAMS}
+    raw = robocasa_raw_obs(rng)
+    obs = Observation(images=images, state=our_state(raw), instruction="turn on the kettle")
+    with openpi_server(lambda o: {"actions": actions}, seen) as srv:
+        policy = load_policy(f"openpi:ws://127.0.0.1:{srv.port}", env_spec=_spec())
+        assert (policy.spec.replan_steps, policy.spec.flip_180, policy.spec.image_size) == (
+            5,
+            False,
+            (256, 256),
+        )
+        ours = policy.act([obs])
+        policy.close()
+    req = seen[0]
+    assert set(req) == {"observation/image", "observation/wrist_image", "observation/right_image",
+                        "observation/state", "prompt"}  # fmt: skip
+    for key, cam in (("image", "robot0_agentview_left"), ("wrist_image", "robot0_eye_in_hand"),
+                     ("right_image", "robot0_agentview_right")):  # fmt: skip
+        want = openpi_resize_with_pad(images[cam], 224, 224)  # upright: no flip, unlike the LIBERO client
+        np.testing.assert_array_equal(req[f"observation/{key}"], want)
+    state = np.concatenate([raw["robot0_base_to_eef_pos"], raw["robot0_base_to_eef_quat"], raw["robot0_base_pos"],
+                            raw["robot0_base_quat"], raw["robot0_gripper_qpos"]]).astype(np.float32)  # fmt: skip
+    np.testing.assert_array_equal(req["observation/state"], state)
+    assert req["prompt"] == "turn on the kettle"
+    for t in range(
+        10
+    ):  # the client steps convert_action(action): ours must be that action in RoboCasa's order
+        want, got = robocasa_convert_action(actions[t]), robocasa_convert_action(ours[0, t])
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key])
