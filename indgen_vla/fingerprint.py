@@ -79,17 +79,24 @@ def build_fingerprint(
 
 def policy_conventions(spec, policy) -> dict[str, Any]:
     """A policy's resolved conventions: its spec's serving facts and the frozen transforms it applies (crop,
-    resize, flip, gripper map, action layout), as their reprs."""
+    resize, flip, gripper map), as their reprs, and on a scene family with its own robot the layout it used
+    (``layout``: which upstream state/action order, e.g. lerobot's base-first RoboCasa action)."""
     conv = getattr(policy, "conventions", None) or getattr(
         getattr(policy, "config", None), "conventions", None
     )
-    return {
+    out = {
         "family": spec.family,
         "chunk_size": spec.chunk_size,
         "replan_steps": spec.replan_steps,
         "flip_180": spec.flip_180,
         "conventions": repr(conv) if conv is not None else None,
     }
+    layout = getattr(
+        policy, "layout", None
+    )  # a scene family's own robot: the family's state/action convention
+    if layout is not None:  # absent on the tabletop families, so their fingerprints are unchanged
+        out["layout"] = layout.describe() if hasattr(layout, "describe") else repr(layout)
+    return out
 
 
 def digest(fp: Mapping[str, Any]) -> str:

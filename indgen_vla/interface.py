@@ -39,10 +39,22 @@ class EnvSpec:
     layout: str = (
         "state: eef pos 3 + eef axis-angle 3 + gripper qpos 2; action: delta pos 3 + delta rot 3 + gripper 1"
     )
+    # The layout as named (segment, size) pairs in order, where policy families order them differently (RoboCasa365:
+    # lerobot's wrapper is base-first, RoboCasa's convert_action arm-first); a family's convention reorders by name.
+    state_parts: tuple[tuple[str, int], ...] = ()
+    action_parts: tuple[tuple[str, int], ...] = ()
 
     def __post_init__(self) -> None:
         if self.state_dim < 1 or self.action_dim < 1 or not self.cameras:
             raise ConfigError(f"env spec {self.name}: needs cameras and positive state/action sizes")
+        for what, parts, dim in (
+            ("state", self.state_parts, self.state_dim),
+            ("action", self.action_parts, self.action_dim),
+        ):
+            if parts and sum(n for _, n in parts) != dim:
+                raise ConfigError(
+                    f"env spec {self.name}: {what}_parts add up to {sum(n for _, n in parts)}, not {dim}"
+                )
 
     def check_policy(self, spec: PolicySpec, scene: str) -> None:
         """Refuse, in one line and before any episode, a policy whose cameras or action size this family lacks."""
@@ -117,7 +129,7 @@ def act_padded(policy, observations: list, size: int, who: str, action_dim: int 
     A policy whose ``act`` takes ``pad_to`` pads after its per-row pre-processing (the padded rows then cost
     the forward only, not another decode/resize each) and returns the real rows alone."""
     if size > len(observations) and getattr(policy, "pads_batches", False):
-        return validate_chunk(policy.act(list(observations), pad_to=size), len(observations), who)
+        return validate_chunk(policy.act(list(observations), pad_to=size), len(observations), who, action_dim)
     rows = list(observations) + list(observations[:1]) * (size - len(observations))
     return validate_chunk(policy.act(rows), len(rows), who, action_dim)[: len(observations)]
 

@@ -12,22 +12,36 @@ Gripper: GR00T's LIBERO checkpoints output [0, 1] with 1 = open (the RLDS conven
 N1.5 ``examples/Libero/eval/utils.py:normalize_gripper_action`` computes ``sign(1 - 2x)``, N1.6+
 ``gr00t/eval/sim/LIBERO/libero_env.py`` ``normalize_gripper_action`` (``sign(2x - 1)``) then
 ``invert_gripper_action`` (x -1). Both are our ``gripper=01inv`` (the default): 0.9 -> -1 (open).
+
+RoboCasa365 (the scene's ``EnvSpec`` picks ``layouts.GROOT_ROBOCASA``; N1.6 only): Isaac-GR00T's RoboCasa eval
+(``examples/robocasa/README.md``: ``--embodiment-tag ROBOCASA_PANDA_OMRON --use-sim-policy-wrapper``) steps
+squarefk/robocasa's ``GrootRoboCasaEnv``: ``video.res256_image_side_0/_side_1/_wrist_0``, ``state.<segment>``,
+and ``action.<segment>`` composed by RoboCasa (gripper and control mode thresholded at 0.5: no gripper map).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, CAMERAS, Observation, PolicySpec, validate_chunk
+from indgen_vla.interface import (
+    ACTION_DIM,
+    CAMERAS,
+    STATE_DIM,
+    EnvSpec,
+    Observation,
+    PolicySpec,
+    validate_chunk,
+)
 from policy_wrappers.image_tools import GRIPPER_MODES
+from policy_wrappers.layouts import Layout, layout_for
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
-from policy_wrappers.transforms import LIBERO_GROOT_N15, LIBERO_GROOT_N16, Conventions
+from policy_wrappers.transforms import LIBERO_GROOT_N15, LIBERO_GROOT_N16, ROBOCASA_GROOT_N16, Conventions
 
 LIBERO_STATE = (
     ("x", 0, 1),
@@ -51,23 +65,34 @@ class GrootConfig(RemoteConfig):
     state: tuple[tuple[str, int, int], ...] = LIBERO_STATE
     action: tuple[str, ...] = LIBERO_ACTION
     language_key: str = "annotation.human.action.task_description"
+    env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
+    layout: Layout | None = field(init=False, default=None)  # GR00T's keys on that family (layouts.py)
 
     def __post_init__(self) -> None:
         if self.api not in APIS:
             raise ConfigError(f"groot {self.url}: api must be n1.5 or n1.6, got {self.api!r}")
-        bad = [cam for _, cam in self.video if cam not in CAMERAS]
+        layout = layout_for("groot", self.env_spec)
+        object.__setattr__(self, "layout", layout)
+        if layout is not None and self.api != "n1.6":
+            raise ConfigError(
+                f"groot {self.url}: on scene family {self.env_spec.name} only GR00T N1.6's RoboCasa evaluation "
+                "(Isaac-GR00T examples/robocasa, ROBOCASA_PANDA_OMRON) is wired; serve an N1.6 checkpoint (api=n1.6)"
+            )
+        cams = self.env_spec.cameras if self.env_spec is not None else CAMERAS
+        bad = [cam for _, cam in self.video if cam not in cams]
         if bad or not self.video:
             raise ConfigError(
-                f"groot {self.url}: video map needs cameras from {list(CAMERAS)}, got {bad or 'none'}"
+                f"groot {self.url}: video map needs cameras from {list(cams)}, got {bad or 'none'}"
             )
-        if sum(hi - lo for _, lo, hi in self.state) > 8 or any(
-            not 0 <= lo < hi <= 8 for _, lo, hi in self.state
+        dim = self.env_spec.state_dim if self.env_spec is not None else STATE_DIM
+        if sum(hi - lo for _, lo, hi in self.state) > dim or any(
+            not 0 <= lo < hi <= dim for _, lo, hi in self.state
         ):
-            raise ConfigError(f"groot {self.url}: state slices must lie within our 8-d state")
+            raise ConfigError(f"groot {self.url}: state slices must lie within our {dim}-d state")
         super().__post_init__()
 
     def family_conventions(self) -> Conventions:
-        return APIS[self.api].upstream
+        return ROBOCASA_GROOT_N16 if self.layout is not None else APIS[self.api].upstream
 
 
 class GrootPolicy(RemotePolicy):
@@ -83,7 +108,13 @@ class GrootPolicy(RemotePolicy):
         import zmq
 
         self._zmq = zmq
-        cams = tuple(c for c in CAMERAS if c in {cam for _, cam in config.video})
+        env = config.env_spec
+        self.layout = config.layout  # recorded in the run's fingerprint
+        self._action_dim = env.action_dim if env is not None else ACTION_DIM
+        # the keys' concatenation order -> ours (identity on the tabletop families)
+        self._to_scene = config.layout.action_to_scene(env) if config.layout is not None else None
+        scene_cams = env.cameras if env is not None else CAMERAS
+        cams = tuple(c for c in scene_cams if c in {cam for _, cam in config.video})
         chunk, replan = config.chunking()
         spec = PolicySpec(
             self.family,
@@ -94,6 +125,7 @@ class GrootPolicy(RemotePolicy):
             image_size=(config.conventions.render,) * 2,
             batched=self.batched,
             flip_180=config.conventions.flips,
+            action_dim=self._action_dim,
         )
         super().__init__(spec, config)
         # The process-wide context: a per-policy one, when the garbage collector frees a policy caught in a
@@ -240,10 +272,10 @@ class GrootPolicy(RemotePolicy):
         if len({p.shape[1] for p in parts}) != 1:
             raise self.fail(f"action keys disagree on the horizon: {[p.shape for p in parts]}")
         chunk = np.concatenate(parts, axis=-1)
-        if chunk.shape[-1] != ACTION_DIM or chunk.shape[1] < self.spec.replan_steps:
+        if chunk.shape[-1] != self._action_dim or chunk.shape[1] < self.spec.replan_steps:
             raise PolicyError(
                 f"policy {self.spec.name} returned actions of shape {chunk.shape}; expected "
-                f"({batch}, >={self.spec.replan_steps}, {ACTION_DIM})"
+                f"({batch}, >={self.spec.replan_steps}, {self._action_dim})"
             )
         return chunk[:, : self.spec.chunk_size]
 
@@ -252,8 +284,11 @@ class GrootPolicy(RemotePolicy):
         raise NotImplementedError
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        chunk = validate_chunk(self.predict(observations), len(observations), self.spec.name)
-        return self.config.conventions.actions(chunk)
+        chunk = validate_chunk(
+            self.predict(observations), len(observations), self.spec.name, self._action_dim
+        )
+        chunk = self.config.conventions.actions(chunk)
+        return chunk if self._to_scene is None else np.ascontiguousarray(self._to_scene(chunk))
 
 
 class GrootN15Policy(GrootPolicy):
@@ -331,13 +366,25 @@ OPTIONS = {
 }  # GrootConfig field -> option
 
 
-def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu") -> GrootPolicy:
-    """``groot:tcp://HOST:PORT[?api=n1.5|n1.6&api_token=&video=key:cam,..&replan=&chunk=&size=&flip=&gripper=]``."""
+def load(
+    parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec: EnvSpec | None = None
+) -> GrootPolicy:
+    """``groot:tcp://HOST:PORT[?api=n1.5|n1.6&api_token=&video=key:cam,..&replan=&chunk=&size=&flip=&gripper=]``.
+
+    On a scene family with its own robot (``env_spec``; RoboCasa365) the keys default to GR00T's there."""
     chosen = {
         "api": options.choice("api", tuple(APIS)),
         "gripper": options.choice("gripper", GRIPPER_MODES),
         "video": _pairs(options.str("video")),
     }
     values = {k: v for k, v in chosen.items() if v is not None} | options.fields(GrootConfig, OPTIONS)
-    config = GrootConfig(url=GrootPolicy.url_from(parsed), **values)
+    layout = layout_for("groot", env_spec)
+    if layout is not None:  # GR00T's RoboCasa keys: cameras, one state key per segment, action keys in order
+        starts, lo = {}, 0
+        for name, size in env_spec.state_parts:
+            starts[name], lo = (lo, lo + size), lo + size
+        values.setdefault("video", layout.cameras)
+        values["state"] = tuple((name, *starts[name]) for name, _ in layout.state)
+        values["action"] = tuple(name for name, _ in layout.action)
+    config = GrootConfig(url=GrootPolicy.url_from(parsed), env_spec=env_spec, **values)
     return APIS[config.api](parsed.spec, config)

@@ -5,6 +5,8 @@ Loading follows lerobot's own eval path (``scripts/lerobot_eval.py``, ``rollout/
 ``make_pre_post_processors(cfg, pretrained_path=path, preprocessor_overrides={"device_processor": ...})``.
 Acting mirrors ``envs/utils.py:preprocess_observation`` (uint8 HWC -> float CHW in [0, 1]) plus LIBERO's
 env processor (180° flip), then ``predict_action_chunk`` and the postprocessor (unnormalise) on the chunk.
+On a scene family with its own robot (RoboCasa365) the scene's ``EnvSpec`` picks lerobot's layout there
+(``policy_wrappers/layouts.py``: feature names, the state order the checkpoint reads, its action order).
 ACT with ``temporal_ensemble_coeff`` acts through its own ``select_action`` (one ensembled action per step),
 as lerobot's eval does.
 """
@@ -24,10 +26,12 @@ from indgen_vla.interface import (
     CAMERAS,
     OBJECT_DIM,
     STATE_DIM,
+    EnvSpec,
     Observation,
     PolicySpec,
     validate_chunk,
 )
+from policy_wrappers.layouts import layout_for
 from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 
 IMAGE_PREFIX = "observation.images."
@@ -70,6 +74,11 @@ class LeRobotConfig:
     vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
     tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
     precision: str = "fp32"  # "bf16": the forward runs under torch.autocast(bfloat16)
+    env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
+
+    @property
+    def scene_cameras(self) -> tuple[str, ...]:
+        return self.env_spec.cameras if self.env_spec is not None else CAMERAS
 
     def __post_init__(self) -> None:
         if self.precision not in PRECISIONS:
@@ -77,10 +86,10 @@ class LeRobotConfig:
                 f"lerobot {self.path}: precision must be one of {list(PRECISIONS)}, got {self.precision!r}"
             )
         for feature, cam in self.camera_map:
-            if cam not in (*CAMERAS, ZEROS):
+            if cam not in (*self.scene_cameras, ZEROS):
                 raise ConfigError(
                     f"lerobot {self.path}: camera {cam!r} for feature {feature!r} must be one of "
-                    f"{[*CAMERAS, ZEROS]}"
+                    f"{[*self.scene_cameras, ZEROS]}"
                 )
         if self.replan_steps is not None and self.replan_steps < 1:
             raise ConfigError(f"lerobot {self.path}: replan must be >= 1, got {self.replan_steps}")
@@ -105,9 +114,15 @@ class LeRobotPolicy:
     def __init__(self, name: str, config: LeRobotConfig, family: str = "lerobot"):
         self.config = config
         self._name = name
+        spec_env = config.env_spec
+        self.layout = layout_for("lerobot", spec_env)  # None on the tabletop families
+        self._state_in = self.layout.state_to_policy(spec_env) if self.layout else None
+        self._action_out = self.layout.action_to_scene(spec_env) if self.layout else None
+        self._action_dim = spec_env.action_dim if spec_env is not None else ACTION_DIM
+        self._state_dim = spec_env.state_dim if spec_env is not None else STATE_DIM
         self._load()
         self._cams = self._resolve_cameras()
-        cams = tuple(c for c in CAMERAS if c in {cam for _, cam, _ in self._cams})
+        cams = tuple(c for c in config.scene_cameras if c in {cam for _, cam, _ in self._cams})
         libero = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
         self.conventions = (LIBERO_LEROBOT if libero else NO_CONVENTIONS).override(flip=config.flip_180)
         sizes = {shape[1:] for _, cam, shape in self._cams if cam != ZEROS}
@@ -134,6 +149,7 @@ class LeRobotPolicy:
             batched=self.n_obs_steps == 1 and not self._ensemble,
             flip_180=self.conventions.flips,
             observes_objects=self._objects,
+            action_dim=self._action_dim,
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
         self.pads_batches = self.spec.batched  # act(..., pad_to=N): see interface.act_padded
@@ -200,17 +216,21 @@ class LeRobotPolicy:
             ) from None
         self.cfg, self.policy, self.pre, self.post, self._torch = cfg, policy, pre, post, torch
         action = cfg.action_feature
-        if action is None or tuple(action.shape) != (ACTION_DIM,):
+        env = self.config.env_spec
+        if action is None or tuple(action.shape) != (self._action_dim,):
             got = None if action is None else tuple(action.shape)
-            raise PolicyError(
-                f"policy {self._name}: checkpoint outputs actions of shape {got}; indgen scenes take "
-                f"({ACTION_DIM},) delta-EEF actions (OSC_POSE)"
+            what = (
+                f"scene family {env.name} takes ({self._action_dim},): {env.layout.split('action: ')[-1]}"
+                if env is not None
+                else f"indgen's tabletop scenes take ({ACTION_DIM},) delta-EEF actions (OSC_POSE)"
             )
+            raise PolicyError(f"policy {self._name}: checkpoint outputs actions of shape {got}; {what}")
         state = cfg.robot_state_feature
-        if state is not None and tuple(state.shape) != (STATE_DIM,):
+        if state is not None and tuple(state.shape) != (self._state_dim,):
+            what = env.layout.split(";")[0] if env is not None else "eef pos + axis-angle + gripper qpos"
             raise PolicyError(
                 f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
-                f"ours is ({STATE_DIM},) = eef pos + axis-angle + gripper qpos"
+                f"ours is ({self._state_dim},) = {what}"
             )
         from policy_wrappers.lerobot_steps import OBJECT_STEP_CLASS, PROPRIO_STEP_CLASS
 
@@ -240,15 +260,17 @@ class LeRobotPolicy:
                 f"policy {self._name}: cameras= names feature {unknown[0]!r}, which the checkpoint "
                 f"lacks; its image features are {sorted(features)}"
             )
+        defaults = dict(self.layout.cameras) if self.layout else DEFAULT_CAMERA_MAP
         out = []
         for feat, shape in features.items():
-            cam = explicit.get(feat) or DEFAULT_CAMERA_MAP.get(feat)
+            cam = explicit.get(feat) or defaults.get(feat)
             if cam is None and feat.startswith("empty_camera_"):
                 cam = ZEROS
             if cam is None:
                 raise ConfigError(
                     f"policy {self._name}: don't know which camera feeds image feature {feat!r}; "
-                    f"add ?cameras={feat}:agentview (or :wrist, :zeros) — features: {sorted(features)}"
+                    f"add ?cameras={feat}:{self.config.scene_cameras[0]} (or another of "
+                    f"{list(self.config.scene_cameras)}, or :zeros) — features: {sorted(features)}"
                 )
             if len(shape) != 3 or shape[0] != 3:
                 raise PolicyError(
@@ -320,6 +342,8 @@ class LeRobotPolicy:
             batch[IMAGE_PREFIX + feat] = padded(t)
         if self.cfg.robot_state_feature is not None:
             state = np.stack([o.state for o in observations]).astype(np.float32)
+            if self._state_in is not None:  # our state order -> the one the checkpoint was trained on
+                state = np.ascontiguousarray(self._state_in(state))
             batch["observation.state"] = padded(torch.from_numpy(state).to(device, non_blocking=True))
         if self._objects:
             if any(o.objects is None for o in observations):
@@ -355,7 +379,7 @@ class LeRobotPolicy:
                 with self._autocast():
                     action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
             chunk = action.detach().to("cpu", self._torch.float32).numpy()[:, None]
-            return validate_chunk(chunk, len(observations), self._name)
+            return self._to_scene(validate_chunk(chunk, len(observations), self._name, self._action_dim))
         if not self._replan_inside:
             return self._predict(observations)
         # history policies (not batched): record this step, replan from the queue like select_action
@@ -385,7 +409,11 @@ class LeRobotPolicy:
                 actions = actions[:, None]
             actions = self.post(actions)
         chunk = actions[: len(observations)].detach().to("cpu", torch.float32).numpy()
-        return validate_chunk(chunk, len(observations), self._name)
+        return self._to_scene(validate_chunk(chunk, len(observations), self._name, self._action_dim))
+
+    def _to_scene(self, chunk: np.ndarray) -> np.ndarray:
+        """The checkpoint's action order -> the scene's (identity on the tabletop families)."""
+        return chunk if self._action_out is None else np.ascontiguousarray(self._action_out(chunk))
 
     def _autocast(self):
         """bf16 autocast when asked (``precision=bf16``); otherwise nothing changes."""
@@ -440,16 +468,21 @@ OPTIONS = {  # LeRobotConfig field -> spec option
 }
 
 
-def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot"):
+def load(
+    parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot",
+    env_spec: EnvSpec | None = None,
+):  # fmt: skip
     """``lerobot:<hub id or dir>[?cameras=..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR&precision=bf16]``.
 
     LeRobot policies are plain PyTorch modules loaded from safetensors: no Hub code is executed, so
-    ``trust_remote_code`` has nothing to enable here.
+    ``trust_remote_code`` has nothing to enable here. ``env_spec``: the scene family's contract, which picks
+    lerobot's layout there (RoboCasa365: ``layouts.LEROBOT_ROBOCASA``).
     """
     config = LeRobotConfig(
         path=parsed.target,
         device=options.str("device", device),
         camera_map=parse_camera_map(options.str("cameras")),
+        env_spec=env_spec,
         **options.fields(LeRobotConfig, OPTIONS),
     )
     return LeRobotPolicy(parsed.spec, config, family=family)

@@ -4,20 +4,25 @@ Wire format (openpi ``websocket_client_policy.py`` / ``serving/websocket_policy_
 server sends one msgpack-numpy frame of metadata; each request is a msgpack-numpy dict in the LIBERO example's
 keys (``examples/libero/main.py``) and each reply a dict with ``actions`` (T, 7). A text frame is a server
 error (a traceback) after which the server closes the connection.
+
+RoboCasa365 (the scene's ``EnvSpec`` picks ``layouts.OPENPI_ROBOCASA``): RoboCasa365's openpi client
+(robocasa-benchmark/openpi ``examples/robocasa/main.py``) sends ``observation/image``, ``observation/wrist_image``,
+``observation/right_image`` and the 16-d state, and steps RoboCasa's ``convert_action`` of the (T, 12) reply.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from indgen_vla.errors import IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
+from indgen_vla.interface import ACTION_DIM, EnvSpec, Observation, PolicySpec, validate_chunk
 from policy_wrappers import msgpack_numpy
+from policy_wrappers.layouts import Layout, layout_for
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
-from policy_wrappers.transforms import LIBERO_OPENPI, Compose, Conventions
+from policy_wrappers.transforms import LIBERO_OPENPI, ROBOCASA_OPENPI, Compose, Conventions
 
 INDGEN_SERVER = "indgen-vla"  # metadata["server"] of our own `indgen serve`, which accepts reset hints
 
@@ -27,22 +32,31 @@ class OpenpiConfig(RemoteConfig):
     """How to talk to one openpi server; unset conventions are ``LIBERO_OPENPI``'s."""
 
     api_key: str | None = None
+    env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
+    layout: Layout | None = field(init=False, default=None)  # openpi's keys and order there (layouts.py)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "layout", layout_for("openpi", self.env_spec))
+        super().__post_init__()
 
     def family_conventions(self) -> Conventions:
-        return LIBERO_OPENPI
+        return ROBOCASA_OPENPI if self.layout is not None else LIBERO_OPENPI
 
 
-def make_request(obs: Observation, images: Compose) -> dict:
-    """One observation in openpi's LIBERO request format (``images``: e.g. rotate 180°, resize-with-pad)."""
-    for cam in ("agentview", "wrist"):
+LIBERO_KEYS = (("observation/image", "agentview"), ("observation/wrist_image", "wrist"))
+
+
+def make_request(obs: Observation, images: Compose, keys=LIBERO_KEYS, state=None) -> dict:
+    """One observation in openpi's request format (``images``: e.g. rotate 180°, resize-with-pad; ``keys``:
+    (request key, our camera), LIBERO's by default; ``state``: our state -> the order the server reads)."""
+    for _, cam in keys:
         if cam not in obs.images:
             raise PolicyError(f"openpi needs the {cam!r} camera but the observation has {sorted(obs.images)}")
-    return {
-        "observation/image": images(obs.images["agentview"]),
-        "observation/wrist_image": images(obs.images["wrist"]),
-        "observation/state": np.asarray(obs.state, dtype=np.float32),
-        "prompt": str(obs.instruction),
-    }
+    request = {key: images(obs.images[cam]) for key, cam in keys}
+    s = np.asarray(obs.state, dtype=np.float32)
+    request["observation/state"] = s if state is None else np.ascontiguousarray(state(s))
+    request["prompt"] = str(obs.instruction)
+    return request
 
 
 class OpenpiPolicy(RemotePolicy):
@@ -53,14 +67,20 @@ class OpenpiPolicy(RemotePolicy):
     def __init__(self, name: str, config: OpenpiConfig):
         conv = config.conventions
         chunk, replan = config.chunking()
+        env, self.layout = config.env_spec, config.layout
+        self._keys = self.layout.cameras if self.layout is not None else LIBERO_KEYS
+        self._state = self.layout.state_to_policy(env) if self.layout is not None else None
+        self._to_scene = self.layout.action_to_scene(env) if self.layout is not None else None
+        self._action_dim = env.action_dim if env is not None else ACTION_DIM
         spec = PolicySpec(
             self.family,
             name,
             chunk_size=chunk,
             replan_steps=replan,
-            cameras=("agentview", "wrist"),
+            cameras=tuple(cam for _, cam in self._keys),
             image_size=(conv.render, conv.render),
             flip_180=conv.flips,
+            action_dim=self._action_dim,
         )
         super().__init__(spec, config)
         self._ws = None
@@ -157,15 +177,15 @@ class OpenpiPolicy(RemotePolicy):
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
         chunks = []
         for obs in observations:
-            request = make_request(obs, self.config.conventions.images)
+            request = make_request(obs, self.config.conventions.images, self._keys, self._state)
             if self._pending_reset is not None and self.metadata.get("server") == INDGEN_SERVER:
                 request["indgen/reset"] = self._pending_reset
             out = self.infer(request)
             self._pending_reset = None
             actions = np.asarray(out["actions"])
-            if actions.ndim != 2 or actions.shape[1] != ACTION_DIM:
+            if actions.ndim != 2 or actions.shape[1] != self._action_dim:
                 raise PolicyError(
-                    f"policy {self.spec.name} returned actions of shape {actions.shape}; expected (T, {ACTION_DIM})"
+                    f"policy {self.spec.name} returned actions of shape {actions.shape}; expected (T, {self._action_dim})"
                 )
             if actions.shape[0] < self.spec.replan_steps:
                 raise PolicyError(
@@ -174,8 +194,11 @@ class OpenpiPolicy(RemotePolicy):
                 )
             chunks.append(actions.astype(np.float32))
         length = min(c.shape[0] for c in chunks)
-        chunk = validate_chunk(np.stack([c[:length] for c in chunks]), len(observations), self.spec.name)
-        return self.config.conventions.actions(chunk)
+        chunk = validate_chunk(
+            np.stack([c[:length] for c in chunks]), len(observations), self.spec.name, self._action_dim
+        )
+        chunk = self.config.conventions.actions(chunk)
+        return chunk if self._to_scene is None else np.ascontiguousarray(self._to_scene(chunk))
 
 
 def _last_line(text: str) -> str:
@@ -186,10 +209,14 @@ def _last_line(text: str) -> str:
 OPTIONS = {"api_key": "api_key", **REMOTE_OPTIONS}  # OpenpiConfig field -> spec option
 
 
-def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu") -> OpenpiPolicy:
-    """Build an ``OpenpiPolicy`` from ``openpi:ws://HOST:PORT[?api_key=&replan=&chunk=&size=&flip=&timeout=]``."""
+def load(
+    parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec: EnvSpec | None = None
+) -> OpenpiPolicy:
+    """Build an ``OpenpiPolicy`` from ``openpi:ws://HOST:PORT[?api_key=&replan=&chunk=&size=&flip=&timeout=]``
+    (``env_spec``: the scene family's contract, which picks openpi's request keys there)."""
     import os
 
     values = options.fields(OpenpiConfig, OPTIONS)
     values.setdefault("api_key", os.environ.get("OPENPI_API_KEY"))
-    return OpenpiPolicy(parsed.spec, OpenpiConfig(url=OpenpiPolicy.url_from(parsed), **values))
+    config = OpenpiConfig(url=OpenpiPolicy.url_from(parsed), env_spec=env_spec, **values)
+    return OpenpiPolicy(parsed.spec, config)

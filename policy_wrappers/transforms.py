@@ -68,6 +68,25 @@ class JpegLanczos(Resize):
 
 
 @dataclass(frozen=True)
+class PadResizeCv(Resize):
+    """GR00T's RoboCasa sim (squarefk/robocasa ``robocasa/utils/gym_utils/gymnasium_groot.py`` ``process_img``):
+    zero-pad to a square, then ``cv2.resize(img, (size, size), cv2.INTER_AREA)``, whose third positional
+    argument is ``dst``, so the interpolation is cv2's default (bilinear); written here as that call does it."""
+
+    def __call__(self, img: np.ndarray) -> np.ndarray:
+        import cv2
+
+        h, w, _ = img.shape
+        if h != w:
+            dim = max(h, w)
+            y, x = (dim - h) // 2, (dim - w) // 2
+            img = np.pad(img, ((y, y), (x, x), (0, 0)))
+        if img.shape[:2] != (self.size, self.size):
+            img = cv2.resize(img, (self.size, self.size), interpolation=cv2.INTER_LINEAR)
+        return np.copy(img)
+
+
+@dataclass(frozen=True)
 class CenterCrop:
     """Base OpenVLA's LIBERO ``center_crop``: keep ``scale`` of the area, TF-bilinear back to the input size."""
 
@@ -221,3 +240,13 @@ LIBERO_GROOT_N16 = replace(LIBERO_GROOT_N15, replan=8)
 # lerobot (processor/env_processor.py LiberoProcessorStep): every image flipped; actions unchanged; the
 # render size and the chunking come from the checkpoint.
 LIBERO_LEROBOT = Conventions(render=None, images=compose(Flip180()))
+
+# ---- RoboCasa365 (PandaOmron): images upright, actions in the layout's order (policy_wrappers/layouts.py) -------
+# GR00T N1.6 (Isaac-GR00T examples/robocasa/README.md, --n-action-steps 8; squarefk/robocasa gymnasium_groot.py):
+# PandaOmronKeyConverter renders 512x512, process_img brings each camera to 256; gripper_close and control_mode
+# are thresholded at 0.5 by RoboCasa itself (no gripper map); 16-step chunk, 8 executed.
+ROBOCASA_GROOT_N16 = Conventions(render=512, images=compose(PadResizeCv(256)), chunk=16, replan=8)
+# RoboCasa365's openpi client (robocasa-benchmark/openpi examples/robocasa/main.py): RoboCasaGymEnv's 256 upright
+# renders, resize_with_pad to 224; replan_steps 5 (the client asserts the server returns at least that many and
+# executes only those, so the chunk we count is those 5).
+ROBOCASA_OPENPI = Conventions(images=compose(ResizeWithPad(224)), chunk=5, replan=5)

@@ -84,7 +84,7 @@ class Batcher:
         self._thread.join(timeout=10)
 
     def _loop(self) -> None:
-        from indgen_vla.interface import act_padded
+        from indgen_vla.interface import ACTION_DIM, act_padded
 
         while (item := self._queue.get()) is not None:
             batch, deadline = [item], time.monotonic() + self.max_wait_s
@@ -98,7 +98,8 @@ class Batcher:
                     break
                 batch.append(nxt)
             try:
-                chunks = act_padded(self.policy, [o for o, _ in batch], self.pad_to, self.who)
+                dim = self.policy.spec.action_dim or ACTION_DIM  # the scene family's (12 on RoboCasa365)
+                chunks = act_padded(self.policy, [o for o, _ in batch], self.pad_to, self.who, dim)
             except Exception as e:  # every waiting request sees the failure, as in the local engine
                 for _, fut in batch:
                     fut.set_exception(e)
@@ -153,12 +154,13 @@ class _PolicyActor:
         return None
 
     def act(self, client: int, obs):
-        from indgen_vla.interface import validate_chunk
+        from indgen_vla.interface import ACTION_DIM, validate_chunk
 
         try:
             if self._batcher is not None:
                 return self._batcher.act(obs)
-            return validate_chunk(self._instance(client).act([obs]), 1, self.spec.name)[0]
+            dim = self.spec.action_dim or ACTION_DIM
+            return validate_chunk(self._instance(client).act([obs]), 1, self.spec.name, dim)[0]
         except Exception as e:
             return _carried(e)
 

@@ -53,7 +53,17 @@ PANDA_OMRON = EnvSpec(
         "state: base-to-eef pos 3 + base-to-eef quat 4 + base pos 3 + base quat 4 + gripper qpos 2; action: eef pos 3 "
         "+ eef rot 3 + gripper 1 + base motion 4 + control mode 1 (RoboCasa's convert_action order); images upright"
     ),
-)
+    # RoboCasa's own names (robocasa/wrappers/gym_wrapper.py PandaOmronKeyConverter: state.*, action.*), which
+    # every policy family's RoboCasa convention (policy_wrappers/layouts.py) orders in its own way
+    state_parts=(
+        ("end_effector_position_relative", 3), ("end_effector_rotation_relative", 4), ("base_position", 3),
+        ("base_rotation", 4), ("gripper_qpos", 2),
+    ),
+    action_parts=(
+        ("end_effector_position", 3), ("end_effector_rotation", 3), ("gripper_close", 1), ("base_motion", 4),
+        ("control_mode", 1),
+    ),
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
