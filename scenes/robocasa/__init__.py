@@ -209,6 +209,25 @@ class RoboCasa(Scene):
         kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
         return f"{venv}; kitchen assets {kind} ({assets})"
 
+    def select_tasks(self, task: str | None, axes=()) -> list[str]:
+        """``all``: the tasks on every axis of the run (appendix B's lists, ``AXIS_TASKS``), None their first; a
+        named task must be on each axis's list (one line naming the list)."""
+        from scenes.axes import resolve_alias
+
+        lists = [AXIS_TASKS[p] for a in axes for p in map(resolve_alias, a.split("+")) if p in AXIS_TASKS]
+        if task not in (None, "", "all") or not lists:
+            tasks = super().select_tasks(task)
+            for a in axes:
+                self.check_axis_task(tasks[0], a)
+            return tasks
+        shared = [t for t in lists[0] if all(t in ts for ts in lists[1:])]
+        if not shared:
+            raise ConfigError(
+                f"scene robocasa: axes {', '.join(axes)} share no task (appendix B gives each its own list); run "
+                "them one at a time (--config robocasa_pick, robocasa_fixture, robocasa_horizon, robocasa_clutter)"
+            )
+        return shared if task == "all" else shared[:1]
+
     def check_axis_task(self, task: str, axis: str) -> None:
         from scenes.axes import resolve_alias
 

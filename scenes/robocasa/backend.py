@@ -33,21 +33,44 @@ FIXTURE_KEY = (
 _T0: dict[tuple, dict] = {}
 
 
+# What each distribution that ships the ``robocasa`` package is (the manifest records which one a run used: the
+# releases differ in more than the version number, e.g. v1.0.1 made the task horizons 1.5x longer than v1.0.0)
+RELEASES = {
+    "rlinf-robocasa365": "upstream RoboCasa v1.0.1 (be22d659) plus a ROBOCASA_ASSETS_PATH override",
+    "praxis-robocasa": "upstream RoboCasa v1.0.0 (before v1.0.1's 1.5x longer horizons), no assets override",
+    "robocasa": "RoboCasa from its own repository (a source install: the version alone names the release)",
+}
+
+
+def distribution_of(package: str, dists: dict | None = None, version=None) -> str:
+    """'<distribution> <version>' of what installed ``package`` ('?' when no distribution claims it)."""
+    from importlib import metadata
+
+    dists = metadata.packages_distributions() if dists is None else dists
+    version = version or metadata.version
+    return ", ".join(f"{d} {version(d)}" for d in sorted(set(dists.get(package, ())))) or "?"
+
+
+def robocasa_release(dist: str) -> str:
+    """Which RoboCasa release ``dist`` (``distribution_of("robocasa")``) is, in words."""
+    names = [d.split(" ")[0] for d in dist.split(", ") if d != "?"]
+    if len(names) != 1:
+        return f"ambiguous: {dist} ship robocasa" if names else "unknown (no distribution claims robocasa)"
+    return RELEASES.get(names[0].lower(), f"{names[0]}: not a release indgen knows; see its own notes")
+
+
 def versions() -> dict:
     import mujoco
     import robocasa
     import robosuite
 
-    try:
-        from importlib.metadata import version
-
-        dist = version("rlinf-robocasa365")
-    except Exception:
-        dist = "?"
+    dist = distribution_of("robocasa")
     return {
         "robocasa": getattr(robocasa, "__version__", "?"),
-        "robocasa_dist": f"rlinf-robocasa365 {dist}",
+        "robocasa_dist": dist,
+        "robocasa_release": robocasa_release(dist),
         "robosuite": robosuite.__version__,
+        "robosuite_dist": distribution_of("robosuite"),
         "mujoco": mujoco.__version__,
         "numpy": np.__version__,
     }

@@ -1,0 +1,100 @@
+"""RoboCasa365's protocol around the runs: the paper presets, what the manifest records of the worker's release."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from indgen_vla.errors import ConfigError
+from tests.scenes.robocasa.test_robocasa import needs_venv, placeholders  # noqa: F401  (fixture)
+
+PRESETS = {"robocasa_pick": "pick_x", "robocasa_fixture": "fixture_x", "robocasa_horizon": "base_y",
+           "robocasa_clutter": "clutter"}  # fmt: skip
+
+
+def _backend():
+    """scenes/robocasa/backend.py loaded by path (it imports RoboCasa only inside its functions)."""
+    spec = importlib.util.spec_from_file_location("rc_backend_protocol", "scenes/robocasa/backend.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_each_paper_preset_runs_its_axis_on_appendix_bs_task_list(name):
+    """--task all on the preset's one axis is that axis's list in AXIS_TASKS (appendix B), and its levels are the
+    family's whole range of the axis (pick_x: 0..4, region / 5)."""
+    from indgen_vla.engine.config import load_config_preset
+    from indgen_vla.progression import parse_levels
+    from scenes.axes import resolve_alias
+    from scenes.registry import get_scene
+    from scenes.robocasa import AXIS_TASKS
+
+    d = load_config_preset(name)
+    sc = get_scene("robocasa")
+    assert d["scene"] == "robocasa" and d["axes"] == [PRESETS[name]] and d["task"] == "all"
+    assert sc.select_tasks(d["task"], d["axes"]) == list(AXIS_TASKS[resolve_alias(PRESETS[name])])
+    axis = sc.successor(PRESETS[name]).axis
+    assert list(parse_levels(d["levels"], axis)) == list(range(axis.max_level + 1))
+    assert d["episodes"] == 50
+
+
+def test_task_all_is_the_axis_list_and_a_task_off_the_list_is_refused():
+    from scenes.registry import get_scene
+    from scenes.robocasa import AXIS_TASKS
+
+    sc = get_scene("robocasa")
+    assert sc.select_tasks("all", ["fixture_x"]) == list(AXIS_TASKS["fixture_x"])
+    assert sc.select_tasks(None, ["base_y"]) == ["PickPlaceFridgeDrawerToShelf"]
+    # pick_x and horizon share four tasks, in pick_x's order
+    assert sc.select_tasks("all", ["pick_x", "horizon"]) == [
+        "PickPlaceCounterToBlender", "PickPlaceCounterToCabinet", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink"
+    ]  # fmt: skip
+    with pytest.raises(ConfigError, match="share no task"):
+        sc.select_tasks("all", ["fixture_x", "clutter"])
+    with pytest.raises(ConfigError, match="not on axis horizon's task list"):
+        sc.select_tasks("CloseStandMixerHead", ["base_y"])
+    assert sc.select_tasks("all") == list(sc.tasks)  # no axis given: every task of the family
+
+
+@needs_venv
+def test_the_horizon_preset_resolves_to_appendix_bs_six_tasks(placeholders):  # noqa: F811
+    from indgen_vla.engine.config import load_config_preset
+    from scenes.planning import resolve_scene_plan
+    from scenes.robocasa import AXIS_TASKS
+
+    d = load_config_preset("robocasa_horizon")
+    plan = resolve_scene_plan(d["scene"], d["task"], d["axes"], d["levels"])
+    assert plan.tasks == AXIS_TASKS["horizon"] and len(plan.cells) == 6 * 4
+
+
+def test_the_release_is_named_from_the_distribution_that_ships_robocasa():
+    """rlinf-robocasa365 1.0.1 is upstream v1.0.1; praxis-robocasa 1.0.0 is v1.0.0 (horizons 1/1.5 as long)."""
+    b = _backend()
+    dists = {"robocasa": ["praxis-robocasa"], "robosuite": ["praxis-robosuite"]}
+    dist = b.distribution_of("robocasa", dists, version=lambda d: "1.0.0")
+    assert dist == "praxis-robocasa 1.0.0" and "v1.0.0" in b.robocasa_release(dist)
+    assert "v1.0.1" in b.robocasa_release("rlinf-robocasa365 1.0.1")
+    assert b.robocasa_release("praxis-robocasa 1.0.0, rlinf-robocasa365 1.0.1").startswith("ambiguous")
+    assert b.robocasa_release(b.distribution_of("robocasa", {})).startswith("unknown")
+
+
+@needs_venv
+def test_the_manifest_records_the_workers_versions_and_release(placeholders):  # noqa: F811
+    """What ``SceneLevels.describe`` (the manifest's resolved environment) records, against the venv's own
+    dist-info folders (read here, not through the worker)."""
+    from scenes.planning import scene_levels
+    from scenes.robocasa.environment import find_python
+
+    env = scene_levels("robocasa", ["base_y"]).describe()["environment"]
+    site = next(Path(find_python()).parent.parent.glob("lib/python3*/site-packages"))
+    installed = dict(
+        p.name.removesuffix(".dist-info").lower().rsplit("-", 1) for p in site.glob("*.dist-info")
+    )
+    name = next(n for n in ("rlinf_robocasa365", "praxis_robocasa", "robocasa") if n in installed)
+    assert env["robocasa_dist"] == f"{name.replace('_', '-')} {installed[name]}"
+    assert env["robocasa_release"] == _backend().RELEASES[name.replace("_", "-")]
+    assert env["mujoco"] == installed["mujoco"] and env["numpy"] == installed["numpy"]
+    assert env["robosuite_dist"].split(" ")[1] == next(v for k, v in installed.items() if "robosuite" in k)
