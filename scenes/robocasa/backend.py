@@ -232,6 +232,42 @@ def _flat_action(env, action: np.ndarray) -> np.ndarray:
     return out
 
 
+GRIPPER_INDEX = 6  # the gripper's entry of the 12-d action (convert_action: action[6:7] is "gripper_close")
+
+
+def failure_facts(env, action=None) -> dict:
+    """What the failure trace and the progress score read each step (``scenes/failure.py``), from MuJoCo's state.
+
+    ``touching``: a geom of the gripper in contact with the pick object (robosuite's ``check_contact`` over
+    MuJoCo's contact list); ``bottom``: the object's lowest z; ``placed``: RoboCasa's own success predicate with
+    ``OU.gripper_obj_far`` taken as true (the object is where the task wants it, whether or not the gripper has
+    let go); ``gripper_closed``: the last action commanded the gripper closed (> 0, robosuite's convention).
+    Empty when the task has no pick object named "obj" (fixture tasks, CheesyBread): its failures are then
+    ``unknown`` and its progress missing, never a guessed class.
+    """
+    if "obj" not in getattr(env, "objects", {}):
+        return {}
+    import robocasa.utils.object_utils as OU
+
+    obj, robot = env.objects["obj"], env.robots[0]
+    far = OU.gripper_obj_far
+    OU.gripper_obj_far = lambda *a, **k: (
+        True
+    )  # the task modules call it through the module (OU.gripper_obj_far)
+    try:
+        placed = bool(env._check_success())
+    finally:
+        OU.gripper_obj_far = far
+    out = {
+        "touching": bool(env.check_contact(robot.gripper["right"], obj)),
+        "bottom": float(env.sim.data.body_xpos[env.obj_body_id["obj"]][2] + obj.bottom_offset[2]),
+        "placed": placed,
+    }
+    if action is not None:
+        out["gripper_closed"] = bool(np.asarray(action, dtype=np.float64)[GRIPPER_INDEX] > 0)
+    return out
+
+
 class RoboCasaLevel:
     """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed.
 
@@ -390,12 +426,13 @@ class RoboCasaLevel:
             pins, shift = self._pins(t0, meta, edits)
             raw = self._reset(seed, meta, pins, t0["made"], shift)
         self.meta = self.env.get_ep_meta()
-        return self._obs(raw)
+        return {**self._obs(raw), "facts": failure_facts(self.env)}
 
     def step(self, action) -> dict:
         raw, _, _, _ = self.env.step(_flat_action(self.env, action))
         obs = self._obs(raw)
         obs["success"] = bool(self.env._check_success())
+        obs["facts"] = failure_facts(self.env, action)
         return obs
 
     def _obs(self, raw: dict) -> dict:

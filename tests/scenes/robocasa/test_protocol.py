@@ -98,3 +98,110 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):  #
     assert env["robocasa_release"] == _backend().RELEASES[name.replace("_", "-")]
     assert env["mujoco"] == installed["mujoco"] and env["numpy"] == installed["numpy"]
     assert env["robosuite_dist"].split(" ")[1] == next(v for k, v in installed.items() if "robosuite" in k)
+
+
+def _oracle_until(env, seed: int, stop, limit: int) -> int:
+    """Step the RoboCasa oracle from ``seed`` until ``stop(env)`` holds after a step (or ``limit`` steps): an
+    episode cut short there, the way max_steps cuts one. Returns the steps taken."""
+    from scenes.certify_run import with_privileged
+    from scenes.oracle import oracle_for
+
+    policy = oracle_for("robocasa")
+    obs, _ = env.reset(seed=seed)
+    policy.reset(env.instruction, seed)
+    for _ in range(limit):
+        obs, _, terminated, _, _ = env.step(policy.act([with_privileged(obs, env)])[0, 0])
+        if terminated or stop(env):
+            break
+    return env.steps
+
+
+@needs_venv
+@pytest.mark.slow  # ~5 s of oracle steps; test_a_pick_task_sends_its_contact_facts_over_the_pipe covers the pipe
+def test_the_oracle_touching_the_object_then_cut_short_is_no_grasp(placeholders):  # noqa: F811
+    """The worker's facts come from MuJoCo's contacts: the first step whose gripper touches the object (as the
+    worker's privileged ``obj_touching`` also says) makes the episode ``no_grasp`` at progress 1, not ``no_contact``.
+    The grasp and lift stages: test_the_oracle_lifting_the_object_then_cut_short_is_timeout_holding."""
+    import scenes
+
+    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                          max_steps=400)  # fmt: skip
+    try:
+        assert env.has_progress is False  # nothing known before the first reset
+        steps = _oracle_until(env, 3, lambda e: e._facts()["touching"], limit=120)
+        assert env.has_progress and steps < 120 and env.privileged_state().pick.touching_gripper
+        assert env.failure_mode(False) == "no_grasp" and env.progress(False) == 1
+        assert env._facts()["gripper_closed"] is False  # the oracle touches before it closes
+    finally:
+        env.close()
+
+
+@needs_venv
+@pytest.mark.slow  # ~6 s: ~100 oracle steps; the fast test above covers the facts over the pipe
+def test_the_oracle_lifting_the_object_then_cut_short_is_timeout_holding(placeholders):  # noqa: F811
+    import scenes
+
+    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                          max_steps=400)  # fmt: skip
+    try:
+        start = []
+
+        def lifted(e):
+            start.append(e._facts()["bottom"]) if not start else None
+            return e._trace.lifted
+
+        _oracle_until(env, 3, lifted, limit=200)
+        s = env.privileged_state()
+        assert s.pick.touching_gripper and s.pick.bottom > start[0] + 0.02  # really up, really in the fingers
+        assert (
+            env._trace.grasped and env.failure_mode(False) == "timeout_holding" and env.progress(False) == 3
+        )
+    finally:
+        env.close()
+
+
+@needs_venv
+def test_a_pick_task_sends_its_contact_facts_over_the_pipe(placeholders):  # noqa: F811
+    """One still step of PickPlaceCounterToCabinet: the worker's facts are there (the gripper is away from the
+    object, which rests where T0 put it: the privileged state's bottom), so the episode is honestly
+    ``no_contact`` at progress 0; the gripper command is read at RoboCasa's index 6, not the last entry."""
+    import numpy as np
+
+    import scenes
+
+    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                          max_steps=5)  # fmt: skip
+    try:
+        env.reset(seed=3)
+        action = np.zeros(12)
+        action[6], action[11] = 1.0, -1.0  # close the gripper, arm mode (the last entry < 0)
+        env.step(action)
+        f = env._facts()
+        assert env.has_progress and f["touching"] is False and f["placed"] is False and f["gripper_closed"]
+        assert f["bottom"] == pytest.approx(env.privileged_state().pick.bottom, abs=1e-9)
+        assert env.failure_mode(False) == "no_contact" and env.progress(False) == 0
+    finally:
+        env.close()
+
+
+@needs_venv
+@pytest.mark.slow  # ~5 s (a second task's build); test_the_oracle_closes_the_stand_mixer_head checks the same
+def test_a_fixture_task_has_no_contact_facts_so_its_failure_is_unknown(placeholders):  # noqa: F811
+    """CloseStandMixerHead has no pick object: the worker sends no facts; the failure reads ``unknown`` and the
+    progress is missing (None), never a made-up ``no_contact`` / 0."""
+    import numpy as np
+
+    import scenes
+
+    env = scenes.make_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
+                          max_steps=2)  # fmt: skip
+    try:
+        env.reset(seed=1)
+        action = np.zeros(12)
+        action[11] = -1.0  # arm mode, no motion
+        for _ in range(2):
+            *_, truncated, _ = env.step(action)
+        assert truncated and env.failure_mode(False) == "unknown" and env.progress(False) is None
+        assert env.failure_mode(True) == "none"
+    finally:
+        env.close()

@@ -363,6 +363,9 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
         ok, steps = run_oracle_episode(env, policy, seed=1)
         assert ok and steps < 150
         assert env.privileged_state().bddl_success
+        assert (
+            env.failure_mode(False) == "unknown" and env.progress(False) is None
+        )  # no pick object, no facts
     finally:
         env.close()
 
