@@ -498,8 +498,29 @@ class RoboCasaLevel:
         self.env.close()
 
 
+def check_kitchen(config: dict) -> None:
+    """One line when the task's class excludes the pinned kitchen (RoboCasa's ``EXCLUDE_LAYOUTS`` /
+    ``EXCLUDE_STYLES``, e.g. PickPlaceFridgeDrawerToShelf has no layout 18), before RoboCasa fails on an empty
+    kitchen list."""
+    if not config.get("layout_ids"):
+        return
+    import robocasa  # noqa: F401  (registers the kitchen tasks)
+    from robosuite.environments.base import REGISTERED_ENVS
+
+    cls = REGISTERED_ENVS[config["task"]]
+    for ids, excluded, what in ((config["layout_ids"], cls.EXCLUDE_LAYOUTS, "layout"),
+                                (config.get("style_ids") or (), cls.EXCLUDE_STYLES, "style")):  # fmt: skip
+        bad = sorted(set(ids) & set(excluded))
+        if bad:
+            raise ValueError(
+                f"RoboCasa's {config['task']} excludes {what} {bad[0]} ({cls.__name__}.EXCLUDE_{what.upper()}S): "
+                "drop that kitchen from the run"
+            )
+
+
 def build(config: dict) -> RoboCasaLevel:
     os.environ.setdefault("MUJOCO_GL", "egl")
     if config.get("assets"):
         os.environ["ROBOCASA_ASSETS_PATH"] = config["assets"]
+    check_kitchen(config)
     return RoboCasaLevel(config)
