@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from pathlib import Path
 
@@ -13,14 +12,6 @@ from tests.scenes.robocasa.test_robocasa import needs_venv
 
 PRESETS = {"robocasa_pick": "pick_x", "robocasa_fixture": "fixture_x", "robocasa_horizon": "base_y",
            "robocasa_clutter": "clutter"}  # fmt: skip
-
-
-def _backend():
-    """scenes/robocasa/backend.py loaded by path (it imports RoboCasa only inside its functions)."""
-    spec = importlib.util.spec_from_file_location("rc_backend_protocol", "scenes/robocasa/backend.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
@@ -73,7 +64,8 @@ def test_the_horizon_preset_resolves_to_appendix_bs_six_tasks(placeholders):
 
 def test_the_release_is_named_from_the_distribution_that_ships_robocasa():
     """rlinf-robocasa365 1.0.1 is upstream v1.0.1; praxis-robocasa 1.0.0 is v1.0.0 (horizons 1/1.5 as long)."""
-    b = _backend()
+    from scenes.robocasa import worker_facts as b
+
     dists = {"robocasa": ["praxis-robocasa"], "robosuite": ["praxis-robosuite"]}
     dist = b.distribution_of("robocasa", dists, version=lambda d: "1.0.0")
     assert dist == "praxis-robocasa 1.0.0" and "v1.0.0" in b.robocasa_release(dist)
@@ -89,6 +81,7 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):
     dist-info folders (read here, not through the worker)."""
     from scenes.planning import scene_levels
     from scenes.robocasa.environment import find_python
+    from scenes.robocasa.worker_facts import RELEASES
 
     described = scene_levels("robocasa", ["base_y"]).describe()
     env, protocol = described["environment"], described["protocol"]
@@ -103,7 +96,7 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):
     )
     name = next(n for n in ("rlinf_robocasa365", "praxis_robocasa", "robocasa") if n in installed)
     assert env["robocasa_dist"] == f"{name.replace('_', '-')} {installed[name]}"
-    assert env["robocasa_release"] == _backend().RELEASES[name.replace("_", "-")]
+    assert env["robocasa_release"] == RELEASES[name.replace("_", "-")]
     assert env["mujoco"] == installed["mujoco"] and env["numpy"] == installed["numpy"]
     assert env["robosuite_dist"].split(" ")[1] == next(v for k, v in installed.items() if "robosuite" in k)
 
