@@ -172,7 +172,8 @@ class RoboCasa(Scene):
     drawer, blender and stand mixer; the stand-mixer head, the electric kettle and the toaster-oven door.
 
     **Randomizations:**
-    - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses)
+    - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses);
+      ``Task@L-S`` pins one of RoboCasa's canonical kitchens (``KITCHEN_SETS``: the black-box regime's configurations)
     - along the axes: the pick object's placement window moved in x (``pick_x``), the robot base moved back from
       T0's pose (``horizon``, alias ``base_y``), the task's appliance slid along its own x with the robot base kept
       at T0's pose (``fixture_x``), one more object in the cabinet (``clutter``); everything else stays at T0's
