@@ -247,6 +247,11 @@ def _add_reference(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--task", default=None, help="restrict the configurations to one task (default: every shared task)"
     )
+    p.add_argument(
+        "--level", type=int, default=None,
+        help="choose T0 only among the configurations at this level, e.g. 0: the canonical configurations "
+        "themselves (RoboCasa: --task Task@5x5 runs its canonical kitchens); default: every (task, level)",
+    )  # fmt: skip
     p.add_argument("--out", default=None, help="folder for reference.json/.md (default: FIRST_RUN/reference)")
 
 

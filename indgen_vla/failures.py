@@ -12,7 +12,8 @@ from indgen_vla.records import atomic_savefig
 UNCLASSIFIED = "unclassified"  # rows of run directories written before the failure column existed
 MODES = (*FAILURE_MODES, UNCLASSIFIED)
 COLOURS = {"none": "#4caf50", "no_contact": "#9e9e9e", "no_grasp": "#ff9800", "dropped": "#e53935",
-           "misplaced": "#8e24aa", "timeout_holding": "#1e88e5", "error": "#212121", UNCLASSIFIED: "#e0e0e0"}  # fmt: skip
+           "misplaced": "#8e24aa", "timeout_holding": "#1e88e5", "unknown": "#bdbdbd", "error": "#212121",
+           UNCLASSIFIED: "#e0e0e0"}  # fmt: skip
 
 
 def failure_counts(level_df) -> dict[str, int]:

@@ -21,7 +21,16 @@ POS_SCALE = 0.05  # metres per unit action
 ROT_SCALE = 0.5  # radians per unit action
 NOOP_ACTION = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0)  # no motion, gripper open
 # why an episode failed (episodes.parquet "failure"), classified by the scene from privileged state; "" = older runs
-FAILURE_MODES = ("none", "no_contact", "no_grasp", "dropped", "misplaced", "timeout_holding", "error")
+FAILURE_MODES = (
+    "none",
+    "no_contact",
+    "no_grasp",
+    "dropped",
+    "misplaced",
+    "timeout_holding",
+    "unknown",
+    "error",
+)
 
 
 @dataclass(frozen=True)

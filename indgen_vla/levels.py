@@ -186,3 +186,43 @@ def verdict_line(verdict: dict, signed: bool) -> str:
     if not signed:
         return verdict.get("pos", "—")
     return "; ".join(f"{'+' if d == 'pos' else '−'}: {verdict[d]}" for d in ("pos", "neg") if d in verdict)
+
+
+# ---------------------------------------------------------------------------------- black-box regime (appendix B)
+BLACK_BOX = "black-box"  # a scene family's protocol_facts()["regime"] when T0 is empirical (RoboCasa365)
+BLACK_BOX_ALPHA = 0.05  # the monotone test's level for the post-hoc validation of condition 2
+
+
+def run_regime(manifest: dict) -> str:
+    """The run's regime from its manifest: "black-box" when the scene family says so, else "vanilla"."""
+    env = (manifest.get("resolved") or {}).get("environment") or {}
+    return BLACK_BOX if (env.get("protocol") or {}).get("regime") == BLACK_BOX else "vanilla"
+
+
+def condition2_validation(monotone: dict, regime: str) -> dict | None:
+    """Black-box regime: condition 2 (strictly harder levels) cannot be certified, so it is validated post hoc
+    (appendix B): per direction, validated when the monotone test rejects "success does not fall with k" at
+    ``BLACK_BOX_ALPHA``. None in the vanilla regime (condition 2 holds by construction there)."""
+    if regime != BLACK_BOX:
+        return None
+    return {
+        "regime": regime, "alpha": BLACK_BOX_ALPHA,
+        "directions": {d: {"p": t["p_decreasing"], "validated": bool(t["p_decreasing"] < BLACK_BOX_ALPHA)}
+                       for d, t in monotone.items()},
+    }  # fmt: skip
+
+
+def fmt_condition2(c: dict | None, signed: bool) -> str:
+    """One cell/line: whether the black-box ordering is validated next to k*, per direction."""
+    if not c:
+        return "by construction (vanilla regime)"
+
+    def one(d: str) -> str:
+        t = c["directions"].get(d)
+        if t is None:
+            return "untested (< 2 usable levels): k* is not validated"
+        if t["validated"]:
+            return f"validated (monotone decrease, p = {t['p']:.2g} < {c['alpha']:g})"
+        return f"NOT validated (p = {t['p']:.2g} ≥ {c['alpha']:g}): the levels are not shown to be harder"
+
+    return f"+: {one('pos')}; −: {one('neg')}" if signed else one("pos")

@@ -51,10 +51,16 @@ def _counts(df, task: str, level: int, parity: int) -> tuple[int, int]:
 
 
 def black_box_reference(
-    tables: list, labels: list[str], axis: str | None = None, task: str | None = None
+    tables: list,
+    labels: list[str],
+    axis: str | None = None,
+    task: str | None = None,
+    level: int | None = None,
 ) -> dict:
     """Choose T0 among the (task, level) configurations on held-in episodes, then test the level ordering
-    around it on held-out episodes, per reference policy and direction (the reference.json dict).
+    around it on held-out episodes, per reference policy and direction (the reference.json dict). ``level``
+    restricts the candidates to that level (e.g. 0: the canonical configurations, unperturbed); the ordering is
+    still tested over every level of T0's task.
 
     Ties in mean success go to the configuration listed first: by task name, then by |level|, then level.
     """
@@ -72,8 +78,12 @@ def black_box_reference(
     cells = set.intersection(
         *({(t, int(k)) for t, k in zip(df["task"], df["level"], strict=True)} for df in tables)
     )
+    if level is not None and not any(k == level for _, k in cells):
+        raise ConfigError(f"--level {level}: no run evaluated level {level} on {axis}")
     configs, rows = {}, []
     for t, k in sorted(cells, key=lambda c: (c[0], abs(c[1]), c[1])):
+        if level is not None and k != level:
+            continue
         held_in = [_counts(df, t, k, 0) for df in tables]
         if any(n == 0 for _, n in held_in):
             continue  # a policy without a finished even episode here cannot vote on this configuration
@@ -87,7 +97,8 @@ def black_box_reference(
     (t0, k0), mean = blackbox_reference(configs)
     rows.sort(key=lambda c: (c["task"], c["level"]))
     out: dict[str, Any] = {"axis": axis, "split": SPLIT, "policies": labels, "configurations": rows,
-                           "reference": {"task": t0, "level": k0, "mean_success": mean}, "ordering": {}}  # fmt: skip
+                           "reference": {"task": t0, "level": k0, "mean_success": mean}, "ordering": {},
+                           "candidate_level": level}  # fmt: skip
     levels = sorted(k for t, k in cells if t == t0)
     for label, df in zip(labels, tables, strict=True):
         held_out = []
@@ -124,7 +135,8 @@ def render_markdown(res: dict) -> str:
              f"{SPLIT}. Reference policies: {', '.join(res['policies'])}. Mean success = mean over policies of "
              "each policy's rate on the even episodes (n per policy shown).", "",
              f"**T0 = task `{ref['task']}`, level {ref['level']}** (mean success {100 * ref['mean_success']:.0f}% "
-             "on the even episodes).", "",
+             "on the even episodes)" + (f", chosen among the level-{res['candidate_level']} configurations only."
+                                         if res.get("candidate_level") is not None else "."), "",
              "| task | level | " + " | ".join(res["policies"]) + " | mean success |",
              "|---|---|" + "---|" * (len(res["policies"]) + 1)]  # fmt: skip
     for c in res["configurations"]:
@@ -161,7 +173,9 @@ def reference_main(args: argparse.Namespace) -> int:
     labels = [run_label(r) for r in runs]
     if len(set(labels)) < len(labels):
         labels = [f"{lbl} ({r.path.name})" for lbl, r in zip(labels, runs, strict=True)]
-    res = black_box_reference([r.episodes() for r in runs], labels, args.axis, args.task)
+    res = black_box_reference(
+        [r.episodes() for r in runs], labels, args.axis, args.task, getattr(args, "level", None)
+    )
     out = Path(args.out) if args.out else runs[0].path / "reference"
     text = render_markdown(res)
     write_result(out, "reference", res, text)

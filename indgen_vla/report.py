@@ -11,11 +11,14 @@ from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.levels import (
     axis_verdicts,
+    condition2_validation,
     decide,
     episodes_used,
+    fmt_condition2,
     kstar_status_of,
     level_rows,
     pool_ladders,
+    run_regime,
     sequential,
     task_entry,
     usable_rates,
@@ -81,12 +84,14 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "break_level": break_levels(usable_rates(pooled), gamma, signed=signed),
             "trend": _trend(pooled, signed),
             "monotone": _monotone(pooled, signed),
+            "regime": run_regime(manifest),
             "kstar_status": kstar_status_of(pooled, signed),
             "break_point": _break_point(df, gamma, multi_task=len(tasks) > 1),
             "episodes": episodes_used(df, per_task, len(tasks), len(levels)),
             "tasks": task_entries,
         }
         a = out["axes"][axis]
+        a["condition2"] = condition2_validation(a["monotone"], a["regime"])  # None: vanilla (by construction)
         a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci)
         for e in task_entries.values():
             e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
@@ -304,6 +309,12 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
             + " | ".join(_fmt_tests(a.get("monotone", {}), a["signed"], method=True) for _, a in present)
             + " |"
         )
+        if any(a.get("condition2") for _, a in present):
+            lines.append(
+                "| condition 2, black-box (appendix B) | | "
+                + " | ".join(fmt_condition2(a.get("condition2"), a["signed"]) for _, a in present)
+                + " |"
+            )
         lines.append(
             "| linear trend (Cochran–Armitage) | | "
             + " | ".join(_fmt_tests(a.get("trend", {}), a["signed"]) for _, a in present)
@@ -495,5 +506,9 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
             console.print(
                 f"monotone decrease (isotonic LRT): {_fmt_tests(a.get('monotone', {}), a['signed'], True)}"
             )
+            if a.get("condition2"):  # black-box regime: k* stands only where the ordering is validated
+                console.print(
+                    f"condition 2, black-box (appendix B): {fmt_condition2(a['condition2'], a['signed'])}"
+                )
             for w in error_warnings(label, a):
                 console.print(w.replace("**", ""))

@@ -107,7 +107,7 @@ def print_table(cert: dict) -> None:
 
 def certify_main(args) -> int:
     """``indgen certify``: write certify.json per task (resuming what is there); exit 1 if a level failed."""
-    tasks = get_scene(args.scene).select_tasks(args.task)
+    tasks = get_scene(args.scene).select_tasks(args.task, (args.axis,))
     preset = getattr(args, "axes_preset", None)
     failed = False
     for task in tasks:

@@ -156,7 +156,7 @@ class BaseSceneEnv(gym.Env):
         self._observing = observe
         success = self._advance(np.clip(a, -1.0, 1.0))
         self._trace.update(
-            *self._failure_signals(), gripper_closed=bool(a[-1] > 0), over_goal=self._over_goal
+            *self._failure_signals(), gripper_closed=self._gripper_closed(a), over_goal=self._over_goal
         )
         self._t += 1
         terminated = success
@@ -246,6 +246,10 @@ class BaseSceneEnv(gym.Env):
     def _failure_signals(self) -> tuple[bool, float]:
         """(a finger touches the pick object, the pick object's lowest z) now, for the failure trace."""
         raise NotImplementedError
+
+    def _gripper_closed(self, action: np.ndarray) -> bool:
+        """Whether ``action`` commands the gripper closed (the 7-d/8-d tabletop action: its last entry > 0)."""
+        return bool(action[-1] > 0)
 
     def _over_goal(self) -> bool | None:
         """Whether the pick object's centre is over the goal region now (progress stage 4); None: no such region."""

@@ -48,7 +48,7 @@ class ExternalSceneEnv(BaseSceneEnv):
 
     _worker: WorkerProcess | None = None
     _last: dict | None = None
-    has_progress = False  # no contact signals over the pipe: progress is missing, never 0
+    has_progress = False  # set at each reset: the worker sends contact facts for this task (``_facts``)
 
     def _load(self, scene: Scene, task: str, successor: Successor) -> None:
         self._scene = scene
@@ -89,6 +89,7 @@ class ExternalSceneEnv(BaseSceneEnv):
             self._worker = None
             self._build()
         self._last = self._call("reset", self.episode_seed)
+        self.has_progress = bool(self._facts())  # a task without a pick object: failures unknown, no progress
         self.instruction = self._last.get("instruction") or self.instruction
         self._t, self._done = 0, False
         return self._observation(), {"success": False, "step": 0, "seed": self.episode_seed}
@@ -97,8 +98,33 @@ class ExternalSceneEnv(BaseSceneEnv):
         self._last = self._call("step", action.astype(np.float64))
         return bool(self._last.get("success", False))
 
+    def _facts(self) -> dict:
+        """The worker's failure facts after the last reset or step (``touching``, ``bottom``, ``placed``,
+        ``gripper_closed``; e.g. ``scenes/robocasa/backend.py failure_facts``); empty: none for this task."""
+        return (self._last or {}).get("facts") or {}
+
     def _failure_signals(self) -> tuple[bool, float]:
-        return False, 0.0
+        f = self._facts()
+        return bool(f.get("touching", False)), float(f.get("bottom", 0.0))
+
+    def _gripper_closed(self, action: np.ndarray) -> bool:
+        return bool(self._facts().get("gripper_closed", False))  # the worker knows its action layout
+
+    def _over_goal(self) -> bool | None:
+        """The backend's placement predicate (RoboCasa: its success with the gripper's release ignored)."""
+        placed = self._facts().get("placed")
+        return None if placed is None else bool(placed)
+
+    def failure_mode(self, success: bool) -> str:
+        """As every scene's, but ``unknown`` (never a guessed class) when the worker sends no contact facts, or
+        when the object lies where the task counts it yet the episode did not succeed (RoboCasa also wants the
+        gripper 0.25 m away: released, not misplaced, and no mode names that)."""
+        mode = super().failure_mode(success)
+        if mode == "none" or self._trace is None or self._t == 0:
+            return mode
+        if not self.has_progress or (mode == "misplaced" and self._facts().get("placed")):
+            return "unknown"
+        return mode
 
     def _observation(self) -> Observation:
         last = self._last or {}

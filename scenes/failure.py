@@ -13,6 +13,7 @@ as far as the simulator state can tell them apart:
 | ``dropped`` | the object was lifted, then left the fingers while the gripper was still commanded closed (slip) |
 | ``misplaced`` | the object was lifted and released (gripper commanded open) somewhere the task does not count |
 | ``timeout_holding`` | the step limit came while the fingers still touched the object after lifting it |
+| ``unknown`` | the scene cannot tell (no contact signals for this task, e.g. RoboCasa's fixture tasks) |
 | ``error`` | the episode crashed (policy, server or simulator); set by the engine, not by the trace |
 
 The same trace gives the ordinal **progress** score (``progress``; ``indgen_vla.progress.STAGES``): the highest
@@ -29,7 +30,8 @@ stage whose predicate held at some control step, with the same predicates at eve
 
 So progress 0 is ``no_contact``, 1-2 is ``no_grasp`` and 3-4 is ``dropped``/``misplaced``/``timeout_holding``.
 The goal region is the family's (``SceneEnv._over_goal``); a family without one has no stage 4, and a family
-without contact signals (the external families) has no progress at all (None, stored as missing).
+or task without contact signals (an external family whose worker sends no facts: RoboCasa's fixture tasks) has no
+progress at all (None, stored as missing) and fails as ``unknown``.
 """
 
 from __future__ import annotations

@@ -111,7 +111,7 @@ def resolve_scene_plan(
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
-    tasks = sc.select_tasks(task)
+    tasks = sc.select_tasks(task, axes)  # on RoboCasa365 "all" is the axes' own task list (appendix B)
     overrides = load_preset(preset) if preset else None
     overridden = step is not None or preset is not None
     successors, specs, planned = {}, {}, {}

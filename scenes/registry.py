@@ -163,8 +163,9 @@ class Scene:
             raise UnknownNameError(f"task of scene {self.name}", task, list(self.tasks))
         return task
 
-    def select_tasks(self, task: str | None) -> list[str]:
-        """The tasks a run covers: the default for None/"", every task for "all", else the one named."""
+    def select_tasks(self, task: str | None, axes: Sequence[str] = ()) -> list[str]:
+        """The tasks a run along ``axes`` covers: the default for None/"", every task for "all", else the one
+        named (a family whose axes run on their own task lists narrows "all" to them: RoboCasa365)."""
         tasks = list(self.tasks)
         if task in (None, ""):
             return tasks[:1]

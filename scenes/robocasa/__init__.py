@@ -42,6 +42,19 @@ AXIS_TASKS: dict[str, tuple[str, ...]] = {
 # kitchen_pick_place.py: PickPlaceCounterToCabinet/-ToDrawer, size=(0.60, 0.30)), levels 0..4 stay inside it; a
 # task with a narrower region refuses the levels that would leave it, in one line (scenes/robocasa/backend.py).
 AXIS_OVERRIDES = {"horizon": {"max_level": 3}, "pick_x": {"step": 0.12, "max_level": 4}}
+# RoboCasa's own canonical kitchens (robocasa/utils/env_utils.py KITCHEN_SCENES_5X5 and _5X1: the (layout, style)
+# pairs its evaluation uses), the black-box regime's canonical configurations (appendix B, Definition 3): the task
+# ``PickPlaceCounterToCabinet@11-34`` runs in layout 11, style 34; ``Task@5x5`` / ``Task@5x1`` name every kitchen
+# of a set (``all@5x5``: every task of the axis in each). A plain task draws its kitchen from the episode's seed.
+KITCHEN_SETS: dict[str, tuple[tuple[int, int], ...]] = {
+    "5x5": tuple((layout, style) for layout in (11, 15, 18, 40, 50) for style in (14, 28, 34, 46, 58)),
+    "5x1": tuple((layout, 34) for layout in (11, 15, 18, 40, 50)),
+}
+# appendix B: RoboCasa's training data is broad, so T0 is empirical (Definition 3) and condition 2 (strictly harder
+# levels) is validated post hoc: success must fall monotonically with k (the report's monotone test)
+BLACK_BOX = "black-box"
+# the canonical layouts an appendix-B task's class excludes (its EXCLUDE_LAYOUTS; no EXCLUDE_STYLES meets the sets)
+EXCLUDED_KITCHENS: dict[str, frozenset[int]] = {"PickPlaceFridgeDrawerToShelf": frozenset({18})}
 PICK_JITTER = 0.02  # T0's pick window on pick_x: +-2 cm in x (backend.PICK_JITTER): condition 2 sees it
 
 PANDA_OMRON = EnvSpec(
@@ -127,6 +140,27 @@ def privileged_state(raw: dict):
     )  # fmt: skip
 
 
+def split_task(task: str) -> tuple[str, tuple[int, int] | None]:
+    """``"Task@L-S"`` -> ("Task", (L, S)); a plain task -> (task, None). One line when the kitchen is not one of
+    RoboCasa's canonical kitchens (``KITCHEN_SETS["5x5"]``)."""
+    name, sep, kitchen = task.partition("@")
+    if not sep:
+        return task, None
+    try:
+        pair = tuple(int(v) for v in kitchen.split("-"))
+    except ValueError:
+        pair = ()
+    if pair not in KITCHEN_SETS["5x5"]:
+        layouts = sorted({lay for lay, _ in KITCHEN_SETS["5x5"]})
+        styles = sorted({sty for _, sty in KITCHEN_SETS["5x5"]})
+        raise ConfigError(
+            f"task {task}: '@{kitchen}' is not one of RoboCasa's canonical kitchens (KITCHEN_SCENES_5X5: layouts "
+            f"{', '.join(map(str, layouts))} x styles {', '.join(map(str, styles))}); write {name}@LAYOUT-STYLE "
+            f"from those, or {name}@5x5 / {name}@5x1 for a whole set"
+        )
+    return name, pair  # type: ignore[return-value]
+
+
 def _python() -> Path:
     from scenes.robocasa.environment import find_python
 
@@ -148,7 +182,8 @@ class RoboCasa(Scene):
     drawer, blender and stand mixer; the stand-mixer head, the electric kettle and the toaster-oven door.
 
     **Randomizations:**
-    - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses)
+    - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses);
+      ``Task@L-S`` pins one of RoboCasa's canonical kitchens (``KITCHEN_SETS``: the black-box regime's configurations)
     - along the axes: the pick object's placement window moved in x (``pick_x``), the robot base moved back from
       T0's pose (``horizon``, alias ``base_y``), the task's appliance slid along its own x with the robot base kept
       at T0's pose (``fixture_x``), one more object in the cabinet (``clutter``); everything else stays at T0's
@@ -172,6 +207,14 @@ class RoboCasa(Scene):
     preload: ClassVar[tuple[str, ...]] = ()
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
     oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
+
+    def resolve_task(self, task: str | None) -> str:
+        """A task name, or ``Task@L-S``: that task in one of RoboCasa's canonical kitchens (``KITCHEN_SETS``)."""
+        if task is None or "@" not in task:
+            return super().resolve_task(task)
+        name, _ = split_task(task)
+        super().resolve_task(name)
+        return task
 
     def base(self, task: str) -> RoboCasaSpec:
         return RoboCasaSpec(task=self.resolve_task(task))
@@ -219,9 +262,62 @@ class RoboCasa(Scene):
         kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
         return f"{venv}; kitchen assets {kind} ({assets})"
 
+    def select_tasks(self, task: str | None, axes=()) -> list[str]:
+        """``all``: the tasks on every axis of the run (appendix B's lists, ``AXIS_TASKS``), None their first; a
+        named task must be on each axis's list (one line naming the list)."""
+        from scenes.axes import resolve_alias
+
+        if task and "@" in task:  # canonical kitchens: each task (or the axes' list for all@) in each kitchen
+            name, _, kitchen = task.partition("@")
+            names = self.select_tasks(name, axes)
+            if kitchen in KITCHEN_SETS:
+                return [f"{n}@{lay}-{sty}" for n in names for lay, sty in KITCHEN_SETS[kitchen]
+                        if lay not in EXCLUDED_KITCHENS.get(n, ())]  # fmt: skip
+            lay = split_task(task)[1][0]  # one line when it is not a canonical kitchen
+            for n in names:
+                if lay in EXCLUDED_KITCHENS.get(n, ()):
+                    raise ConfigError(
+                        f"task {n}@{kitchen}: RoboCasa's {n} excludes layout {lay}; pick another kitchen"
+                    )
+            return [f"{n}@{kitchen}" for n in names]
+        lists = [AXIS_TASKS[p] for a in axes for p in map(resolve_alias, a.split("+")) if p in AXIS_TASKS]
+        if task not in (None, "", "all") or not lists:
+            tasks = super().select_tasks(task)
+            for a in axes:
+                self.check_axis_task(tasks[0], a)
+            return tasks
+        shared = [t for t in lists[0] if all(t in ts for ts in lists[1:])]
+        if not shared:
+            raise ConfigError(
+                f"scene robocasa: axes {', '.join(axes)} share no task (appendix B gives each its own list); run "
+                "them one at a time (--config robocasa_pick, robocasa_fixture, robocasa_horizon, robocasa_clutter)"
+            )
+        return shared if task == "all" else shared[:1]
+
+    def protocol_facts(self) -> dict:
+        """RoboCasa's own reset as initial states, the kitchen asset tree's identity (real or placeholders), and
+        the black-box regime (appendix B): T0 is empirical, condition 2 validated post hoc (``indgen reference``
+        and the report's monotone test)."""
+        from scenes.libero.assets import tree_identity
+        from scenes.robocasa.environment import find_assets, is_placeholder
+
+        assets = find_assets()
+        return {
+            **super().protocol_facts(),
+            "initial_states": "RoboCasa's own reset from each episode's seed (layout, style, objects); levels "
+            "replay T0's ep_meta with one field moved",
+            "assets": {
+                "root": str(assets),
+                "placeholders": is_placeholder(assets),
+                "listing_sha256": tree_identity(assets),
+            },  # fmt: skip
+            "regime": BLACK_BOX,
+        }
+
     def check_axis_task(self, task: str, axis: str) -> None:
         from scenes.axes import resolve_alias
 
+        task = split_task(task)[0]
         for part in axis.split("+"):
             part = resolve_alias(part)
             if task not in AXIS_TASKS.get(part, ()):
@@ -237,8 +333,12 @@ class RoboCasa(Scene):
         self.check_axis_task(task, successor.axis.name)
         spec = spec_at_level(self.base(task), successor, level)
         parts = {resolve_alias(p) for p in successor.axis.name.split("+")}
+        name, kitchen = split_task(task)
         return {
-            "task": task,
+            "task": name,
+            # a canonical kitchen (KITCHEN_SETS): RoboCasa's layout_ids / style_ids; None: drawn from the seed
+            "layout_ids": None if kitchen is None else [kitchen[0]],
+            "style_ids": None if kitchen is None else [kitchen[1]],
             "cameras": list(cameras),
             "image_size": tuple(image_size),
             "edits": {

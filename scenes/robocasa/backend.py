@@ -33,24 +33,19 @@ FIXTURE_KEY = (
 _T0: dict[tuple, dict] = {}
 
 
-def versions() -> dict:
-    import mujoco
-    import robocasa
-    import robosuite
+def _load_facts():
+    """``worker_facts.py`` beside this file, by path: the worker's sys.path has no ``scenes`` package."""
+    import importlib.util
 
-    try:
-        from importlib.metadata import version
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "worker_facts.py")
+    spec = importlib.util.spec_from_file_location("indgen_robocasa_worker_facts", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
-        dist = version("rlinf-robocasa365")
-    except Exception:
-        dist = "?"
-    return {
-        "robocasa": getattr(robocasa, "__version__", "?"),
-        "robocasa_dist": f"rlinf-robocasa365 {dist}",
-        "robosuite": robosuite.__version__,
-        "mujoco": mujoco.__version__,
-        "numpy": np.__version__,
-    }
+
+_facts = _load_facts()
+versions, failure_facts, check_kitchen = _facts.versions, _facts.failure_facts, _facts.check_kitchen
 
 
 def _yaw(quat_wxyz) -> float:
@@ -367,12 +362,13 @@ class RoboCasaLevel:
             pins, shift = self._pins(t0, meta, edits)
             raw = self._reset(seed, meta, pins, t0["made"], shift)
         self.meta = self.env.get_ep_meta()
-        return self._obs(raw)
+        return {**self._obs(raw), "facts": failure_facts(self.env)}
 
     def step(self, action) -> dict:
         raw, _, _, _ = self.env.step(_flat_action(self.env, action))
         obs = self._obs(raw)
         obs["success"] = bool(self.env._check_success())
+        obs["facts"] = failure_facts(self.env, action)
         return obs
 
     def _obs(self, raw: dict) -> dict:
@@ -442,4 +438,5 @@ def build(config: dict) -> RoboCasaLevel:
     os.environ.setdefault("MUJOCO_GL", "egl")
     if config.get("assets"):
         os.environ["ROBOCASA_ASSETS_PATH"] = config["assets"]
+    check_kitchen(config)
     return RoboCasaLevel(config)

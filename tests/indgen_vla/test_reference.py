@@ -76,3 +76,41 @@ def test_reference_bad_inputs(tmp_path, capsys):
     assert main(["reference", str(a.path), "--task", "nope"]) == 2
     assert "--task nope" in capsys.readouterr().err
     assert main(["reference", str(tmp_path / "missing")]) == 2
+
+
+def test_reference_level_restricts_t0_to_the_canonical_configurations(tmp_path, capsys):
+    """--level 0: T0 is the canonical configuration (here two RoboCasa kitchens of one task) with the best level-0
+    success, even where a perturbed level scores higher; the ordering is tested over T0's kitchen's levels."""
+    runs = []
+    for name, regime in (("a", "gr00t"), ("b", "pi05")):
+        run = RunDir.create_or_resume(
+            tmp_path / name, {"plan": {"x": 1}, "data_regime": regime, "policy": "p"}
+        )
+        cells = {
+            ("T@11-34", 0): 6,
+            ("T@11-34", 1): 10,
+            ("T@15-34", 0): 8,
+            ("T@15-34", 1): 5,
+            ("T@15-34", 2): 2,
+        }
+        run.append(
+            [
+                rec(k, i, success=i < s, task=t, axis="base_y")
+                for (t, k), s in cells.items()
+                for i in range(10)
+            ]
+        )
+        runs.append(run)
+    out = tmp_path / "ref"
+    assert main(["reference", *(str(r.path) for r in runs), "--level", "0", "--out", str(out)]) == 0
+    res = json.loads((out / "reference.json").read_text())
+    assert res["reference"]["task"] == "T@15-34" and res["reference"]["level"] == 0
+    assert res["candidate_level"] == 0 and {c["level"] for c in res["configurations"]} == {0}
+    levels = [r["level"] for r in res["ordering"]["gr00t / p"]["levels"]]
+    assert levels == [0, 1, 2] and "level-0 configurations only" in (out / "reference.md").read_text()
+    # without --level the perturbed cell (T@11-34, level 1: 10/10) would have been T0
+    assert main(["reference", *(str(r.path) for r in runs), "--out", str(tmp_path / "ref2")]) == 0
+    assert json.loads((tmp_path / "ref2" / "reference.json").read_text())["reference"]["task"] == "T@11-34"
+    capsys.readouterr()
+    assert main(["reference", str(runs[0].path), "--level", "5"]) != 0
+    assert "--level 5: no run evaluated level 5" in capsys.readouterr().err

@@ -172,3 +172,25 @@ def test_verdicts_kstar_status_and_break_point(tmp_path):
     assert bp["param"] == pytest.approx(0.025 * bp["level"], rel=1e-6)
     md = render_markdown([("x", s)], "t")
     assert "k\\* status" in md and "k* ∈ [+2, +3]" in md and "break point (S = γ)" in md
+
+
+def test_a_black_box_run_shows_condition_2_validated_next_to_kstar(tmp_path):
+    """Appendix B: where the scene family says T0 is empirical (protocol regime "black-box", RoboCasa365), the
+    report says per direction whether the monotone test validates the ordering; a vanilla run shows no such row."""
+    from indgen_vla.metrics import monotone_decreasing_test
+
+    levels = {-2: (2, 10), -1: (6, 10), 0: (10, 10), 1: (10, 10), 2: (9, 10)}
+    vanilla = make_run(tmp_path / "v", levels)
+    s = summarize(vanilla.episodes(), vanilla.manifest)
+    assert s["axes"]["pick_y"]["regime"] == "vanilla" and s["axes"]["pick_y"]["condition2"] is None
+    assert "condition 2" not in render_markdown([("run", s)])
+    manifest = {**vanilla.manifest, "resolved": {"environment": {"protocol": {"regime": "black-box"}}}}
+    s = summarize(vanilla.episodes(), manifest)
+    c = s["axes"]["pick_y"]["condition2"]
+    p_neg = monotone_decreasing_test([10, 6, 2], [10, 10, 10]).p_decreasing
+    assert c["directions"]["neg"] == {"p": pytest.approx(p_neg), "validated": True}  # 10 -> 6 -> 2 of 10
+    assert c["directions"]["pos"]["validated"] is False  # 10, 10, 9 of 10: not shown to be harder
+    row = next(
+        line for line in render_markdown([("run", s)]).splitlines() if line.startswith("| condition 2")
+    )
+    assert "−: validated (monotone decrease" in row and "+: NOT validated" in row

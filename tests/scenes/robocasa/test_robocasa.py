@@ -23,22 +23,6 @@ needs_venv = pytest.mark.skipif(
 )
 
 
-@pytest.fixture(scope="module")
-def placeholders(tmp_path_factory):
-    """A fresh placeholder tree, pointed at by INDGEN_ROBOCASA_ASSETS for the module."""
-    from scenes.robocasa.placeholders import write_placeholders
-
-    root = tmp_path_factory.mktemp("robocasa_assets")
-    write_placeholders(root)
-    saved = os.environ.get("INDGEN_ROBOCASA_ASSETS")
-    os.environ["INDGEN_ROBOCASA_ASSETS"] = str(root)
-    yield root
-    if saved is None:
-        os.environ.pop("INDGEN_ROBOCASA_ASSETS", None)
-    else:
-        os.environ["INDGEN_ROBOCASA_ASSETS"] = saved
-
-
 def test_base_y_is_the_horizon_axis_and_task_lists_are_checked():
     import scenes
     from scenes.registry import get_scene
@@ -257,6 +241,9 @@ def test_a_worker_that_dies_mid_episode_is_an_episode_error_then_restarts(placeh
     try:
         env.reset(seed=3)
         env.step(np.zeros(12))
+        f = env._facts()  # the worker's failure facts (MuJoCo contacts; more in test_protocol.py)
+        assert env.has_progress and f["touching"] is False and f["gripper_closed"] is False
+        assert env.failure_mode(False) == "no_contact" and env.progress(False) == 0  # honestly: never touched
         env.kill_worker()
         with pytest.raises(
             WorkerDied, match=r"robocasa/PickPlaceCounterToCabinet axis horizon level 0: .*died"
@@ -363,6 +350,9 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
         ok, steps = run_oracle_episode(env, policy, seed=1)
         assert ok and steps < 150
         assert env.privileged_state().bddl_success
+        assert (
+            env.failure_mode(False) == "unknown" and env.progress(False) is None
+        )  # no pick object, no facts
     finally:
         env.close()
 

@@ -1,0 +1,108 @@
+"""What RoboCasa's worker reports besides observations: the environment's versions and RoboCasa release (for the
+manifest), the per-step failure facts (for ``scenes/failure.py`` over the pipe) and the canonical-kitchen check.
+
+Runs in RoboCasa's venv, loaded by ``backend.py`` by path; imports only the standard library and numpy at module
+level (RoboCasa inside the functions), so our own venv's tests import it as ``scenes.robocasa.worker_facts``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# What each distribution that ships the ``robocasa`` package is (the manifest records which one a run used: the
+# releases differ in more than the version number, e.g. v1.0.1 made the task horizons 1.5x longer than v1.0.0)
+RELEASES = {
+    "rlinf-robocasa365": "upstream RoboCasa v1.0.1 (be22d659) plus a ROBOCASA_ASSETS_PATH override",
+    "praxis-robocasa": "upstream RoboCasa v1.0.0 (before v1.0.1's 1.5x longer horizons), no assets override",
+    "robocasa": "RoboCasa from its own repository (a source install: the version alone names the release)",
+}
+
+
+def distribution_of(package: str, dists: dict | None = None, version=None) -> str:
+    """'<distribution> <version>' of what installed ``package`` ('?' when no distribution claims it)."""
+    from importlib import metadata
+
+    dists = metadata.packages_distributions() if dists is None else dists
+    version = version or metadata.version
+    return ", ".join(f"{d} {version(d)}" for d in sorted(set(dists.get(package, ())))) or "?"
+
+
+def robocasa_release(dist: str) -> str:
+    """Which RoboCasa release ``dist`` (``distribution_of("robocasa")``) is, in words."""
+    names = [d.split(" ")[0] for d in dist.split(", ") if d != "?"]
+    if len(names) != 1:
+        return f"ambiguous: {dist} ship robocasa" if names else "unknown (no distribution claims robocasa)"
+    return RELEASES.get(names[0].lower(), f"{names[0]}: not a release indgen knows; see its own notes")
+
+
+def versions() -> dict:
+    import mujoco
+    import robocasa
+    import robosuite
+
+    dist = distribution_of("robocasa")
+    return {
+        "robocasa": getattr(robocasa, "__version__", "?"),
+        "robocasa_dist": dist,
+        "robocasa_release": robocasa_release(dist),
+        "robosuite": robosuite.__version__,
+        "robosuite_dist": distribution_of("robosuite"),
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+    }
+
+
+GRIPPER_INDEX = 6  # the gripper's entry of the 12-d action (convert_action: action[6:7] is "gripper_close")
+
+
+def failure_facts(env, action=None) -> dict:
+    """What the failure trace and the progress score read each step (``scenes/failure.py``), from MuJoCo's state.
+
+    ``touching``: a geom of the gripper in contact with the pick object (robosuite's ``check_contact`` over
+    MuJoCo's contact list); ``bottom``: the object's lowest z; ``placed``: RoboCasa's own success predicate with
+    ``OU.gripper_obj_far`` taken as true (the object is where the task wants it, whether or not the gripper has
+    let go); ``gripper_closed``: the last action commanded the gripper closed (> 0, robosuite's convention).
+    Empty when the task has no pick object named "obj" (fixture tasks, CheesyBread): its failures are then
+    ``unknown`` and its progress missing, never a guessed class.
+    """
+    if "obj" not in getattr(env, "objects", {}):
+        return {}
+    import robocasa.utils.object_utils as OU
+
+    obj, robot = env.objects["obj"], env.robots[0]
+    far = OU.gripper_obj_far
+    OU.gripper_obj_far = lambda *a, **k: (
+        True
+    )  # the task modules call it through the module (OU.gripper_obj_far)
+    try:
+        placed = bool(env._check_success())
+    finally:
+        OU.gripper_obj_far = far
+    out = {
+        "touching": bool(env.check_contact(robot.gripper["right"], obj)),
+        "bottom": float(env.sim.data.body_xpos[env.obj_body_id["obj"]][2] + obj.bottom_offset[2]),
+        "placed": placed,
+    }
+    if action is not None:
+        out["gripper_closed"] = bool(np.asarray(action, dtype=np.float64)[GRIPPER_INDEX] > 0)
+    return out
+
+
+def check_kitchen(config: dict) -> None:
+    """One line when the task's class excludes the pinned kitchen (RoboCasa's ``EXCLUDE_LAYOUTS`` /
+    ``EXCLUDE_STYLES``, e.g. PickPlaceFridgeDrawerToShelf has no layout 18), before RoboCasa fails on an empty
+    kitchen list."""
+    if not config.get("layout_ids"):
+        return
+    import robocasa  # noqa: F401  (registers the kitchen tasks)
+    from robosuite.environments.base import REGISTERED_ENVS
+
+    cls = REGISTERED_ENVS[config["task"]]
+    for ids, excluded, what in ((config["layout_ids"], cls.EXCLUDE_LAYOUTS, "layout"),
+                                (config.get("style_ids") or (), cls.EXCLUDE_STYLES, "style")):  # fmt: skip
+        bad = sorted(set(ids) & set(excluded))
+        if bad:
+            raise ValueError(
+                f"RoboCasa's {config['task']} excludes {what} {bad[0]} ({cls.__name__}.EXCLUDE_{what.upper()}S): "
+                "drop that kitchen from the run"
+            )
