@@ -5,40 +5,13 @@ records it. The mapping itself is covered by the fast tests/policy_wrappers/test
 from __future__ import annotations
 
 import json
-import os
 
 import pytest
 
 from tests.fixtures.tiny_policies import build_tiny_checkpoint
+from tests.scenes.robocasa.test_robocasa import needs_venv
 
 CAMS = ("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand")
-
-
-def _python():
-    from scenes.robocasa.environment import find_python
-
-    return find_python(required=False)
-
-
-needs_venv = pytest.mark.skipif(
-    _python() is None, reason="RoboCasa venv missing: run 'make robocasa' (indgen setup robocasa, ~1 min)"
-)
-
-
-@pytest.fixture(scope="module")
-def placeholders(tmp_path_factory):
-    """A fresh placeholder tree, pointed at by INDGEN_ROBOCASA_ASSETS for the module."""
-    from scenes.robocasa.placeholders import write_placeholders
-
-    root = tmp_path_factory.mktemp("robocasa_assets")
-    write_placeholders(root)
-    saved = os.environ.get("INDGEN_ROBOCASA_ASSETS")
-    os.environ["INDGEN_ROBOCASA_ASSETS"] = str(root)
-    yield root
-    if saved is None:
-        os.environ.pop("INDGEN_ROBOCASA_ASSETS", None)
-    else:
-        os.environ["INDGEN_ROBOCASA_ASSETS"] = saved
 
 
 @needs_venv
