@@ -608,8 +608,8 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
     return out
 
 
-WORKER_PARTS = (  # (label, function name, file suffix): cumulative CPU inside these calls of one worker
-    ("physics (mj_step)", "mj_step", ""),
+WORKER_PARTS = (  # (label, function name, file suffix): cumulative CPU inside the outermost such call of one worker
+    ("physics (scenes/sim.py step: controller + mj_step)", "step", "scenes/sim.py"),
     ("render (camera update + render + read)", "_render", "env.py"),
     ("reply pickling (pipe send)", "_dumps", "local.py"),
 )
@@ -640,7 +640,7 @@ def profile_worker(scene: str, episodes: int, max_steps: int, size: int, replan:
     _dumps(runner.reset(jobs[0]))  # warm-up: scene build, first render
     out: dict = {"worker_scene": scene, "worker_cameras": list(cameras), "worker_size": size, "replan": replan,
                  "worker_episodes": len(jobs), "worker_max_steps": max_steps}  # fmt: skip
-    for _label, prof in (("plain", None), ("cprofile", cProfile.Profile(time.process_time))):
+    for prof in (None, cProfile.Profile(time.process_time)):  # plain, then profiled
         steps, c0 = 0, time.process_time()
         if prof is not None:
             prof.enable()
@@ -659,13 +659,17 @@ def profile_worker(scene: str, episodes: int, max_steps: int, size: int, replan:
                         "worker_ms_per_step": round(1000 * cpu / steps, 3)})  # fmt: skip
             continue
         stats = pstats.Stats(prof).stats
-        parts = {name: round(1000 * sum(v[3] for k, v in stats.items() if k[2] == func and k[0].endswith(suffix))
-                             / steps, 4) for name, func, suffix in WORKER_PARTS}  # fmt: skip
+        parts = {name: round(1000 * max([v[3] for k, v in stats.items() if k[2] == func and k[0].endswith(suffix)],
+                                        default=0.0) / steps, 4) for name, func, suffix in WORKER_PARTS}  # fmt: skip
         parts["total (profiled)"] = round(1000 * sum(v[2] for v in stats.values()) / steps, 4)
+        parts["rest (resets, observation assembly, bookkeeping)"] = round(
+            parts["total (profiled)"] - sum(parts[name] for name, _, _ in WORKER_PARTS), 4
+        )
         out["worker_profile_ms_per_step"] = parts
         top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:15]
-        out["worker_top_own_ms_per_step"] = {
-            f"{Path(k[0]).name}:{k[1]}({k[2]})": round(1000 * v[2] / steps, 4) for k, v in top
+        out["worker_top_own_ms_per_step"] = {  # name: [ms per control step, calls per control step]
+            f"{Path(k[0]).name}:{k[1]}({k[2]})": [round(1000 * v[2] / steps, 4), round(v[1] / steps, 2)]
+            for k, v in top
         }
     runner.close()
     return out
