@@ -539,13 +539,14 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
             or f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview', 'wrist'), size=size)}"
         )
         policy = load_policy(spec_str, device=device)
-        forward = {"s": 0.0}
+        forward = {"s": 0.0, "calls": 0}
         inner = getattr(policy, "policy", None)
         if inner is not None and hasattr(inner, "predict_action_chunk"):
             real = inner.predict_action_chunk
 
             def timed(*a, **k):
                 t0 = time.process_time()
+                forward["calls"] += 1
                 if forward.get("prof") is not None:  # the profile covers the coordinator, not the model
                     forward["prof"].disable()
                 try:
@@ -571,7 +572,7 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
                 run.append([r])
                 records.append(r)
 
-            forward["s"], forward["prof"] = 0.0, prof
+            forward["s"], forward["prof"], forward["calls"] = 0.0, prof, 0
             t0, c0 = time.perf_counter(), time.process_time()
             if prof is not None:
                 prof.enable()
@@ -587,7 +588,9 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
                 out.update({"coordinator_cpu_s": round(cpu - forward["s"], 3), "forward_cpu_s": round(forward["s"], 3),
                             "control_steps": steps, "wall_s": round(wall, 2),
                             "coordinator_ms_per_step": round(1000 * (cpu - forward["s"]) / steps, 4),
-                            "coordinator_ms_per_act": round(1000 * (cpu - forward["s"]) / acts, 3)})  # fmt: skip
+                            "coordinator_ms_per_act": round(1000 * (cpu - forward["s"]) / acts, 3),
+                            "forward_calls": forward["calls"],  # batched rounds that reached the model
+                            "forward_ms_per_call": round(1000 * forward["s"] / max(1, forward["calls"]), 2)})  # fmt: skip
                 continue
             stats = pstats.Stats(prof).stats  # (file, line, name) -> (cc, nc, tt, ct, callers)
             parts = {}
