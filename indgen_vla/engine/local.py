@@ -215,9 +215,8 @@ def run_local(
             policies.shutdown()
         for w in pool:
             w.close()
-        for p in (
-            policies.items if policies is not None and close_policies else ()
-        ):  # the caller may keep them
+        # the caller may keep the policies for its next call (close_policies=False)
+        for p in policies.items if policies is not None and close_policies else []:
             close = getattr(p, "close", None)
             if close is not None:
                 try:
