@@ -198,11 +198,10 @@ def run_local(
         return
     lanes = LANES if pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
-    ctx = _context(runner_cfg.levels.preload)
     pool: list = []
     policies: Policies | None = None
     try:
-        pool = _start_pool(ctx, runner_cfg, n, lanes)
+        pool = _start_pool(runner_cfg, n, lanes)
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
         slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None))
@@ -225,11 +224,12 @@ def run_local(
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
 
 
-def _start_pool(ctx, runner_cfg: RunnerConfig, n: int, lanes: int) -> list:
-    """``n`` worker processes (one in-process worker when W = 1 and unpipelined), rendering on the GPUs
-    round-robin when there are several."""
+def _start_pool(runner_cfg: RunnerConfig, n: int, lanes: int) -> list:
+    """``n`` worker processes forked from the fork server (one in-process worker, and no fork server, when
+    W = 1 and unpipelined), rendering on the GPUs round-robin when there are several."""
     if n == 1 and lanes == 1:
         return [_InProcessWorker(runner_cfg)]
+    ctx = _context(runner_cfg.levels.preload)
     render_threads = max(1, (os.cpu_count() or 1) // n)
     gpus = egl_devices()
     return [_ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None) for w in range(n)]
