@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import time
 from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -25,6 +26,11 @@ COLUMNS = (
 # columns added after the first release: older run dirs read with this default (progress: missing, never 0)
 OPTIONAL = {"failure": "", "progress": None}
 KEY = ("task", "axis", "level", "episode")
+# episodes.parquet is rewritten whole per append up to FLUSH_EVERY_ROWS rows; past that (the cost grows with the
+# run: 150 ms CPU per rewrite at 20,000 rows) at most FLUSH_SHARE of the wall time goes into rewriting it, so a
+# long run's coordinator is not spent on Parquet (docs/benchmarks.md, issue 28)
+FLUSH_EVERY_ROWS = 256
+FLUSH_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -128,13 +134,18 @@ def _schema():
 class RunDir:
     """A run directory; every write is atomic, so a SIGKILL never corrupts what was already written.
 
-    ``episodes.parquet`` is rewritten whole through a temp file and ``os.replace`` after each append:
-    readers always see a complete Parquet file with one row per finished episode.
+    ``episodes.parquet`` is rewritten whole through a temp file and ``os.replace`` after each append while a
+    run has up to ``FLUSH_EVERY_ROWS`` rows, later at most every ``cost / FLUSH_SHARE`` seconds, and by ``flush()``
+    (``evaluate`` calls it when its episodes end or stop): readers always see a complete Parquet file with one
+    row per finished episode; a SIGKILL of a long run loses at most the last few seconds of episodes, which the
+    resume re-runs from their seeds (the same records).
     """
 
     def __init__(self, path: str | os.PathLike[str]):
         self.path = Path(path)
         self._rows: dict[tuple[str, str, int, int], dict[str, Any]] | None = None
+        self._pending = False  # rows appended but not yet in episodes.parquet
+        self._flush_cost, self._flushed_at = 0.0, 0.0
 
     # ----------------------------------------------------------------- creation / opening
     @classmethod
@@ -240,7 +251,17 @@ class RunDir:
                     f"episode {rec.key} is already recorded in {self.path}; refusing to duplicate it"
                 )
             rows[rec.key] = asdict(rec)
-        self._flush()
+        self._pending = True
+        if (
+            len(rows) <= FLUSH_EVERY_ROWS
+            or time.monotonic() - self._flushed_at >= self._flush_cost / FLUSH_SHARE
+        ):
+            self._flush()
+
+    def flush(self) -> None:
+        """Write the appended rows that ``append`` deferred (a no-op when there are none)."""
+        if self._pending:
+            self._flush()
 
     def update_manifest(self, **fields: Any) -> None:
         """Add top-level fields to manifest.json (atomic); the ``plan`` a resume matches is never changed here."""
@@ -265,12 +286,15 @@ class RunDir:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
+        t0 = time.monotonic()
         rows = self._load()
         ordered = [rows[k] for k in sorted(rows, key=lambda k: (k[1], k[0], k[2], k[3]))]
         table = pa.Table.from_pylist(ordered, schema=_schema())
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
         _atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
+        self._pending, self._flushed_at = False, time.monotonic()
+        self._flush_cost = self._flushed_at - t0
 
     def episodes(self):
         """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""

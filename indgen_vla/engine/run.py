@@ -295,6 +295,7 @@ def _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, met
             else:
                 run_jobs(todo)
         finally:
+            run.flush()  # the rows a long run's append deferred (records.FLUSH_SHARE)
             for p in made:  # the ray backend loads its own policies in its actors
                 p.close()
 

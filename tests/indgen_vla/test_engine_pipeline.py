@@ -82,7 +82,7 @@ def test_batched_act_is_padded_to_the_worker_count():
     environment gets its own row (a per-env policy is never padded)."""
     from types import SimpleNamespace
 
-    from indgen_vla.engine.local import _act
+    from indgen_vla.engine.batching import act as _act
 
     sizes = []
 

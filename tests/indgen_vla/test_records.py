@@ -36,6 +36,25 @@ def test_append_and_resume(tmp_path):
         again.append([rec(0, 0)])
 
 
+def test_costly_rewrites_are_deferred_until_flush(tmp_path, monkeypatch):
+    """Once a rewrite of episodes.parquet is costly (a long run), appends within the throttle window stay in
+    memory (the run sees them) and ``flush()`` writes them; cheap rewrites happen per append (above)."""
+    import indgen_vla.records as records
+
+    monkeypatch.setattr(records, "FLUSH_EVERY_ROWS", 0)  # every run counts as long
+    monkeypatch.setattr(records, "FLUSH_SHARE", 1e-9)  # and the window after one is long
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])  # the first append is written (no rewrite yet to wait after)
+    run.append([rec(0, 1)])
+    assert len(pd.read_parquet(tmp_path / "run" / EPISODES)) == 1 and len(run.episodes()) == 2
+    assert run.done_keys() == {("t", "pick_y", 0, 0), ("t", "pick_y", 0, 1)}
+    run.flush()
+    assert len(pd.read_parquet(tmp_path / "run" / EPISODES)) == 2
+    mtime = (tmp_path / "run" / EPISODES).stat().st_mtime_ns
+    run.flush()  # nothing pending: no rewrite
+    assert (tmp_path / "run" / EPISODES).stat().st_mtime_ns == mtime
+
+
 def test_manifest_mismatch_refused(tmp_path):
     RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5}})
     with pytest.raises(RunDirError, match="different plan .*episodes"):
