@@ -28,9 +28,11 @@ OPTIONAL = {"failure": "", "progress": None}
 KEY = ("task", "axis", "level", "episode")
 # episodes.parquet is rewritten whole per append up to FLUSH_EVERY_ROWS rows; past that (the cost grows with the
 # run: 150 ms CPU per rewrite at 20,000 rows) at most FLUSH_SHARE of the wall time goes into rewriting it, so a
-# long run's coordinator is not spent on Parquet (docs/benchmarks.md, issue 28)
+# long run's coordinator is not spent on Parquet (docs/benchmarks.md, issue 28). Every appended row first goes to
+# JOURNAL (one JSON line, O(1)), which a flush empties: a SIGKILL between rewrites loses no finished episode.
 FLUSH_EVERY_ROWS = 256
 FLUSH_SHARE = 0.05
+JOURNAL = ".episodes.journal"
 
 
 @dataclass(frozen=True)
@@ -137,8 +139,10 @@ class RunDir:
     ``episodes.parquet`` is rewritten whole through a temp file and ``os.replace`` after each append while a
     run has up to ``FLUSH_EVERY_ROWS`` rows, later at most every ``cost / FLUSH_SHARE`` seconds, and by ``flush()``
     (``evaluate`` calls it when its episodes end or stop): readers always see a complete Parquet file with one
-    row per finished episode; a SIGKILL of a long run loses at most the last few seconds of episodes, which the
-    resume re-runs from their seeds (the same records).
+    row per finished episode. Each append is first written to ``JOURNAL`` (one JSON line per row) and every
+    rewrite empties it, so a run SIGKILLed between rewrites resumes with every finished episode: ``RunDir``
+    replays the journal over the Parquet rows in order (the last line of a key wins; a torn last line is the
+    write the kill interrupted and is dropped).
     """
 
     def __init__(self, path: str | os.PathLike[str]):
@@ -165,6 +169,11 @@ class RunDir:
             stale.unlink(missing_ok=True)
         for stale in run.path.glob(".*.json.*"):
             stale.unlink(missing_ok=True)
+        journal = run.path / JOURNAL
+        if journal.exists():  # a write a kill cut short ends without a newline: drop it before appending more
+            data = journal.read_bytes()
+            if data and not data.endswith(b"\n"):
+                os.truncate(journal, data.rfind(b"\n") + 1)
         mpath = run.path / MANIFEST
         if mpath.exists():
             old = run.manifest
@@ -232,7 +241,33 @@ class RunDir:
                 for row in table.select([c for c in COLUMNS if c in table.column_names]).to_pylist():
                     row = {**OPTIONAL, **row}
                     self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
+            self._replay_journal()
         return self._rows
+
+    def _replay_journal(self) -> None:
+        """Rows appended after the last rewrite of episodes.parquet (a run killed before its next rewrite)."""
+        journal = self.path / JOURNAL
+        if not journal.exists():
+            return
+        replayed = False
+        for line in journal.read_bytes().splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # the line a kill cut short (create_or_resume trims it): never reported finished
+            row = {**OPTIONAL, **{c: row[c] for c in COLUMNS if c in row}}
+            self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
+            replayed = True
+        self._pending = replayed
+
+    def _journal(self, rows: list[dict[str, Any]]) -> None:
+        """Append rows to the journal in one write (O(1) per episode, unlike a Parquet rewrite)."""
+        data = b"".join(json.dumps(r, separators=(",", ":")).encode() + b"\n" for r in rows)
+        fd = os.open(self.path / JOURNAL, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        try:
+            os.write(fd, data)
+        finally:
+            os.close(fd)
 
     def done_keys(self, include_errors: bool = False) -> set[tuple[str, str, int, int]]:
         """Keys ``(task, axis, level, episode)`` already finished; error rows are retried unless asked."""
@@ -251,6 +286,7 @@ class RunDir:
                     f"episode {rec.key} is already recorded in {self.path}; refusing to duplicate it"
                 )
             rows[rec.key] = asdict(rec)
+        self._journal([rows[rec.key] for rec in new])
         self._pending = True
         if (
             len(rows) <= FLUSH_EVERY_ROWS
@@ -279,6 +315,7 @@ class RunDir:
                     f"episode {rec.key} appears twice; refusing to write {self.path / EPISODES}"
                 )
             rows[rec.key] = asdict(rec)
+        (self.path / JOURNAL).unlink(missing_ok=True)  # the source of truth is elsewhere: nothing to replay
         self._rows = rows
         self._flush()
 
@@ -293,6 +330,9 @@ class RunDir:
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
         _atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
+        (self.path / JOURNAL).unlink(
+            missing_ok=True
+        )  # after the rewrite: a kill between the two replays rows
         self._pending, self._flushed_at = False, time.monotonic()
         self._flush_cost = self._flushed_at - t0
 

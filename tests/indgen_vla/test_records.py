@@ -115,7 +115,7 @@ def test_sigkill_never_corrupts(tmp_path):
         assert sorted(df["episode"]) == list(range(len(df)))
     assert len(df) > 0
     RunDir.create_or_resume(tmp_path, {"plan": {}})  # resuming sweeps temp files a kill left behind
-    assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".") and p != ".episodes.journal"]
 
 
 def test_run_dir_from_before_the_failure_column_still_reads_and_resumes(tmp_path):
@@ -142,3 +142,27 @@ def test_progress_column_round_trips_and_is_validated(tmp_path):
     for bad in (6, -1, True, 2.5):
         with pytest.raises(ValueError, match="progress must be an integer 0..5"):
             type(r)(**{**r.__dict__, "progress": bad})
+
+
+def test_a_kill_between_deferred_rewrites_loses_no_episode(tmp_path, monkeypatch):
+    """Deferred rows are journalled first: a run killed before its next rewrite (no flush) resumes with every
+    finished episode, an error row later replaced stays replaced, and a torn last journal line is dropped."""
+    import indgen_vla.records as records
+
+    monkeypatch.setattr(records, "FLUSH_EVERY_ROWS", 0)
+    monkeypatch.setattr(records, "FLUSH_SHARE", 1e-9)
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])  # written to episodes.parquet
+    run.append([rec(0, 1, status="error")])  # deferred: only in the journal
+    run.append([rec(0, 1), rec(1, 0)])  # the retry replaces the error row; still deferred
+    assert len(pd.read_parquet(tmp_path / "run" / EPISODES)) == 1
+    with open(tmp_path / "run" / records.JOURNAL, "ab") as f:
+        f.write(b'{"run_id":"r","task":"t"')  # the kill cut this write short
+    del run  # SIGKILL: no flush
+    resumed = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    assert resumed.done_keys() == {("t", "pick_y", 0, 0), ("t", "pick_y", 0, 1), ("t", "pick_y", 1, 0)}
+    resumed.append([rec(2, 0)])  # appends after the trimmed line are read back
+    assert len(RunDir.open(tmp_path / "run").episodes()) == 4
+    resumed.flush()
+    assert len(pd.read_parquet(tmp_path / "run" / EPISODES)) == 4
+    assert not (tmp_path / "run" / records.JOURNAL).exists()
