@@ -144,8 +144,12 @@ class LeRobotPolicy:
 
     def _load(self) -> None:
         import torch
-        from lerobot.configs.policies import PreTrainedConfig
-        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        from policy_wrappers.lerobot_import import one_package_scan
+
+        with one_package_scan():  # transformers and diffusers would each scan the installed packages
+            from lerobot.configs.policies import PreTrainedConfig
+            from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 
         path, rev = self.config.path, self.config.revision
         local = Path(path).expanduser()

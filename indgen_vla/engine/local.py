@@ -162,6 +162,19 @@ def _context(preload: Sequence[str]):
     return ctx
 
 
+def worker_processes(n_jobs: int, workers: int, pipeline: bool) -> int:
+    """How many worker processes ``run_local`` starts for ``n_jobs`` episodes (0: it steps the one environment
+    in this process)."""
+    n = max(1, min(workers, n_jobs))
+    return 0 if n == 1 and not (pipeline and n_jobs > n) else n
+
+
+def start_forkserver(preload: Sequence[str]) -> None:
+    """Start the workers' forkserver now, so its preload (the simulator's imports) runs while this process does
+    something else, e.g. load the policy; ``run_local`` then forks its workers from it at once."""
+    _context(preload)
+
+
 def egl_devices() -> int:
     """GPUs visible to this process (``CUDA_VISIBLE_DEVICES``, else /dev/nvidiaN), 0 without any; no CUDA import."""
     visible = os.environ.get("CUDA_VISIBLE_DEVICES")
@@ -219,7 +232,10 @@ def run_local(
         return
     lanes = LANES if pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
-    ctx = _context(runner_cfg.levels.preload)
+    in_process = worker_processes(len(jobs), workers, pipeline) == 0
+    ctx = (
+        None if in_process else _context(runner_cfg.levels.preload)
+    )  # one env here: no forkserver to wait on
     pool: list = []
     policies: list = []
     threads: ThreadPoolExecutor | None = None
@@ -230,7 +246,7 @@ def run_local(
         gpus = egl_devices()
         pool = (
             [_InProcessWorker(runner_cfg)]
-            if n == 1 and lanes == 1
+            if in_process
             else [
                 _ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None)
                 for w in range(n)
