@@ -1,16 +1,65 @@
-"""Importing lerobot for a policy, with the package-map scan it triggers done once instead of twice.
+"""Importing lerobot for one policy without importing every policy lerobot ships (start-up of ``indgen evaluate``).
 
-lerobot's policy modules import transformers and diffusers, and each of them calls
-``importlib.metadata.packages_distributions()`` at import time: a walk over every installed package's RECORD
-(0.5-1.4 s on a 2-core machine with torch's and NVIDIA's large ones). Inside ``one_package_scan()`` the second
-call gets a copy of the first's answer; nothing is installed or removed in between, so both see the same map.
+``lerobot/policies/__init__.py`` (lerobot 0.6.1) imports the configuration of all ~20 policies, and several of those
+subpackages import their models with them (EO1's transformers model, FastWAM's diffusers VAE, X-VLA's and GR00T's
+processors): about a fifth of the time a tiny ACT takes to load. ``policy_package(type)`` imports only
+``lerobot.policies.<type>`` (which registers its config with lerobot's ``PreTrainedConfig`` choice registry) under
+a ``lerobot.policies`` package whose own ``__init__`` runs on the first attribute it is asked for that it lacks, so
+``from lerobot.policies import SmolVLAConfig`` later in the process still works exactly as before.
+
+Separately, transformers and diffusers each call ``importlib.metadata.packages_distributions()`` when imported (a
+walk over every installed package's RECORD; 0.5-1.4 s on a 2-core machine); inside ``one_package_scan()`` the
+second call gets a copy of the first's answer (nothing is installed or removed in between).
 """
 
 from __future__ import annotations
 
 import contextlib
+import importlib
 import importlib.metadata
+import importlib.util
+import sys
+import threading
 from collections.abc import Iterator
+
+PACKAGE = "lerobot.policies"
+_lock = threading.Lock()
+
+
+def _lazy_package():
+    """``lerobot.policies`` as a package whose ``__init__`` has not run yet; it runs, once, on the first
+    attribute lookup that misses (a name it exports, ``__all__``), never for a submodule import."""
+    spec = importlib.util.find_spec(PACKAGE)
+    module = importlib.util.module_from_spec(spec)
+
+    def __getattr__(name: str):  # noqa: N807 (PEP 562 module hook)
+        if name.startswith("__") and name != "__all__":
+            raise AttributeError(name)
+        with _lock:
+            if module.__dict__.pop("__getattr__", None) is not None:  # first miss: run the real __init__ now
+                spec.loader.exec_module(module)
+        return getattr(module, name)
+
+    module.__getattr__ = __getattr__
+    return module
+
+
+def policy_package(policy_type: str | None) -> None:
+    """Import ``lerobot.policies.<policy_type>`` (registering its config) without the rest of
+    ``lerobot.policies``; an unknown type (a plugin) or None imports all of ``lerobot.policies`` as usual."""
+    with _lock:
+        if PACKAGE not in sys.modules:
+            sys.modules[PACKAGE] = _lazy_package()
+            sys.modules["lerobot"].policies = sys.modules[PACKAGE]  # what the import system sets on a parent
+    package = sys.modules[PACKAGE]
+    if policy_type and policy_type.isidentifier():
+        try:
+            importlib.import_module(f"{PACKAGE}.{policy_type}")
+            return
+        except ModuleNotFoundError as e:
+            if e.name != f"{PACKAGE}.{policy_type}":
+                raise
+    getattr(package, "__all__", None)  # not one of lerobot's own subpackages: the whole package, as before
 
 
 @contextlib.contextmanager
