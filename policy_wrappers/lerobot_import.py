@@ -21,45 +21,59 @@ import importlib.util
 import sys
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 
 PACKAGE = "lerobot.policies"
-_lock = threading.Lock()
+_lock = threading.RLock()  # a package's __init__ may ask a name of another lazy package
 
 
-def _lazy_package():
-    """``lerobot.policies`` as a package whose ``__init__`` has not run yet; it runs, once, on the first
-    attribute lookup that misses (a name it exports, ``__all__``), never for a submodule import."""
-    spec = importlib.util.find_spec(PACKAGE)
+def _lazy_package(name: str):
+    """Package ``name`` with its ``__init__`` not run yet; it runs, once, on the first attribute lookup that
+    misses (a name it exports, ``__all__``), never for a submodule import."""
+    spec = importlib.util.find_spec(name)
     module = importlib.util.module_from_spec(spec)
 
-    def __getattr__(name: str):  # noqa: N807 (PEP 562 module hook)
-        if name.startswith("__") and name != "__all__":
-            raise AttributeError(name)
+    def __getattr__(attr: str):  # noqa: N807 (PEP 562 module hook)
+        if attr.startswith("__") and attr != "__all__":
+            raise AttributeError(attr)
         with _lock:
             if module.__dict__.pop("__getattr__", None) is not None:  # first miss: run the real __init__ now
                 spec.loader.exec_module(module)
-        return getattr(module, name)
+        return getattr(module, attr)
 
     module.__getattr__ = __getattr__
     return module
 
 
+def _install() -> None:
+    """``lerobot.policies`` and each of its subpackages as lazy packages (what the import system would set)."""
+    package = sys.modules[PACKAGE] = _lazy_package(PACKAGE)
+    sys.modules["lerobot"].policies = package
+    for entry in sorted(Path(package.__path__[0]).iterdir()):
+        name = f"{PACKAGE}.{entry.name}"
+        if (entry / "__init__.py").is_file() and entry.name.isidentifier() and name not in sys.modules:
+            sys.modules[name] = _lazy_package(name)  # e.g. lerobot.policies.groot: only the modules asked for
+            setattr(package, entry.name, sys.modules[name])
+
+
 def policy_package(policy_type: str | None) -> None:
-    """Import ``lerobot.policies.<policy_type>`` (registering its config) without the rest of
-    ``lerobot.policies``; an unknown type (a plugin) or None imports all of ``lerobot.policies`` as usual."""
+    """Import ``lerobot.policies.<policy_type>`` (registering its config, as its ``__init__`` does) without the
+    other policies: lerobot's ``factory`` imports GR00T's and EVO1's configuration modules but no longer their
+    packages (GR00T's imports ``lerobot.datasets``). An unknown type (a plugin) or None imports all of
+    ``lerobot.policies`` as usual."""
     with _lock:
         if PACKAGE not in sys.modules:
-            sys.modules[PACKAGE] = _lazy_package()
-            sys.modules["lerobot"].policies = sys.modules[PACKAGE]  # what the import system sets on a parent
-    package = sys.modules[PACKAGE]
+            _install()
     if policy_type and policy_type.isidentifier():
         try:
-            importlib.import_module(f"{PACKAGE}.{policy_type}")
-            return
+            module = importlib.import_module(f"{PACKAGE}.{policy_type}")
         except ModuleNotFoundError as e:
             if e.name != f"{PACKAGE}.{policy_type}":
                 raise
-    getattr(package, "__all__", None)  # not one of lerobot's own subpackages: the whole package, as before
+        else:
+            getattr(module, "__all__", None)  # its own __init__ runs now if it was still lazy
+            return
+    getattr(sys.modules[PACKAGE], "__all__", None)  # not one of lerobot's subpackages: the whole package
 
 
 @contextlib.contextmanager

@@ -19,11 +19,14 @@ CHILD = """
 import sys
 from policy_wrappers.registry import load_policy
 policy = load_policy("lerobot:" + sys.argv[1], scene="pick_place")
-print("others:", sorted(m for m in ("lerobot.policies.eo1", "lerobot.policies.fastwam", "lerobot.policies.xvla",
-                                    "lerobot.policies.smolvla") if m in sys.modules))
+OTHERS = ("lerobot.policies.eo1.modeling_eo1", "lerobot.policies.fastwam.modeling_fastwam",
+          "lerobot.policies.groot.processor_groot", "lerobot.policies.smolvla.modeling_smolvla", "datasets")
+print("others:", sorted(m for m in OTHERS if m in sys.modules))
 from lerobot.policies import SmolVLAConfig, get_policy_class  # the package's own __init__ runs now
 import lerobot.policies
-print("after:", SmolVLAConfig.__name__, get_policy_class("act").__name__, "ACTConfig" in lerobot.policies.__all__)
+from lerobot.policies.groot import GrootPolicy  # and a subpackage's on its first name
+print("after:", SmolVLAConfig.__name__, get_policy_class("act").__name__, "ACTConfig" in lerobot.policies.__all__,
+      GrootPolicy.__name__, "lerobot.policies.groot.processor_groot" in sys.modules)
 """
 
 
@@ -35,7 +38,7 @@ def test_act_loads_without_the_other_policies_and_the_package_still_works():  # 
                          cwd=ROOT, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     assert "others: []" in out.stdout
-    assert "after: SmolVLAConfig ACTPolicy True" in out.stdout
+    assert "after: SmolVLAConfig ACTPolicy True GrootPolicy True" in out.stdout
 
 
 def test_one_package_scan_scans_once_and_restores(monkeypatch):
