@@ -232,10 +232,8 @@ def run_local(
         return
     lanes = LANES if pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
-    in_process = worker_processes(len(jobs), workers, pipeline) == 0
-    ctx = (
-        None if in_process else _context(runner_cfg.levels.preload)
-    )  # one env here: no forkserver to wait on
+    in_process = worker_processes(len(jobs), workers, pipeline) == 0  # one env here: no forkserver to wait on
+    ctx = None if in_process else _context(runner_cfg.levels.preload)
     pool: list = []
     policies: list = []
     threads: ThreadPoolExecutor | None = None

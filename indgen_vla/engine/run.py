@@ -169,9 +169,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             env_spec=getattr(plan.builder, "env_spec", None), **extra,
         )  # fmt: skip
 
-    def prestart(
-        n_jobs: int,
-    ) -> None:  # the workers' forkserver preloads the simulator while the policy loads
+    def prestart(n_jobs: int) -> None:
+        """Start the workers' forkserver (if the run uses worker processes): it preloads while the policy loads."""
         if cfg.backend == "local":
             from indgen_vla.engine.local import start_forkserver, worker_processes
 
