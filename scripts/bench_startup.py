@@ -6,7 +6,7 @@ seconds: a part nested in another counts only in the inner one), plus the interp
 the parent sees them. The machine is shared, so it reports the min and the median over ``--repeats`` runs and the
 1-minute load average at each run's start. Prints one JSON object on its last line (docs/benchmarks.md, "Start-up").
 
-    .venv/bin/python scripts/bench_startup.py [--repeats 5] [--policy SPEC] [--workers N] [--cold]
+    .venv/bin/python scripts/bench_startup.py [--repeats 5] [--policy SPEC] [--workers N]
 """
 
 from __future__ import annotations
@@ -101,15 +101,13 @@ sys.stdout.flush()
 """
 
 
-def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path, cold: bool) -> dict:
+def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path) -> dict:
     """One evaluate of checkout ``root`` in a fresh interpreter: {part: seconds} with interpreter start, exit
     and total, and CPU seconds (``cpu_*``)."""
     out_dir.mkdir(parents=True)
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "HF_HUB_OFFLINE": "1",
            "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep),
            "BENCH_PARTS": json.dumps(PARTS), "BENCH_OUT": str(out_dir / "parts.json")}  # fmt: skip
-    if cold:
-        env["PYTHONDONTWRITEBYTECODE"] = "1"
     cmd = [sys.executable, "-c", CHILD, "evaluate", "--policy", policy, "--scene", "pick_place", "--axis", "pick_y",
            "--levels", "0", "--episodes", str(episodes), "--max-steps", "1", "--workers", str(workers),
            "--out", str(out_dir / "run")]  # fmt: skip
@@ -155,7 +153,6 @@ def main() -> None:
     ap.add_argument("--policy", default=None, help="policy spec (default: the checkout's shipped tiny ACT)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--episodes", type=int, default=1)
-    ap.add_argument("--cold", action="store_true", help="no bytecode writes (the OS file cache stays warm)")
     ap.add_argument("--compare", metavar="CHECKOUT", default=None,
                     help="another checkout (e.g. a worktree of the previous commit): runs alternate between the "
                     "two, so both see the same load")  # fmt: skip
@@ -164,22 +161,14 @@ def main() -> None:
     runs: dict[str, list[dict]] = {name: [] for name in roots}
     with tempfile.TemporaryDirectory() as tmp:
         for name, root in roots.items():  # caches, .pyc, page cache
-            one_run(
-                root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"warmup-{name}", a.cold
-            )
+            one_run(root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"warmup-{name}")
         for i in range(a.repeats):
             for name, root in roots.items():
-                runs[name].append(
-                    one_run(
-                        root,
-                        a.policy or shipped(root),
-                        a.workers,
-                        a.episodes,
-                        Path(tmp) / f"{name}{i}",
-                        a.cold,
-                    )
+                row = one_run(
+                    root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"{name}{i}"
                 )
-                print(json.dumps({"checkout": name, **runs[name][-1]}), flush=True)
+                runs[name].append(row)
+                print(json.dumps({"checkout": name, **row}), flush=True)
     out = {
         "bench": "startup", "machine": f"{platform.node()} {platform.machine()} {os.cpu_count()} cores",
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "policy": a.policy or "shipped tiny ACT",
