@@ -7,6 +7,7 @@ returning an exit code, so ``indgen --help`` never imports torch, robosuite or l
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import re
@@ -323,6 +324,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``indgen`` console script. Exit codes (README "Exit codes"): 0 success, 1 an
     unexpected crash, 2 bad input (``IndgenError``), 3 ``evaluate`` finished with ``error`` episodes, 4 it
     stopped early because the policy server stayed unreachable, 130 Ctrl-C."""
+    try:
+        return _main(argv)
+    finally:
+        if argv is None:  # the console script: the interpreter exits next
+            # its shutdown would garbage-collect every object torch/lerobot/transformers made, several times
+            # (seconds after a LeRobot policy, docs/benchmarks.md "Start-up"). Frozen, they are left to the OS;
+            # atexit handlers still run, and every file of the run is closed by now.
+            gc.freeze()
+
+
+def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)

@@ -160,8 +160,8 @@ class LeRobotPolicy:
 
     def _load(self) -> None:
         import torch
-        from lerobot.configs.policies import PreTrainedConfig
-        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        from policy_wrappers.lerobot_import import one_package_scan, policy_package
 
         path, rev = self.config.path, self.config.revision
         local = Path(path).expanduser()
@@ -177,6 +177,10 @@ class LeRobotPolicy:
                 f"policy {self._name}: no such checkpoint directory {path!r} (and it is not a Hub "
                 "id of the form org/name)"
             )
+        with one_package_scan():  # import only this policy's lerobot subpackage (start-up; lerobot_import.py)
+            policy_package(_local_type(local) if local.exists() else None)
+            from lerobot.configs.policies import PreTrainedConfig
+            from lerobot.policies.factory import get_policy_class, make_pre_post_processors
         try:
             cfg = PreTrainedConfig.from_pretrained(path, revision=rev)
         except Exception as e:
@@ -450,6 +454,17 @@ def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
     except Exception:
         return False
     return any(registry_name in (step.get("registry_name"), step.get("class")) for step in steps)
+
+
+def _local_type(local: Path) -> str | None:
+    """The policy type a local checkpoint's config.json names (None when unreadable: lerobot reports it)."""
+    import json
+
+    try:
+        kind = json.loads((local / "config.json").read_text()).get("type")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return kind if isinstance(kind, str) else None
 
 
 def _offline() -> bool:

@@ -158,6 +158,19 @@ def _context(preload: Sequence[str]):
     return ctx
 
 
+def worker_processes(n_jobs: int, workers: int, pipeline: bool) -> int:
+    """How many worker processes ``run_local`` starts for ``n_jobs`` episodes (0: it steps the one environment
+    in this process)."""
+    n = max(1, min(workers, n_jobs))
+    return 0 if n == 1 and not (pipeline and n_jobs > n) else n
+
+
+def start_forkserver(preload: Sequence[str]) -> None:
+    """Start the workers' forkserver now, so its preload (the simulator's imports) runs while this process does
+    something else, e.g. load the policy; ``run_local`` then forks its workers from it at once."""
+    _context(preload)
+
+
 def egl_devices() -> int:
     """GPUs visible to this process (``CUDA_VISIBLE_DEVICES``, else /dev/nvidiaN), 0 without any; no CUDA import."""
     visible = os.environ.get("CUDA_VISIBLE_DEVICES")
@@ -227,7 +240,7 @@ def run_local(
 def _start_pool(runner_cfg: RunnerConfig, n: int, lanes: int) -> list:
     """``n`` worker processes forked from the fork server (one in-process worker, and no fork server, when
     W = 1 and unpipelined), rendering on the GPUs round-robin when there are several."""
-    if n == 1 and lanes == 1:
+    if n == 1 and lanes == 1:  # worker_processes(...) == 0
         return [_InProcessWorker(runner_cfg)]
     ctx = _context(runner_cfg.levels.preload)
     render_threads = max(1, (os.cpu_count() or 1) // n)

@@ -169,8 +169,17 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             env_spec=getattr(plan.builder, "env_spec", None), **extra,
         )  # fmt: skip
 
+    def prestart(n_jobs: int) -> None:
+        """Start the workers' forkserver (if the run uses worker processes): it preloads while the policy loads."""
+        if cfg.backend == "local":
+            from indgen_vla.engine.local import start_forkserver, worker_processes
+
+            if worker_processes(n_jobs, cfg.workers, cfg.pipeline):
+                start_forkserver(plan.builder.preload)
+
     probe = None
     if not (out / "manifest.json").exists():  # a new run: refuse a policy that does not fit before writing
+        prestart(len(plan.jobs))
         probe = make_policy()
         check_policy_contract(cfg, plan, probe)
     run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
@@ -183,6 +192,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         todo = [j for j in plan.jobs if j.key not in done]
     if todo:
         if probe is None:
+            prestart(len(todo))
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
         spec = probe.spec

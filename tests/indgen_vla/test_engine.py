@@ -164,3 +164,17 @@ def test_config_from_yaml_and_flags(tmp_path):
     preset.write_text("episods: 3\n")
     with pytest.raises(ConfigError, match="did you mean episodes"):
         config_from_args(argparse.Namespace(config=str(preset)))
+
+
+def test_one_unpipelined_env_runs_in_process_without_a_forkserver():
+    """Start-up: a single env steps in this process, so nothing starts (or waits for) a forkserver; a pipelined
+    worker with more jobs than workers needs its second lane, so it is a process."""
+    from indgen_vla.engine.local import worker_processes
+
+    assert worker_processes(1, 8, False) == 0 and worker_processes(5, 1, False) == 0
+    assert worker_processes(1, 1, True) == 0  # one job: no second lane to pipeline
+    assert (
+        worker_processes(3, 1, True) == 1
+        and worker_processes(3, 2, False) == 2
+        and worker_processes(9, 4, True) == 4
+    )

@@ -42,6 +42,21 @@ def test_cis_match_scipy(k, n):
     assert clopper_pearson_ci(k, n) == pytest.approx((e.low, e.high), abs=1e-12)
 
 
+def test_normal_quantiles_are_scipy_stats_norm_bit_for_bit():
+    # metrics uses scipy.special's ndtri/ndtr instead of importing scipy.stats (~1 s at start-up); reports
+    # must not change by one bit (scipy/stats/_continuous_distns.py: norm._ppf = ndtri, _cdf = ndtr, _sf(x) = ndtr(-x))
+    from scipy.stats import norm
+
+    from indgen_vla.metrics import _z
+
+    for conf in (0.5, 0.8, 0.9, 0.95, 0.99, 0.999):
+        assert _z(conf) == float(norm.ppf(0.5 + conf / 2))
+    for x in ([9, 5, 1], [3, 5, 4], [1, 4, 9], [10, 0, 10]):
+        t = cochran_armitage([0, 1, 2], x, [10, 10, 10])
+        assert t.p_decreasing == float(norm.cdf(t.statistic))
+        assert t.p_two_sided == float(2 * norm.sf(abs(t.statistic)))
+
+
 def test_clopper_pearson_edges_hand():
     # 0/10: upper = 1 - 0.025**(1/10) = 0.30850
     lo, hi = clopper_pearson_ci(0, 10)

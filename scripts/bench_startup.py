@@ -1,0 +1,183 @@
+"""Start-up of ``indgen evaluate``: one 1-step episode of the shipped tiny ACT, split into its parts.
+
+Each repeat runs ``indgen evaluate --policy lerobot:checkpoints/act_pick_place_human --scene pick_place --axis
+pick_y --levels 0 --episodes 1 --max-steps 1`` in a fresh process whose functions are wrapped by timers (exclusive
+seconds: a part nested in another counts only in the inner one), plus the interpreter start and the process exit as
+the parent sees them. The machine is shared, so it reports the min and the median over ``--repeats`` runs and the
+1-minute load average at each run's start. Prints one JSON object on its last line (docs/benchmarks.md, "Start-up").
+
+    .venv/bin/python scripts/bench_startup.py [--repeats 5] [--policy SPEC] [--workers N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def shipped(root: Path) -> str:
+    """The shipped tiny ACT of checkout ``root``."""
+    return f"lerobot:{root / 'checkpoints' / 'act_pick_place_human'}"
+
+
+# (part, module, attribute): attribute is "func" or "Class.method"; wrapped in the child before the CLI runs
+PARTS = (
+    ("plan", "indgen_vla.engine.run", "build_plan"),
+    ("policy_load", "policy_wrappers.registry", "load_policy"),
+    ("manifest", "indgen_vla.engine.run", "build_manifest"),
+    ("run_dir_create", "indgen_vla.records", "RunDir.create_or_resume"),
+    ("fingerprint", "indgen_vla.engine.run", "_fingerprint"),
+    ("forkserver", "indgen_vla.engine.local", "_context"),
+    ("scene_build", "indgen_vla.engine.rollout", "EnvRunner._env_for"),
+    ("scene_reset", "indgen_vla.engine.rollout", "EnvRunner.reset"),
+    ("steps", "indgen_vla.engine.rollout", "EnvRunner.execute"),
+    ("act", "indgen_vla.engine.local", "_act"),
+    ("records", "indgen_vla.records", "RunDir.append"),
+    ("rollout_other", "indgen_vla.engine.local", "run_local"),
+    ("report", "indgen_vla.report", "write_run_report"),
+    ("tables", "indgen_vla.report", "print_tables"),
+)
+
+CHILD = r"""
+import importlib, json, os, sys, time
+T0 = time.time()
+parts, stack = {}, []
+
+cpu = {}
+
+def wrap(name, fn):
+    def timed(*a, **k):
+        t, c = time.perf_counter(), time.process_time()
+        stack.append([0.0, 0.0])
+        try:
+            return fn(*a, **k)
+        finally:
+            inner = stack.pop()
+            dt, dc = time.perf_counter() - t, time.process_time() - c
+            parts[name] = parts.get(name, 0.0) + dt - inner[0]
+            cpu[name] = cpu.get(name, 0.0) + dc - inner[1]
+            if stack:
+                stack[-1][0] += dt
+                stack[-1][1] += dc
+    return timed
+
+t = time.perf_counter()
+import indgen_vla.cli as cli
+import indgen_vla.engine  # what cli._resolve imports first
+import indgen_vla.engine.cli
+parts["cli_import"] = time.perf_counter() - t
+for name, module, attr in json.loads(os.environ["BENCH_PARTS"]):
+    try:
+        mod = importlib.import_module(module)
+    except ImportError:
+        continue
+    owner, _, leaf = attr.rpartition(".")
+    obj = getattr(mod, owner) if owner else mod
+    raw = vars(obj).get(leaf)
+    if isinstance(raw, (classmethod, staticmethod)):
+        setattr(obj, leaf, type(raw)(wrap(name, raw.__func__)))
+    elif raw is not None:
+        setattr(obj, leaf, wrap(name, raw))
+parts["bench_wrap"] = time.perf_counter() - t - parts["cli_import"]
+t = time.perf_counter()
+sys.argv = ["indgen", *sys.argv[1:]]
+rc = cli.main()  # as the console script calls it
+parts["main_total"] = time.perf_counter() - t
+with open(os.environ["BENCH_OUT"], "w") as f:
+    json.dump({"parts": parts, "cpu": cpu, "cpu_main_process": time.process_time(), "t_start": T0,
+               "t_main_end": time.time(), "rc": rc}, f)
+sys.stdout.flush()
+"""
+
+
+def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path) -> dict:
+    """One evaluate of checkout ``root`` in a fresh interpreter: {part: seconds} with interpreter start, exit
+    and total, and CPU seconds (``cpu_*``)."""
+    out_dir.mkdir(parents=True)
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "HF_HUB_OFFLINE": "1",
+           "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep),
+           "BENCH_PARTS": json.dumps(PARTS), "BENCH_OUT": str(out_dir / "parts.json")}  # fmt: skip
+    cmd = [sys.executable, "-c", CHILD, "evaluate", "--policy", policy, "--scene", "pick_place", "--axis", "pick_y",
+           "--levels", "0", "--episodes", str(episodes), "--max-steps", "1", "--workers", str(workers),
+           "--out", str(out_dir / "run")]  # fmt: skip
+    load = os.getloadavg()[0]
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_before = usage.ru_utime + usage.ru_stime
+    t0 = time.time()
+    proc = subprocess.run(cmd, env=env, cwd=root, capture_output=True, text=True)
+    t_end = time.time()
+    if proc.returncode != 0:
+        sys.exit(f"bench run failed (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+    child = json.loads((out_dir / "parts.json").read_text())
+    parts = dict(child["parts"])
+    parts["interpreter_start"] = child["t_start"] - t0
+    parts["exit"] = t_end - child["t_main_end"]
+    parts["main_other"] = parts.pop("main_total") - sum(
+        v for k, v in child["parts"].items() if k not in ("main_total", "cli_import", "bench_wrap")
+    )
+    parts["total"] = t_end - t0
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    parts["cpu_reaped_children"] = usage.ru_utime + usage.ru_stime - cpu_before
+    parts["cpu_main_process"] = child["cpu_main_process"]
+    parts.update({f"cpu_{k}": v for k, v in child["cpu"].items()})
+    return {"load_avg": load, **{k: round(v, 3) for k, v in parts.items()}}
+
+
+def summarize(runs: list[dict]) -> dict:
+    """Min and median of every part over the repeats (parts ordered by their median, largest first)."""
+    keys = [k for k in runs[0] if k != "load_avg"]
+    order = sorted(keys, key=lambda k: -statistics.median(r.get(k, 0.0) for r in runs))
+    return {
+        "total_min_s": min(r["total"] for r in runs),
+        "total_median_s": round(statistics.median(r["total"] for r in runs), 3),
+        "load_avg": [round(r["load_avg"], 2) for r in runs],
+        "parts_min_s": {k: min(r.get(k, 0.0) for r in runs) for k in order},
+        "parts_median_s": {k: round(statistics.median(r.get(k, 0.0) for r in runs), 3) for k in order},
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--policy", default=None, help="policy spec (default: the checkout's shipped tiny ACT)")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--episodes", type=int, default=1)
+    ap.add_argument("--compare", metavar="CHECKOUT", default=None,
+                    help="another checkout (e.g. a worktree of the previous commit): runs alternate between the "
+                    "two, so both see the same load")  # fmt: skip
+    a = ap.parse_args()
+    roots = {"this": ROOT, **({"other": Path(a.compare).resolve()} if a.compare else {})}
+    runs: dict[str, list[dict]] = {name: [] for name in roots}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, root in roots.items():  # caches, .pyc, page cache
+            one_run(root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"warmup-{name}")
+        for i in range(a.repeats):
+            for name, root in roots.items():
+                row = one_run(
+                    root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"{name}{i}"
+                )
+                runs[name].append(row)
+                print(json.dumps({"checkout": name, **row}), flush=True)
+    out = {
+        "bench": "startup", "machine": f"{platform.node()} {platform.machine()} {os.cpu_count()} cores",
+        "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "policy": a.policy or "shipped tiny ACT",
+        "workers": a.workers, "episodes": a.episodes, "repeats": a.repeats,
+        **summarize(runs["this"]),
+        **({"other": {"checkout": str(roots["other"]), **summarize(runs["other"])}} if a.compare else {}),
+    }  # fmt: skip
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
