@@ -72,8 +72,12 @@ def compile_forward(policy, mode: str, device: str, who: str) -> str:
             "set it false in config.json or drop compile="
         )
     import torch
+    import torch._inductor.config as inductor_config
 
     cache_dir()
+    # flow-matching noise is drawn inside sample_actions: inductor's own RNG would draw other numbers than eager
+    # for the same seed (a compiled run would not reproduce an eager one); eager's RNG ops keep them equal
+    inductor_config.fallback_random = True
     obj, name = _target(policy)
     setattr(obj, name, torch.compile(getattr(obj, name), mode=mode))
     print(

@@ -13,11 +13,12 @@ pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(300)
 
 
-def test_compile_option_is_checked_wraps_the_forward_and_keeps_a_stable_cache(
+def test_compile_option_is_checked_targets_the_forward_and_keeps_a_stable_cache(
     tiny_act, tmp_path, monkeypatch
 ):
-    """Unknown modes and CUDA graphs on CPU are refused in one line; a valid mode wraps only the per-call
-    forward (lazily: nothing compiles until the first act); the cache dir is the user's, else ~/.cache/indgen."""
+    """Unknown modes and CUDA graphs on CPU are refused in one line before anything loads; the per-call forward
+    (not the training loss) is what gets wrapped; the cache dir is the user's, else ~/.cache/indgen/inductor.
+    torch.compile itself is not called here (importing inductor alone takes seconds): the slow test does."""
     with pytest.raises(
         ConfigError, match="compile must be one of off, default, reduce-overhead, max-autotune"
     ):
@@ -33,11 +34,12 @@ def test_compile_option_is_checked_wraps_the_forward_and_keeps_a_stable_cache(
     monkeypatch.setenv(pcompile.CACHE_ENV, str(tmp_path / "mine"))  # the user's own choice wins
     assert pcompile.cache_dir() == tmp_path / "mine"
 
-    policy = load_policy(f"lerobot:{tiny_act}?compile=default")
-    assert policy.config.compile == "default"
-    inner = policy.policy.model
-    assert "forward" in vars(inner) and hasattr(inner.forward, "_torchdynamo_orig_callable")
-    assert not hasattr(policy.policy.forward, "_torchdynamo_orig_callable")  # the training loss: untouched
+    policy = load_policy(f"lerobot:{tiny_act}")
+    assert pcompile._target(policy.policy) == (policy.policy.model, "forward")  # ACT's predict_action_chunk
+    assert pcompile.compile_forward(policy.policy, "off", "cpu", "act") == ""  # off: untouched
+    policy.policy.config.compile_model = True  # lerobot's own flag would compile the same method twice
+    with pytest.raises(ConfigError, match="compile_model=true"):
+        pcompile.compile_forward(policy.policy, "default", "cpu", "act")
 
 
 @pytest.mark.slow  # inductor's C++ compile on CPU takes tens of seconds; the fast test above covers the option
@@ -54,6 +56,11 @@ def test_compiled_act_matches_eager(tiny_act, tmp_path, monkeypatch, obs_factory
             want, got = eager.act(obs, pad_to=pad), compiled.act(obs, pad_to=pad)
             assert got.shape == want.shape == (rows, eager.spec.chunk_size, 7)
             assert np.allclose(got, want, atol=1e-4, rtol=1e-4), np.abs(got - want).max()
+        inner = compiled.policy.model
+        assert hasattr(inner.forward, "_torchdynamo_orig_callable")  # the per-call forward only
+        assert not hasattr(
+            compiled.policy.forward, "_torchdynamo_orig_callable"
+        )  # the training loss: untouched
         assert any((tmp_path / "inductor").rglob("*")), "inductor wrote nothing to the cache dir"
     finally:
         torch._dynamo.reset()
