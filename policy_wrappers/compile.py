@@ -75,8 +75,9 @@ def compile_forward(policy, mode: str, device: str, who: str) -> str:
     import torch._inductor.config as inductor_config
 
     cache_dir()
-    # flow-matching noise is drawn inside sample_actions: inductor's own RNG would draw other numbers than eager
-    # for the same seed (a compiled run would not reproduce an eager one); eager's RNG ops keep them equal
+    # flow-matching noise is drawn inside sample_actions: inductor's generated random kernels (Philox, on CUDA)
+    # draw other numbers than eager for the same seed; eager's RNG ops keep a seed's noise equal (on CPU the two
+    # already agree: checked 2026-11-24 for torch.normal; on CUDA test_reduced_pi05_compiled_on_cuda_matches_eager)
     inductor_config.fallback_random = True
     obj, name = _target(policy)
     setattr(obj, name, torch.compile(getattr(obj, name), mode=mode))
