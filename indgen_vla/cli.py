@@ -110,6 +110,13 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         help="bf16: autocast forward (lerobot: policies)",
     )
     p.add_argument(
+        "--compile",
+        choices=["off", "default", "reduce-overhead", "max-autotune"],
+        default=None,
+        help="torch.compile the policy's per-call forward (lerobot: policies; reduce-overhead = CUDA graphs, "
+        "needs --device cuda); the first call compiles, ~/.cache/indgen/inductor keeps it for the next run",
+    )
+    p.add_argument(
         "--pipeline",
         action=argparse.BooleanOptionalAction,
         default=None,

@@ -74,6 +74,7 @@ class LeRobotConfig:
     vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
     tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
     precision: str = "fp32"  # "bf16": the forward runs under torch.autocast(bfloat16)
+    compile: str = "off"  # torch.compile mode of the per-call forward (policy_wrappers/compile.py)
     env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
 
     @property
@@ -85,6 +86,9 @@ class LeRobotConfig:
             raise ConfigError(
                 f"lerobot {self.path}: precision must be one of {list(PRECISIONS)}, got {self.precision!r}"
             )
+        from policy_wrappers.compile import check_mode
+
+        check_mode(self.compile, self.device, f"lerobot {self.path}")
         for feature, cam in self.camera_map:
             if cam not in (*self.scene_cameras, ZEROS):
                 raise ConfigError(
@@ -121,6 +125,10 @@ class LeRobotPolicy:
         self._action_dim = spec_env.action_dim if spec_env is not None else ACTION_DIM
         self._state_dim = spec_env.state_dim if spec_env is not None else STATE_DIM
         self._load()
+        if config.compile != "off":
+            from policy_wrappers.compile import compile_forward
+
+            compile_forward(self.policy, config.compile, config.device, f"policy {name}")
         self._cams = self._resolve_cameras()
         cams = tuple(c for c in config.scene_cameras if c in {cam for _, cam, _ in self._cams})
         libero = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
@@ -480,6 +488,7 @@ OPTIONS = {  # LeRobotConfig field -> spec option
     "vlm": "vlm",
     "tokenizer": "tokenizer",
     "precision": "precision",
+    "compile": "compile",
 }
 
 
@@ -487,7 +496,7 @@ def load(
     parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", family: str = "lerobot",
     env_spec: EnvSpec | None = None,
 ):  # fmt: skip
-    """``lerobot:<hub id or dir>[?cameras=..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR&precision=bf16]``.
+    """``lerobot:<hub id or dir>[?cameras=..&flip=0|1&replan=N&revision=REV&vlm=DIR&tokenizer=DIR&precision=bf16&compile=MODE]``.
 
     LeRobot policies are plain PyTorch modules loaded from safetensors: no Hub code is executed, so
     ``trust_remote_code`` has nothing to enable here. ``env_spec``: the scene family's contract, which picks

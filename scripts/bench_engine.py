@@ -373,19 +373,36 @@ def _random_obs(spec, n: int, seed: int = 0):
                         rng.normal(size=8).astype(np.float32), "pick up the milk") for _ in range(n)]  # fmt: skip
 
 
-def model_alone(spec_str: str, batches: list[int], device: str, precision: str, seconds: float) -> dict:
+def _policy_options(precision: str, compile_mode: str) -> dict:
+    """Spec options at their non-default values (``EvalConfig.policy_options``)."""
+    return {
+        k: v for k, v, off in (("precision", precision, "fp32"), ("compile", compile_mode, "off")) if v != off
+    }
+
+
+def model_alone(spec_str: str, batches: list[int], device: str, precision: str, seconds: float,
+                compile_mode: str = "off") -> dict:  # fmt: skip
     """The policy's own ``act`` (pre-processing, forward, post-processing) on random observations: obs/s by batch
-    size, and the GPU's busy share while it runs; the ceiling an in-engine run is compared with."""
+    size, and the GPU's busy share while it runs; the ceiling an in-engine run is compared with. ``first_call_s``
+    per batch size is the warm-up call: with ``--compile`` it holds the compile (a second process reads the
+    inductor cache, ``policy_wrappers.compile.cache_dir``)."""
     from policy_wrappers.registry import load_policy
 
     t0 = time.perf_counter()
-    policy = load_policy(spec_str, device=device, **({"precision": precision} if precision != "fp32" else {}))
-    out: dict = {"model": spec_str, "device": device, "precision": precision,
+    policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
+    out: dict = {"model": spec_str, "device": device, "precision": precision, "compile": compile_mode,
                  "load_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
+    if compile_mode != "off":
+        from policy_wrappers.compile import cache_dir
+
+        out["inductor_cache"] = str(cache_dir())
+        out["inductor_cache_was_empty"] = not any(cache_dir().glob("*"))
     for b in batches:
         obs = _random_obs(policy.spec, b, seed=b)
         policy.reset(obs[0].instruction, seed=0)
-        policy.act(obs)  # warm-up (kernels, autotuning, allocator)
+        t1 = time.perf_counter()
+        policy.act(obs)  # warm-up (kernels, autotuning, allocator; the compile with --compile)
+        first = time.perf_counter() - t1
         n, t0 = 0, time.perf_counter()
         with GpuBusy() as busy:
             while n < 3 or time.perf_counter() - t0 < seconds:
@@ -393,7 +410,7 @@ def model_alone(spec_str: str, batches: list[int], device: str, precision: str, 
                 n += 1
         dt = (time.perf_counter() - t0) / n
         out[f"b{b}"] = {"ms_per_act": round(1000 * dt, 1), "obs_per_s": round(b / dt, 1), "calls": n,
-                        "gpu_busy_pct": busy.mean}  # fmt: skip
+                        "first_call_s": round(first, 2), "gpu_busy_pct": busy.mean}  # fmt: skip
     try:
         import torch
 
@@ -447,7 +464,7 @@ class Pinner:
 
 
 def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_steps: int, cameras, size: int,
-            device: str, precision: str, pin: bool = False) -> dict:  # fmt: skip
+            device: str, precision: str, pin: bool = False, compile_mode: str = "off") -> dict:  # fmt: skip
     """Engine steps/s at each worker count with cameras rendered, the policy in the main process on ``device``;
     CPU seconds of the main process (the coordinator) and the GPU's busy share per run.
 
@@ -463,8 +480,7 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     task = scenes.tasks(scene)[0]
     cfg = EvalConfig(policy=spec_str, scene=scene, axes=("pick_y",), out="-", episodes=episodes)
     jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
-    extra = {"precision": precision} if precision != "fp32" else {}
-    policy = load_policy(spec_str, device=device, **extra)
+    policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
     cams = tuple(policy.spec.cameras) or tuple(cameras)
     hw = tuple(policy.spec.image_size or (size, size))
     replan = policy.spec.replan_steps
@@ -690,6 +706,8 @@ def main() -> None:
                     help="run one part only (model: --policy alone by --batches; scaling: --workers with cameras)")  # fmt: skip
     ap.add_argument("--device", default="cpu", help="where the policy runs (model, scaling, pipeline parts)")
     ap.add_argument("--precision", default="fp32", choices=["fp32", "bf16"], help="bf16: autocast forward")
+    ap.add_argument("--compile", default="off", choices=["off", "default", "reduce-overhead", "max-autotune"],
+                    help="model/scaling parts: torch.compile the policy's forward (first_call_s holds the compile)")  # fmt: skip
     ap.add_argument("--batches", default="1,4,16,64", help="model part: batch sizes")
     ap.add_argument("--workers", default="1,2,4,8,16", help="scaling part: worker counts")
     ap.add_argument(
@@ -741,13 +759,15 @@ def main() -> None:
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
     if args.only == "model":
-        res = model_alone(args.policy, ints(args.batches), args.device, args.precision, args.seconds)
+        res = model_alone(
+            args.policy, ints(args.batches), args.device, args.precision, args.seconds, args.compile
+        )
         print(json.dumps({**head, **res}))
         return
     if args.only == "scaling":
         eps, steps = (4, 40) if args.quick else (args.episodes or 32, args.max_steps or 100)
         res = scaling(args.policy, args.scene, ints(args.workers), eps, steps, args.cameras.split(","),
-                      args.pipeline_size, args.device, args.precision, args.pin)  # fmt: skip
+                      args.pipeline_size, args.device, args.precision, args.pin, args.compile)  # fmt: skip
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
     if args.only == "gil":

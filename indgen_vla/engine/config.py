@@ -17,6 +17,7 @@ from indgen_vla.resources import config_dir
 
 DEFAULT_EPISODES = 50
 PRECISIONS = ("fp32", "bf16")
+COMPILE_MODES = ("off", "default", "reduce-overhead", "max-autotune")  # policy_wrappers/compile.py's MODES
 PRESET_DIR = config_dir("paper")
 
 
@@ -53,6 +54,7 @@ class EvalConfig:
     max_retries: int = 2
     device: str = "cpu"  # where in-process policies run: cpu, cuda, cuda:N
     precision: str = "fp32"  # "bf16": autocast forward, for policies that support it (lerobot:)
+    compile: str = "off"  # torch.compile mode of the policy's per-call forward (lerobot:), cached on disk
     server_patience: float = 600.0  # seconds a remote policy server may stay unreachable before the run stops
     adaptive: str | None = None  # "kstar" | "curve": sequential episodes per level (docs/adaptive.md)
     adaptive_delta: float = 0.1  # indifference half-width around gamma
@@ -101,10 +103,23 @@ class EvalConfig:
             raise ConfigError(f"--device must be cpu, cuda, cuda:N or mps, got {self.device!r}")
         if self.precision not in PRECISIONS:
             raise ConfigError(f"--precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
+        if self.compile not in COMPILE_MODES:
+            raise ConfigError(f"--compile must be one of {', '.join(COMPILE_MODES)}, got {self.compile!r}")
+        if self.compile == "reduce-overhead" and not self.device.startswith("cuda"):
+            raise ConfigError(
+                f"--compile reduce-overhead captures CUDA graphs and needs --device cuda (got {self.device!r}); "
+                "use --compile default on CPU"
+            )
         if not self.server_patience >= 0:
             raise ConfigError(f"--server-patience must be >= 0 seconds, got {self.server_patience}")
         if self.adaptive is not None:
             self.sequential_rule()  # validates mode and rule parameters in one clear line each
+
+    def policy_options(self) -> dict[str, str]:
+        """The spec options the run adds to ``--policy`` (only those not at their default, so families that
+        do not take them still load)."""
+        out = {"precision": self.precision} if self.precision != "fp32" else {}
+        return out | ({"compile": self.compile} if self.compile != "off" else {})
 
     def sequential_rule(self):
         """The sequential rule of an ``--adaptive`` run (its cap is ``--episodes``)."""

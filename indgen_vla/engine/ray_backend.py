@@ -240,7 +240,7 @@ def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
 
     from policy_wrappers.registry import load_policy
 
-    extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}
+    extra = cfg.policy_options()  # precision/compile, for families that take them
     return partial(load_policy, cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device,
                    scene=scene, **extra)  # fmt: skip
 

@@ -163,7 +163,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     def make_policy():
         from policy_wrappers.registry import load_policy
 
-        extra = {"precision": cfg.precision} if cfg.precision != "fp32" else {}  # families that take it
+        extra = cfg.policy_options()  # precision/compile, for families that take them
         return load_policy(
             cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene,
             env_spec=getattr(plan.builder, "env_spec", None), **extra,

@@ -1,3 +1,4 @@
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -164,7 +165,7 @@ def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
         build_plan(cfg(scene="cabinet_pick", axes=("pick_y",)))
 
 
-def test_device_and_precision_are_checked_and_recorded():
+def test_device_precision_and_compile_are_checked_and_recorded():
     from indgen_vla.engine.config import EvalConfig
     from indgen_vla.errors import ConfigError
 
@@ -175,6 +176,16 @@ def test_device_and_precision_are_checked_and_recorded():
         EvalConfig(**base, device="gpu")
     with pytest.raises(ConfigError, match="--precision"):
         EvalConfig(**base, precision="fp16")
+    cfg = EvalConfig(**base, device="cuda", precision="bf16", compile="reduce-overhead")
+    assert dataclasses.asdict(cfg)["compile"] == "reduce-overhead"  # recorded in the manifest like precision
+    assert cfg.policy_options() == {"precision": "bf16", "compile": "reduce-overhead"}
+    assert EvalConfig(**base).policy_options() == {}  # families without these options still load
+    with pytest.raises(
+        ConfigError, match="--compile reduce-overhead captures CUDA graphs and needs --device cuda"
+    ):
+        EvalConfig(**base, compile="reduce-overhead")  # CPU: refused, never rewritten to another mode
+    with pytest.raises(ConfigError, match="--compile must be one of"):
+        EvalConfig(**base, compile="fast")
 
 
 def test_workers_get_one_egl_device_each_round_robin(monkeypatch):

@@ -77,3 +77,42 @@ def test_real_size_pi05_acts_on_cuda(tmp_path):
     meta = (tmp_path / "pi05" / "indgen_build.json").read_text()
     assert '"parameters": 41' in meta  # 4.14 B with embeddings (docs/benchmarks.md)
     _act_and_pad(spec + "&precision=bf16", device="cuda")
+
+
+def _compiled_matches_eager(spec_str: str, mode: str, device: str) -> None:
+    """Same seed, same observations: the compiled per-call forward (``compile=``) gives the eager actions, noise
+    included (flow matching draws it inside the compiled ``sample_actions``)."""
+    import torch
+
+    from policy_wrappers.registry import load_policy
+
+    eager, compiled = load_policy(spec_str, device=device), load_policy(spec_str, device=device, compile=mode)
+    obs = _obs(eager.spec, 2)
+    try:
+        for _ in range(2):  # the second call runs the compiled (or CUDA-graph replayed) code
+            eager.reset(obs[0].instruction, seed=3)
+            want = eager.act(obs)
+            compiled.reset(obs[0].instruction, seed=3)
+            got = compiled.act(obs)
+            np.testing.assert_allclose(got, want, atol=2e-4, rtol=1e-4)
+    finally:
+        torch._dynamo.reset()
+
+
+@pytest.mark.slow  # minutes: inductor's CPU compile of a reduced VLM; test_compile.py's fast test covers the option
+def test_reduced_smolvla_compiled_matches_eager(tmp_path, monkeypatch):
+    pytest.importorskip(
+        "num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])"
+    )
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path / "inductor"))
+    _compiled_matches_eager(build.build_smolvla(tmp_path / "smolvla", reduced=True), "default", "cpu")
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("mode", ["default", "reduce-overhead"])
+def test_reduced_pi05_compiled_on_cuda_matches_eager(tmp_path, monkeypatch, mode):
+    torch = pytest.importorskip("torch")
+    if not torch.cuda.is_available():
+        pytest.skip("needs a CUDA device")
+    monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path / "inductor"))
+    _compiled_matches_eager(build.build_pi05(tmp_path / "pi05", reduced=True, device="cuda"), mode, "cuda")

@@ -1,0 +1,89 @@
+"""Opt-in ``torch.compile`` of a LeRobot policy's per-call forward, with a persistent on-disk compile cache.
+
+Only the part each ``predict_action_chunk`` runs is compiled (lerobot's own ``compile_model`` flag of pi0/pi0.5/
+SmolVLA wraps the same ``sample_actions``, in ``modeling_pi05.py``), never the pre/post-processors or the whole
+policy object. The first call at a batch size pays the compile (minutes for a 4 B VLA with ``max-autotune``);
+inductor's FX-graph and autotune results land in ``cache_dir()``, so the next process reuses them. The engine
+pads every batched call to the worker count (``interface.act_padded``), so one run compiles one batch shape.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from indgen_vla.errors import ConfigError
+
+MODES = ("off", "default", "reduce-overhead", "max-autotune")
+CUDA_ONLY = ("reduce-overhead",)  # CUDA graphs: nothing to capture on a CPU or MPS device
+CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
+
+
+def check_mode(mode: str, device: str, who: str) -> None:
+    """One clear line for an unknown mode, or a CUDA-graph mode on a device without CUDA (refused, not rewritten)."""
+    if mode not in MODES:
+        raise ConfigError(f"{who}: compile must be one of {', '.join(MODES)}, got {mode!r}")
+    if mode in CUDA_ONLY and not str(device).startswith("cuda"):
+        raise ConfigError(
+            f"{who}: compile={mode} captures CUDA graphs and needs a CUDA device (got device {device!r}); "
+            "use compile=default on CPU, or --device cuda"
+        )
+
+
+def cache_dir() -> Path:
+    """The inductor cache every run shares: $TORCHINDUCTOR_CACHE_DIR if the user set it, else
+    ~/.cache/indgen/inductor (torch's default lives in /tmp, which a reboot or a fresh container empties)."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or "~/.cache").expanduser()
+    path = base / "indgen" / "inductor"
+    os.environ[CACHE_ENV] = str(path)  # read by inductor (and Triton's cache below it) at compile time
+    return path
+
+
+def _target(policy) -> tuple[object, str]:
+    """(object, method name) of the per-call forward: ``sample_actions`` of the flow-matching VLAs, the
+    diffusion sampler, or the inner model's ``forward`` (ACT, VQ-BeT, ...)."""
+    model = getattr(policy, "model", None)
+    if model is not None and callable(getattr(model, "sample_actions", None)):  # pi0, pi0.5, SmolVLA
+        return model, "sample_actions"
+    diffusion = getattr(policy, "diffusion", None)
+    if diffusion is not None and callable(getattr(diffusion, "generate_actions", None)):
+        return diffusion, "generate_actions"
+    if model is not None and callable(getattr(model, "forward", None)):
+        return model, "forward"
+    raise ConfigError(
+        f"compile= does not know the per-call forward of {type(policy).__name__}; run it with compile=off"
+    )
+
+
+def compile_forward(policy, mode: str, device: str, who: str) -> str:
+    """Wrap the policy's per-call forward with ``torch.compile(mode=...)`` in place; returns what was wrapped.
+
+    lerobot's own ``compile_model`` must be off (it would compile the same method twice). ``mode="off"`` leaves
+    the policy untouched."""
+    check_mode(mode, device, who)
+    if mode == "off":
+        return ""
+    if getattr(getattr(policy, "config", None), "compile_model", False):
+        raise ConfigError(
+            f"{who}: the checkpoint's config sets compile_model=true (lerobot's own compile); "
+            "set it false in config.json or drop compile="
+        )
+    import torch
+    import torch._inductor.config as inductor_config
+
+    cache_dir()
+    # flow-matching noise is drawn inside sample_actions: inductor's generated random kernels (Philox, on CUDA)
+    # draw other numbers than eager for the same seed; eager's RNG ops keep a seed's noise equal (on CPU the two
+    # already agree: checked 2026-11-24 for torch.normal; on CUDA test_reduced_pi05_compiled_on_cuda_matches_eager)
+    inductor_config.fallback_random = True
+    obj, name = _target(policy)
+    setattr(obj, name, torch.compile(getattr(obj, name), mode=mode))
+    print(
+        f"[indgen] {who}: torch.compile(mode={mode}) on {type(obj).__name__}.{name}; the first call per batch "
+        f"size compiles (cache: {os.environ[CACHE_ENV]})",
+        file=sys.stderr,
+    )
+    return f"{type(obj).__name__}.{name}"
