@@ -83,11 +83,24 @@ class RoboCasaSuccess:
         return bool(state.bddl_success)
 
 
+def press_point(raw: dict, part):
+    """Where a fixture oracle pushes: on the stand mixer's head, 70 % of the hinge-to-centre lever beyond the
+    head's centre (toward its free end: pushing at the hinge closes nothing); else the part itself."""
+    import numpy as np
+
+    part = np.asarray(part, dtype=np.float64)
+    hinge = raw.get("mixer_hinge_pos")
+    if hinge is None or np.linalg.norm(part - hinge) < 0.01:
+        return part.copy()
+    return part + 0.7 * (part - np.asarray(hinge, dtype=np.float64))
+
+
 def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
     ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else that part.
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else where to push
+    that part (``press_point``: ``place_xy`` and ``grasp_z``).
     """
     import numpy as np
 
@@ -109,7 +122,8 @@ def privileged_state(raw: dict):
                          floor_z=float(raw["goal_floor"]))  # fmt: skip
         facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
     else:
-        target = Targets(pick.pos[:2].copy(), float(pick.pos[2]), float(pick.pos[2]), float(pick.pos[2]))
+        press = press_point(raw, pick.pos)
+        target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
     return PrivilegedState(
         eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
         pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),

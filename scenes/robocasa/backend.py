@@ -428,6 +428,7 @@ class RoboCasaLevel:
         if mixer is not None:
             out["stand_mixer"] = {k: float(v) for k, v in mixer.get_state(env).items() if np.isscalar(v)}
             out["mixer_head_pos"] = np.array(data.get_body_xpos(mixer.naming_prefix + "head"))
+        out.update(fixture_part_facts(env))
         out["success"] = bool(env._check_success())
         return out
 
@@ -436,6 +437,31 @@ class RoboCasaLevel:
 
     def close(self) -> None:
         self.env.close()
+
+
+def fixture_part_facts(env) -> dict:
+    """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
+    the press lands on the head's free end (most lever; pushing on the hinge closes nothing), and the electric
+    kettle's switch: its body position, hinge anchor and axis, and the joint's normalized value."""
+    data, model = env.sim.data, env.sim.model
+    out: dict = {}
+    mixer = getattr(env, "stand_mixer", None)
+    jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
+    if jn and jn in model.joint_names:
+        out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
+    kettle = getattr(env, "electric_kettle", None)
+    jn = getattr(kettle, "_joint_names", {}).get("switch") if kettle is not None else None
+    if jn and jn in model.joint_names:
+        jid = model.joint_name2id(jn)
+        lo, hi = model.jnt_range[jid]
+        out.update(
+            switch_pos=np.array(data.xpos[model.jnt_bodyid[jid]], dtype=np.float64),
+            switch_hinge=np.array(data.xanchor[jid], dtype=np.float64),
+            switch_axis=np.array(data.xaxis[jid], dtype=np.float64),
+            switch_value=float((data.qpos[model.jnt_qposadr[jid]] - lo) / max(hi - lo, 1e-9)),
+            kettle_pos=np.array(data.get_body_xpos(kettle.naming_prefix + "main"), dtype=np.float64),
+        )
+    return out
 
 
 def build(config: dict) -> RoboCasaLevel:

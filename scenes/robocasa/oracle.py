@@ -24,6 +24,7 @@ ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
+PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 
 
@@ -97,17 +98,19 @@ class RoboCasaOracle:
 
     # ---- stand mixer: push the head down --------------------------------------------------------
     def _press(self, s: PrivilegedState) -> np.ndarray:
-        head = s.pick.pos
-        above = head + np.array([0.0, 0.0, 0.12])
+        """Above the head's free end (``target``: most lever from the hinge), then straight down at full OSC
+        force until RoboCasa reports it closed (frictionloss of the hinge needs it), then up."""
+        press = np.array([*s.target.place_xy, s.target.grasp_z])
+        above = press + np.array([0.0, 0.0, 0.10])
         if self.phase == "approach":
             if self._near(s, above, 0.02) or self._count > 150:
                 self._next("press")
-            return self._goto(s, above, CLOSED)
+            return self._goto(s, above, CLOSED, tilt=PRESS_TILT)
         if self.phase == "press":  # down onto the head until RoboCasa says it is closed
-            if s.bddl_success or self._count > 150:
+            if s.bddl_success or self._count > 200:
                 self._next("retreat")
-            return self._goto(s, head - np.array([0.0, 0.0, 0.15]), CLOSED, speed=0.4)
-        return self._goto(s, head + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
+            return self._goto(s, press - np.array([0.0, 0.0, 0.15]), CLOSED, speed=1.0, tilt=PRESS_TILT)
+        return self._goto(s, s.pick.pos + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
 
     # ---- pick and place into a cabinet ---------------------------------------------------------
     def _pick_place(self, s: PrivilegedState) -> np.ndarray:
