@@ -37,6 +37,8 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
+    # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
+    tasks = ("PickPlaceCounterToCabinet", "CloseStandMixerHead")
 
     def __init__(self, gain: float = 10.0):
         self.gain = gain

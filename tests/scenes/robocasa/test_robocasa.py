@@ -380,3 +380,18 @@ def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
         assert run_oracle_episode(env, oracle_for("robocasa"), seed=3)[0]
     finally:
         env.close()
+
+
+def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
+    """certify refuses (one line, before any episode) a task RoboCasa's oracle has no script for: its levels stay
+    uncertified, which evaluate reports in one warning line (engine.run.check_feasible), instead of 'failed'."""
+    from scenes.certify_run import NoOracleError, certify
+    from scenes.oracle import oracle_scripts
+
+    assert oracle_scripts("robocasa", "CloseStandMixerHead") and not oracle_scripts(
+        "robocasa", "TurnOnBlender"
+    )
+    assert oracle_scripts("pick_place", "bread")  # an oracle that lists no tasks scripts every task
+    with pytest.raises(NoOracleError, match="robocasa/TurnOnBlender: standin:oracle has no script"):
+        certify("robocasa", "fixture_x", task="TurnOnBlender", out=tmp_path / "certify.json")
+    assert not (tmp_path / "certify.json").exists()
