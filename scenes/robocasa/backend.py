@@ -428,7 +428,7 @@ class RoboCasaLevel:
         if mixer is not None:
             out["stand_mixer"] = {k: float(v) for k, v in mixer.get_state(env).items() if np.isscalar(v)}
             out["mixer_head_pos"] = np.array(data.get_body_xpos(mixer.naming_prefix + "head"))
-        out.update(fixture_part_facts(env))
+        out.update(oracle_facts(env, self.cfg["task"]))
         out["success"] = bool(env._check_success())
         return out
 
@@ -437,6 +437,11 @@ class RoboCasaLevel:
 
     def close(self) -> None:
         self.env.close()
+
+
+def oracle_facts(env, task: str) -> dict:
+    """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
+    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
 
 
 def fixture_part_facts(env) -> dict:
@@ -462,6 +467,22 @@ def fixture_part_facts(env) -> dict:
             kettle_pos=np.array(data.get_body_xpos(kettle.naming_prefix + "main"), dtype=np.float64),
         )
     return out
+
+
+def object_extent_facts(env) -> dict:
+    """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
+    the fingers across the narrower side."""
+    obj = getattr(env, "objects", {}).get("obj")
+    return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
+
+
+def unload_facts(env, task: str) -> dict:
+    """Where an object taken out of a fixture goes down (cabinet to counter): the counter's top (its body centre
+    plus half its size, ``robocasa/models/fixtures/counter.py``); empty for the other tasks."""
+    counter = getattr(env, "counter", None)
+    if task != "PickPlaceCabinetToCounter" or counter is None:
+        return {}
+    return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
 
 
 def build(config: dict) -> RoboCasaLevel:

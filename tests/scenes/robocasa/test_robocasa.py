@@ -395,3 +395,33 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
     with pytest.raises(NoOracleError, match="robocasa/TurnOnBlender: standin:oracle has no script"):
         certify("robocasa", "fixture_x", task="TurnOnBlender", out=tmp_path / "certify.json")
     assert not (tmp_path / "certify.json").exists()
+
+
+def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int) -> list[bool]:
+    """The certification's own episodes (``certify_run.run_oracle_episode`` with ``episode_seed``)."""
+    import scenes
+    from indgen_vla.seeding import episode_seed
+    from scenes.certify_run import run_oracle_episode
+    from scenes.oracle import oracle_for
+
+    env = scenes.make_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)
+    try:
+        policy = oracle_for("robocasa")
+        return [run_oracle_episode(env, policy, episode_seed(0, "robocasa", task, axis, level, i), i)[0]
+                for i in episodes]  # fmt: skip
+    finally:
+        env.close()
+
+
+@needs_venv
+@pytest.mark.slow  # ~1 min; the default suite's test_the_oracle_closes_the_stand_mixer_head covers the script
+def test_the_oracle_closes_the_mixer_head_after_it_slides_away(placeholders):
+    """fixture_x level 1, certification episodes 1 and 3: pressing the head's centre (the old script) stalled at the
+    reach limit short of the hinge's frictionloss; the free end (press_point) with a tipped hand closes it."""
+    assert _oracle_episodes("CloseStandMixerHead", "fixture_x", 1, (1, 3), 300) == [True, True]
+
+
+@needs_venv
+@pytest.mark.slow  # ~1 min; no default test runs cabinet to counter (the family's default oracle test is the mixer)
+def test_the_oracle_takes_the_object_out_of_the_cabinet(placeholders):
+    assert _oracle_episodes("PickPlaceCabinetToCounter", "clutter", 0, (0,), 400) == [True]
