@@ -95,38 +95,6 @@ def press_point(raw: dict, part):
     return part + 0.7 * (part - np.asarray(hinge, dtype=np.float64))
 
 
-def switch_push(raw: dict):
-    """The electric kettle's switch as (pick, target, goal): the push starts 9 cm off a point 1.2 cm from the
-    switch's hinge (``target``: ``place_xy``, ``grasp_z``) and ends 3 cm past it (``goal``), along the way that
-    point moves when the switch turns on (+ about the hinge axis, ``axis x offset``); of the offsets toward the
-    counter and away from the kettle, the one whose push goes most into the kettle or down."""
-    import numpy as np
-
-    from scenes.privileged import GoalState, PickState, Targets
-
-    f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
-    pos, hinge, axis = f64(raw["switch_pos"]), f64(raw["switch_hinge"]), f64(raw["switch_axis"])
-    out = pos - f64(raw["kettle_pos"])
-    out[2] = 0.0
-    out /= max(float(np.linalg.norm(out)), 1e-9)  # away from the kettle, horizontal
-    best = None
-    for d in (np.array([0.0, 0.0, -1.0]), out):
-        d = d - axis * float(d @ axis)
-        if np.linalg.norm(d) < 1e-6:
-            continue
-        d = 0.012 * d / np.linalg.norm(d)
-        m = np.cross(axis, d)
-        m /= max(float(np.linalg.norm(m)), 1e-9)
-        score = max(-float(m @ out), -float(m[2]))
-        if best is None or score > best[0]:
-            best = (score, hinge + d, m)
-    _, point, m = best
-    start, end = point - 0.09 * m, point + 0.03 * m
-    pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, False)
-    target = Targets(start[:2].copy(), float(start[2]), float(start[2]), float(start[2]))
-    return pick, target, GoalState(end, f64([1.0, 0, 0, 0]), float(end[2]))
-
-
 def unload_target(raw: dict, pick, centre):
     """Cabinet to counter: put the object down on the counter 12 cm (plus its half width) in front of the cabinet's
     face, straight back from where it stands; the cabinet is the fixture it must leave (``SceneFacts``)."""
@@ -173,8 +141,6 @@ def privileged_state(raw: dict):
         facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
         if raw.get("counter_top") is not None:  # cabinet to counter: out of the cabinet, onto the counter
             target, facts = unload_target(raw, pick, c)
-    elif "switch_pos" in raw:  # the electric kettle's switch: pushed from ``target`` to ``goal``
-        pick, target, goal = switch_push(raw)
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
@@ -208,8 +174,9 @@ class RoboCasa(Scene):
     **Randomizations:**
     - episode i: RoboCasa's own sampling from the episode's seed (kitchen layout, style, objects and their poses)
     - along the axes: the pick object's placement window moved in x (``pick_x``), the robot base moved back from
-      T0's pose (``horizon``, alias ``base_y``), the task's appliance slid along its own x with the robot base kept
-      at T0's pose (``fixture_x``), one more object in the cabinet (``clutter``); everything else stays at T0's
+      T0's pose (``horizon``, alias ``base_y``), the task's appliance slid along the counter (its own axis across
+      the robot's heading) with the robot base kept at T0's pose (``fixture_x``), one more object in the cabinet
+      (``clutter``); everything else stays at T0's
 
     **Success Conditions:**
     - RoboCasa's own ``_check_success`` of the task (e.g. ``obj_inside_of(obj, cab) and gripper_obj_far``)

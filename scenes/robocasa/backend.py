@@ -339,13 +339,10 @@ class RoboCasaLevel:
                 f"fixture {name} is placed by the kitchen layout, not sampled: fixture_x cannot move it here"
             )
         pos, quat = t0["fixtures"][name]
-        yaw, dx = _yaw(quat), float(shift["offset"][0])
-        d = np.array([np.cos(yaw) * dx, np.sin(yaw) * dx, 0.0])
-        # along the fixture's own x, the way that does not bring it closer to T0's robot base (the base stays put:
-        # toward it, a few levels would put the appliance into the robot)
-        if np.dot(d[:2], np.subtract(pos[:2], meta["init_robot_base_pos"][:2])) < 0:
-            d = -d
-        d = tuple(float(v) for v in d)
+        d = tuple(
+            float(v)
+            for v in fixture_shift(quat, float(meta["init_robot_base_ori"][2]), float(shift["offset"][0]))
+        )
         for c in meta["object_cfgs"]:
             if c.get("placement", {}).get("fixture") == name and c["name"] in pins:
                 pins[c["name"]] = (tuple(np.add(pins[c["name"]][0], d)), pins[c["name"]][1])
@@ -439,6 +436,21 @@ class RoboCasaLevel:
         self.env.close()
 
 
+def fixture_shift(quat_wxyz, base_yaw: float, dx: float) -> np.ndarray:
+    """fixture_x's world displacement: ``dx`` along the fixture's own axis that runs across T0's robot heading (its
+    x, or its y where RoboCasa turned the appliance a quarter on its counter), that axis's positive way.
+
+    Along the counter, as RoboCasa's placement offsets run (the counter's x): the axis lying along the heading would
+    push a turned appliance into the wall behind it and out of the pinned base's reach (CloseStandMixerHead
+    levels 2-3 on its own x: the head 0.58-0.70 m out from the arm's shoulder, the grip site stalled 0.45 m out).
+    """
+    yaw = _yaw(quat_wxyz)
+    across = np.array([-np.sin(base_yaw), np.cos(base_yaw)])  # the base's left: across its heading
+    own_x, own_y = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+    axis = own_x if abs(own_x @ across) >= abs(own_y @ across) else own_y
+    return np.array([*(axis * dx), 0.0])
+
+
 def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
@@ -446,26 +458,13 @@ def oracle_facts(env, task: str) -> dict:
 
 def fixture_part_facts(env) -> dict:
     """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
-    the press lands on the head's free end (most lever; pushing on the hinge closes nothing), and the electric
-    kettle's switch: its body position, hinge anchor and axis, and the joint's normalized value."""
+    the press lands on the head's free end (most lever; pushing on the hinge closes nothing)."""
     data, model = env.sim.data, env.sim.model
     out: dict = {}
     mixer = getattr(env, "stand_mixer", None)
     jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
     if jn and jn in model.joint_names:
         out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
-    kettle = getattr(env, "electric_kettle", None)
-    jn = getattr(kettle, "_joint_names", {}).get("switch") if kettle is not None else None
-    if jn and jn in model.joint_names:
-        jid = model.joint_name2id(jn)
-        lo, hi = model.jnt_range[jid]
-        out.update(
-            switch_pos=np.array(data.xpos[model.jnt_bodyid[jid]], dtype=np.float64),
-            switch_hinge=np.array(data.xanchor[jid], dtype=np.float64),
-            switch_axis=np.array(data.xaxis[jid], dtype=np.float64),
-            switch_value=float((data.qpos[model.jnt_qposadr[jid]] - lo) / max(hi - lo, 1e-9)),
-            kettle_pos=np.array(data.get_body_xpos(kettle.naming_prefix + "main"), dtype=np.float64),
-        )
     return out
 
 

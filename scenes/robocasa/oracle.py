@@ -4,9 +4,11 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Two scripts: pick-and-place into a cabinet (counter to cabinet: lift to the cabinet floor,
-slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m) and pushing the stand mixer's head down.
-Deterministic given the episode; one instance per environment.
+control mode -1 (arm). Three scripts (``tasks``; certify refuses the others): counter to cabinet (lift to the
+cabinet floor, slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over
+the object at the cabinet's mouth, grasp, pull out, lower onto the counter) and the stand mixer's head (pushed down
+at its free end, the hand tipped further while the reach falls short). Fingers close across the object's narrower
+side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
+MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 
@@ -56,6 +59,7 @@ class RoboCasaOracle:
         self._clear: np.ndarray | None = None
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
+        self._tilt = PRESS_TILT  # the press's hand tilt: raised while the approach stalls short of its target
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self.seed = seed
 
@@ -123,7 +127,7 @@ class RoboCasaOracle:
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
         if press:
-            return self._press(s) if s.goal is None else self._push(s)
+            return self._press(s)
         if s.facts.fixture_centre is not None:
             return self._unload(s)
         return self._pick_place(s)
@@ -135,39 +139,19 @@ class RoboCasaOracle:
         press = np.array([*s.target.place_xy, s.target.grasp_z])
         above = press + np.array([0.0, 0.0, 0.10])
         if self.phase == "approach":
-            if self._near(s, above, 0.02) or self._count > 150:
+            if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")
-            return self._goto(s, above, CLOSED, tilt=PRESS_TILT)
+            elif self._near(s, above, 0.02) and self._count > 20:  # stalled short: the reach limit
+                if self._tilt >= MAX_PRESS_TILT:
+                    self._next("press")
+                else:  # a hand tipped further reaches farther (its wrist stays nearer the shoulder)
+                    self._tilt, self._count = min(MAX_PRESS_TILT, self._tilt + 0.2), 1
+            return self._goto(s, above, CLOSED, tilt=self._tilt)
         if self.phase == "press":  # down onto the head until RoboCasa says it is closed
             if s.bddl_success or self._count > 200:
                 self._next("retreat")
-            return self._goto(s, press - np.array([0.0, 0.0, 0.15]), CLOSED, speed=1.0, tilt=PRESS_TILT)
+            return self._goto(s, press - np.array([0.0, 0.0, 0.15]), CLOSED, speed=1.0, tilt=self._tilt)
         return self._goto(s, s.pick.pos + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
-
-    # ---- electric kettle: push the switch along the way it turns on ------------------------------------
-    def _push(self, s: PrivilegedState) -> np.ndarray:
-        """Above the push's start, down beside the switch, then along the push (``target`` to ``goal``) until
-        RoboCasa reports the kettle on, then up and back."""
-        start = np.array([*s.target.place_xy, s.target.grasp_z])
-        if self._count == 1 and self.phase == "approach":  # the hand's thin side (across the fingers) leads
-            m = s.goal.pos[:2] - start[:2]
-            m = m / max(float(np.linalg.norm(m)), 1e-9)
-            grid = np.linspace(-np.pi / 2, np.pi / 2, 181)
-            self._twist = float(min(grid, key=lambda g: (abs(self._hand(s, 0.0, g)[:2, 0] @ m), abs(g))))
-        if self.phase == "approach":
-            above = start + np.array([0.0, 0.0, 0.12])
-            if self._near(s, above, 0.015) or self._count > 150:
-                self._next("descend")
-            return self._goto(s, above, CLOSED)
-        if self.phase == "descend":
-            if self._near(s, start, 0.01) or self._count > 80:
-                self._next("push")
-            return self._goto(s, start, CLOSED, speed=0.5)
-        if self.phase == "push":
-            if s.bddl_success or self._count > 120:
-                self._next("retreat")
-            return self._goto(s, s.goal.pos, CLOSED, speed=0.6)
-        return self._goto(s, start + np.array([0.0, 0.0, 0.15]), CLOSED, speed=0.5)
 
     # ---- pick and place into a cabinet ---------------------------------------------------------
     def _pick_place(self, s: PrivilegedState) -> np.ndarray:
