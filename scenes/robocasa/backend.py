@@ -245,6 +245,7 @@ class RoboCasaLevel:
             translucent_robot=False,
         )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
+        self.env._indgen_task_fixture = None  # T0's task fixture on a replay (keep_task_fixture)
         self.env._indgen_drawn = {}  # cfg name -> (object kwargs, info) RoboCasa drew at the last load
         self.meta: dict = {}
         self._seed = 0
@@ -258,6 +259,7 @@ class RoboCasaLevel:
                 n: (tuple(map(float, p)), tuple(map(float, q)))
                 for n, (p, q, _) in env.object_placements.items()
             }
+            keep_task_fixture(env, self.cfg["task"], getattr(env, "_indgen_task_fixture", None))
             shift = getattr(env, "_indgen_fixture_shift", None)
             if shift:  # fixture_x: the moved fixture, after the objects were placed clear of it at T0's pose
                 name, d = shift
@@ -362,7 +364,11 @@ class RoboCasaLevel:
             fixture_refs = t0["meta"].get("fixture_refs", {})
             meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"))
             pins, shift = self._pins(t0, meta, edits)
-            raw = self._reset(seed, meta, pins, t0["made"], shift)
+            self.env._indgen_task_fixture = t0["fixture"]
+            try:
+                raw = self._reset(seed, meta, pins, t0["made"], shift)
+            finally:
+                self.env._indgen_task_fixture = None
         self.meta = self.env.get_ep_meta()
         return self._obs(raw)
 
@@ -449,6 +455,15 @@ def fixture_shift(quat_wxyz, base_yaw: float, dx: float) -> np.ndarray:
     own_x, own_y = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
     axis = own_x if abs(own_x @ across) >= abs(own_y @ across) else own_y
     return np.array([*(axis * dx), 0.0])
+
+
+def keep_task_fixture(env, task: str, name: str | None) -> None:
+    """On a replay, the task's fixture (``env.stand_mixer``, ...) is T0's: the task picks it with ``get_fixture``,
+    which ep_meta's ``fixture_refs`` do not pin, so in a kitchen with two stand mixers a level could pick the other
+    one, 1.8 m from the robot base pinned at T0's pose (CloseStandMixerHead fixture_x level 1 episode 6)."""
+    attr = MOVED_FIXTURE.get(task)
+    if name and attr and name in getattr(env, "fixtures", {}):
+        setattr(env, attr, env.fixtures[name])
 
 
 def oracle_facts(env, task: str) -> dict:
