@@ -22,6 +22,7 @@ from scenes.certify_run import (
     level_status,
     load_certification,
 )
+from scenes.oracle import oracle_scripts
 from scenes.registry import get_scene, registered_scenes
 
 
@@ -115,6 +116,11 @@ def certify_main(args) -> int:
             path = cert_path(args.scene, task, args.axis, args.step, preset)
         else:
             path = Path(args.out) / (task if len(tasks) > 1 else "") / "certify.json"
+        if len(tasks) > 1 and not oracle_scripts(args.scene, task):
+            print(
+                f"{args.scene}/{task}/{args.axis}: uncertified (standin:oracle has no script for this task)"
+            )
+            continue
         try:
             cert = certify(
                 args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
@@ -164,6 +170,10 @@ def certify_all(
     root = Path(out_dir) if out_dir is not None else certification_root()
     certs = []
     for scene, task, axis in default_jobs(scene_names):
+        if not oracle_scripts(scene, task):
+            if log:
+                log(f"{scene}/{task}/{axis}: uncertified (standin:oracle has no script for this task)")
+            continue
         try:
             cert = certify(scene, axis, task=task, episodes=episodes, seed=seed, workers=workers,
                            out=cert_path(scene, task, axis, root=root), log=log)  # fmt: skip

@@ -27,6 +27,10 @@ FEASIBLE_RATE = THRESHOLD  # the old name, kept for readers
 RULE_NAME = "clopper-pearson-sequential"
 
 
+class NoOracleError(ConfigError):
+    """The scene's oracle has no script for the task: its levels cannot be certified, only reported uncertified."""
+
+
 def lower_bound(successes: int, n: int, confidence: float = CONFIDENCE) -> float:
     """One-sided lower confidence bound: the two-sided interval at 2*conf-1 has the same lower end."""
     return 0.0 if n == 0 else clopper_pearson_ci(successes, n, conf=2 * confidence - 1)[0]
@@ -181,6 +185,13 @@ def certify(
     sc = get_scene(scene)
     task = sc.resolve_task(task)
     sc.check_axis(axis)
+    from scenes.oracle import oracle_scripts
+
+    if not oracle_scripts(scene, task):
+        raise NoOracleError(
+            f"{scene}/{task}: standin:oracle has no script for this task, so its levels stay uncertified "
+            "(evaluate warns); certify a task the oracle scripts"
+        )
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     if episodes is not None and episodes < 1:

@@ -138,6 +138,18 @@ def oracle_for(scene: str | None = None):
     return getattr(importlib.import_module(module), attr)()
 
 
+def oracle_scripts(scene: str, task: str) -> bool:
+    """Whether ``scene``'s oracle has a script for ``task`` (a family's oracle class may list its ``tasks``; one
+    that lists none scripts every task). A task without one stays uncertified: no certificate, evaluate warns."""
+    import importlib
+
+    from scenes.registry import get_scene
+
+    module, _, attr = get_scene(scene).oracle.partition(":")
+    tasks = getattr(getattr(importlib.import_module(module), attr), "tasks", None)
+    return tasks is None or task in tasks
+
+
 def oracle_spec(action_dim: int) -> PolicySpec:
     """What every scene family's scripted oracle declares: privileged, camera-free, one instance per env."""
     return PolicySpec(

@@ -37,6 +37,9 @@ class PickState:
     top: float  # highest z of its collision geoms
     half_width: float  # horizontal half extent
     touching_gripper: bool  # a finger touches it
+    half_extents: np.ndarray | None = (
+        None  # half sizes along its own axes (x, y, z), where the scene knows them
+    )
 
     def __post_init__(self) -> None:
         _check_shape("pick.pos", self.pos, (3,))

@@ -240,6 +240,7 @@ class RoboCasaLevel:
             translucent_robot=False,
         )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
+        self.env._indgen_task_fixture = None  # T0's task fixture on a replay (keep_task_fixture)
         self.env._indgen_drawn = {}  # cfg name -> (object kwargs, info) RoboCasa drew at the last load
         self.meta: dict = {}
         self._seed = 0
@@ -253,6 +254,7 @@ class RoboCasaLevel:
                 n: (tuple(map(float, p)), tuple(map(float, q)))
                 for n, (p, q, _) in env.object_placements.items()
             }
+            keep_task_fixture(env, self.cfg["task"], getattr(env, "_indgen_task_fixture", None))
             shift = getattr(env, "_indgen_fixture_shift", None)
             if shift:  # fixture_x: the moved fixture, after the objects were placed clear of it at T0's pose
                 name, d = shift
@@ -334,13 +336,10 @@ class RoboCasaLevel:
                 f"fixture {name} is placed by the kitchen layout, not sampled: fixture_x cannot move it here"
             )
         pos, quat = t0["fixtures"][name]
-        yaw, dx = _yaw(quat), float(shift["offset"][0])
-        d = np.array([np.cos(yaw) * dx, np.sin(yaw) * dx, 0.0])
-        # along the fixture's own x, the way that does not bring it closer to T0's robot base (the base stays put:
-        # toward it, a few levels would put the appliance into the robot)
-        if np.dot(d[:2], np.subtract(pos[:2], meta["init_robot_base_pos"][:2])) < 0:
-            d = -d
-        d = tuple(float(v) for v in d)
+        d = tuple(
+            float(v)
+            for v in fixture_shift(quat, float(meta["init_robot_base_ori"][2]), float(shift["offset"][0]))
+        )
         for c in meta["object_cfgs"]:
             if c.get("placement", {}).get("fixture") == name and c["name"] in pins:
                 pins[c["name"]] = (tuple(np.add(pins[c["name"]][0], d)), pins[c["name"]][1])
@@ -360,7 +359,11 @@ class RoboCasaLevel:
             fixture_refs = t0["meta"].get("fixture_refs", {})
             meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"))
             pins, shift = self._pins(t0, meta, edits)
-            raw = self._reset(seed, meta, pins, t0["made"], shift)
+            self.env._indgen_task_fixture = t0["fixture"]
+            try:
+                raw = self._reset(seed, meta, pins, t0["made"], shift)
+            finally:
+                self.env._indgen_task_fixture = None
         self.meta = self.env.get_ep_meta()
         return {**self._obs(raw), "facts": failure_facts(self.env)}
 
@@ -424,6 +427,7 @@ class RoboCasaLevel:
         if mixer is not None:
             out["stand_mixer"] = {k: float(v) for k, v in mixer.get_state(env).items() if np.isscalar(v)}
             out["mixer_head_pos"] = np.array(data.get_body_xpos(mixer.naming_prefix + "head"))
+        out.update(oracle_facts(env, self.cfg["task"]))
         out["success"] = bool(env._check_success())
         return out
 
@@ -432,6 +436,63 @@ class RoboCasaLevel:
 
     def close(self) -> None:
         self.env.close()
+
+
+def fixture_shift(quat_wxyz, base_yaw: float, dx: float) -> np.ndarray:
+    """fixture_x's world displacement: ``dx`` along the fixture's own axis that runs across T0's robot heading (its
+    x, or its y where RoboCasa turned the appliance a quarter on its counter), that axis's positive way.
+
+    Along the counter, as RoboCasa's placement offsets run (the counter's x): the axis lying along the heading would
+    push a turned appliance into the wall behind it and out of the pinned base's reach (CloseStandMixerHead
+    levels 2-3 on its own x: the head 0.58-0.70 m out from the arm's shoulder, the grip site stalled 0.45 m out).
+    """
+    yaw = _yaw(quat_wxyz)
+    across = np.array([-np.sin(base_yaw), np.cos(base_yaw)])  # the base's left: across its heading
+    own_x, own_y = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+    axis = own_x if abs(own_x @ across) >= abs(own_y @ across) else own_y
+    return np.array([*(axis * dx), 0.0])
+
+
+def keep_task_fixture(env, task: str, name: str | None) -> None:
+    """On a replay, the task's fixture (``env.stand_mixer``, ...) is T0's: the task picks it with ``get_fixture``,
+    which ep_meta's ``fixture_refs`` do not pin, so in a kitchen with two stand mixers a level could pick the other
+    one, 1.8 m from the robot base pinned at T0's pose (CloseStandMixerHead fixture_x level 1 episode 6)."""
+    attr = MOVED_FIXTURE.get(task)
+    if name and attr and name in getattr(env, "fixtures", {}):
+        setattr(env, attr, env.fixtures[name])
+
+
+def oracle_facts(env, task: str) -> dict:
+    """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
+    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
+
+
+def fixture_part_facts(env) -> dict:
+    """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
+    the press lands on the head's free end (most lever; pushing on the hinge closes nothing)."""
+    data, model = env.sim.data, env.sim.model
+    out: dict = {}
+    mixer = getattr(env, "stand_mixer", None)
+    jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
+    if jn and jn in model.joint_names:
+        out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
+    return out
+
+
+def object_extent_facts(env) -> dict:
+    """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
+    the fingers across the narrower side."""
+    obj = getattr(env, "objects", {}).get("obj")
+    return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
+
+
+def unload_facts(env, task: str) -> dict:
+    """Where an object taken out of a fixture goes down (cabinet to counter): the counter's top (its body centre
+    plus half its size, ``robocasa/models/fixtures/counter.py``); empty for the other tasks."""
+    counter = getattr(env, "counter", None)
+    if task != "PickPlaceCabinetToCounter" or counter is None:
+        return {}
+    return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
 
 
 def build(config: dict) -> RoboCasaLevel:

@@ -4,9 +4,11 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Two scripts: pick-and-place into a cabinet (counter to cabinet: lift to the cabinet floor,
-slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m) and pushing the stand mixer's head down.
-Deterministic given the episode; one instance per environment.
+control mode -1 (arm). Three scripts (``tasks``; certify refuses the others): counter to cabinet (lift to the
+cabinet floor, slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over
+the object at the cabinet's mouth, grasp, pull out, lower onto the counter) and the stand mixer's head (pushed down
+at its free end, the hand tipped further while the reach falls short). Fingers close across the object's narrower
+side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
+MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
+PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 
 
@@ -36,6 +40,13 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
+    # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
+    tasks = (
+        "PickPlaceCounterToCabinet",
+        "PickPlaceCabinetToCounter",
+        "CloseStandMixerHead",
+        "TurnOnElectricKettle",
+    )
 
     def __init__(self, gain: float = 10.0):
         self.gain = gain
@@ -48,6 +59,8 @@ class RoboCasaOracle:
         self._clear: np.ndarray | None = None
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
+        self._tilt = PRESS_TILT  # the press's hand tilt: raised while the approach stalls short of its target
+        self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self.seed = seed
 
     def close(self) -> None:
@@ -62,18 +75,37 @@ class RoboCasaOracle:
         return self.action(s)[None, None, :].astype(np.float32)
 
     # ---- motion ------------------------------------------------------------------------------
+    def _hand(self, s: PrivilegedState, tilt: float, twist: float = 0.0) -> np.ndarray:
+        """The grip site's world orientation: pointing down, tipped toward the base's +x by ``tilt``, turned about
+        its own approach axis by ``twist``."""
+        c, sn = np.cos(-tilt), np.sin(-tilt)
+        pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+        return _rz(float(s.robot_base[2])) @ pitch @ R_DOWN @ _rz(twist)
+
+    def _grasp_twist(self, s: PrivilegedState) -> float:
+        """The twist that closes the fingers (the grip site's x axis: robosuite's panda_gripper.xml fingers slide
+        along it) across the object's narrower horizontal side; 0 where the scene gives no extents."""
+        ext = s.pick.half_extents
+        if ext is None or abs(float(ext[0]) - float(ext[1])) < 0.005:
+            return 0.0
+        w, x, y, z = (float(q) for q in s.pick.quat_wxyz)
+        axis_x = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + w * z)])  # the object's x axis, world xy
+        narrow = axis_x if ext[0] < ext[1] else np.array([-axis_x[1], axis_x[0]])
+        narrow = narrow / max(np.linalg.norm(narrow), 1e-9)
+        grid = np.linspace(-np.pi / 2, np.pi / 2, 181)
+        return float(max(grid, key=lambda g: (abs(self._hand(s, 0.0, g)[:2, 0] @ narrow), -abs(g))))
+
     def _goto(
         self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0
     ) -> np.ndarray:
         """One action toward the world point ``target``, gripper pointing down (tipped forward, toward the base's
-        +x, by ``tilt`` radians), in the base's frame."""
+        +x, by ``tilt`` radians; turned by the episode's grasp twist about its approach axis), in the base's
+        frame."""
         base = _rz(float(s.robot_base[2]))
-        c, sn = np.cos(-tilt), np.sin(-tilt)
-        pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
         a = np.zeros(ACTION_DIM)
         err = base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)
         a[:3] = np.clip(self.gain * err, -speed, speed)
-        rot = _axis_angle((base @ pitch @ R_DOWN) @ s.eef_mat.T)  # world frame
+        rot = _axis_angle(self._hand(s, tilt, self._twist or 0.0) @ s.eef_mat.T)  # world frame
         a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
         a[GRIPPER], a[MODE] = grip, -1.0
         return a
@@ -91,23 +123,35 @@ class RoboCasaOracle:
         """One action from the privileged state ``s`` (advances the phase machine)."""
         self._count += 1
         self._trail = [*self._trail[-9:], s.eef_pos.copy()]
-        if s.goal is None:
+        press = s.target.floor_z is None  # a fixture part to push: no receptacle floor to put anything on
+        if self._twist is None:
+            self._twist = 0.0 if press else self._grasp_twist(s)
+        if press:
             return self._press(s)
+        if s.facts.fixture_centre is not None:
+            return self._unload(s)
         return self._pick_place(s)
 
     # ---- stand mixer: push the head down --------------------------------------------------------
     def _press(self, s: PrivilegedState) -> np.ndarray:
-        head = s.pick.pos
-        above = head + np.array([0.0, 0.0, 0.12])
+        """Above the head's free end (``target``: most lever from the hinge), then straight down at full OSC
+        force until RoboCasa reports it closed (frictionloss of the hinge needs it), then up."""
+        press = np.array([*s.target.place_xy, s.target.grasp_z])
+        above = press + np.array([0.0, 0.0, 0.10])
         if self.phase == "approach":
-            if self._near(s, above, 0.02) or self._count > 150:
+            if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")
-            return self._goto(s, above, CLOSED)
+            elif self._near(s, above, 0.02) and self._count > 20:  # stalled short: the reach limit
+                if self._tilt >= MAX_PRESS_TILT:
+                    self._next("press")
+                else:  # a hand tipped further reaches farther (its wrist stays nearer the shoulder)
+                    self._tilt, self._count = min(MAX_PRESS_TILT, self._tilt + 0.2), 1
+            return self._goto(s, above, CLOSED, tilt=self._tilt)
         if self.phase == "press":  # down onto the head until RoboCasa says it is closed
-            if s.bddl_success or self._count > 150:
+            if s.bddl_success or self._count > 200:
                 self._next("retreat")
-            return self._goto(s, head - np.array([0.0, 0.0, 0.15]), CLOSED, speed=0.4)
-        return self._goto(s, head + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
+            return self._goto(s, press - np.array([0.0, 0.0, 0.15]), CLOSED, speed=1.0, tilt=self._tilt)
+        return self._goto(s, s.pick.pos + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
 
     # ---- pick and place into a cabinet ---------------------------------------------------------
     def _pick_place(self, s: PrivilegedState) -> np.ndarray:
@@ -177,3 +221,64 @@ class RoboCasaOracle:
         return self._goto(
             s, up - fwd * 0.4, OPEN, speed=0.5, tilt=TILT
         )  # back out, past gripper_obj_far's 0.25 m
+
+    # ---- out of a cabinet, onto the counter below ------------------------------------------------
+    def _unload(self, s: PrivilegedState) -> np.ndarray:
+        """Hand tipped toward the cabinet: in over the object at the cabinet's mouth, down, grasp, lift 2 cm, pull
+        straight back out past the face, lower onto the counter (``target``), release, rise, back out."""
+        p, t = s.pick, s.target
+        yaw = float(s.robot_base[2])
+        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        front = float(np.dot(s.goal.pos, fwd)) - float(s.facts.receptacle_inner[1])
+        over = min(p.top + 0.04, s.goal.top - 0.05)  # above the object, under the cabinet's ceiling
+        if self.phase == "approach":  # at the mouth, the object's lateral position, above its top
+            target = p.pos + fwd * (front - 0.08 - float(np.dot(p.pos, fwd)))
+            target[2] = over
+            if self._near(s, target, 0.015) or self._count > 120:
+                self._next("enter")
+            return self._goto(s, target, OPEN, tilt=TILT)
+        if self.phase == "enter":
+            target = np.array([p.pos[0], p.pos[1], over])
+            if self._near(s, target, 0.012) or self._count > 80:
+                self._next("descend")
+            return self._goto(s, target, OPEN, speed=0.5, tilt=TILT)
+        if self.phase == "descend":
+            target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
+            if self._near(s, target, 0.012) or self._count > 50:
+                self._next("grasp")
+            return self._goto(s, target, OPEN, speed=0.5, tilt=TILT)
+        if self.phase == "grasp":
+            if self._hold is None:
+                self._hold = s.eef_pos.copy()
+            if self._count > 15:
+                self._offset = float(s.eef_pos[2] - p.bottom)
+                self._clear = np.array([*t.place_xy, self._hold[2] + 0.02])  # out past the face, same height
+                self._next("lift")
+            return self._goto(s, self._hold, CLOSED, tilt=TILT)
+        if self.phase == "lift":  # off the cabinet floor before pulling: dragging tips it over
+            target = self._hold + np.array([0.0, 0.0, 0.02])
+            if self._near(s, target, 0.008) or self._count > 20:
+                self._next("pull")
+            return self._goto(s, target, CLOSED, speed=0.4, tilt=TILT)
+        if self.phase == "pull":
+            if self._near(s, self._clear, 0.015) or self._count > 120:
+                self._next("lower")
+            return self._goto(s, self._clear, CLOSED, speed=0.5, tilt=TILT)
+        if self.phase == "lower":  # onto the counter: the stall (the object on the counter) ends it
+            target = np.array([*self._clear[:2], t.place_bottom + 0.005 + self._offset])
+            if (self._near(s, target, 0.01) and self._count > 25) or self._count > 120:
+                self._next("release")
+            # out of the cabinet: the hand straightens (a tipped hand this close to the base hits a joint limit)
+            return self._goto(s, target, CLOSED, speed=0.5, tilt=max(0.0, TILT - 0.03 * self._count))
+        if self.phase == "release":
+            if self._hold_release is None or self._count == 1:
+                self._hold_release = s.eef_pos.copy()
+            if self._count > 12:
+                self._next("rise")
+            return self._goto(s, self._hold_release, OPEN)
+        up = self._hold_release + np.array([0.0, 0.0, 0.06])
+        if self.phase == "rise":
+            if self._near(s, up, 0.01) or self._count > 25:
+                self._next("retreat")
+            return self._goto(s, up, OPEN, speed=0.3)
+        return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, 0.05]), OPEN, speed=0.5)
