@@ -10,6 +10,7 @@ from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.run import evaluate
 from indgen_vla.errors import ConfigError
 from indgen_vla.sequential import SequentialRule
+from tests.fixtures.kill import kill_midway
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -140,10 +141,6 @@ def test_every_task_axis_ladder_is_decided_on_its_own_episodes(tmp_path):
 def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_kill(tmp_path):
     """--task all: every task's ladder decided in one run; a 1-worker run killed with SIGKILL mid-protocol and
     resumed gives the same episodes, outcomes and per-task decisions as a 2-worker run."""
-    import signal
-    import subprocess
-    import sys
-    import time
 
     flags = dict(scene="stack", task="all", axes=("stack",), levels="0:1", episodes=20, max_steps=2)
     need = SequentialRule(max_episodes=20).decide([False] * 20).episodes
@@ -160,19 +157,7 @@ def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_
     killed = tmp_path / "killed"
     argv = ["evaluate", "--policy", "standin:random", "--scene", "stack", "--task", "all", "--axis", "stack",
             "--levels", "0:1", "--episodes", "20", "--max-steps", "2", "--workers", "1", "--adaptive", "kstar"]  # fmt: skip
-    proc = subprocess.Popen([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(killed)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    deadline = time.time() + 120
-    while time.time() < deadline:  # kill once some, not all, of the protocol's episodes are on disk
-        try:
-            if len(pd.read_parquet(killed / "episodes.parquet")) >= 3:
-                break
-        except (OSError, ValueError):
-            pass
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    assert 0 < len(pd.read_parquet(killed / "episodes.parquet")) < 4 * need
+    assert 0 < kill_midway(argv, killed, total=4 * need, at_least=3) < 4 * need
     evaluate(cfg(tmp_path, out=str(killed), **flags), quiet=True)
     cols, key = ["task", "level", "episode", "seed", "success", "steps"], ["task", "level", "episode"]
     got = pd.read_parquet(killed / "episodes.parquet")[cols].sort_values(key).reset_index(drop=True)

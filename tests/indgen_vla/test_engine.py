@@ -1,10 +1,8 @@
 """The rollout engine on the real pick_place scene with CPU stand-ins (short episodes)."""
 
 import json
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +16,7 @@ from indgen_vla.engine.run import evaluate
 from indgen_vla.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.interface import ACTION_DIM, PolicySpec
 from scenes.planning import scene_levels
+from tests.fixtures.kill import kill_midway
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -69,18 +68,7 @@ def test_resume_after_sigkill(tmp_path):
     subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(ref)], check=True,
                    capture_output=True)  # fmt: skip
     killed = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(killed)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    deadline = time.time() + 120
-    while time.time() < deadline:  # kill as soon as some (not all) episodes are on disk
-        p = killed / "episodes.parquet"
-        if p.exists() and 0 < len(pd.read_parquet(p)) < 8:
-            break
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    partial = len(pd.read_parquet(killed / "episodes.parquet"))
-    assert 0 < partial < 8
+    assert 0 < kill_midway(args, killed, total=8) < 8
     subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(killed)], check=True,
                    capture_output=True)  # fmt: skip
     assert outcomes(killed) == outcomes(ref) and len(outcomes(ref)) == 8

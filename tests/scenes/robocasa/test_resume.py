@@ -3,14 +3,13 @@ episode i rebuilds T0's kitchen from its seed in a fresh worker, so nothing depe
 
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
-import time
 
 import pandas as pd
 import pytest
 
+from tests.fixtures.kill import kill_midway
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 ARGS = ["evaluate", "--policy", "standin:oracle", "--scene", "robocasa", "--task", "CloseStandMixerHead",
@@ -33,16 +32,7 @@ def test_a_killed_robocasa_run_resumes_to_the_uninterrupted_episodes(placeholder
     ref = tmp_path / "ref"
     subprocess.run(_cli(ref), check=True, capture_output=True)
     killed = tmp_path / "killed"
-    proc = subprocess.Popen(_cli(killed), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 300
-    while time.time() < deadline:  # kill as soon as some (not all) episodes are on disk
-        p = killed / "episodes.parquet"
-        if p.exists() and 0 < len(pd.read_parquet(p)) < 4:
-            break
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    assert 0 < len(pd.read_parquet(killed / "episodes.parquet")) < 4
+    assert 0 < kill_midway(ARGS, killed, total=4, timeout_s=300) < 4
     subprocess.run(_cli(killed), check=True, capture_output=True)
     want = _outcomes(ref)
     assert len(want) == 4 and _outcomes(killed) == want
