@@ -117,9 +117,25 @@ def _pinned_sample(pins: dict):
     return sample
 
 
+def unique_in_order(items=()) -> list:
+    """``list(set(items))`` in first-seen order: a set of XML elements iterates in id() (memory address) order."""
+    return list(dict.fromkeys(items))
+
+
+def _dedupe_counter_geoms_in_order() -> None:
+    """RoboCasa's ``Counter.get_reset_regions`` (robocasa/models/fixtures/counter.py) dedupes the counter tops beside
+    a reference fixture with ``list(set(valid_geoms))``, its module's only ``set``: the regions' order, so the one
+    ``rng.choice`` takes, followed memory addresses, and one seed put the stand mixer (and the robot base placed at
+    it) on either side of the island sink, 1.775 m apart, depending on the process. Shadow that ``set``."""
+    import robocasa.models.fixtures.counter as counter
+
+    counter.set = unique_in_order
+
+
 def _install_patches() -> None:
-    """Worker-wide: placement samplers honour ``env._indgen_pins``; RoboCasa's fixture style YAML (re-parsed ~100
-    times per reset with the pure-Python loader, ~70 % of a reset) is parsed once with libyaml and copied."""
+    """Worker-wide: counter regions in first-seen order; placement samplers honour ``env._indgen_pins``; RoboCasa's
+    fixture style YAML (re-parsed ~100 times per reset with the pure-Python loader, ~70 % of a reset) is parsed once
+    with libyaml and copied."""
     import types
 
     import robocasa.models.scenes.scene_utils as scene_utils
@@ -128,6 +144,7 @@ def _install_patches() -> None:
 
     if getattr(env_utils, "_indgen_patched", False):
         return
+    _dedupe_counter_geoms_in_order()
     original = env_utils._get_placement_initializer
 
     def placement_initializer(env, cfg_list, z_offset=0.01):
