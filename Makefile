@@ -35,8 +35,10 @@ ROBOCASA_VENV ?= $(or $(INDGEN_ROBOCASA_VENV),$(HOME)/.cache/indgen/robocasa-ven
 robocasa: $(STAMP)
 	@INDGEN_ROBOCASA_VENV=$(ROBOCASA_VENV) $(VENV)/bin/indgen setup robocasa
 
+# the default suite in parallel, one test file per worker process (pytest-xdist; TEST_WORKERS=0 runs it serially)
+TEST_WORKERS ?= auto
 test: $(STAMP) robocasa
-	@$(PY) -m pytest -q
+	@$(PY) -m pytest -q -n $(TEST_WORKERS) --maxprocesses 4 --dist loadfile
 
 test-all: $(STAMP)
 	@$(PY) -m pytest -q -m ""

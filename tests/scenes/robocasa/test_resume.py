@@ -7,18 +7,18 @@ import subprocess
 import sys
 
 import pandas as pd
-import pytest
 
 from tests.fixtures.kill import kill_midway
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 ARGS = ["evaluate", "--policy", "standin:oracle", "--scene", "robocasa", "--task", "CloseStandMixerHead",
-        "--axis", "fixture_x", "--levels", "0:1", "--episodes", "2", "--workers", "1", "--max-steps", "120"]  # fmt: skip
+        "--axis", "fixture_x", "--levels", "0:1", "--episodes", "1", "--workers", "1", "--max-steps", "120"]  # fmt: skip
 
 
 def _outcomes(run):
     df = pd.read_parquet(run / "episodes.parquet")
     cols = ["seed", "param", "success", "steps", "status", "failure", "progress"]
+    df = df.astype(object).where(df.notna(), None)  # progress is missing (NaN) on RoboCasa; NaN != NaN
     return {(r.level, r.episode): tuple(getattr(r, c) for c in cols) for r in df.itertuples()}
 
 
@@ -27,14 +27,15 @@ def _cli(out):
 
 
 @needs_venv
-@pytest.mark.slow  # three cold RoboCasa runs (~40 s); the worker's death and retry: test_robocasa.py (default)
 def test_a_killed_robocasa_run_resumes_to_the_uninterrupted_episodes(placeholders, tmp_path):
+    from indgen_vla.cli import main
+
     ref = tmp_path / "ref"
-    subprocess.run(_cli(ref), check=True, capture_output=True)
+    assert main([*ARGS, "--out", str(ref)]) == 0  # the uninterrupted run, in this process
     killed = tmp_path / "killed"
-    assert 0 < kill_midway(ARGS, killed, total=4, timeout_s=300) < 4
+    assert kill_midway(ARGS, killed, total=2, timeout_s=300) == 1  # level 0 done, level 1 not
     subprocess.run(_cli(killed), check=True, capture_output=True)
     want = _outcomes(ref)
-    assert len(want) == 4 and _outcomes(killed) == want
+    assert len(want) == 2 and _outcomes(killed) == want
     # the oracle closes the head within the limit: the step counts are the episodes' own, not the limit
     assert all(v[2] and v[3] < 120 for v in want.values()), want

@@ -416,7 +416,6 @@ def test_the_oracle_closes_the_mixer_head_after_it_slides_away(placeholders):
     assert _oracle_episodes("CloseStandMixerHead", "fixture_x", 1, (1, 3), 300) == [True, True]
 
 
-@needs_venv
-@pytest.mark.slow  # ~1 min; no default test runs cabinet to counter (the family's default oracle test is the mixer)
+@needs_venv  # ~20 s: the pick-and-place oracle's episode of the smoke group (the mixer's is above)
 def test_the_oracle_takes_the_object_out_of_the_cabinet(placeholders):
     assert _oracle_episodes("PickPlaceCabinetToCounter", "clutter", 0, (0,), 400) == [True]

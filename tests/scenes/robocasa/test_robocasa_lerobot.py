@@ -15,7 +15,6 @@ CAMS = ("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand")
 
 
 @needs_venv
-@pytest.mark.slow  # a cold RoboCasa worker with three cameras; the mapping: test_robocasa_layouts.py (default)
 def test_a_tiny_lerobot_robocasa_policy_evaluates_on_placeholders(placeholders, tmp_path):
     """``indgen evaluate --policy lerobot:DIR --scene robocasa --task PickPlaceCounterToCabinet --axis base_y
     --levels 0:0 --episodes 1 --max-steps 3 --smoke``: refused without --smoke (placeholder assets), then runs and
