@@ -49,12 +49,10 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     """One stacked-bar panel per run: the share of each failure mode per level (None: nothing classified)."""
     if not any(classified(a["levels"]) for _, a in curves):
         return None
-    import matplotlib
+    from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 3.2), dpi=120, squeeze=False)
+    fig = Figure(figsize=(4.2 * len(curves), 3.2), dpi=120)
+    axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
         rows = [r for r in a["levels"] if sum(r.get("failures", {}).values())]
         ks = [r["level"] for r in rows]
@@ -79,7 +77,6 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     fig.tight_layout(rect=(0, 0, 0.82, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_savefig(fig, path)
-    plt.close(fig)
     return path
 
 

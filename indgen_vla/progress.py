@@ -272,12 +272,10 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     the top segment) and the mean score (right axis); None when no run has scores."""
     if not any(r.get("progress") for _, a in curves for r in a["levels"]):
         return None
-    import matplotlib
+    from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, len(curves), figsize=(4.2 * len(curves), 3.4), dpi=120, squeeze=False)
+    fig = Figure(figsize=(4.2 * len(curves), 3.4), dpi=120)
+    axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
         rows = [r for r in a["levels"] if r.get("progress")]
         ks = [r["level"] for r in rows]
@@ -304,5 +302,4 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     from indgen_vla.records import atomic_savefig
 
     atomic_savefig(fig, path)  # a report read while another writes never sees half a PNG
-    plt.close(fig)
     return path

@@ -360,12 +360,10 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     """Success vs level in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands; each task's
     curve drawn faintly behind the pooled one when a run pools several tasks; levels without enough data
     are not drawn."""
-    import matplotlib
+    from matplotlib.figure import Figure  # not pyplot: no GUI backend or figure registry to start (start-up)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
+    fig = Figure(figsize=(6.4, 4.2), dpi=120)
+    ax = fig.subplots()
     marked: set[str] = set()  # legend entries already shown (the break-point marker is explained once)
     all_levels: list[int] = []
     signed = False
@@ -407,7 +405,6 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_savefig(fig, path)
-    plt.close(fig)
     return path
 
 

@@ -7,6 +7,15 @@ processors): about a fifth of the time a tiny ACT takes to load. ``policy_packag
 a ``lerobot.policies`` package whose own ``__init__`` runs on the first attribute it is asked for that it lacks, so
 ``from lerobot.policies import SmolVLAConfig`` later in the process still works exactly as before.
 
+Two modules on every policy's import path bind a name from an optional package they only use when called:
+``lerobot.optim.schedulers`` binds diffusers' ``get_scheduler`` (training only) and
+``lerobot.processor.tokenizer_processor`` binds transformers' ``AutoTokenizer``/``AutoProcessor`` (policies that
+tokenize; transformers 5's ``AutoProcessor`` pulls ``modeling_utils`` and scipy.optimize). ``defer_optional_names()``
+imports the two with lerobot's own "package not installed" branch, then binds each name to a ``Deferred`` that
+imports the real object on first use and puts it in its place: an ACT loads without diffusers or transformers
+(about 3 s of a 10 s start-up here), a policy that tokenizes gets the real ``AutoTokenizer`` when it builds its
+processor.
+
 Separately, transformers and diffusers each call ``importlib.metadata.packages_distributions()`` when imported (a
 walk over every installed package's RECORD; 0.5-1.4 s on a 2-core machine); inside ``one_package_scan()`` the
 second call gets a copy of the first's answer (nothing is installed or removed in between).
@@ -64,6 +73,7 @@ def policy_package(policy_type: str | None) -> None:
     with _lock:
         if PACKAGE not in sys.modules:
             _install()
+            defer_optional_names()
     if policy_type and policy_type.isidentifier():
         try:
             module = importlib.import_module(f"{PACKAGE}.{policy_type}")
@@ -74,6 +84,70 @@ def policy_package(policy_type: str | None) -> None:
             getattr(module, "__all__", None)  # its own __init__ runs now if it was still lazy
             return
     getattr(sys.modules[PACKAGE], "__all__", None)  # not one of lerobot's subpackages: the whole package
+
+
+# module -> (lerobot.utils.import_utils flag its import reads, {name: package the name comes from})
+DEFERRED = {
+    "lerobot.optim.schedulers": ("_diffusers_available", {"get_scheduler": "diffusers.optimization"}),
+    "lerobot.processor.tokenizer_processor": (
+        "_transformers_available",
+        {"AutoProcessor": "transformers", "AutoTokenizer": "transformers"},
+    ),
+}
+
+
+class Deferred:
+    """``source.name`` imported on first use (a call or an attribute), which also rebinds ``owner.name`` to it."""
+
+    def __init__(self, owner: str, name: str, source: str) -> None:
+        self._where = (owner, name, source)
+
+    def resolve(self):
+        owner, name, source = self._where
+        real = getattr(importlib.import_module(source), name)
+        if getattr(sys.modules[owner], name) is self:
+            setattr(sys.modules[owner], name, real)
+        return real
+
+    def __call__(self, *args, **kwargs):
+        return self.resolve()(*args, **kwargs)
+
+    def __getattr__(self, attr: str):
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        return getattr(self.resolve(), attr)
+
+    def __repr__(self) -> str:
+        owner, name, source = self._where
+        return f"<deferred {source}.{name} in {owner}>"
+
+
+def defer_optional_names() -> None:
+    """Import the ``DEFERRED`` modules without their optional packages, binding ``Deferred`` names instead
+    (nothing happens for a module already imported, or when a package is not installed: lerobot's own fallback)."""
+    with _lock:
+        todo = {m: v for m, v in DEFERRED.items() if m not in sys.modules}
+        if not todo:
+            return
+        import lerobot.utils.import_utils as flags
+
+        saved = {flag: getattr(flags, flag) for flag, _ in todo.values()}
+        if not all(saved.values()):
+            return
+        try:
+            for flag in saved:
+                setattr(flags, flag, False)
+            for module in todo:
+                importlib.import_module(module)
+        finally:
+            for flag, value in saved.items():
+                setattr(flags, flag, value)
+        for module, (flag, names) in todo.items():
+            owner = sys.modules[module]
+            setattr(owner, flag, True)  # its call-time checks see the package as installed, as it is
+            for name, source in names.items():
+                if getattr(owner, name) is None:
+                    setattr(owner, name, Deferred(module, name, source))
 
 
 @contextlib.contextmanager

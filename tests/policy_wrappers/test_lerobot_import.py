@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from policy_wrappers.lerobot_import import one_package_scan
+from policy_wrappers.lerobot_import import Deferred, one_package_scan
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "checkpoints" / "act_pick_place_human"
@@ -22,6 +22,13 @@ policy = load_policy("lerobot:" + sys.argv[1], scene="pick_place")
 OTHERS = ("lerobot.policies.eo1.modeling_eo1", "lerobot.policies.fastwam.modeling_fastwam",
           "lerobot.policies.groot.processor_groot", "lerobot.policies.smolvla.modeling_smolvla", "datasets")
 print("others:", sorted(m for m in OTHERS if m in sys.modules))
+print("optional:", sorted(m for m in ("transformers", "diffusers", "scipy.optimize") if m in sys.modules))
+import lerobot.optim.schedulers as schedulers, lerobot.processor.tokenizer_processor as tokenizing
+tokenizer_class = tokenizing.AutoTokenizer.resolve()  # what TokenizerProcessorStep calls from_pretrained on
+import transformers, diffusers.optimization
+print("resolved:", tokenizer_class is transformers.AutoTokenizer is tokenizing.AutoTokenizer,
+      schedulers.get_scheduler.resolve() is diffusers.optimization.get_scheduler is schedulers.get_scheduler,
+      tokenizing._transformers_available, schedulers._diffusers_available)
 from lerobot.policies import SmolVLAConfig, get_policy_class  # the package's own __init__ runs now
 import lerobot.policies
 from lerobot.policies.groot import GrootPolicy  # and a subpackage's on its first name
@@ -38,6 +45,10 @@ def test_act_loads_without_the_other_policies_and_the_package_still_works():  # 
                          cwd=ROOT, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     assert "others: []" in out.stdout
+    assert (
+        "optional: []" in out.stdout
+    )  # ACT needs neither transformers nor diffusers (lerobot_import.DEFERRED)
+    assert "resolved: True True True True" in out.stdout
     assert "after: SmolVLAConfig ACTPolicy True GrootPolicy True" in out.stdout
 
 
@@ -55,3 +66,19 @@ def test_one_package_scan_scans_once_and_restores(monkeypatch):
         assert importlib.metadata.packages_distributions() == {"numpy": ["numpy"]}  # a copy each time
     assert len(calls) == 1
     assert importlib.metadata.packages_distributions is scan
+
+
+def test_a_deferred_name_imports_its_source_on_first_use_and_takes_its_place(monkeypatch):
+    """``Deferred`` (lerobot_import.DEFERRED): a call or an attribute imports the real object, which then replaces
+    the stand-in in its owner module, so later lookups are the real object itself."""
+    import json
+    import types
+
+    owner = types.ModuleType("owner_for_test")
+    monkeypatch.setitem(sys.modules, owner.__name__, owner)
+    owner.dumps = Deferred(owner.__name__, "dumps", "json")
+    owner.JSONDecoder = Deferred(owner.__name__, "JSONDecoder", "json")
+    assert "deferred json.dumps" in repr(owner.dumps)
+    assert owner.dumps([1]) == "[1]" and owner.dumps is json.dumps
+    assert owner.JSONDecoder.decode is json.JSONDecoder.decode and owner.JSONDecoder is json.JSONDecoder
+    assert not hasattr(Deferred(owner.__name__, "x", "json"), "__wrapped__")  # dunders never import
