@@ -156,6 +156,12 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
     )
     p.add_argument(
+        "--allow-protocol-mismatch",
+        action="store_true",
+        help="resume a run although its protocol fingerprint changed in a field that changes outcomes "
+        "(simulator versions, assets, horizon, cameras, render backend, policy conventions); the manifest lists it",
+    )
+    p.add_argument(
         "--server-patience",
         type=float,
         default=None,

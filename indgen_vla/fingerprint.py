@@ -120,7 +120,8 @@ def differences(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[tuple[str, A
     return out
 
 
-def _short(v: Any, width: int = 60) -> str:
+def short(v: Any, width: int = 60) -> str:
+    """``v`` as one line of at most ``width`` characters (for the one-line refusals)."""
     text = json.dumps(v, sort_keys=True, default=str) if not isinstance(v, str) else v
     return text if len(text) <= width else text[: width - 1] + "…"
 
@@ -146,12 +147,12 @@ def check_comparable(
             more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
             raise ProtocolMismatchError(
                 f"{label0} and {label} were made under different protocols, so they cannot be {what}: {f} is "
-                f"{_short(va)} vs {_short(vb)}{more}; re-run one under the other's protocol, or pass "
+                f"{short(va)} vs {short(vb)}{more}; re-run one under the other's protocol, or pass "
                 "--allow-protocol-mismatch to go on (the output then lists every difference)"
             )
         for f, va, vb, changes in diffs:
             tag = "changes outcomes" if changes else "informational"
-            lines.append(f"{label0} vs {label}: {f} differs ({tag}): {_short(va, 40)} vs {_short(vb, 40)}")
+            lines.append(f"{label0} vs {label}: {f} differs ({tag}): {short(va, 40)} vs {short(vb, 40)}")
     return lines
 
 

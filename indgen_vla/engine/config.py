@@ -51,6 +51,9 @@ class EvalConfig:
         False  # run an image policy on placeholder assets anyway: the manifest says "not a measurement"
     )
     trust_remote_code: bool = False
+    allow_protocol_mismatch: bool = (
+        False  # resume a run under a protocol that changes outcomes (manifest lists it)
+    )
     max_retries: int = 2
     device: str = "cpu"  # where in-process policies run: cpu, cuda, cuda:N
     precision: str = "fp32"  # "bf16": autocast forward, for policies that support it (lerobot:)

@@ -206,9 +206,13 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             video_dir=str(out / "videos") if cfg.video else None,
         )  # fmt: skip
         manifest = run.manifest
+        resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
+        fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
         if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
-            resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
-            run.update_manifest(fingerprint=_fingerprint(cfg, plan, resolved, runner_cfg, probe))
+            run.update_manifest(fingerprint=fingerprint)
+        else:  # a resume: the episodes still to run must be made under the protocol of those on disk
+            for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
+                console.print(f"[yellow]warning:[/] {line}")
         meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
         try:
             _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console)
@@ -226,6 +230,30 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
     return out
+
+
+def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> list[str]:
+    """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
+    its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
+    go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
+    from indgen_vla.fingerprint import ProtocolMismatchError, differences, short
+
+    bad = [d for d in differences(run.manifest["fingerprint"], now) if d[3]]
+    if not bad:
+        return []
+    field, was, is_now, _ = bad[0]
+    if not allow:
+        more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
+        raise ProtocolMismatchError(
+            f"{run.path} was started under another protocol: {field} was {short(was)}, now {short(is_now)}{more}; "
+            "resume it where it was started, use a new --out, or pass --allow-protocol-mismatch (the manifest then "
+            "records the change)"
+        )
+    changes = [{"field": f, "was": a, "now": b} for f, a, b, _ in bad]
+    run.update_manifest(protocol_changes=[*run.manifest.get("protocol_changes", []), *changes])
+    return [
+        f"resumed under another protocol: {f} was {short(a, 40)}, now {short(b, 40)}" for f, a, b, _ in bad
+    ]
 
 
 def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:

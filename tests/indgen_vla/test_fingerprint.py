@@ -89,3 +89,33 @@ def test_compare_refuses_runs_with_different_horizons_and_the_flag_lets_it_throu
     ]
     assert main(args) == 0
     assert "horizon differs (changes outcomes): 2 vs 3" in (tmp_path / "c" / "compare.md").read_text()
+
+
+def test_a_resume_under_another_protocol_is_refused_in_one_line_and_the_flag_records_it(tmp_path, capsys):
+    """A killed run resumed where the simulator differs (here the stored fingerprint names another MuJoCo) would mix
+    two protocols' episodes in one table: refused before any episode runs, nothing on disk lost; with
+    --allow-protocol-mismatch it goes on and the manifest records the change."""
+    import pandas as pd
+
+    out = tmp_path / "run"
+    args = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
+            "--episodes", "2", "--workers", "1", "--max-steps", "2", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    mujoco = manifest["fingerprint"]["simulator"]["mujoco"]
+    manifest["fingerprint"]["simulator"]["mujoco"] = "0.0.1"  # as if started on another machine, then killed
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    episodes = pd.read_parquet(out / "episodes.parquet")
+    episodes[episodes.episode == 0].to_parquet(out / "episodes.parquet", index=False)
+    capsys.readouterr()
+    assert main(args) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "simulator was" in err[0] and '"mujoco": "0.0.1"' in err[0], err
+    assert "--allow-protocol-mismatch" in err[0]
+    assert len(pd.read_parquet(out / "episodes.parquet")) == 1  # refused before any episode
+    assert main([*args, "--allow-protocol-mismatch"]) == 0
+    assert "resumed under another protocol: simulator" in capsys.readouterr().err
+    manifest = json.loads((out / "manifest.json").read_text())
+    (change,) = manifest["protocol_changes"]
+    assert change["field"] == "simulator" and change["now"]["mujoco"] == mujoco
+    assert sorted(pd.read_parquet(out / "episodes.parquet").episode) == [0, 1]
