@@ -116,7 +116,10 @@ GROOT_ROBOCASA = Layout(
 # J-Oyasumi/openpi_robocasa): observation/image = agentview_left, observation/wrist_image = eye_in_hand,
 # observation/right_image = agentview_right (256 upright, resize_with_pad 224); observation/state =
 # end_effector_position_relative, end_effector_rotation_relative, base_position, base_rotation, gripper_qpos;
-# the returned actions go through RoboCasa's convert_action (arm first); replan_steps 5.
+# the returned actions go through RoboCasa's convert_action (arm first); replan_steps 5. A second fork,
+# TRI-ML/openpi-priors (examples/robocasa/main.py, src/openpi/policies/robocasa_policy.py), sends the same state,
+# resize, replan and convert_action but two images (no right_image); its RobocasaInputs builds a new dict from
+# observation/image and observation/wrist_image only, so the third image is ignored there (rendered for nothing).
 OPENPI_ROBOCASA = Layout(
     name="openpi-robocasa (arm first)",
     env=_RC,

@@ -88,7 +88,8 @@ def test_lerobot_state_and_action_follow_lerobots_robocasa_wrapper():
 
 
 def test_openpi_and_groot_layouts_follow_their_upstream_clients():
-    """openpi: robocasa-benchmark/openpi examples/robocasa/main.py (read from its copy J-Oyasumi/openpi_robocasa)
+    """openpi: robocasa-benchmark/openpi examples/robocasa/main.py (read from its copy J-Oyasumi/openpi_robocasa;
+    TRI-ML/openpi-priors' examples/robocasa/main.py has the same state order, resize, replan and convert_action)
     sends state = concat(state.end_effector_position_relative, state.end_effector_rotation_relative,
     state.base_position, state.base_rotation, state.gripper_qpos) and steps ``convert_action(action)`` (RoboCasa's,
     arm first). GR00T: squarefk/robocasa robocasa/models/robots/__init__.py PandaOmronKeyConverter.unmap_action
