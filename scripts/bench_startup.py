@@ -42,7 +42,12 @@ PARTS = (
     ("scene_build", "indgen_vla.engine.rollout", "EnvRunner._env_for"),
     ("scene_reset", "indgen_vla.engine.rollout", "EnvRunner.reset"),
     ("steps", "indgen_vla.engine.rollout", "EnvRunner.execute"),
-    ("act", "indgen_vla.engine.local", "_act"),
+    ("act", "indgen_vla.engine.scheduler", "act"),  # the coordinator's call (batching.act, bound there)
+    (
+        "act",
+        "indgen_vla.engine.local",
+        "_act",
+    ),  # the same before the scheduler split (--compare with older checkouts)
     ("records", "indgen_vla.records", "RunDir.append"),
     ("rollout_other", "indgen_vla.engine.local", "run_local"),
     ("report", "indgen_vla.report", "write_run_report"),
