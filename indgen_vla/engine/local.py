@@ -214,7 +214,7 @@ def run_local(
     pool: list = []
     policies: Policies | None = None
     try:
-        pool = _start_pool(runner_cfg, n, lanes)
+        pool = _start_pool(runner_cfg, worker_processes(len(jobs), workers, pipeline))
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
         slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None))
@@ -237,10 +237,10 @@ def run_local(
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
 
 
-def _start_pool(runner_cfg: RunnerConfig, n: int, lanes: int) -> list:
-    """``n`` worker processes forked from the fork server (one in-process worker, and no fork server, when
-    W = 1 and unpipelined), rendering on the GPUs round-robin when there are several."""
-    if n == 1 and lanes == 1:  # worker_processes(...) == 0
+def _start_pool(runner_cfg: RunnerConfig, n: int) -> list:
+    """``n`` worker processes forked from the fork server (``worker_processes``), or with ``n`` = 0 one
+    in-process worker and no fork server; rendering on the GPUs round-robin when there are several."""
+    if n == 0:
         return [_InProcessWorker(runner_cfg)]
     ctx = _context(runner_cfg.levels.preload)
     render_threads = max(1, (os.cpu_count() or 1) // n)
