@@ -91,11 +91,9 @@ def policy_conventions(spec, policy) -> dict[str, Any]:
         "flip_180": spec.flip_180,
         "conventions": repr(conv) if conv is not None else None,
     }
-    layout = getattr(
-        policy, "layout", None
-    )  # a scene family's own robot: the family's state/action convention
+    layout = getattr(policy, "layout", None)  # a ``layouts.Layout`` on a scene family with its own robot
     if layout is not None:  # absent on the tabletop families, so their fingerprints are unchanged
-        out["layout"] = layout.describe() if hasattr(layout, "describe") else repr(layout)
+        out["layout"] = layout.describe()
     return out
 
 

@@ -29,16 +29,14 @@ import numpy as np
 
 from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
 from indgen_vla.interface import (
-    ACTION_DIM,
-    CAMERAS,
-    STATE_DIM,
+    TABLETOP,
     EnvSpec,
     Observation,
     PolicySpec,
     validate_chunk,
 )
 from policy_wrappers.image_tools import GRIPPER_MODES
-from policy_wrappers.layouts import Layout, layout_for
+from policy_wrappers.layouts import Layout, layout_for, spans
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
 from policy_wrappers.transforms import LIBERO_GROOT_N15, LIBERO_GROOT_N16, ROBOCASA_GROOT_N16, Conventions
@@ -78,13 +76,13 @@ class GrootConfig(RemoteConfig):
                 f"groot {self.url}: on scene family {self.env_spec.name} only GR00T N1.6's RoboCasa evaluation "
                 "(Isaac-GR00T examples/robocasa, ROBOCASA_PANDA_OMRON) is wired; serve an N1.6 checkpoint (api=n1.6)"
             )
-        cams = self.env_spec.cameras if self.env_spec is not None else CAMERAS
+        cams = (self.env_spec or TABLETOP).cameras
         bad = [cam for _, cam in self.video if cam not in cams]
         if bad or not self.video:
             raise ConfigError(
                 f"groot {self.url}: video map needs cameras from {list(cams)}, got {bad or 'none'}"
             )
-        dim = self.env_spec.state_dim if self.env_spec is not None else STATE_DIM
+        dim = (self.env_spec or TABLETOP).state_dim
         if sum(hi - lo for _, lo, hi in self.state) > dim or any(
             not 0 <= lo < hi <= dim for _, lo, hi in self.state
         ):
@@ -110,10 +108,10 @@ class GrootPolicy(RemotePolicy):
         self._zmq = zmq
         env = config.env_spec
         self.layout = config.layout  # recorded in the run's fingerprint
-        self._action_dim = env.action_dim if env is not None else ACTION_DIM
+        self._action_dim = (env or TABLETOP).action_dim
         # the keys' concatenation order -> ours (identity on the tabletop families)
         self._to_scene = config.layout.action_to_scene(env) if config.layout is not None else None
-        scene_cams = env.cameras if env is not None else CAMERAS
+        scene_cams = (env or TABLETOP).cameras
         cams = tuple(c for c in scene_cams if c in {cam for _, cam in config.video})
         chunk, replan = config.chunking()
         spec = PolicySpec(
@@ -380,11 +378,9 @@ def load(
     values = {k: v for k, v in chosen.items() if v is not None} | options.fields(GrootConfig, OPTIONS)
     layout = layout_for("groot", env_spec)
     if layout is not None:  # GR00T's RoboCasa keys: cameras, one state key per segment, action keys in order
-        starts, lo = {}, 0
-        for name, size in env_spec.state_parts:
-            starts[name], lo = (lo, lo + size), lo + size
+        ours = spans(env_spec.state_parts)
         values.setdefault("video", layout.cameras)
-        values["state"] = tuple((name, *starts[name]) for name, _ in layout.state)
+        values["state"] = tuple((name, *ours[name]) for name, _ in layout.state)
         values["action"] = tuple(name for name, _ in layout.action)
     config = GrootConfig(url=GrootPolicy.url_from(parsed), env_spec=env_spec, **values)
     return APIS[config.api](parsed.spec, config)

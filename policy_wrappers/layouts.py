@@ -20,15 +20,21 @@ from indgen_vla.interface import EnvSpec
 Parts = tuple[tuple[str, int], ...]
 
 
+def spans(parts: Parts) -> dict[str, tuple[int, int]]:
+    """Each named segment's [start, stop) in a vector laid out in ``parts`` order."""
+    out, offset = {}, 0
+    for name, size in parts:
+        out[name] = (offset, offset + size)
+        offset += size
+    return out
+
+
 def _index(src: Parts, dst: Parts, what: str) -> tuple[int, ...]:
     """Indices into a ``src``-ordered vector that give it in ``dst`` order (same names and sizes)."""
-    start, offset = {}, 0
-    for name, size in src:
-        start[name] = (offset, size)
-        offset += size
     if sorted(src) != sorted(dst):
         raise ConfigError(f"{what}: segments {[n for n, _ in dst]} do not match {[n for n, _ in src]}")
-    return tuple(i for name, size in dst for i in range(start[name][0], start[name][0] + size))
+    at = spans(src)
+    return tuple(i for name, _ in dst for i in range(*at[name]))
 
 
 @dataclass(frozen=True)
@@ -41,10 +47,6 @@ class Reorder:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "_index", np.asarray(_index(self.src, self.dst, self.what)))
-
-    @property
-    def identity(self) -> bool:
-        return bool(np.array_equal(self._index, np.arange(len(self._index))))
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return np.asarray(x)[..., self._index]

@@ -23,9 +23,8 @@ import numpy as np
 from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import (
     ACTION_DIM,
-    CAMERAS,
     OBJECT_DIM,
-    STATE_DIM,
+    TABLETOP,
     EnvSpec,
     Observation,
     PolicySpec,
@@ -79,7 +78,7 @@ class LeRobotConfig:
 
     @property
     def scene_cameras(self) -> tuple[str, ...]:
-        return self.env_spec.cameras if self.env_spec is not None else CAMERAS
+        return (self.env_spec or TABLETOP).cameras
 
     def __post_init__(self) -> None:
         if self.precision not in PRECISIONS:
@@ -122,8 +121,8 @@ class LeRobotPolicy:
         self.layout = layout_for("lerobot", spec_env)  # None on the tabletop families
         self._state_in = self.layout.state_to_policy(spec_env) if self.layout else None
         self._action_out = self.layout.action_to_scene(spec_env) if self.layout else None
-        self._action_dim = spec_env.action_dim if spec_env is not None else ACTION_DIM
-        self._state_dim = spec_env.state_dim if spec_env is not None else STATE_DIM
+        self._action_dim = (spec_env or TABLETOP).action_dim
+        self._state_dim = (spec_env or TABLETOP).state_dim
         self._load()
         if config.compile != "off":
             from policy_wrappers.compile import compile_forward

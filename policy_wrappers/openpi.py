@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from indgen_vla.errors import IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, EnvSpec, Observation, PolicySpec, validate_chunk
+from indgen_vla.interface import TABLETOP, EnvSpec, Observation, PolicySpec, validate_chunk
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.layouts import Layout, layout_for
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
@@ -71,7 +71,7 @@ class OpenpiPolicy(RemotePolicy):
         self._keys = self.layout.cameras if self.layout is not None else LIBERO_KEYS
         self._state = self.layout.state_to_policy(env) if self.layout is not None else None
         self._to_scene = self.layout.action_to_scene(env) if self.layout is not None else None
-        self._action_dim = env.action_dim if env is not None else ACTION_DIM
+        self._action_dim = (env or TABLETOP).action_dim
         spec = PolicySpec(
             self.family,
             name,
