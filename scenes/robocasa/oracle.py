@@ -119,6 +119,23 @@ class RoboCasaOracle:
             return True
         return self._count > 12 and bool(np.linalg.norm(s.eef_pos - self._trail[-10]) < 0.002)
 
+    def _descend(self, s: PrivilegedState, p, tilt: float) -> np.ndarray:
+        """Straight down to the pick object's grasp height, fingers open (both pick-and-place scripts)."""
+        target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
+        if self._near(s, target, 0.012) or self._count > 50:
+            self._next("grasp")
+        return self._goto(s, target, OPEN, speed=0.5, tilt=tilt)
+
+    def _grasp(self, s: PrivilegedState, p, tilt: float) -> tuple[np.ndarray, bool]:
+        """Close the fingers where the hand stopped; True once closed (the hand's height over the object's
+        bottom is kept in ``_offset`` for the carry)."""
+        if self._hold is None:
+            self._hold = s.eef_pos.copy()
+        closed = self._count > 15
+        if closed:
+            self._offset = float(s.eef_pos[2] - p.bottom)
+        return self._goto(s, self._hold, CLOSED, tilt=tilt), closed
+
     def action(self, s: PrivilegedState) -> np.ndarray:
         """One action from the privileged state ``s`` (advances the phase machine)."""
         self._count += 1
@@ -174,17 +191,12 @@ class RoboCasaOracle:
                 self._next("descend")
             return self._goto(s, target, OPEN, tilt=gt)
         if self.phase == "descend":
-            target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
-            if self._near(s, target, 0.012) or self._count > 50:
-                self._next("grasp")
-            return self._goto(s, target, OPEN, speed=0.5, tilt=gt)
+            return self._descend(s, p, gt)
         if self.phase == "grasp":
-            if self._hold is None:
-                self._hold = s.eef_pos.copy()
-            if self._count > 15:
-                self._offset = float(s.eef_pos[2] - p.bottom)
+            a, closed = self._grasp(s, p, gt)
+            if closed:
                 self._next("pull")
-            return self._goto(s, self._hold, CLOSED, tilt=gt)
+            return a
         if self.phase == "pull":  # out from under the cabinet, toward the robot, before lifting
             out = min(0.0, front - 0.05 - p.half_width - float(np.dot(p.pos, fwd)))
             target = self._hold + fwd * out + np.array([0.0, 0.0, 0.01])
@@ -243,18 +255,13 @@ class RoboCasaOracle:
                 self._next("descend")
             return self._goto(s, target, OPEN, speed=0.5, tilt=TILT)
         if self.phase == "descend":
-            target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
-            if self._near(s, target, 0.012) or self._count > 50:
-                self._next("grasp")
-            return self._goto(s, target, OPEN, speed=0.5, tilt=TILT)
+            return self._descend(s, p, TILT)
         if self.phase == "grasp":
-            if self._hold is None:
-                self._hold = s.eef_pos.copy()
-            if self._count > 15:
-                self._offset = float(s.eef_pos[2] - p.bottom)
+            a, closed = self._grasp(s, p, TILT)
+            if closed:
                 self._clear = np.array([*t.place_xy, self._hold[2] + 0.02])  # out past the face, same height
                 self._next("lift")
-            return self._goto(s, self._hold, CLOSED, tilt=TILT)
+            return a
         if self.phase == "lift":  # off the cabinet floor before pulling: dragging tips it over
             target = self._hold + np.array([0.0, 0.0, 0.02])
             if self._near(s, target, 0.008) or self._count > 20:
