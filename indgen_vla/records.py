@@ -239,10 +239,14 @@ class RunDir:
                 if missing:
                     raise RunDirError(f"{p} lacks columns {sorted(missing)}; it was not written by indgen")
                 for row in table.select([c for c in COLUMNS if c in table.column_names]).to_pylist():
-                    row = {**OPTIONAL, **row}
-                    self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
+                    self._keep(row)
             self._replay_journal()
         return self._rows
+
+    def _keep(self, row: dict[str, Any]) -> None:
+        """A stored row under its key (rows written before an OPTIONAL column existed get its default)."""
+        row = {**OPTIONAL, **row}
+        self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
 
     def _replay_journal(self) -> None:
         """Rows appended after the last rewrite of episodes.parquet (a run killed before its next rewrite)."""
@@ -255,8 +259,7 @@ class RunDir:
                 row = json.loads(line)
             except json.JSONDecodeError:
                 continue  # the line a kill cut short (create_or_resume trims it): never reported finished
-            row = {**OPTIONAL, **{c: row[c] for c in COLUMNS if c in row}}
-            self._rows[(row["task"], row["axis"], int(row["level"]), int(row["episode"]))] = row
+            self._keep({c: row[c] for c in COLUMNS if c in row})
             replayed = True
         self._pending = replayed
 
