@@ -20,6 +20,15 @@ OBJECT_DIM = len(OBJECT_NAMES)
 POS_SCALE = 0.05  # metres per unit action
 ROT_SCALE = 0.5  # radians per unit action
 NOOP_ACTION = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0)  # no motion, gripper open
+# the in-process policy options the CLI flags and the lerobot: spec options share (--precision, --compile)
+PRECISIONS = ("fp32", "bf16")  # bf16: the forward under torch.autocast
+COMPILE_MODES = (
+    "off",
+    "default",
+    "reduce-overhead",
+    "max-autotune",
+)  # torch.compile modes (policy_wrappers/compile.py)
+CUDA_GRAPH_COMPILE_MODES = ("reduce-overhead",)  # CUDA graphs: nothing to capture on a CPU or MPS device
 # why an episode failed (episodes.parquet "failure"), classified by the scene from privileged state; "" = older runs
 FAILURE_MODES = (
     "none",

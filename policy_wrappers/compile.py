@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.interface import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES
 
-MODES = ("off", "default", "reduce-overhead", "max-autotune")
-CUDA_ONLY = ("reduce-overhead",)  # CUDA graphs: nothing to capture on a CPU or MPS device
+MODES, CUDA_ONLY = COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES  # shared with --compile (indgen_vla/interface.py)
 CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
 
 

@@ -24,6 +24,7 @@ from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import (
     ACTION_DIM,
     OBJECT_DIM,
+    PRECISIONS,
     TABLETOP,
     EnvSpec,
     Observation,
@@ -55,7 +56,6 @@ LIBERO_CAMERA_NAMES = {
 }  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
 ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
-PRECISIONS = ("fp32", "bf16")
 
 
 @dataclass(frozen=True)

@@ -12,12 +12,11 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.interface import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
 from indgen_vla.plan import EpisodeJob, plan_jobs
 from indgen_vla.resources import config_dir
 
 DEFAULT_EPISODES = 50
-PRECISIONS = ("fp32", "bf16")
-COMPILE_MODES = ("off", "default", "reduce-overhead", "max-autotune")  # policy_wrappers/compile.py's MODES
 PRESET_DIR = config_dir("paper")
 
 
@@ -108,9 +107,9 @@ class EvalConfig:
             raise ConfigError(f"--precision must be one of {', '.join(PRECISIONS)}, got {self.precision!r}")
         if self.compile not in COMPILE_MODES:
             raise ConfigError(f"--compile must be one of {', '.join(COMPILE_MODES)}, got {self.compile!r}")
-        if self.compile == "reduce-overhead" and not self.device.startswith("cuda"):
+        if self.compile in CUDA_GRAPH_COMPILE_MODES and not self.device.startswith("cuda"):
             raise ConfigError(
-                f"--compile reduce-overhead captures CUDA graphs and needs --device cuda (got {self.device!r}); "
+                f"--compile {self.compile} captures CUDA graphs and needs --device cuda (got {self.device!r}); "
                 "use --compile default on CPU"
             )
         if not self.server_patience >= 0:
