@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import EnvSpec
+from indgen_vla.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
 from scenes.runtime import ExternalRuntime
 
@@ -50,9 +51,6 @@ KITCHEN_SETS: dict[str, tuple[tuple[int, int], ...]] = {
     "5x5": tuple((layout, style) for layout in (11, 15, 18, 40, 50) for style in (14, 28, 34, 46, 58)),
     "5x1": tuple((layout, 34) for layout in (11, 15, 18, 40, 50)),
 }
-# appendix B: RoboCasa's training data is broad, so T0 is empirical (Definition 3) and condition 2 (strictly harder
-# levels) is validated post hoc: success must fall monotonically with k (the report's monotone test)
-BLACK_BOX = "black-box"
 # the canonical layouts an appendix-B task's class excludes (its EXCLUDE_LAYOUTS; no EXCLUDE_STYLES meets the sets)
 EXCLUDED_KITCHENS: dict[str, frozenset[int]] = {"PickPlaceFridgeDrawerToShelf": frozenset({18})}
 PICK_JITTER = 0.02  # T0's pick window on pick_x: +-2 cm in x (backend.PICK_JITTER): condition 2 sees it
