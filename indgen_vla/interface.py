@@ -204,6 +204,18 @@ class PolicySpec:
             )
 
 
+@dataclass(frozen=True)
+class ScenePreview:
+    """What a policy will ask of the scene, read from its files before it loads (``registry.preview_policy``), so
+    workers build the first scenes during the load; the loaded policy's ``PolicySpec`` stays the authority (the
+    engine discards the early scenes when the two disagree). Fields as in ``PolicySpec``."""
+
+    cameras: tuple[str, ...]
+    image_size: tuple[int, int] | None = None
+    privileged: bool = False
+    observes_objects: bool = False
+
+
 @runtime_checkable
 class Policy(Protocol):
     """Observation batch in, (B, T, 7) float32 action chunk out.

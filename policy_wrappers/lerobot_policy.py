@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -24,91 +23,31 @@ from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import (
     ACTION_DIM,
     OBJECT_DIM,
-    PRECISIONS,
     TABLETOP,
     EnvSpec,
     Observation,
     PolicySpec,
+    ScenePreview,
     validate_chunk,
 )
+from policy_wrappers import lerobot_checkpoint
 from policy_wrappers.layouts import layout_for
+from policy_wrappers.lerobot_checkpoint import (
+    IMAGE_PREFIX,
+    LIBERO_CAMERA_NAMES,
+    OBJECT_STEP_CLASS,
+    PROPRIO_STEP_CLASS,
+    ZEROS,
+    LeRobotConfig,
+    has_step,
+    local_type,
+    make_config,
+    resolve_cameras,
+    scene_view,
+)
 from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 
-IMAGE_PREFIX = "observation.images."
-# Camera names seen in LeRobot checkpoints -> our cameras (LIBERO: image/image2; openpi-style; robosuite raw).
-DEFAULT_CAMERA_MAP = {
-    "agentview": "agentview",
-    "wrist": "wrist",
-    "image": "agentview",
-    "image2": "wrist",
-    "wrist_image": "wrist",
-    "front": "agentview",
-    "base_0_rgb": "agentview",
-    "left_wrist_0_rgb": "wrist",
-    "agentview_image": "agentview",
-    "robot0_eye_in_hand_image": "wrist",
-    "eye_in_hand": "wrist",
-    "main": "agentview",
-}
-LIBERO_CAMERA_NAMES = {
-    "image",
-    "image2",
-}  # lerobot's LIBERO env: these checkpoints were trained on flipped images
 NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
-ZEROS = "zeros"  # map a feature to a black image (e.g. SmolVLA's empty_camera_i padding)
-
-
-@dataclass(frozen=True)
-class LeRobotConfig:
-    """Which checkpoint to load and how our Observation maps onto its input features."""
-
-    path: str
-    device: str = "cpu"
-    revision: str | None = None
-    camera_map: tuple[
-        tuple[str, str], ...
-    ] = ()  # (feature name after observation.images., our camera | zeros)
-    flip_180: bool | None = None  # None: LIBERO_LEROBOT's flip iff the checkpoint uses LIBERO's camera names
-    replan_steps: int | None = None  # None: the checkpoint's n_action_steps
-    vlm: str | None = None  # local dir or Hub id replacing cfg.vlm_model_name (SmolVLA) and its tokenizer
-    tokenizer: str | None = None  # local dir or Hub id replacing the tokenizer_processor's tokenizer_name
-    precision: str = "fp32"  # "bf16": the forward runs under torch.autocast(bfloat16)
-    compile: str = "off"  # torch.compile mode of the per-call forward (policy_wrappers/compile.py)
-    env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
-
-    @property
-    def scene_cameras(self) -> tuple[str, ...]:
-        return (self.env_spec or TABLETOP).cameras
-
-    def __post_init__(self) -> None:
-        if self.precision not in PRECISIONS:
-            raise ConfigError(
-                f"lerobot {self.path}: precision must be one of {list(PRECISIONS)}, got {self.precision!r}"
-            )
-        from policy_wrappers.compile import check_mode
-
-        check_mode(self.compile, self.device, f"lerobot {self.path}")
-        for feature, cam in self.camera_map:
-            if cam not in (*self.scene_cameras, ZEROS):
-                raise ConfigError(
-                    f"lerobot {self.path}: camera {cam!r} for feature {feature!r} must be one of "
-                    f"{[*self.scene_cameras, ZEROS]}"
-                )
-        if self.replan_steps is not None and self.replan_steps < 1:
-            raise ConfigError(f"lerobot {self.path}: replan must be >= 1, got {self.replan_steps}")
-
-
-def parse_camera_map(text: str | None) -> tuple[tuple[str, str], ...]:
-    """``"image:agentview,image2:wrist"`` -> pairs; features may be given with or without their prefix."""
-    if not text:
-        return ()
-    pairs = []
-    for item in text.split(","):
-        feature, sep, cam = item.strip().rpartition(":")
-        if not sep or not feature:
-            raise ConfigError(f"bad camera mapping {item!r}; write cameras=FEATURE:agentview,FEATURE2:wrist")
-        pairs.append((feature.removeprefix(IMAGE_PREFIX), cam))
-    return tuple(pairs)
 
 
 class LeRobotPolicy:
@@ -128,12 +67,11 @@ class LeRobotPolicy:
             from policy_wrappers.compile import compile_forward
 
             compile_forward(self.policy, config.compile, config.device, f"policy {name}")
-        self._cams = self._resolve_cameras()
-        cams = tuple(c for c in config.scene_cameras if c in {cam for _, cam, _ in self._cams})
+        features = {k.removeprefix(IMAGE_PREFIX): tuple(f.shape) for k, f in self.cfg.image_features.items()}
+        self._cams = resolve_cameras(name, config, features)
+        cams, image_size = scene_view(config, self._cams)
         libero = any(feat in LIBERO_CAMERA_NAMES for feat, _, _ in self._cams)
         self.conventions = (LIBERO_LEROBOT if libero else NO_CONVENTIONS).override(flip=config.flip_180)
-        sizes = {shape[1:] for _, cam, shape in self._cams if cam != ZEROS}
-        image_size = max(sizes) if sizes else None
         chunk, replan = self._chunking()
         # ACT's temporal ensembling averages every step's new chunk with the earlier ones (per episode)
         self._ensemble = getattr(self.cfg, "temporal_ensemble_coeff", None) is not None
@@ -185,7 +123,7 @@ class LeRobotPolicy:
                 "id of the form org/name)"
             )
         with one_package_scan():  # import only this policy's lerobot subpackage (start-up; lerobot_import.py)
-            policy_package(_local_type(local) if local.exists() else None)
+            policy_package(local_type(local) if local.exists() else None)
             from lerobot.configs.policies import PreTrainedConfig
             from lerobot.policies.factory import get_policy_class, make_pre_post_processors
         try:
@@ -202,7 +140,7 @@ class LeRobotPolicy:
                 )
             cfg.vlm_model_name = self.config.vlm
         tokenizer = self.config.tokenizer or self.config.vlm
-        if tokenizer and _has_step(path, rev, "tokenizer_processor"):
+        if tokenizer and has_step(path, rev, "tokenizer_processor"):
             overrides["tokenizer_processor"] = {"tokenizer_name": tokenizer}
         try:
             policy_cls = get_policy_class(cfg.type)
@@ -243,9 +181,7 @@ class LeRobotPolicy:
                 f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
                 f"ours is ({self._state_dim},) = {what}"
             )
-        from policy_wrappers.lerobot_steps import OBJECT_STEP_CLASS, PROPRIO_STEP_CLASS
-
-        self._objects = cfg.env_state_feature is not None and _has_step(path, rev, OBJECT_STEP_CLASS)
+        self._objects = cfg.env_state_feature is not None and has_step(path, rev, OBJECT_STEP_CLASS)
         if self._objects and tuple(cfg.env_state_feature.shape) != (OBJECT_DIM,):
             raise PolicyError(
                 f"policy {self._name}: checkpoint marks observation.environment_state as object poses but "
@@ -254,41 +190,12 @@ class LeRobotPolicy:
         if (
             cfg.env_state_feature is not None
             and not self._objects
-            and not _has_step(path, rev, PROPRIO_STEP_CLASS)
+            and not has_step(path, rev, PROPRIO_STEP_CLASS)
         ):
             raise PolicyError(
                 f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
                 "simulator state), which learned policies never get here"
             )
-
-    def _resolve_cameras(self) -> list[tuple[str, str, tuple[int, ...]]]:
-        """[(feature name, our camera or 'zeros', (C, H, W))] for every visual input feature."""
-        explicit = dict(self.config.camera_map)
-        features = {k.removeprefix(IMAGE_PREFIX): tuple(f.shape) for k, f in self.cfg.image_features.items()}
-        unknown = sorted(set(explicit) - set(features))
-        if unknown:
-            raise ConfigError(
-                f"policy {self._name}: cameras= names feature {unknown[0]!r}, which the checkpoint "
-                f"lacks; its image features are {sorted(features)}"
-            )
-        defaults = dict(self.layout.cameras) if self.layout else DEFAULT_CAMERA_MAP
-        out = []
-        for feat, shape in features.items():
-            cam = explicit.get(feat) or defaults.get(feat)
-            if cam is None and feat.startswith("empty_camera_"):
-                cam = ZEROS
-            if cam is None:
-                raise ConfigError(
-                    f"policy {self._name}: don't know which camera feeds image feature {feat!r}; "
-                    f"add ?cameras={feat}:{self.config.scene_cameras[0]} (or another of "
-                    f"{list(self.config.scene_cameras)}, or :zeros) — features: {sorted(features)}"
-                )
-            if len(shape) != 3 or shape[0] != 3:
-                raise PolicyError(
-                    f"policy {self._name}: image feature {feat!r} has shape {shape}; expected (3, H, W)"
-                )
-            out.append((feat, cam, shape))
-        return out
 
     def _chunking(self) -> tuple[int, int]:
         cfg = self.cfg
@@ -447,48 +354,10 @@ def _sizes(path: str):
     return lerobot_variants.reduced() if lerobot_variants.is_reduced(path) else contextlib.nullcontext()
 
 
-def _has_step(path: str, revision: str | None, registry_name: str) -> bool:
-    """Whether the saved policy_preprocessor.json has a step registered as (or with class path) ``registry_name``."""
-    import json
-
-    local = Path(path) / "policy_preprocessor.json"
-    try:
-        if not local.is_file():
-            from huggingface_hub import hf_hub_download
-
-            local = Path(hf_hub_download(path, "policy_preprocessor.json", revision=revision))
-        steps = json.loads(local.read_text()).get("steps", [])
-    except Exception:
-        return False
-    return any(registry_name in (step.get("registry_name"), step.get("class")) for step in steps)
-
-
-def _local_type(local: Path) -> str | None:
-    """The policy type a local checkpoint's config.json names (None when unreadable: lerobot reports it)."""
-    import json
-
-    try:
-        kind = json.loads((local / "config.json").read_text()).get("type")
-    except (OSError, ValueError, AttributeError):
-        return None
-    return kind if isinstance(kind, str) else None
-
-
 def _offline() -> bool:
     import os
 
     return os.environ.get("HF_HUB_OFFLINE", "").lower() in ("1", "true", "yes", "on")
-
-
-OPTIONS = {  # LeRobotConfig field -> spec option
-    "revision": "revision",
-    "flip_180": "flip",
-    "replan_steps": "replan",
-    "vlm": "vlm",
-    "tokenizer": "tokenizer",
-    "precision": "precision",
-    "compile": "compile",
-}
 
 
 def load(
@@ -501,11 +370,10 @@ def load(
     ``trust_remote_code`` has nothing to enable here. ``env_spec``: the scene family's contract, which picks
     lerobot's layout there (RoboCasa365: ``layouts.LEROBOT_ROBOCASA``).
     """
-    config = LeRobotConfig(
-        path=parsed.target,
-        device=options.str("device", device),
-        camera_map=parse_camera_map(options.str("cameras")),
-        env_spec=env_spec,
-        **options.fields(LeRobotConfig, OPTIONS),
-    )
-    return LeRobotPolicy(parsed.spec, config, family=family)
+    return LeRobotPolicy(parsed.spec, make_config(parsed, options, device, env_spec), family=family)
+
+
+def preview(parsed, options, *, device: str = "cpu", env_spec: EnvSpec | None = None) -> ScenePreview | None:
+    """The scene this spec's checkpoint will ask for, read from its files before it loads (the registry's
+    ``preview_policy``; ``lerobot_checkpoint.preview``)."""
+    return lerobot_checkpoint.preview(parsed, options, device=device, env_spec=env_spec)

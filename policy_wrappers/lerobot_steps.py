@@ -17,8 +17,6 @@ from lerobot.configs.types import FeatureType
 from lerobot.processor.pipeline import ObservationProcessorStep
 from lerobot.utils.constants import OBS_ENV_STATE, OBS_STATE
 
-PROPRIO_STEP_CLASS = "policy_wrappers.lerobot_steps.ProprioAsEnvStateStep"
-
 
 @dataclass
 class ProprioAsEnvStateStep(ObservationProcessorStep):
@@ -39,9 +37,6 @@ class ProprioAsEnvStateStep(ObservationProcessorStep):
         if OBS_STATE in obs:
             obs[OBS_ENV_STATE] = PolicyFeature(FeatureType.ENV, tuple(obs[OBS_STATE].shape))
         return features
-
-
-OBJECT_STEP_CLASS = "policy_wrappers.lerobot_steps.ObjectPosesStep"
 
 
 @dataclass

@@ -15,7 +15,7 @@ from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
 from indgen_vla.registry import Registry
 
 if TYPE_CHECKING:
-    from indgen_vla.interface import EnvSpec
+    from indgen_vla.interface import EnvSpec, ScenePreview
 
 FAMILIES: Registry = Registry("policy family")
 FAMILIES.register(
@@ -213,6 +213,27 @@ def load_policy(
     if not hasattr(policy, "spec") or not hasattr(policy, "act"):
         raise PolicyError(f"policy {spec}: loader returned {type(policy).__name__}, which lacks spec/act")
     return policy
+
+
+def preview_policy(
+    spec: str, *, device: str = "cpu", env_spec: EnvSpec | None = None, **kw: object
+) -> ScenePreview | None:
+    """The scene the policy ``spec`` names will ask for, when its family can read it from the policy's files
+    without loading it (a module-level ``preview`` beside the family's loader); None otherwise, or on any doubt:
+    ``load_policy`` then reports what is wrong. Cheap: no torch, no network."""
+    import logging
+    import sys
+
+    try:
+        parsed = parse_spec(spec)
+        loader = FAMILIES.load(parsed.family)
+        read = getattr(sys.modules[loader.__module__], "preview", None)
+        if read is None:
+            return None
+        return read(parsed, Options(parsed.spec, {**parsed.options, **kw}), device=device, env_spec=env_spec)
+    except Exception:  # a guess that cannot be made costs start-up time only, never the run
+        logging.getLogger(__name__).debug("no preview of policy %s", spec, exc_info=True)
+        return None
 
 
 def catalog() -> dict[str, list[dict[str, str]]]:

@@ -3,7 +3,9 @@
 Each repeat runs ``indgen evaluate --policy lerobot:checkpoints/act_pick_place_human --scene pick_place --axis
 pick_y --levels 0 --episodes 1 --max-steps 1`` in a fresh process whose functions are wrapped by timers (exclusive
 seconds: a part nested in another counts only in the inner one), plus the interpreter start and the process exit as
-the parent sees them. The machine is shared, so it reports the min and the median over ``--repeats`` runs and the
+the parent sees them. A scene built by a worker process (started while the policy loads, when its files say which
+cameras it reads: ``local.EarlyWorkers``) is not timed here; the wait for it is ``early_wait`` plus the first
+reset's reply (in ``rollout_other``). The machine is shared, so it reports the min and the median over ``--repeats`` runs and the
 1-minute load average at each run's start. Prints one JSON object on its last line (docs/benchmarks.md, "Start-up").
 
     .venv/bin/python scripts/bench_startup.py [--repeats 5] [--policy SPEC] [--workers N]
@@ -39,7 +41,16 @@ PARTS = (
     ("run_dir_create", "indgen_vla.records", "RunDir.create_or_resume"),
     ("fingerprint", "indgen_vla.engine.run", "_fingerprint"),
     ("forkserver", "indgen_vla.engine.local", "_context"),
-    ("scene_build", "indgen_vla.engine.rollout", "EnvRunner._env_for"),
+    (
+        "scene_build",
+        "indgen_vla.engine.rollout",
+        "EnvRunner._env_for",
+    ),  # in this process only (1 worker, no preview)
+    (
+        "early_wait",
+        "indgen_vla.engine.local",
+        "EarlyWorkers.take",
+    ),  # waiting for workers started during the load
     ("scene_reset", "indgen_vla.engine.rollout", "EnvRunner.reset"),
     ("steps", "indgen_vla.engine.rollout", "EnvRunner.execute"),
     ("act", "indgen_vla.engine.scheduler", "act"),  # the coordinator's call (batching.act, bound there)
@@ -88,7 +99,9 @@ for name, module, attr in json.loads(os.environ["BENCH_PARTS"]):
     except ImportError:
         continue
     owner, _, leaf = attr.rpartition(".")
-    obj = getattr(mod, owner) if owner else mod
+    obj = getattr(mod, owner, None) if owner else mod
+    if obj is None:  # a class an older checkout lacks (--compare)
+        continue
     raw = vars(obj).get(leaf)
     if isinstance(raw, (classmethod, staticmethod)):
         setattr(obj, leaf, type(raw)(wrap(name, raw.__func__)))

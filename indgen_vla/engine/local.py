@@ -11,6 +11,7 @@ import logging
 import multiprocessing as mp
 import os
 import pickle
+import threading
 from collections import deque
 from collections.abc import Callable, Sequence
 
@@ -33,11 +34,15 @@ def _dumps(msg) -> bytes:
 _loads = pickle.loads
 
 
-def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tuple[int, Transition]:
+def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tuple[int, Transition] | None:
+    """One request; ``prepare`` (build a job's scene before its reset) has no reply."""
     op, lane, arg = msg
     runner = runners.get(lane)
     if runner is None:
         runner = runners[lane] = EnvRunner(cfg)
+    if op == "prepare":
+        runner.prepare(arg)
+        return None
     if op == "reset":
         return lane, runner.reset(arg)
     if op == "step":
@@ -66,7 +71,9 @@ def _worker_main(conn, cfg: RunnerConfig, render_threads: int, egl_device: int |
                 break
             if msg[0] == "close":
                 break
-            conn.send_bytes(_dumps(_handle(runners, cfg, msg)))
+            reply = _handle(runners, cfg, msg)
+            if reply is not None:
+                conn.send_bytes(_dumps(reply))
     finally:
         for runner in runners.values():
             runner.close()
@@ -82,7 +89,9 @@ class _InProcessWorker:
         self._replies: deque[tuple[int, Transition]] = deque()
 
     def send(self, msg: tuple) -> None:
-        self._replies.append(_handle(self.runners, self.cfg, msg))
+        reply = _handle(self.runners, self.cfg, msg)
+        if reply is not None:
+            self._replies.append(reply)
 
     def poll(self) -> bool:
         return bool(self._replies)
@@ -194,6 +203,7 @@ def run_local(
     on_wait: Callable[[str], None] | None = None,
     close_policies: bool = True,
     pipeline: bool = False,
+    early: list | None = None,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
@@ -214,7 +224,12 @@ def run_local(
     pool: list = []
     policies: Policies | None = None
     try:
-        pool = _start_pool(runner_cfg, worker_processes(len(jobs), workers, pipeline))
+        n_proc = worker_processes(len(jobs), workers, pipeline)
+        if early is not None and len(early) != max(1, n_proc):
+            for w in early:
+                w.close()
+            early = None
+        pool = early or _start_pool(runner_cfg, n_proc)
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
         slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None))
@@ -242,7 +257,59 @@ def _start_pool(runner_cfg: RunnerConfig, n: int) -> list:
     in-process worker and no fork server; rendering on the GPUs round-robin when there are several."""
     if n == 0:
         return [_InProcessWorker(runner_cfg)]
-    ctx = _context(runner_cfg.levels.preload)
+    return _spawn(_context(runner_cfg.levels.preload), runner_cfg, n)
+
+
+def _spawn(ctx, runner_cfg: RunnerConfig, n: int) -> list:
+    """``n`` worker processes from the fork server ``ctx``; rendering on the GPUs round-robin when there are several."""
     render_threads = max(1, (os.cpu_count() or 1) // n)
     gpus = egl_devices()
     return [_ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None) for w in range(n)]
+
+
+class EarlyWorkers:
+    """Worker processes started, and their first scenes built, while the policy loads (start-up, issue 28).
+
+    ``evaluate`` makes them from a ``RunnerConfig`` built on the policy's ``ScenePreview``; ``take`` hands them
+    to ``run_local`` when the loaded policy asks for exactly that config, and closes them otherwise. They start
+    from a thread: a fork server answers only once its preload (the simulator's imports) is done, and the
+    policy load should not wait for that.
+    """
+
+    def __init__(self, runner_cfg: RunnerConfig, jobs: Sequence[EpisodeJob], n: int):
+        self.runner_cfg = runner_cfg
+        self.pool: list = []
+        self._failed: BaseException | None = None
+        ctx = _context(
+            runner_cfg.levels.preload
+        )  # here, not in the thread: it sets this process's env briefly
+        self._thread = threading.Thread(
+            target=self._start, args=(ctx, list(jobs[:n]), n), name="indgen-early-workers", daemon=True
+        )
+        self._thread.start()
+
+    def _start(self, ctx, jobs: list[EpisodeJob], n: int) -> None:
+        try:
+            self.pool = _spawn(ctx, self.runner_cfg, n)
+            for w, job in zip(self.pool, jobs, strict=False):  # slot i is lane 0 of worker i (scheduler)
+                w.send(("prepare", 0, job))
+        except BaseException as e:  # e.g. a fork server that died: run_local starts its own workers
+            self._failed = e
+
+    def take(self, runner_cfg: RunnerConfig) -> list | None:
+        """The workers, if the loaded policy's scenes are the previewed ones; else None (and they are closed)."""
+        self._thread.join()
+        if self._failed is None and runner_cfg == self.runner_cfg:
+            pool, self.pool = self.pool, []
+            return pool
+        if self._failed is not None:
+            logging.getLogger(__name__).debug("early workers failed to start", exc_info=self._failed)
+        self.close()
+        return None
+
+    def close(self) -> None:
+        """Close the workers not handed out (a refused policy, an interrupted load)."""
+        self._thread.join()
+        for w in self.pool:
+            w.close()
+        self.pool = []

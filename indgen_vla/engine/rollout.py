@@ -90,6 +90,14 @@ class EnvRunner:
             self._can_skip_render = _takes_observe(self._env)
         return self._env
 
+    def prepare(self, job: EpisodeJob) -> None:
+        """Build ``job``'s scene ahead of its reset (while the policy loads); a failure is left to the reset,
+        which reports it as the episode's error."""
+        try:
+            self._env_for(job)
+        except Exception:  # the reset tries again and records the failure as the episode's error
+            self._env_key = None
+
     def _observe(self, obs: Observation) -> Observation:
         """Attach privileged state for oracles only (learned policies never see it), object poses for
         the low-dim policies that declare them."""

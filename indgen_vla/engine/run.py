@@ -10,12 +10,16 @@ import sys
 import uuid
 from collections import defaultdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from indgen_vla.engine.config import EvalConfig
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
 from indgen_vla.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.records import RunDir
+
+if TYPE_CHECKING:
+    from indgen_vla.engine.local import EarlyWorkers
+    from indgen_vla.engine.rollout import RunnerConfig
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
 
@@ -147,7 +151,6 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     """Run (or resume) an evaluation and write its report; returns the run directory."""
     from rich.console import Console
 
-    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.report import write_run_report
 
     console = Console(stderr=True, quiet=quiet)
@@ -169,58 +172,55 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             env_spec=getattr(plan.builder, "env_spec", None), **extra,
         )  # fmt: skip
 
-    def prestart(n_jobs: int) -> None:
-        """Start the workers' forkserver (if the run uses worker processes): it preloads while the policy loads."""
-        if cfg.backend == "local":
-            from indgen_vla.engine.local import start_forkserver, worker_processes
+    def prestart(jobs: list) -> EarlyWorkers | None:
+        """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
+        simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
+        their first scenes built (``local.EarlyWorkers``; checked against the loaded policy)."""
+        if cfg.backend != "local" or not jobs:
+            return None
+        from indgen_vla.engine.local import EarlyWorkers, start_forkserver, worker_processes
+        from policy_wrappers.registry import preview_policy
 
-            if worker_processes(n_jobs, cfg.workers, cfg.pipeline):
-                start_forkserver(plan.builder.preload)
+        n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
+        view = preview_policy(
+            cfg.policy,
+            device=cfg.device,
+            env_spec=getattr(plan.builder, "env_spec", None),
+            **cfg.policy_options(),
+        )
+        if view is not None:
+            return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
+        if n:
+            start_forkserver(plan.builder.preload)
+        return None
 
-    probe = None
-    if not (out / "manifest.json").exists():  # a new run: refuse a policy that does not fit before writing
-        prestart(len(plan.jobs))
-        probe = make_policy()
-        check_policy_contract(cfg, plan, probe)
-    run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
-    if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
-        from indgen_vla.engine.adaptive import next_round
-
-        todo = next_round(plan, run.episodes(), cfg)
-    else:
-        done = run.done_keys()
-        todo = [j for j in plan.jobs if j.key not in done]
-    if todo:
-        if probe is None:
-            prestart(len(todo))
+    probe, early = None, None
+    try:
+        if not (
+            out / "manifest.json"
+        ).exists():  # a new run: refuse a policy that does not fit before writing
+            early = prestart(plan.jobs)
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
-        spec = probe.spec
-        replan = cfg.replan_steps or spec.replan_steps
-        if replan > spec.chunk_size:
-            raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
-        side = cfg.image_size or (spec.image_size[0] if spec.image_size else 128)
-        runner_cfg = RunnerConfig(
-            levels=plan.builder, cameras=tuple(spec.cameras), image_size=(side, side), max_steps=cfg.max_steps,
-            privileged=spec.privileged, warmup_steps=cfg.warmup_steps, objects=spec.observes_objects,
-            video_dir=str(out / "videos") if cfg.video else None,
-        )  # fmt: skip
-        manifest = run.manifest
-        resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
-        fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
-        if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
-            run.update_manifest(fingerprint=fingerprint)
-        else:  # a resume: the episodes still to run must be made under the protocol of those on disk
-            for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
-                console.print(f"[yellow]warning:[/] {line}")
-        meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
-        try:
-            _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console)
-        except ServerUnreachableError as e:
-            raise ServerUnreachableError(f"{e} (run directory {out})") from None
-    else:
-        if probe is not None:
+        run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
+        if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
+            from indgen_vla.engine.adaptive import next_round
+
+            todo = next_round(plan, run.episodes(), cfg)
+        else:
+            done = run.done_keys()
+            todo = [j for j in plan.jobs if j.key not in done]
+        if todo:
+            if probe is None:
+                early = prestart(todo)
+                probe = make_policy()
+                check_policy_contract(cfg, plan, probe)
+            _run_todo(cfg, plan, run, run_id, todo, make_policy, probe, early, console)
+        elif probe is not None:
             probe.close()
+    finally:
+        if early is not None:  # workers nobody took: a refused policy, an interrupted load
+            early.close()
     if not todo and not quiet:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
@@ -230,6 +230,46 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
     return out
+
+
+def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
+    """How the workers build scenes for a policy that asks for ``view`` (its ``PolicySpec``, or the
+    ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
+    from indgen_vla.engine.rollout import RunnerConfig
+
+    side = cfg.image_size or (view.image_size[0] if view.image_size else 128)
+    return RunnerConfig(
+        levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.max_steps,
+        privileged=view.privileged, warmup_steps=cfg.warmup_steps, objects=view.observes_objects,
+        video_dir=str(Path(cfg.out) / "videos") if cfg.video else None,
+    )  # fmt: skip
+
+
+def _run_todo(
+    cfg: EvalConfig, plan: EvalPlan, run: RunDir, run_id: str, todo: list, make_policy, probe, early, console
+):
+    """Run the episodes still to do with the loaded ``probe``, after fixing (or checking, on a resume) the
+    run's protocol fingerprint; ``early``: the workers started while it loaded, if any."""
+    from indgen_vla.engine.rollout import RunMeta
+
+    spec = probe.spec
+    replan = cfg.replan_steps or spec.replan_steps
+    if replan > spec.chunk_size:
+        raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
+    runner_cfg = _runner_config(cfg, plan, spec)
+    manifest = run.manifest
+    resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
+    fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
+    if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
+        run.update_manifest(fingerprint=fingerprint)
+    else:  # a resume: the episodes still to run must be made under the protocol of those on disk
+        for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
+            console.print(f"[yellow]warning:[/] {line}")
+    meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
+    try:
+        _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
+    except ServerUnreachableError as e:
+        raise ServerUnreachableError(f"{e} (run directory {run.path})") from None
 
 
 def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> list[str]:
@@ -269,9 +309,11 @@ def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, po
     )  # fmt: skip
 
 
-def _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console) -> None:
+def _run_with_progress(
+    cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early=None
+):
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
-    far, and a total row with the ETA."""
+    far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
@@ -321,9 +363,10 @@ def _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, met
             else:
                 from indgen_vla.engine.local import run_local
 
+                workers = early.take(runner_cfg) if early is not None else None  # the first round only
                 run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
                           cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
-                          close_policies=False, pipeline=cfg.pipeline)  # closed below, after the last round  # fmt: skip
+                          close_policies=False, pipeline=cfg.pipeline, early=workers)  # fmt: skip
 
         try:
             if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)

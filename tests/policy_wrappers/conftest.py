@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 
 import numpy as np
@@ -44,3 +45,22 @@ def tiny_diffusion(tmp_path_factory) -> str:
     pytest.importorskip("lerobot")
     pytest.importorskip("diffusers", reason="lerobot's Diffusion policy needs lerobot[diffusion] (diffusers)")
     return build_tiny_checkpoint("diffusion", tmp_path_factory.mktemp("diffusion"))
+
+
+@pytest.fixture
+def hub_cache(tmp_path, monkeypatch):
+    """An offline Hugging Face cache; ``put(dir, repo_id)`` lays a checkpoint out as a downloaded snapshot."""
+    import huggingface_hub.constants as hf_constants
+
+    monkeypatch.setattr(hf_constants, "HF_HUB_CACHE", str(tmp_path))
+    monkeypatch.setattr(hf_constants, "HF_HUB_OFFLINE", True)
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+
+    def put(src: str, repo_id: str) -> None:
+        repo = tmp_path / ("models--" + repo_id.replace("/", "--"))
+        rev = "0123456789abcdef0123456789abcdef01234567"
+        (repo / "refs").mkdir(parents=True)
+        (repo / "refs" / "main").write_text(rev)
+        shutil.copytree(src, repo / "snapshots" / rev)
+
+    return put

@@ -14,25 +14,6 @@ pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(120)
 
 
-@pytest.fixture
-def hub_cache(tmp_path, monkeypatch):
-    """An offline Hugging Face cache; ``put(dir, repo_id)`` lays a checkpoint out as a downloaded snapshot."""
-    import huggingface_hub.constants as hf_constants
-
-    monkeypatch.setattr(hf_constants, "HF_HUB_CACHE", str(tmp_path))
-    monkeypatch.setattr(hf_constants, "HF_HUB_OFFLINE", True)
-    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
-
-    def put(src: str, repo_id: str) -> None:
-        repo = tmp_path / ("models--" + repo_id.replace("/", "--"))
-        rev = "0123456789abcdef0123456789abcdef01234567"
-        (repo / "refs").mkdir(parents=True)
-        (repo / "refs" / "main").write_text(rev)
-        shutil.copytree(src, repo / "snapshots" / rev)
-
-    return put
-
-
 def test_act_loads_by_hub_id_offline_and_acts(tiny_act, hub_cache, obs_factory):
     hub_cache(tiny_act, "indgen-test/tiny-act")
     policy = load_policy("lerobot:indgen-test/tiny-act")
