@@ -15,7 +15,7 @@ from indgen_vla.engine.config import EvalConfig, plan_episodes
 from indgen_vla.engine.local import EarlyWorkers, run_local
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.engine.run import evaluate
-from policy_wrappers.registry import load_policy
+from policy_wrappers.registry import load_policy, preview_policy
 from scenes.planning import scene_levels
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -96,3 +96,23 @@ def test_evaluate_builds_the_first_scene_while_the_policy_loads(tmp_path, monkey
     late = run("late")
     assert taken == [True]  # no preview: no early workers
     assert early == late and len(early) == 2
+
+
+def test_a_policy_refused_after_its_preview_leaves_no_workers_and_no_run(tmp_path):
+    """The checkpoint's cameras preview fine but its 12-d actions do not fit the tabletop: the load's one-line
+    error, the early workers closed, nothing written."""
+    pytest.importorskip("lerobot")
+    from indgen_vla.errors import PolicyError
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    ckpt = build_tiny_checkpoint(
+        "act", tmp_path / "act12", cameras=("image", "image2"), size=16, action_dim=12
+    )
+    assert preview_policy(f"lerobot:{ckpt}") is not None  # so workers start during the load
+    before = set(mp.active_children())
+    cfg = EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0", episodes=1,
+                     max_steps=2, out=str(tmp_path / "run"))  # fmt: skip
+    with pytest.raises(PolicyError, match=r"actions of shape \(12,\)"):
+        evaluate(cfg, quiet=True)
+    assert set(mp.active_children()) <= before
+    assert not (tmp_path / "run" / "manifest.json").exists()
