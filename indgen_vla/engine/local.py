@@ -35,7 +35,7 @@ _loads = pickle.loads
 
 
 def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tuple[int, Transition] | None:
-    """One request; ``prepare`` (build a job's scene before its reset) has no reply."""
+    """One request; ``prepare`` (build and reset a job's scene before it is asked for) has no reply."""
     op, lane, arg = msg
     runner = runners.get(lane)
     if runner is None:
@@ -268,7 +268,7 @@ def _spawn(ctx, runner_cfg: RunnerConfig, n: int) -> list:
 
 
 class EarlyWorkers:
-    """Worker processes started, and their first scenes built, while the policy loads (start-up, issue 28).
+    """Worker processes started, and their first scenes built and reset, while the policy loads (start-up, issue 28).
 
     ``evaluate`` makes them from a ``RunnerConfig`` built on the policy's ``ScenePreview``; ``take`` hands them
     to ``run_local`` when the loaded policy asks for exactly that config, and closes them otherwise. They start

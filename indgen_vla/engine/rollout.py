@@ -77,6 +77,9 @@ class EnvRunner:
         self._t0 = 0.0
         self._frames: list[np.ndarray] = []
         self._can_skip_render = False
+        self._prepared: tuple[EpisodeJob, Transition, float] | None = (
+            None  # prepare(): (job, its reset, seconds)
+        )
 
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)
@@ -91,12 +94,11 @@ class EnvRunner:
         return self._env
 
     def prepare(self, job: EpisodeJob) -> None:
-        """Build ``job``'s scene ahead of its reset (while the policy loads); a failure is left to the reset,
-        which reports it as the episode's error."""
-        try:
-            self._env_for(job)
-        except Exception:  # the reset tries again and records the failure as the episode's error
-            self._env_key = None
+        """Build ``job``'s scene and reset it ahead of the request (while the policy loads); ``reset(job)`` then
+        answers at once. The state is the same: nothing runs on this runner between the two."""
+        t = time.perf_counter()
+        first = self.reset(job)
+        self._prepared = (job, first, time.perf_counter() - t) if not first.error else None
 
     def _observe(self, obs: Observation) -> Observation:
         """Attach privileged state for oracles only (learned policies never see it), object poses for
@@ -113,6 +115,10 @@ class EnvRunner:
 
     def reset(self, job: EpisodeJob) -> Transition:
         """Start ``job``'s episode from its seed; warm-up no-op steps do not count as policy steps."""
+        prepared, self._prepared = self._prepared, None
+        if prepared is not None and prepared[0] == job:  # prepare() did this reset already
+            self._t0 = time.perf_counter() - prepared[2]
+            return prepared[1]
         self._t0 = time.perf_counter()
         self._job, self._steps, self._frames = job, 0, []
         try:
