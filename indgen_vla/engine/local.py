@@ -50,11 +50,26 @@ def _handle(runners: dict[int, EnvRunner], cfg: RunnerConfig, msg: tuple) -> tup
     raise ValueError(f"unknown worker op {op!r}")
 
 
-def _worker_main(conn, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None) -> None:
+def _adopt_environment(env: dict[str, str]) -> None:
+    """Take the coordinator's environment as of this worker's start. The fork server's is that of its own start,
+    and the caller may have changed it since (asset paths, e.g. ``INDGEN_ROBOCASA_ASSETS``, read when a scene is
+    built); a worker keeps only what the fork server set for itself: the thread limits and the GL platform its
+    preload chose (``FORKSERVER_OWN_ENV``)."""
+    own = {k: os.environ[k] for k in FORKSERVER_OWN_ENV if k in os.environ and k not in env}
+    os.environ.clear()
+    os.environ.update(env)
+    os.environ.update(own)
+
+
+def _worker_main(
+    conn, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None, env: dict | None = None
+) -> None:
     """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process handles Ctrl-C and closes us
+    if env is not None:
+        _adopt_environment(env)
     os.environ.setdefault("MUJOCO_GL", "egl")
     if egl_device is not None:  # several GPUs: workers render round-robin on them (read at context creation)
         os.environ.setdefault("MUJOCO_EGL_DEVICE_ID", str(egl_device))
@@ -108,7 +123,7 @@ class _ProcessWorker:
     def __init__(self, ctx, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None):
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(
-            target=_worker_main, args=(child, cfg, render_threads, egl_device), daemon=True
+            target=_worker_main, args=(child, cfg, render_threads, egl_device, dict(os.environ)), daemon=True
         )
         self.proc.start()
         child.close()
@@ -141,6 +156,8 @@ class _ProcessWorker:
 # Each worker is one single-threaded simulator: BLAS/OpenMP pools sized to the whole machine in each of W
 # processes oversubscribe the cores (16 workers on 16 cores: +45 % worker CPU per step, docs/benchmarks.md).
 WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+# what a worker keeps of the fork server's own environment when the coordinator's lacks it (``_adopt_environment``)
+FORKSERVER_OWN_ENV = (*WORKER_THREAD_ENV, "MUJOCO_GL", "PYOPENGL_PLATFORM")
 
 
 def _context(preload: Sequence[str]):

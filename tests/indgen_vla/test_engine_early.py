@@ -116,3 +116,30 @@ def test_a_policy_refused_after_its_preview_leaves_no_workers_and_no_run(tmp_pat
         evaluate(cfg, quiet=True)
     assert set(mp.active_children()) <= before
     assert not (tmp_path / "run" / "manifest.json").exists()
+
+
+def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkeypatch):
+    """The fork server keeps the environment of its own start; workers take the caller's current one, so an
+    asset path set after an earlier run reaches the scene build (a RoboCasa placeholder path set by a test fixture
+    after another test had started the fork server once did not)."""
+    import scenes
+    from indgen_vla.engine.local import start_forkserver
+
+    builder = scene_levels("libero_object", ["pick_y"])
+    start_forkserver(
+        builder.preload
+    )  # a no-op when an earlier test started it: either way it predates the next line
+    nowhere = tmp_path / "nowhere"
+    monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(nowhere))
+    c = EvalConfig(policy="standin:random", scene="libero_object", axes=("pick_y",), levels="0", episodes=2,
+                   out="unused")  # fmt: skip
+    task = list(scenes.tasks("libero_object"))[:1]
+    jobs = plan_episodes(c, task, {"pick_y": [0]}, {(task[0], "pick_y", 0): 0.0})
+    rc = RunnerConfig(levels=builder, cameras=(), image_size=(64, 64), max_steps=2, privileged=False)
+    records: list = []
+    policy = load_policy("standin:random")
+    run_local(jobs, rc, lambda: policy, RunMeta("r", "standin:random", "", "libero_object"), records.append,
+              workers=2, max_retries=0)  # fmt: skip
+    assert len(records) == 2 and all(r.status == "error" and str(nowhere) in r.error for r in records), [
+        r.error for r in records
+    ]

@@ -32,9 +32,9 @@ def test_a_tiny_lerobot_robocasa_policy_evaluates_on_placeholders(placeholders, 
     assert (
         main(args) != 0 and not (out / "episodes.parquet").exists()
     )  # placeholders: an image policy needs --smoke
-    assert main([*args, "--smoke"]) == 0
+    code = main([*args, "--smoke"])
     df = pd.read_parquet(out / "episodes.parquet")
-    assert list(df.status) == ["ok"] and list(df.steps) == [3]
+    assert code == 0 and list(df.status) == ["ok"] and list(df.steps) == [3], list(df.error)
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["measurement"].startswith("not a measurement")
     policy = manifest["fingerprint"]["policy"]
