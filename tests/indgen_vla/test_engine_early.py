@@ -85,8 +85,8 @@ def test_evaluate_builds_the_first_scene_while_the_policy_loads(tmp_path, monkey
     monkeypatch.setattr(EarlyWorkers, "take", spy)
 
     def run(name: str) -> dict:
-        cfg = EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0:1",
-                         episodes=1, max_steps=6, workers=1, out=str(tmp_path / name))  # fmt: skip
+        cfg = EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
+                         episodes=2, max_steps=6, workers=1, out=str(tmp_path / name))  # fmt: skip
         out = evaluate(cfg, quiet=True)
         return _outcomes(pd.read_parquet(Path(out) / "episodes.parquet").itertuples())
 
