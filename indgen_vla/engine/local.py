@@ -277,11 +277,15 @@ def _start_pool(runner_cfg: RunnerConfig, n: int) -> list:
     return _spawn(_context(runner_cfg.levels.preload), runner_cfg, n)
 
 
-def _spawn(ctx, runner_cfg: RunnerConfig, n: int) -> list:
-    """``n`` worker processes from the fork server ``ctx``; rendering on the GPUs round-robin when there are several."""
+def _spawn(ctx, runner_cfg: RunnerConfig, n: int, into: list | None = None) -> list:
+    """``n`` worker processes from the fork server ``ctx``, appended to ``into`` one by one (a failure part-way
+    leaves the started ones there to close); rendering on the GPUs round-robin when there are several."""
+    pool = [] if into is None else into
     render_threads = max(1, (os.cpu_count() or 1) // n)
     gpus = egl_devices()
-    return [_ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None) for w in range(n)]
+    for w in range(n):
+        pool.append(_ProcessWorker(ctx, runner_cfg, render_threads, w % gpus if gpus > 1 else None))
+    return pool
 
 
 class EarlyWorkers:
@@ -297,9 +301,17 @@ class EarlyWorkers:
         self.runner_cfg = runner_cfg
         self.pool: list = []
         self._failed: BaseException | None = None
-        ctx = _context(
-            runner_cfg.levels.preload
-        )  # here, not in the thread: it sets this process's env briefly
+        self._thread: threading.Thread | None = None
+        try:
+            ctx = _context(
+                runner_cfg.levels.preload
+            )  # here, not in the thread: it sets this process's env briefly
+        except (
+            ValueError,
+            OSError,
+        ) as e:  # no fork server on this platform: the run starts as without a preview
+            self._failed = e
+            return
         self._thread = threading.Thread(
             target=self._start, args=(ctx, list(jobs[:n]), n), name="indgen-early-workers", daemon=True
         )
@@ -307,15 +319,19 @@ class EarlyWorkers:
 
     def _start(self, ctx, jobs: list[EpisodeJob], n: int) -> None:
         try:
-            self.pool = _spawn(ctx, self.runner_cfg, n)
+            _spawn(ctx, self.runner_cfg, n, into=self.pool)
             for w, job in zip(self.pool, jobs, strict=False):  # slot i is lane 0 of worker i (scheduler)
                 w.send(("prepare", 0, job))
         except BaseException as e:  # e.g. a fork server that died: run_local starts its own workers
             self._failed = e
 
+    def _join(self) -> None:
+        if self._thread is not None:
+            self._thread.join()
+
     def take(self, runner_cfg: RunnerConfig) -> list | None:
         """The workers, if the loaded policy's scenes are the previewed ones; else None (and they are closed)."""
-        self._thread.join()
+        self._join()
         if self._failed is None and runner_cfg == self.runner_cfg:
             pool, self.pool = self.pool, []
             return pool
@@ -326,7 +342,7 @@ class EarlyWorkers:
 
     def close(self) -> None:
         """Close the workers not handed out (a refused policy, an interrupted load)."""
-        self._thread.join()
+        self._join()
         for w in self.pool:
             w.close()
         self.pool = []

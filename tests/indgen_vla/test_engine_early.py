@@ -143,3 +143,18 @@ def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkey
     assert len(records) == 2 and all(r.status == "error" and str(nowhere) in r.error for r in records), [
         r.error for r in records
     ]
+
+
+def test_without_a_fork_server_the_run_starts_as_without_a_preview(monkeypatch):
+    """A platform without the forkserver start method (Windows): no early workers, and ``take`` says so; the run
+    then steps its one environment in-process as before."""
+    import indgen_vla.engine.local as local
+
+    def no_forkserver(preload):
+        raise ValueError("cannot find context for 'forkserver'")
+
+    monkeypatch.setattr(local, "_context", no_forkserver)
+    jobs, rc = _jobs_and_config()
+    early = EarlyWorkers(rc, jobs, 1)
+    assert early.take(rc) is None and early.pool == []
+    early.close()
