@@ -197,7 +197,9 @@ def preview(parsed, options, *, device: str = "cpu", env_spec: EnvSpec | None = 
     try:
         config = make_config(parsed, options, device, env_spec)
         found = checkpoint_file(config.path, config.revision, "config.json", download=False)
-        features = json.loads(found.read_text())["input_features"] if found else None
+        if found is None:  # neither a local dir nor in the Hub cache: only the load may download it
+            return None
+        features = json.loads(found.read_text())["input_features"]
         images = {
             k.removeprefix(IMAGE_PREFIX): tuple(f["shape"])
             for k, f in features.items()

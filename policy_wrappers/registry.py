@@ -6,7 +6,7 @@ Importing this module is cheap: each family's module (and torch/lerobot) loads o
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
@@ -183,6 +183,12 @@ class Options:
             raise UnknownNameError(f"option of policy {self.spec}", unknown[0], sorted(self._used))
 
 
+def _resolve(spec: str, kw: Mapping[str, object]) -> tuple[ParsedSpec, Callable[..., object], Options]:
+    """A spec string's parts, its family's loader and its options (``?key=value``, overridden by ``kw``)."""
+    parsed = parse_spec(spec)
+    return parsed, FAMILIES.load(parsed.family), Options(parsed.spec, {**parsed.options, **kw})
+
+
 def load_policy(
     spec: str, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None,
     env_spec: EnvSpec | None = None, **kw: object,
@@ -195,9 +201,7 @@ def load_policy(
     """
     import inspect
 
-    parsed = parse_spec(spec)
-    loader = FAMILIES.load(parsed.family)
-    options = Options(parsed.spec, {**parsed.options, **kw})
+    parsed, loader, options = _resolve(spec, kw)
     params = inspect.signature(loader).parameters
     extra = {"scene": scene} if scene and "scene" in params else {}
     if (
@@ -225,12 +229,11 @@ def preview_policy(
     import sys
 
     try:
-        parsed = parse_spec(spec)
-        loader = FAMILIES.load(parsed.family)
+        parsed, loader, options = _resolve(spec, kw)
         read = getattr(sys.modules[loader.__module__], "preview", None)
         if read is None:
             return None
-        return read(parsed, Options(parsed.spec, {**parsed.options, **kw}), device=device, env_spec=env_spec)
+        return read(parsed, options, device=device, env_spec=env_spec)
     except Exception:  # a guess that cannot be made costs start-up time only, never the run
         logging.getLogger(__name__).debug("no preview of policy %s", spec, exc_info=True)
         return None
