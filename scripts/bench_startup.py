@@ -41,16 +41,10 @@ PARTS = (
     ("run_dir_create", "indgen_vla.records", "RunDir.create_or_resume"),
     ("fingerprint", "indgen_vla.engine.run", "_fingerprint"),
     ("forkserver", "indgen_vla.engine.local", "_context"),
-    (
-        "scene_build",
-        "indgen_vla.engine.rollout",
-        "EnvRunner._env_for",
-    ),  # in this process only (1 worker, no preview)
-    (
-        "early_wait",
-        "indgen_vla.engine.local",
-        "EarlyWorkers.take",
-    ),  # waiting for workers started during the load
+    # in this process only (1 worker and no preview); a worker's build is not timed
+    ("scene_build", "indgen_vla.engine.rollout", "EnvRunner._env_for"),
+    # waiting for the workers started during the policy load
+    ("early_wait", "indgen_vla.engine.local", "EarlyWorkers.take"),
     ("scene_reset", "indgen_vla.engine.rollout", "EnvRunner.reset"),
     ("steps", "indgen_vla.engine.rollout", "EnvRunner.execute"),
     ("act", "indgen_vla.engine.scheduler", "act"),  # the coordinator's call (batching.act, bound there)

@@ -302,15 +302,11 @@ class EarlyWorkers:
         self.pool: list = []
         self._failed: BaseException | None = None
         self._thread: threading.Thread | None = None
+        # the fork server starts here, not in the thread: starting it sets this process's env briefly
         try:
-            ctx = _context(
-                runner_cfg.levels.preload
-            )  # here, not in the thread: it sets this process's env briefly
-        except (
-            ValueError,
-            OSError,
-        ) as e:  # no fork server on this platform: the run starts as without a preview
-            self._failed = e
+            ctx = _context(runner_cfg.levels.preload)
+        except (ValueError, OSError) as e:
+            self._failed = e  # no fork server on this platform: the run starts as without a preview
             return
         self._thread = threading.Thread(
             target=self._start, args=(ctx, list(jobs[:n]), n), name="indgen-early-workers", daemon=True

@@ -77,9 +77,8 @@ class EnvRunner:
         self._t0 = 0.0
         self._frames: list[np.ndarray] = []
         self._can_skip_render = False
-        self._prepared: tuple[EpisodeJob, Transition, float] | None = (
-            None  # prepare(): (job, its reset, seconds)
-        )
+        # prepare(): (the job, its reset's transition, the reset's seconds)
+        self._prepared: tuple[EpisodeJob, Transition, float] | None = None
 
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)

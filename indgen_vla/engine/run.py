@@ -196,9 +196,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
 
     probe, early = None, None
     try:
-        if not (
-            out / "manifest.json"
-        ).exists():  # a new run: refuse a policy that does not fit before writing
+        # a new run: refuse a policy that does not fit before writing anything
+        if not (out / "manifest.json").exists():
             early = prestart(plan.jobs)
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
