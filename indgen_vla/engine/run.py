@@ -163,31 +163,28 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
     ) or uuid.uuid4().hex[:12]
 
+    # what the policy's family is told besides its spec: the scene family's contract, precision/compile options
+    env_spec, options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
+
     def make_policy():
         from policy_wrappers.registry import load_policy
 
-        extra = cfg.policy_options()  # precision/compile, for families that take them
         return load_policy(
             cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene,
-            env_spec=getattr(plan.builder, "env_spec", None), **extra,
+            env_spec=env_spec, **options,
         )  # fmt: skip
 
     def prestart(jobs: list) -> EarlyWorkers | None:
         """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
         simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
-        their first scenes built (``local.EarlyWorkers``; checked against the loaded policy)."""
+        their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
         if cfg.backend != "local" or not jobs:
             return None
         from indgen_vla.engine.local import EarlyWorkers, start_forkserver, worker_processes
         from policy_wrappers.registry import preview_policy
 
         n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
-        view = preview_policy(
-            cfg.policy,
-            device=cfg.device,
-            env_spec=getattr(plan.builder, "env_spec", None),
-            **cfg.policy_options(),
-        )
+        view = preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec, **options)
         if view is not None:
             return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
         if n:
