@@ -33,12 +33,22 @@ def check_mode(mode: str, device: str, who: str) -> None:
 
 def cache_dir() -> Path:
     """The inductor cache every run shares: $TORCHINDUCTOR_CACHE_DIR if the user set it, else
-    ~/.cache/indgen/inductor (torch's default lives in /tmp, which a reboot or a fresh container empties)."""
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
+    ~/.cache/indgen/inductor (torch's default lives in /tmp, which a reboot or a fresh container empties).
+
+    Importing ``torch._inductor`` (lerobot's load does, through torchvision) writes inductor's own default into the
+    variable, so a value equal to that default counts as unset; the line ``compile_forward`` prints names the
+    directory used."""
+    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
+
+    value = os.environ.get(CACHE_ENV)
+    if value and value != default_cache_dir():
+        return Path(value)
     base = Path(os.environ.get("XDG_CACHE_HOME") or "~/.cache").expanduser()
     path = base / "indgen" / "inductor"
     os.environ[CACHE_ENV] = str(path)  # read by inductor (and Triton's cache below it) at compile time
+    utils = sys.modules.get("torch._inductor.utils")
+    if utils is not None:  # paths inductor already derived from the old value (functools caches)
+        utils.clear_caches()
     return path
 
 
@@ -72,9 +82,10 @@ def compile_forward(policy, mode: str, device: str, who: str) -> str:
             "set it false in config.json or drop compile="
         )
     import torch
-    import torch._inductor.config as inductor_config
 
     cache_dir()
+    import torch._inductor.config as inductor_config
+
     # flow-matching noise is drawn inside sample_actions: inductor's generated random kernels (Philox, on CUDA)
     # draw other numbers than eager for the same seed; eager's RNG ops keep a seed's noise equal (on CPU the two
     # already agree: checked 2026-11-24 for torch.normal; on CUDA test_reduced_pi05_compiled_on_cuda_matches_eager)

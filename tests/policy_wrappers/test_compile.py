@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -28,9 +32,15 @@ def test_compile_option_is_checked_targets_the_forward_and_keeps_a_stable_cache(
     ):
         load_policy(f"lerobot:{tiny_act}", compile="reduce-overhead")  # what --compile passes
 
+    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
+
     monkeypatch.delenv(pcompile.CACHE_ENV, raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert pcompile.cache_dir() == tmp_path / "xdg" / "indgen" / "inductor"
+    # what importing torch._inductor (lerobot's load, via torchvision) leaves in the variable: still "unset"
+    monkeypatch.setenv(pcompile.CACHE_ENV, default_cache_dir())
+    assert pcompile.cache_dir() == tmp_path / "xdg" / "indgen" / "inductor"
+    assert pcompile.os.environ[pcompile.CACHE_ENV] == str(tmp_path / "xdg" / "indgen" / "inductor")
     monkeypatch.setenv(pcompile.CACHE_ENV, str(tmp_path / "mine"))  # the user's own choice wins
     assert pcompile.cache_dir() == tmp_path / "mine"
 
@@ -64,3 +74,23 @@ def test_compiled_act_matches_eager(tiny_act, tmp_path, monkeypatch, obs_factory
         assert any((tmp_path / "inductor").rglob("*")), "inductor wrote nothing to the cache dir"
     finally:
         torch._dynamo.reset()
+
+
+@pytest.mark.slow  # one inductor compile on CPU (~1 min)
+def test_compile_cache_defaults_to_indgens_dir_in_a_fresh_process(tiny_act, tmp_path):
+    """Where a user's ``--compile`` run caches when they set nothing: ~/.cache/indgen/inductor (here under
+    $XDG_CACHE_HOME), not torch's /tmp default, although loading the policy imports torch._inductor, which writes
+    that default into $TORCHINDUCTOR_CACHE_DIR. A fresh interpreter, so the load is what imports inductor."""
+    code = (
+        "import numpy as np; from indgen_vla.interface import Observation; "
+        "from policy_wrappers.registry import load_policy; "
+        f"p = load_policy('lerobot:{tiny_act}', compile='default'); "
+        "o = Observation({c: np.zeros((32, 32, 3), np.uint8) for c in p.spec.cameras}, np.zeros(8, np.float32), "
+        "'pick'); p.reset('pick', seed=0); p.act([o])"
+    )
+    env = {k: v for k, v in os.environ.items() if k != pcompile.CACHE_ENV}
+    env["XDG_CACHE_HOME"] = str(tmp_path)
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert f"(cache: {tmp_path / 'indgen' / 'inductor'})" in proc.stderr  # the line the wrapper prints
+    assert any((tmp_path / "indgen" / "inductor").rglob("*")), "inductor wrote nothing to indgen's cache dir"
