@@ -4,6 +4,11 @@ unpipelined with a LeRobot ACT whose forward costs about one control step, lazy 
 overlap of physics and inference (the GIL). Prints one JSON object on its last line (docs/benchmarks.md).
 
     .venv/bin/python scripts/bench_engine.py [--quick] [--only engine|pipeline|render|gil]
+
+A GPU box (``_engine_box.py``): ``--only model`` (``--policy`` alone by ``--batches``), ``--only scaling``
+(engine steps/s by ``--workers`` with cameras, ``--pin``, ``--pipeline``, against the policy alone at each
+batch); the coordinator's and one worker's CPU per control step (``_engine_profile.py``):
+``--profile-coordinator``, ``--profile-worker``.
 """
 
 from __future__ import annotations
@@ -17,6 +22,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _engine_box import CpuMeter, model_alone, scaling
+from _engine_profile import profile_coordinator, profile_worker
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -76,45 +84,6 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False
 def worker_start_s(jobs, scene, spec_str, workers: int) -> float:
     """Fixed cost of a run: ``workers`` environments started, built and reset, each running one 1-step episode."""
     return engine_run(jobs[:workers], scene, spec_str, 1, 1, workers)
-
-
-class CpuMeter:
-    """CPU seconds of this process and of every worker process it started (sampled, as workers exit on close),
-    so a run on a loaded machine still tells how the work splits: with idle cores the wall time of a pipelined
-    run tends to max(policy process, worker), of an unpipelined one to their sum."""
-
-    def __init__(self, period_s: float = 0.2):
-        import threading
-
-        import psutil
-
-        self._me, self._period, self._seen = psutil.Process(), period_s, {}
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-
-    def _sample(self) -> None:
-        for child in self._me.children(recursive=True):
-            try:
-                if child.ppid() == self._me.pid and "forkserver" in " ".join(child.cmdline()):
-                    continue  # the idle fork server itself (its children, the workers, share its command line)
-                t = child.cpu_times()
-                self._seen[child.pid] = t.user + t.system
-            except Exception:  # exited between listing and reading
-                pass
-
-    def _loop(self) -> None:
-        while not self._stop.wait(self._period):
-            self._sample()
-
-    def __enter__(self):
-        self._t0 = time.process_time()
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._stop.set()
-        self._thread.join()
-        self.main_s, self.workers_s = time.process_time() - self._t0, sum(self._seen.values())
 
 
 def pipeline_bench(
@@ -325,375 +294,6 @@ def gil_overlap(scene: str, size: int, n: int) -> dict:
     return out
 
 
-def runner_config(scene: str, cameras, hw, max_steps: int):
-    """The RunnerConfig of the GPU-era parts below (one place to adapt when RunnerConfig changes)."""
-    from indgen_vla.engine.rollout import RunnerConfig
-    from scenes.planning import scene_levels
-
-    return RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
-                        max_steps=max_steps, privileged=False)  # fmt: skip
-
-
-class GpuBusy:
-    """Mean GPU utilisation (%) over a block, sampled by ``nvidia-smi`` every 100 ms (None without a GPU)."""
-
-    def __enter__(self):
-        import shutil
-        import subprocess
-
-        self.proc = None
-        if shutil.which("nvidia-smi"):
-            cmd = [
-                "nvidia-smi",
-                "--query-gpu=utilization.gpu",
-                "--format=csv,noheader,nounits",
-                "-lms",
-                "100",
-            ]
-            self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.mean = None
-        if self.proc is not None:
-            self.proc.terminate()
-            out, _ = self.proc.communicate(timeout=5)
-            vals = [float(x) for x in out.split() if x.strip().replace(".", "").isdigit()]
-            self.mean = round(sum(vals) / len(vals), 1) if vals else None
-
-
-def _random_obs(spec, n: int, seed: int = 0):
-    import numpy as np
-
-    from indgen_vla.interface import Observation
-
-    h, w = spec.image_size or (128, 128)
-    rng = np.random.default_rng(seed)
-    return [Observation({c: rng.integers(0, 255, (h, w, 3), dtype=np.uint8) for c in spec.cameras},
-                        rng.normal(size=8).astype(np.float32), "pick up the milk") for _ in range(n)]  # fmt: skip
-
-
-def _policy_options(precision: str, compile_mode: str) -> dict:
-    """Spec options at their non-default values (``EvalConfig.policy_options``)."""
-    return {
-        k: v for k, v, off in (("precision", precision, "fp32"), ("compile", compile_mode, "off")) if v != off
-    }
-
-
-def model_alone(spec_str: str, batches: list[int], device: str, precision: str, seconds: float,
-                compile_mode: str = "off") -> dict:  # fmt: skip
-    """The policy's own ``act`` (pre-processing, forward, post-processing) on random observations: obs/s by batch
-    size, and the GPU's busy share while it runs; the ceiling an in-engine run is compared with. ``first_call_s``
-    per batch size is the warm-up call: with ``--compile`` it holds the compile (a second process reads the
-    inductor cache, ``policy_wrappers.compile.cache_dir``)."""
-    from policy_wrappers.registry import load_policy
-
-    t0 = time.perf_counter()
-    policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
-    out: dict = {"model": spec_str, "device": device, "precision": precision, "compile": compile_mode,
-                 "load_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
-    if compile_mode != "off":
-        from policy_wrappers.compile import cache_dir
-
-        out["inductor_cache"] = str(cache_dir())
-        out["inductor_cache_was_empty"] = not any(cache_dir().glob("*"))
-    for b in batches:
-        obs = _random_obs(policy.spec, b, seed=b)
-        policy.reset(obs[0].instruction, seed=0)
-        t1 = time.perf_counter()
-        policy.act(obs)  # warm-up (kernels, autotuning, allocator; the compile with --compile)
-        first = time.perf_counter() - t1
-        n, t0 = 0, time.perf_counter()
-        with GpuBusy() as busy:
-            while n < 3 or time.perf_counter() - t0 < seconds:
-                policy.act(obs)
-                n += 1
-        dt = (time.perf_counter() - t0) / n
-        out[f"b{b}"] = {"ms_per_act": round(1000 * dt, 1), "obs_per_s": round(b / dt, 1), "calls": n,
-                        "first_call_s": round(first, 2), "gpu_busy_pct": busy.mean}  # fmt: skip
-    try:
-        import torch
-
-        if torch.cuda.is_available():
-            out["max_gpu_mem_gib"] = round(torch.cuda.max_memory_allocated() / 2**30, 2)
-    except Exception:
-        pass
-    policy.close()
-    return out
-
-
-class Pinner:
-    """Pins this process to core 0 and each worker process (the fork server's children, in start order) to one
-    of the other cores, round-robin, while the block runs (``--pin``: does pinning beat the kernel's placement?)."""
-
-    def __init__(self, enabled: bool, period_s: float = 0.02):
-        import threading
-
-        self.enabled, self._period, self._done = enabled, period_s, set()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-
-    def _loop(self) -> None:
-        import psutil
-
-        me, cores = psutil.Process(), sorted(os.sched_getaffinity(0))
-        rest = cores[1:] or cores
-        while not self._stop.wait(self._period):
-            for child in sorted(me.children(recursive=True), key=lambda c: c.pid):
-                try:
-                    if child.pid in self._done or child.ppid() == me.pid:  # the fork server itself
-                        continue
-                    child.cpu_affinity([rest[len(self._done) % len(rest)]])
-                    self._done.add(child.pid)
-                except Exception:  # exited between listing and pinning
-                    pass
-
-    def __enter__(self):
-        if self.enabled:
-            self._saved = os.sched_getaffinity(0)
-            self._cores = sorted(self._saved)
-            os.sched_setaffinity(0, {self._cores[0]})
-            self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self.enabled:
-            self._stop.set()
-            self._thread.join()
-            os.sched_setaffinity(0, self._saved)
-
-
-def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_steps: int, cameras, size: int,
-            device: str, precision: str, pin: bool = False, compile_mode: str = "off") -> dict:  # fmt: skip
-    """Engine steps/s at each worker count with cameras rendered, the policy in the main process on ``device``;
-    CPU seconds of the main process (the coordinator) and the GPU's busy share per run.
-
-    Each count also runs W one-step episodes (the start: W fresh workers, forked, scene built, reset, rendered),
-    so ``steps_per_s_net_of_start`` and ``workers_cpu_ms_per_step_net_of_start`` leave out what a longer run
-    amortises: a short run at 16 workers pays twice the starts of 8 for the same steps."""
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta
-    from policy_wrappers.registry import load_policy
-
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy=spec_str, scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
-    policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
-    cams = tuple(policy.spec.cameras) or tuple(cameras)
-    hw = tuple(policy.spec.image_size or (size, size))
-    replan = policy.spec.replan_steps
-    meta = RunMeta("bench", spec_str, "", scene)
-    run_local(jobs[:2], runner_config(scene, cams, hw, 2), lambda: policy, meta, lambda r: None, workers=2,
-              replan_steps=replan, close_policies=False)  # warm-up: fork server, kernels  # fmt: skip
-    out: dict = {"scaling_policy": spec_str, "scaling_cameras": list(cams), "scaling_image": hw[0],
-                 "scaling_episodes": len(jobs), "scaling_max_steps": max_steps, "replan": replan}  # fmt: skip
-    if pin:
-        out["pinned"] = "coordinator on core 0, workers round-robin on the others"
-    for w in workers:
-        t0 = time.perf_counter()
-        with CpuMeter() as start_meter, Pinner(pin):
-            run_local(jobs[:w], runner_config(scene, cams, hw, 1), lambda: policy, meta, lambda r: None,
-                      workers=w, replan_steps=replan, close_policies=False)  # fmt: skip
-        start_s = time.perf_counter() - t0
-        records: list = []
-        t0 = time.perf_counter()
-        with CpuMeter() as meter, GpuBusy() as busy, Pinner(pin):
-            run_local(jobs, runner_config(scene, cams, hw, max_steps), lambda: policy, meta, records.append,
-                      workers=w, replan_steps=replan, close_policies=False)  # fmt: skip
-        wall = time.perf_counter() - t0
-        steps = sum(r.steps for r in records)
-        assert all(r.status == "ok" for r in records), [r.error for r in records if r.status != "ok"][:1]
-        out[f"w{w}"] = {"wall_s": round(wall, 2), "control_steps": steps, "steps_per_s": round(steps / wall, 1),
-                        "main_cpu_s": round(meter.main_s, 2), "workers_cpu_s": round(meter.workers_s, 2),
-                        "main_cpu_ms_per_step": round(1000 * meter.main_s / steps, 3),
-                        "workers_cpu_ms_per_step": round(1000 * meter.workers_s / steps, 3),
-                        "start_wall_s": round(start_s, 2), "start_workers_cpu_s": round(start_meter.workers_s, 2),
-                        "steps_per_s_net_of_start": round(steps / max(1e-9, wall - start_s), 1),
-                        "workers_cpu_ms_per_step_net_of_start":
-                            round(1000 * (meter.workers_s - start_meter.workers_s) / steps, 3),
-                        "gpu_busy_pct": busy.mean}  # fmt: skip
-        print(json.dumps({f"w{w}": out[f"w{w}"]}), flush=True)
-    policy.close()
-    return out
-
-
-PROFILE_PARTS = (  # (label, function name, file suffix): cumulative CPU inside these calls of the main process
-    # (the profiler is off during the model's forward, ``predict_action_chunk``)
-    ("pre-processing (to_batch: stack, device copy, resize)", "to_batch", "lerobot_policy.py"),
-    ("lerobot processors (normalise, tokenise, unnormalise)", "__call__", "pipeline.py"),
-    ("receive (read + unpickle observations)", "recv", "engine/local.py"),
-    ("send (pickle + write requests)", "send", "engine/local.py"),
-    ("records + Parquet", "append", "records.py"),
-)
-
-
-def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes: int, max_steps: int,
-                        size: int, device: str, profile_out: str | None = None, top_n: int = 15) -> dict:  # fmt: skip
-    """CPU of the main process per control step, the model's forward excluded: what bounds one coordinator
-    (1000 / ms-per-step steps/s). A tiny LeRobot ACT with two ``size``-px cameras (or ``spec_str``), real records
-    and Parquet (``RunDir``), ``workers`` worker processes; a cProfile (CPU clock) run splits the time."""
-    import cProfile
-    import pstats
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta
-    from indgen_vla.records import RunDir
-    from policy_wrappers.registry import load_policy
-    from tests.fixtures.tiny_policies import build_tiny_checkpoint
-
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
-    with tempfile.TemporaryDirectory() as d:
-        spec_str = (
-            spec_str
-            or f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview', 'wrist'), size=size)}"
-        )
-        policy = load_policy(spec_str, device=device)
-        forward = {"s": 0.0, "calls": 0}
-        inner = getattr(policy, "policy", None)
-        if inner is not None and hasattr(inner, "predict_action_chunk"):
-            real = inner.predict_action_chunk
-
-            def timed(*a, **k):
-                t0 = time.process_time()
-                forward["calls"] += 1
-                if forward.get("prof") is not None:  # the profile covers the coordinator, not the model
-                    forward["prof"].disable()
-                try:
-                    return real(*a, **k)
-                finally:
-                    forward["s"] += time.process_time() - t0
-                    if forward.get("prof") is not None:
-                        forward["prof"].enable()
-
-            inner.predict_action_chunk = timed
-        cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
-        rc, meta = runner_config(scene, cams, hw, max_steps), RunMeta("bench", spec_str, "", scene)
-        run_local(jobs[:workers], runner_config(scene, cams, hw, 1), lambda: policy, meta, lambda r: None,
-                  workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False)  # warm-up  # fmt: skip
-        out: dict = {"profile_policy": spec_str if "tmp" not in spec_str else f"lerobot ACT (tiny), 2 cameras {hw[0]}px",
-                     "profile_workers": workers, "profile_episodes": len(jobs), "profile_max_steps": max_steps,
-                     "replan": policy.spec.replan_steps, "device": device}  # fmt: skip
-        for label, prof in (("plain", None), ("cprofile", cProfile.Profile(time.process_time))):
-            run = RunDir.create_or_resume(Path(d) / f"run_{label}", {"run_id": label, "plan": {}})
-            records: list = []
-
-            def on_record(r, run=run, records=records):
-                run.append([r])
-                records.append(r)
-
-            forward["s"], forward["prof"], forward["calls"] = 0.0, prof, 0
-            t0, c0 = time.perf_counter(), time.process_time()
-            if prof is not None:
-                prof.enable()
-            run_local(jobs, rc, lambda: policy, meta, on_record, workers=workers,
-                      replan_steps=policy.spec.replan_steps, close_policies=False)  # fmt: skip
-            if prof is not None:
-                prof.disable()
-                forward["prof"] = None
-            cpu, wall = time.process_time() - c0, time.perf_counter() - t0
-            steps = sum(r.steps for r in records)
-            acts = max(1, round(steps / policy.spec.replan_steps))
-            if prof is None:
-                out.update({"coordinator_cpu_s": round(cpu - forward["s"], 3), "forward_cpu_s": round(forward["s"], 3),
-                            "control_steps": steps, "wall_s": round(wall, 2),
-                            "coordinator_ms_per_step": round(1000 * (cpu - forward["s"]) / steps, 4),
-                            "coordinator_ms_per_act": round(1000 * (cpu - forward["s"]) / acts, 3),
-                            "forward_calls": forward["calls"],  # batched rounds that reached the model
-                            "forward_ms_per_call": round(1000 * forward["s"] / max(1, forward["calls"]), 2)})  # fmt: skip
-                continue
-            stats = pstats.Stats(prof).stats  # (file, line, name) -> (cc, nc, tt, ct, callers)
-            parts = {}
-            for name, func, suffix in PROFILE_PARTS:
-                parts[name] = round(1000 * sum(v[3] for k, v in stats.items()
-                                               if k[2] == func and k[0].endswith(suffix)) / steps, 4)  # fmt: skip
-            parts["total (profiled, forward not profiled)"] = round(
-                1000 * sum(v[2] for v in stats.values()) / steps, 4
-            )
-            out["profile_ms_per_step"] = parts
-            if profile_out:
-                prof.dump_stats(profile_out)
-            top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:top_n]  # by own CPU (tottime)
-            out["profile_top_own_ms_per_step"] = {
-                f"{Path(k[0]).name}:{k[1]}({k[2]})": round(1000 * v[2] / steps, 4) for k, v in top
-            }
-        policy.close()
-    return out
-
-
-WORKER_PARTS = (  # (label, function name, file suffix): cumulative CPU inside the outermost such call of one worker
-    ("physics (scenes/sim.py step: controller + mj_step)", "step", "scenes/sim.py"),
-    ("render (camera update + render + read)", "_render", "env.py"),
-    ("reply pickling (pipe send)", "_dumps", "local.py"),
-)
-
-
-def profile_worker(scene: str, episodes: int, max_steps: int, size: int, replan: int, cameras: tuple) -> dict:
-    """CPU of one worker per control step, in this process: ``EnvRunner.execute`` of ``replan``-step slices of a
-    fixed random chunk (physics, lazy renders of ``cameras`` at ``size`` px, observation assembly) plus the
-    pickling of each reply as the pipe sends it; a cProfile (CPU clock) run splits it. What is left after physics
-    and rendering is what a worker could still cut."""
-    import cProfile
-    import pstats
-
-    import numpy as np
-
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
-    from indgen_vla.engine.local import _dumps
-    from indgen_vla.engine.rollout import EnvRunner, action_dim
-
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
-    rc = runner_config(scene, cameras, (size, size), max_steps)
-    runner = EnvRunner(rc)
-    rng = np.random.default_rng(0)
-    chunk = rng.uniform(-0.3, 0.3, (replan, action_dim(rc.levels))).astype(np.float32)
-    _dumps(runner.reset(jobs[0]))  # warm-up: scene build, first render
-    out: dict = {"worker_scene": scene, "worker_cameras": list(cameras), "worker_size": size, "replan": replan,
-                 "worker_episodes": len(jobs), "worker_max_steps": max_steps}  # fmt: skip
-    for prof in (None, cProfile.Profile(time.process_time)):  # plain, then profiled
-        steps, c0 = 0, time.process_time()
-        if prof is not None:
-            prof.enable()
-        for job in jobs:
-            t = runner.reset(job)
-            _dumps(t)
-            while not t.done:
-                t = runner.execute(chunk)
-                _dumps(t)
-            steps += t.steps
-        if prof is not None:
-            prof.disable()
-        cpu = time.process_time() - c0
-        if prof is None:
-            out.update({"worker_cpu_s": round(cpu, 3), "control_steps": steps,
-                        "worker_ms_per_step": round(1000 * cpu / steps, 3)})  # fmt: skip
-            continue
-        stats = pstats.Stats(prof).stats
-        parts = {name: round(1000 * max([v[3] for k, v in stats.items() if k[2] == func and k[0].endswith(suffix)],
-                                        default=0.0) / steps, 4) for name, func, suffix in WORKER_PARTS}  # fmt: skip
-        parts["total (profiled)"] = round(1000 * sum(v[2] for v in stats.values()) / steps, 4)
-        parts["rest (resets, observation assembly, bookkeeping)"] = round(
-            parts["total (profiled)"] - sum(parts[name] for name, _, _ in WORKER_PARTS), 4
-        )
-        out["worker_profile_ms_per_step"] = parts
-        top = sorted(stats.items(), key=lambda kv: -kv[1][2])[:15]
-        out["worker_top_own_ms_per_step"] = {  # name: [ms per control step, calls per control step]
-            f"{Path(k[0]).name}:{k[1]}({k[2]})": [round(1000 * v[2] / steps, 4), round(v[1] / steps, 2)]
-            for k, v in top
-        }
-    runner.close()
-    return out
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="few short episodes (CI smoke run)")
@@ -713,9 +313,12 @@ def main() -> None:
     ap.add_argument(
         "--cameras", default="agentview,wrist", help="scaling part: cameras of a camera-less policy"
     )
+    ap.add_argument("--pipeline", action="store_true",
+                    help="scaling part: two environments per worker, one steps while the policy acts for the other")  # fmt: skip
     ap.add_argument("--pin", action="store_true",
                     help="scaling part: pin the coordinator to core 0 and each worker to one other core")  # fmt: skip
-    ap.add_argument("--seconds", type=float, default=5.0, help="model part: timed seconds per batch size")
+    ap.add_argument("--seconds", type=float, default=5.0,
+                    help="model part: timed seconds per batch size (scaling part: per worker count)")  # fmt: skip
     ap.add_argument("--profile-coordinator", action="store_true",
                     help="main-process CPU per control step (forward excluded) with a cProfile split")  # fmt: skip
     ap.add_argument("--profile-workers", type=int, default=2, help="--profile-coordinator: worker processes")
@@ -725,9 +328,17 @@ def main() -> None:
         "--profile-out", default=None, help="--profile-coordinator: write the cProfile stats here"
     )
     ap.add_argument("--pipeline-size", type=int, default=128, help="camera size of the pipelining ACT")
-    ap.add_argument("--episodes", type=int, default=None, help="engine part: episodes (default 16; quick 4)")
     ap.add_argument(
-        "--max-steps", type=int, default=None, help="engine part: steps each (default 200; quick 40)"
+        "--episodes",
+        type=int,
+        default=None,
+        help="episodes (engine part 16, scaling 32, pipeline 4; quick 4)",
+    )
+    ap.add_argument(
+        "--max-steps",
+        type=int,
+        default=None,
+        help="steps each (engine part 200, scaling 100, pipeline 60; quick 40)",
     )
     args = ap.parse_args()
     import torch
@@ -767,7 +378,8 @@ def main() -> None:
     if args.only == "scaling":
         eps, steps = (4, 40) if args.quick else (args.episodes or 32, args.max_steps or 100)
         res = scaling(args.policy, args.scene, ints(args.workers), eps, steps, args.cameras.split(","),
-                      args.pipeline_size, args.device, args.precision, args.pin, args.compile)  # fmt: skip
+                      args.pipeline_size, args.device, args.precision, args.pin, args.compile, args.pipeline,
+                      args.seconds)  # fmt: skip
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
     if args.only == "gil":
@@ -780,7 +392,7 @@ def main() -> None:
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
     if args.only == "pipeline":
-        eps, steps = (2, 20) if args.quick else (4, 60)
+        eps, steps = (2, 20) if args.quick else (args.episodes or 4, args.max_steps or 60)
         res = pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats, args.device)
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
