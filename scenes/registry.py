@@ -66,7 +66,7 @@ class Scene:
     certified_compositions: ClassVar[tuple[str, ...]] = ()
     env_spec: ClassVar[EnvSpec] = TABLETOP
     runtime: ClassVar[Any] = None
-    preload: ClassVar[tuple[str, ...]] = ("scenes.env", "robosuite", "mujoco")
+    preload: ClassVar[tuple[str, ...]] = ("scenes.env", "robosuite", "mujoco", "scenes.robosuite_kernels")
     oracle: ClassVar[str] = (
         "scenes.oracle:OraclePolicy"  # the privileged oracle ("module:attr") standin:oracle runs
     )
