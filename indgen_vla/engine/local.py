@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, action_dim
-from indgen_vla.engine.scheduler import Limits, Policies, Slots, coordinate
+from indgen_vla.engine.scheduler import Limits, Policies, Slots, coordinate, first_jobs
 from indgen_vla.plan import EpisodeJob
 from indgen_vla.records import EpisodeRecord
 
@@ -309,7 +309,7 @@ class EarlyWorkers:
             self._failed = e  # no fork server on this platform: the run starts as without a preview
             return
         self._thread = threading.Thread(
-            target=self._start, args=(ctx, list(jobs[:n]), n), name="indgen-early-workers", daemon=True
+            target=self._start, args=(ctx, first_jobs(jobs, n), n), name="indgen-early-workers", daemon=True
         )
         self._thread.start()
 

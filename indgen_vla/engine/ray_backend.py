@@ -22,6 +22,7 @@ from concurrent.futures import Future
 
 from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+from indgen_vla.engine.scheduler import JobQueue
 from indgen_vla.errors import ConfigError, ServerUnreachableError
 from indgen_vla.plan import EpisodeJob
 from indgen_vla.records import EpisodeRecord
@@ -260,7 +261,6 @@ def run_ray(
     policy actors' batch sizes."""
     try:
         import ray
-        from ray.util import ActorPool
     except ImportError:
         raise ConfigError("--backend ray needs the 'ray' extra: pip install 'indgen-vla[ray]'") from None
     if not jobs:
@@ -300,13 +300,22 @@ def run_ray(
     try:
         specs = ray.get([s.get_spec.remote() for s in servers])
         _connect(ray, actors, servers, specs)
-        pool = ActorPool(actors)
-        results = pool.map_unordered(
-            lambda a, j: a.run.remote(j, meta, replan, cfg.max_retries, cfg.server_patience), list(jobs)
-        )
+        todo = JobQueue(jobs)  # an actor keeps the scene it holds (one build per cell, as the local backend)
+        running: dict = {}  # a running episode's future -> its actor
+
+        def submit(i: int) -> None:
+            job = todo.take(i)
+            if job is not None:
+                running[actors[i].run.remote(job, meta, replan, cfg.max_retries, cfg.server_patience)] = i
+
+        for i in range(n):
+            submit(i)
         try:
-            for record in results:
-                on_record(record)
+            while running:
+                (done,), _ = ray.wait(list(running), num_returns=1)
+                i = running.pop(done)
+                on_record(ray.get(done))
+                submit(i)
         except ray.exceptions.RayTaskError as e:  # an actor gave up on the server: one clear line
             if isinstance(getattr(e, "cause", None), ServerUnreachableError):
                 raise ServerUnreachableError(str(e.cause)) from None

@@ -7,7 +7,7 @@ Slot ``i`` is lane ``i // W`` of worker ``i % W`` (one lane unless pipelined).
 from __future__ import annotations
 
 import time
-from collections import deque
+from collections import defaultdict, deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -45,6 +45,54 @@ class Limits:
     action_dim: int
 
 
+class JobQueue:
+    """The episodes still to start, served so that a slot keeps its scene.
+
+    A slot's environment holds one cell's scene (task, axis, level: ``EnvRunner`` rebuilds it when the cell
+    changes, 0.5-3 s). A slot takes the next episode of the cell it holds while that cell has any, else the first
+    episode of the cell the fewest slots are running (plan order breaks ties). W workers then build about one scene
+    per cell, where taking the plan's order would spread every cell over all W (W builds per cell). Seeds belong
+    to episodes, so which slot runs an episode changes no outcome.
+    """
+
+    def __init__(self, jobs: Sequence[EpisodeJob]) -> None:
+        self._cells: dict[tuple, deque[EpisodeJob]] = {}
+        for job in jobs:
+            self._cells.setdefault(_cell(job), deque()).append(job)
+        self._running: dict[tuple, int] = defaultdict(int)  # cell -> slots running one of its episodes
+        self._held: dict[int, tuple] = {}  # slot -> the cell of its last episode (its environment's scene)
+
+    def __bool__(self) -> bool:
+        return bool(self._cells)
+
+    def take(self, slot: int) -> EpisodeJob | None:
+        """The next episode for ``slot``, whose previous one (if any) is done; None when the queue is empty."""
+        held = self._held.pop(slot, None)
+        if held is not None:
+            self._running[held] -= 1
+        if not self._cells:
+            return None
+        cell = held if held in self._cells else min(self._cells, key=self._running.__getitem__)
+        queue = self._cells[cell]
+        job = queue.popleft()
+        if not queue:
+            del self._cells[cell]
+        self._held[slot] = cell
+        self._running[cell] += 1
+        return job
+
+
+def _cell(job: EpisodeJob) -> tuple:
+    """What an environment is built for (``EnvRunner._env_for``'s key)."""
+    return (job.task, job.axis, job.level)
+
+
+def first_jobs(jobs: Sequence[EpisodeJob], n: int) -> list[EpisodeJob]:
+    """The episodes slots 0..n-1 start with (``Slots`` starts them in that order): what early workers prepare."""
+    queue = JobQueue(jobs)
+    return [job for job in (queue.take(i) for i in range(n)) if job is not None]
+
+
 class Slots:
     """Episodes in flight, one per slot: starting, retrying and pausing them (no policy, no waiting)."""
 
@@ -54,7 +102,7 @@ class Slots:
         self.pool, self.n = pool, len(pool)
         self.meta, self.limits, self.on_record = meta, limits, on_record
         self.outage, self.notify = outage, notify
-        self.queue = deque(jobs)
+        self.queue = JobQueue(jobs)
         self.active: dict[int, _Slot] = {}
 
     def send(self, i: int, op: str, arg) -> None:
@@ -63,10 +111,11 @@ class Slots:
     def start(self, i: int, slot: _Slot | None = None) -> None:
         """Reset slot ``i`` for ``slot``'s episode (a retry or resume), else the next queued one (none: free it)."""
         if slot is None:
-            if not self.queue:
+            job = self.queue.take(i)
+            if job is None:
                 self.active.pop(i, None)
                 return
-            slot = _Slot(self.queue.popleft())
+            slot = _Slot(job)
         slot.fresh, slot.acts, slot.wake = True, 0, 0.0
         self.active[i] = slot
         self.send(i, "reset", slot.job)
