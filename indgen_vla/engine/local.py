@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, action_dim
-from indgen_vla.engine.scheduler import Limits, Policies, Slots, coordinate, first_jobs
+from indgen_vla.engine.scheduler import Limits, Policies, Slots, cell_of, coordinate, first_jobs
 from indgen_vla.plan import EpisodeJob
 from indgen_vla.records import EpisodeRecord
 
@@ -100,6 +100,7 @@ class _InProcessWorker:
 
     def __init__(self, cfg: RunnerConfig):
         self.cfg = cfg
+        self.held: dict[int, tuple] = {}  # lane -> the cell its environment was last asked for (scheduler)
         self.runners: dict[int, EnvRunner] = {}
         self._replies: deque[tuple[int, Transition]] = deque()
 
@@ -121,6 +122,8 @@ class _InProcessWorker:
 
 class _ProcessWorker:
     def __init__(self, ctx, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None):
+        self.cfg = cfg
+        self.held: dict[int, tuple] = {}  # lane -> the cell its environment was last asked for (scheduler)
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(
             target=_worker_main, args=(child, cfg, render_threads, egl_device, dict(os.environ)), daemon=True
@@ -221,6 +224,7 @@ def run_local(
     close_policies: bool = True,
     pipeline: bool = False,
     early: list | None = None,
+    keep: list | None = None,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
@@ -232,32 +236,46 @@ def run_local(
     ``pipeline``: two environments per worker (slot ``i`` is lane ``i // W`` of worker ``i % W``), and each
     lane gets its own ``act``, so a worker steps one lane while the policy computes the other's chunk. Every
     episode still runs from its own seed with its own actions: the records equal the unpipelined run's.
+
+    ``early``: workers to use instead of starting new ones (``EarlyWorkers``, or an earlier call's ``keep``), made
+    for this ``runner_cfg``; as many as this call needs are used, more are started if it needs more. ``keep``: after
+    a run that ends normally the workers are appended to it instead of closed, with the scenes they hold, for the
+    caller's next call (adaptive rounds); the caller closes them.
     """
     n = max(1, min(workers, len(jobs)))
     if not jobs:
+        if keep is not None:
+            keep.extend(early or [])
         return
     lanes = LANES if pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
     pool: list = []
+    spare: list = []
     policies: Policies | None = None
     try:
         n_proc = worker_processes(len(jobs), workers, pipeline)
-        if early is not None and len(early) != max(1, n_proc):
-            for w in early:
-                w.close()
-            early = None
-        pool = early or _start_pool(runner_cfg, n_proc)
+        pool, spare = _reuse(early or [], runner_cfg, n_proc)
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
-        slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None))
+        n_pool = len(
+            pool
+        )  # handed-over workers keep their scenes; slot i is lane i // n_pool of worker i % n_pool
+        held = {
+            lane * n_pool + w: cell for w, worker in enumerate(pool) for lane, cell in worker.held.items()
+        }
+        slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None),
+                      {i: cell for i, cell in held.items() if i < n_slots})  # fmt: skip
         for i in range(n_slots):
             slots.start(i)  # the workers start and build their scenes while the policy loads
         policies = Policies(make_policy, n_slots)
         coordinate(slots, policies, lanes)
+        if keep is not None:  # a normal end: the next call gets the workers and the scenes they hold
+            keep.extend(pool + spare)
+            pool, spare = [], []
     finally:
         if policies is not None:
             policies.shutdown()
-        for w in pool:
+        for w in pool + spare:
             w.close()
         # the caller may keep the policies for its next call (close_policies=False)
         for p in policies.items if policies is not None and close_policies else []:
@@ -267,6 +285,25 @@ def run_local(
                     close()
                 except Exception:  # closing must not mask the run's own outcome
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
+
+
+def _reuse(early: list, runner_cfg: RunnerConfig, n_proc: int) -> tuple[list, list]:
+    """(pool, spare): the first workers of ``early`` this run needs (``n_proc``: 0 = one in-process worker, which
+    a worker process also serves), more started if it needs more, the rest spare; workers made for another
+    config, or an in-process worker where processes are needed, are closed and replaced."""
+    want = max(1, n_proc)
+    if any(w.cfg != runner_cfg for w in early) or (
+        want > 1 and any(isinstance(w, _InProcessWorker) for w in early)
+    ):
+        for w in early:
+            w.close()
+        early = []
+    if not early:
+        return _start_pool(runner_cfg, n_proc), []
+    pool, spare = early[:want], early[want:]
+    if len(pool) < want:
+        _spawn(_context(runner_cfg.levels.preload), runner_cfg, want - len(pool), into=pool)
+    return pool, spare
 
 
 def _start_pool(runner_cfg: RunnerConfig, n: int) -> list:
@@ -318,6 +355,7 @@ class EarlyWorkers:
             _spawn(ctx, self.runner_cfg, n, into=self.pool)
             for w, job in zip(self.pool, jobs, strict=False):  # slot i is lane 0 of worker i (scheduler)
                 w.send(("prepare", 0, job))
+                w.held[0] = cell_of(job)
         except BaseException as e:  # e.g. a fork server that died: run_local starts its own workers
             self._failed = e
 

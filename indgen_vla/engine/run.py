@@ -350,6 +350,8 @@ def _run_with_progress(
             handed[0] += 1
             return made[handed[0] - 1]
 
+        kept: list = []  # the local backend's workers between adaptive rounds, with the scenes they hold
+
         def run_jobs(batch: list) -> None:
             handed[0] = 0
             if cfg.backend == "ray":
@@ -359,10 +361,13 @@ def _run_with_progress(
             else:
                 from indgen_vla.engine.local import run_local
 
-                workers = early.take(runner_cfg) if early is not None else None  # the first round only
+                nonlocal early  # the first round gets the workers started while the policy loaded, a later one the last's
+                workers = early.take(runner_cfg) if early is not None else list(kept)
+                early = None
+                kept.clear()
                 run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
                           cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
-                          close_policies=False, pipeline=cfg.pipeline, early=workers)  # fmt: skip
+                          close_policies=False, pipeline=cfg.pipeline, early=workers, keep=kept)  # fmt: skip
 
         try:
             if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
@@ -373,6 +378,8 @@ def _run_with_progress(
                 run_jobs(todo)
         finally:
             run.flush()  # the rows a long run's append deferred (records.FLUSH_SHARE)
+            for w in kept:
+                w.close()
             for p in made:  # the ray backend loads its own policies in its actors
                 p.close()
 

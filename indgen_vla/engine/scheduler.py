@@ -55,12 +55,14 @@ class JobQueue:
     to episodes, so which slot runs an episode changes no outcome.
     """
 
-    def __init__(self, jobs: Sequence[EpisodeJob]) -> None:
+    def __init__(self, jobs: Sequence[EpisodeJob], held: dict[int, tuple] | None = None) -> None:
         self._cells: dict[tuple, deque[EpisodeJob]] = {}
         for job in jobs:
-            self._cells.setdefault(_cell(job), deque()).append(job)
+            self._cells.setdefault(cell_of(job), deque()).append(job)
         self._running: dict[tuple, int] = defaultdict(int)  # cell -> slots running one of its episodes
-        self._held: dict[int, tuple] = {}  # slot -> the cell of its last episode (its environment's scene)
+        self._held: dict[int, tuple] = dict(held or {})  # slot -> the cell its environment holds
+        for cell in self._held.values():
+            self._running[cell] += 1
 
     def __bool__(self) -> bool:
         return bool(self._cells)
@@ -82,7 +84,7 @@ class JobQueue:
         return job
 
 
-def _cell(job: EpisodeJob) -> tuple:
+def cell_of(job: EpisodeJob) -> tuple:
     """What an environment is built for (``EnvRunner._env_for``'s key)."""
     return (job.task, job.axis, job.level)
 
@@ -94,15 +96,17 @@ def first_jobs(jobs: Sequence[EpisodeJob], n: int) -> list[EpisodeJob]:
 
 
 class Slots:
-    """Episodes in flight, one per slot: starting, retrying and pausing them (no policy, no waiting)."""
+    """Episodes in flight, one per slot: starting, retrying and pausing them (no policy, no waiting).
+
+    ``held``: slot -> the cell its worker's environment already holds (workers handed over from an earlier run)."""
 
     def __init__(self, jobs: Sequence[EpisodeJob], pool: list, meta: RunMeta, limits: Limits,
                  on_record: Callable[[EpisodeRecord], None], outage: Outage,
-                 notify: Callable[[str], None]) -> None:  # fmt: skip
+                 notify: Callable[[str], None], held: dict[int, tuple] | None = None) -> None:  # fmt: skip
         self.pool, self.n = pool, len(pool)
         self.meta, self.limits, self.on_record = meta, limits, on_record
         self.outage, self.notify = outage, notify
-        self.queue = JobQueue(jobs)
+        self.queue = JobQueue(jobs, held)
         self.active: dict[int, _Slot] = {}
 
     def send(self, i: int, op: str, arg) -> None:
@@ -118,6 +122,7 @@ class Slots:
             slot = _Slot(job)
         slot.fresh, slot.acts, slot.wake = True, 0, 0.0
         self.active[i] = slot
+        self.pool[i % self.n].held[i // self.n] = cell_of(slot.job)
         self.send(i, "reset", slot.job)
 
     def fail(self, i: int, error: str, t: Transition | None = None) -> None:

@@ -62,14 +62,14 @@ class CountingLevels(SceneLevels):
         return super().make_env(task, axis, level, **kw)
 
 
-def _run(tmp_path: Path, workers: int) -> tuple[list, list[str]]:
+def _run(tmp_path: Path, workers: int, levels=(0, 1, -1), episodes: int = 3) -> tuple[list, list[str]]:
     import scenes
 
     task = scenes.tasks("pick_place")[0]
-    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=3)
-    levels = [0, 1, -1]
+    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes)
+    levels = list(levels)
     jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
-    log = tmp_path / f"builds_{workers}.txt"
+    log = tmp_path / f"builds_{workers}_{len(levels)}x{episodes}.txt"
     base = scene_levels("pick_place", ["pick_y"])
     rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
                       image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
@@ -89,3 +89,48 @@ def test_two_workers_build_each_cell_about_once_with_the_records_of_one(tmp_path
     assert got == ref
     assert len(ref_builds) == 3  # one worker: one build per cell
     assert len(set(builds)) == 3 and len(builds) <= 4, builds
+
+
+def _rounds(tmp_path: Path, name: str, levels: list[int], episodes: int, workers: int, split: int):
+    """The plan's episodes in two run_local calls (episodes < ``split``, then the rest), the workers kept between
+    them; the builds each call made, the two calls' pools and the records of both."""
+    import scenes
+
+    task = scenes.tasks("pick_place")[0]
+    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes)
+    jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
+    log = tmp_path / f"{name}.txt"
+    log.touch()
+    base = scene_levels("pick_place", ["pick_y"])
+    rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
+                      image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
+    records: list = []
+    builds, pools, kept = [], [], []
+    try:
+        for part in ([j for j in jobs if j.episode < split], [j for j in jobs if j.episode >= split]):
+            early, kept = kept, []
+            run_local(part, rc, StateFeedback, RunMeta("r", "test", "", "pick_place"), records.append,
+                      workers=workers, replan_steps=5, early=early, keep=kept)  # fmt: skip
+            builds.append(len(log.read_text().splitlines()) - sum(builds))
+            pools.append(list(kept))
+    finally:
+        for w in kept:
+            w.close()
+    rows = sorted((r.task, r.axis, r.level, r.episode, r.seed, r.success, r.steps, r.status) for r in records)
+    return builds, pools, rows
+
+
+def test_workers_kept_between_calls_keep_their_processes_and_scenes(tmp_path):
+    """Adaptive rounds hand the workers from one ``run_local`` to the next (``keep`` -> ``early``): no new process
+    starts and a scene a worker holds is not built again; the records equal one uninterrupted run's."""
+    # two worker processes, one cell: round 2 builds nothing and runs in the same processes
+    builds, pools, rows = _rounds(tmp_path, "procs", [0], episodes=6, workers=2, split=3)
+    assert builds == [2, 0]
+    assert [w.proc.pid for w in pools[1]] == [w.proc.pid for w in pools[0]] and len(pools[0]) == 2
+    ref, _ = _run(tmp_path, workers=1, levels=[0], episodes=6)
+    assert rows == ref
+    # one in-process worker, two cells: it holds level 1 after round 1 and starts round 2 there (1 build, not 2)
+    builds, pools, rows = _rounds(tmp_path, "inproc", [0, 1], episodes=4, workers=1, split=2)
+    assert builds == [2, 1] and pools[1][0] is pools[0][0]
+    ref, _ = _run(tmp_path, workers=1, levels=[0, 1], episodes=4)
+    assert rows == ref
