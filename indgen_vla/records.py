@@ -73,11 +73,27 @@ class EpisodeRecord:
 assert tuple(f.name for f in fields(EpisodeRecord)) == COLUMNS
 
 
+def _umask() -> int:
+    """The process's umask (read without changing it where /proc allows; os.umask is process-wide)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write to a temp file in the same directory, fsync, then rename over ``path``."""
+    """Write to a temp file in the same directory, fsync, then rename over ``path``. The file gets the mode a
+    plain ``open(path, "w")`` would (0o666 less the umask), not mkstemp's owner-only 0o600, so a run directory
+    stays readable by the group and others as the user's umask intends."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
+            os.fchmod(f.fileno(), 0o666 & ~_umask())
             f.write(data)
             f.flush()
             os.fsync(f.fileno())

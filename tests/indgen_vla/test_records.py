@@ -166,3 +166,21 @@ def test_a_kill_between_deferred_rewrites_loses_no_episode(tmp_path, monkeypatch
     resumed.flush()
     assert len(pd.read_parquet(tmp_path / "run" / EPISODES)) == 4
     assert not (tmp_path / "run" / records.JOURNAL).exists()
+
+
+def test_atomic_writes_follow_the_umask_not_mkstemps_0600(tmp_path):
+    """A run directory's files get 0o666 less the umask, as a plain open() would: mkstemp's owner-only 0o600
+    made every manifest, summary and plot unreadable to the rest of a team sharing the runs."""
+    from indgen_vla.records import atomic_write_json, atomic_write_text
+
+    old = os.umask(0o022)
+    try:
+        atomic_write_json(tmp_path / "a.json", {"x": 1})
+        atomic_write_text(tmp_path / "b.md", "hi\n")
+        os.umask(0o077)
+        atomic_write_text(tmp_path / "c.md", "private\n")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.json").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "b.md").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "c.md").stat().st_mode & 0o777 == 0o600
