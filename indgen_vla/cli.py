@@ -347,6 +347,23 @@ def main(argv: Sequence[str] | None = None) -> int:
             gc.freeze()
 
 
+def _interrupted_message(args: argparse.Namespace) -> str:
+    """The Ctrl-C line: only the commands that keep their progress say "resume" (``demos``, ``mimicgen``,
+    ``train`` and ``blockenv train`` write their output only when complete, so a re-run starts over)."""
+    rest = getattr(args, "rest", None) or []
+    if args.command == "evaluate":
+        return "interrupted: finished episodes are saved; re-run the same command to resume"
+    if args.command == "certify":
+        return ("interrupted: the levels finished so far are saved (a level in progress starts over); "
+                "re-run the same command to resume")  # fmt: skip
+    if args.command == "real":
+        return "interrupted: every verdict shown as saved is kept; re-run 'indgen real record RUN'"
+    if args.command == "blockenv" and "--resume" in rest:
+        return "interrupted: finished (method, seed) jobs are saved; re-run the same command to resume"
+    name = " ".join([args.command] + rest[:1]) if args.command == "blockenv" and rest else args.command
+    return f"interrupted: 'indgen {name}' keeps no partial output; re-run it to start over"
+
+
 def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     parser = build_parser()
@@ -364,7 +381,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt:
-        print("interrupted: finished episodes are saved; re-run the same command to resume", file=sys.stderr)
+        print(_interrupted_message(args), file=sys.stderr)
         return 130
     except BrokenPipeError:  # e.g. `indgen axes | head`: the reader left; not an error of ours
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -195,3 +195,29 @@ def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
     assert egl_devices() == 2
     monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "-1")
     assert egl_devices() == 0
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["evaluate"], "finished episodes are saved; re-run the same command to resume"),
+        (["certify"], "levels finished so far are saved"),
+        (["blockenv", "reproduce", "--resume"], "jobs are saved; re-run the same command to resume"),
+        (["blockenv", "train"], "'indgen blockenv train' keeps no partial output; re-run it to start over"),
+        (["demos"], "keeps no partial output; re-run it to start over"),
+    ],
+)
+def test_ctrl_c_promises_a_resume_only_where_there_is_one(argv, says, monkeypatch, capsys):
+    """Ctrl-C exits 130 with one line; `demos`, `train` and `blockenv train` keep nothing, so their line must
+    not say "finished episodes are saved; re-run to resume" (a re-run starts from scratch)."""
+    import indgen_vla.cli as cli
+
+    def interrupt(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_resolve", lambda command: interrupt)
+    extra = {"evaluate": ["--policy", "standin:oracle", "--scene", "pick_place", "--axis", "pick_y", "--out", "x"],
+             "certify": ["--scene", "pick_place", "--axis", "pick_y"]}.get(argv[0], [])  # fmt: skip
+    assert main(argv + extra) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("interrupted:") and says in err[0]
