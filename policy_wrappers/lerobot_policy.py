@@ -50,6 +50,19 @@ from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
 
 
+def _near_local_dir(local: Path) -> Path | None:
+    """For a spec ``DIR/NAME`` that loaded neither as a directory nor as a Hub id: the closest directory name
+    beside it when ``DIR`` exists here (a typo of a local checkpoint path), else None."""
+    import difflib
+
+    parent = local.parent
+    if str(parent) in ("", ".") or not parent.is_dir():
+        return None
+    names = sorted(p.name for p in parent.iterdir() if p.is_dir())
+    match = difflib.get_close_matches(local.name, names, n=1, cutoff=0.6)
+    return parent / match[0] if match else None
+
+
 class LeRobotPolicy:
     """A LeRobot policy in-process; batched when it needs no observation history (n_obs_steps == 1)."""
 
@@ -129,6 +142,13 @@ class LeRobotPolicy:
         try:
             cfg = PreTrainedConfig.from_pretrained(path, revision=rev)
         except Exception as e:
+            # `checkpoints/act_humn` beside `checkpoints/act_human`: a typo of a local path, not a Hub id
+            near = _near_local_dir(local)
+            if near is not None:
+                raise PolicyError(
+                    f"policy {self._name}: no checkpoint directory {path!r} (nor a Hub id {path!r}"
+                    f"{' in the local cache' if _offline() else ''}); did you mean '{near}'?"
+                ) from None
             hint = " (HF_HUB_OFFLINE is set and it is not in the local cache)" if _offline() else ""
             raise self._fail("the policy config" + hint, e) from None
         cfg.device = self.config.device

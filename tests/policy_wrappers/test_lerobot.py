@@ -160,3 +160,13 @@ def test_tiny_smolvla_with_local_backbone(tmp_path, hub_cache, obs_factory):
     chunk = policy.act([obs_factory(0), obs_factory(1)])
     policy.reset("pick up the bowl", seed=0)
     assert chunk.shape == (2, 10, 7) and np.array_equal(chunk, policy.act([obs_factory(0), obs_factory(1)]))
+
+
+def test_a_typo_in_a_local_checkpoint_path_names_the_near_directory(tmp_path, monkeypatch):
+    """`lerobot:checkpoints/act_pick_place_humn` (one slash, so it also reads as a Hub id) used to fail with
+    the Hub's "cannot find the requested files in the local cache"; it now names the directory meant."""
+    (tmp_path / "checkpoints" / "act_pick_place_human").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    with pytest.raises(PolicyError, match=r"did you mean 'checkpoints/act_pick_place_human'\?$"):
+        load_policy("lerobot:checkpoints/act_pick_place_humn")
