@@ -78,15 +78,17 @@ def compare_summaries(
     return out
 
 
-def break_point_diff(ea, eb, axis: str, gamma: float) -> dict:
-    """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels)."""
+def break_point_diff(ea, eb, axis: str, gamma: float, usable: tuple[set, set] | None = None) -> dict:
+    """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels);
+    ``usable``: each run's levels above the data floor (the summaries' rows), the only ones it may use."""
     from indgen_vla.breakpoint import break_point_difference, cells_from_records
 
-    def cells(e):
+    def cells(e, keep):
         ok = e[(e["axis"] == axis) & (e["status"] == "ok")]
+        ok = ok if keep is None else ok[ok["level"].isin(keep)]
         return cells_from_records(ok[["level", "param", "success", "status"]].to_dict("records"))
 
-    ca, cb = cells(ea), cells(eb)
+    ca, cb = (cells(e, keep) for e, keep in zip((ea, eb), usable or (None, None), strict=True))
     if len({c.level for c in ca}) < 2 or len({c.level for c in cb}) < 2:
         return {}
     return break_point_difference(ca, cb, gamma)
@@ -216,7 +218,10 @@ def compare_main(args: argparse.Namespace) -> int:
     result["label_a"], result["label_b"] = la, lb
     result["protocol"] = protocol
     for axis, ax in result["axes"].items():
-        ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma)
+        usable = tuple(
+            {r["level"] for r in sx["axes"][axis]["levels"] if not r["insufficient"]} for sx in (sa, sb)
+        )
+        ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"
     write_result(out, "compare", result, render_markdown(result, la, lb, result["verdict"]))

@@ -86,7 +86,7 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "monotone": _monotone(pooled, signed),
             "regime": run_regime(manifest),
             "kstar_status": kstar_status_of(pooled, signed),
-            "break_point": _break_point(df, gamma, multi_task=len(tasks) > 1),
+            "break_point": _break_point(df, gamma, multi_task=len(tasks) > 1, levels=pooled),
             "episodes": episodes_used(df, per_task, len(tasks), len(levels)),
             "tasks": task_entries,
         }
@@ -98,11 +98,13 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
     return out
 
 
-def _break_point(df, gamma: float, multi_task: bool) -> dict:
-    """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled)."""
+def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict:
+    """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled), from
+    the levels above the data floor only (``levels``: the axis's pooled rows), like every other printed result."""
     from indgen_vla.breakpoint import break_point, cells_from_records
 
-    ok = df[df["status"] == "ok"]
+    usable = {r["level"] for r in levels if not r["insufficient"]}
+    ok = df[(df["status"] == "ok") & df["level"].isin(usable)]
     if ok["level"].nunique() < 2:
         return {}
     keys = ("task",) if multi_task else ()

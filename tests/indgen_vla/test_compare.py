@@ -121,3 +121,22 @@ def test_compare_reports_break_point_difference(tmp_path):
     d = json.loads((tmp_path / "c" / "compare.json").read_text())["axes"]["pick_y"]["break_point_diff"]["pos"]
     assert d["level"] > 0.5 and d["ci"]["level"][0] <= d["level"] <= d["ci"]["level"][1]  # B breaks later
     assert "Break point B − A" in (tmp_path / "c" / "compare.md").read_text()
+
+
+def test_break_point_difference_uses_only_levels_above_the_data_floor():
+    """A level with 2 episodes (below the floor) must not move the compared break points: the result equals
+    the one computed without that level's rows."""
+    import pandas as pd
+
+    from indgen_vla.compare import break_point_diff
+
+    def episodes(rates: dict[int, tuple[int, int]]):
+        rows = [{"axis": "pick_y", "status": "ok", "level": k, "param": 0.02 * k, "success": i < s}
+                for k, (s, n) in rates.items() for i in range(n)]  # fmt: skip
+        return pd.DataFrame(rows)
+
+    ea = episodes({0: (10, 10), 1: (8, 10), 2: (3, 10)})
+    eb = episodes({0: (10, 10), 1: (6, 10), 2: (0, 2)})  # level 2: n = 2 < 5
+    got = break_point_diff(ea, eb, "pick_y", 0.5, ({0, 1, 2}, {0, 1}))
+    want = break_point_diff(ea, eb[eb["level"] != 2], "pick_y", 0.5)
+    assert got == want and got != break_point_diff(ea, eb, "pick_y", 0.5)

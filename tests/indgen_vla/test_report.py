@@ -121,6 +121,7 @@ def test_data_floor_and_visible_errors(tmp_path, capsys):
     # level 2 (0/4) would break, but it is below the floor and level 1 before it has no usable data
     assert s["axes"]["pick_y"]["break_level"]["pos"] == "undetermined"
     assert s["axes"]["pick_y"]["monotone"] == {} and s["axes"]["pick_y"]["trend"] == {}
+    assert s["axes"]["pick_y"]["break_point"] == {}  # nor a fitted crossing from levels 1-2 (it was L1.x)
     md = render_markdown([("run", s)])
     assert "insufficient data (n = 1 of 4; 3 errors)" in md and "insufficient data (n = 0 of 4)" in md
     assert "| 2 | 0.05 | insufficient data (n = 4 of 4) |" in md
@@ -130,6 +131,7 @@ def test_data_floor_and_visible_errors(tmp_path, capsys):
     assert main(["report", str(run.path)]) == 0
     out = capsys.readouterr().out
     assert "insufficient data (n = 1 of 4; 3" in out and "undetermined" in out
+    assert "break point (S = γ): —" in out
 
 
 def test_monotone_test_is_shown_per_direction(tmp_path):
