@@ -94,3 +94,7 @@ def test_cli_compares_groups(tmp_path, capsys):
     assert "## Axis `pick_y`" in (tmp_path / "c" / "compare.md").read_text()
     assert main(["compare", str(a[0].path), "--a", str(a[0].path), "--b", str(b[0].path)]) == 2
     assert main(["compare", "--a", str(a[0].path)]) == 2
+    capsys.readouterr()
+    twice = ["compare", "--a", str(a[0].path), str(tmp_path / "a0" / "."), "--b", *(str(r.path) for r in b)]
+    assert main(twice) == 2  # the same run twice would double its evidence
+    assert "given twice to --a/--b" in capsys.readouterr().err
