@@ -136,7 +136,8 @@ class PolicyServer:
                     pass
                 break
 
-    async def run(self) -> None:
+    async def run(self, on_listening=None) -> None:
+        """Serve until stopped; ``on_listening(port)`` runs once the socket is bound (not before: a busy port fails)."""
         from websockets.asyncio.server import serve
 
         self._lock = asyncio.Lock()
@@ -152,6 +153,8 @@ class PolicyServer:
         ) as server:
             self.bound_port = server.sockets[0].getsockname()[1] if server.sockets else self.port
             self._ready.set()
+            if on_listening is not None:
+                on_listening(int(self.bound_port))
             await self._stop.wait()
 
     def start_background(self, timeout_s: float = 10.0) -> int:
@@ -183,12 +186,13 @@ def serve_main(args) -> int:
         log.warning(
             "serving on %s without --api-key: anyone who can reach this port can drive the policy", args.host
         )
-    print(
-        f"serving {policy.spec.name} on ws://{args.host}:{args.port} (health: http://{args.host}:{args.port}/healthz)",
-        flush=True,
-    )
+
+    def listening(port: int) -> None:
+        print(f"serving {policy.spec.name} on ws://{args.host}:{port} (health: http://{args.host}:{port}/healthz)",
+              flush=True)  # fmt: skip
+
     try:
-        asyncio.run(server.run())
+        asyncio.run(server.run(on_listening=listening))
     except KeyboardInterrupt:
         pass
     except OSError as e:

@@ -115,6 +115,18 @@ def test_serve_main_rejects_bad_port_and_spec():
         serve_main(SimpleNamespace(policy="standin:nop", host="127.0.0.1", port=0, api_key=None))
 
 
+def test_a_busy_port_is_one_error_and_never_announced_as_serving(capsys):
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(ConfigError, match=f"cannot listen on 127.0.0.1:{port}"):
+            serve_main(SimpleNamespace(policy="standin:noop", host="127.0.0.1", port=port, api_key=None))
+    assert "serving" not in capsys.readouterr().out
+
+
 def test_indgen_serve_cli_end_to_end(obs_factory):
     """``indgen serve`` as a real process: healthz answers, an openpi client acts, SIGINT stops it cleanly."""
     import signal
