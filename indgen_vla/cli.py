@@ -347,6 +347,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             gc.freeze()
 
 
+PIPED_COLUMNS = 240  # the table width when stdout is not a terminal and $COLUMNS is unset
+
+
 def _interrupted_message(args: argparse.Namespace) -> str:
     """The Ctrl-C line: only the commands that keep their progress say "resume" (``demos``, ``mimicgen``,
     ``train`` and ``blockenv train`` write their output only when complete, so a re-run starts over)."""
@@ -366,6 +369,10 @@ def _interrupted_message(args: argparse.Namespace) -> str:
 
 def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
+    if (
+        not sys.stdout.isatty()
+    ):  # piped or logged: rich would cut tables (task names, readiness notes) to 80 columns
+        os.environ.setdefault("COLUMNS", str(PIPED_COLUMNS))
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if args.command in PASSTHROUGH:

@@ -130,6 +130,20 @@ def test_tables_print(capsys, monkeypatch):
     )
 
 
+def test_piped_tables_are_not_cut_to_80_columns():
+    """``indgen scenes | less`` or a log file: no ellipsised task names or readiness notes (rich's default width
+    without a terminal is 80)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    out = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "scenes"], capture_output=True, text=True,
+                         env=env, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert "…" not in out.stdout and "libero_object" in out.stdout
+
+
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
