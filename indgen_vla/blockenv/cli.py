@@ -132,6 +132,8 @@ def _train(a) -> int:
 
     cfg = TrainConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
                       steps=a.steps, demos_per_level=a.demos_per_level, extra=_options(a.option))  # fmt: skip
+    print(f"training {a.method}: {cfg.demos_per_level} oracle demos per level {list(cfg.train_levels)}, "
+          f"{cfg.steps} updates", file=sys.stderr, flush=True)  # fmt: skip
     with Progress(transient=True) as prog:
         task = prog.add_task(f"training {a.method}", total=cfg.steps)
         model, _ = train(
