@@ -34,6 +34,7 @@ def act2cam(tmp_path_factory) -> str:
     )
 
 
+@pytest.mark.slow  # ~20 s: a lerobot import for the checkpoint and one for the script (benchmarks run on demand)
 def test_model_part_times_each_batch_size(act2cam):
     out, _ = _bench(
         "--only", "model", "--policy", f"lerobot:{act2cam}", "--batches", "1,3", "--seconds", "0.05"
@@ -45,6 +46,7 @@ def test_model_part_times_each_batch_size(act2cam):
         assert row["obs_per_s"] == pytest.approx(b * 1000 / row["ms_per_act"], rel=0.05)
 
 
+@pytest.mark.slow  # ~25 s
 def test_scaling_part_in_process_worker_reports_its_ceiling(act2cam):
     """One worker steps in the main process (no fork): the cheapest run that goes through every column."""
     out, progress = _bench("--only", "scaling", "--policy", f"lerobot:{act2cam}", "--workers", "1",
