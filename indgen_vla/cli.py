@@ -369,9 +369,8 @@ def _interrupted_message(args: argparse.Namespace) -> str:
 
 def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
-    if (
-        not sys.stdout.isatty()
-    ):  # piped or logged: rich would cut tables (task names, readiness notes) to 80 columns
+    # piped or logged: rich would cut tables (task names, readiness notes) to 80 columns
+    if not sys.stdout.isatty():
         os.environ.setdefault("COLUMNS", str(PIPED_COLUMNS))
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)

@@ -206,6 +206,9 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         else:
             done = run.done_keys()
             todo = [j for j in plan.jobs if j.key not in done]
+            if done and todo and not quiet:  # a resume: say what it keeps and what it runs
+                console.print(f"resuming {out}: {len(plan.jobs) - len(todo)} of {len(plan.jobs)} planned episodes "
+                              f"already recorded; running the other {len(todo)}")  # fmt: skip
         if todo:
             if probe is None:
                 early = prestart(todo)

@@ -68,10 +68,13 @@ def test_resume_after_sigkill(tmp_path):
     subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(ref)], check=True,
                    capture_output=True)  # fmt: skip
     killed = tmp_path / "killed"
-    assert 0 < kill_midway(args, killed, total=8) < 8
-    subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(killed)], check=True,
-                   capture_output=True)  # fmt: skip
+    kept = kill_midway(args, killed, total=8)
+    assert 0 < kept < 8
+    resumed = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(killed)], check=True,
+                             capture_output=True, text=True)  # fmt: skip
     assert outcomes(killed) == outcomes(ref) and len(outcomes(ref)) == 8
+    said = " ".join(resumed.stderr.split())  # rich wraps at $COLUMNS
+    assert f"{kept} of 8 planned episodes already recorded; running the other {8 - kept}" in said
 
 
 def test_manifest_mismatch_refused(tmp_path):
