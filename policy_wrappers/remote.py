@@ -8,6 +8,7 @@ says is wrong becomes a ``PolicyError`` naming the policy.
 from __future__ import annotations
 
 import contextlib
+import socket
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -162,6 +163,11 @@ class RemotePolicy:
             if isinstance(e, TimeoutError) and not connecting:
                 raise self.lost(
                     f"no reply from {url}{what} within {timeout_s:g}s; is {self.server} running?"
+                ) from None
+            if isinstance(e, socket.gaierror):  # a typo in the host, or a name this machine cannot resolve
+                raise self.lost(
+                    f"cannot resolve the host of {url} ({e.strerror or e}); check the host name in the spec, or "
+                    "give the server's IP address"
                 ) from None
             if isinstance(e, OSError | EOFError):
                 if connecting:

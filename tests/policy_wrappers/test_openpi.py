@@ -132,3 +132,21 @@ def test_timeout_and_refused(obs_factory):
         port = srv.port
     with pytest.raises(PolicyError, match="connection refused"):
         load_policy(f"openpi:ws://127.0.0.1:{port}")
+
+
+def test_a_host_that_does_not_resolve_names_the_fix(obs_factory, monkeypatch):
+    """A typo in the host: the name lookup's failure (socket.gaierror, raised here without a DNS query) says to
+    check the host name, not only that the server cannot be reached."""
+    import socket
+
+    import websockets.sync.client as client
+
+    def no_such_host(*args, **kwargs):
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+
+    monkeypatch.setattr(client, "connect", no_such_host)
+    policy = load_policy("openpi:ws://gpu-boxx:8000")
+    with pytest.raises(
+        PolicyError, match="cannot resolve the host of ws://gpu-boxx:8000 .*check the host name"
+    ):
+        policy.act([obs_factory()])
