@@ -206,9 +206,6 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         else:
             done = run.done_keys()
             todo = [j for j in plan.jobs if j.key not in done]
-            if done and todo and not quiet:  # a resume: say what it keeps and what it runs
-                console.print(f"resuming {out}: {len(plan.jobs) - len(todo)} of {len(plan.jobs)} planned episodes "
-                              f"already recorded; running the other {len(todo)}")  # fmt: skip
         if todo:
             if probe is None:
                 early = prestart(todo)
@@ -264,6 +261,11 @@ def _run_todo(
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
         for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
             console.print(f"[yellow]warning:[/] {line}")
+        if (
+            not cfg.adaptive
+        ):  # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
+            console.print(f"resuming {run.path}: {len(plan.jobs) - len(todo)} of {len(plan.jobs)} planned episodes "
+                          f"already recorded; running the other {len(todo)}", soft_wrap=True)  # fmt: skip
     meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
     try:
         _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
