@@ -33,6 +33,7 @@ print(json.dumps({"loaded": loaded, "used": used}))
 """
 
 
+@pytest.mark.slow  # ~9 s (a fresh interpreter builds two scenes); it guards a start-up cost, not an outcome
 def test_the_fork_servers_kernels_cover_a_real_episode(mini):
     """After real steps of the built-in and LIBERO scenes the kernels hold exactly the overloads the module
     loaded: a layout robosuite or a scene starts to pass differently shows up here as a new signature."""
