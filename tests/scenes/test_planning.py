@@ -32,7 +32,7 @@ def test_the_builder_pickles_and_builds_the_same_level_as_make_env():
     sp = resolve_scene_plan("pick_place", "milk", ["scale"], "2")
     builder = pickle.loads(pickle.dumps(sp.builder))
     assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
-    assert builder.preload == ("scenes.env", "robosuite", "mujoco", "scenes.robosuite_kernels")
+    assert builder.preload == ("scenes.env", "scenes.sim", "mujoco", "scenes.robosuite_kernels")
     env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
     ref = scenes.make_env(
         "pick_place", task="milk", axis="scale", level=2, cameras=(), image_size=(64, 64), max_steps=5
@@ -78,3 +78,18 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
     finally:
         sys.setprofile(None)
     assert entered == {"planning.py:resolve_scene_plan"}
+
+
+def test_the_fork_servers_preload_is_quiet():
+    """The workers' fork server imports the preload in order (multiprocessing.forkserver): robosuite's three-line
+    macro-file warning must not reach the user's terminal on every run (robosuite is imported via scenes.sim)."""
+    import subprocess
+    import sys
+
+    from scenes.registry import get_scene
+
+    mods = ("indgen_vla.engine.local", *get_scene("pick_place").preload)
+    code = f"import importlib\nfor m in {mods!r}:\n    importlib.import_module(m)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "macro" not in out.stderr, out.stderr
