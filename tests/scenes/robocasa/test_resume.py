@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import pandas as pd
+import pytest
 
 from tests.fixtures.kill import kill_midway
 from tests.scenes.robocasa.test_robocasa import needs_venv
@@ -26,6 +27,7 @@ def _cli(out):
     return [sys.executable, "-m", "indgen_vla.cli", *ARGS, "--out", str(out)]
 
 
+@pytest.mark.slow  # 40 s (two RoboCasa runs and a kill); the default suite keeps test_engine's resume after SIGKILL
 @needs_venv
 def test_a_killed_robocasa_run_resumes_to_the_uninterrupted_episodes(placeholders, tmp_path):
     from indgen_vla.cli import main
