@@ -13,6 +13,7 @@ from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.fingerprint import check_comparable, protocol_section
+from indgen_vla.levels import usable_levels
 from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
@@ -218,9 +219,7 @@ def compare_main(args: argparse.Namespace) -> int:
     result["label_a"], result["label_b"] = la, lb
     result["protocol"] = protocol
     for axis, ax in result["axes"].items():
-        usable = tuple(
-            {r["level"] for r in sx["axes"][axis]["levels"] if not r["insufficient"]} for sx in (sa, sb)
-        )
+        usable = (usable_levels(sa["axes"][axis]["levels"]), usable_levels(sb["axes"][axis]["levels"]))
         ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"

@@ -181,13 +181,14 @@ def groups_main(args) -> int:
     runs_a, runs_b = [RunDir.open(p) for p in args.a], [RunDir.open(p) for p in args.b]
     seen: dict = {}  # a run listed twice would count its episodes twice: evidence that is not there
     for r in runs_a + runs_b:
-        for key in (r.path.resolve(), r.manifest.get("run_id")):
-            if key is not None and key in seen:
-                raise ConfigError(
-                    f"run {r.path} is the same run as {seen[key]} (given twice to --a/--b); each training seed's run "
-                    "counts once: drop the repeat"
-                )
-        seen.update({k: r.path for k in (r.path.resolve(), r.manifest.get("run_id")) if k is not None})
+        keys = [k for k in (r.path.resolve(), r.manifest.get("run_id")) if k is not None]
+        twin = next((seen[k] for k in keys if k in seen), None)
+        if twin is not None:
+            raise ConfigError(
+                f"run {r.path} is the same run as {twin} (given twice to --a/--b); each training seed's run "
+                "counts once: drop the repeat"
+            )
+        seen.update(dict.fromkeys(keys, r.path))
     protocol = check_comparable([(str(r.path), r.manifest.get("fingerprint")) for r in runs_a + runs_b],
                                 getattr(args, "allow_protocol_mismatch", False), "pooled or paired")  # fmt: skip
     result = compare_groups([r.episodes() for r in runs_a], [r.episodes() for r in runs_b], args.gamma,

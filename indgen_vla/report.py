@@ -21,6 +21,7 @@ from indgen_vla.levels import (
     run_regime,
     sequential,
     task_entry,
+    usable_levels,
     usable_rates,
     verdict_line,
 )
@@ -103,8 +104,7 @@ def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict
     the levels above the data floor only (``levels``: the axis's pooled rows), like every other printed result."""
     from indgen_vla.breakpoint import break_point, cells_from_records
 
-    usable = {r["level"] for r in levels if not r["insufficient"]}
-    ok = df[(df["status"] == "ok") & df["level"].isin(usable)]
+    ok = df[(df["status"] == "ok") & df["level"].isin(usable_levels(levels))]
     if ok["level"].nunique() < 2:
         return {}
     keys = ("task",) if multi_task else ()
