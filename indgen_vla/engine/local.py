@@ -257,14 +257,7 @@ def run_local(
         pool, spare = _reuse(early or [], runner_cfg, n_proc)
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
-        n_pool = len(
-            pool
-        )  # handed-over workers keep their scenes; slot i is lane i // n_pool of worker i % n_pool
-        held = {
-            lane * n_pool + w: cell for w, worker in enumerate(pool) for lane, cell in worker.held.items()
-        }
-        slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None),
-                      {i: cell for i, cell in held.items() if i < n_slots})  # fmt: skip
+        slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None), n_slots)
         for i in range(n_slots):
             slots.start(i)  # the workers start and build their scenes while the policy loads
         policies = Policies(make_policy, n_slots)

@@ -261,9 +261,8 @@ def _run_todo(
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
         for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
             console.print(f"[yellow]warning:[/] {line}")
-        if (
-            not cfg.adaptive
-        ):  # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
+        # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
+        if not cfg.adaptive:
             console.print(f"resuming {run.path}: {len(plan.jobs) - len(todo)} of {len(plan.jobs)} planned episodes "
                           f"already recorded; running the other {len(todo)}", soft_wrap=True)  # fmt: skip
     meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
@@ -366,7 +365,8 @@ def _run_with_progress(
             else:
                 from indgen_vla.engine.local import run_local
 
-                nonlocal early  # the first round gets the workers started while the policy loaded, a later one the last's
+                # the first round gets the workers started while the policy loaded, a later one the last round's
+                nonlocal early
                 workers = early.take(runner_cfg) if early is not None else list(kept)
                 early = None
                 kept.clear()

@@ -98,15 +98,17 @@ def first_jobs(jobs: Sequence[EpisodeJob], n: int) -> list[EpisodeJob]:
 class Slots:
     """Episodes in flight, one per slot: starting, retrying and pausing them (no policy, no waiting).
 
-    ``held``: slot -> the cell its worker's environment already holds (workers handed over from an earlier run)."""
+    ``n_slots``: the slots the run uses; a worker handed over from an earlier run starts each of its lanes' slots
+    on the cell that lane's environment holds (the worker's ``held``)."""
 
     def __init__(self, jobs: Sequence[EpisodeJob], pool: list, meta: RunMeta, limits: Limits,
                  on_record: Callable[[EpisodeRecord], None], outage: Outage,
-                 notify: Callable[[str], None], held: dict[int, tuple] | None = None) -> None:  # fmt: skip
+                 notify: Callable[[str], None], n_slots: int) -> None:  # fmt: skip
         self.pool, self.n = pool, len(pool)
         self.meta, self.limits, self.on_record = meta, limits, on_record
         self.outage, self.notify = outage, notify
-        self.queue = JobQueue(jobs, held)
+        held = {i: self.pool[i % self.n].held.get(i // self.n) for i in range(n_slots)}
+        self.queue = JobQueue(jobs, {i: cell for i, cell in held.items() if cell is not None})
         self.active: dict[int, _Slot] = {}
 
     def send(self, i: int, op: str, arg) -> None:
