@@ -58,6 +58,17 @@ def runner_config(scene: str, cameras, hw, max_steps: int):
                         max_steps=max_steps, privileged=False)  # fmt: skip
 
 
+def level0_jobs(scene: str, episodes: int) -> tuple[str, list]:
+    """(task, jobs): ``episodes`` planned episodes of the scene's first task at pick_y level 0, the cell every part
+    of the benchmark runs (seeds as ``evaluate`` plans them)."""
+    import scenes
+    from indgen_vla.engine.config import EvalConfig, plan_episodes
+
+    task = scenes.tasks(scene)[0]
+    cfg = EvalConfig(policy="bench", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    return task, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+
+
 class GpuBusy:
     """Mean GPU utilisation (%) over a block, sampled by ``nvidia-smi`` every 100 ms (None without a GPU)."""
 
@@ -206,15 +217,11 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     every round to the worker count): ``ceiling_steps_per_s`` = W x replan / its ``act``, what the engine would
     reach if the model were all it waited for, and ``share_of_model_alone`` = the net rate over it (issue 28:
     >= 0.8 when the model is the bottleneck)."""
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
     from indgen_vla.engine.local import LANES, run_local
     from indgen_vla.engine.rollout import RunMeta
     from policy_wrappers.registry import load_policy
 
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy=spec_str, scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    task, jobs = level0_jobs(scene, episodes)
     policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
     cams = tuple(policy.spec.cameras) or tuple(cameras)
     hw = tuple(policy.spec.image_size or (size, size))

@@ -10,7 +10,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _engine_box import runner_config
+from _engine_box import level0_jobs, runner_config
 
 PROFILE_PARTS = (  # (label, function name, file suffix): cumulative CPU inside these calls of the main process
     # (the profiler is off during the model's forward, ``predict_action_chunk``)
@@ -31,17 +31,13 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
     import pstats
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta
     from indgen_vla.records import RunDir
     from policy_wrappers.registry import load_policy
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    task, jobs = level0_jobs(scene, episodes)
     with tempfile.TemporaryDirectory() as d:
         spec_str = (
             spec_str
@@ -137,14 +133,10 @@ def profile_worker(scene: str, episodes: int, max_steps: int, size: int, replan:
 
     import numpy as np
 
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
     from indgen_vla.engine.local import _dumps
     from indgen_vla.engine.rollout import EnvRunner, action_dim
 
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    task, jobs = level0_jobs(scene, episodes)
     rc = runner_config(scene, cameras, (size, size), max_steps)
     runner = EnvRunner(rc)
     rng = np.random.default_rng(0)

@@ -23,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _engine_box import CpuMeter, model_alone, scaling
+from _engine_box import CpuMeter, level0_jobs, model_alone, scaling
 from _engine_profile import profile_coordinator, profile_worker
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -96,16 +96,13 @@ def pipeline_bench(
     import numpy as np
 
     import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    task, jobs = level0_jobs(scene, episodes)
     with tempfile.TemporaryDirectory() as d:
         path = build_tiny_checkpoint("act", d, cameras=("agentview",), size=size)
         policy = load_policy(f"lerobot:{path}", scene=scene, device=device)
@@ -202,17 +199,13 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
     """A tiny LeRobot ACT (chunk 10, two cameras) executing whole chunks, 1 worker: rendering only the observation
     each chunk ends on (``lazy_render``, the default) vs rendering every step; records must be equal."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
     from indgen_vla.engine.local import run_local
     from indgen_vla.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
-    task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="act", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    task, jobs = level0_jobs(scene, episodes)
     times: dict[bool, list[float]] = {False: [], True: []}
     cpu: dict[bool, float] = {}
     rows: dict[bool, list] = {}
@@ -396,15 +389,11 @@ def main() -> None:
         res = pipeline_bench(args.scene, args.pipeline_size, eps, steps, repeats, args.device)
         print(json.dumps({**head, **res, "load_avg_end": os.getloadavg()[0]}))
         return
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
-
     episodes, max_steps = (4, 40) if args.quick else (16, 200)
     episodes, max_steps = args.episodes or episodes, args.max_steps or max_steps
-    cfg = EvalConfig(policy=args.policy, scene=args.scene, axes=("pick_y",), out="-", episodes=episodes)
     import scenes
 
-    task = scenes.tasks(args.scene)[0]
-    jobs = plan_episodes(cfg, [task], {"pick_y": [0]}, {(t, "pick_y", 0): 0.0 for t in [task]})
+    task, jobs = level0_jobs(args.scene, episodes)
     from policy_wrappers.registry import load_policy
 
     policy = load_policy(args.policy)

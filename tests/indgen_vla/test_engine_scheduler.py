@@ -62,17 +62,23 @@ class CountingLevels(SceneLevels):
         return super().make_env(task, axis, level, **kw)
 
 
-def _run(tmp_path: Path, workers: int, levels=(0, 1, -1), episodes: int = 3) -> tuple[list, list[str]]:
+def _counted(log: Path, levels: list[int], episodes: int) -> tuple[list, RunnerConfig]:
+    """pick_place's first task at ``levels`` (``episodes`` each, 6 steps), built by a builder that logs to ``log``."""
     import scenes
 
     task = scenes.tasks("pick_place")[0]
     cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes)
-    levels = list(levels)
     jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
-    log = tmp_path / f"builds_{workers}_{len(levels)}x{episodes}.txt"
+    log.touch()
     base = scene_levels("pick_place", ["pick_y"])
     rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
                       image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
+    return jobs, rc
+
+
+def _run(tmp_path: Path, workers: int, levels=(0, 1, -1), episodes: int = 3) -> tuple[list, list[str]]:
+    log = tmp_path / f"builds_{workers}_{len(levels)}x{episodes}.txt"
+    jobs, rc = _counted(log, list(levels), episodes)
     records: list = []
     run_local(jobs, rc, StateFeedback, RunMeta("r", "test", "", "pick_place"), records.append, workers=workers,
               replan_steps=5)  # fmt: skip
@@ -94,16 +100,8 @@ def test_two_workers_build_each_cell_about_once_with_the_records_of_one(tmp_path
 def _rounds(tmp_path: Path, name: str, levels: list[int], episodes: int, workers: int, split: int):
     """The plan's episodes in two run_local calls (episodes < ``split``, then the rest), the workers kept between
     them; the builds each call made, the two calls' pools and the records of both."""
-    import scenes
-
-    task = scenes.tasks("pick_place")[0]
-    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes)
-    jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
     log = tmp_path / f"{name}.txt"
-    log.touch()
-    base = scene_levels("pick_place", ["pick_y"])
-    rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
-                      image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
+    jobs, rc = _counted(log, levels, episodes)
     records: list = []
     builds, pools, kept = [], [], []
     try:
