@@ -357,9 +357,13 @@ class RunDir:
 
     def episodes(self):
         """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
-        import pandas as pd
+        return episodes_frame(list(self._load().values()))
 
-        rows = list(self._load().values())
-        df = pd.DataFrame(rows, columns=list(COLUMNS))
-        return df.astype({"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64",
-                          "success": "bool", "progress": "Int8"})  # fmt: skip
+
+def episodes_frame(rows: list[dict]):
+    """Episode rows as the DataFrame ``RunDir.episodes`` returns (``[]``: a run with none yet, same dtypes)."""
+    import pandas as pd
+
+    df = pd.DataFrame(rows, columns=list(COLUMNS))
+    return df.astype({"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64",
+                      "success": "bool", "progress": "Int8"})  # fmt: skip

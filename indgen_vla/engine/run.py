@@ -195,7 +195,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     try:
         # a new run: refuse a policy that does not fit before writing anything
         if not (out / "manifest.json").exists():
-            early = prestart(plan.jobs)
+            early = prestart(_first_round(cfg, plan))
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
@@ -226,6 +226,17 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
     return out
+
+
+def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
+    """The jobs a new run starts with: the whole plan, or the adaptive rule's first round (its workers prepare
+    the scenes of those, not of levels the rule may never reach)."""
+    if not cfg.adaptive:
+        return plan.jobs
+    from indgen_vla.engine.adaptive import next_round
+    from indgen_vla.records import episodes_frame
+
+    return next_round(plan, episodes_frame([]), cfg)
 
 
 def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:

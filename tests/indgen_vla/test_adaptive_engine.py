@@ -163,3 +163,21 @@ def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_
     got = pd.read_parquet(killed / "episodes.parquet")[cols].sort_values(key).reset_index(drop=True)
     pd.testing.assert_frame_equal(df[cols].sort_values(key).reset_index(drop=True), got)
     assert json.loads((killed / "summary.json").read_text())["axes"]["stack"]["tasks"] == s["tasks"]
+
+
+def test_a_new_adaptive_run_prepares_its_first_rounds_scenes_not_the_plans_first_cells(tmp_path):
+    """Workers started while the policy loads build the scenes of the rule's first round (level 0 of each
+    ladder), not of the first cells of the whole plan, which may be levels the rule never reaches."""
+    from indgen_vla.engine.run import _first_round, build_plan
+    from indgen_vla.engine.scheduler import cell_of, first_jobs
+
+    c = cfg(tmp_path, levels="-2:2", episodes=20)
+    plan = build_plan(c)
+    first = _first_round(c, plan)
+    assert {cell_of(j) for j in first} == {(plan.tasks[0], "pick_y", 0)}
+    assert len(first) == c.sequential_rule().round_size
+    assert {cell_of(j)[2] for j in first_jobs(first, 2)} == {0}
+    # a second worker would build level -1
+    assert {cell_of(j)[2] for j in first_jobs(plan.jobs, 2)} == {0, -1}
+    fixed = cfg(tmp_path, levels="-2:2", episodes=20, adaptive=None)
+    assert _first_round(fixed, build_plan(fixed)) == build_plan(fixed).jobs
