@@ -22,6 +22,9 @@ from indgen_vla.progression import AxisSpec
 from indgen_vla.seeding import episode_seed
 
 CERTIFIED, FAILED, UNCERTIFIED = "certified", "failed", "uncertified"
+# set while the local backend starts its workers' fork server: JSON {"scene", "task"} of the first task its workers
+# build, which a family's preload may use to warm its caches (``scenes.asset_cache``)
+WARM_CELL_ENV = "INDGEN_WARM_CELL"
 
 
 class LevelBuilder(Protocol):

@@ -50,7 +50,8 @@ class Scene:
             family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
         preload: modules a worker process imports before its first env (the local backend's forkserver); a
             family whose simulator runs in another environment names none of that simulator's modules. The
-            robosuite families import robosuite through ``scenes.sim``, which silences its macro-file warning.
+            robosuite families import robosuite through ``scenes.sim``, which silences its macro-file warning,
+            and fill MuJoCo's asset cache with the run's first task (``scenes.asset_cache``).
         oracle: ``"module:Class"`` of the family's privileged oracle (``standin:oracle``, ``indgen certify``).
         axis_overrides: the family's own steps and level ranges of shared axes, in an axes preset's form
             (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them.
@@ -67,7 +68,9 @@ class Scene:
     certified_compositions: ClassVar[tuple[str, ...]] = ()
     env_spec: ClassVar[EnvSpec] = TABLETOP
     runtime: ClassVar[Any] = None
-    preload: ClassVar[tuple[str, ...]] = ("scenes.env", "scenes.sim", "mujoco", "scenes.robosuite_kernels")
+    preload: ClassVar[tuple[str, ...]] = (
+        "scenes.env", "scenes.sim", "mujoco", "scenes.robosuite_kernels", "scenes.asset_cache"
+    )  # fmt: skip
     oracle: ClassVar[str] = (
         "scenes.oracle:OraclePolicy"  # the privileged oracle ("module:attr") standin:oracle runs
     )

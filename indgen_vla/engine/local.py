@@ -7,6 +7,7 @@ the worker steps the other's, so simulation and inference overlap (docs/benchmar
 
 from __future__ import annotations
 
+import json
 import logging
 import multiprocessing as mp
 import os
@@ -18,7 +19,7 @@ from collections.abc import Callable, Sequence
 from indgen_vla.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, action_dim
 from indgen_vla.engine.scheduler import Limits, Policies, Slots, cell_of, coordinate, first_jobs
-from indgen_vla.plan import EpisodeJob
+from indgen_vla.plan import WARM_CELL_ENV, EpisodeJob
 from indgen_vla.records import EpisodeRecord
 
 LANES = 2  # environments per worker when pipelined: one steps while the policy computes the other's chunk
@@ -163,21 +164,26 @@ WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS
 FORKSERVER_OWN_ENV = (*WORKER_THREAD_ENV, "MUJOCO_GL", "PYOPENGL_PLATFORM")
 
 
-def _context(preload: Sequence[str]):
-    """A forkserver that has imported the simulator once (``preload``: the scene family's modules, from the
-    plan's builder), so W workers start fast and clean (no threads inherited from the main process, no EGL
-    context shared across processes). It starts with one
-    BLAS/OpenMP thread per process (``WORKER_THREAD_ENV``, unless the user set them); the main process keeps its own."""
+def _context(levels, task: str | None = None):
+    """A forkserver that has imported the simulator once (the preload of ``levels``, the plan's builder), so W
+    workers start fast and clean (no threads inherited from the main process, no EGL context shared across
+    processes). It starts with one BLAS/OpenMP thread per process (``WORKER_THREAD_ENV``, unless the user set
+    them; the main process keeps its own) and names ``task``, the first the workers build, to the preload
+    (``WARM_CELL_ENV``: a family may warm its caches with it; callers name one only when two or more workers
+    will share what the fork server warmed)."""
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["indgen_vla.engine.local", *preload])
+    ctx.set_forkserver_preload(["indgen_vla.engine.local", *levels.preload])
     from multiprocessing import forkserver
 
     if (
         getattr(forkserver._forkserver, "_forkserver_pid", None) is None
     ):  # not started yet: its env is ours now
-        saved = {k: os.environ.get(k) for k in WORKER_THREAD_ENV}
+        saved = {k: os.environ.get(k) for k in (*WORKER_THREAD_ENV, WARM_CELL_ENV)}
         for k in WORKER_THREAD_ENV:
             os.environ.setdefault(k, "1")
+        os.environ.pop(WARM_CELL_ENV, None)
+        if task is not None:
+            os.environ[WARM_CELL_ENV] = json.dumps({"scene": levels.scene, "task": task})
         try:
             forkserver.ensure_running()
         finally:
@@ -194,10 +200,11 @@ def worker_processes(n_jobs: int, workers: int, pipeline: bool) -> int:
     return 0 if n == 1 and not (pipeline and n_jobs > n) else n
 
 
-def start_forkserver(preload: Sequence[str]) -> None:
-    """Start the workers' forkserver now, so its preload (the simulator's imports) runs while this process does
-    something else, e.g. load the policy; ``run_local`` then forks its workers from it at once."""
-    _context(preload)
+def start_forkserver(levels, task: str | None = None) -> None:
+    """Start the workers' forkserver now, so its preload (the simulator's imports; ``task``: the first the
+    workers build) runs while this process does something else, e.g. load the policy; ``run_local`` then forks
+    its workers from it at once."""
+    _context(levels, task)
 
 
 def egl_devices() -> int:
@@ -254,7 +261,7 @@ def run_local(
     policies: Policies | None = None
     try:
         n_proc = worker_processes(len(jobs), workers, pipeline)
-        pool, spare = _reuse(early or [], runner_cfg, n_proc)
+        pool, spare = _reuse(early or [], runner_cfg, n_proc, jobs[0].task)
         limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
         outage = Outage(patience_s=server_patience_s)
         slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None), n_slots)
@@ -280,7 +287,7 @@ def run_local(
                     logging.getLogger(__name__).debug("policy close failed", exc_info=True)
 
 
-def _reuse(early: list, runner_cfg: RunnerConfig, n_proc: int) -> tuple[list, list]:
+def _reuse(early: list, runner_cfg: RunnerConfig, n_proc: int, task: str) -> tuple[list, list]:
     """(pool, spare): the first workers of ``early`` this run needs (``n_proc``: 0 = one in-process worker, which
     a worker process also serves), more started if it needs more, the rest spare; workers made for another
     config, or an in-process worker where processes are needed, are closed and replaced."""
@@ -292,19 +299,20 @@ def _reuse(early: list, runner_cfg: RunnerConfig, n_proc: int) -> tuple[list, li
             w.close()
         early = []
     if not early:
-        return _start_pool(runner_cfg, n_proc), []
+        return _start_pool(runner_cfg, n_proc, task), []
     pool, spare = early[:want], early[want:]
     if len(pool) < want:
-        _spawn(_context(runner_cfg.levels.preload), runner_cfg, want - len(pool), into=pool)
+        _spawn(_context(runner_cfg.levels, task), runner_cfg, want - len(pool), into=pool)
     return pool, spare
 
 
-def _start_pool(runner_cfg: RunnerConfig, n: int) -> list:
-    """``n`` worker processes forked from the fork server (``worker_processes``), or with ``n`` = 0 one
-    in-process worker and no fork server; rendering on the GPUs round-robin when there are several."""
+def _start_pool(runner_cfg: RunnerConfig, n: int, task: str) -> list:
+    """``n`` worker processes forked from the fork server (``worker_processes``; ``task``: the first they build),
+    or with ``n`` = 0 one in-process worker and no fork server; rendering on the GPUs round-robin when there are
+    several."""
     if n == 0:
         return [_InProcessWorker(runner_cfg)]
-    return _spawn(_context(runner_cfg.levels.preload), runner_cfg, n)
+    return _spawn(_context(runner_cfg.levels, task if n > 1 else None), runner_cfg, n)
 
 
 def _spawn(ctx, runner_cfg: RunnerConfig, n: int, into: list | None = None) -> list:
@@ -334,7 +342,7 @@ class EarlyWorkers:
         self._thread: threading.Thread | None = None
         # the fork server starts here, not in the thread: starting it sets this process's env briefly
         try:
-            ctx = _context(runner_cfg.levels.preload)
+            ctx = _context(runner_cfg.levels, jobs[0].task if jobs and n > 1 else None)
         except (ValueError, OSError) as e:
             self._failed = e  # no fork server on this platform: the run starts as without a preview
             return

@@ -188,7 +188,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         if view is not None:
             return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
         if n:
-            start_forkserver(plan.builder.preload)
+            start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
         return None
 
     probe, early = None, None

@@ -126,9 +126,7 @@ def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkey
     from indgen_vla.engine.local import start_forkserver
 
     builder = scene_levels("libero_object", ["pick_y"])
-    start_forkserver(
-        builder.preload
-    )  # a no-op when an earlier test started it: either way it predates the next line
+    start_forkserver(builder)  # a no-op when an earlier test started it: either way it predates the next line
     nowhere = tmp_path / "nowhere"
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(nowhere))
     c = EvalConfig(policy="standin:random", scene="libero_object", axes=("pick_y",), levels="0", episodes=2,
@@ -150,7 +148,7 @@ def test_without_a_fork_server_the_run_starts_as_without_a_preview(monkeypatch):
     then steps its one environment in-process as before."""
     import indgen_vla.engine.local as local
 
-    def no_forkserver(preload):
+    def no_forkserver(levels, task=None):
         raise ValueError("cannot find context for 'forkserver'")
 
     monkeypatch.setattr(local, "_context", no_forkserver)

@@ -32,7 +32,13 @@ def test_the_builder_pickles_and_builds_the_same_level_as_make_env():
     sp = resolve_scene_plan("pick_place", "milk", ["scale"], "2")
     builder = pickle.loads(pickle.dumps(sp.builder))
     assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
-    assert builder.preload == ("scenes.env", "scenes.sim", "mujoco", "scenes.robosuite_kernels")
+    assert builder.preload == (
+        "scenes.env",
+        "scenes.sim",
+        "mujoco",
+        "scenes.robosuite_kernels",
+        "scenes.asset_cache",
+    )
     env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
     ref = scenes.make_env(
         "pick_place", task="milk", axis="scale", level=2, cameras=(), image_size=(64, 64), max_steps=5
