@@ -14,6 +14,7 @@ import os
 from pathlib import Path
 
 from indgen_vla.errors import RunDirError
+from scenes.certify_progress import CertifyDisplay
 from scenes.certify_run import (
     certified_levels,
     certify,
@@ -122,11 +123,13 @@ def certify_main(args) -> int:
             )
             continue
         try:
-            cert = certify(
-                args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
-                seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
-                threshold=getattr(args, "threshold", None) or 0.95, preset=preset, out=path,
-            )  # fmt: skip
+            with CertifyDisplay(args.scene, get_scene(args.scene).resolve_task(task), args.axis) as display:
+                cert = certify(
+                    args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
+                    seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
+                    threshold=getattr(args, "threshold", None) or 0.95, preset=preset, out=path,
+                    log=display.log, watch=display,
+                )  # fmt: skip
         except OSError as e:
             raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
         print_table(cert)

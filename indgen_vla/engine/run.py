@@ -314,7 +314,9 @@ def _run_with_progress(
 ):
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
     far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import Progress
+
+    from indgen_vla.live import level_info, level_label, progress_columns
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
     for j in plan.jobs:
@@ -324,16 +326,14 @@ def _run_with_progress(
         if r.status == "ok":
             stats[(r.axis, int(r.level))][0] += int(r.success)
             stats[(r.axis, int(r.level))][1] += 1
-    columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
-               TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
-    with Progress(*columns, console=console, transient=False) as progress:
+    with Progress(*progress_columns(), console=console, transient=False) as progress:
         done = sum(s[1] for s in stats.values())  # what finished: an adaptive run skips planned episodes
         total = progress.add_task("all episodes", total=len(plan.jobs), completed=done, info="")
         rows = {}
         for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
             s = stats[key]
-            rows[key] = progress.add_task(f"{key[0]} L{key[1]:+d}", total=planned[key], completed=s[1] + s[2],
-                                          info=_level_info(s))  # fmt: skip
+            rows[key] = progress.add_task(level_label(*key), total=planned[key], completed=s[1] + s[2],
+                                          info=level_info(*s))  # fmt: skip
 
         def on_record(rec) -> None:
             run.append([rec])
@@ -343,7 +343,7 @@ def _run_with_progress(
                 s[1] += 1
             else:
                 s[2] += 1
-            progress.update(rows[(rec.axis, rec.level)], advance=1, info=_level_info(s))
+            progress.update(rows[(rec.axis, rec.level)], advance=1, info=level_info(*s))
             progress.update(total, advance=1)
 
         made, handed = [probe], [0]
@@ -387,9 +387,3 @@ def _run_with_progress(
                 w.close()
             for p in made:  # the ray backend loads its own policies in its actors
                 p.close()
-
-
-def _level_info(s: list[int]) -> str:
-    """Success so far at one level, e.g. ``success 3/4`` (+ errors when any)."""
-    text = f"success {s[0]}/{s[1]}" if s[1] else ""
-    return text + (f" [red]errors {s[2]}[/]" if s[2] else "")
