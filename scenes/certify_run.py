@@ -11,7 +11,11 @@ k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import json
+import os
+import re
 import time
 from pathlib import Path
 
@@ -170,6 +174,49 @@ def write_json_atomic(path: Path, data: dict) -> None:
     atomic_write_json(path, data)
 
 
+# RoboCasa's MJCFObject writes <time>_<pid>.xml beside each object model while it builds and then deletes it
+# (robocasa/models/objects/objects.py): a run going on, or one killed meanwhile, is no change of the assets
+_TRANSIENT = re.compile(r"\d+_\d+_\d+\.xml")
+
+
+@functools.cache
+def tree_stamp(root: str) -> tuple[str, int]:
+    """SHA-256 over every file's relative path, size and mtime under ``root``, and the number of files: a file
+    replaced or edited in place changes it. Stat only (about 1 s for 32k files); hashing the contents would read RoboCasa's
+    gigabytes of meshes on every lookup. Computed once per process."""
+    h, n = hashlib.sha256(), 0
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        dirnames.sort()
+        for name in sorted(filenames):
+            if _TRANSIENT.fullmatch(name):
+                continue
+            path = os.path.join(dirpath, name)
+            st = os.stat(path)
+            h.update(f"{os.path.relpath(path, root)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+            n += 1
+    return h.hexdigest(), n
+
+
+def asset_stamp(scene: str) -> dict | None:
+    """What a per-machine certificate records of the asset tree it was made on (``Scene.asset_tree``): its root
+    and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
+    from scenes.registry import get_scene
+
+    tree = get_scene(scene).asset_tree()
+    if tree is None:
+        return None
+    root = str(Path(tree).resolve())
+    digest, files = tree_stamp(root)
+    return {"root": root, "files": files, "stat_sha256": digest}
+
+
+def same_assets(cert: dict, stamp: dict | None) -> bool:
+    """Was ``cert`` made on the asset files ``stamp`` describes? (A certificate without a stamp, made before they
+    were recorded, matches only a scene without an asset tree.)"""
+    made = cert.get("assets") or {}
+    return stamp is None or made.get("stat_sha256") == stamp["stat_sha256"]
+
+
 def _key(cert: dict) -> tuple:
     """What must match for a stored level to be reused: component steps, seed, rule and episode length."""
     return (
@@ -228,6 +275,9 @@ def certify(
         "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
         "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
     }  # fmt: skip
+    stamp = asset_stamp(scene)
+    if stamp is not None:
+        cert["assets"] = stamp
     path = Path(out) if out is not None else None
     done: dict[int, dict] = {}
     if path is not None and path.is_file():
@@ -235,7 +285,10 @@ def certify(
             old = load_certification(path)
         except RunDirError:
             old = {}
-        if old and _key(old) == _key(cert) and old.get("task") == task:
+        if old and not same_assets(old, stamp):
+            if log:
+                log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
+        elif old and _key(old) == _key(cert) and old.get("task") == task:
             done = {int(r["level"]): r for r in old["levels"] if r.get("status") in ("certified", "failed")
                     or r["n"] >= rule.n_max}  # fmt: skip
             cert["wall_s"] = float(old.get("wall_s", 0.0))
@@ -345,4 +398,5 @@ def certified_levels(cert: dict) -> list[int]:
 __all__ = [
     "Rule", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
     "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode", "level_line",
+    "tree_stamp", "asset_stamp", "same_assets",
 ]  # fmt: skip
