@@ -276,7 +276,7 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
     its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
     go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
-    from indgen_vla.fingerprint import ProtocolMismatchError, differences, short
+    from indgen_vla.fingerprint import ProtocolMismatchError, differences, show_difference
 
     bad = [d for d in differences(run.manifest["fingerprint"], now) if d[3]]
     if not bad:
@@ -284,16 +284,19 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     field, was, is_now, _ = bad[0]
     if not allow:
         more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
+        was_text, now_text = show_difference(field, was, is_now, width=60)
         raise ProtocolMismatchError(
-            f"{run.path} was started under another protocol: {field} was {short(was)}, now {short(is_now)}{more}; "
+            f"{run.path} was started under another protocol: {field} was {was_text}, now {now_text}{more}; "
             "resume it where it was started, use a new --out, or pass --allow-protocol-mismatch (the manifest then "
             "records the change)"
         )
     changes = [{"field": f, "was": a, "now": b} for f, a, b, _ in bad]
     run.update_manifest(protocol_changes=[*run.manifest.get("protocol_changes", []), *changes])
-    return [
-        f"resumed under another protocol: {f} was {short(a, 40)}, now {short(b, 40)}" for f, a, b, _ in bad
-    ]
+    lines = []
+    for f, a, b, _ in bad:
+        was_text, now_text = show_difference(f, a, b)
+        lines.append(f"resumed under another protocol: {f} was {was_text}, now {now_text}")
+    return lines
 
 
 def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
