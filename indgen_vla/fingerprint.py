@@ -124,6 +124,57 @@ def short(v: Any, width: int = 60) -> str:
     return text if len(text) <= width else text[: width - 1] + "…"
 
 
+CONVENTIONS = f"{POLICY_FIELD}.conventions"
+
+
+def conventions_items(text: Any) -> dict[str, str] | None:
+    """A policy's conventions as the fingerprint stores them (the repr of a frozen dataclass, e.g.
+    ``Conventions(render=256, images=Compose(steps=(Flip180(), ResizeWithPad(size=224))), chunk=10)``) as readable
+    values by key: ``{"render": "256", "images": "Flip180 + ResizeWithPad(size=224)", "chunk": "10"}``; a call whose
+    one argument is a tuple reads as its items joined by " + " ("none" when empty). None when ``text`` is not such a
+    repr. Display only: the fingerprint keeps the repr."""
+    import ast
+
+    if not isinstance(text, str):
+        return None
+    try:
+        node = ast.parse(text, mode="eval").body
+    except SyntaxError:
+        return None
+    if not isinstance(node, ast.Call) or node.args or any(k.arg is None for k in node.keywords):
+        return None
+    return {k.arg: _readable(k.value) for k in node.keywords if k.arg}
+
+
+def _readable(node) -> str:
+    import ast
+
+    if not isinstance(node, ast.Call):
+        return ast.unparse(node)
+    args = [*node.args, *(k.value for k in node.keywords)]
+    if len(args) == 1 and isinstance(args[0], ast.Tuple):  # a pipeline of steps
+        return " + ".join(_readable(e) for e in args[0].elts) or "none"
+    inner = [ast.unparse(a) for a in node.args] + [f"{k.arg}={ast.unparse(k.value)}" for k in node.keywords]
+    name = ast.unparse(node.func)
+    return f"{name}({', '.join(inner)})" if inner else name
+
+
+def show_difference(field: str, a: Any, b: Any, width: int = 40) -> tuple[str, str]:
+    """Two values of ``field`` as a report prints them: the policy's conventions as the ``key=value`` pairs that
+    differ (a run without conventions reads "none"), anything else ``short``."""
+    if field == CONVENTIONS:
+        ia, ib = conventions_items(a), conventions_items(b)
+        if (ia is not None or a is None) and (ib is not None or b is None) and (ia or ib):
+            ia, ib = ia or {}, ib or {}
+            keys = [k for k in dict.fromkeys([*ia, *ib]) if ia.get(k) != ib.get(k)]
+
+            def pairs(items: dict[str, str]) -> str:
+                return ", ".join(f"{k}={items[k]}" for k in keys if k in items) or "none"
+
+            return pairs(ia), pairs(ib)
+    return short(a, width), short(b, width)
+
+
 def check_comparable(
     runs: Sequence[tuple[str, Mapping[str, Any] | None]], allow: bool = False, what: str = "paired"
 ) -> list[str]:
@@ -143,14 +194,16 @@ def check_comparable(
         if bad and not allow:
             f, va, vb, _ = bad[0]
             more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
+            sa, sb = show_difference(f, va, vb, width=60)
             raise ProtocolMismatchError(
                 f"{label0} and {label} were made under different protocols, so they cannot be {what}: {f} is "
-                f"{short(va)} vs {short(vb)}{more}; re-run one under the other's protocol, or pass "
+                f"{sa} vs {sb}{more}; re-run one under the other's protocol, or pass "
                 "--allow-protocol-mismatch to go on (the output then lists every difference)"
             )
         for f, va, vb, changes in diffs:
             tag = "changes outcomes" if changes else "informational"
-            lines.append(f"{label0} vs {label}: {f} differs ({tag}): {short(va, 40)} vs {short(vb, 40)}")
+            sa, sb = show_difference(f, va, vb)
+            lines.append(f"{label0} vs {label}: {f} differs ({tag}): {sa} vs {sb}")
     return lines
 
 

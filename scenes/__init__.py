@@ -7,6 +7,7 @@ Importing this package is cheap: robosuite and MuJoCo load only when ``make_env`
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -19,6 +20,18 @@ from scenes.registry import get_scene, registered_scenes
 
 if TYPE_CHECKING:
     from scenes.env import BaseSceneEnv
+
+
+class _DropMacroWarning(logging.Filter):
+    """robosuite 1.4 warns about a missing private macro file on every import; it is irrelevant here."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "macro" not in record.getMessage()
+
+
+# here, so that it is in place before any module of this package imports robosuite (the ones above never do):
+# scenes.sim, scenes.objects (the layouts), LIBERO; certify, demos, mimicgen and the workers all stay quiet
+logging.getLogger("robosuite_logs").addFilter(_DropMacroWarning())
 
 __all__ = [
     "make_env", "scene_names", "tasks", "select_tasks", "axes_for", "get_axis", "level_param", "check_ready",

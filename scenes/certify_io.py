@@ -1,10 +1,12 @@
 """Where certificates live, how ``evaluate`` finds them, the SUMMARY table and the ``indgen certify`` CLI.
 
-Built-in scenes: ``scenes/certification/<scene>/<task>/<axis>/certify.json`` (committed). LIBERO suites:
-``$INDGEN_CACHE/certification/<hash of the asset tree path>/<scene>/<task>/<axis>/certify.json``
-(``$INDGEN_CACHE`` defaults to ``~/.cache/indgen``), written by
-``indgen certify`` on the user's machine. ``$INDGEN_CERT_DIR`` replaces either root. An axis certified at
-non-default steps gets its own folder ``<axis>@<component>=<step>,...``.
+Built-in scenes: ``scenes/certification/<scene>/<task>/<axis>/certify.json`` (committed). LIBERO suites and
+RoboCasa365: ``$INDGEN_CACHE/certification/<hash of the asset tree path>/<scene>/<task>/<axis>/certify.json``
+(``$INDGEN_CACHE`` defaults to ``~/.cache/indgen``), written by ``indgen certify`` on the user's machine; each
+records its tree's ``asset_stamp`` (every file's path, size and mtime), and one whose tree has changed since (or
+made before stamps were recorded) is never used: ``find_certification`` ignores it and ``certify`` makes it again.
+``$INDGEN_CERT_DIR`` replaces either root. An axis certified at non-default steps gets its own folder
+``<axis>@<component>=<step>,...``.
 """
 
 from __future__ import annotations
@@ -14,13 +16,16 @@ import os
 from pathlib import Path
 
 from indgen_vla.errors import RunDirError
+from scenes.certify_progress import CertifyDisplay
 from scenes.certify_run import (
+    asset_stamp,
     certified_levels,
     certify,
     episodes_needed,
     infeasible_levels,
     level_status,
     load_certification,
+    same_assets,
 )
 from scenes.oracle import oracle_scripts
 from scenes.registry import get_scene, registered_scenes
@@ -82,6 +87,8 @@ def find_certification(
     have = cert.get("steps") or {axis: cert.get("step")}
     if json.dumps(want, sort_keys=True) != json.dumps({k: float(v) for k, v in have.items()}, sort_keys=True):
         return None
+    if not same_assets(cert, asset_stamp(scene)):  # the tree at that path changed since: certify again
+        return None
     return cert
 
 
@@ -122,11 +129,13 @@ def certify_main(args) -> int:
             )
             continue
         try:
-            cert = certify(
-                args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
-                seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
-                threshold=getattr(args, "threshold", None) or 0.95, preset=preset, out=path,
-            )  # fmt: skip
+            with CertifyDisplay(args.scene, get_scene(args.scene).resolve_task(task), args.axis) as display:
+                cert = certify(
+                    args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
+                    seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
+                    threshold=getattr(args, "threshold", None) or 0.95, preset=preset, out=path,
+                    log=display.log, watch=display,
+                )  # fmt: skip
         except OSError as e:
             raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
         print_table(cert)

@@ -11,7 +11,11 @@ k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import json
+import os
+import re
 import time
 from pathlib import Path
 
@@ -116,9 +120,10 @@ def level_row(level: int, param: float, results: list[tuple[bool, int]], rule: R
 
 def certify_level(
     scene: str, task: str, axis: str, level: int, step: float | None, preset: str | None, seed: int,
-    max_steps: int | None, rule: Rule,
+    max_steps: int | None, rule: Rule, on_episode=None,
 ) -> dict:  # fmt: skip
-    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility)."""
+    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility);
+    ``on_episode(level, successes, n)`` hears of each finished episode."""
     import scenes
     from scenes.oracle import oracle_for
 
@@ -134,14 +139,31 @@ def certify_level(
             results.append(
                 run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
             )
+            if on_episode is not None:
+                on_episode(level, sum(ok for ok, _ in results), len(results))
         param = env.axis_param
     finally:
         env.close()
     return level_row(level, param, results, rule, time.time() - t0)
 
 
+_EVENTS = None  # in a pool worker: the queue its episodes are reported on (``_init_worker``)
+
+
+def _init_worker(events) -> None:
+    global _EVENTS
+    _EVENTS = events
+
+
 def _certify_job(args: tuple) -> dict:
-    return certify_level(*args)
+    report = None if _EVENTS is None else (lambda *event: _EVENTS.put(event))
+    return certify_level(*args, on_episode=report)
+
+
+def level_line(scene: str, task: str, axis: str, row: dict) -> str:
+    """One finished level, e.g. ``stack/orange_on_blue/stack level 0: 59/59 CP95 lower 0.951 -> certified (80 s)``."""
+    return (f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
+            f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
 
 
 def write_json_atomic(path: Path, data: dict) -> None:
@@ -150,6 +172,49 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(path, data)
+
+
+# RoboCasa's MJCFObject writes <time>_<pid>.xml beside each object model while it builds and then deletes it
+# (robocasa/models/objects/objects.py): a run going on, or one killed meanwhile, is no change of the assets
+_TRANSIENT = re.compile(r"\d+_\d+_\d+\.xml")
+
+
+@functools.cache
+def tree_stamp(root: str) -> tuple[str, int]:
+    """SHA-256 over every file's relative path, size and mtime under ``root``, and the number of files: a file
+    replaced or edited in place changes it. Stat only (about 1 s for 32k files); hashing the contents would read RoboCasa's
+    gigabytes of meshes on every lookup. Computed once per process."""
+    h, n = hashlib.sha256(), 0
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        dirnames.sort()
+        for name in sorted(filenames):
+            if _TRANSIENT.fullmatch(name):
+                continue
+            path = os.path.join(dirpath, name)
+            st = os.stat(path)
+            h.update(f"{os.path.relpath(path, root)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+            n += 1
+    return h.hexdigest(), n
+
+
+def asset_stamp(scene: str) -> dict | None:
+    """What a per-machine certificate records of the asset tree it was made on (``Scene.asset_tree``): its root
+    and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
+    from scenes.registry import get_scene
+
+    tree = get_scene(scene).asset_tree()
+    if tree is None:
+        return None
+    root = str(Path(tree).resolve())
+    digest, files = tree_stamp(root)
+    return {"root": root, "files": files, "stat_sha256": digest}
+
+
+def same_assets(cert: dict, stamp: dict | None) -> bool:
+    """Was ``cert`` made on the asset files ``stamp`` describes? (A certificate without a stamp, made before they
+    were recorded, matches only a scene without an asset tree.)"""
+    made = cert.get("assets") or {}
+    return stamp is None or made.get("stat_sha256") == stamp["stat_sha256"]
 
 
 def _key(cert: dict) -> tuple:
@@ -175,9 +240,12 @@ def certify(
     preset: str | None = None,
     out: str | Path | None = None,
     log=None,
+    watch=None,
 ) -> dict:
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
-    levels already certified there under the same steps/seed/rule and write after every level."""
+    levels already certified there under the same steps/seed/rule and write after every level. ``log`` gets a
+    line per event; ``watch`` (``scenes.certify_progress.CertifyDisplay``), when given, hears of the levels about
+    to run, each episode and each finished level instead of the per-level lines."""
     import scenes
     from scenes.axes import successor_steps
     from scenes.registry import get_scene
@@ -207,6 +275,9 @@ def certify(
         "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
         "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
     }  # fmt: skip
+    stamp = asset_stamp(scene)
+    if stamp is not None:
+        cert["assets"] = stamp
     path = Path(out) if out is not None else None
     done: dict[int, dict] = {}
     if path is not None and path.is_file():
@@ -214,7 +285,10 @@ def certify(
             old = load_certification(path)
         except RunDirError:
             old = {}
-        if old and _key(old) == _key(cert) and old.get("task") == task:
+        if old and not same_assets(old, stamp):
+            if log:
+                log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
+        elif old and _key(old) == _key(cert) and old.get("task") == task:
             done = {int(r["level"]): r for r in old["levels"] if r.get("status") in ("certified", "failed")
                     or r["n"] >= rule.n_max}  # fmt: skip
             cert["wall_s"] = float(old.get("wall_s", 0.0))
@@ -232,23 +306,50 @@ def certify(
         cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
         if path is not None:
             write_json_atomic(path, cert)
-        if log:
-            log(f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
-                f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
+        if watch is not None:
+            watch.level(row)
+        elif log:
+            log(level_line(scene, task, axis, row))
 
+    if watch is not None:
+        watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)
     jobs = [(scene, task, axis, k, step, preset, seed, max_steps, rule) for k in todo]
     if workers == 1 or len(jobs) <= 1:
         for j in jobs:
-            merge(_certify_job(j))
+            merge(certify_level(*j, on_episode=None if watch is None else watch.episode))
     else:
-        import multiprocessing as mp
-
-        with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-            for row in pool.imap_unordered(_certify_job, jobs, chunksize=1):
-                merge(row)
+        _run_pool(jobs, min(workers, len(jobs)), merge, watch)
     result = dict(cert)
     result["levels"] = [r for r in cert["levels"] if int(r["level"]) in lv]
     return result
+
+
+def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:
+    """One level per job in spawned processes; their episodes reach ``watch`` over a queue while they run."""
+    import multiprocessing as mp
+    import queue
+
+    ctx = mp.get_context("spawn")
+    events = ctx.Queue() if watch is not None else None
+
+    def drain() -> None:
+        while events is not None:
+            try:
+                watch.episode(*events.get_nowait())
+            except queue.Empty:
+                return
+
+    with ctx.Pool(workers, initializer=_init_worker, initargs=(events,)) as pool:
+        rows = pool.imap_unordered(_certify_job, jobs, chunksize=1)
+        for _ in jobs:
+            while True:
+                try:
+                    row = rows.next(timeout=0.25)
+                    break
+                except mp.TimeoutError:
+                    drain()
+            drain()
+            merge(row)
 
 
 def load_certification(path: str | Path) -> dict:
@@ -296,5 +397,6 @@ def certified_levels(cert: dict) -> list[int]:
 
 __all__ = [
     "Rule", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
-    "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode",
+    "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode", "level_line",
+    "tree_stamp", "asset_stamp", "same_assets",
 ]  # fmt: skip

@@ -49,9 +49,9 @@ class Scene:
         runtime: None when the simulator runs in our venv; else a ``scenes.runtime.ExternalRuntime`` naming the
             family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
         preload: modules a worker process imports before its first env (the local backend's forkserver); a
-            family whose simulator runs in another environment names none of that simulator's modules. The
-            robosuite families import robosuite through ``scenes.sim``, which silences its macro-file warning,
-            and fill MuJoCo's asset cache with the run's first task (``scenes.asset_cache``).
+            family whose simulator runs in another environment names none of that simulator's modules.
+            ``scenes`` (the package) drops robosuite's macro-file warning before any of its modules imports it;
+            the robosuite families fill MuJoCo's asset cache with the run's first task (``scenes.asset_cache``).
         oracle: ``"module:Class"`` of the family's privileged oracle (``standin:oracle``, ``indgen certify``).
         axis_overrides: the family's own steps and level ranges of shared axes, in an axes preset's form
             (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them.

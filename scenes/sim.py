@@ -8,7 +8,6 @@ initialisation noise, and the model is built once per env (``hard_reset=False``)
 
 from __future__ import annotations
 
-import logging
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,17 +18,7 @@ import scenes.mujoco_geom as geom
 from indgen_vla.errors import SceneError
 from scenes.privileged import NO_FACTS, GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-
-class _DropMacroWarning(logging.Filter):
-    """robosuite warns about a missing private macro file on every import; it is irrelevant here."""
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        return "macro" not in record.getMessage()
-
-
-logging.getLogger("robosuite_logs").addFilter(_DropMacroWarning())
+os.environ.setdefault("MUJOCO_GL", "egl")  # robosuite's macro-file warning: dropped by ``scenes`` (__init__)
 
 import robosuite  # noqa: E402
 from robosuite.environments.manipulation.single_arm_env import SingleArmEnv  # noqa: E402

@@ -287,7 +287,7 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
     its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
     go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
-    from indgen_vla.fingerprint import ProtocolMismatchError, differences, short
+    from indgen_vla.fingerprint import ProtocolMismatchError, differences, show_difference
 
     bad = [d for d in differences(run.manifest["fingerprint"], now) if d[3]]
     if not bad:
@@ -295,16 +295,19 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     field, was, is_now, _ = bad[0]
     if not allow:
         more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
+        was_text, now_text = show_difference(field, was, is_now, width=60)
         raise ProtocolMismatchError(
-            f"{run.path} was started under another protocol: {field} was {short(was)}, now {short(is_now)}{more}; "
+            f"{run.path} was started under another protocol: {field} was {was_text}, now {now_text}{more}; "
             "resume it where it was started, use a new --out, or pass --allow-protocol-mismatch (the manifest then "
             "records the change)"
         )
     changes = [{"field": f, "was": a, "now": b} for f, a, b, _ in bad]
     run.update_manifest(protocol_changes=[*run.manifest.get("protocol_changes", []), *changes])
-    return [
-        f"resumed under another protocol: {f} was {short(a, 40)}, now {short(b, 40)}" for f, a, b, _ in bad
-    ]
+    lines = []
+    for f, a, b, _ in bad:
+        was_text, now_text = show_difference(f, a, b)
+        lines.append(f"resumed under another protocol: {f} was {was_text}, now {now_text}")
+    return lines
 
 
 def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
@@ -325,7 +328,9 @@ def _run_with_progress(
 ):
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
     far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import Progress
+
+    from indgen_vla.live import level_info, level_label, progress_columns
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
     for j in plan.jobs:
@@ -335,16 +340,14 @@ def _run_with_progress(
         if r.status == "ok":
             stats[(r.axis, int(r.level))][0] += int(r.success)
             stats[(r.axis, int(r.level))][1] += 1
-    columns = (TextColumn("{task.description:<22}"), BarColumn(bar_width=24), MofNCompleteColumn(),
-               TextColumn("{task.fields[info]}"), TimeRemainingColumn())  # fmt: skip
-    with Progress(*columns, console=console, transient=False) as progress:
+    with Progress(*progress_columns(), console=console, transient=False) as progress:
         done = sum(s[1] for s in stats.values())  # what finished: an adaptive run skips planned episodes
         total = progress.add_task("all episodes", total=len(plan.jobs), completed=done, info="")
         rows = {}
         for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
             s = stats[key]
-            rows[key] = progress.add_task(f"{key[0]} L{key[1]:+d}", total=planned[key], completed=s[1] + s[2],
-                                          info=_level_info(s))  # fmt: skip
+            rows[key] = progress.add_task(level_label(*key), total=planned[key], completed=s[1] + s[2],
+                                          info=level_info(*s))  # fmt: skip
 
         def on_record(rec) -> None:
             run.append([rec])
@@ -354,7 +357,7 @@ def _run_with_progress(
                 s[1] += 1
             else:
                 s[2] += 1
-            progress.update(rows[(rec.axis, rec.level)], advance=1, info=_level_info(s))
+            progress.update(rows[(rec.axis, rec.level)], advance=1, info=level_info(*s))
             progress.update(total, advance=1)
 
         made, handed = [probe], [0]
@@ -398,9 +401,3 @@ def _run_with_progress(
                 w.close()
             for p in made:  # the ray backend loads its own policies in its actors
                 p.close()
-
-
-def _level_info(s: list[int]) -> str:
-    """Success so far at one level, e.g. ``success 3/4`` (+ errors when any)."""
-    text = f"success {s[0]}/{s[1]}" if s[1] else ""
-    return text + (f" [red]errors {s[2]}[/]" if s[2] else "")

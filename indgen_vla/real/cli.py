@@ -183,7 +183,7 @@ def status(rr) -> dict:
         levels.append({"level": k, "param": rr.params[k], "unit": rr.axis.unit, "n": r.n, "successes": r.successes,
                        "rate": r.rate if r.n else None, "ci_low": r.ci_low, "ci_high": r.ci_high,
                        "voids": sum(len(v) for (lv, _), v in state.voids.items() if lv == k),
-                       "decision": d.verdict if d else ("not needed" if seq else None)})  # fmt: skip
+                       "decision": d.verdict if d else (rr.not_run(seq, k) if seq else None)})  # fmt: skip
     nxt = None
     if queue:
         k, i = queue[0]

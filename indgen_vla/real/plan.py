@@ -232,6 +232,12 @@ class RealRun:
         )
         return perm.index(level)
 
+    def not_run(self, seq: Plan, level: int) -> str:
+        """Why the rule has not decided ``level`` (``--adaptive kstar`` walks the levels upward): "not needed" past
+        a level decided broken (it never runs), "not reached" while a level below it is still being decided."""
+        broken = any(d.verdict == "broken" for k, d in seq.decisions.items() if k < level)
+        return "not needed" if broken else "not reached"
+
     def decision(self, state: State, level: int) -> Decision | None:
         seq = self.sequential(state)
         return None if seq is None else seq.decisions.get(level)

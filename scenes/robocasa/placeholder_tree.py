@@ -12,6 +12,7 @@ with only mjWARN_BADQACC set); the tree is written writable (objects write tempo
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import runpy
@@ -291,17 +292,29 @@ BOX_OBJ = (
 
 
 class Writer:
-    def __init__(self, dst: Path):
-        self.dst = dst
-        self.counts = {"fixtures": 0, "objects": 0, "textures": 0, "meshes": 0, "other": 0}
+    """Writes each placeholder file once, never over an existing file nor for one the wheel ships; counts the
+    placeholders it wrote and those already there (an earlier run's)."""
+
+    def __init__(self, dst: Path, wheel: Path):
+        self.dst, self.wheel = dst, wheel
+        self.written = {"fixtures": 0, "objects": 0, "textures": 0, "meshes": 0, "other": 0}
+        self.present = dict.fromkeys(self.written, 0)
+        self._seen: set[str] = set()  # a file several entries reference is counted once
 
     def write(self, rel: str, data: str | bytes, kind: str) -> None:
-        p = self.dst / rel
+        key = os.path.normpath(rel)
+        if key in self._seen:
+            return
+        self._seen.add(key)
+        if (self.wheel / key).exists():  # copied from the wheel: RoboCasa's own file, no placeholder
+            return
+        p = self.dst / key
         if p.exists():
+            self.present[kind] += 1
             return
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_bytes(data if isinstance(data, bytes) else data.encode())
-        self.counts[kind] += 1
+        self.written[kind] += 1
 
     def texture(self, rel: str) -> None:
         self.write(rel, flat_png(colour(rel)), "textures")
@@ -352,6 +365,8 @@ REGISTRY_FOLDERS = {"objaverse": "objaverse", "aigen": "aigen_objs", "lightwheel
 
 
 def write_tree(dst: Path) -> dict:
+    """Write (or complete) the tree; returns the placeholder files per kind ``written`` now and already
+    ``present``, the files copied from the wheel (``package``) and every file in the tree (``total``)."""
     import robocasa
 
     pkg = Path(robocasa.__file__).parent
@@ -361,7 +376,7 @@ def write_tree(dst: Path) -> dict:
         shutil.rmtree(dst)  # a placeholder tree of an older generator: written again, never patched in place
     dst.mkdir(parents=True, exist_ok=True)
     shutil.copytree(wheel_assets, dst, dirs_exist_ok=True)
-    w = Writer(dst)
+    w = Writer(dst, wheel_assets)
     for kind, key, cfg in registry_entries(wheel_assets):
         xml = cfg.get("xml")
         if isinstance(xml, str):
@@ -402,9 +417,9 @@ def write_tree(dst: Path) -> dict:
         text = xml.read_text(errors="ignore")
         for ref in re.findall(r'file="([^"]+)"', text):
             target = (xml.parent / ref).resolve()
-            if target.exists() or not str(target).startswith(str(dst.resolve())):
+            if not str(target).startswith(str(dst.resolve())):
                 continue
-            rel = str(target.relative_to(dst.resolve()))
+            rel = str(target.relative_to(dst.resolve()))  # the writer skips the wheel's own files
             if ref.endswith((".png", ".jpg")):
                 w.texture(rel)
             elif ref.endswith((".obj", ".stl", ".msh")):
@@ -414,8 +429,10 @@ def write_tree(dst: Path) -> dict:
         for n in dirs + files:
             p = os.path.join(root, n)
             os.chmod(p, os.stat(p).st_mode | 0o200)
-    return w.counts
+    package = sum(len(files) for _, _, files in os.walk(wheel_assets))
+    total = sum(len(files) for _, _, files in os.walk(dst))
+    return {"written": w.written, "present": w.present, "package": package, "total": total}
 
 
 if __name__ == "__main__":
-    print(write_tree(Path(sys.argv[1])))
+    print(json.dumps(write_tree(Path(sys.argv[1]))))

@@ -7,6 +7,7 @@ fixture registry, layouts, styles and object categories) and is never committed.
 from __future__ import annotations
 
 import argparse
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -16,8 +17,9 @@ from indgen_vla.errors import IndgenError, SceneError
 GENERATOR = Path(__file__).with_name("placeholder_tree.py")
 
 
-def write_placeholders(dst: Path, python: Path | None = None) -> str:
-    """Write the tree at ``dst`` with the RoboCasa venv's interpreter; returns the generator's summary line."""
+def write_placeholders(dst: Path, python: Path | None = None) -> dict:
+    """Write the tree at ``dst`` with the RoboCasa venv's interpreter; returns the generator's counts (placeholder
+    files per kind ``written`` now and already ``present``, files from RoboCasa's ``package``, the ``total``)."""
     from scenes.robocasa.environment import find_python
 
     py = python or find_python()
@@ -28,7 +30,16 @@ def write_placeholders(dst: Path, python: Path | None = None) -> str:
         raise SceneError(
             f"writing RoboCasa placeholders at {dst} failed: {lines[-1] if lines else r.returncode}"
         )
-    return r.stdout.strip().splitlines()[-1]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def summary(counts: dict) -> str:
+    """What the tree holds, e.g. ``3083 files: 0 placeholders written, 2872 already there (1052 fixtures, ...)``."""
+    kinds = {k: counts["written"][k] + counts["present"][k] for k in counts["written"]}
+    detail = ", ".join(f"{n} {k}" for k, n in kinds.items() if n)
+    written, present = sum(counts["written"].values()), sum(counts["present"].values())
+    return (f"{counts['total']} files: {written} placeholders written, {present} already there ({detail}), "
+            f"{counts['package']} from RoboCasa's package")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -40,12 +51,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = p.parse_args(argv)
     try:
-        summary = write_placeholders(args.dst)
+        counts = write_placeholders(args.dst)
     except IndgenError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(f"{args.dst}: RoboCasa placeholder assets {summary}; set INDGEN_ROBOCASA_ASSETS={args.dst.resolve()} "
-          "(physics and smoke runs only: image policies would see boxes)")  # fmt: skip
+    print(f"{args.dst}: RoboCasa placeholder assets, {summary(counts)}; set INDGEN_ROBOCASA_ASSETS="
+          f"{args.dst.resolve()} (physics and smoke runs only: image policies would see boxes)")  # fmt: skip
     return 0
 
 

@@ -119,3 +119,33 @@ def test_a_resume_under_another_protocol_is_refused_in_one_line_and_the_flag_rec
     (change,) = manifest["protocol_changes"]
     assert change["field"] == "simulator" and change["now"]["mujoco"] == mujoco
     assert sorted(pd.read_parquet(out / "episodes.parquet").episode) == [0, 1]
+
+
+def test_compare_shows_the_policys_conventions_as_the_key_value_pairs_that_differ(tmp_path, capsys):
+    """The fingerprint stores a policy's conventions as their repr (kept as is: changing it would change every run's
+    fingerprint); compare.md and the terminal show the differing keys instead of a cut-off repr."""
+    from policy_wrappers.transforms import LIBERO_LEROBOT, LIBERO_OPENPI
+    from tests.indgen_vla.test_report import make_run
+
+    fa, fb = base(), base()
+    fa["policy"].update(family="openpi", conventions=repr(LIBERO_OPENPI))
+    fb["policy"].update(family="lerobot", conventions=repr(LIBERO_LEROBOT))
+    a = make_run(tmp_path / "a", {0: (9, 10), 1: (5, 10)})
+    b = make_run(tmp_path / "b", {0: (8, 10), 1: (4, 10)}, regime="h+mg")
+    a.update_manifest(fingerprint=fa)
+    b.update_manifest(fingerprint=fb)
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    want = ("policy.conventions differs (informational): render=256, images=Flip180 + ResizeWithPad(size=224), "
+            "chunk=10, replan=5 vs render=None, images=Flip180, chunk=None, replan=None")  # fmt: skip
+    assert want in (tmp_path / "c" / "compare.md").read_text() and want in capsys.readouterr().out
+    assert json.loads((a.path / "manifest.json").read_text())["fingerprint"] == fa  # the data is untouched
+    # one family, other conventions: the refusal names the differing keys; no conventions at all reads "none"
+    fb["policy"]["family"] = "openpi"
+    with pytest.raises(
+        ProtocolMismatchError, match=r"policy.conventions is render=256, images=Flip180 \+ Resize"
+    ):
+        check_comparable([("A", fa), ("B", fb)])
+    fb["policy"]["conventions"] = None
+    line = check_comparable([("A", fa), ("B", fb)], allow=True)[0]
+    assert line.endswith("render=256, images=Flip180 + ResizeWithPad(size=224), actions=none, chunk=10, replan=5 "
+                         "vs none")  # fmt: skip

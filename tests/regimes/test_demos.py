@@ -31,3 +31,31 @@ def test_noise_validation():
         HumanNoise(sigma=-1)
     with pytest.raises(ConfigError):
         HumanNoise(pause_steps=(3, 1))
+
+
+def _run(code: str) -> str:
+    """stdout + stderr of ``code`` in a fresh interpreter (robosuite not imported yet: its warning would show)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return out.stdout + out.stderr
+
+
+def test_demos_and_mimicgen_build_their_scenes_without_robosuites_macro_warning():
+    """Both commands build scenes in their own process through scenes.make_env, whose layouts import robosuite by
+    scenes.objects, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
+    (the fork server's preload: tests/scenes/test_planning.py::test_the_fork_servers_preload_is_quiet)."""
+    code = ("import indgen_vla.regimes.demos, indgen_vla.regimes.mimicgen, scenes\n"
+            "env = scenes.make_env('pick_place', cameras=())\nenv.reset(seed=0)\nenv.close()")  # fmt: skip
+    assert "macro" not in _run(code)
+
+
+@pytest.mark.slow  # ~25 s: both commands end to end, one state-only episode each
+def test_the_demos_and_mimicgen_commands_print_no_macro_warning(tmp_path):
+    src, dst = tmp_path / "demos", tmp_path / "mg"
+    out = _run(f"from indgen_vla.cli import main\nassert main(['demos', '--scene', 'pick_place', '--n', '1', "
+               f"'--cameras', '', '--out', {str(src)!r}]) == 0\n"
+               f"assert main(['mimicgen', '--source', {str(src)!r}, '--n', '1', '--out', {str(dst)!r}]) == 0")  # fmt: skip
+    assert "recorded 1 episodes" in out and "macro" not in out

@@ -226,3 +226,32 @@ def test_workers_give_the_same_certificate(tmp_path):
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in one["levels"]]
     assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in two["levels"]]
     assert [r["level"] for r in load_certification(tmp_path / "b")["levels"]] == [0, 1, 2]
+
+
+def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypatch):
+    """LIBERO's and RoboCasa365's certificates are cached per asset tree path: a tree updated at the same path (here
+    one file rewritten, same size) must not keep the old tree's certificate, nor must one made before certificates
+    recorded their tree. Played on ``stack`` given an asset tree (5 control steps: one failed episode, cheap)."""
+    from scenes.certify_run import tree_stamp
+    from scenes.registry import get_scene
+
+    tree = tmp_path / "assets"
+    (tree / "objects").mkdir(parents=True)
+    (tree / "objects" / "box.xml").write_text("<mujoco model='a'/>")
+    monkeypatch.setattr(type(get_scene("stack")), "asset_tree", lambda self: tree)
+    root = tmp_path / "certs"
+    out = cert_path("stack", None, "stack", root=root)
+    certify("stack", "stack", levels="0", episodes=1, max_steps=5, out=out)
+    cert = find_certification("stack", None, "stack", root=root)
+    assert cert is not None and cert["assets"]["root"] == str(tree.resolve()) and cert["assets"]["files"] == 1
+    (tree / "objects" / "box.xml").write_text("<mujoco model='b'/>")  # same path and size, other content
+    tree_stamp.cache_clear()  # the next command sees the tree as it is now
+    assert find_certification("stack", None, "stack", root=root) is None
+    logs = []
+    certify("stack", "stack", levels="0", episodes=1, max_steps=5, out=out, log=logs.append)
+    assert any("made on other asset files than" in m for m in logs), logs  # made again, not reused
+    assert find_certification("stack", None, "stack", root=root) is not None
+    old = json.loads(out.read_text())
+    del old["assets"]  # as written before certificates recorded their tree
+    out.write_text(json.dumps(old))
+    assert find_certification("stack", None, "stack", root=root) is None

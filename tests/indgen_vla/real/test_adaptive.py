@@ -95,3 +95,30 @@ def test_plan_records_the_engines_adaptive_entry(tmp_path, capsys):
     plan = json.loads((run / "manifest.json").read_text())["plan"]
     rule = SequentialRule(delta=0.15, round_size=6, max_episodes=30)
     assert plan["adaptive"] == adaptive_plan_entry("curve", rule)
+
+
+def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(tmp_path, capsys):
+    """``kstar`` walks the levels upward: above a level still being decided they are "not reached" (they will
+    run), past a level decided broken "not needed" (they never run). γ = 0.5, δ = 0.4 so 5 episodes decide a level."""
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:3", "--episodes", "10", "--adaptive", "kstar",
+                 "--gamma", "0.5", "--adaptive-delta", "0.4", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
+
+    def decisions() -> list:
+        assert main(["real", "status", str(run), "--json"]) == 0
+        return [r["decision"] for r in json.loads(capsys.readouterr().out)["levels"]]
+
+    capsys.readouterr()
+    assert decisions() == ["continue", "not reached", "not reached", "not reached"]
+    assert main(["real", "status", str(run)]) == 0
+    assert capsys.readouterr().out.splitlines()[2].endswith("no episodes, n = 0, voids 0  not reached")
+    for _ in range(5):
+        out = _record(run, "success", capsys)
+    assert "DECIDED: level 0 is intact (S ≥ γ = 0.5) after 5 episodes" in out
+    assert decisions() == ["intact", "continue", "not reached", "not reached"]
+    for _ in range(5):
+        out = _record(run, "failure:no_grasp", capsys)
+    assert "DECIDED: level 1 is broken (S < γ = 0.5) after 5 episodes" in out and out[-1] == "run complete"
+    assert decisions() == ["intact", "broken", "not needed", "not needed"]
+    assert main(["real", "status", str(run)]) == 0
+    assert capsys.readouterr().out.splitlines()[3].endswith("no episodes, n = 0, voids 0  not needed")

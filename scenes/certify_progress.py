@@ -1,0 +1,89 @@
+"""What ``indgen certify`` shows while the oracle runs, on stderr (stdout keeps the tables).
+
+On a terminal: ``evaluate``'s live display (``indgen_vla.live``), one row per level with the oracle's successes so
+far and its verdict once decided, and a total row with the ETA. Piped or logged (rich would print its rows only at
+the end): a line when a task starts and one per finished level, so a log shows progress as it happens.
+"""
+
+from __future__ import annotations
+
+from indgen_vla.live import level_info, level_label, progress_columns
+from scenes.certify_run import level_line
+
+_STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
+
+
+class CertifyDisplay:
+    """The progress of one task's certification; ``certify`` calls ``start``, ``episode``, ``level`` and ``log``."""
+
+    def __init__(self, scene: str, task: str, axis: str, console=None):
+        from rich.console import Console
+
+        self.scene, self.task, self.axis = scene, task, axis
+        self.console = console if console is not None else Console(stderr=True)
+        self.live = self.console.is_terminal
+        self._progress = None
+        self._rows: dict[int, object] = {}  # level -> its rich task
+        self._seen: dict[int, int] = {}  # level -> episodes shown so far
+        self._done: set[int] = set()
+        self._n_max, self._planned = 0, 0
+
+    def __enter__(self) -> CertifyDisplay:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
+    def log(self, text: str) -> None:
+        """A message (reused levels, a replaced certificate): above the live rows, or a plain line."""
+        self.console.print(text, soft_wrap=True, markup=False, highlight=False)
+
+    def start(self, levels: list[int], reused: list[dict], n_max: int) -> None:
+        """The levels about to run (at most ``n_max`` episodes each) and the rows reused from the certificate."""
+        self._n_max = n_max
+        where = f"{self.scene}/{self.task}/{self.axis}"
+        if not self.live:
+            if levels:
+                self.log(f"certifying {where}: levels {', '.join(map(str, levels))} (at most {n_max} episodes "
+                         "each, stopping a level at its first failure that rules certification out)")  # fmt: skip
+            return
+        from rich.progress import Progress
+
+        self._progress = Progress(*progress_columns(), console=self.console, transient=False)
+        self._progress.start()
+        p = self._progress
+        self._planned = n_max * len(levels)
+        self._total = p.add_task("all episodes", total=self._planned, info=where)
+        for row in sorted(reused, key=lambda r: r["level"]):
+            p.add_task(level_label(self.axis, int(row["level"])), total=row["n"], completed=row["n"],
+                       info=f"reused: {_STATUS.get(row['status'], row['status'])}")  # fmt: skip
+        for k in levels:
+            self._rows[k] = p.add_task(level_label(self.axis, k), total=n_max, info="")
+            self._seen[k] = 0
+
+    def episode(self, level: int, successes: int, n: int) -> None:
+        """One more oracle episode of ``level`` finished (``successes`` of ``n`` so far)."""
+        if self._progress is None or level in self._done or level not in self._rows:
+            return
+        self._progress.update(self._rows[level], completed=n, info=level_info(successes, n))
+        self._progress.update(self._total, advance=n - self._seen[level])
+        self._seen[level] = n
+
+    def level(self, row: dict) -> None:
+        """A level decided: its verdict on its row (a level the rule stopped early shrinks the total)."""
+        k = int(row["level"])
+        if self._progress is None:
+            self.log(level_line(self.scene, self.task, self.axis, row))
+            return
+        if k in self._done or k not in self._rows:
+            return
+        self._done.add(k)
+        n, status = row["n"], _STATUS.get(row["status"], row["status"])
+        self._progress.update(
+            self._rows[k], total=n, completed=n, info=f"{level_info(row['successes'], n)} {status}"
+        )
+        self._planned -= self._n_max - n  # the rule stopped the level early: those episodes never run
+        self._progress.update(self._total, total=self._planned, advance=n - self._seen[k])
+        self._seen[k] = n
