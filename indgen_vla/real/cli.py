@@ -194,6 +194,10 @@ def status(rr) -> dict:
             "kstar": seq.kstar.get("pos", {}).get("text") if seq else None}  # fmt: skip
 
 
+# the sequential rule's verdict for a level it has not settled yet, as ``real status`` prints it (``--json``: raw)
+_DECISION_TEXT = {"continue": "deciding (more episodes needed)"}
+
+
 def _status(ns: argparse.Namespace) -> int:
     from indgen_vla.real.plan import RealRun
 
@@ -204,11 +208,11 @@ def _status(ns: argparse.Namespace) -> int:
     print(f"{s['run']}: task {s['task']}, axis {s['axis']} (95 % Wilson CIs, one task, not pooled)")
     for r in s["levels"]:
         rate = f"{r['successes']}/{r['n']} = {100 * r['rate']:.0f} % [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]" if r["n"] else "no episodes"  # fmt: skip
-        dec = f"  {r['decision']}" if r["decision"] else ""
+        dec = f"  {_DECISION_TEXT.get(r['decision'], r['decision'])}" if r["decision"] else ""
         print(
             f"  level {r['level']} ({r['param']:g} {r['unit']}): {rate}, n = {r['n']}, voids {r['voids']}{dec}"
         )
-    if s["kstar"]:
+    if s["kstar"] and any(r["n"] for r in s["levels"]):  # before the first episode there is nothing to locate
         print(f"  adaptive: {s['kstar']}")
     nx = s["next"]
     print(

@@ -111,7 +111,10 @@ def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(
     capsys.readouterr()
     assert decisions() == ["continue", "not reached", "not reached", "not reached"]
     assert main(["real", "status", str(run)]) == 0
-    assert capsys.readouterr().out.splitlines()[2].endswith("no episodes, n = 0, voids 0  not reached")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1].endswith("no episodes, n = 0, voids 0  deciding (more episodes needed)")
+    assert lines[2].endswith("no episodes, n = 0, voids 0  not reached")
+    assert not any("adaptive:" in line for line in lines)  # no k* line before the first episode
     for _ in range(5):
         out = _record(run, "success", capsys)
     assert "DECIDED: level 0 is intact (S ≥ γ = 0.5) after 5 episodes" in out
