@@ -203,6 +203,21 @@ class Pinner:
             os.sched_setaffinity(0, self._saved)
 
 
+def fork_server_cpu_s() -> float | None:
+    """CPU seconds of the workers' fork server itself: its preload (imports, numba kernels, MuJoCo's asset cache
+    warmed with the first task), paid once per process before the first worker forks; None when none runs."""
+    import psutil
+
+    for child in psutil.Process().children():
+        try:
+            if "forkserver" in " ".join(child.cmdline()):
+                t = child.cpu_times()
+                return round(t.user + t.system, 2)
+        except psutil.Error:
+            pass
+    return None
+
+
 def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_steps: int, cameras, size: int,
             device: str, precision: str, pin: bool = False, compile_mode: str = "off", pipeline: bool = False,
             seconds: float = 2.0) -> dict:  # fmt: skip
@@ -231,7 +246,7 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
               replan_steps=replan, close_policies=False)  # warm-up: fork server, kernels  # fmt: skip
     out: dict = {"scaling_policy": spec_str, "scaling_cameras": list(cams), "scaling_image": hw[0],
                  "scaling_episodes": len(jobs), "scaling_max_steps": max_steps, "replan": replan,
-                 "pipeline": pipeline}  # fmt: skip
+                 "pipeline": pipeline, "fork_server_cpu_s": fork_server_cpu_s()}  # fmt: skip
     if pin:
         out["pinned"] = "coordinator on core 0, workers round-robin on the others"
     for w in workers:

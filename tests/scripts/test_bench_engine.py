@@ -77,6 +77,7 @@ def test_scaling_part_pipelined_with_reduced_pi05(tmp_path):
     out, _ = _bench("--only", "scaling", "--policy", spec, "--workers", "2", "--episodes", "4", "--max-steps",
                     "10", "--pipeline", "--precision", "bf16", "--seconds", "0.2")  # fmt: skip
     assert out["pipeline"] is True and out["replan"] == 5
+    assert out["fork_server_cpu_s"] > 0  # its preload, warmed with the first task, is reported apart
     row = out["w2"]
     assert row["control_steps"] == 4 * 10 and row["workers_cpu_s"] > 0  # stepped in worker processes
     assert row["ceiling_steps_per_s"] == pytest.approx(2 * 5 * 1000 / row["model_alone_ms_per_act"], rel=0.01)
