@@ -46,6 +46,27 @@ def level_progress(level_df) -> dict | None:
     return {"n": len(s), "mean": sum(s) / len(s), "stages": {STAGES[i]: s.count(i) for i in range(6)}}
 
 
+def level_progress_by(df, keys: list[str]) -> dict[tuple, dict]:
+    """``level_progress`` of every group of ``keys`` (a tuple of their values) in one pass over ``df``; groups
+    without a scored episode are left out (``level_progress`` gives None for them)."""
+    from indgen_vla.frames import group_items
+
+    if "progress" not in df or not len(df):
+        return {}
+    ok = df[df["status"] == "ok"]
+    scored = ok[ok["progress"].notna()]
+    score = scored["progress"].astype("int64").rename("_score")  # int(v) of each score, as _scores takes it
+    by = [scored[k] for k in keys]
+    totals = dict(group_items(score.groupby(by, sort=False).sum()))
+    out: dict[tuple, dict] = {}
+    for k, n in group_items(score.groupby(by, sort=False).size()):
+        out[k] = {"n": n, "mean": totals[k] / n, "stages": dict.fromkeys(STAGES, 0)}
+    for (*key, v), c in group_items(score.groupby([*by, score], sort=False).size()):
+        if 0 <= v < len(STAGES):
+            out[tuple(key)]["stages"][STAGES[v]] = c
+    return out
+
+
 # ----------------------------------------------------------------------------------------- exact tests
 def _doubled_midranks(values: Sequence[int]) -> dict[int, int]:
     """Value -> twice its midrank among ``values`` (integers, so tie sums stay exact)."""
