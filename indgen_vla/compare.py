@@ -82,12 +82,12 @@ def compare_summaries(
 def break_point_diff(ea, eb, axis: str, gamma: float, usable: tuple[set, set] | None = None) -> dict:
     """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels);
     ``usable``: each run's levels above the data floor (the summaries' rows), the only ones it may use."""
-    from indgen_vla.breakpoint import break_point_difference, cells_from_records
+    from indgen_vla.breakpoint import break_point_difference, cells_from_frame
 
     def cells(e, keep):
         ok = e[(e["axis"] == axis) & (e["status"] == "ok")]
         ok = ok if keep is None else ok[ok["level"].isin(keep)]
-        return cells_from_records(ok[["level", "param", "success", "status"]].to_dict("records"))
+        return cells_from_frame(ok[["level", "param", "success", "status"]])
 
     ca, cb = (cells(e, keep) for e, keep in zip((ea, eb), usable or (None, None), strict=True))
     if len({c.level for c in ca}) < 2 or len({c.level for c in cb}) < 2:

@@ -115,13 +115,13 @@ def _by_task(df) -> tuple[dict, dict]:
 def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict:
     """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled), from
     the levels above the data floor only (``levels``: the axis's pooled rows), like every other printed result."""
-    from indgen_vla.breakpoint import break_point, cells_from_records
+    from indgen_vla.breakpoint import break_point, cells_from_frame
 
     ok = df[(df["status"] == "ok") & df["level"].isin(usable_levels(levels))]
     if ok["level"].nunique() < 2:
         return {}
     keys = ("task",) if multi_task else ()
-    cells = cells_from_records(ok[["level", "param", "success", "status", "task"]].to_dict("records"), keys)
+    cells = cells_from_frame(ok[["level", "param", "success", "status", "task"]], keys)
     return break_point(cells, gamma, cluster_names=keys)
 
 

@@ -7,6 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from indgen_vla.breakpoint import cells_from_frame, cells_from_records
+from indgen_vla.errors import ConfigError
 from indgen_vla.failures import failure_counts, failure_counts_by
 from indgen_vla.frames import group_items
 from indgen_vla.levels import level_counts, level_rows, one_param
@@ -71,6 +73,22 @@ def test_level_rows_from_counts_equal_the_per_level_filter():
     assert all(p is None for p in pooled.values())  # the tasks' parameters differ: no one parameter per level
     c = {r["level"]: r["param"] for r in level_rows(df[df["task"] == "c"], levels, None, "wilson")}
     assert c[1] is None and c[2] == pytest.approx(0.55)  # jittered level 1; level 2 one value
+
+
+def test_cells_from_frame_equal_cells_from_records():
+    df = table()
+    df["seed_run"] = np.where(
+        df["episode"] % 2 == 0, 7, 11
+    )  # an integer cluster key prints as 7, not np.int64(7)
+    df["param"] = df["param"].fillna(0.3)
+    for keys in [(), ("task",), ("seed_run", "task")]:
+        cols = ["level", "param", "success", "status", *keys]
+        assert cells_from_frame(df[cols], keys) == cells_from_records(df[cols].to_dict("records"), keys)
+    no_status = df.drop(columns="status")  # every row counts as ok
+    assert cells_from_frame(no_status) == cells_from_records(no_status.to_dict("records"))
+    assert cells_from_frame(df[df["status"] == "nope"]) == []
+    with pytest.raises(ConfigError, match="lacks column 'param'"):
+        cells_from_frame(df.drop(columns="param"))
 
 
 def test_group_items_gives_python_keys_and_values():
