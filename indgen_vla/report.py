@@ -423,9 +423,10 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     return path
 
 
-def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
-    """Write summary.json, report.md and plots/*.png inside one run directory; return the summary."""
-    summary = summarize(run.episodes(), run.manifest, gamma, ci)
+def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None) -> dict:
+    """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
+    (``episodes``: ``run.episodes()`` when the caller has it already)."""
+    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
@@ -450,11 +451,12 @@ def report_main(args: argparse.Namespace) -> int:
     runs = [RunDir.open(p) for p in args.runs]
     results = []
     for run in runs:
-        if len(run.episodes()) == 0:
+        episodes = run.episodes()
+        if len(episodes) == 0:
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        results.append((run_label(run), write_run_report(run, args.gamma, args.ci)))
+        results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes)))
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
