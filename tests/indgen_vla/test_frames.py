@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 from indgen_vla.breakpoint import cells_from_frame, cells_from_records
+from indgen_vla.engine.adaptive import ladder_outcomes, outcomes_of
 from indgen_vla.errors import ConfigError
 from indgen_vla.failures import failure_counts, failure_counts_by
 from indgen_vla.frames import group_items
@@ -97,3 +98,11 @@ def test_group_items_gives_python_keys_and_values():
     assert items == [(("a", 1), 2), (("b", -2), 1)]
     assert [type(x) for k, v in items for x in (*k, v)] == [str, int, int, str, int, int]
     assert list(group_items(df.groupby("level", sort=False).size())) == [((1,), 2), ((-2,), 1)]
+
+
+def test_ladder_outcomes_equal_one_filter_per_ladder():
+    df = table()
+    df["axis"] = np.where(df["episode"] % 3 == 0, "scale", "pick_y")
+    want = {(t, a): outcomes_of(df, t, a) for t in "abc" for a in ("pick_y", "scale")}
+    assert ladder_outcomes(df) == want and all(want.values())
+    assert ladder_outcomes(df.iloc[:0]) == {}
