@@ -280,12 +280,12 @@ def main(argv: list[str] | None = None) -> None:
 
         raise SystemExit(cli_main(eval_args(a.tasks, a.out, episodes=a.episodes)))
     sizes = [int(x) for x in a.tasks.split(",")]
-    t0 = time.perf_counter()
+    t0, load_start = time.perf_counter(), os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(a.keep or tmp)
         rows = bench(sizes, root)
-    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "load_avg": os.getloadavg(), "sizes": rows,
-           "wall_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
+    res = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "load_avg_start": load_start,
+           "load_avg_end": os.getloadavg(), "sizes": rows, "wall_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
     print(json.dumps(res))
