@@ -43,6 +43,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+# the in-process parts (build, the decisions) time this checkout, like the commands it runs
+sys.path.insert(0, str(ROOT))
 SCENE, POLICY = "pick_place", "standin:random"
 AXES, LEVELS, EPISODES = ("pick_y", "goal_y", "scale"), "-3:3", 50  # the LIBERO-Object protocol's shape
 ERROR_RATE = 0.01
