@@ -55,6 +55,15 @@ def level_counts(df, keys: Sequence[str] = ("level",)) -> dict[tuple, LevelCount
     }  # fmt: skip
 
 
+def by_task(df) -> tuple[dict, dict]:
+    """Each task's rows and its ``level_counts`` keyed by (level,), from one pass over an axis's rows (a filter per
+    task is O(tasks × rows) on a protocol of many tasks)."""
+    counts: dict[str, dict] = {}
+    for (task, level), c in level_counts(df, ("task", "level")).items():
+        counts.setdefault(task, {})[(level,)] = c
+    return dict(iter(df.groupby("task", sort=False))), counts
+
+
 def level_rows(
     df, levels: Sequence[int], planned: int | None, ci: str, counts: Mapping[tuple, LevelCounts] | None = None
 ) -> list[dict]:

@@ -11,6 +11,7 @@ from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.levels import (
     axis_verdicts,
+    by_task,
     condition2_validation,
     decide,
     episodes_used,
@@ -69,7 +70,7 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         levels = sorted({int(k) for k in df["level"].unique()} | {int(k) for k in plan_levels.get(axis, [])})
         signed = _axis_signed(manifest, axis, levels)
         adaptive = plan.get("adaptive") if per_task else None
-        frames, counts = _by_task(df)
+        frames, counts = by_task(df)
         task_entries = {t: task_entry(frames.get(t, df.iloc[:0]), levels, per_task, ci, gamma, signed, adaptive,
                                       counts.get(t, {}))
                         for t in tasks}  # fmt: skip
@@ -99,17 +100,6 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         for e in task_entries.values():
             e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
     return out
-
-
-def _by_task(df) -> tuple[dict, dict]:
-    """Each task's rows and its ``level_counts`` by (level,), from one pass over the axis's rows (not one filter
-    per task: O(tasks × rows) on a protocol of many tasks)."""
-    from indgen_vla.levels import level_counts
-
-    counts: dict[str, dict] = {}
-    for (task, level), c in level_counts(df, ("task", "level")).items():
-        counts.setdefault(task, {})[(level,)] = c
-    return dict(iter(df.groupby("task", sort=False))), counts
 
 
 def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict:

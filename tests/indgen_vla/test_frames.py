@@ -12,7 +12,7 @@ from indgen_vla.engine.adaptive import ladder_outcomes, outcomes_of
 from indgen_vla.errors import ConfigError
 from indgen_vla.failures import failure_counts, failure_counts_by
 from indgen_vla.frames import group_items
-from indgen_vla.levels import level_counts, level_rows, one_param
+from indgen_vla.levels import by_task, level_counts, level_rows, one_param
 from indgen_vla.metrics import success_rate
 from indgen_vla.progress import level_progress, level_progress_by
 
@@ -74,6 +74,15 @@ def test_level_rows_from_counts_equal_the_per_level_filter():
     assert all(p is None for p in pooled.values())  # the tasks' parameters differ: no one parameter per level
     c = {r["level"]: r["param"] for r in level_rows(df[df["task"] == "c"], levels, None, "wilson")}
     assert c[1] is None and c[2] == pytest.approx(0.55)  # jittered level 1; level 2 one value
+
+
+def test_by_task_splits_rows_and_counts_like_a_filter_per_task():
+    df = table()
+    frames, counts = by_task(df)
+    assert sorted(frames) == sorted(counts) == ["a", "b", "c"]
+    for t in "abc":
+        pd.testing.assert_frame_equal(frames[t], df[df["task"] == t])
+        assert counts[t] == level_counts(df[df["task"] == t])
 
 
 def test_cells_from_frame_equal_cells_from_records():
