@@ -82,12 +82,12 @@ def compare_summaries(
 def break_point_diff(ea, eb, axis: str, gamma: float, usable: tuple[set, set] | None = None) -> dict:
     """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels);
     ``usable``: each run's levels above the data floor (the summaries' rows), the only ones it may use."""
-    from indgen_vla.breakpoint import break_point_difference, cells_from_records
+    from indgen_vla.breakpoint import break_point_difference, cells_from_frame
 
     def cells(e, keep):
         ok = e[(e["axis"] == axis) & (e["status"] == "ok")]
         ok = ok if keep is None else ok[ok["level"].isin(keep)]
-        return cells_from_records(ok[["level", "param", "success", "status"]].to_dict("records"))
+        return cells_from_frame(ok[["level", "param", "success", "status"]])
 
     ca, cb = (cells(e, keep) for e, keep in zip((ea, eb), usable or (None, None), strict=True))
     if len({c.level for c in ca}) < 2 or len({c.level for c in cb}) < 2:
@@ -206,8 +206,9 @@ def compare_main(args: argparse.Namespace) -> int:
             "compare needs two run directories (RUN_A RUN_B) or two groups (--a RUN... --b RUN...)"
         )
     ra, rb = RunDir.open(args.run_a), RunDir.open(args.run_b)
-    sa = summarize(ra.episodes(), ra.manifest, args.gamma)
-    sb = summarize(rb.episodes(), rb.manifest, args.gamma)
+    ea, eb = ra.episodes(), rb.episodes()  # built once: each call makes a new DataFrame of every row
+    sa = summarize(ea, ra.manifest, args.gamma)
+    sb = summarize(eb, rb.manifest, args.gamma)
     if not set(sa["axes"]) & set(sb["axes"]):
         raise RunDirError(f"{ra.path} and {rb.path} share no axis; compare runs evaluated on the same axis")
     la, lb = getattr(args, "label_a", None) or run_label(ra), getattr(args, "label_b", None) or run_label(rb)
@@ -215,12 +216,12 @@ def compare_main(args: argparse.Namespace) -> int:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
     protocol = check_comparable([(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
                                 getattr(args, "allow_protocol_mismatch", False), "paired or compared")  # fmt: skip
-    result = compare_summaries(sa, sb, args.test, args.gamma, episodes=(ra.episodes(), rb.episodes()))
+    result = compare_summaries(sa, sb, args.test, args.gamma, episodes=(ea, eb))
     result["label_a"], result["label_b"] = la, lb
     result["protocol"] = protocol
     for axis, ax in result["axes"].items():
         usable = (usable_levels(sa["axes"][axis]["levels"]), usable_levels(sb["axes"][axis]["levels"]))
-        ax["break_point_diff"] = break_point_diff(ra.episodes(), rb.episodes(), axis, args.gamma, usable)
+        ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"
     write_result(out, "compare", result, render_markdown(result, la, lb, result["verdict"]))

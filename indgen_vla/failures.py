@@ -25,6 +25,22 @@ def failure_counts(level_df) -> dict[str, int]:
     return {m: int(counts[m]) for m in MODES if counts.get(m)}
 
 
+def failure_counts_by(df, keys: list[str]) -> dict[tuple, dict[str, int]]:
+    """``failure_counts`` of every group of ``keys`` (a tuple of their values) in one pass over ``df``: a summary's
+    cells without filtering the table once per cell."""
+    from indgen_vla.frames import group_items
+
+    if not len(df):
+        return {}
+    if "failure" not in df:
+        return {k: {UNCLASSIFIED: c} for k, c in group_items(df.groupby(keys, sort=False).size())}
+    values = df["failure"].fillna("").replace("", UNCLASSIFIED).rename("_mode")
+    found: dict[tuple, dict[str, int]] = {}
+    for (*key, mode), c in group_items(df.groupby([*(df[k] for k in keys), values], sort=False).size()):
+        found.setdefault(tuple(key), {})[mode] = c
+    return {k: {m: counts[m] for m in MODES if counts.get(m)} for k, counts in found.items()}
+
+
 def render_breakdown(present: list[tuple[str, dict]]) -> list[str]:
     """Markdown lines: per run, one row per level with each mode's count (only modes that occur)."""
     lines = []

@@ -7,27 +7,83 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
-from indgen_vla.failures import failure_counts
+from indgen_vla.failures import failure_counts_by
 from indgen_vla.metrics import below_floor, break_levels, success_rate
-from indgen_vla.progress import level_progress
+from indgen_vla.progress import level_progress_by
 
 
-def level_rows(df, levels: Sequence[int], planned: int | None, ci: str) -> list[dict]:
-    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor."""
+@dataclass(frozen=True)
+class LevelCounts:
+    """One level's episodes (one task's, or pooled) reduced to what its summary row shows."""
+
+    rows: int = 0  # finished rows, errors included
+    n: int = 0  # rows with status "ok"
+    successes: int = 0
+    param: float | None = None  # one_param's answer
+    failures: Mapping[str, int] = field(default_factory=dict)  # failures.failure_counts
+    progress: dict | None = None  # progress.level_progress
+
+
+def level_counts(df, keys: Sequence[str] = ("level",)) -> dict[tuple, LevelCounts]:
+    """Every group's ``LevelCounts``, keyed by the tuple of its ``keys`` values (e.g. (task, level)), in one pass
+    over ``df``: filtering the table once per level and task is O(cells × rows) on a protocol-size run."""
+    from indgen_vla.frames import group_items, py
+
+    keys = list(keys)
+    if not len(df):
+        return {}
+    by = [df[k] for k in keys]
+    ok = df[df["status"] == "ok"]
+    n = dict(group_items(ok.groupby(keys, sort=False).size()))
+    successes = dict(group_items(ok.groupby(keys, sort=False)["success"].sum()))
+    param = df["param"]
+    spread = dict(group_items(param.groupby(by, sort=False).max() - param.groupby(by, sort=False).min()))
+    has_nan = dict(group_items(param.isna().groupby(by, sort=False).any()))
+    firsts = df.drop_duplicates(keys)  # the first row of each group: one_param's unique()[0]
+    first = {
+        tuple(py(v) for v in k): p for *k, p in zip(*(firsts[c] for c in keys), firsts["param"], strict=True)
+    }
+    failures, progress = failure_counts_by(df, keys), level_progress_by(df, keys)
+    return {
+        k: LevelCounts(rows=rows, n=n.get(k, 0), successes=int(successes.get(k, 0)),
+                       param=float(first[k]) if not has_nan[k] and spread[k] <= 1e-12 else None,
+                       failures=failures.get(k, {}), progress=progress.get(k))
+        for k, rows in group_items(df.groupby(by, sort=False).size())
+    }  # fmt: skip
+
+
+def by_task(df) -> tuple[dict, dict]:
+    """Each task's rows and its ``level_counts`` keyed by (level,), from one pass over an axis's rows (a filter per
+    task is O(tasks × rows) on a protocol of many tasks)."""
+    counts: dict[str, dict] = {}
+    for (task, level), c in level_counts(df, ("task", "level")).items():
+        counts.setdefault(task, {})[(level,)] = c
+    return dict(iter(df.groupby("task", sort=False))), counts
+
+
+def level_rows(
+    df, levels: Sequence[int], planned: int | None, ci: str, counts: Mapping[tuple, LevelCounts] | None = None
+) -> list[dict]:
+    """Per level n/successes/rate/CI/errors, and ``insufficient`` when below the data floor; ``counts``: ``df``'s
+    ``level_counts`` keyed by (level,), when the caller has them already."""
+    counts = level_counts(df) if counts is None else counts
     rows = []
     for level in levels:
-        d = df[df["level"] == level]
-        ok = d[d["status"] == "ok"]
-        r = success_rate(int(ok["success"].sum()), len(ok), method=ci)
+        c = counts.get((int(level),), EMPTY)
+        r = success_rate(c.successes, c.n, method=ci)
         rows.append({
-            "level": int(level), "param": one_param(d), "n": r.n,
+            "level": int(level), "param": c.param, "n": r.n,
             "successes": r.successes, "rate": r.rate, "ci_low": r.ci_low, "ci_high": r.ci_high,
-            "errors": int(len(d) - len(ok)), "planned": planned, "insufficient": below_floor(r.n, planned),
-            "failures": failure_counts(d), "progress": level_progress(d),
+            "errors": c.rows - c.n, "planned": planned, "insufficient": below_floor(r.n, planned),
+            "failures": dict(c.failures), "progress": c.progress,
         })  # fmt: skip
     return rows
+
+
+EMPTY = LevelCounts()  # a level without a finished episode
 
 
 def one_param(d) -> float | None:
@@ -89,9 +145,10 @@ def episodes_used(df, per_task: int | None, n_tasks: int, n_levels: int) -> dict
     return {"used": int(len(df)), "fixed_design": fixed}
 
 
-def task_entry(df, levels, per_task, ci, gamma, signed, adaptive: dict | None) -> dict:
-    """One task's rows of one axis: CI verdicts, or the sequential rule's for an adaptive run, with its k*."""
-    rows = level_rows(df, levels, per_task, ci)
+def task_entry(df, levels, per_task, ci, gamma, signed, adaptive: dict | None, counts=None) -> dict:
+    """One task's rows of one axis: CI verdicts, or the sequential rule's for an adaptive run, with its k*
+    (``counts``: ``df``'s ``level_counts`` by (level,), when the caller has them)."""
+    rows = level_rows(df, levels, per_task, ci, counts)
     if adaptive and per_task:
         sequential(rows, df, adaptive, per_task)
     else:

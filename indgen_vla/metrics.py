@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
@@ -11,6 +12,7 @@ from indgen_vla.errors import ConfigError
 DEFAULT_GAMMA = 0.2  # the paper's Table 1 threshold
 
 
+@functools.lru_cache(maxsize=16)  # one value per confidence level; a report asks for it per level and task
 def _z(conf: float) -> float:
     from scipy.special import ndtri  # scipy.stats.norm.ppf exactly, without importing scipy.stats (~1 s)
 

@@ -164,6 +164,7 @@ class RunDir:
     def __init__(self, path: str | os.PathLike[str]):
         self.path = Path(path)
         self._rows: dict[tuple[str, str, int, int], dict[str, Any]] | None = None
+        self._table = None  # episodes.parquet as read by a reader that never appended (``episodes``)
         self._pending = False  # rows appended but not yet in episodes.parquet
         self._flush_cost, self._flushed_at = 0.0, 0.0
 
@@ -240,24 +241,52 @@ class RunDir:
     # ----------------------------------------------------------------- episodes
     def _load(self) -> dict[tuple[str, str, int, int], dict[str, Any]]:
         if self._rows is None:
-            self._rows = {}
-            p = self.path / EPISODES
-            if p.exists():
-                import pyarrow.parquet as pq
-
-                try:
-                    table = pq.read_table(p)
-                except Exception as e:  # pyarrow raises several types for a damaged file
-                    raise RunDirError(
-                        f"{p} is corrupt ({type(e).__name__}); move it away to restart the run"
-                    ) from None
-                missing = set(COLUMNS) - set(table.column_names) - set(OPTIONAL)
-                if missing:
-                    raise RunDirError(f"{p} lacks columns {sorted(missing)}; it was not written by indgen")
-                for row in table.select([c for c in COLUMNS if c in table.column_names]).to_pylist():
+            table = self._read_table() if self._table is None else self._table  # the file as first read
+            # from here on the rows are this object's own (appends, journal)
+            self._rows, self._table = {}, None
+            if table is not None:
+                for row in table.to_pylist():
                     self._keep(row)
             self._replay_journal()
         return self._rows
+
+    def _read_table(self):
+        """episodes.parquet's COLUMNS (those it has) as an Arrow table; None when there is no file."""
+        p = self.path / EPISODES
+        if not p.exists():
+            return None
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(p)
+        except Exception as e:  # pyarrow raises several types for a damaged file
+            raise RunDirError(
+                f"{p} is corrupt ({type(e).__name__}); move it away to restart the run"
+            ) from None
+        missing = set(COLUMNS) - set(table.column_names) - set(OPTIONAL)
+        if missing:
+            raise RunDirError(f"{p} lacks columns {sorted(missing)}; it was not written by indgen")
+        return table.select([c for c in COLUMNS if c in table.column_names])
+
+    def _stored_frame(self):
+        """The episodes straight from the Parquet table when they are exactly its rows (nothing appended, no journal
+        to replay, one row per key, at least one row), else None: a reader skips building one dict per row. The
+        table is read once, like the rows ``_load`` keeps: later calls see the same episodes."""
+        if self._rows is not None:
+            return None
+        if self._table is None:
+            if (self.path / JOURNAL).exists():
+                return None
+            self._table = self._read_table()
+        if self._table is None or self._table.num_rows == 0:
+            return None
+        df = self._table.to_pandas()
+        if df.duplicated(list(KEY)).any():  # the dicts keep the last row of a key at its first one's place
+            return None
+        for column, default in OPTIONAL.items():
+            if column not in df:
+                df[column] = default
+        return df[list(COLUMNS)]
 
     def _keep(self, row: dict[str, Any]) -> None:
         """A stored row under its key (rows written before an OPTIONAL column existed get its default)."""
@@ -357,13 +386,18 @@ class RunDir:
 
     def episodes(self):
         """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
-        return episodes_frame(list(self._load().values()))
+        df = self._stored_frame()
+        return episodes_frame(list(self._load().values())) if df is None else _typed(df)
 
 
 def episodes_frame(rows: list[dict]):
     """Episode rows as the DataFrame ``RunDir.episodes`` returns (``[]``: a run with none yet, same dtypes)."""
     import pandas as pd
 
-    df = pd.DataFrame(rows, columns=list(COLUMNS))
+    return _typed(pd.DataFrame(rows, columns=list(COLUMNS)))
+
+
+def _typed(df):
+    """The DESIGN.md dtypes of the episode columns."""
     return df.astype({"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64",
                       "success": "bool", "progress": "Int8"})  # fmt: skip

@@ -11,6 +11,7 @@ from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.levels import (
     axis_verdicts,
+    by_task,
     condition2_validation,
     decide,
     episodes_used,
@@ -69,7 +70,9 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         levels = sorted({int(k) for k in df["level"].unique()} | {int(k) for k in plan_levels.get(axis, [])})
         signed = _axis_signed(manifest, axis, levels)
         adaptive = plan.get("adaptive") if per_task else None
-        task_entries = {t: task_entry(df[df["task"] == t], levels, per_task, ci, gamma, signed, adaptive)
+        frames, counts = by_task(df)
+        task_entries = {t: task_entry(frames.get(t, df.iloc[:0]), levels, per_task, ci, gamma, signed, adaptive,
+                                      counts.get(t, {}))
                         for t in tasks}  # fmt: skip
         pooled = level_rows(df, levels, per_task * len(tasks) if per_task else None, ci)
         decide(pooled, gamma)
@@ -102,13 +105,13 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
 def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict:
     """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled), from
     the levels above the data floor only (``levels``: the axis's pooled rows), like every other printed result."""
-    from indgen_vla.breakpoint import break_point, cells_from_records
+    from indgen_vla.breakpoint import break_point, cells_from_frame
 
     ok = df[(df["status"] == "ok") & df["level"].isin(usable_levels(levels))]
     if ok["level"].nunique() < 2:
         return {}
     keys = ("task",) if multi_task else ()
-    cells = cells_from_records(ok[["level", "param", "success", "status", "task"]].to_dict("records"), keys)
+    cells = cells_from_frame(ok[["level", "param", "success", "status", "task"]], keys)
     return break_point(cells, gamma, cluster_names=keys)
 
 
@@ -410,9 +413,10 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     return path
 
 
-def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
-    """Write summary.json, report.md and plots/*.png inside one run directory; return the summary."""
-    summary = summarize(run.episodes(), run.manifest, gamma, ci)
+def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None) -> dict:
+    """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
+    (``episodes``: ``run.episodes()`` when the caller has it already)."""
+    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
@@ -437,11 +441,12 @@ def report_main(args: argparse.Namespace) -> int:
     runs = [RunDir.open(p) for p in args.runs]
     results = []
     for run in runs:
-        if len(run.episodes()) == 0:
+        episodes = run.episodes()
+        if len(episodes) == 0:
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        results.append((run_label(run), write_run_report(run, args.gamma, args.ci)))
+        results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes)))
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]

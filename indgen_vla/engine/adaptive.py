@@ -29,12 +29,19 @@ def outcomes_of(episodes, task: str, axis: str) -> dict[int, dict[int, bool | No
     return level_outcomes(episodes[(episodes["task"] == task) & (episodes["axis"] == axis)])
 
 
+def ladder_outcomes(episodes) -> dict[tuple[str, str], dict[int, dict[int, bool | None]]]:
+    """``outcomes_of`` every (task, axis) with episodes, from one pass over the rows (a filter per ladder is
+    O(ladders × rows) per round on a protocol of many tasks)."""
+    return {(t, a): level_outcomes(g) for (t, a), g in episodes.groupby(["task", "axis"], sort=False)}
+
+
 def ladder_plans(plan: EvalPlan, episodes, cfg) -> dict[tuple[str, str], Plan]:
     """The sequential plan of every (task, axis) ladder (both directions of a signed axis), from the episodes
     finished so far; each ladder is decided on its own episodes only."""
     rule = cfg.sequential_rule()
+    outcomes = ladder_outcomes(episodes)
     return {
-        (t, a): plan_next(rule, sorted(plan.levels[a]), outcomes_of(episodes, t, a), cfg.adaptive)
+        (t, a): plan_next(rule, sorted(plan.levels[a]), outcomes.get((t, a), {}), cfg.adaptive)
         for a in plan.axes
         for t in plan.tasks
     }

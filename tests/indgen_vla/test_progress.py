@@ -34,6 +34,39 @@ def test_signed_rank_matches_scipy_without_ties_and_brute_force_with_ties():
     assert signed_rank_exact([1] * 5) == pytest.approx(2 / 32)
 
 
+def _whole_array_dp(groups):
+    """The signed-rank null as first written: every weight added over the whole array (the bit-for-bit reference)."""
+    dist = np.zeros(sum(n * r for n, r in groups) + 1)
+    dist[0] = 1.0
+    for n, r in groups:
+        nxt = np.zeros_like(dist)
+        for j, q in enumerate(stats.binom.pmf(np.arange(n + 1), n, 0.5)):
+            nxt[j * r :] += q * dist[: len(dist) - j * r]
+        dist = nxt
+    return dist
+
+
+def test_signed_rank_null_is_bit_identical_to_the_whole_array_dp_cached_or_not():
+    rng = np.random.default_rng(3)
+    d = list(rng.integers(-5, 6, 520))  # ~470 non-zero differences: a null of > NULL_CACHE_STATES, not cached
+    nz = [abs(x) for x in d if x]
+    ranks = P._doubled_midranks(nz)
+    groups = tuple(sorted((nz.count(v), ranks[v]) for v in set(nz)))
+    assert sum(n * r for n, r in groups) > P.NULL_CACHE_STATES
+    P._signed_rank_null_cached.cache_clear()
+    assert P._signed_rank_null(groups).tobytes() == _whole_array_dp(groups).tobytes()
+    assert P._signed_rank_null_cached.cache_info().currsize == 0  # a large null is not kept
+    small = ((1, 4000), (3, 7), (2, 1), (2000, 1))  # weights that underflow to 0 (n = 2000), a sparse support
+    assert stats.binom.pmf(0, 2000, 0.5) == 0
+    assert P._signed_rank_null(small).tobytes() == _whole_array_dp(small).tobytes()
+    assert P._signed_rank_null_cached.cache_info().currsize == 1
+    w = sum(ranks[abs(x)] for x in d if x > 0)
+    total = sum(n * r for n, r in groups)
+    sums = np.arange(total + 1)
+    want = _whole_array_dp(groups)[np.abs(2 * sums - total) >= abs(2 * w - total)].sum()
+    assert signed_rank_exact(d) == float(min(1.0, want))
+
+
 def test_sign_test_is_mcnemar_on_binary_scores():
     d = [5, 5, 5, -5, 0, 0]
     assert sign_test(d) == pytest.approx(stats.binomtest(3, 4, 0.5).pvalue) == pytest.approx(10 / 16)

@@ -184,3 +184,48 @@ def test_atomic_writes_follow_the_umask_not_mkstemps_0600(tmp_path):
     assert (tmp_path / "a.json").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "b.md").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "c.md").stat().st_mode & 0o777 == 0o600
+
+
+def _slow_episodes(path):
+    """The episodes built from one dict per row (the path every writer takes), for comparison."""
+    run = RunDir(path)
+    run._load()
+    return run.episodes()
+
+
+def test_a_reader_gets_the_same_episodes_straight_from_the_parquet_table(tmp_path):
+    """``episodes()`` of a run nobody appends to reads the Parquet table directly; it must equal the rows a writer
+    keeps (dtypes, order, legacy files without the optional columns), and fall back whenever they could differ."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    run = RunDir.create_or_resume(tmp_path / "r", {"plan": {"seed": 0}})
+    run.append([rec(1, 0), rec(0, 1, success=False), rec(0, 0, status="error"), rec(-1, 3, task="a")])
+    reader = RunDir.open(tmp_path / "r")
+    fast = reader.episodes()
+    assert reader._rows is None  # it took the table, not the dicts
+    pd.testing.assert_frame_equal(fast, _slow_episodes(tmp_path / "r"), check_exact=True)
+    assert list(fast.dtypes.astype(str)) == list(_slow_episodes(tmp_path / "r").dtypes.astype(str))
+    legacy = pq.read_table(tmp_path / "r" / EPISODES).drop(["failure", "progress"])
+    pq.write_table(legacy, tmp_path / "r" / EPISODES)  # a run dir from before both columns
+    pd.testing.assert_frame_equal(RunDir(tmp_path / "r").episodes(), _slow_episodes(tmp_path / "r"))
+    dup = pa.concat_tables([legacy, legacy.slice(0, 1)])  # a key twice: the dicts keep the last row
+    pq.write_table(dup, tmp_path / "r" / EPISODES)
+    assert len(RunDir(tmp_path / "r").episodes()) == 4
+    pd.testing.assert_frame_equal(RunDir(tmp_path / "r").episodes(), _slow_episodes(tmp_path / "r"))
+
+
+def test_a_journal_or_an_append_sends_episodes_through_the_rows(tmp_path, monkeypatch):
+    import indgen_vla.records as records
+
+    monkeypatch.setattr(records, "FLUSH_EVERY_ROWS", 0)
+    monkeypatch.setattr(records, "FLUSH_SHARE", 1e-9)
+    run = RunDir.create_or_resume(tmp_path / "r", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])
+    run.append([rec(0, 1)])  # deferred: in the journal, not yet in episodes.parquet
+    assert len(RunDir(tmp_path / "r").episodes()) == 2  # a reader replays the journal
+    reader = RunDir(tmp_path / "r")
+    run.flush()
+    assert len(reader.episodes()) == 2 and reader._rows is None
+    reader.append([rec(0, 2)])  # a reader turned writer keeps its rows from then on
+    assert len(reader.episodes()) == 3 and reader._rows is not None
