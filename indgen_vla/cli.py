@@ -205,12 +205,18 @@ def _add_report(sp: argparse._SubParsersAction) -> None:
         default="wilson",
         help="95%% interval of each level's success rate (default wilson; clopper-pearson is exact, wider)",
     )
+    p.add_argument(
+        "--margin", type=float, default=None, metavar="M",
+        help="also test, per level, whether the change from level 0 lies within ±M (paired equivalence test, e.g. "
+        "0.1 for ±10 points): the only way the report says \"no change\"",
+    )  # fmt: skip
     p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
 
 
 def _add_compare(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser(
-        "compare", help="per-level exact tests between two runs (paired when seeds match), Holm"
+        "compare",
+        help="per-level exact tests between two runs (paired when seeds match), or two axes (--axes), Holm",
     )
     p.add_argument("run_a", metavar="RUN_A", nargs="?", help="run directory A (or use --a for a group)")
     p.add_argument("run_b", metavar="RUN_B", nargs="?", help="run directory B (or use --b for a group)")
@@ -225,8 +231,14 @@ def _add_compare(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--label-b", default=None, help="name of group/run B in tables")
     p.add_argument(
-        "--margin", type=float, default=0.10, help="equivalence margin for groups (TOST on OOD mean success)"
-    )
+        "--axes", default=None, metavar="A_AXIS:B_AXIS",
+        help="compare axis A against axis B, paired episode by episode (same task, level, episode and seed): within "
+        "one run (compare RUN --axes pick_y+distractor:pick_y) or A of RUN_A against B of RUN_B",
+    )  # fmt: skip
+    p.add_argument(
+        "--margin", type=float, default=0.10,
+        help="equivalence margin (default 0.10): groups: TOST on the OOD mean success; --axes: paired TOST per level",
+    )  # fmt: skip
     p.add_argument(
         "--test",
         choices=["auto", "mcnemar", "boschloo", "barnard"],
@@ -242,7 +254,9 @@ def _add_compare(sp: argparse._SubParsersAction) -> None:
         help="compare runs whose protocol fingerprints differ in a field that changes outcomes (horizon, assets, "
         "simulator versions, cameras, render backend, conventions of one policy family); the output lists them",
     )
-    p.add_argument("--out", default=None, help="output folder (default: RUN_A/compare)")
+    p.add_argument(
+        "--out", default=None, help="output folder (default: RUN_A/compare; --axes A:B: RUN_A/compare_A_vs_B)"
+    )
 
 
 def _add_reference(sp: argparse._SubParsersAction) -> None:

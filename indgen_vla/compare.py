@@ -1,6 +1,7 @@
 """``indgen compare RUN_A RUN_B``: per-level exact tests with Holm correction — exact McNemar on episode pairs
 when the two runs share seeds and plan, Boschloo (or Barnard) otherwise — the difference in break levels, an
-overlay plot and a verdict sentence that never overstates."""
+overlay plot and a verdict sentence that never overstates. ``--axes A:B`` contrasts two axes of one run or of two
+runs, paired on the plan's common seeds (``compare_axes``); ``--a/--b`` two groups of runs (``compare_groups``)."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_leve
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
-from indgen_vla.report import plot_axis, run_label, summarize
+from indgen_vla.report import _safe, plot_axis, run_label, summarize
 
 TESTS = ("auto", "mcnemar", "boschloo", "barnard")
 
@@ -114,6 +115,12 @@ def _fmt_bp_diff(d: dict) -> str:
 
 def test_description(result: dict) -> str:
     """Which test ran and whether it is paired, in words (compare.md and the verdict say it)."""
+    if result.get("contrast"):
+        c = result["contrast"]
+        return (f"paired: axis `{c['axis_a']}` (A) against axis `{c['axis_b']}` (B), two-sided exact McNemar test on "
+                "the discordant episode pairs per level (episodes matched on scene, task, level, episode and seed: "
+                "the same initial state on both axes; pooled over tasks, pairs within task); level 0 is T0 on both axes, "
+                "shown as a check of the pairing, outside the Holm family")  # fmt: skip
     if result["paired"]:
         return ("paired: two-sided exact McNemar test on the discordant episode pairs per level (episodes matched "
                 "on task, axis, level, episode and seed)")  # fmt: skip
@@ -170,18 +177,27 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
              f"**Verdict.** {text}", ""]  # fmt: skip
     lines += protocol_section(result.get("protocol", []))
     for axis, ax in result["axes"].items():
-        lines += [f"## Axis `{axis}`", ""]
+        delta = "delta" in (ax["levels"] or [{}])[0]  # an axis contrast: B − A with its interval per level
+        head = (
+            f"Axes `{ax['axis_a']}` (A) vs `{ax['axis_b']}` (B), paired"
+            if "axis_a" in ax
+            else f"Axis `{axis}`"
+        )
+        lines += [f"## {head}", ""]
         if paired:
             lines += [f"Pairs: {ax.get('pairing', '')}.", "",
-                      "| level | A | B | A only | B only | p | p (Holm) |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+                      "| level | A | B | A only | B only | p | p (Holm) |" + (" B − A (pp) [95% CI] |" if delta else ""),
+                      "|---|---|---|---|---|---|---|" + ("---|" if delta else "")]  # fmt: skip
         else:
             lines += ["| level | A | B | p | p (Holm) |", "|---|---|---|---|---|"]
         for r in ax["levels"]:
             disc = f"{r['a_only']} | {r['b_only']} | " if paired else ""
             lines.append(
                 f"| {r['level']} | {r['successes_a']}/{r['n_a']} | {r['successes_b']}/{r['n_b']} | {disc}"
-                f"{r['p_value']:.3g} | {r['p_holm']:.3g} |"
+                f"{_p(r['p_value'])} | {_p(r['p_holm'])} |" + (f" {_fmt_delta(r)} |" if delta else "")
             )
+        if ax.get("equivalence"):
+            lines += ["", ax["equivalence"]]
         lines += ["", f"Break level k*: A {_k(ax['break_level_a'])}, B {_k(ax['break_level_b'])}"]
         if ax.get("break_point_diff"):
             lines += ["", f"Break point B − A (where the fitted curve crosses γ; 95 % bootstrap CI): "
@@ -191,12 +207,89 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
     return "\n".join(lines)
 
 
+def _p(x: float) -> str:
+    return "—" if math.isnan(x) else f"{x:.3g}"
+
+
+def _fmt_delta(r: dict) -> str:
+    from indgen_vla.contrasts import pp
+
+    if not r["pairs"]:
+        return "no pairs"
+    lo, hi = r["delta_ci"]
+    return f"{pp(r['delta'])} [{pp(lo)}, {pp(hi)}]"
+
+
+def axes_main(args: argparse.Namespace) -> int:
+    """``indgen compare RUN [RUN_B] --axes A:B``: compare.json, compare.md and overlay plots of the two axes."""
+    from indgen_vla.compare_axes import as_one_axis, check_plans, compare_axes, parse_axes
+    from indgen_vla.contrasts import check_margin
+
+    if getattr(args, "a", None) or getattr(args, "b", None):
+        raise ConfigError(
+            "--axes compares axes of one run (RUN) or of two runs (RUN_A RUN_B), not groups (--a/--b)"
+        )
+    if args.test in ("boschloo", "barnard"):
+        raise ConfigError(f"--axes compares paired episodes (exact McNemar); drop --test {args.test}")
+    check_margin(args.margin)
+    axis_a, axis_b = parse_axes(args.axes)
+    if not args.run_a:
+        raise ConfigError("--axes needs a run directory: indgen compare RUN --axes A_AXIS:B_AXIS")
+    ra = RunDir.open(args.run_a)
+    rb = RunDir.open(args.run_b) if args.run_b else ra
+    within = rb.path.resolve() == ra.path.resolve()
+    if within and axis_a == axis_b:
+        raise ConfigError(
+            f"--axes names {axis_a} twice within one run; name two axes, e.g. pick_y+distractor:pick_y"
+        )
+    ea = ra.episodes()
+    eb = ea if within else rb.episodes()
+    check_plans(ra, rb, ea, eb, axis_a, axis_b)
+    la = args.label_a or (axis_a if within else f"{run_label(ra)}: {axis_a}")
+    lb = args.label_b or (axis_b if within else f"{run_label(rb)}: {axis_b}")
+    if la == lb:
+        la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
+    protocol = [] if within else check_comparable(
+        [(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
+        getattr(args, "allow_protocol_mismatch", False), "paired or compared")  # fmt: skip
+    sa = summarize(ea, ra.manifest, args.gamma)
+    sb = sa if within else summarize(eb, rb.manifest, args.gamma)
+    result = compare_axes(ea, eb, sa, sb, axis_a, axis_b, args.margin, args.alpha)
+    result["contrast"].update(run_a=str(ra.path), run_b=str(rb.path), within_run=within)
+    result.update(label_a=la, label_b=lb, protocol=protocol)
+    key, ax = next(iter(result["axes"].items()))
+    usable = (usable_levels(sa["axes"][axis_a]["levels"]), usable_levels(sb["axes"][axis_b]["levels"]))
+    ax["break_point_diff"] = break_point_diff(as_one_axis(ea, axis_a, key), as_one_axis(eb, axis_b, key), key,
+                                              args.gamma, usable)  # fmt: skip
+    for d in ax["break_point_diff"].values():  # the axes' parameters are different quantities: levels only
+        d["param"], d["ci"]["param"] = None, [None, None]
+    result["verdict"] = f"{verdict(result, la, lb, args.alpha)} {ax['equivalence']}"
+    out = Path(args.out) if args.out else ra.path / f"compare_{_safe(axis_a)}_vs_{_safe(axis_b)}"
+    _write(out, result, [(key, _safe(key), [(la, sa["axes"][axis_a]), (lb, sb["axes"][axis_b])])], args.gamma)
+    return 0
+
+
+def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: float) -> None:
+    """compare.json, compare.md and per compared axis (title, file stem, curves) its overlay plots; compare.md to
+    stdout."""
+    text = render_markdown(result, result["label_a"], result["label_b"], result["verdict"])
+    write_result(out, "compare", result, text)
+    for axis, stem, curves in plots:
+        plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png")
+        plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
+        plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
+    print(text)
+    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
+
+
 def compare_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen compare``."""
     if not 0 < args.alpha < 1:
         raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}")
     if not 0 < args.gamma <= 1:
         raise ConfigError(f"--gamma must be in (0, 1], got {args.gamma}")
+    if getattr(args, "axes", None):
+        return axes_main(args)
     if getattr(args, "a", None) or getattr(args, "b", None):
         if args.run_a or args.run_b:
             raise ConfigError("give either RUN_A RUN_B or --a RUN... --b RUN..., not both")
@@ -210,7 +303,8 @@ def compare_main(args: argparse.Namespace) -> int:
     sa = summarize(ea, ra.manifest, args.gamma)
     sb = summarize(eb, rb.manifest, args.gamma)
     if not set(sa["axes"]) & set(sb["axes"]):
-        raise RunDirError(f"{ra.path} and {rb.path} share no axis; compare runs evaluated on the same axis")
+        raise RunDirError(f"{ra.path} and {rb.path} share no axis; compare runs evaluated on the same axis, or "
+                          "contrast two axes with --axes A_AXIS:B_AXIS")  # fmt: skip
     la, lb = getattr(args, "label_a", None) or run_label(ra), getattr(args, "label_b", None) or run_label(rb)
     if la == lb:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
@@ -224,12 +318,6 @@ def compare_main(args: argparse.Namespace) -> int:
         ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"
-    write_result(out, "compare", result, render_markdown(result, la, lb, result["verdict"]))
-    for axis in result["axes"]:
-        curves = [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]
-        plot_axis(curves, axis, args.gamma, out / "plots" / f"{axis}.png")
-        plot_failures(curves, axis, out / "plots" / f"{axis}_failures.png")
-        plot_progress(curves, axis, out / "plots" / f"{axis}_progress.png")
-    print(render_markdown(result, la, lb, result["verdict"]))
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
+    plots = [(axis, axis, [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]) for axis in result["axes"]]
+    _write(out, result, plots, args.gamma)
     return 0

@@ -335,14 +335,18 @@ def monotone_decreasing_test(
 
 
 def mcnemar_exact(a_only: int, b_only: int) -> float:
-    """Two-sided exact McNemar test: under equal success, each discordant pair favours A with chance 1/2."""
-    from scipy.stats import binomtest
+    """Two-sided exact McNemar test: under equal success, each discordant pair favours A with chance 1/2.
+
+    Binomial(m, 1/2) is symmetric, so scipy's two-sided ``binomtest`` p-value is twice the smaller tail, capped at 1;
+    the binomial CDF (``scipy.special.bdtr``) gives it ~100× faster, which a report of many tasks and levels needs.
+    """
+    from scipy.special import bdtr
 
     if a_only < 0 or b_only < 0:
         raise ConfigError(f"discordant counts must be >= 0, got {a_only}, {b_only}")
     if a_only + b_only == 0:
         return 1.0  # no discordant pair: no evidence of a difference
-    return float(binomtest(a_only, a_only + b_only, 0.5, alternative="two-sided").pvalue)
+    return min(1.0, float(2 * bdtr(min(a_only, b_only), a_only + b_only, 0.5)))
 
 
 def holm(p_values: Sequence[float]) -> list[float]:

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.contrasts import add_vs_t0, check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.levels import (
@@ -51,9 +52,11 @@ def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> 
     return bool(info["signed"]) if "signed" in info else any(k < 0 for k in levels)
 
 
-def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, ci: str = "wilson") -> dict:
+def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, ci: str = "wilson",
+              margin: float | None = None) -> dict:  # fmt: skip
     """The summary.json dict: per axis, per level n/successes/rate/CI (pooled over tasks and per task), break
-    levels, and the linear (Cochran–Armitage) and monotone (isotonic LRT) trend tests.
+    levels, the linear (Cochran–Armitage) and monotone (isotonic LRT) trend tests, and each level's paired change
+    from level 0 (``vs_t0``; with ``margin``, its equivalence test).
 
     Rows with status "error" are excluded from n and counted in ``errors``; levels planned in the manifest
     but not yet run appear with n = 0; a level below the floor is marked ``insufficient`` and k* treats it as
@@ -99,6 +102,7 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci)
         for e in task_entries.values():
             e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
+        add_vs_t0(a, df, margin)
     return out
 
 
@@ -328,6 +332,7 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
         warnings = [w for lbl, a in present for w in error_warnings(lbl, a)]
         if warnings:
             lines += ["", *warnings]
+        lines += render_vs_t0(present)
         lines += render_breakdown(present)
         lines += render_levels(present)
         if any(len(a.get("tasks", {})) > 1 for _, a in present):
@@ -413,10 +418,12 @@ def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Pat
     return path
 
 
-def write_run_report(run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None) -> dict:
+def write_run_report(
+    run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None, margin: float | None = None
+) -> dict:
     """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
     (``episodes``: ``run.episodes()`` when the caller has it already)."""
-    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci)
+    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci, margin)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
@@ -438,6 +445,7 @@ def report_main(args: argparse.Namespace) -> int:
     """CLI: ``indgen report RUN... [--gamma] [--ci] [--out]``."""
     if not 0 < args.gamma <= 1:
         raise ConfigError(f"--gamma must be in (0, 1], got {args.gamma}")
+    check_margin(margin := getattr(args, "margin", None))
     runs = [RunDir.open(p) for p in args.runs]
     results = []
     for run in runs:
@@ -446,7 +454,7 @@ def report_main(args: argparse.Namespace) -> int:
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes)))
+        results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes, margin)))
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
@@ -514,5 +522,7 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                 console.print(
                     f"condition 2, black-box (appendix B): {fmt_condition2(a['condition2'], a['signed'])}"
                 )
+            for line in t0_lines(a):
+                console.print(line, markup=False, highlight=False)
             for w in error_warnings(label, a):
                 console.print(w.replace("**", ""))

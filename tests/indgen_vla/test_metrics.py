@@ -202,6 +202,12 @@ def test_mcnemar_is_binomtest_on_discordant_pairs():
     assert mcnemar_exact(8, 1) == pytest.approx(binomtest(8, 9, 0.5).pvalue)
     assert mcnemar_exact(8, 1) == pytest.approx(2 * 10 / 512)  # hand: 2·(C(9,0)+C(9,1))/2^9
     assert mcnemar_exact(0, 0) == 1.0
+    for a in range(25):  # the binomial-CDF form equals scipy's binomtest everywhere, ties (p = 1) included
+        for b in range(25):
+            if a + b:
+                assert mcnemar_exact(a, b) == pytest.approx(
+                    binomtest(a, a + b, 0.5).pvalue, rel=1e-9, abs=1e-300
+                )
     pairs = {
         0: [(True, True)] * 9 + [(True, False)],
         1: [(True, False)] * 8 + [(False, True)] + [(False, False)] * 3,

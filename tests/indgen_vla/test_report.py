@@ -126,7 +126,9 @@ def test_data_floor_and_visible_errors(tmp_path, capsys):
     assert "insufficient data (n = 1 of 4; 3 errors)" in md and "insufficient data (n = 0 of 4)" in md
     assert "| 2 | 0.05 | insufficient data (n = 4 of 4) |" in md
     rows_md = [line for line in md.splitlines() if line.startswith(("| 1 |", "| 2 |", "| 3 |"))]
-    assert len(rows_md) == 3 and not any("%" in line for line in rows_md)  # no rate below the floor
+    # three curve rows and three change-from-T0 rows: no rate, and no change from T0, below the floor
+    assert len(rows_md) == 6 and not any("%" in line for line in rows_md)
+    assert "| 2 | insufficient data | 4 |" in md and "| 3 | no pairs | 0 |" in md
     assert "undetermined" in md and "level 1 has 3 error episode(s) of 4 (75 % > 10 %)" in md
     assert main(["report", str(run.path)]) == 0
     out = capsys.readouterr().out
