@@ -147,7 +147,12 @@ def _step_text(info: Mapping[str, Any] | None) -> str:
         return f"{100 * step:.3g} cm per level"
     if unit == "fraction":
         return f"{100 * step:.3g} % per level"
-    return f"{step:g} {unit} per level"
+    return f"{step:g} {unit_name(unit, step)} per level"
+
+
+def unit_name(unit: str, x: float) -> str:
+    """A plural unit in the singular for one of it ("1 object"), as is otherwise ("2 objects", "0.25 in")."""
+    return unit[:-1] if x == 1 and unit.endswith("s") else unit
 
 
 def _legend_label(label: str, s: dict) -> str:

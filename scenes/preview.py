@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError, RunDirError
-from indgen_vla.figures import contact_sheet
+from indgen_vla.figures import contact_sheet, unit_name
 from indgen_vla.plan import ScenePlan
 from indgen_vla.records import atomic_savefig
 from indgen_vla.seeding import episode_seed
@@ -87,7 +87,7 @@ def _value(x: float, unit: str) -> str:
         return f"{x:.3f} m"
     if unit == "fraction":
         return f"×{x:.3f}"
-    return f"{x:g} {unit}"
+    return f"{x:g} {unit_name(unit, x)}"
 
 
 def render_level(
