@@ -21,6 +21,7 @@ from indgen_vla.errors import IndgenError
 HANDLERS: dict[str, str] = {
     "evaluate": "indgen_vla.engine.cli:evaluate_main",
     "certify": "scenes.certify:certify_main",
+    "preview": "scenes.preview:preview_main",
     "report": "indgen_vla.report:report_main",
     "compare": "indgen_vla.compare:compare_main",
     "reference": "indgen_vla.reference:reference_main",
@@ -195,6 +196,26 @@ def _add_certify(sp: argparse._SubParsersAction) -> None:
     )
 
 
+def _add_preview(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser(
+        "preview",
+        help="render each level's first observation into one labelled sheet (check an axis before a run)",
+    )
+    p.add_argument("--scene", required=True, help="scene (see 'indgen scenes')")
+    p.add_argument("--task", default=None, help="task of the scene (default: the scene's first task)")
+    p.add_argument(
+        "--axis", required=True, help="axis, composition or comma list (one row each), e.g. pick_y"
+    )
+    _add_level_options(p)
+    p.add_argument(
+        "--camera", default=None, help="camera to show (default: the scene's first, e.g. agentview)"
+    )
+    p.add_argument("--size", type=int, default=256, help="image side in pixels (default 256)")
+    p.add_argument("--episode", type=int, default=0, help="episode whose initial state to show (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="run seed, as evaluate's --seed (default 0)")
+    p.add_argument("--out", required=True, help="image file: .png, .pdf, .svg or .jpg")
+
+
 def _add_report(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("report", help="summary.json, report.md and plots for one or more run directories")
     p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="run directories written by 'indgen evaluate'")
@@ -319,6 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     _add_evaluate(sp)
     _add_certify(sp)
+    _add_preview(sp)
     _add_report(sp)
     _add_compare(sp)
     _add_reference(sp)

@@ -13,13 +13,14 @@ from typing import Any
 from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
+from indgen_vla.figures import plot_axis
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.levels import usable_levels
 from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
-from indgen_vla.report import _safe, plot_axis, run_label, summarize
+from indgen_vla.report import _safe, run_label, summarize
 
 TESTS = ("auto", "mcnemar", "boschloo", "barnard")
 

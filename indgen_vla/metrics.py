@@ -76,6 +76,14 @@ def success_rate(successes: int, n: int, method: str = "wilson", conf: float = 0
     return Rate(n=n, successes=successes, rate=successes / n if n else float("nan"), ci_low=lo, ci_high=hi)
 
 
+def difference_ci(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float]:
+    """Interval of rate_a − rate_b for two independent samples, each given as (rate, ci_low, ci_high): the MOVER
+    combination of the two rates' own intervals (with Wilson intervals: Newcombe 1998, method 10)."""
+    (pa, la, ua), (pb, lb, ub) = a, b
+    d = pa - pb
+    return d - math.hypot(pa - la, ub - pb), d + math.hypot(ua - pa, pb - lb)
+
+
 MIN_N = 5  # data floor: fewer finished episodes than this never yields a printed rate or a k*
 
 

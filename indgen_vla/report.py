@@ -10,6 +10,7 @@ from typing import Any
 from indgen_vla.contrasts import add_vs_t0, check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
+from indgen_vla.figures import AXES_PLOT, axis_order, axis_specs, overview_lines, plot_axes, plot_axis
 from indgen_vla.levels import (
     axis_verdicts,
     by_task,
@@ -41,7 +42,6 @@ from indgen_vla.records import (
     SECTIONS,
     SUMMARY,
     RunDir,
-    atomic_savefig,
     atomic_write_json,
     atomic_write_text,
 )
@@ -267,8 +267,13 @@ def _pools(present: list[tuple[str, dict]]) -> str:
     return "Pooled over tasks: " + "; ".join(f"{lbl}: {t}" for lbl, t in texts.items()) + "."
 
 
-def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive generalization report") -> str:
-    """A levels × runs table per axis with rate, CI, n, errors and k*, the trend tests, and k* per task."""
+def render_markdown(
+    summaries: list[tuple[str, dict]],
+    title: str = "Inductive generalization report",
+    order: Sequence[str] = (),
+) -> str:
+    """A levels × runs table per axis with rate, CI, n, errors and k*, the trend tests, and k* per task; with two
+    or more axes first the axes × levels overview (``figures.overview_lines``, in ``order``)."""
     s0 = summaries[0][1]
     gamma = s0["gamma"]
     lines = [f"# {title}", "",
@@ -279,6 +284,7 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
              "(k* is \"undetermined\" when such a level comes before the break). Trend tests are one-sided "
              "(success falls with |k|), per direction, on the levels with enough data. param \"—\": no episode, or "
              "the pooled tasks use different parameters (see each task in summary.json).", ""]  # fmt: skip
+    lines += overview_lines(summaries, order or None)
     axes = sorted({a for _, s in summaries for a in s["axes"]})
     for axis in axes:
         present = [(label, s["axes"][axis]) for label, s in summaries if axis in s["axes"]]
@@ -354,70 +360,6 @@ def render_markdown(summaries: list[tuple[str, dict]], title: str = "Inductive g
     return "\n".join(lines)
 
 
-def _usable(rows: list[dict]) -> list[dict]:
-    return [r for r in rows if r["n"] > 0 and not r.get("insufficient", False)]
-
-
-def _once(shown: set[str], label: str) -> str | None:
-    """``label`` the first time, None after (one legend entry for a marker every curve draws)."""
-    if label in shown:
-        return None
-    shown.add(label)
-    return label
-
-
-def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Path) -> Path:
-    """Success vs level in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands; each task's
-    curve drawn faintly behind the pooled one when a run pools several tasks; levels without enough data
-    are not drawn."""
-    from matplotlib.figure import Figure  # not pyplot: no GUI backend or figure registry to start (start-up)
-
-    fig = Figure(figsize=(6.4, 4.2), dpi=120)
-    ax = fig.subplots()
-    marked: set[str] = set()  # legend entries already shown (the break-point marker is explained once)
-    all_levels: list[int] = []
-    signed = False
-    for label, a in curves:
-        rows = _usable(a["levels"])
-        ks = [r["level"] for r in rows]
-        all_levels += ks
-        signed |= a["signed"]
-        line = ax.plot(ks, [r["rate"] for r in rows], marker="o", label=label, zorder=3)[0]
-        ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], alpha=0.2,
-                        color=line.get_color(), zorder=2)  # fmt: skip
-        for b in a.get("break_point", {}).values():  # where the fitted curve crosses γ, with its interval
-            lo, hi = b.get("ci", {}).get("level", [None, None])
-            if b.get("level") is not None and lo is not None and hi is not None:
-                ax.errorbar([b["level"]], [gamma], xerr=[[b["level"] - lo], [hi - b["level"]]], fmt="D", ms=4,
-                            color=line.get_color(), capsize=3, zorder=4,
-                            label=_once(marked, "break point (S = γ), 95% CI"))  # fmt: skip
-        tasks = a.get("tasks", {})
-        if len(tasks) > 1:
-            for i, t in enumerate(sorted(tasks)):
-                tr = _usable(tasks[t]["levels"])
-                ax.plot([r["level"] for r in tr], [r["rate"] for r in tr], color=line.get_color(), alpha=0.25,
-                        lw=0.8, zorder=1, label=f"{label}: single tasks ({len(tasks)})" if i == 0 else None)  # fmt: skip
-    ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
-    if signed and all_levels:
-        m = max(abs(k) for k in all_levels)
-        ax.set_xlim(-m - 0.5, m + 0.5)
-        ax.axvline(0, color="black", lw=0.5, alpha=0.4)
-    if all_levels:
-        ax.set_xticks(sorted(set(all_levels)))
-    ax.set_ylim(-0.03, 1.03)
-    ax.set_xlabel(f"level k along {axis}")
-    ax.set_ylabel("success rate")
-    ax.set_title(axis)
-    ax.grid(alpha=0.3)
-    handles, labels = ax.get_legend_handles_labels()  # below the axes, so the curves keep the full width
-    ncol = 2 if len(labels) > 1 and max(map(len, labels)) <= 48 else 1
-    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
-    fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_savefig(fig, path)
-    return path
-
-
 def write_run_report(
     run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None, margin: float | None = None
 ) -> dict:
@@ -427,13 +369,14 @@ def write_run_report(
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
-    atomic_write_text(
-        run.path / REPORT, "\n".join([render_markdown([(label, summary)], f"Report: {label}"), *extra])
-    )
+    order = axis_order([(label, summary)], [run.manifest])
+    text = render_markdown([(label, summary)], f"Report: {label}", order)
+    atomic_write_text(run.path / REPORT, "\n".join([text, *extra]))
     for axis, a in summary["axes"].items():
         plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
         plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
+    plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
     return summary
 
 
@@ -473,7 +416,8 @@ def report_main(args: argparse.Namespace) -> int:
             [(lbl, r.manifest.get("fingerprint")) for (lbl, _), r in zip(results, runs, strict=True)],
             allow=True,
         )  # side by side, never pooled: differences are shown, not refused
-        text = render_markdown(results, "Inductive generalization: run comparison")
+        order = axis_order(results, [r.manifest for r in runs])
+        text = render_markdown(results, "Inductive generalization: run comparison", order)
         atomic_write_text(
             out / REPORT, text + "\n" + "\n".join(protocol_section(protocol)) if protocol else text
         )
@@ -482,6 +426,9 @@ def report_main(args: argparse.Namespace) -> int:
             plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")
             plot_failures(curves, axis, out / "plots" / f"{_safe(axis)}_failures.png")
             plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
+        plot_axes(
+            results, args.gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs])
+        )
         print(f"overlay: {out / REPORT}, {out / 'plots'}/")
     print_tables(results)
     return 0

@@ -211,7 +211,11 @@ class BaseSceneEnv(gym.Env):
         names = self._camera_names()
         if camera not in names:
             raise ConfigError(f"unknown camera {camera!r}; cameras are {list(names)}")
-        return np.ascontiguousarray(self._render(names[camera], _check_size(size, "frame size"))[::-1])
+        return self.upright(self._render(names[camera], _check_size(size, "frame size")))
+
+    def upright(self, image: np.ndarray) -> np.ndarray:
+        """An observation image as a person views it (videos, ``indgen preview``): robosuite renders upside down."""
+        return np.ascontiguousarray(image[::-1])
 
     def _render(self, camera: str, size: tuple[int, int]) -> np.ndarray:
         """MuJoCo camera ``camera`` at ``size`` in robosuite's raw (OpenGL, upside-down) orientation."""

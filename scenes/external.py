@@ -157,6 +157,10 @@ class ExternalSceneEnv(BaseSceneEnv):
             raise SceneError(f"{self._where()}: no camera was rendered; request cameras to record video")
         return images[camera] if camera in images else next(iter(images.values()))
 
+    def upright(self, image: np.ndarray) -> np.ndarray:
+        """The worker's images are upright already (``render_frame`` shows them as they come)."""
+        return image
+
     def close(self) -> None:
         """Free the level; its live worker is kept idle for the next env of this runtime (one per runtime)."""
         if self._worker is not None:

@@ -14,6 +14,7 @@ from indgen_vla.metrics import (
     cochran_armitage,
     compare_levels,
     compare_paired_levels,
+    difference_ci,
     holm,
     isotonic_decreasing,
     kstar,
@@ -55,6 +56,16 @@ def test_normal_quantiles_are_scipy_stats_norm_bit_for_bit():
         t = cochran_armitage([0, 1, 2], x, [10, 10, 10])
         assert t.p_decreasing == float(norm.cdf(t.statistic))
         assert t.p_two_sided == float(2 * norm.sf(abs(t.statistic)))
+
+
+def test_difference_ci_is_newcombes_method_10():
+    # Newcombe (1998), Stat. Med. 17:873, Table II example (a): 56/70 − 48/80 = 0.2000, 95 % CI 0.0524 to 0.3339
+    a, b = (56 / 70, *wilson_ci(56, 70)), (48 / 80, *wilson_ci(48, 80))
+    lo, hi = difference_ci(a, b)
+    assert lo == pytest.approx(0.0524, abs=5e-5) and hi == pytest.approx(0.3339, abs=5e-5)
+    # example (h): 10/10 − 0/10 = 1, CI 0.6075 to 1 (the interval of a sure drop stays inside [−1, 1])
+    lo, hi = difference_ci((1.0, *wilson_ci(10, 10)), (0.0, *wilson_ci(0, 10)))
+    assert lo == pytest.approx(0.6075, abs=5e-5) and hi == pytest.approx(1.0)
 
 
 def test_clopper_pearson_edges_hand():
