@@ -230,6 +230,8 @@ def t0_verdict(rows: list[dict], margin: float | None, alpha: float = ALPHA) -> 
     the equivalence test shows it."""
     tested = [r for r in rows if not math.isnan(r["vs_t0"]["p"])]
     if not tested:
+        if any(r["vs_t0"]["n_pairs"] for r in rows):
+            return "not tested yet: T0 or every other level is below the data floor"
         return "no level has episodes paired with T0 yet"
     differ = [r for r in tested if r["vs_t0"]["p_holm"] < alpha]
     text = (f"{', '.join(_k(r['level']) for r in differ)} differ{'s' * (len(differ) == 1)} from T0"

@@ -268,3 +268,13 @@ def test_adaptive_ladders_pair_only_what_ran(tmp_path):
         assert v["n_pairs"] == expect
         assert v["unpaired"] == [sum(len(ran[(t, 0)]) for t in rates) - expect, rows[k]["n"] - expect]
     assert ax["tasks"]["hard"]["levels"][2]["vs_t0"]["n_pairs"] == 0  # never ran: no pairs, no test
+
+
+def test_verdict_tells_levels_below_the_floor_from_no_pairs():
+    from indgen_vla.contrasts import t0_verdict
+
+    below = {"p": math.nan, "n_pairs": 3}
+    assert t0_verdict([{"level": 1, "vs_t0": below}], None).startswith("not tested yet: T0 or every other")
+    assert t0_verdict([{"level": 1, "vs_t0": below | {"n_pairs": 0}}], None) == (
+        "no level has episodes paired with T0 yet"
+    )
