@@ -224,7 +224,7 @@ def main(argv: list[str] | None = None) -> str:
     ap.add_argument("--device", default="cpu", help="where to run the random init (cuda: much faster)")
     a = ap.parse_args(argv)
     spec = BUILDERS[a.kind](Path(a.out), reduced=a.reduced, device=a.device)
-    print(json.loads((Path(a.out) / "indgen_build.json").read_text()) | {"spec": spec})
+    print(json.dumps(json.loads((Path(a.out) / "indgen_build.json").read_text()) | {"spec": spec}))
     return spec
 
 

@@ -1,0 +1,221 @@
+"""scripts/gpu/: the kit a bare GPU box needs (kit.py) and the driver that runs issue 28's rows there (rows.py).
+
+No GPU here: the driver's rows run as a CPU rehearsal (the same commands at tiny sizes; the whole set is slow),
+and the kit's pieces are checked on wheels built in tmp_path and installed with the real pip."""
+
+from __future__ import annotations
+
+import importlib.metadata as md
+import importlib.util
+import json
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _load(name: str):
+    spec = importlib.util.spec_from_file_location(f"gpu_{name}", ROOT / "scripts" / "gpu" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses resolve their module by name
+    spec.loader.exec_module(mod)
+    return mod
+
+
+rows = _load("rows")
+kit = _load("kit")
+
+
+def _ctx(tmp_path: Path, **results) -> object:
+    return rows.Ctx(sys.executable, "cpu", True, tmp_path, results)
+
+
+def test_last_json_takes_the_last_object_line():
+    text = 'progress {"not": json\n{"a": 1}\nnoise\n{"b": 2}\n{broken\n'
+    assert rows.last_json(text) == {"b": 2}
+    assert rows.last_json("no json here") is None
+
+
+def test_run_row_records_rc_result_and_log_tail(tmp_path):
+    row = rows.Row("t", 60, lambda c: [c.python, "-c", "print('x'); print('{\"v\": 3}')"], "a tiny row")
+    rec = rows.run_row(row, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)
+    assert rec["rc"] == 0 and rec["result"] == {"v": 3} and rec["timeout_s"] == 60
+    assert "== t rc=0" in (tmp_path / "log.txt").read_text()
+
+
+def test_run_row_fails_skips_and_times_out(tmp_path, monkeypatch):
+    failing = rows.Row("f", 60, lambda c: [c.python, "-c", "print('{\"v\": 1}'); raise SystemExit(3)"], "")
+    rec = rows.run_row(failing, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)
+    assert rec["rc"] == 3 and rec["result"] is None  # a failed row's output is not a result
+    needs = rows.Row("n", 60, lambda c: None, "")
+    assert rows.run_row(needs, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)["skipped"].startswith(
+        "an earlier"
+    )
+    over = rows.run_row(failing, _ctx(tmp_path), rows.time.monotonic() + 25, tmp_path)
+    assert over["skipped"].startswith("budget") and "rc" not in over
+    monkeypatch.setattr(rows, "MIN_ROW_S", 1)
+    slow = rows.Row("s", 2, lambda c: [c.python, "-c", "import time; time.sleep(30)"], "")
+    rec = rows.run_row(slow, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)
+    assert rec["rc"] == "timeout" and rec["timeout_s"] == 2 and rec["wall_s"] < 10
+
+
+def test_pi05_rows_take_the_built_spec_and_wait_for_it(tmp_path):
+    assert rows.ROWS["pi05_scaling"].argv(_ctx(tmp_path)) is None  # the build failed or did not run
+    built = _ctx(tmp_path, pi05_build={"spec": "lerobot:/m/pi05?tokenizer=/m/tok"})
+    argv = rows.ROWS["pi05_pipeline"].argv(built)
+    assert (
+        argv[argv.index("--policy") + 1] == "lerobot:/m/pi05?tokenizer=/m/tok&replan=5"
+        and "--pipeline" in argv
+    )
+    assert rows._pi05_spec(_ctx(tmp_path, pi05_build={"spec": "lerobot:/m"})) == "lerobot:/m?replan=5"
+    gpu = rows.Ctx("python3", "cuda", False, tmp_path, built.results)
+    argv = rows.ROWS["pi05_compile"].argv(gpu)
+    assert (
+        argv[argv.index("--compile") + 1] == "reduce-overhead" and argv[argv.index("--device") + 1] == "cuda"
+    )
+
+
+def test_unknown_row_is_one_line_and_exit_2(tmp_path, capsys):
+    assert rows.main(["scalling", "--rehearsal", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown row 'scalling'" in err[0] and "scaling" in err[0]
+
+
+def test_rehearsal_env_row_through_the_command_line(tmp_path):
+    proc = subprocess.run([sys.executable, "scripts/gpu/rows.py", "--rehearsal", "env", "--out", str(tmp_path)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    recs = [json.loads(x) for x in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    assert [r["row"] for r in recs] == ["setup", "env"] and "venv" not in recs[0]  # nothing installed here
+    env = recs[1]["result"]
+    assert env["gpu"] is None and env["lerobot"] == md.version("lerobot") and env["robosuite"] == "1.4.0"
+
+
+@pytest.mark.slow
+def test_rehearsal_of_every_row(tmp_path):
+    proc = subprocess.run([sys.executable, "scripts/gpu/rows.py", "--rehearsal", "all", "--budget", "1500",
+                           "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True, timeout=1600)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    recs = {r["row"]: r for r in map(json.loads, (tmp_path / "rows.jsonl").read_text().splitlines())}
+    assert set(recs) == {"setup", *rows.ROWS}
+    failed = {k: r.get("rc", r.get("skipped")) for k, r in recs.items() if k != "setup" and r.get("rc") != 0}
+    assert not failed, (tmp_path / "log.txt").read_text()[-4000:]
+    assert recs["pi05_scaling"]["result"]["scaling_policy"].endswith("replan=5")
+
+
+def _wheel(path: Path, files: dict[str, bytes], requires: tuple[str, ...] = ()) -> Path:
+    """A minimal valid wheel (METADATA, WHEEL, RECORD) holding ``files``."""
+    name, version = path.name.split("-")[:2]
+    info = f"{name}-{version}.dist-info"
+    meta = f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n" + "".join(
+        f"Requires-Dist: {r}\n" for r in requires
+    )
+    members = {**files, f"{info}/METADATA": meta.encode(),
+               f"{info}/WHEEL": b"Wheel-Version: 1.0\nGenerator: test\nRoot-Is-Purelib: true\nTag: py3-none-any\n"}  # fmt: skip
+    import base64
+    import hashlib
+
+    record = [
+        f"{n},sha256={base64.urlsafe_b64encode(hashlib.sha256(d).digest()).rstrip(b'=').decode()},{len(d)}"
+        for n, d in members.items()
+    ]
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for n, d in members.items():
+            z.writestr(n, d)
+        z.writestr(f"{info}/RECORD", "\n".join([*record, f"{info}/RECORD,,"]) + "\n")
+    return path
+
+
+def test_trim_wheel_drops_unopened_assets_and_pip_installs_the_rest(tmp_path):
+    src = _wheel(tmp_path / "robosim-1.0-py3-none-any.whl", {
+        "robosim/__init__.py": b"X = 1\n", "robosim/models/assets/a.stl": b"a" * 100,
+        "robosim/models/assets/b.stl": b"b" * 100, "robosim/models/assets/c.xml": b"<c/>"})  # fmt: skip
+    out = tmp_path / "trimmed"
+    out.mkdir()
+    dst = out / src.name
+    keep = {"robosim/models/assets/a.stl"}
+    assert kit.trim_wheel(src, dst, keep, "robosim/models/assets/") == 2
+    with zipfile.ZipFile(dst) as z:
+        names = set(z.namelist())
+        record = z.read("robosim-1.0.dist-info/RECORD").decode()
+        assert all(i.compress_type == zipfile.ZIP_STORED for i in z.infolist())
+    assert "robosim/models/assets/a.stl" in names and "robosim/models/assets/b.stl" not in names
+    assert "b.stl" not in record and "c.xml" not in record and "robosim/__init__.py" in record
+    target = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-index", "--no-deps", "--target",
+                    str(target), str(dst)], check=True, capture_output=True)  # fmt: skip
+    assert (target / "robosim/models/assets/a.stl").read_bytes() == b"a" * 100
+    assert not (target / "robosim/models/assets/b.stl").exists()
+
+
+def test_carry_set_keeps_what_the_box_lacks_and_its_pinned_versions():
+    opened = {"lerobot", "MuJoCo", "robosuite", "numpy", "scipy", "torch", "nvidia_cublas", "transformers",
+              "tokenizers", "indgen_vla", "Farama.Notifications", "opencv-python"}  # fmt: skip
+    assert kit.carry_set(opened) == ["farama-notifications", "lerobot", "mujoco", "robosuite", "tokenizers",
+                                     "transformers"]  # fmt: skip
+
+
+def test_opened_files_reads_successful_opens_only(tmp_path):
+    log = tmp_path / "strace.log"
+    log.write_text(
+        '101 openat(AT_FDCWD, "/usr/lib/a.so", O_RDONLY|O_CLOEXEC) = 3\n'
+        '101 openat(AT_FDCWD, "/nope/b.py", O_RDONLY) = -1 ENOENT (No such file or directory)\n'
+        '102 open("/tmp/c.xml", O_RDONLY) = 7\n'
+    )
+    assert kit.opened_files(log) == {str(Path("/usr/lib/a.so").resolve()), str(Path("/tmp/c.xml").resolve())}
+
+
+def test_check_names_requirements_nothing_provides(tmp_path):
+    import tarfile
+
+    wheels = [_wheel(tmp_path / "alpha-1.0-py3-none-any.whl", {"alpha/__init__.py": b""},
+                     ("beta>=1", "numpy", "gamma; extra == 'dev'", "delta; python_version < '3.10'", "epsilon")),
+              _wheel(tmp_path / "beta-2.0-py3-none-any.whl", {"beta/__init__.py": b""})]  # fmt: skip
+    with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
+        for w in wheels:
+            tar.add(w, arcname=w.name)
+    assert kit.check(tmp_path / "kit.tar.xz") == [("alpha-1.0-py3-none-any.whl", "epsilon")]
+
+
+def test_the_measured_lists_name_installed_distributions():
+    """carry.txt and robosuite_assets.txt (written by ``kit.py trace``) still match this venv: pack can fetch
+    every carried distribution at its installed version, and every listed asset exists."""
+    carried = kit.CARRY.read_text().split()
+    assert {"lerobot", "mujoco", "robosuite", "hf-libero", "transformers"} <= set(carried)
+    for name in carried:
+        md.version(name)  # raises PackageNotFoundError when the venv no longer has it
+    site = Path(md.distribution("robosuite").locate_file(""))
+    assets = kit.ROBOSUITE_ASSETS.read_text().split()
+    assert any("robots/panda" in a for a in assets)
+    assert [a for a in assets if not (site / a).is_file()] == []
+
+
+def test_install_kit_makes_a_venv_over_a_venv_where_carried_wheels_win(tmp_path):
+    """The box's python3 is a venv (torch in it); here the project's .venv plays it: the new venv must import
+    torch from it, a carried wheel before the parent's copy of the same distribution, and this checkout."""
+    import tarfile
+
+    parent_termcolor = md.version("termcolor")
+    whl = _wheel(tmp_path / "termcolor-99.0-py3-none-any.whl", {"termcolor/__init__.py": b"CARRIED = True\n"})
+    with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
+        tar.add(whl, arcname=whl.name)
+    venv = tmp_path / "venv"
+    res = rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt")
+    assert res["venv"] == "created", (tmp_path / "log.txt").read_text()
+    code = ("import importlib.metadata as m, termcolor, torch, indgen_vla, sys; "
+            "print(termcolor.CARRIED, m.version('termcolor'), torch.__file__, indgen_vla.__file__, sys.prefix)")  # fmt: skip
+    out = subprocess.run(
+        [str(venv / "bin" / "python"), "-c", code], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    carried, version, torch_file, pkg_file, prefix = out.stdout.split()
+    assert carried == "True" and version == "99.0" != parent_termcolor
+    assert torch_file.startswith(sys.prefix) and pkg_file == str(ROOT / "indgen_vla" / "__init__.py")
+    assert prefix == str(venv)
+    assert rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt") == {
+        "venv": "installed earlier"
+    }
