@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -133,9 +134,11 @@ class EvalConfig:
                               beta=self.adaptive_alpha, round_size=self.round_size, max_episodes=self.episodes)  # fmt: skip
 
     def plan_dict(
-        self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None
-    ) -> dict[str, Any]:
-        """The part of the config that fixes which episodes exist and how they run (resume must match)."""
+        self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None,
+        task_steps: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """The part of the config that fixes which episodes exist and how they run (resume must match);
+        ``task_steps``: each task's steps of an axis whose family resolves them per task (``ScenePlan``)."""
         plan = {
             "policy": self.policy, "scene": self.scene, "tasks": tasks, "axes": list(self.axes),
             "levels": {a: levels[a] for a in self.axes}, "step": self.step, "episodes": self.episodes,
@@ -144,6 +147,10 @@ class EvalConfig:
         }  # fmt: skip
         if self.axes_preset is not None:  # only when set, so runs made before the option still resume
             plan["axes_preset"] = self.axes_preset
+        if task_steps:  # only where a family's steps differ by task: a run made at other steps never resumes
+            plan["task_steps"] = {
+                a: {t: dict(v) for t, v in by_task.items()} for a, by_task in task_steps.items()
+            }
         if self.adaptive is not None:
             from indgen_vla.engine.adaptive import adaptive_plan_entry
 
