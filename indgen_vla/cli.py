@@ -88,10 +88,11 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--adaptive",
-        choices=["kstar", "curve"],
+        choices=["kstar", "curve", "until-failure"],
         default=None,
         help="run episodes in rounds and stop a level once a sequential test decides it (kstar: also skip levels "
-        "past a decided break; curve: decide every level); docs/adaptive.md",
+        "past a decided break; curve: decide every level); until-failure: the paper's real-robot design, "
+        "--episodes per level, levels in order until the first observed rate < γ (no test); docs/adaptive.md",
     )
     p.add_argument(
         "--adaptive-delta", type=float, default=None, help="indifference half-width around γ (default 0.1)"

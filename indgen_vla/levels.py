@@ -116,9 +116,12 @@ def decide(rows: list[dict], gamma: float) -> None:
 def sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
     """Adaptive runs: each level's verdict is the sequential rule's, on its episodes in index order; the data
     floor counts against the episodes the rule used, not the cap (a level past a decided k* was never run).
-    ``df`` holds one ladder: one task's episodes of one axis."""
-    from indgen_vla.sequential import level_outcomes, outcome_prefix, rule_from_plan
+    ``df`` holds one ladder: one task's episodes of one axis. The paper's until-failure design: ``until_failure``."""
+    from indgen_vla.sequential import UNTIL_FAILURE, level_outcomes, outcome_prefix, rule_from_plan
 
+    if adaptive.get("mode") == UNTIL_FAILURE:
+        until_failure(rows, float(adaptive["gamma"]), episodes)
+        return
     rule = rule_from_plan(adaptive, episodes)
     per_level = level_outcomes(df)
     for r in rows:
@@ -128,6 +131,32 @@ def sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
         r["decision"] = "undetermined" if dec.verdict == "continue" else dec.verdict
         r["planned"] = dec.episodes if dec.final else dec.next_boundary
         r["insufficient"] = dec.n == 0 or (not dec.final and below_floor(r["n"], r["planned"]))
+
+
+def until_failure(rows: list[dict], gamma: float, episodes: int) -> None:
+    """The paper's real-robot design (§5.3): every level's verdict is its CI's (``decide``); per direction, the first
+    level with all its ``episodes`` finished and an observed rate < γ is marked ``observed_break`` (the walk stopped
+    there), and the levels past it that never ran are ``not_run`` (planned 0: nothing was missed)."""
+    decide(rows, gamma)
+    for side in (sorted((r for r in rows if r["level"] >= 0), key=lambda r: r["level"]),
+                 sorted((r for r in rows if r["level"] <= 0), key=lambda r: -r["level"])):  # fmt: skip
+        stopped = False
+        for r in side:
+            if stopped and not r["n"] + r["errors"]:
+                r.update(planned=0, not_run=True)
+            elif not stopped and r["n"] + r["errors"] >= episodes and r["n"] and r["rate"] < gamma:
+                r["observed_break"] = stopped = True
+
+
+def design_text(adaptive: dict | None, episodes: int | None) -> str | None:
+    """One line naming the paper's until-failure design and what its break is (None for the other designs)."""
+    from indgen_vla.sequential import UNTIL_FAILURE
+
+    if not adaptive or adaptive.get("mode") != UNTIL_FAILURE:
+        return None
+    return (f"the paper's fixed design (§5.3, until failure): {episodes} episodes per level, levels in order, "
+            f"stopped at the first level whose observed rate is below γ = {adaptive['gamma']:g}; that break is "
+            "observed, not statistically decided (its 95 % CI is in the verdict)")  # fmt: skip
 
 
 def kstar_status_of(rows: list[dict], signed: bool) -> dict:
@@ -217,6 +246,11 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
         )
     r = next(x for x in rows if x["level"] == k)
     head = f"{_signed(k)} ({_rate(r)})"
+    if r.get("observed_break"):  # the paper's until-failure design stopped here
+        why = ("its CI lies below γ too" if r.get("decision") == "broken"
+               else f"the CI reaches {100 * r['ci_high']:.0f} % ≥ γ")  # fmt: skip
+        return (f"observed break at {head}: the paper's until-failure design stopped at the first level below "
+                f"γ = {gamma:g}; observed, not statistically decided ({why})")  # fmt: skip
     if r.get("decision") == "broken":
         return f"breaks at {head}, significantly below γ = {gamma:g}"
     seq = r.get("sequential")

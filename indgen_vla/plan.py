@@ -80,6 +80,9 @@ class ScenePlan:
     levels: Mapping[str, tuple[int, ...]]
     cells: tuple[Cell, ...]
     builder: LevelBuilder
+    # axis -> task -> component steps, for an axis whose family resolves its step per task (RoboCasa365's pick_x:
+    # the task's region / 5); empty when every task of an axis shares ``axes[axis].step``
+    task_steps: Mapping[str, Mapping[str, Mapping[str, float]]] = dataclasses.field(default_factory=dict)
 
     def cell(self, task: str, axis: str, level: int) -> Cell:
         return self._by_key[(task, axis, level)]

@@ -16,6 +16,7 @@ from indgen_vla.levels import (
     by_task,
     condition2_validation,
     decide,
+    design_text,
     episodes_used,
     fmt_condition2,
     kstar_status_of,
@@ -98,6 +99,8 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "tasks": task_entries,
         }
         a = out["axes"][axis]
+        if design := design_text(adaptive, per_task):
+            a["design"] = design
         a["condition2"] = condition2_validation(a["monotone"], a["regime"])  # None: vanilla (by construction)
         a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci)
         for e in task_entries.values():
@@ -171,6 +174,8 @@ def _short_spec(spec: str | None) -> str | None:
 
 def insufficient_text(row: dict) -> str:
     """What a level below the data floor prints instead of a rate, e.g. "insufficient data (n = 1 of 4; 3 errors)"."""
+    if row.get("not_run"):  # the until-failure design stopped below it
+        return "not run (past the observed break)"
     of = f" of {row['planned']}" if row.get("planned") else ""
     errs = f"; {row['errors']} error{'s' * (row['errors'] != 1)}" if row.get("errors") else ""
     return f"insufficient data (n = {row['n']}{of}{errs})"
@@ -314,6 +319,8 @@ def render_markdown(
             + " |"
         )
         lines.append("| verdict | | " + " | ".join(_verdict_or_status(a) for _, a in present) + " |")
+        if any(a.get("design") for _, a in present):
+            lines.append("| design | | " + " | ".join(a.get("design") or "—" for _, a in present) + " |")
         lines.append(
             "| break point (S = γ) | | "
             + " | ".join(_fmt_point(a.get("break_point", {}), a["signed"]) for _, a in present)

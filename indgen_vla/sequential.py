@@ -7,6 +7,8 @@ at the episodes 0..n−1 in index order, so workers, completion order and resume
 α = P(verdict "broken" | S ≥ γ + δ) and β = P(verdict "intact" | S ≤ γ − δ); a level still open at
 max_episodes is "undetermined". :func:`operating_characteristic` gives the exact error rates of a rule.
 Everything here is a pure function of the outcomes, so the engine can call :func:`plan_next` between rounds.
+:class:`UntilFailure` is the paper's real-robot design beside it (no test: n trials a level until one is observed
+below γ).
 """
 
 from __future__ import annotations
@@ -16,11 +18,14 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from indgen_vla.breakpoint import kstar_status
+from indgen_vla.breakpoint import kstar_status, verdict_from_ci
 from indgen_vla.errors import ConfigError
+from indgen_vla.metrics import success_rate
 
 VERDICTS = ("broken", "intact", "undetermined", "continue")
-MODES = ("kstar", "curve")
+# the paper's real-robot design (§5.3): n trials a level, levels in order, until the first observed failure
+UNTIL_FAILURE = "until-failure"
+MODES = ("kstar", "curve", UNTIL_FAILURE)
 THRESHOLDS = ("wald", "exact")
 
 
@@ -161,8 +166,78 @@ class SequentialRule:
 RULE_FIELDS = ("gamma", "delta", "alpha", "beta", "round_size", "thresholds")
 
 
-def rule_from_plan(adaptive: dict, episodes: int) -> SequentialRule:
+@dataclass(frozen=True)
+class UntilFailure:
+    """The paper's real-robot design (§5.3): ``max_episodes`` trials at each level, levels in order, and a direction
+    stops at the first level whose observed rate is below γ ("until failure"). No test decides that break: each
+    finished level's verdict is its Wilson CI's (``verdict_from_ci``), so a 1-of-10 stop stays "undetermined"."""
+
+    gamma: float = 0.2
+    max_episodes: int = 10
+
+    def __post_init__(self):
+        if not 0 < self.gamma < 1:
+            raise ConfigError(f"gamma must be in (0, 1), got {self.gamma}")
+        if (
+            isinstance(self.max_episodes, bool)
+            or not isinstance(self.max_episodes, int)
+            or self.max_episodes < 1
+        ):
+            raise ConfigError(f"episodes per level must be a positive integer, got {self.max_episodes!r}")
+
+    def decide(self, outcomes: Sequence[bool | None]) -> Decision:
+        """One level from its outcomes in episode-index order: open until all ``max_episodes`` finished (errors
+        count as finished, not in n), then its CI verdict; ``llr`` is None (no likelihood ratio is tested)."""
+        used = list(outcomes[: self.max_episodes])
+        n, s = sum(o is not None for o in used), sum(bool(o) for o in used if o is not None)
+        if len(used) < self.max_episodes:
+            return Decision("continue", len(used), n, s, None, next_boundary=self.max_episodes)
+        r = success_rate(s, n)
+        verdict = verdict_from_ci(r.ci_low, r.ci_high, self.gamma) if n else "undetermined"
+        return Decision(verdict, self.max_episodes, n, s, None)
+
+    def stops(self, d: Decision) -> bool:
+        """A direction waits on an open level and stops at the first one observed below γ."""
+        return not d.final or (d.n > 0 and d.rate < self.gamma)
+
+    def status_text(self, k: int | None, decisions: Mapping[int, Decision], order: Sequence[int]) -> str:
+        """Where the walk stands, with the stop level's CI: the break is observed, not statistically decided."""
+        if k is not None:
+            d = decisions[k]
+            r = success_rate(d.successes, d.n)
+            also = "; its CI lies below γ too" if d.verdict == "broken" else ""
+            return (f"k* = {_signed(k)} observed ({d.successes}/{d.n} < γ = {self.gamma:g}, 95 % Wilson CI "
+                    f"{100 * r.ci_low:.0f}-{100 * r.ci_high:.0f} %): the paper's fixed design stops there, an "
+                    f"observed break, not a statistically decided one{also}")  # fmt: skip
+        running = next((j for j in order if j in decisions and not decisions[j].final), None)
+        if running is not None:
+            return f"no level observed below γ = {self.gamma:g} yet; level {_signed(running)} is running"
+        return f"no level observed below γ = {self.gamma:g} through {_signed(order[-1])}"
+
+
+def make_rule(mode: str, gamma: float, delta: float, alpha: float, round_size: int, episodes: int):
+    """The rule of ``--adaptive MODE``: the paper's ``UntilFailure`` design, else the SPRT (α = β)."""
+    if mode not in MODES:
+        raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {mode!r}")
+    if mode == UNTIL_FAILURE:
+        return UntilFailure(gamma=gamma, max_episodes=episodes)
+    return SequentialRule(gamma=gamma, delta=delta, alpha=alpha, beta=alpha, round_size=round_size,
+                          max_episodes=episodes)  # fmt: skip
+
+
+def plan_entry(mode: str, rule: SequentialRule | UntilFailure) -> dict:
+    """What a manifest's ``plan.adaptive`` records (resume must match; ``report`` reads it back): the mode and the
+    rule's parameters (``until-failure``: γ only; the episodes per level are the plan's ``episodes``)."""
+    if mode not in MODES:
+        raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {mode!r}")
+    fields = ("gamma",) if isinstance(rule, UntilFailure) else RULE_FIELDS
+    return {"mode": mode, **{k: getattr(rule, k) for k in fields}}
+
+
+def rule_from_plan(adaptive: dict, episodes: int) -> SequentialRule | UntilFailure:
     """The rule a run's manifest records (``plan["adaptive"]``), capped at the run's ``--episodes``."""
+    if adaptive.get("mode") == UNTIL_FAILURE:
+        return UntilFailure(gamma=adaptive["gamma"], max_episodes=episodes)
     return SequentialRule(**{k: adaptive[k] for k in RULE_FIELDS if k in adaptive}, max_episodes=episodes)
 
 
@@ -174,7 +249,7 @@ class Decision:
     episodes: int  # planned episodes consumed (indices 0..episodes-1), errors included
     n: int  # finished (non-error) episodes among them
     successes: int
-    llr: float
+    llr: float | None  # None under the paper's until-failure design (no likelihood ratio is tested)
     next_boundary: int | None = None  # for "continue": how many episodes the next look needs
 
     @property
@@ -287,6 +362,10 @@ def _bisect(holds, ok: float, bad: float, steps: int = 45) -> float:
     return ok
 
 
+def _signed(k: int) -> str:
+    return f"+{k}" if k > 0 else str(k)
+
+
 def level_order(levels: Iterable[int], signed: bool | None = None) -> dict[str, list[int]]:
     """Visiting order per direction, outward from level 0: {"pos": [0, 1, ...], "neg": [0, -1, ...]}."""
     lv = sorted(set(int(k) for k in levels))
@@ -353,7 +432,7 @@ def outcome_prefix(level_outcomes: Mapping[int, bool | None]) -> list[bool | Non
 
 
 def plan_next(
-    rule: SequentialRule,
+    rule: SequentialRule | UntilFailure,
     levels: Iterable[int],
     outcomes: Mapping[int, Mapping[int, bool | None]],
     mode: str = "kstar",
@@ -362,22 +441,29 @@ def plan_next(
     """Given finished episodes {level: {episode_index: success or None (error)}}, say what to run next.
 
     kstar: walk each direction outward and stop it at its first level decided "broken" (levels past it
-    are not run); curve: decide every requested level. Each level still open gets the episodes up to its
-    next round boundary that are not finished yet. Pure: the same outcomes always give the same plan.
+    are not run); curve: decide every requested level; until-failure (``UntilFailure``): walk outward the
+    same way, each level's ``max_episodes`` at once, and stop at its first level observed below γ. Each level
+    still open gets the episodes up to its next boundary that are not finished yet. Pure: the same outcomes
+    always give the same plan.
     """
     if mode not in MODES:
-        raise ConfigError(f"unknown adaptive mode {mode!r}; use 'kstar' or 'curve'")
+        raise ConfigError(f"unknown adaptive mode {mode!r}; use one of {', '.join(MODES)}")
+    if (mode == UNTIL_FAILURE) != isinstance(rule, UntilFailure):
+        raise ConfigError(f"adaptive mode {mode} goes with {'an UntilFailure' if mode == UNTIL_FAILURE else 'a SequentialRule'} rule")  # fmt: skip
     order = level_order(levels, signed)
     requested = sorted({k for o in order.values() for k in o})
     decisions = {k: rule.decide(outcome_prefix(outcomes.get(k, {}))) for k in requested}
     if mode == "curve":
         active = set(requested)
     else:
+        stops = (
+            rule.stops if isinstance(rule, UntilFailure) else (lambda d: d.verdict in ("broken", "continue"))
+        )
         active = set()
         for seq in order.values():
             for k in seq:
                 active.add(k)
-                if decisions[k].verdict in ("broken", "continue"):
+                if stops(decisions[k]):
                     break  # a broken level ends the direction; an open one must be decided first
     to_run = {}
     for k in sorted(active):
@@ -394,5 +480,7 @@ def plan_next(
         verdicts = {k: shown[k].verdict for k in seq if k in shown}
         status = kstar_status(verdicts, seq)
         status["k"] = kstar_from_decisions(shown, seq, rule.gamma)
+        if isinstance(rule, UntilFailure):
+            status["text"] = rule.status_text(status["k"], shown, seq)
         ks[direction] = status
     return Plan(to_run=to_run, decisions=shown, kstar=ks)

@@ -70,14 +70,17 @@ def get_axis(name: str, step: float | None = None, preset: str | None = None) ->
     return _get_axis(name, step, preset)
 
 
-def successor_for(axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None):
+def successor_for(
+    axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None,
+    task: str | None = None,
+):  # fmt: skip
     """The successor of ``axis`` with the --step / --axes-preset overrides applied (over ``scene``'s own steps
-    and ranges when a scene is named)."""
+    and ranges when a scene is named, for ``task`` where the family's steps differ by task)."""
     from scenes.axes import load_preset
 
     overrides = load_preset(preset) if preset else None
     if scene is not None:
-        return get_scene(scene).successor(axis, step, overrides)
+        return get_scene(scene).successor(axis, step, overrides, task)
     return get_successor(axis, step, overrides)
 
 
@@ -89,8 +92,9 @@ def level_param(
     from scenes.axes import axis_param, spec_at_level
 
     sc = get_scene(scene)
-    successor = successor_for(axis, step, preset, scene)
-    spec = spec_at_level(sc.base(sc.resolve_task(task)), successor, level)
+    task = sc.resolve_task(task)
+    successor = successor_for(axis, step, preset, scene, task)
+    spec = spec_at_level(sc.base(task), successor, level)
     return axis_param(spec, successor, level)
 
 
@@ -105,8 +109,9 @@ def check_axis_progression(
     """
     sc = get_scene(scene)
     sc.check_axis(axis)
-    successor = successor_for(axis, step, preset, scene)
-    sc.check_progression(sc.resolve_task(task), successor, step is not None or preset is not None)
+    task = sc.resolve_task(task)
+    successor = successor_for(axis, step, preset, scene, task)
+    sc.check_progression(task, successor, step is not None or preset is not None)
 
 
 def make_env(
@@ -127,5 +132,5 @@ def make_env(
     task = sc.resolve_task(task)
     axis = axis or sc.default_axis
     sc.check_axis(axis)
-    successor = successor_for(axis, step, preset, scene)
+    successor = successor_for(axis, step, preset, scene, task)
     return sc.make_env(task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps)

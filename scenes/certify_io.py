@@ -47,14 +47,16 @@ def certification_root(scene: str | None = None) -> Path:
 
 
 def axis_dirname(
-    axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None
-) -> str:
-    """``axis`` at the (family's) default steps, else ``axis@comp=step,...`` so other steps never overwrite it."""
+    axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None,
+    task: str | None = None,
+) -> str:  # fmt: skip
+    """``axis`` at the (family's, task's) default steps, else ``axis@comp=step,...`` so other steps never overwrite
+    it."""
     import scenes
     from scenes.axes import successor_steps
 
-    steps = successor_steps(scenes.successor_for(axis, step, preset, scene))
-    if steps == successor_steps(scenes.successor_for(axis, scene=scene)):
+    steps = successor_steps(scenes.successor_for(axis, step, preset, scene, task))
+    if steps == successor_steps(scenes.successor_for(axis, scene=scene, task=task)):
         return axis
     return axis + "@" + ",".join(f"{k}={v:g}" for k, v in steps.items())
 
@@ -66,7 +68,7 @@ def cert_path(
     """The certify.json of (scene, task, axis, steps)."""
     task = get_scene(scene).resolve_task(task)
     base = Path(root) if root is not None else certification_root(scene)
-    return base / scene / task / axis_dirname(axis, step, preset, scene) / "certify.json"
+    return base / scene / task / axis_dirname(axis, step, preset, scene, task) / "certify.json"
 
 
 def find_certification(
@@ -83,7 +85,9 @@ def find_certification(
     if not path.is_file():
         return None
     cert = load_certification(path)
-    want = successor_steps(scenes.successor_for(axis, step, preset))
+    want = successor_steps(
+        scenes.successor_for(axis, step, preset, scene, get_scene(scene).resolve_task(task))
+    )
     have = cert.get("steps") or {axis: cert.get("step")}
     if json.dumps(want, sort_keys=True) != json.dumps({k: float(v) for k, v in have.items()}, sort_keys=True):
         return None

@@ -265,7 +265,7 @@ def certify(
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     rule = Rule(threshold=threshold, n_max=episodes or 0)
-    successor = scenes.successor_for(axis, step, preset)
+    successor = scenes.successor_for(axis, step, preset, scene, task)  # the family's (and task's) own steps
     spec = successor.axis
     lv = parse_levels(levels, spec)
     scenes.check_axis_progression(scene, task, axis, step, preset)  # before any episode runs

@@ -31,6 +31,8 @@ class SceneLevels:
 
     scene: str
     successors: Mapping[str, Successor] = field(default_factory=dict)
+    # axis -> task -> successor, for an axis whose family resolves its step per task (RoboCasa365's pick_x)
+    task_successors: Mapping[str, Mapping[str, Successor]] = field(default_factory=dict)
 
     @property
     def preload(self) -> tuple[str, ...]:
@@ -56,7 +58,8 @@ class SceneLevels:
         max_steps: int | None,
     ) -> BaseSceneEnv:  # fmt: skip
         sc = get_scene(self.scene)
-        return sc.make_env(task, self.successors[axis], level, cameras=cameras, image_size=image_size,
+        successor = self.task_successors.get(axis, {}).get(task, self.successors[axis])
+        return sc.make_env(task, successor, level, cameras=cameras, image_size=image_size,
                            max_steps=max_steps)  # fmt: skip
 
     def describe(self) -> dict[str, Any]:
@@ -69,14 +72,26 @@ class SceneLevels:
                          "action_dim": sc.env_spec.action_dim, "layout": sc.env_spec.layout},
             "environment": sc.environment_versions(),  # the worker venv's versions when the family runs in its own
             "protocol": sc.protocol_facts(),
-            "successors": {a: {"type": type(s).__name__, "steps": successor_steps(s)} for a, s in self.successors.items()},
+            "successors": {a: self._successor_entry(a, s) for a, s in self.successors.items()},
         }  # fmt: skip
+
+    def _successor_entry(self, axis: str, successor: Successor) -> dict[str, Any]:
+        """The axis's successor type and steps; each task's steps where the family resolves them per task."""
+        per_task = self.task_successors.get(axis)
+        if per_task:
+            return {"type": type(successor).__name__, "task_steps": task_steps(per_task)}
+        return {"type": type(successor).__name__, "steps": successor_steps(successor)}
 
     def render_backend(self) -> str:
         """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""
         from scenes.render_info import gl_renderer
 
         return gl_renderer()
+
+
+def task_steps(per_task: Mapping[str, Successor]) -> dict[str, dict[str, float]]:
+    """Each task's component steps (``successor_steps``), in the run's task order."""
+    return {t: successor_steps(s) for t, s in per_task.items()}
 
 
 def scene_levels(
@@ -114,17 +129,25 @@ def resolve_scene_plan(
     tasks = sc.select_tasks(task, axes)  # on RoboCasa365 "all" is the axes' own task list (appendix B)
     overrides = load_preset(preset) if preset else None
     overridden = step is not None or preset is not None
-    successors, specs, planned = {}, {}, {}
+    successors, per_task, specs, planned = {}, {}, {}, {}
     for name in axes:
-        successor = sc.successor(name, step, overrides)  # the family's own steps/ranges under the preset's
         sc.check_axis(name)  # every component must be one of the scene's axes
+        # the family's own steps/ranges under the preset's, each task's own where the family's differ by task
+        by_task, shared = (
+            {t: sc.successor(name, step, overrides, t) for t in tasks},
+            sc.successor(name, step, overrides),
+        )
+        successor = by_task[tasks[0]]
         successors[name], specs[name] = successor, successor.axis
+        if any(s != shared for s in by_task.values()):
+            per_task[name] = by_task
         planned[name] = tuple(parse_levels(levels, successor.axis))
         for t in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
-            sc.check_progression(t, successor, overridden)
+            sc.check_progression(t, by_task[t], overridden)
     cells = []
-    for name, successor in successors.items():
+    for name in successors:
         for t in tasks:
+            successor = per_task.get(name, {}).get(t, successors[name])
             cert = find_certification(scene, t, name, step, preset=preset)
             failed = set(infeasible_levels(cert)) if cert else set()
             certified = set(certified_levels(cert)) if cert else set()
@@ -136,4 +159,6 @@ def resolve_scene_plan(
                 evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 cells.append(Cell(t, name, k, param, status, evidence))
-    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), SceneLevels(scene, successors))
+    steps = {a: task_steps(by_task) for a, by_task in per_task.items()}
+    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), SceneLevels(scene, successors, per_task),
+                     task_steps=steps)  # fmt: skip

@@ -54,7 +54,9 @@ class Scene:
             the robosuite families fill MuJoCo's asset cache with the run's first task (``scenes.asset_cache``).
         oracle: ``"module:Class"`` of the family's privileged oracle (``standin:oracle``, ``indgen certify``).
         axis_overrides: the family's own steps and level ranges of shared axes, in an axes preset's form
-            (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them.
+            (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them. A family
+            whose step depends on the task (RoboCasa365's pick_x: the task's region / 5) resolves it in
+            ``successor`` when given the task.
     """
 
     name: ClassVar[str]
@@ -84,8 +86,12 @@ class Scene:
         """The axis ``make_env`` moves along when none is given: the family's first axis."""
         return self.axes[0]
 
-    def successor(self, axis: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None):
-        """The successor of ``axis`` on this family: its own ``axis_overrides`` under a preset's and ``--step``."""
+    def successor(
+        self, axis: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None,
+        task: str | None = None,
+    ):  # fmt: skip
+        """The successor of ``axis`` on this family: its own ``axis_overrides`` under a preset's and ``--step``;
+        ``task`` matters only to a family whose steps differ by task (None: the family's task-free successor)."""
         from scenes.axes import get_successor, merge_overrides
 
         return get_successor(axis, step, merge_overrides(self.axis_overrides, overrides))

@@ -1,4 +1,4 @@
-"""``indgen evaluate --adaptive kstar|curve``: run episodes in rounds and stop each level once it is decided.
+"""``indgen evaluate --adaptive``: run episodes in rounds until the rule (kstar, curve, until-failure) settles each level.
 
 Every (task, axis) is a ladder with its own decisions; a round holds the next episodes of every ladder still open,
 so a whole protocol (``--task all --axis pick_y,goal_y,scale``) runs as one interleaved schedule. Between rounds the
@@ -12,16 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from indgen_vla.errors import ConfigError
 from indgen_vla.plan import EvalPlan
-from indgen_vla.sequential import MODES, RULE_FIELDS, Plan, SequentialRule, level_outcomes, plan_next
-
-
-def adaptive_plan_entry(mode: str, rule: SequentialRule) -> dict:
-    """What the manifest's plan records: the mode and every parameter of the rule (resume must match)."""
-    if mode not in MODES:
-        raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {mode!r}")
-    return {"mode": mode, **{k: getattr(rule, k) for k in RULE_FIELDS}}
+from indgen_vla.sequential import Plan, level_outcomes, plan_next
 
 
 def outcomes_of(episodes, task: str, axis: str) -> dict[int, dict[int, bool | None]]:

@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 import os
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -58,7 +59,7 @@ class EvalConfig:
     precision: str = "fp32"  # "bf16": autocast forward, for policies that support it (lerobot:)
     compile: str = "off"  # torch.compile mode of the policy's per-call forward (lerobot:), cached on disk
     server_patience: float = 600.0  # seconds a remote policy server may stay unreachable before the run stops
-    adaptive: str | None = None  # "kstar" | "curve": sequential episodes per level (docs/adaptive.md)
+    adaptive: str | None = None  # "kstar" | "curve" | "until-failure": the stopping rule (docs/adaptive.md)
     adaptive_delta: float = 0.1  # indifference half-width around gamma
     adaptive_alpha: float = 0.025  # stated error rate of each verdict (alpha = beta)
     round_size: int = 5  # episodes between two looks of the sequential rule
@@ -124,18 +125,18 @@ class EvalConfig:
         return out | ({"compile": self.compile} if self.compile != "off" else {})
 
     def sequential_rule(self):
-        """The sequential rule of an ``--adaptive`` run (its cap is ``--episodes``)."""
-        from indgen_vla.sequential import MODES, SequentialRule
+        """The rule of an ``--adaptive`` run (its cap, or until-failure's episodes per level, is ``--episodes``)."""
+        from indgen_vla.sequential import make_rule
 
-        if self.adaptive not in MODES:
-            raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {self.adaptive!r}")
-        return SequentialRule(gamma=self.gamma, delta=self.adaptive_delta, alpha=self.adaptive_alpha,
-                              beta=self.adaptive_alpha, round_size=self.round_size, max_episodes=self.episodes)  # fmt: skip
+        return make_rule(self.adaptive, self.gamma, self.adaptive_delta, self.adaptive_alpha, self.round_size,
+                         self.episodes)  # fmt: skip
 
     def plan_dict(
-        self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None
-    ) -> dict[str, Any]:
-        """The part of the config that fixes which episodes exist and how they run (resume must match)."""
+        self, tasks: list[str], levels: dict[str, list[int]], max_steps: int | None,
+        task_steps: Mapping[str, Mapping[str, Mapping[str, float]]] | None = None,
+    ) -> dict[str, Any]:  # fmt: skip
+        """The part of the config that fixes which episodes exist and how they run (resume must match);
+        ``task_steps``: each task's steps of an axis whose family resolves them per task (``ScenePlan``)."""
         plan = {
             "policy": self.policy, "scene": self.scene, "tasks": tasks, "axes": list(self.axes),
             "levels": {a: levels[a] for a in self.axes}, "step": self.step, "episodes": self.episodes,
@@ -144,10 +145,14 @@ class EvalConfig:
         }  # fmt: skip
         if self.axes_preset is not None:  # only when set, so runs made before the option still resume
             plan["axes_preset"] = self.axes_preset
+        if task_steps:  # only where a family's steps differ by task: a run made at other steps never resumes
+            plan["task_steps"] = {
+                a: {t: dict(v) for t, v in by_task.items()} for a, by_task in task_steps.items()
+            }
         if self.adaptive is not None:
-            from indgen_vla.engine.adaptive import adaptive_plan_entry
+            from indgen_vla.sequential import plan_entry
 
-            plan["adaptive"] = adaptive_plan_entry(self.adaptive, self.sequential_rule())
+            plan["adaptive"] = plan_entry(self.adaptive, self.sequential_rule())
         return plan
 
 

@@ -92,8 +92,10 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
                 where = f"all requested levels of {'every task' if len(plan.tasks) > 1 else 'task ' + plan.tasks[0]}"
             else:
                 where = "; ".join(f"task {t}: levels {_levels_text(v)}" for t, v in missing.items())
+            own = name in plan.scene_plan.task_steps  # a family's step per task (RoboCasa365's pick_x)
+            step = "each task's own step" if own else f"step {spec.step:g} {spec.unit}"
             warnings.append(
-                f"axis {name} (step {spec.step:g} {spec.unit}) is uncertified at {where} (no oracle certificate "
+                f"axis {name} ({step}) is uncertified at {where} (no oracle certificate "
                 f"with enough evidence); run 'indgen certify --scene {cfg.scene} --axis {name} --task "
                 f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}{f' --step {cfg.step:g}' if cfg.step else ''}"
                 f"{f' --axes-preset {cfg.axes_preset}' if cfg.axes_preset else ''}'"
@@ -111,7 +113,12 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
         "data_regime": cfg.data_regime,
         "scene": cfg.scene,
         "seed": cfg.seed,
-        "plan": cfg.plan_dict(list(plan.tasks), {a: list(v) for a, v in plan.levels.items()}, cfg.max_steps),
+        "plan": cfg.plan_dict(
+            list(plan.tasks),
+            {a: list(v) for a, v in plan.levels.items()},
+            cfg.max_steps,
+            plan.scene_plan.task_steps,
+        ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
         "resolved": plan.record(),
         "config": dataclasses.asdict(cfg),

@@ -22,17 +22,18 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--setup", required=True, help=f"set-up YAML path or preset ({', '.join(presets())})")
     pl.add_argument("--axis", default=None, help="axis of the set-up (default: its only axis)")
     pl.add_argument("--levels", default=None, help="levels like 0:4 or 0,1,2 (default: all of the set-up's)")
-    pl.add_argument(
-        "--episodes", type=int, default=10, help="episodes per level (paper: 10; the cap with --adaptive)"
-    )
+    pl.add_argument("--episodes", type=int, default=10,
+                    help="episodes per level (paper: 10; the cap with --adaptive kstar/curve)")  # fmt: skip
     pl.add_argument("--order", choices=["interleaved", "blocked"], default=None,
                     help="interleave levels or run them in blocks (default: interleaved where the set-up's "
                     "change is cheap, blocked where slow)")  # fmt: skip
     pl.add_argument(
         "--adaptive",
-        choices=["kstar", "curve"],
+        choices=["kstar", "curve", "until-failure", "off"],
         default=None,
-        help="stop each level once the sequential rule decides it (as 'indgen evaluate --adaptive')",
+        help="until-failure: the paper's design (--episodes at each level, levels in order, stop after the first "
+        "observed rate < γ; the default of the set-ups that name it, e.g. stack, scale); kstar/curve: stop each "
+        "level once the sequential rule decides it (as 'indgen evaluate --adaptive'); off: every level",
     )
     pl.add_argument(
         "--adaptive-delta", type=float, default=0.1, help="indifference half-width around γ (0.1)"
@@ -191,7 +192,7 @@ def status(rr) -> dict:
                "placement": rr.setup.placement(i), "instruction": rr.setup.instruction}  # fmt: skip
     return {"run": str(rr.run.path), "task": rr.task, "axis": rr.axis.name, "ci": "wilson 95%", "levels": levels,
             "queued": len(queue), "next": nxt, "complete": not queue,
-            "kstar": seq.kstar.get("pos", {}).get("text") if seq else None}  # fmt: skip
+            "stopping": rr.mode, "kstar": seq.kstar.get("pos", {}).get("text") if seq else None}  # fmt: skip
 
 
 # the sequential rule's verdict for a level it has not settled yet, as ``real status`` prints it (``--json``: raw)
@@ -213,7 +214,7 @@ def _status(ns: argparse.Namespace) -> int:
             f"  level {r['level']} ({r['param']:g} {r['unit']}): {rate}, n = {r['n']}, voids {r['voids']}{dec}"
         )
     if s["kstar"] and any(r["n"] for r in s["levels"]):  # before the first episode there is nothing to locate
-        print(f"  adaptive: {s['kstar']}")
+        print(f"  {s['stopping']}: {s['kstar']}")
     nx = s["next"]
     print(
         f"next: level {nx['level']} episode {nx['episode']} ({s['queued']} queued)" if nx else "run complete"

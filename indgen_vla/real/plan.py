@@ -6,10 +6,12 @@ unchanged; the set-up YAML, operator, robot and policy go under ``real``. Episod
 (run seed, scene, task, i), so two runs of the same set-up and seed are paired episode by episode in ``compare``.
 
 Which episode comes next is a pure function of the manifest and the journal (``queue``): a fixed design runs every
-planned episode; ``--adaptive`` asks the engine's sequential rule (``indgen_vla.sequential.plan_next``) for the
-episodes it still needs. ``interleaved`` order cycles through the open levels (a seeded shuffle per cycle, so
-drift over the session does not line up with the level); ``blocked`` finishes one level before the next. A voided
-episode is re-queued: one cycle later when interleaved, at the end of its level's block when blocked.
+planned episode; ``--adaptive`` asks the engine's rule (``indgen_vla.sequential.plan_next``) for the episodes it
+still needs: the SPRT's (kstar, curve), or the paper's own design (``until-failure``: every trial of a level, levels
+in order until the first observed rate < γ), which a set-up's ``stopping`` makes its default. ``interleaved``
+order cycles through the open levels (a seeded shuffle per cycle, so drift over the session does not line up with
+the level); ``blocked`` finishes one level before the next. A voided episode is re-queued: one cycle later when
+interleaved, at the end of its level's block when blocked.
 """
 
 from __future__ import annotations
@@ -28,7 +30,17 @@ from indgen_vla.real.setup import ORDERS, RealAxis, RealSetup, load_setup, setup
 from indgen_vla.real.store import State
 from indgen_vla.records import RunDir, atomic_write_text
 from indgen_vla.seeding import episode_seed
-from indgen_vla.sequential import MODES, RULE_FIELDS, Decision, Plan, SequentialRule, plan_next
+from indgen_vla.sequential import (
+    UNTIL_FAILURE,
+    Decision,
+    Plan,
+    SequentialRule,
+    UntilFailure,
+    make_rule,
+    plan_entry,
+    plan_next,
+    rule_from_plan,
+)
 
 PROTOCOL = "protocol.md"
 
@@ -41,10 +53,10 @@ class RealPlanConfig:
     out: str
     axis: str | None = None
     levels: str | None = None
-    episodes: int = 10  # the paper's 10 trials per level (the cap with --adaptive)
+    episodes: int = 10  # the paper's 10 trials per level (the cap with --adaptive kstar/curve)
     order: str | None = None  # interleaved | blocked; default from the axis's ``change``
     seed: int = 0
-    adaptive: str | None = None
+    adaptive: str | None = None  # kstar | curve | until-failure | off; None: the set-up's ``stopping``
     gamma: float = 0.2
     adaptive_delta: float = 0.1
     adaptive_alpha: float = 0.025
@@ -66,19 +78,22 @@ class RealPlanConfig:
             raise ConfigError(f"--order must be one of {', '.join(ORDERS)}, got {self.order!r}")
         if not 0 < self.gamma < 1:
             raise ConfigError(f"--gamma must be in (0, 1), got {self.gamma}")
-        if self.adaptive is not None:
-            self.rule()
+        if self.adaptive not in (None, OFF):
+            self.rule(self.adaptive)
 
-    def rule(self) -> SequentialRule:
-        if self.adaptive not in MODES:
-            raise ConfigError(f"--adaptive must be one of {', '.join(MODES)}, got {self.adaptive!r}")
-        return SequentialRule(gamma=self.gamma, delta=self.adaptive_delta, alpha=self.adaptive_alpha,
-                              beta=self.adaptive_alpha, round_size=self.round_size, max_episodes=self.episodes)  # fmt: skip
+    def rule(self, mode: str) -> SequentialRule | UntilFailure:
+        return make_rule(
+            mode, self.gamma, self.adaptive_delta, self.adaptive_alpha, self.round_size, self.episodes
+        )
+
+    def mode(self, setup: RealSetup) -> str | None:
+        """The stopping rule: --adaptive, else the set-up's ``stopping`` (the paper's presets: until-failure);
+        None (``off``, or neither given): every planned episode of every level."""
+        mode = self.adaptive if self.adaptive is not None else setup.stopping
+        return None if mode in (None, OFF) else mode
 
 
-def adaptive_entry(mode: str, rule: SequentialRule) -> dict:
-    """``plan.adaptive`` exactly as ``indgen evaluate --adaptive`` records it (report reads it back)."""
-    return {"mode": mode, **{k: getattr(rule, k) for k in RULE_FIELDS}}
+OFF = "off"  # --adaptive off: the plain fixed design even where the set-up names a stopping rule
 
 
 def parse_levels(text: str | None, axis: RealAxis) -> list[int]:
@@ -107,15 +122,19 @@ def parse_levels(text: str | None, axis: RealAxis) -> list[int]:
 def build_manifest(
     cfg: RealPlanConfig, setup: RealSetup, axis: RealAxis, levels: list[int], run_id: str
 ) -> dict:
-    order = cfg.order or ("interleaved" if axis.change == "cheap" else "blocked")
+    mode = cfg.mode(setup)
+    if mode == UNTIL_FAILURE and cfg.order == "interleaved":
+        raise ConfigError("--adaptive until-failure runs one level at a time (the next only after the last one's "
+                          "trials): leave out --order interleaved")  # fmt: skip
+    order = cfg.order or ("interleaved" if axis.change == "cheap" and mode != UNTIL_FAILURE else "blocked")
     scene = f"real:{setup.name}"
     plan: dict[str, Any] = {
         "policy": cfg.policy, "scene": scene, "tasks": [setup.task], "axes": [axis.name],
         "levels": {axis.name: levels}, "episodes": cfg.episodes, "seed": cfg.seed, "order": order,
         "params": {str(k): axis.level(k).param for k in levels}, "data_regime": cfg.data_regime,
     }  # fmt: skip
-    if cfg.adaptive:
-        plan["adaptive"] = adaptive_entry(cfg.adaptive, cfg.rule())
+    if mode:
+        plan["adaptive"] = plan_entry(mode, cfg.rule(mode))
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -173,11 +192,7 @@ class RealRun:
         self.episodes: int = int(self.plan["episodes"])
         self.order: str = self.plan["order"]
         self.mode: str | None = (self.plan.get("adaptive") or {}).get("mode")
-        self.rule = (
-            SequentialRule(**{k: self.plan["adaptive"][k] for k in RULE_FIELDS}, max_episodes=self.episodes)
-            if self.mode
-            else None
-        )
+        self.rule = rule_from_plan(self.plan["adaptive"], self.episodes) if self.mode else None
         self.seeds = {i: episode_seed(m["seed"], m["scene"], self.task, i) for i in range(self.episodes)}
         self.params = {k: self.axis.level(k).param for k in self.levels}
 
@@ -233,10 +248,14 @@ class RealRun:
         return perm.index(level)
 
     def not_run(self, seq: Plan, level: int) -> str:
-        """Why the rule has not decided ``level`` (``--adaptive kstar`` walks the levels upward): "not needed" past
-        a level decided broken (it never runs), "not reached" while a level below it is still being decided."""
-        broken = any(d.verdict == "broken" for k, d in seq.decisions.items() if k < level)
-        return "not needed" if broken else "not reached"
+        """Why the rule has not decided ``level`` (kstar and until-failure walk the levels upward): "not needed" past
+        a level that ended the walk (decided broken; until-failure: observed below γ), "not reached" while a level
+        below it is still running."""
+        if isinstance(self.rule, UntilFailure):
+            ended = any(d.final and self.rule.stops(d) for k, d in seq.decisions.items() if k < level)
+        else:
+            ended = any(d.verdict == "broken" for k, d in seq.decisions.items() if k < level)
+        return "not needed" if ended else "not reached"
 
     def decision(self, state: State, level: int) -> Decision | None:
         seq = self.sequential(state)
@@ -263,7 +282,13 @@ def protocol_markdown(r: RealRun) -> str:
         lines += ["Start placements (episode i uses placement i mod n, the same at every level):", ""]
         lines += [f"{j}. {p}" for j, p in enumerate(s.placements)] + [""]
     lines.append(f"Order: {r.order} ({'levels cycled, shuffled per cycle' if r.order == 'interleaved' else 'one level at a time'}).")  # fmt: skip
-    if r.rule is not None:
+    if r.mode == UNTIL_FAILURE:
+        lines.append(
+            f"The paper's design (§5.3): {r.episodes} episodes at each level, levels in order, and the run stops after "
+            f"the first level whose observed rate is below γ = {r.rule.gamma:g} (levels past it never run). That "
+            "break is observed, not decided by a statistical test: the report gives its 95 % CI."
+        )
+    elif r.rule is not None:
         rule = r.rule
         lines.append(
             f"Adaptive ({r.mode}): rounds of {rule.round_size} episodes, at most {r.episodes} per level; a level is "

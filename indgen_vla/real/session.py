@@ -43,6 +43,7 @@ from indgen_vla.real.trigger import (
     summary_line,
 )
 from indgen_vla.records import EPISODES, SECTIONS
+from indgen_vla.sequential import UNTIL_FAILURE, Decision, UntilFailure
 
 PROMPT = "outcome [s f v u q ?]> "
 START_PROMPT = "start the episode [Enter], or s f v u q ?> "  # with a trigger, before it ran
@@ -205,7 +206,9 @@ class Recorder:
             return []
         rule, d = self.rr.rule, seq.decisions.get(level)
         out = []
-        if d is not None:
+        if isinstance(rule, UntilFailure):
+            out += until_failure_lines(rule, level, d)
+        elif d is not None:
             if d.verdict == "broken":
                 out.append(
                     f"DECIDED: level {level} is broken (S < γ = {rule.gamma}) after {d.episodes} episodes"
@@ -222,7 +225,9 @@ class Recorder:
                     f"level {level}: not decided yet; the rule looks again at {d.next_boundary} episodes"
                 )
         status = seq.kstar.get("pos", {})
-        if seq.done:
+        if seq.done and isinstance(rule, UntilFailure):
+            out.append(f"until-failure: every level it needs has its trials; {status.get('text', '')}")
+        elif seq.done:
             out.append(
                 f"adaptive ({self.rr.mode}): every level it needs is decided; {status.get('text', '')}"
             )
@@ -248,6 +253,23 @@ class Recorder:
             lines.append(f"  start  : {s.placement(episode)}")
         lines.append(f'  prompt : "{s.instruction}"')
         return lines
+
+
+def until_failure_lines(rule: UntilFailure, level: int, d: Decision | None) -> list[str]:
+    """The paper's design: a level's trials so far, or, once they are all in, whether the run goes on."""
+    if d is None:
+        return []
+    if not d.final:
+        return [
+            f"level {level}: {d.episodes} of {rule.max_episodes} trials; the next level waits for the rest"
+        ]
+    r = success_rate(d.successes, d.n)
+    head = (f"level {level} done: {d.successes}/{d.n} = {100 * r.rate:.0f} % (95 % Wilson CI "
+            f"{100 * r.ci_low:.0f}-{100 * r.ci_high:.0f} %)")  # fmt: skip
+    if rule.stops(d):
+        return [f"{head} < γ = {rule.gamma:g}: the run stops here (the paper's until-failure design; an observed "
+                "break, not a statistically decided one)"]  # fmt: skip
+    return [f"{head} ≥ γ = {rule.gamma:g}: on to the next level"]
 
 
 def record_once(rr: RealRun, verdict: Verdict, episode: tuple[int, int] | None = None, operator: str = "",
@@ -302,7 +324,8 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
         state = rec.sync(force=False)
         say(f"recording {rec.path}: task {rr.task} \"{rr.setup.instruction}\", axis {rr.axis.name} levels "
             f"{rr.levels[0]}..{rr.levels[-1]}, {rr.order}, "
-            + (f"adaptive {rr.mode} (at most {rr.episodes} per level)" if rr.mode else f"{rr.episodes} per level")
+            + (f"until-failure ({rr.episodes} per level until the first level below γ)" if rr.mode == UNTIL_FAILURE
+               else f"adaptive {rr.mode} (at most {rr.episodes} per level)" if rr.mode else f"{rr.episodes} per level")
             + f"; operator {rec.operator or 'not named'}. Type ? for help.")  # fmt: skip
         while True:
             queue = rr.queue(state)

@@ -17,11 +17,12 @@ from typing import Any
 
 from indgen_vla.errors import ConfigError, UnknownNameError
 from indgen_vla.resources import config_dir
+from indgen_vla.sequential import MODES
 
 CHANGES = ("cheap", "slow")  # cheap: interleave levels (counters drift); slow: run each level as one block
 ORDERS = ("interleaved", "blocked")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-_TOP_KEYS = {"name", "task", "instruction", "robot", "base", "placements", "axes"}
+_TOP_KEYS = {"name", "task", "instruction", "robot", "base", "placements", "axes", "stopping"}
 _AXIS_KEYS = {"description", "unit", "change", "start", "step", "max_level", "setup", "setup_at", "levels"}
 
 
@@ -107,6 +108,8 @@ class RealSetup:
     robot: str = ""
     base: str = ""
     placements: tuple[str, ...] = ()
+    # ``indgen real plan``'s default --adaptive (the paper's presets: until-failure)
+    stopping: str | None = None
     source: str = ""
     text: str = field(default="", repr=False)  # the YAML as written, recorded in the manifest
 
@@ -122,6 +125,9 @@ class RealSetup:
             raise ConfigError(f"{_where(self.source)}: define at least one axis under 'axes:'")
         if any(not p.strip() for p in self.placements):
             raise ConfigError(f"{_where(self.source)}: placements must be non-empty texts")
+        if self.stopping is not None and self.stopping not in MODES:
+            raise ConfigError(f"{_where(self.source)}: stopping must be one of {', '.join(MODES)} (or left out: "
+                              f"every level's episodes), got {self.stopping!r}")  # fmt: skip
 
     def axis(self, name: str | None) -> RealAxis:
         """The named axis; with None, the only one (or a one-line error listing them)."""
@@ -261,4 +267,5 @@ def setup_from_dict(data: Any, source: str = "<dict>", text: str = "") -> RealSe
         axes=tuple(_axis_from_dict(str(n), d, source) for n, d in data["axes"].items()),
         robot=_text(data.get("robot"), "robot"), base=_text(data.get("base"), "base"),
         placements=tuple(_text(p, "placement") for p in placements), source=source, text=text,
+        stopping=data.get("stopping"),
     )  # fmt: skip

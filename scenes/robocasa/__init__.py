@@ -21,13 +21,35 @@ if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.external import ExternalSceneEnv
 
+
+@dataclass(frozen=True)
+class PickRegion:
+    """Where RoboCasa samples a pick_x task's pick object: the object config and its region's x size."""
+
+    cfg: str  # the object config's name in the task's _get_obj_cfgs ("obj"; CheesyBread's "cheese")
+    width: float  # its placement's size[0] (m): the valid sampling region appendix B divides into the levels
+    # where RoboCasa 1.0.1 sets it, under robocasa/environments/kitchen/atomic/ (FILE:LINE; tests read that line)
+    source: str
+
+
+# Appendix B's pick_x tasks, in its order, with the region RoboCasa 1.0.1 (rlinf-robocasa365 1.0.1) samples each
+# one's pick object in: upstream constants, read from the pinned install (tests/scenes/robocasa check each line).
+# RoboCasa clips a region to the fixture's own top where that is narrower (utils/env_utils.py
+# _get_placement_initializer: inner_size = min(outer_size - margin, size)), which a plan cannot know.
+PICK_REGIONS: dict[str, PickRegion] = {
+    "CheesyBread": PickRegion("cheese", 1.0, "kitchen_pick_place.py:1757"),
+    "CoffeeSetupMug": PickRegion("obj", 0.30, "kitchen_coffee.py:67"),  # PickPlaceCoffee, counter_to_machine
+    "PickPlaceCabinetToCounter": PickRegion("obj", 0.50, "kitchen_pick_place.py:204"),
+    "PickPlaceCounterToBlender": PickRegion("obj", 0.50, "kitchen_pick_place.py:1660"),
+    "PickPlaceCounterToCabinet": PickRegion("obj", 0.60, "kitchen_pick_place.py:89"),
+    "PickPlaceCounterToDrawer": PickRegion("obj", 0.60, "kitchen_pick_place.py:1503"),
+    "PickPlaceCounterToSink": PickRegion("obj", 0.30, "kitchen_pick_place.py:314"),
+    "PickPlaceCounterToStandMixer": PickRegion("obj", 0.30, "kitchen_pick_place.py:1281"),
+    "PickPlaceSinkToCounter": PickRegion("obj", 0.25, "kitchen_pick_place.py:422"),
+}
 # The paper's task lists per axis (appendix B; issue 25). ``horizon`` is RoboCasa365's ``base_y`` (an alias).
 AXIS_TASKS: dict[str, tuple[str, ...]] = {
-    "pick_x": (
-        "CheesyBread", "CoffeeSetupMug", "PickPlaceCabinetToCounter", "PickPlaceCounterToBlender",
-        "PickPlaceCounterToCabinet", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink",
-        "PickPlaceCounterToStandMixer", "PickPlaceSinkToCounter",
-    ),
+    "pick_x": tuple(PICK_REGIONS),
     "fixture_x": (
         "CloseStandMixerHead", "OpenStandMixerHead", "TurnOnElectricKettle", "OpenElectricKettleLid",
         "CloseElectricKettleLid", "TurnOnBlender",
@@ -38,11 +60,13 @@ AXIS_TASKS: dict[str, tuple[str, ...]] = {
     ),
     "clutter": ("PickPlaceCabinetToCounter",),
 }  # fmt: skip
+# Appendix B's "number of progressions along the axis (e.g. 5)": pick_x's levels 0..4 tile each task's region.
+PICK_PROGRESSIONS = 5
 # RoboCasa365's own steps and ranges of the shared axes (appendix B): base_y runs 0..3 (12.5 cm a step); pick_x
-# steps 12 cm = 1/5 of the 0.60 m pick region of the counter tasks (robocasa/environments/kitchen/atomic/
-# kitchen_pick_place.py: PickPlaceCounterToCabinet/-ToDrawer, size=(0.60, 0.30)), levels 0..4 stay inside it; a
-# task with a narrower region refuses the levels that would leave it, in one line (scenes/robocasa/backend.py).
-AXIS_OVERRIDES = {"horizon": {"max_level": 3}, "pick_x": {"step": 0.12, "max_level": 4}}
+# runs 0..4, its step each task's own: the task's region (PICK_REGIONS) / PICK_PROGRESSIONS (``pick_step``), unless
+# --step or an axes preset sets one, which a plan refuses in one line where a level leaves a task's region (a
+# preset's max_level narrows the range and keeps the step, as on every axis).
+AXIS_OVERRIDES = {"horizon": {"max_level": 3}, "pick_x": {"max_level": PICK_PROGRESSIONS - 1}}
 # RoboCasa's own canonical kitchens (robocasa/utils/env_utils.py KITCHEN_SCENES_5X5 and _5X1: the (layout, style)
 # pairs its evaluation uses), the black-box regime's canonical configurations (appendix B, Definition 3): the task
 # ``PickPlaceCounterToCabinet@11-34`` runs in layout 11, style 34; ``Task@5x5`` / ``Task@5x1`` name every kitchen
@@ -193,6 +217,39 @@ def split_task(task: str) -> tuple[str, tuple[int, int] | None]:
     return name, pair  # type: ignore[return-value]
 
 
+def pick_step(task: str) -> float:
+    """Appendix B's pick_x step of ``task``: its valid sampling region / the number of progressions, so levels
+    0..4 tile the region (0.60 m / 5 = 12 cm on PickPlaceCounterToCabinet, 0.25 m / 5 = 5 cm on -SinkToCounter)."""
+    return round(PICK_REGIONS[split_task(task)[0]].width / PICK_PROGRESSIONS, 9)
+
+
+def pick_part(successor: Successor):
+    """The pick_x component of ``successor`` (itself when it is pick_x), or None."""
+    parts = getattr(successor, "parts", (successor,))
+    return next((p for p in parts if p.axis.name == "pick_x"), None)
+
+
+def check_pick_region(task: str, successor: Successor) -> None:
+    """Every level of the axis's range (as condition 2, whatever --levels runs) keeps its pick window (2 x
+    ``PICK_JITTER`` wide, T0's at the region's low-x end) inside the task's region: one line naming the fix."""
+    from indgen_vla.progression import ProgressionError
+
+    part = pick_part(successor)
+    if part is None:
+        return
+    name, top = split_task(task)[0], successor.axis.max_level
+    region, room = PICK_REGIONS[name], PICK_REGIONS[name].width - 2 * PICK_JITTER
+    at = top * part.axis.step
+    if at > room + 1e-9:
+        raise ProgressionError(
+            f"scene robocasa: pick_x levels 0..{top} at {part.axis.step:g} m a level put {name}'s level-{top} pick "
+            f"window at {at:.3f}..{at + 2 * PICK_JITTER:.3f} m, past the end of its {region.width:.2f} m region "
+            f"(RoboCasa's {region.source}); drop --step and any preset pick_x step (each task's own is its region "
+            f"/ {PICK_PROGRESSIONS}), give one <= {room / top:.4f} m for this task, or a smaller max_level in "
+            "--axes-preset"
+        )
+
+
 def _python() -> Path:
     from scenes.robocasa.environment import find_python
 
@@ -240,6 +297,35 @@ class RoboCasa(Scene):
     preload: ClassVar[tuple[str, ...]] = ()
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
     oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
+
+    def successor(self, axis: str, step=None, overrides=None, task: str | None = None):
+        """pick_x's step is ``task``'s own (``pick_step``: its region / 5, appendix B) unless --step (a single axis)
+        or the axes preset sets one; every other step is the family's (``axis_overrides``) or the preset's."""
+        import dataclasses
+
+        from scenes.axes import get_successor, merge_overrides, resolve_alias
+
+        merged = merge_overrides(self.axis_overrides, overrides)
+        pick = merged.get("pick_x", {})
+        parts = [resolve_alias(p) for p in axis.split("+")]
+        explicit = "step" in pick or (step is not None and len(parts) == 1)
+        if task is None or "pick_x" not in parts or explicit:
+            return super().successor(axis, step, overrides)
+        name = self.resolve_task(task)
+        self.check_axis_task(name, "pick_x")
+        merged["pick_x"] = {**pick, "step": pick_step(name)}
+        successor = get_successor(axis, step, merged)
+        if len(parts) > 1:
+            return successor
+        base, region = split_task(name)[0], PICK_REGIONS[split_task(name)[0]]
+        what = (f"translate the pick object along x by 1/{PICK_PROGRESSIONS} of {base}'s {region.width:.2f} m pick "
+                f"region (RoboCasa's {region.source})")  # fmt: skip
+        return dataclasses.replace(successor, axis=dataclasses.replace(successor.axis, description=what))
+
+    def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
+        """Condition 2, and pick_x's levels inside the task's pick region (``check_pick_region``)."""
+        super().check_progression(task, successor, overridden)
+        check_pick_region(task, successor)
 
     def resolve_task(self, task: str | None) -> str:
         """A task name, or ``Task@L-S``: that task in one of RoboCasa's canonical kitchens (``KITCHEN_SETS``)."""
@@ -367,6 +453,7 @@ class RoboCasa(Scene):
         spec = spec_at_level(self.base(task), successor, level)
         parts = {resolve_alias(p) for p in successor.axis.name.split("+")}
         name, kitchen = split_task(task)
+        pick = PICK_REGIONS[name] if "pick_x" in parts else None
         return {
             "task": name,
             # a canonical kitchen (KITCHEN_SETS): RoboCasa's layout_ids / style_ids; None: drawn from the seed
@@ -380,8 +467,10 @@ class RoboCasa(Scene):
                 "fixture_x": spec.fixture_x,
                 "clutter": spec.clutter,
             },  # fmt: skip
-            "pick_window": "pick_x"
-            in parts,  # pick_x's T0: the pick region shrunk to a window (a level shifts it)
+            # pick_x's T0: the pick region shrunk to a window (a level shifts it), on the task's pick object
+            "pick_window": pick is not None,
+            "pick_cfg": pick.cfg if pick else None,
+            "pick_region": pick.width if pick else None,
             "axis_param": axis_param(spec, successor, level),
             "spec": spec,
         }

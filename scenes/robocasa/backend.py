@@ -53,11 +53,13 @@ def _yaw(quat_wxyz) -> float:
     return 2.0 * np.arctan2(z, w)
 
 
-def edit_ep_meta(meta: dict, edits: dict, fixture: str | None = None, cab: str | None = None) -> dict:
+def edit_ep_meta(
+    meta: dict, edits: dict, fixture: str | None = None, cab: str | None = None, pick: str = "obj"
+) -> dict:
     """T0's ep_meta with the level's one field moved (each edit touches exactly one ep_meta field).
 
-    ``base_back`` moves ``init_robot_base_pos`` back along the base's heading; ``pick_x`` the ``"obj"`` config's
-    ``placement.offset[0]``; ``fixture_x`` sets ``FIXTURE_KEY`` (the moved fixture and its offset in its own frame);
+    ``base_back`` moves ``init_robot_base_pos`` back along the base's heading; ``pick_x`` the pick object's
+    config's (``pick``: ``"obj"``, CheesyBread's ``"cheese"``) ``placement.offset[0]``; ``fixture_x`` sets ``FIXTURE_KEY`` (the moved fixture and its offset in its own frame);
     ``clutter`` appends that many object configs placed in the cabinet ``cab`` (``object_cfgs``).
     """
     meta = copy.deepcopy(meta)
@@ -71,7 +73,7 @@ def edit_ep_meta(meta: dict, edits: dict, fixture: str | None = None, cab: str |
         meta["init_robot_base_pos"] = pos
     dx = float(edits.get("pick_x", 0.0))
     if dx:
-        cfg = next(c for c in meta["object_cfgs"] if c.get("name") == "obj")
+        cfg = next(c for c in meta["object_cfgs"] if c.get("name") == pick)
         off = list(cfg["placement"].get("offset", (0.0, 0.0)))
         off[0] = float(off[0]) + dx
         cfg["placement"]["offset"] = off
@@ -287,9 +289,14 @@ class RoboCasaLevel:
         def get_obj_cfgs():  # pick_x's T0: the pick region shrunk to a window at its low-x end
             cfgs = obj_cfgs()
             if self.cfg.get("pick_window"):
-                cfg = next(c for c in cfgs if c.get("name") == "obj")
+                name, want = self.cfg.get("pick_cfg") or "obj", self.cfg.get("pick_region")
+                cfg = next(c for c in cfgs if c.get("name") == name)
                 pl = cfg["placement"]
                 size, off = list(pl["size"]), list(pl.get("offset", (0.0, 0.0)))
+                if want is not None and abs(float(size[0]) - want) > 1e-9:  # the plan's step came from want
+                    raise ValueError(f"RoboCasa's {self.cfg['task']} samples {name} in a {size[0]} m region, the "
+                                     f"plan's step assumed {want} m (scenes/robocasa PICK_REGIONS): not the "
+                                     "pinned RoboCasa 1.0.1; run 'indgen setup robocasa'")  # fmt: skip
                 self.pick_region = float(size[0])
                 off[0] = float(off[0]) - size[0] / 2 + PICK_JITTER
                 size[0] = 2 * PICK_JITTER
@@ -342,8 +349,8 @@ class RoboCasaLevel:
     def _pins(self, t0: dict, meta: dict, edits: dict) -> tuple[dict, tuple | None]:
         """T0's object placements except what the edit moves; fixture_x's moved fixture (objects on it go along)."""
         pins = dict(t0["placed"])
-        if edits.get("pick_x"):
-            pins.pop("obj", None)  # drawn by RoboCasa in the shifted window, clear of the pinned items
+        if edits.get("pick_x"):  # drawn by RoboCasa in the shifted window, clear of the pinned items
+            pins.pop(self.cfg.get("pick_cfg") or "obj", None)
         shift = meta.get(FIXTURE_KEY)
         if not shift:
             return pins, None
@@ -374,7 +381,8 @@ class RoboCasaLevel:
                         f"({t0['pick_region']:.2f} m wide: at most {room:.3f} m); use fewer levels or a smaller --step"
                     )
             fixture_refs = t0["meta"].get("fixture_refs", {})
-            meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"))
+            meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"),
+                                pick=self.cfg.get("pick_cfg") or "obj")  # fmt: skip
             pins, shift = self._pins(t0, meta, edits)
             self.env._indgen_task_fixture = t0["fixture"]
             try:

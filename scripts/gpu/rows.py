@@ -253,7 +253,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("rows", nargs="+", help=f"row names or groups: {', '.join([*GROUPS, *ROWS])}")
     ap.add_argument("--rehearsal", action="store_true", help="CPU, tiny sizes: the same commands, for tests")
     ap.add_argument("--budget", type=float, default=540, help="seconds for the whole call (default 540)")
-    ap.add_argument("--out", default=os.environ.get("OUT") or "/tmp/gpu_rows_out", help="results folder ($OUT)")
+    ap.add_argument(
+        "--out", default=os.environ.get("OUT") or "/tmp/gpu_rows_out", help="results folder ($OUT)"
+    )
     a = ap.parse_args(argv)
     names = [n for x in a.rows for n in GROUPS.get(x, [x])]
     if unknown := [n for n in names if n not in ROWS]:

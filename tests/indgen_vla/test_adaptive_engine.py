@@ -181,3 +181,28 @@ def test_a_new_adaptive_run_prepares_its_first_rounds_scenes_not_the_plans_first
     assert {cell_of(j)[2] for j in first_jobs(plan.jobs, 2)} == {0, -1}
     fixed = cfg(tmp_path, levels="-2:2", episodes=20, adaptive=None)
     assert _first_round(fixed, build_plan(fixed)) == build_plan(fixed).jobs
+
+
+def test_until_failure_stops_both_directions_at_the_first_level_below_gamma(tmp_path):
+    """The paper's real-robot design in simulation: a policy that never succeeds gets its 10 episodes at level 0
+    (0/10 < γ) and nothing else; the summary names the design and calls the break observed."""
+    from indgen_vla.engine.config import load_config_preset
+
+    assert (
+        load_config_preset("stack_real_robot_style")["adaptive"] == "until-failure"
+    )  # the paper's protocol preset
+    run = evaluate(cfg(tmp_path, policy="standin:noop", adaptive="until-failure", episodes=10), quiet=True)
+    df = pd.read_parquet(Path(run) / "episodes.parquet")
+    assert set(df["level"]) == {0} and sorted(df["episode"]) == list(range(10))
+    manifest = json.loads((Path(run) / "manifest.json").read_text())
+    assert manifest["plan"]["adaptive"] == {"mode": "until-failure", "gamma": 0.2}
+    s = json.loads((Path(run) / "summary.json").read_text())["axes"]["pick_y"]
+    assert s["break_level"] == {"pos": 0, "neg": 0} and "until failure" in s["design"]
+    assert s["verdict"]["pos"].startswith("observed break at 0 (0 %, n = 10, 95 % CI [0, 28])")
+    assert {r["level"]: r.get("not_run", False) for r in s["levels"]} == {
+        -2: True,
+        -1: True,
+        0: False,
+        1: True,
+        2: True,
+    }

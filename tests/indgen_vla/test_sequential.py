@@ -229,3 +229,89 @@ def test_exact_thresholds_meet_alpha_beta_and_are_tight():
     assert r.as_dict()["thresholds"] == "exact"
     with pytest.raises(ConfigError, match="thresholds"):
         SequentialRule(thresholds="pocock")
+
+
+# ---------------------------------------------------------------- the paper's until-failure design (§5.3)
+def _run_until_failure(rule, levels, truth, mode="until-failure"):
+    """Drive ``plan_next`` to the end; ``truth[k]`` is level k's outcome list. Returns (plan, outcomes)."""
+    outcomes: dict = {}
+    plan = plan_next(rule, levels, outcomes, mode)
+    while not plan.done:
+        for k, eps in plan.to_run.items():
+            for i in eps:
+                outcomes.setdefault(k, {})[i] = truth[k][i]
+        plan = plan_next(rule, levels, outcomes, mode)
+    return plan, outcomes
+
+
+def _trials(successes: int, n: int = 10) -> list[bool]:
+    return [True] * successes + [False] * (n - successes)
+
+
+def test_until_failure_stops_after_the_first_level_observed_below_gamma():
+    """10/10, 6/10, 1/10: level 2 is the first below γ = 0.2, so levels 3 and 4 never run and k* = +2. Wilson
+    95 % CIs by hand: 10/10 [72.2, 100] % and 6/10 [31.3, 83.2] % lie above γ (intact); 1/10 [1.8, 40.4] % straddles
+    it (undetermined): the break is observed, not decided."""
+    from indgen_vla.sequential import UntilFailure
+
+    rule = UntilFailure(gamma=0.2, max_episodes=10)
+    truth = {0: _trials(10), 1: _trials(6), 2: _trials(1), 3: _trials(10), 4: _trials(10)}
+    plan = plan_next(rule, range(5), {}, "until-failure")
+    assert plan.to_run == {0: list(range(10))}  # one level at a time, all its trials at once
+    plan = plan_next(rule, range(5), {0: {i: True for i in range(7)}}, "until-failure")
+    assert plan.to_run == {0: [7, 8, 9]} and plan.decisions[0].verdict == "continue"
+    plan, outcomes = _run_until_failure(rule, range(5), truth)
+    assert {k: len(v) for k, v in outcomes.items()} == {0: 10, 1: 10, 2: 10}
+    assert {k: d.verdict for k, d in plan.decisions.items()} == {0: "intact", 1: "intact", 2: "undetermined"}
+    assert plan.kstar["pos"]["k"] == 2 and plan.episodes_used == 30
+    text = plan.kstar["pos"]["text"]
+    assert (
+        text.startswith("k* = +2 observed (1/10 < γ = 0.2, 95 % Wilson CI 2-40 %)")
+        and "not a statistically" in text
+    )
+    # the SPRT's kstar walk on the same 10 trials: 1/10 is "undetermined" at the cap, never "broken", so it walks on
+    sprt = SequentialRule(max_episodes=10)
+    assert sprt.decide(truth[2]).verdict == "undetermined"
+    assert plan_next(sprt, range(5), outcomes, "kstar").to_run == {3: [0, 1, 2, 3, 4]}
+
+
+def test_until_failure_without_a_break_runs_every_level_and_a_low_ci_says_so():
+    from indgen_vla.sequential import UntilFailure
+
+    rule = UntilFailure(gamma=0.2, max_episodes=10)
+    plan, outcomes = _run_until_failure(
+        rule, range(3), {k: _trials(2) for k in range(3)}
+    )  # 2/10 = γ: not below
+    assert len(outcomes) == 3 and plan.kstar["pos"]["k"] is None
+    assert plan.kstar["pos"]["text"] == "no level observed below γ = 0.2 through +2"
+    # 0/20 (Wilson upper 16.1 % < γ): the observed break is also significant
+    rule20 = UntilFailure(gamma=0.2, max_episodes=20)
+    plan, _ = _run_until_failure(
+        rule20, range(3), {0: _trials(20, 20), 1: _trials(0, 20), 2: _trials(20, 20)}
+    )
+    assert plan.decisions[1].verdict == "broken" and plan.kstar["pos"]["k"] == 1
+    assert plan.kstar["pos"]["text"].endswith("its CI lies below γ too")
+
+
+def test_until_failure_signed_directions_errors_and_rule_checks():
+    from indgen_vla.sequential import UntilFailure, make_rule, plan_entry, rule_from_plan
+
+    rule = UntilFailure(gamma=0.2, max_episodes=5)
+    truth = {
+        0: _trials(5, 5),
+        1: _trials(0, 5),
+        -1: _trials(5, 5),
+        -2: [None, None, False, False, True],
+        2: [True] * 5,
+    }
+    plan, outcomes = _run_until_failure(rule, range(-2, 3), truth)
+    assert 2 not in outcomes and plan.kstar["pos"]["k"] == 1
+    # level -2: 1/3 finished episodes (two errors count as finished, not in n), 33 % ≥ γ: no break on that side
+    assert (plan.decisions[-2].n, plan.decisions[-2].successes, plan.kstar["neg"]["k"]) == (3, 1, None)
+    assert make_rule("until-failure", 0.3, 0.1, 0.025, 5, 10) == UntilFailure(0.3, 10)
+    assert plan_entry("until-failure", UntilFailure(0.3, 10)) == {"mode": "until-failure", "gamma": 0.3}
+    assert rule_from_plan({"mode": "until-failure", "gamma": 0.3}, 10) == UntilFailure(0.3, 10)
+    with pytest.raises(ConfigError, match="goes with an UntilFailure rule"):
+        plan_next(SequentialRule(), [0, 1], {}, "until-failure")
+    with pytest.raises(ConfigError, match="gamma must be in"):
+        UntilFailure(gamma=1.0)

@@ -87,14 +87,14 @@ def test_kstar_decisions_and_next_level_match_hand_computation(tmp_path, capsys)
 
 
 def test_plan_records_the_engines_adaptive_entry(tmp_path, capsys):
-    from indgen_vla.engine.adaptive import adaptive_plan_entry
+    from indgen_vla.sequential import plan_entry
 
     run = tmp_path / "run"
     assert main(["real", "plan", "--setup", "scale", "--episodes", "30", "--adaptive", "curve", "--round-size", "6",
                  "--adaptive-delta", "0.15", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
     plan = json.loads((run / "manifest.json").read_text())["plan"]
     rule = SequentialRule(delta=0.15, round_size=6, max_episodes=30)
-    assert plan["adaptive"] == adaptive_plan_entry("curve", rule)
+    assert plan["adaptive"] == plan_entry("curve", rule)
 
 
 def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(tmp_path, capsys):
@@ -114,7 +114,7 @@ def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].endswith("no episodes, n = 0, voids 0  deciding (more episodes needed)")
     assert lines[2].endswith("no episodes, n = 0, voids 0  not reached")
-    assert not any("adaptive:" in line for line in lines)  # no k* line before the first episode
+    assert not any(line.startswith("  kstar:") for line in lines)  # no k* line before the first episode
     for _ in range(5):
         out = _record(run, "success", capsys)
     assert "DECIDED: level 0 is intact (S ≥ γ = 0.5) after 5 episodes" in out
@@ -124,4 +124,8 @@ def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(
     assert "DECIDED: level 1 is broken (S < γ = 0.5) after 5 episodes" in out and out[-1] == "run complete"
     assert decisions() == ["intact", "broken", "not needed", "not needed"]
     assert main(["real", "status", str(run)]) == 0
-    assert capsys.readouterr().out.splitlines()[3].endswith("no episodes, n = 0, voids 0  not needed")
+    lines = capsys.readouterr().out.splitlines()
+    assert (
+        lines[3].endswith("no episodes, n = 0, voids 0  not needed")
+        and lines[5] == "  kstar: k* = +1, determined"
+    )

@@ -40,8 +40,8 @@ def _png_whole(path) -> bool:
 
 def test_report_and_status_while_recording(tmp_path, capsys):
     run = tmp_path / "run"
-    assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "3", "--policy", "pi05-droid",
-                 "--out", str(run)]) == 0  # fmt: skip
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "3", "--adaptive", "off",
+                 "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
     writer = subprocess.Popen([sys.executable, "-c", WRITER, str(run), *OUTCOMES], cwd=tmp_path,
                               env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE)  # fmt: skip

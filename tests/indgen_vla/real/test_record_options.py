@@ -19,7 +19,7 @@ def _record(run, capsys, *args: str) -> tuple[int, list[str], str]:
 def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "2", "--order", "blocked",
-                 "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
+                 "--adaptive", "off", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
     capsys.readouterr()
     from indgen_vla.real.plan import RealRun
 

@@ -112,8 +112,9 @@ def test_manifest_is_a_normal_run_dir(tmp_path, capsys):
 
 
 def test_order_interleaved_cycles_and_blocked_blocks(tmp_path):
-    _plan(tmp_path / "i")
-    _plan(tmp_path / "b", "--order", "blocked")
+    """Every level's episodes (--adaptive off: the stack preset's own rule, until-failure, runs one level at a time)."""
+    _plan(tmp_path / "i", "--adaptive", "off")
+    _plan(tmp_path / "b", "--order", "blocked", "--adaptive", "off")
     empty = State({}, {}, [], None)
     q = RealRun.open(tmp_path / "i").queue(empty)
     assert len(q) == 12 and all(sorted(k for k, i in q[3 * c : 3 * c + 3]) == [0, 1, 2] and

@@ -1,0 +1,170 @@
+"""RoboCasa365's pick_x step is each task's own (appendix B: the valid sampling region / the number of
+progressions, 5), resolved and recorded before any episode runs; a step whose levels leave a region is refused."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from indgen_vla.errors import ConfigError
+from tests.scenes.robocasa.test_robocasa import needs_venv
+
+# hand-computed: RoboCasa 1.0.1's pick region (m) / 5
+STEPS = {"CheesyBread": 0.2, "CoffeeSetupMug": 0.06, "PickPlaceCabinetToCounter": 0.1,
+         "PickPlaceCounterToBlender": 0.1, "PickPlaceCounterToCabinet": 0.12, "PickPlaceCounterToDrawer": 0.12,
+         "PickPlaceCounterToSink": 0.06, "PickPlaceCounterToStandMixer": 0.06, "PickPlaceSinkToCounter": 0.05}  # fmt: skip
+
+
+def test_each_tasks_step_is_its_region_over_five():
+    from scenes.registry import get_scene
+    from scenes.robocasa import AXIS_TASKS
+
+    sc = get_scene("robocasa")
+    assert list(STEPS) == list(AXIS_TASKS["pick_x"])  # appendix B's nine tasks, in its order
+    for task, step in STEPS.items():
+        axis = sc.successor("pick_x", task=task).axis
+        assert (axis.step, axis.max_level) == (step, 4)
+    assert (
+        sc.successor("pick_x", task="PickPlaceSinkToCounter@11-34").axis.step == 0.05
+    )  # a canonical kitchen
+    # a preset's range narrows the levels and keeps the step (the quick preset: levels 0..1)
+    assert (
+        sc.successor(
+            "pick_x", overrides={"pick_x": {"max_level": 1}}, task="PickPlaceSinkToCounter"
+        ).axis.step
+        == 0.05
+    )
+    # --step and a preset's step are the user's: the same for every task
+    assert sc.successor("pick_x", 0.05, task="PickPlaceCounterToCabinet").axis.step == 0.05
+    assert sc.successor("pick_x", overrides={"pick_x": {"step": 0.05}}, task="CheesyBread").axis.step == 0.05
+    # in a composition the pick component takes the task's step
+    comp = sc.successor("pick_x+horizon", task="PickPlaceCounterToSink")
+    assert [p.axis.step for p in comp.parts] == [0.06, 0.125]
+    with pytest.raises(ConfigError, match="not on axis pick_x's task list"):
+        sc.successor("pick_x", task="CloseStandMixerHead")
+
+
+@pytest.mark.parametrize(
+    ("task", "step", "fits"),
+    [("PickPlaceSinkToCounter", 0.0525, True), ("PickPlaceSinkToCounter", 0.06, False),  # 4 x 0.06 + 0.04 > 0.25
+     ("PickPlaceCounterToCabinet", 0.12, True), ("PickPlaceCabinetToCounter", 0.12, False)],  # 0.52 > 0.50
+)  # fmt: skip
+def test_a_step_whose_top_level_leaves_the_region_is_refused(task, step, fits):
+    from indgen_vla.progression import ProgressionError
+    from scenes.registry import get_scene
+
+    sc = get_scene("robocasa")
+    successor = sc.successor("pick_x", step, task=task)
+    if fits:
+        sc.check_progression(task, successor, True)
+        return
+    with pytest.raises(ProgressionError, match=rf"{task}'s level-4 pick window .* region") as e:
+        sc.check_progression(task, successor, True)
+    assert "\n" not in str(e.value) and "drop --step" in str(e.value)
+
+
+def _site_packages() -> Path:
+    from scenes.robocasa.environment import find_python
+
+    return next(Path(find_python()).parent.parent.glob("lib/python3*/site-packages"))
+
+
+@needs_venv
+def test_pick_regions_are_the_pinned_robocasas_own():
+    """Each PICK_REGIONS entry against the installed RoboCasa's source at the line it cites: ``size=(width, ..)``
+    inside the named object config of the task's class (or the class it inherits _get_obj_cfgs from)."""
+    from scenes.robocasa import PICK_REGIONS
+
+    atomic = _site_packages() / "robocasa/environments/kitchen/atomic"
+    for task, region in PICK_REGIONS.items():
+        file, line = region.source.split(":")
+        lines = (atomic / file).read_text().splitlines()
+        n = int(line) - 1
+        size = re.search(r"size=\(([\d.]+),", lines[n])
+        assert size and float(size.group(1)) == region.width, f"{task}: {region.source} is {lines[n].strip()}"
+        above = lines[:n]
+        cfg = next(ln for ln in reversed(above) if "name=" in ln)
+        assert f'name="{region.cfg}"' in cfg, f"{task}: the config at {region.source} is {cfg.strip()}"
+        owner = (
+            next(ln for ln in reversed(above) if ln.startswith("class ")).split("(")[0].removeprefix("class ")
+        )
+        src = "\n".join(lines)
+        assert owner == task or re.search(rf"^class {task}\({owner}\)", src, re.M), f"{task}: {owner}'s line"
+
+
+@needs_venv
+def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
+    """--task all on pick_x: every level's parameter is the task's own offset in metres, the plan carries each
+    task's step (resume matches it) and the manifest's environment names them; --step is one step for all."""
+    from indgen_vla.engine.config import EvalConfig
+    from scenes.planning import resolve_scene_plan
+
+    plan = resolve_scene_plan("robocasa", "all", ["pick_x"], "0:4")
+    params = plan.params()
+    for task, step in STEPS.items():
+        assert [params[(task, "pick_x", k)] for k in range(5)] == pytest.approx([k * step for k in range(5)])
+    assert plan.task_steps == {"pick_x": {t: {"pick_x": s} for t, s in STEPS.items()}}
+    described = plan.builder.describe()["successors"]["pick_x"]
+    assert described == {"type": "Shift", "task_steps": plan.task_steps["pick_x"]}
+    cfg = EvalConfig(policy="standin:noop", scene="robocasa", axes=("pick_x",), out="x")
+    assert (
+        cfg.plan_dict(list(plan.tasks), {"pick_x": [0]}, None, plan.task_steps)["task_steps"]
+        == plan.task_steps
+    )
+    assert "task_steps" not in cfg.plan_dict(
+        list(plan.tasks), {"pick_x": [0]}, None
+    )  # other families: unchanged
+    one = resolve_scene_plan("robocasa", "all", ["pick_x"], "0:1", step=0.05)
+    assert one.task_steps == {} and {c.param for c in one.cells if c.level == 1} == {0.05}
+    horizon = resolve_scene_plan("robocasa", "all", ["base_y"], "0:1")  # no per-task step: nothing recorded
+    assert horizon.task_steps == {} and horizon.builder.task_successors == {}
+
+
+@needs_venv
+def test_a_step_that_leaves_a_region_exits_2_before_any_episode(placeholders, tmp_path, capsys):
+    from indgen_vla.cli import main
+
+    out = tmp_path / "run"
+    code = main(["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "all", "--axis", "pick_x",
+                 "--step", "0.12", "--levels", "0:1", "--episodes", "1", "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "CoffeeSetupMug's level-4 pick window" in err
+    assert not out.exists()
+
+
+@needs_venv
+@pytest.mark.slow  # ~10 s: two kitchens built; test_pick_x_successor_shifts_the_pick_window covers the "obj" tasks
+def test_cheesy_bread_moves_its_cheese(placeholders):
+    """CheesyBread's pick object is the cheese (no "obj" config): level 1 moves its window by 1/5 of 1.0 m."""
+    from tests.scenes.robocasa.test_robocasa import _changed, _levels
+
+    (m0, s0), (m1, _) = _levels("CheesyBread", "pick_x", (0, 1), seed=3)
+    assert _changed(m0, m1) == {"object_cfgs"}
+    c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "cheese"][0]["placement"] for m in (m0, m1))
+    assert c1["offset"][0] - c0["offset"][0] == pytest.approx(0.2) and c0["size"][0] == pytest.approx(0.04)
+
+
+@needs_venv
+def test_certificates_are_keyed_by_the_tasks_own_step(placeholders, tmp_path, monkeypatch):
+    """A certificate made at a task's own step is found under the axis's plain folder; one at another step (e.g. the
+    0.12 m every task used before) lives beside it and is not that task's."""
+    import json
+
+    from scenes.certify_io import cert_path, find_certification
+    from scenes.certify_run import asset_stamp
+
+    monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
+    task = "PickPlaceSinkToCounter"
+    assert cert_path("robocasa", task, "pick_x").parent.name == "pick_x"
+    assert cert_path("robocasa", task, "pick_x", step=0.05).parent.name == "pick_x"  # its own step, given
+    assert cert_path("robocasa", task, "pick_x", step=0.04).parent.name == "pick_x@pick_x=0.04"
+    for steps in ({"pick_x": 0.05}, {"pick_x": 0.12}):
+        path = cert_path("robocasa", task, "pick_x")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        cert = {"scene": "robocasa", "task": task, "axis": "pick_x", "steps": steps, "levels": [],
+                "assets": asset_stamp("robocasa")}  # fmt: skip
+        path.write_text(json.dumps(cert))
+        found = find_certification("robocasa", task, "pick_x")
+        assert (found is not None) == (steps == {"pick_x": 0.05})
