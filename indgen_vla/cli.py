@@ -23,6 +23,7 @@ HANDLERS: dict[str, str] = {
     "certify": "scenes.certify:certify_main",
     "preview": "scenes.preview:preview_main",
     "report": "indgen_vla.report:report_main",
+    "merge": "indgen_vla.engine.merge:merge_main",
     "compare": "indgen_vla.compare:compare_main",
     "reference": "indgen_vla.reference:reference_main",
     "serve": "policy_wrappers.serve:serve_main",
@@ -235,6 +236,24 @@ def _add_report(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
 
 
+def _add_merge(sp: argparse._SubParsersAction) -> None:
+    p = sp.add_parser(
+        "merge",
+        help="merge the shards of one protocol (evaluate runs split by --task or --axis) into one run directory",
+        description="Shards of one evaluate command split over a cluster (one job per task or axis) as one ordinary "
+        "run directory: the union of their plans and every finished episode, for report, compare, reference and a "
+        "resume. Refuses shards that are not parts of one protocol (plan, fingerprint, outcomes); never writes into "
+        "a shard.",
+    )
+    p.add_argument(
+        "runs",
+        nargs="+",
+        metavar="RUN_DIR",
+        help="the shards' run directories (written by 'indgen evaluate')",
+    )
+    p.add_argument("--out", required=True, help="the merged run directory (new, or an empty directory)")
+
+
 def _add_compare(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser(
         "compare",
@@ -343,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_certify(sp)
     _add_preview(sp)
     _add_report(sp)
+    _add_merge(sp)
     _add_compare(sp)
     _add_reference(sp)
     _add_serve(sp)

@@ -141,9 +141,8 @@ class EvalPlan:
         return self.scene_plan.builder
 
     def jobs_hash(self) -> str:
-        """SHA-256 of every planned episode (key, seed, parameter, video flag): equal plans, equal hashes."""
-        rows = [[j.task, j.axis, j.level, j.episode, j.seed, repr(j.param), j.video] for j in self.jobs]
-        return hashlib.sha256(json.dumps(rows).encode()).hexdigest()
+        """SHA-256 of every planned episode (``jobs_sha256``): equal plans, equal hashes."""
+        return jobs_sha256(self.jobs)
 
     def record(self) -> dict[str, Any]:
         """The manifest's ``resolved`` entry: the environment, every cell with its certificate, the jobs' hash."""
@@ -153,6 +152,13 @@ class EvalPlan:
             "episodes": len(self.jobs),
             "jobs_sha256": self.jobs_hash(),
         }
+
+
+def jobs_sha256(jobs: Sequence[EpisodeJob]) -> str:
+    """SHA-256 of planned episodes in order (key, seed, parameter, video flag): the manifest's ``jobs_sha256``, also
+    of a plan no single ``EvalPlan`` made (``indgen merge``'s union of shards)."""
+    rows = [[j.task, j.axis, j.level, j.episode, j.seed, repr(j.param), j.video] for j in jobs]
+    return hashlib.sha256(json.dumps(rows).encode()).hexdigest()
 
 
 def plan_jobs(

@@ -202,7 +202,7 @@ class RunDir:
                 )
                 raise RunDirError(
                     f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}); "
-                    "use a new --out or repeat the original command to resume"
+                    + _resume_hint(old)
                 )
         else:
             atomic_write_json(mpath, dict(manifest))
@@ -317,6 +317,10 @@ class RunDir:
         finally:
             os.close(fd)
 
+    def rows(self) -> list[dict[str, Any]]:
+        """Every recorded episode as a dict of ``COLUMNS`` (journal replayed), e.g. to write them into another run."""
+        return [dict(r) for r in self._load().values()]
+
     def done_keys(self, include_errors: bool = False) -> set[tuple[str, str, int, int]]:
         """Keys ``(task, axis, level, episode)`` already finished; error rows are retried unless asked."""
         return {k for k, r in self._load().items() if include_errors or r["status"] == "ok"}
@@ -388,6 +392,18 @@ class RunDir:
         """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
         df = self._stored_frame()
         return episodes_frame(list(self._load().values())) if df is None else _typed(df)
+
+
+def _resume_hint(manifest: Mapping[str, Any]) -> str:
+    """How to resume the run of ``manifest``: its own command, or for a merge of shards (``indgen merge``) the one
+    evaluate command that plans their union, if any."""
+    merged = manifest.get("merged_from")
+    if not isinstance(merged, dict):
+        return "use a new --out or repeat the original command to resume"
+    if merged.get("resume"):
+        return f"it is a merge of shards (indgen merge): resume it with {merged['resume']}"
+    return (f"it is a merge of shards (indgen merge) that no single evaluate command resumes "
+            f"({merged.get('resume_note', 'see its manifest')}): finish the shards and merge them again")  # fmt: skip
 
 
 def episodes_frame(rows: list[dict]):
