@@ -78,6 +78,25 @@ def features(
     return feats
 
 
+def save_episode(ds, frames: list, cameras: tuple[str, ...], objects: bool, per_level: dict) -> None:
+    """Add one episode's (observation, executed action, object poses) frames to ``ds`` and save it."""
+    for obs, a, pose in frames:
+        frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
+        frame.update(
+            {"observation.state": obs.state.astype(np.float32), "action": a, "task": obs.instruction}
+        )
+        if objects:
+            frame[ENV_STATE] = object_vector(pose)
+        frame.update(per_level)
+        ds.add_frame(frame)
+    ds.save_episode()
+
+
+def rounded_poses(poses: list[dict]) -> dict:
+    """Per-frame object poses as the sidecar stores them: object -> frames -> 6-decimal numbers."""
+    return {k: [[round(v, 6) for v in p[k]] for p in poses] for k in poses[0]}
+
+
 def level_columns(level: int, axis: str | None, param: float | None) -> dict:
     """One frame's ``LEVEL_FEATURES`` values."""
     return {"level": np.array([level], np.int64), "axis": axis or "",
@@ -308,22 +327,13 @@ class _Recorder:
     def _save(self, cell: DemoCell, ep_seed: int, frames: list) -> None:
         poses = [object_poses(privileged_of(obs, "indgen demos")) for obs, _ in frames]
         per_level = level_columns(cell.level, cell.axis, cell.param) if self.levels.axis is not None else {}
-        for (obs, a), pose in zip(frames, poses, strict=True):
-            frame = {f"observation.images.{c}": obs.images[c] for c in self.cameras}
-            frame.update(
-                {"observation.state": obs.state.astype(np.float32), "action": a, "task": obs.instruction}
-            )
-            if self.objects:
-                frame[ENV_STATE] = object_vector(pose)
-            frame.update(per_level)
-            self.ds.add_frame(frame)
-        self.ds.save_episode()
+        save_episode(self.ds, [(o, a, p) for (o, a), p in zip(frames, poses, strict=True)], self.cameras,
+                     self.objects, per_level)  # fmt: skip
         record = {"episode_index": self.ds.num_episodes - 1, "regime": "demos", "scene": self.scene,
                   "task": cell.task, "seed": ep_seed, "level": cell.level}  # fmt: skip
         if self.levels.axis is not None:
             record.update(self.levels.extra(), param=cell.param)
-        record.update(frames=len(frames),
-                      object_poses={k: [[round(v, 6) for v in p[k]] for p in poses] for k in poses[0]})  # fmt: skip
+        record.update(frames=len(frames), object_poses=rounded_poses(poses))
         append_episode_sidecar(self.out, record)
 
 

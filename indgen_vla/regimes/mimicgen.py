@@ -37,6 +37,8 @@ from indgen_vla.regimes.demos import (
     features,
     level_columns,
     read_episode_sidecar,
+    rounded_poses,
+    save_episode,
 )
 from indgen_vla.regimes.se3 import (
     interpolate_poses,
@@ -47,7 +49,7 @@ from indgen_vla.regimes.se3 import (
     transform_segment,
 )
 from indgen_vla.seeding import episode_seed, held_out_seeds
-from scenes.poses import object_poses, object_vector
+from scenes.poses import object_poses
 
 SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
 SELECTIONS = ("nearest", "random")
@@ -385,22 +387,14 @@ class _Writer:
     def _save(self, src: SourceDemo, seed: int, frames: list, used: list[int]) -> None:
         where = dict(src.where)
         per_level = level_columns(src.level, where.get("axis"), src.param) if self.levels else {}
-        for obs, a, pose in frames:
-            frame = {f"observation.images.{c}": obs.images[c] for c in self.cams}
-            frame.update(
-                {"observation.state": obs.state.astype(np.float32), "action": a, "task": obs.instruction}
-            )
-            if self.objects:
-                frame[ENV_STATE] = object_vector(pose)
-            frame.update(per_level)
-            self.ds.add_frame(frame)
-        self.ds.save_episode()
+        save_episode(self.ds, frames, self.cams, self.objects, per_level)
         record = {"episode_index": self.ds.num_episodes - 1, "regime": "mimicgen", "scene": src.scene,
                   "task": src.task, "seed": seed, "level": src.level}  # fmt: skip
         if where:
             record.update(where, param=src.param)
-        record.update(frames=len(frames), source_episodes=used,
-                      object_poses={k: [[round(v, 6) for v in p[k]] for _, _, p in frames] for k in frames[0][2]})  # fmt: skip
+        record.update(
+            frames=len(frames), source_episodes=used, object_poses=rounded_poses([p for _, _, p in frames])
+        )
         append_episode_sidecar(self.cfg.out, record)
         self.frames += len(frames)
 
