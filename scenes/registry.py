@@ -59,8 +59,8 @@ class Scene:
             ``successor`` when given the task.
         fixed_initial_states: a description of the finite set of initial states episodes start from, whichever
             the seed (LIBERO: its 50 fixed states, episode % 50), "" when the seed draws each episode's own.
-            ``evaluate`` runs through that set, so ``indgen demos``/``mimicgen`` refuse such a family: their data
-            would start from the evaluation's initial states.
+            ``evaluate`` runs through that set, so ``indgen demos`` refuses such a family (its demonstrations, and
+            mimicgen's from them, would start from the evaluation's initial states).
     """
 
     name: ClassVar[str]

@@ -248,7 +248,7 @@ def record_demos(
 
     ``objects`` adds the pick and target poses per frame as ``observation.environment_state``; ``levels`` (an axis
     and its levels) records each level, with its level, axis and axis parameter per frame (``LEVEL_FEATURES``)
-    and in the sidecar. No episode starts from a seed ``evaluate`` uses (``seeding.held_out_seeds``).
+    and in the sidecar. No episode starts from a seed of ``seeding.held_out_seeds`` (the ones ``evaluate`` uses).
     """
     noise, levels = noise or HumanNoise(), levels or LevelRequest()
     if n < 1:
@@ -265,7 +265,7 @@ def record_demos(
     ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=feats, root=out, robot_type="panda",
                                use_videos=use_videos, video_backend="pyav")  # fmt: skip
     stats = {"scene": scene, "tasks": list(dict.fromkeys(c.task for c in cells)), "episodes": 0, "attempts": 0,
-             "frames": 0}  # fmt: skip
+             "frames": 0, "cells": []}  # fmt: skip
     if levels.axis is not None:
         stats.update(axis=cells[0].axis, levels=sorted({c.level for c in cells}))
     recorder = _Recorder(ds, out, scene, cameras, objects, levels, noise)
@@ -279,6 +279,7 @@ def record_demos(
             stats["episodes"] += kept
             stats["attempts"] += attempt
             stats["frames"] += frames
+            stats["cells"].append({"task": cell.task, "level": cell.level, "kept": kept, "attempts": attempt})
     except BaseException:
         ds.finalize()
         raise
@@ -385,20 +386,22 @@ def demos_main(args: argparse.Namespace) -> int:
         console.print(f"  {label}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
 
     out = Path(a.out)
-    fresh = not out.exists() or (
-        out.is_dir() and not any(out.iterdir())
-    )  # only what this run made is removed
+    # on a failure only what this run made is removed (a partial dataset would only block the re-run)
+    fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
     try:
         stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
                              noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
                              use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects,
                              levels=levels)  # fmt: skip
     except BaseException:
-        if fresh:  # a partial dataset would only block the re-run ("already exists")
+        if fresh:
             shutil.rmtree(out, ignore_errors=True)
         raise
     where = f" at levels {', '.join(map(str, stats['levels']))} of {stats['axis']}" if "axis" in stats else ""
     console.print(f"\nrecorded {stats['episodes']} episodes ({stats['frames']} frames) of {a.scene} "
-                  f"{', '.join(stats['tasks'])}{where} into {out}; oracle keep rate "
-                  f"{100 * stats['success_rate']:.0f}%")  # fmt: skip
+                  f"{', '.join(stats['tasks'])}{where} into {out}; oracle keep rate {100 * stats['success_rate']:.0f}% "
+                  f"({stats['episodes']} of {stats['attempts']} attempts, pooled over tasks and levels)")  # fmt: skip
+    if "axis" in stats:
+        console.print("kept per task and level: " + ", ".join(
+            f"{c['task']} {c['level']}: {c['kept']}/{c['attempts']}" for c in stats["cells"]))  # fmt: skip
     return 0

@@ -304,9 +304,8 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
     size = (int(shape[0]), int(shape[1]))
     use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
     objects = ENV_STATE in feats  # the source records object poses: so do the generated episodes
-    levels = all(
-        k in feats for k in LEVEL_FEATURES
-    )  # the source records levels per frame: so does the output
+    # the source records its levels per frame: so does the output
+    levels = all(k in feats for k in LEVEL_FEATURES)
     by_cell: dict[tuple, list[SourceDemo]] = {}
     for d in demos:
         by_cell.setdefault(d.cell, []).append(d)
@@ -327,14 +326,13 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
             src = pool[0]
             env = _level_env(src.scene, src.task, src.level, dict(src.where), cams, size)
             try:
-                label, ok, attempt = writer.cell(env, pool, taken, progress)
+                label, ok, attempt, frames = writer.cell(env, pool, taken, progress)
             finally:
                 env.close()
             stats["tasks"][label] = {"attempts": attempt, "successes": ok, "rate": ok / max(attempt, 1)}
             stats["attempts"] += attempt
             stats["successes"] += ok
-            stats["frames"] += writer.frames
-            writer.frames = 0
+            stats["frames"] += frames
     except BaseException:
         ds.finalize()
         raise
@@ -355,17 +353,16 @@ class _Writer:
     cams: tuple[str, ...]
     objects: bool
     levels: bool
-    frames: int = 0
 
-    def cell(self, env, pool: list[SourceDemo], taken: set[int], progress) -> tuple[str, int, int]:
-        """Attempt one level of one task from its sources ``pool``; return (label, successes, attempts)."""
+    def cell(self, env, pool: list[SourceDemo], taken: set[int], progress) -> tuple[str, int, int, int]:
+        """Attempt one level of one task from its sources ``pool``; return (label, successes, attempts, frames)."""
         cfg, src = self.cfg, pool[0]
         where = dict(src.where)
         at = () if src.level == 0 else (where.get("axis"), src.level)  # T0 keeps the seeds it always had
         label = src.task if where.get("axis") is None else f"{src.task} {where['axis']} level {src.level}"
         avoid = taken | held_out_seeds(src.scene, src.task, also=(cfg.seed,))
         per_cell = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
-        ok = attempt = 0
+        ok = attempt = total = 0
         while attempt < per_cell and not (cfg.guarantee and ok >= cfg.n):
             seed = _new_seed(cfg, src.scene, src.task, attempt, avoid, at)
             rng = np.random.default_rng(
@@ -380,9 +377,10 @@ class _Writer:
             if success:
                 self._save(src, seed, frames, used)
                 ok += 1
+                total += len(frames)
             if progress is not None:
                 progress(label, ok, attempt, per_cell)
-        return label, ok, attempt
+        return label, ok, attempt, total
 
     def _save(self, src: SourceDemo, seed: int, frames: list, used: list[int]) -> None:
         where = dict(src.where)
@@ -396,7 +394,6 @@ class _Writer:
             frames=len(frames), source_episodes=used, object_poses=rounded_poses([p for _, _, p in frames])
         )
         append_episode_sidecar(self.cfg.out, record)
-        self.frames += len(frames)
 
 
 def mimicgen_main(args: argparse.Namespace) -> int:
