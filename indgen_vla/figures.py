@@ -60,8 +60,10 @@ def draw_curves(
         levels += ks
         signed |= a["signed"]
         colour = colours[i] if colours else f"C{i}"
+        # one run: a grey band (its own colour is its CI band's); several: each run's band in its colour
+        one = len(curves) == 1
         shade_trained(
-            ax, fully_trained(a), colour, "trained levels" if len(curves) == 1 else f"{label}: trained"
+            ax, fully_trained(a), "grey" if one else colour, "trained levels" if one else f"{label}: trained"
         )
         ax.plot(ks, [r["rate"] for r in rows], marker="o", ms=4, color=colour, label=label, zorder=3)
         ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], alpha=0.18, color=colour,
