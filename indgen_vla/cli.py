@@ -39,7 +39,7 @@ HANDLERS: dict[str, str] = {
 }
 
 
-class _Parser(argparse.ArgumentParser):
+class IndgenParser(argparse.ArgumentParser):
     """argparse that suggests the closest subcommand or choice on a typo, in one line, and reads
     level ranges such as ``--levels -3:3`` or ``--levels -2,0,2`` as values, not as options."""
 
@@ -59,8 +59,9 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _add_level_options(p: argparse.ArgumentParser) -> None:
-    """--levels, --step and --axes-preset: which levels run and how far apart (evaluate and certify alike)."""
+def add_level_options(p: argparse.ArgumentParser) -> None:
+    """--levels, --step and --axes-preset: which levels run and how far apart (evaluate, certify, preview and demos
+    alike)."""
     p.add_argument(
         "--levels",
         default=None,
@@ -83,7 +84,7 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
     )
     p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
-    _add_level_options(p)
+    add_level_options(p)
     p.add_argument(
         "--episodes", type=int, default=None, help="episodes per level (default 50; the cap with --adaptive)"
     )
@@ -183,7 +184,7 @@ def _add_certify(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
     p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
     p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
-    _add_level_options(p)
+    add_level_options(p)
     p.add_argument(
         "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
     )
@@ -208,7 +209,7 @@ def _add_preview(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--axis", required=True, help="axis, composition or comma list (one row each), e.g. pick_y"
     )
-    _add_level_options(p)
+    add_level_options(p)
     p.add_argument(
         "--camera", default=None, help="camera to show (default: the scene's first, e.g. agentview)"
     )
@@ -351,13 +352,13 @@ def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> N
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
+    parser = IndgenParser(
         prog="indgen",
         description="Measure inductive generalization of robot policies: move a task one atomic step at a "
         "time along one axis, run the policy, report success per level and the break level k*.",
     )
     parser.add_argument("--version", action="version", version=f"indgen-vla {__version__}")
-    sp = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sp = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=IndgenParser)
     _add_evaluate(sp)
     _add_certify(sp)
     _add_preview(sp)
@@ -377,7 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "~/.cache/indgen/robocasa-venv)")  # fmt: skip
     p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
     _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
-    _add_passthrough(sp, "demos", "record T0 demonstrations as a LeRobotDataset")
+    _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
     _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of T0 demonstrations")
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")

@@ -14,6 +14,7 @@ from typing import Any
 
 from indgen_vla.metrics import difference_ci
 from indgen_vla.records import atomic_savefig
+from indgen_vla.training_support import fully_trained
 
 AXES_PLOT = (
     "axes.png"  # plots/axes.png: every axis of a report in one figure, written when it covers >= 2 axes
@@ -59,6 +60,11 @@ def draw_curves(
         levels += ks
         signed |= a["signed"]
         colour = colours[i] if colours else f"C{i}"
+        # one run: a grey band (its own colour is its CI band's); several: each run's band in its colour
+        one = len(curves) == 1
+        shade_trained(
+            ax, fully_trained(a), "grey" if one else colour, "trained levels" if one else f"{label}: trained"
+        )
         ax.plot(ks, [r["rate"] for r in rows], marker="o", ms=4, color=colour, label=label, zorder=3)
         ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], alpha=0.18, color=colour,
                         lw=0, zorder=2)  # fmt: skip
@@ -83,6 +89,14 @@ def draw_curves(
     ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
     _level_axis(ax, levels, signed)
     return levels, signed
+
+
+def shade_trained(ax, levels: Sequence[int], colour: str, label: str) -> None:
+    """A faint band over each trained level (neighbours join into one band: the training support), labelled once."""
+    for j, k in enumerate(sorted(levels)):
+        ax.axvspan(
+            k - 0.5, k + 0.5, color=colour, alpha=0.08, lw=0, zorder=0, label=label if j == 0 else None
+        )
 
 
 def _level_axis(ax, levels: list[int], signed: bool) -> None:

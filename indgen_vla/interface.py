@@ -9,6 +9,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.training_support import TrainedCell
 
 CAMERAS = ("agentview", "wrist")
 STATE_DIM = 8  # eef pos (3) + eef axis-angle (3) + gripper qpos (2): the LIBERO convention
@@ -171,6 +172,8 @@ class PolicySpec:
             observation); never an image policy.
         action_dim: the size of its actions, when the adapter knows it (checked against the scene's ``EnvSpec``
             before any episode); None: whatever the scene takes.
+        training: the (scene, task, axis, level) cells its training data covered, when its files say
+            (``indgen train``'s ``train_info.json``); ``evaluate`` records them and ``report`` marks those levels.
     """
 
     family: str
@@ -184,6 +187,7 @@ class PolicySpec:
     flip_180: bool = False
     observes_objects: bool = False
     action_dim: int | None = None
+    training: tuple[TrainedCell, ...] = ()
 
     def __post_init__(self) -> None:
         if self.chunk_size < 1:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from indgen_vla.progression import AxisSpec
-from indgen_vla.seeding import episode_seed
+from indgen_vla.seeding import evaluation_seed
 
 CERTIFIED, FAILED, UNCERTIFIED = "certified", "failed", "uncertified"
 # set while the local backend starts its workers' fork server: JSON {"scene", "task"} of the first task its workers
@@ -182,7 +182,7 @@ def plan_jobs(
         for task in tasks:
             for level in sorted(axis_levels, key=lambda k: (abs(k), k)):
                 for ep in range(episodes):
-                    s = episode_seed(seed, scene, task, ep)
+                    s = evaluation_seed(seed, scene, task, ep)
                     jobs.append(
                         EpisodeJob(
                             task,

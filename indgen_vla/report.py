@@ -46,6 +46,7 @@ from indgen_vla.records import (
     atomic_write_json,
     atomic_write_text,
 )
+from indgen_vla.training_support import TRAINED_NOTE, cells_from_json, trained_levels, trained_text
 
 
 def _axis_signed(manifest: dict[str, Any], axis: str, levels: Sequence[int]) -> bool:
@@ -67,6 +68,8 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
     per_task = plan.get("episodes") if isinstance(plan.get("episodes"), int) else None
     plan_levels = plan.get("levels") if isinstance(plan.get("levels"), dict) else {}
     out: dict[str, Any] = {"gamma": gamma, "ci": ci, "min_n": MIN_N, "axes": {}}
+    # the levels the policy's training data covered, when it declared them (manifest training_levels)
+    training = cells_from_json(manifest.get("training_levels"))
     seen = set(episodes["axis"].unique()) if len(episodes) else set()
     for axis in sorted(seen | set(plan_levels)):
         df = episodes[episodes["axis"] == axis]
@@ -106,6 +109,9 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         for e in task_entries.values():
             e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
         add_vs_t0(a, df, margin)
+        if training:
+            task_levels = {t: e["levels"] for t, e in task_entries.items()}
+            a["trained"] = trained_levels(training, manifest.get("scene", ""), axis, task_levels)
     return out
 
 
@@ -299,14 +305,15 @@ def render_markdown(
             for r in a["levels"]:
                 if params.get(r["level"]) is None:
                     params[r["level"]] = r["param"]
-        lines += [f"## Axis `{axis}`", "", _pools(present), "",
+        note = [TRAINED_NOTE, ""] if any(a.get("trained") for _, a in present) else []
+        lines += [f"## Axis `{axis}`", "", _pools(present), "", *note,
                   "| level | param | " + " | ".join(lbl for lbl, _ in present) + " |",
                   "|---|---|" + "---|" * len(present)]  # fmt: skip
         for k in levels:
             cells = []
             for _, a in present:
                 row = next((r for r in a["levels"] if r["level"] == k), None)
-                cells.append(_fmt_rate(row) if row else "")
+                cells.append((_fmt_rate(row) if row else "") + trained_text(a, k))
             lines.append(f"| {k} | {_param(params[k])} | " + " | ".join(cells) + " |")
         lines.append(
             "| **k\\*** | | "

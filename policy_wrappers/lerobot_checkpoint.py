@@ -13,6 +13,7 @@ from pathlib import Path
 
 from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import PRECISIONS, TABLETOP, EnvSpec, ScenePreview
+from indgen_vla.training_support import TrainedCell, cells_from_json
 from policy_wrappers.layouts import layout_for
 
 IMAGE_PREFIX = "observation.images."
@@ -181,6 +182,19 @@ def has_step(path: str, revision: str | None, registry_name: str, download: bool
     except (OSError, ValueError, AttributeError):
         return False
     return any(registry_name in (step.get("registry_name"), step.get("class")) for step in steps)
+
+
+def training_cells(path: str) -> tuple[TrainedCell, ...]:
+    """The training levels ``indgen train`` wrote beside a local checkpoint (``train_info.json`` ``levels``); ()
+    for any other checkpoint, or one trained on data without ``indgen demos`` sidecars."""
+    info = Path(path).expanduser() / "train_info.json"
+    if not info.is_file():
+        return ()
+    try:
+        levels = json.loads(info.read_text()).get("levels")
+    except (OSError, ValueError, AttributeError) as e:
+        raise PolicyError(f"policy lerobot:{path}: cannot read {info}: {e}; re-run `indgen train`") from None
+    return cells_from_json(levels)
 
 
 def local_type(local: Path) -> str | None:

@@ -108,6 +108,7 @@ class LeRobotPolicy:
             flip_180=self.conventions.flips,
             observes_objects=self._objects,
             action_dim=self._action_dim,
+            training=lerobot_checkpoint.training_cells(config.path),
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
         self.pads_batches = self.spec.batched  # act(..., pad_to=N): see interface.act_padded

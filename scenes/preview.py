@@ -18,7 +18,7 @@ from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.figures import contact_sheet, unit_name
 from indgen_vla.plan import ScenePlan
 from indgen_vla.records import atomic_savefig
-from indgen_vla.seeding import episode_seed
+from indgen_vla.seeding import evaluation_seed
 from scenes.axes import get_path, spec_at_level
 from scenes.env import check_env_args
 from scenes.registry import get_scene
@@ -98,7 +98,7 @@ def render_level(
     env = plan.builder.make_env(task, axis, level, cameras=(camera,), image_size=(req.size, req.size),
                                 max_steps=None)  # fmt: skip
     try:
-        seed = episode_seed(req.seed, plan.scene, task, req.episode)
+        seed = evaluation_seed(req.seed, plan.scene, task, req.episode)
         obs, _ = env.reset(seed=seed, options={"episode": req.episode})  # LIBERO: the episode's fixed state
         return env.upright(obs.images[camera])
     finally:

@@ -57,6 +57,10 @@ class Scene:
             (``{"horizon": {"max_level": 3}}``); ``--axes-preset`` and ``--step`` still override them. A family
             whose step depends on the task (RoboCasa365's pick_x: the task's region / 5) resolves it in
             ``successor`` when given the task.
+        fixed_initial_states: a description of the finite set of initial states episodes start from, whichever
+            the seed (LIBERO: its 50 fixed states, episode % 50), "" when the seed draws each episode's own.
+            ``evaluate`` runs through that set, so ``indgen demos`` refuses such a family (its demonstrations, and
+            mimicgen's from them, would start from the evaluation's initial states).
     """
 
     name: ClassVar[str]
@@ -77,6 +81,7 @@ class Scene:
         "scenes.oracle:OraclePolicy"  # the privileged oracle ("module:attr") standin:oracle runs
     )
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
+    fixed_initial_states: ClassVar[str] = ""
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"

@@ -16,6 +16,7 @@ from indgen_vla.engine.config import EvalConfig
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
 from indgen_vla.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.records import RunDir
+from indgen_vla.training_support import cells_to_json
 
 if TYPE_CHECKING:
     from indgen_vla.engine.local import EarlyWorkers
@@ -275,7 +276,9 @@ def _run_todo(
     resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
     fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
     if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
-        run.update_manifest(fingerprint=fingerprint)
+        # and the levels its training data covered, where the policy declares them (report marks them "trained")
+        trained = {"training_levels": cells_to_json(spec.training)} if spec.training else {}
+        run.update_manifest(fingerprint=fingerprint, **trained)
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
         for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
             console.print(f"[yellow]warning:[/] {line}")

@@ -1,21 +1,23 @@
-"""``indgen demos``: record T0 demonstrations with the scripted oracle plus human-like noise and pauses,
-written with lerobot's own ``LeRobotDataset`` API so lerobot's training code reads them unchanged."""
+"""``indgen demos``: record demonstrations with the scripted oracle plus human-like noise and pauses, at T0 or at
+levels of one axis, written with lerobot's own ``LeRobotDataset`` API so lerobot's training code reads them
+unchanged."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM, Observation
 from indgen_vla.regimes import quiet_datasets
-from indgen_vla.seeding import episode_seed
+from indgen_vla.seeding import fresh_seed, held_out_seeds
 from scenes.poses import object_poses, object_vector
 from scenes.privileged import privileged_of, with_privileged
 
@@ -25,6 +27,13 @@ ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
 # per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
 EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
 ENV_STATE = "observation.environment_state"
+# per-frame columns of a dataset recorded with --axis: each frame's level, axis and axis parameter (lerobot reads
+# them back like any column: ds.hf_dataset.filter(lambda r: r["level"] <= 1); policies ignore them)
+LEVEL_FEATURES = {
+    "level": {"dtype": "int64", "shape": (1,), "names": None},
+    "axis": {"dtype": "string", "shape": (1,), "names": None},
+    "axis_param": {"dtype": "float64", "shape": (1,), "names": None},
+}
 
 
 @dataclass(frozen=True)
@@ -49,9 +58,11 @@ class HumanNoise:
 
 
 def features(
-    cameras: tuple[str, ...], image_size: tuple[int, int], use_videos: bool, objects: bool = False
-) -> dict:
-    """LeRobotDataset feature spec: one image per camera, 8-d state, 7-d action (+ object poses if asked)."""
+    cameras: tuple[str, ...], image_size: tuple[int, int], use_videos: bool, objects: bool = False,
+    levels: bool = False,
+) -> dict:  # fmt: skip
+    """LeRobotDataset feature spec: one image per camera, 8-d state, 7-d action (+ object poses, + the level
+    columns ``LEVEL_FEATURES``, if asked)."""
     h, w = image_size
     feats = {
         f"observation.images.{cam}": {"dtype": "video" if use_videos else "image", "shape": (h, w, 3),
@@ -62,7 +73,34 @@ def features(
     if objects:  # robomimic's "object" observation, as lerobot's environment_state
         feats[ENV_STATE] = {"dtype": "float32", "shape": (OBJECT_DIM,), "names": list(OBJECT_NAMES)}
     feats["action"] = {"dtype": "float32", "shape": (ACTION_DIM,), "names": ACTION_NAMES}
+    if levels:
+        feats.update({k: dict(v) for k, v in LEVEL_FEATURES.items()})
     return feats
+
+
+def save_episode(ds, frames: list, cameras: tuple[str, ...], objects: bool, per_level: dict) -> None:
+    """Add one episode's (observation, executed action, object poses) frames to ``ds`` and save it."""
+    for obs, a, pose in frames:
+        frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
+        frame.update(
+            {"observation.state": obs.state.astype(np.float32), "action": a, "task": obs.instruction}
+        )
+        if objects:
+            frame[ENV_STATE] = object_vector(pose)
+        frame.update(per_level)
+        ds.add_frame(frame)
+    ds.save_episode()
+
+
+def rounded_poses(poses: list[dict]) -> dict:
+    """Per-frame object poses as the sidecar stores them: object -> frames -> 6-decimal numbers."""
+    return {k: [[round(v, 6) for v in p[k]] for p in poses] for k in poses[0]}
+
+
+def level_columns(level: int, axis: str | None, param: float | None) -> dict:
+    """One frame's ``LEVEL_FEATURES`` values."""
+    return {"level": np.array([level], np.int64), "axis": axis or "",
+            "axis_param": np.array([np.nan if param is None else param], np.float64)}  # fmt: skip
 
 
 def append_episode_sidecar(root: Path, record: dict) -> None:
@@ -108,74 +146,140 @@ def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Ob
             return
 
 
+@dataclass(frozen=True)
+class DemoCell:
+    """One (task, level) ``indgen demos`` records: ``axis`` None is T0 as recorded without ``--axis``."""
+
+    task: str
+    level: int = 0
+    axis: str | None = None
+    param: float | None = None
+
+    @property
+    def label(self) -> str:
+        return self.task if self.axis is None else f"{self.task} {self.axis} level {self.level}"
+
+    def seed_key(self, scene: str) -> tuple:
+        """The seed key of its episodes: level 0 keeps T0's key, so it holds the same episodes on every axis."""
+        if self.level == 0:
+            return ("demos", scene, self.task)
+        return ("demos", scene, self.task, self.axis, self.level)
+
+
+@dataclass(frozen=True)
+class LevelRequest:
+    """``--axis``/``--levels``/``--step``/``--axes-preset`` of ``indgen demos``, resolved as ``evaluate`` resolves them.
+
+    Attributes:
+        axis: one axis or composition; None records T0 only (the default, as before levels existed).
+        levels: ``--levels`` text (``0:2``, ``0,2``); required with ``axis``.
+        step, preset: ``--step``, ``--axes-preset`` (as in ``evaluate``).
+    """
+
+    axis: str | None = None
+    levels: str | None = None
+    step: float | None = None
+    preset: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.axis is None and (self.levels, self.step, self.preset) != (None, None, None):
+            raise ConfigError(
+                "--levels, --step and --axes-preset need --axis, e.g. --axis pick_y --levels 0:2"
+            )
+        if self.axis is not None and "," in self.axis:
+            raise ConfigError(
+                f"--axis {self.axis!r}: indgen demos records one axis per dataset; run it once per axis"
+            )
+        if self.axis is not None and self.levels is None:
+            raise ConfigError(f"--axis {self.axis} needs --levels, the levels to record (e.g. --levels 0:2)")
+
+    def extra(self) -> dict:
+        """What the sidecar records besides the level (and what ``indgen mimicgen`` rebuilds the level from)."""
+        out: dict = {"axis": self.axis}
+        if self.step is not None:
+            out["step"] = self.step
+        if self.preset is not None:
+            out["axes_preset"] = self.preset
+        return out
+
+
+def plan_cells(
+    scene: str, task: str | None, req: LevelRequest, cameras, image_size
+) -> tuple[list[DemoCell], Callable]:
+    """The cells to record and a ``make_env(cell)`` for them; with ``--axis`` resolved exactly as ``evaluate``
+    resolves it (``scenes.planning.resolve_scene_plan``: names, level range, condition 2, certificates)."""
+    import scenes
+    from indgen_vla.plan import FAILED
+    from scenes.registry import get_scene
+
+    fixed = get_scene(scene).fixed_initial_states
+    if fixed:
+        raise ConfigError(f"scene {scene} starts every episode from {fixed}, the initial states `evaluate` runs; "
+                          "demonstrations there would train on them: record on a scene whose seed draws the "
+                          "initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
+    size = (image_size, image_size)
+    if req.axis is None:
+        cells = [DemoCell(t) for t in scenes.select_tasks(scene, task)]
+        return cells, lambda c: scenes.make_env(scene, task=c.task, level=0, cameras=cameras, image_size=size)
+    from scenes.planning import resolve_scene_plan
+
+    plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.preset)
+    axis = next(iter(plan.axes))
+    failed = [c for c in plan.cells if c.certificate == FAILED]
+    if failed:
+        c = failed[0]
+        raise ConfigError(f"{scene}/{axis}: the oracle failed its certification at task {c.task} level {c.level} "
+                          f"({c.evidence}); drop it from --levels")  # fmt: skip
+    cells = [DemoCell(c.task, c.level, axis, c.param) for c in plan.cells]
+
+    def make_env(c: DemoCell):
+        return plan.builder.make_env(c.task, axis, c.level, cameras=cameras, image_size=size, max_steps=None)
+
+    return cells, make_env
+
+
 def record_demos(
     scene: str, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
     cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
     repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
-    objects: bool = False,
+    objects: bool = False, levels: LevelRequest | None = None,
 ) -> dict:  # fmt: skip
-    """Record ``n`` successful T0 episodes per task into a LeRobotDataset at ``out``; return stats.
+    """Record ``n`` successful episodes per task (and level) into a LeRobotDataset at ``out``; return stats.
 
-    ``objects`` adds the pick and target poses per frame as ``observation.environment_state``.
+    ``objects`` adds the pick and target poses per frame as ``observation.environment_state``; ``levels`` (an axis
+    and its levels) records each level, with its level, axis and axis parameter per frame (``LEVEL_FEATURES``)
+    and in the sidecar. No episode starts from a seed of ``seeding.held_out_seeds`` (the ones ``evaluate`` uses).
     """
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    import scenes
-
-    noise = noise or HumanNoise()
+    noise, levels = noise or HumanNoise(), levels or LevelRequest()
     if n < 1:
         raise ConfigError(f"--n must be >= 1, got {n}")
-    if out.exists() and any(out.iterdir()):
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ConfigError(f"--out {out} already exists and is not empty; choose a new directory")
-    tasks = scenes.select_tasks(scene, task)
+    cells, make_env = plan_cells(scene, task, levels, cameras, image_size)
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.exists():
         out.rmdir()
-    ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=features(cameras, (image_size, image_size), use_videos, objects),
-                               root=out, robot_type="panda", use_videos=use_videos,
-                               video_backend="pyav")  # fmt: skip
-    stats = {"scene": scene, "tasks": tasks, "episodes": 0, "attempts": 0, "frames": 0}
+    feats = features(cameras, (image_size, image_size), use_videos, objects, levels.axis is not None)
+    ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=feats, root=out, robot_type="panda",
+                               use_videos=use_videos, video_backend="pyav")  # fmt: skip
+    stats = {"scene": scene, "tasks": list(dict.fromkeys(c.task for c in cells)), "episodes": 0, "attempts": 0,
+             "frames": 0, "cells": []}  # fmt: skip
+    if levels.axis is not None:
+        stats.update(axis=cells[0].axis, levels=sorted({c.level for c in cells}))
+    recorder = _Recorder(ds, out, scene, cameras, objects, levels, noise)
     try:
-        for t in tasks:
-            env = scenes.make_env(
-                scene, task=t, level=0, cameras=cameras, image_size=(image_size, image_size)
-            )
+        for cell in cells:
+            env = make_env(cell)
             try:
-                kept, attempt = 0, 0
-                while kept < n:
-                    if attempt >= max_attempts_factor * n:
-                        raise ConfigError(f"only {kept}/{n} noisy oracle demos of {scene}/{t} succeeded in "
-                                          f"{attempt} attempts; lower the noise")  # fmt: skip
-                    ep_seed = episode_seed(seed, "demos", scene, t, attempt)
-                    attempt += 1
-                    frames, success = [], False
-                    for obs, a, info in noisy_oracle_episode(env, ep_seed, noise):
-                        frames.append((obs, a))
-                        success = bool(info.get("success", False))
-                    if not success:
-                        continue  # keep only successful demonstrations, like a human operator's keepers
-                    poses = [object_poses(privileged_of(obs, "indgen demos")) for obs, _ in frames]
-                    for (obs, a), pose in zip(frames, poses, strict=True):
-                        frame = {f"observation.images.{c}": obs.images[c] for c in cameras}
-                        frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
-                                      "task": obs.instruction})  # fmt: skip
-                        if objects:
-                            frame[ENV_STATE] = object_vector(pose)
-                        ds.add_frame(frame)
-                    ds.save_episode()
-                    append_episode_sidecar(out, {
-                        "episode_index": ds.num_episodes - 1, "regime": "demos", "scene": scene, "task": t,
-                        "seed": ep_seed, "level": 0, "frames": len(frames),
-                        "object_poses": {k: [[round(v, 6) for v in p[k]] for p in poses] for k in poses[0]},
-                    })  # fmt: skip
-                    kept += 1
-                    stats["frames"] += len(frames)
-                    if progress is not None:
-                        progress(t, kept, attempt)
-                stats["episodes"] += kept
-                stats["attempts"] += attempt
+                kept, attempt, frames = recorder.record(env, cell, n, seed, max_attempts_factor * n, progress)
             finally:
                 env.close()
+            stats["episodes"] += kept
+            stats["attempts"] += attempt
+            stats["frames"] += frames
+            stats["cells"].append({"task": cell.task, "level": cell.level, "kept": kept, "attempts": attempt})
     except BaseException:
         ds.finalize()
         raise
@@ -184,14 +288,71 @@ def record_demos(
     return stats
 
 
+@dataclass
+class _Recorder:
+    """Writes kept noisy-oracle episodes of one dataset: frames, per-frame level columns, sidecar records."""
+
+    ds: Any
+    out: Path
+    scene: str
+    cameras: tuple[str, ...]
+    objects: bool
+    levels: LevelRequest
+    noise: HumanNoise
+
+    def record(
+        self, env, cell: DemoCell, n: int, seed: int, max_attempts: int, progress
+    ) -> tuple[int, int, int]:
+        """Record ``n`` successful episodes of ``cell``; return (kept, attempts, frames)."""
+        avoid = held_out_seeds(self.scene, cell.task, also=(seed,))
+        kept = attempt = total = 0
+        while kept < n:
+            if attempt >= max_attempts:
+                raise ConfigError(f"only {kept}/{n} noisy oracle demos of {self.scene}/{cell.label} succeeded in "
+                                  f"{attempt} attempts; lower the noise")  # fmt: skip
+            ep_seed = fresh_seed(seed, *cell.seed_key(self.scene), attempt, avoid=avoid)
+            attempt += 1
+            frames, success = [], False
+            for obs, a, info in noisy_oracle_episode(env, ep_seed, self.noise):
+                frames.append((obs, a))
+                success = bool(info.get("success", False))
+            if not success:
+                continue  # keep only successful demonstrations, like a human operator's keepers
+            self._save(cell, ep_seed, frames)
+            kept += 1
+            total += len(frames)
+            if progress is not None:
+                progress(cell.label, kept, attempt)
+        return kept, attempt, total
+
+    def _save(self, cell: DemoCell, ep_seed: int, frames: list) -> None:
+        poses = [object_poses(privileged_of(obs, "indgen demos")) for obs, _ in frames]
+        per_level = level_columns(cell.level, cell.axis, cell.param) if self.levels.axis is not None else {}
+        save_episode(self.ds, [(o, a, p) for (o, a), p in zip(frames, poses, strict=True)], self.cameras,
+                     self.objects, per_level)  # fmt: skip
+        record = {"episode_index": self.ds.num_episodes - 1, "regime": "demos", "scene": self.scene,
+                  "task": cell.task, "seed": ep_seed, "level": cell.level}  # fmt: skip
+        if self.levels.axis is not None:
+            record.update(self.levels.extra(), param=cell.param)
+        record.update(frames=len(frames), object_poses=rounded_poses(poses))
+        append_episode_sidecar(self.out, record)
+
+
 def demos_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen demos`` (its own parser over the passthrough arguments)."""
-    p = argparse.ArgumentParser(
-        prog="indgen demos", description="record T0 demonstrations as a LeRobotDataset"
+    from indgen_vla.cli import IndgenParser, add_level_options
+
+    p = IndgenParser(
+        prog="indgen demos",
+        description="record noisy-oracle demonstrations (T0, or --axis A --levels 0:2) as a LeRobotDataset",
     )
     p.add_argument("--scene", required=True, help="built-in scene to record (see `indgen scenes`)")
     p.add_argument("--task", default=None, help="task name or 'all' (default: the scene's first task)")
-    p.add_argument("--n", type=int, required=True, help="successful episodes per task")
+    p.add_argument(
+        "--axis", default=None, help="record levels of this axis (see 'indgen axes'); default: T0 only"
+    )
+    add_level_options(p)
+    p.add_argument("--n", type=int, required=True, help="successful episodes per task (and level)")
     p.add_argument("--out", required=True, help="dataset root directory (must not exist)")
     p.add_argument(
         "--seed", type=int, default=0, help="base seed; episode i of a task always gets the same seed"
@@ -215,22 +376,32 @@ def demos_main(args: argparse.Namespace) -> int:
     )
     a = p.parse_args(args.rest)
     cams = tuple(c for c in a.cameras.split(",") if c)
+    levels = LevelRequest(a.axis, a.levels, a.step, a.axes_preset)
     quiet_datasets()
     from rich.console import Console
 
     console = Console(stderr=True)
 
-    def progress(task, kept, attempt):
-        console.print(f"  {task}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
+    def progress(label, kept, attempt):
+        console.print(f"  {label}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
 
     out = Path(a.out)
+    # on a failure only what this run made is removed (a partial dataset would only block the re-run)
+    fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
     try:
         stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
                              noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
-                             use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects)  # fmt: skip
-    except KeyboardInterrupt:
-        shutil.rmtree(out, ignore_errors=True)
+                             use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects,
+                             levels=levels)  # fmt: skip
+    except BaseException:
+        if fresh:
+            shutil.rmtree(out, ignore_errors=True)
         raise
+    where = f" at levels {', '.join(map(str, stats['levels']))} of {stats['axis']}" if "axis" in stats else ""
     console.print(f"\nrecorded {stats['episodes']} episodes ({stats['frames']} frames) of {a.scene} "
-                  f"{', '.join(stats['tasks'])} into {out}; oracle keep rate {100 * stats['success_rate']:.0f}%")  # fmt: skip
+                  f"{', '.join(stats['tasks'])}{where} into {out}; oracle keep rate {100 * stats['success_rate']:.0f}% "
+                  f"({stats['episodes']} of {stats['attempts']} attempts, pooled over tasks and levels)")  # fmt: skip
+    if "axis" in stats:
+        console.print("kept per task and level: " + ", ".join(
+            f"{c['task']} {c['level']}: {c['kept']}/{c['attempts']}" for c in stats["cells"]))  # fmt: skip
     return 0

@@ -6,6 +6,8 @@ T0 initial state every segment's end-effector target poses are moved rigidly wit
 (``T_new_obj @ inv(T_src_obj) @ T_eef``), joined by a linear + slerp interpolation from the current pose,
 and driven with robosuite OSC_POSE delta actions; only episodes the scene's success predicate accepts are
 kept. The output is a LeRobotDataset with exactly the features, fps, cameras and task strings of the source.
+A source recorded at levels of an axis (``indgen demos --axis A --levels 0:2``) is augmented level by level:
+each episode is generated at its sources' level, from sources of that level only.
 """
 
 from __future__ import annotations
@@ -18,97 +20,41 @@ import time
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import ACTION_DIM, POS_SCALE, ROT_SCALE, STATE_DIM, Observation
+from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.regimes.demos import (
     ENV_STATE,
     EPISODES_SIDECAR,
     FPS,
+    LEVEL_FEATURES,
     append_episode_sidecar,
     features,
+    level_columns,
     read_episode_sidecar,
+    rounded_poses,
+    save_episode,
 )
-from indgen_vla.seeding import episode_seed
-from scenes.poses import object_poses, object_vector
+from indgen_vla.regimes.se3 import (
+    interpolate_poses,
+    pose_from_pq,
+    pose_from_state,
+    pose_to_action,
+    target_poses,
+    transform_segment,
+)
+from indgen_vla.seeding import episode_seed, held_out_seeds
+from scenes.poses import object_poses
 
 SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
 SELECTIONS = ("nearest", "random")
 STATS_FILE = "mimicgen_stats.json"
-
-
-# ---- SE(3) math: pure functions on 4x4 homogeneous matrices ------------------------------------------------
-def pose_matrix(pos, rot: Rotation) -> np.ndarray:
-    """4x4 pose from a position and a scipy ``Rotation``."""
-    t = np.eye(4)
-    t[:3, :3] = rot.as_matrix()
-    t[:3, 3] = np.asarray(pos, dtype=float)
-    return t
-
-
-def pose_from_pq(pq) -> np.ndarray:
-    """4x4 pose from [x, y, z, qw, qx, qy, qz] (MuJoCo's scalar-first quaternion)."""
-    pq = np.asarray(pq, dtype=float)
-    return pose_matrix(pq[:3], Rotation.from_quat(pq[[4, 5, 6, 3]]))
-
-
-def pose_from_state(state) -> np.ndarray:
-    """4x4 end-effector pose from the 8-d LIBERO state (position + axis-angle + gripper)."""
-    state = np.asarray(state, dtype=float)
-    return pose_matrix(state[:3], Rotation.from_rotvec(state[3:6]))
-
-
-def invert_pose(t: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid transform: (R, p)^-1 = (R^T, -R^T p)."""
-    inv = np.eye(4)
-    inv[:3, :3] = t[:3, :3].T
-    inv[:3, 3] = -t[:3, :3].T @ t[:3, 3]
-    return inv
-
-
-def transform_segment(poses: np.ndarray, src_obj: np.ndarray, new_obj: np.ndarray) -> np.ndarray:
-    """Move eef poses (N, 4, 4) rigidly with their reference object: ``new_obj @ inv(src_obj) @ pose``."""
-    return (new_obj @ invert_pose(src_obj))[None] @ np.asarray(poses)
-
-
-def interpolate_poses(start: np.ndarray, end: np.ndarray, n: int) -> np.ndarray:
-    """``n`` poses from just after ``start`` to ``end`` inclusive: linear in position, slerp in rotation."""
-    if n < 1:
-        return np.zeros((0, 4, 4))
-    fr = np.arange(1, n + 1) / n
-    rots = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start[:3, :3], end[:3, :3]])))(fr)
-    out = np.tile(np.eye(4), (n, 1, 1))
-    out[:, :3, :3] = rots.as_matrix()
-    out[:, :3, 3] = start[:3, 3] + fr[:, None] * (end[:3, 3] - start[:3, 3])
-    return out
-
-
-def target_poses(states: np.ndarray, actions: np.ndarray) -> np.ndarray:
-    """The absolute goal poses robosuite's delta OSC_POSE controller set for each recorded step.
-
-    The controller's goal is ``p + POS_SCALE * a[:3]`` and ``Rot(ROT_SCALE * a[3:6]) @ R`` (world frame).
-    """
-    pos_scale, rot_scale = POS_SCALE, ROT_SCALE
-    states, actions = np.asarray(states, dtype=float), np.asarray(actions, dtype=float)
-    rots = Rotation.from_rotvec(rot_scale * actions[:, 3:6]) * Rotation.from_rotvec(states[:, 3:6])
-    out = np.tile(np.eye(4), (len(states), 1, 1))
-    out[:, :3, :3] = rots.as_matrix()
-    out[:, :3, 3] = states[:, :3] + pos_scale * actions[:, :3]
-    return out
-
-
-def pose_to_action(target: np.ndarray, current: np.ndarray, gripper: float) -> np.ndarray:
-    """The 7-d OSC_POSE delta action that sets the controller's goal to ``target`` from ``current`` (clipped)."""
-    pos_scale, rot_scale = POS_SCALE, ROT_SCALE
-    a = np.zeros(ACTION_DIM)
-    a[:3] = (target[:3, 3] - current[:3, 3]) / pos_scale
-    a[3:6] = Rotation.from_matrix(target[:3, :3] @ current[:3, :3].T).as_rotvec() / rot_scale
-    a[6] = gripper
-    return np.clip(a, -1.0, 1.0)
+LEVEL_KEYS = ("axis", "step", "axes_preset")  # sidecar keys that rebuild a source's level beside "level"
 
 
 def split_subtasks(
@@ -148,6 +94,15 @@ class SourceDemo:
     gripper: np.ndarray  # (T,) gripper actions
     refs: dict[str, np.ndarray]  # object name -> (T, 7) per-frame world pose
     bounds: tuple[tuple[int, int], ...]
+    level: int = 0
+    # the sidecar's LEVEL_KEYS that rebuild its level, and its axis parameter; empty for T0 without --axis
+    where: tuple[tuple[str, object], ...] = ()
+    param: float | None = None
+
+    @property
+    def cell(self) -> tuple:
+        """What its generated episodes share: scene, task and level (generation never leaves the level)."""
+        return (self.scene, self.task, self.level, self.where)
 
     def segment(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(targets, gripper actions, reference object pose at the segment start) of subtask ``k``."""
@@ -188,8 +143,10 @@ def load_sources(root: Path, lift_frac: float = 0.9) -> tuple[dict, list[SourceD
             skipped += 1  # regrasps or no release: no clean object-centric split
             continue
         refs = {k: np.asarray(v, dtype=float) for k, v in rec["object_poses"].items()}
+        where = tuple((k, rec[k]) for k in LEVEL_KEYS if k in rec)
         demos.append(SourceDemo(int(i), rec["scene"], rec["task"], int(rec["seed"]), target_poses(s, a),
-                                a[:, -1].astype(float), refs, tuple(bounds)))  # fmt: skip
+                                a[:, -1].astype(float), refs, tuple(bounds), int(rec.get("level", 0)), where,
+                                rec.get("param")))  # fmt: skip
     return info, demos, skipped
 
 
@@ -214,10 +171,11 @@ class MimicGenConfig:
     Attributes:
         source: a LeRobotDataset written by ``indgen demos`` (with its per-episode sidecar).
         out: the new dataset's root (must not exist or be empty).
-        n: attempts per task; with ``guarantee`` the number of successful episodes per task instead.
-        seed: generation seed (new T0 initial states, source choice, action noise).
-        guarantee: keep attempting until ``n`` successes per task (at most ``max_attempts``).
-        max_attempts: cap on attempts per task in ``guarantee`` mode (default 5 n).
+        n: attempts per task (and level, for a source recorded at levels); with ``guarantee`` the number of
+            successful episodes instead.
+        seed: generation seed (new initial states, source choice, action noise).
+        guarantee: keep attempting until ``n`` successes per task and level (at most ``max_attempts``).
+        max_attempts: cap on attempts per task and level in ``guarantee`` mode (default 5 n).
         selection: per-subtask source choice, ``nearest`` (reference pose) or ``random``.
         nn_k: ``nearest`` picks uniformly among this many nearest sources.
         interp_steps: minimum interpolation steps before each segment.
@@ -310,19 +268,30 @@ def generate_episode(env, demos: list[SourceDemo], seed: int, rng: np.random.Gen
             return
 
 
-def _new_seed(cfg: MimicGenConfig, scene: str, task: str, attempt: int, taken: set[int]) -> int:
-    """A fresh T0 seed for one attempt, never one of the source's seeds."""
+def _new_seed(
+    cfg: MimicGenConfig, scene: str, task: str, attempt: int, taken: set[int], level: tuple = ()
+) -> int:
+    """A fresh seed for one attempt, never one of the source's seeds nor one ``evaluate`` uses (``taken``);
+    ``level``: (axis, level) of a level other than T0, which draws its own seeds."""
     bump = 0
-    while (s := episode_seed(cfg.seed, "mimicgen", scene, task, attempt, bump)) in taken:
+    while (s := episode_seed(cfg.seed, "mimicgen", scene, task, *level, attempt, bump)) in taken:
         bump += 1
     return s
+
+
+def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, ...], size: tuple[int, int]):
+    """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis."""
+    import scenes
+
+    if where.get("axis") is None:
+        return scenes.make_env(scene, task=task, level=0, cameras=cams, image_size=size)
+    return scenes.make_env(scene, task=task, axis=where["axis"], level=level, step=where.get("step"),
+                           preset=where.get("axes_preset"), cameras=cams, image_size=size)  # fmt: skip
 
 
 def generate(cfg: MimicGenConfig, progress=None) -> dict:
     """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    import scenes
 
     t0 = time.perf_counter()
     info, demos, skipped = load_sources(cfg.source, cfg.lift_frac)
@@ -335,58 +304,35 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
     size = (int(shape[0]), int(shape[1]))
     use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
     objects = ENV_STATE in feats  # the source records object poses: so do the generated episodes
-    by_task: dict[tuple[str, str], list[SourceDemo]] = {}
+    # the source records its levels per frame: so does the output
+    levels = all(k in feats for k in LEVEL_FEATURES)
+    by_cell: dict[tuple, list[SourceDemo]] = {}
     for d in demos:
-        by_task.setdefault((d.scene, d.task), []).append(d)
+        by_cell.setdefault(d.cell, []).append(d)
     taken = {d.seed for d in demos} | {int(r["seed"]) for r in read_episode_sidecar(cfg.source)}
-    per_task = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
     if cfg.out.exists():
         cfg.out.rmdir()
     cfg.out.parent.mkdir(parents=True, exist_ok=True)
     ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=cfg.out,
-                               features=features(cams, size, use_videos, objects), robot_type=info.get("robot_type", "panda"),
-                               use_videos=use_videos, video_backend="pyav")  # fmt: skip
+                               features=features(cams, size, use_videos, objects, levels),
+                               robot_type=info.get("robot_type", "panda"), use_videos=use_videos,
+                               video_backend="pyav")  # fmt: skip
     stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": 0, "successes": 0,
              "frames": 0, "source_demos": len(demos), "source_skipped": skipped, "tasks": {}}  # fmt: skip
+    writer = _Writer(ds, cfg, cams, objects, levels)
     try:
-        for (scene, task), pool in by_task.items():
+        for pool in by_cell.values():
             # the scene's own episode budget: a generated episode must succeed within the evaluation horizon
-            env = scenes.make_env(scene, task=task, level=0, cameras=cams, image_size=size)
-            ok = attempt = 0
+            src = pool[0]
+            env = _level_env(src.scene, src.task, src.level, dict(src.where), cams, size)
             try:
-                while attempt < per_task and not (cfg.guarantee and ok >= cfg.n):
-                    seed = _new_seed(cfg, scene, task, attempt, taken)
-                    rng = np.random.default_rng(episode_seed(cfg.seed, "mimicgen-rng", scene, task, attempt))
-                    attempt += 1
-                    used: list[int] = []
-                    frames, success = [], False
-                    for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, cfg, used):
-                        frames.append((obs, a, poses))
-                        success = bool(step_info.get("success", False))
-                    if success:
-                        for obs, a, pose in frames:
-                            frame = {f"observation.images.{c}": obs.images[c] for c in cams}
-                            frame.update({"observation.state": obs.state.astype(np.float32), "action": a,
-                                          "task": obs.instruction})  # fmt: skip
-                            if objects:
-                                frame[ENV_STATE] = object_vector(pose)
-                            ds.add_frame(frame)
-                        ds.save_episode()
-                        append_episode_sidecar(cfg.out, {
-                            "episode_index": ds.num_episodes - 1, "regime": "mimicgen", "scene": scene, "task": task,
-                            "seed": seed, "level": 0, "frames": len(frames), "source_episodes": used,
-                            "object_poses": {k: [[round(v, 6) for v in p[k]] for _, _, p in frames]
-                                             for k in frames[0][2]},
-                        })  # fmt: skip
-                        ok += 1
-                        stats["frames"] += len(frames)
-                    if progress is not None:
-                        progress(task, ok, attempt, per_task)
+                label, ok, attempt, frames = writer.cell(env, pool, taken, progress)
             finally:
                 env.close()
-            stats["tasks"][task] = {"attempts": attempt, "successes": ok, "rate": ok / max(attempt, 1)}
+            stats["tasks"][label] = {"attempts": attempt, "successes": ok, "rate": ok / max(attempt, 1)}
             stats["attempts"] += attempt
             stats["successes"] += ok
+            stats["frames"] += frames
     except BaseException:
         ds.finalize()
         raise
@@ -398,21 +344,76 @@ def generate(cfg: MimicGenConfig, progress=None) -> dict:
     return stats
 
 
+@dataclass
+class _Writer:
+    """Generates one source level's episodes and writes the successful ones (frames, level columns, sidecar)."""
+
+    ds: Any
+    cfg: MimicGenConfig
+    cams: tuple[str, ...]
+    objects: bool
+    levels: bool
+
+    def cell(self, env, pool: list[SourceDemo], taken: set[int], progress) -> tuple[str, int, int, int]:
+        """Attempt one level of one task from its sources ``pool``; return (label, successes, attempts, frames)."""
+        cfg, src = self.cfg, pool[0]
+        where = dict(src.where)
+        at = () if src.level == 0 else (where.get("axis"), src.level)  # T0 keeps the seeds it always had
+        label = src.task if where.get("axis") is None else f"{src.task} {where['axis']} level {src.level}"
+        avoid = taken | held_out_seeds(src.scene, src.task, also=(cfg.seed,))
+        per_cell = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
+        ok = attempt = total = 0
+        while attempt < per_cell and not (cfg.guarantee and ok >= cfg.n):
+            seed = _new_seed(cfg, src.scene, src.task, attempt, avoid, at)
+            rng = np.random.default_rng(
+                episode_seed(cfg.seed, "mimicgen-rng", src.scene, src.task, *at, attempt)
+            )
+            attempt += 1
+            used: list[int] = []
+            frames, success = [], False
+            for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, cfg, used):
+                frames.append((obs, a, poses))
+                success = bool(step_info.get("success", False))
+            if success:
+                self._save(src, seed, frames, used)
+                ok += 1
+                total += len(frames)
+            if progress is not None:
+                progress(label, ok, attempt, per_cell)
+        return label, ok, attempt, total
+
+    def _save(self, src: SourceDemo, seed: int, frames: list, used: list[int]) -> None:
+        where = dict(src.where)
+        per_level = level_columns(src.level, where.get("axis"), src.param) if self.levels else {}
+        save_episode(self.ds, frames, self.cams, self.objects, per_level)
+        record = {"episode_index": self.ds.num_episodes - 1, "regime": "mimicgen", "scene": src.scene,
+                  "task": src.task, "seed": seed, "level": src.level}  # fmt: skip
+        if where:
+            record.update(where, param=src.param)
+        record.update(
+            frames=len(frames), source_episodes=used, object_poses=rounded_poses([p for _, _, p in frames])
+        )
+        append_episode_sidecar(self.cfg.out, record)
+
+
 def mimicgen_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen mimicgen`` (its own parser over the passthrough arguments)."""
     p = argparse.ArgumentParser(
         prog="indgen mimicgen",
-        description="MimicGen-style augmentation of T0 demonstrations (LeRobotDataset)",
+        description="MimicGen-style augmentation of `indgen demos` demonstrations, level by level (LeRobotDataset)",
     )
     p.add_argument("--source", required=True, help="dataset written by `indgen demos`")
     p.add_argument(
-        "--n", type=int, required=True, help="generation attempts per task (successes with --guarantee)"
+        "--n",
+        type=int,
+        required=True,
+        help="generation attempts per task and level (successes with --guarantee)",
     )
     p.add_argument("--out", required=True, help="new dataset root directory (must not exist)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the new T0 scenes and the source choice")
-    p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task")
+    p.add_argument("--seed", type=int, default=0, help="seed of the new initial states and the source choice")
+    p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task and level")
     p.add_argument(
-        "--max-attempts", type=int, default=None, help="attempt cap per task with --guarantee (5 n)"
+        "--max-attempts", type=int, default=None, help="attempt cap per task and level with --guarantee (5 n)"
     )
     p.add_argument("--selection", choices=SELECTIONS, default="nearest", help="per-subtask source choice")
     p.add_argument("--action-noise", type=float, default=0.05, help="std of motion noise on executed actions")

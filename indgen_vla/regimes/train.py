@@ -18,7 +18,8 @@ from pathlib import Path
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import OBJECT_DIM
-from indgen_vla.regimes.demos import ENV_STATE
+from indgen_vla.regimes.demos import ENV_STATE, read_episode_sidecar
+from indgen_vla.training_support import cells_from_json, cells_from_records, cells_to_json, support_text
 
 POLICIES = ("act", "diffusion")
 DEFAULT_REPO_ID = "local/indgen_demos"
@@ -211,6 +212,18 @@ class _Samples:
         return out
 
 
+def training_levels(dirs: Sequence[Path], datasets: list) -> list[dict] | None:
+    """The (scene, task, axis, level, parameter) cells of every episode, from the datasets' ``indgen demos`` /
+    ``mimicgen`` sidecars; None when a dataset has none or its sidecar does not cover its episodes."""
+    records = []
+    for d, ds in zip(dirs, datasets, strict=True):
+        own = read_episode_sidecar(d)
+        if not own or len(own) != ds.num_episodes:
+            return None
+        records += own
+    return cells_to_json(cells_from_records(records))
+
+
 def _seed_all(seed: int) -> None:
     import random
 
@@ -303,7 +316,7 @@ def train_policy(
     info = {"config": asdict(cfg), "datasets": [str(d) for d in dirs], "data_regime": data_regime,
             "episodes": sum(ds.num_episodes for ds in datasets), "frames": len(samples),
             "train_s": round(train_s, 1), "first_loss": round(first_loss, 5), "loss_every": cfg.log_every, "losses": [round(x, 5) for x in losses],
-            "params": sum(p.numel() for p in policy.parameters())}  # fmt: skip
+            "params": sum(p.numel() for p in policy.parameters()), "levels": training_levels(dirs, datasets)}  # fmt: skip
     (out / INFO_FILE).write_text(json.dumps(info, indent=2) + "\n")
     return out
 
@@ -344,4 +357,8 @@ def train_main(args: argparse.Namespace) -> int:
                        progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True))  # fmt: skip
     info = json.loads((out / INFO_FILE).read_text())
     print(f"trained {a.policy} for {cfg.steps} steps in {info['train_s']:.0f} s; checkpoint in {out}")
+    if info["levels"]:
+        print(
+            f"training levels (train_info.json, read by evaluate): {support_text(cells_from_json(info['levels']))}"
+        )
     return 0

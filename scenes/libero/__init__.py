@@ -62,6 +62,7 @@ class LiberoSuite(Scene):
     max_steps = 280
     success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
     committed_certificates = False  # certificates depend on the user's LIBERO asset tree
+    fixed_initial_states = "LIBERO's 50 fixed initial states (episode % 50)"
 
     @property
     def tasks(self) -> tuple[str, ...]:

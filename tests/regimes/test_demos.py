@@ -59,3 +59,125 @@ def test_the_demos_and_mimicgen_commands_print_no_macro_warning(tmp_path):
                f"'--cameras', '', '--out', {str(src)!r}]) == 0\n"
                f"assert main(['mimicgen', '--source', {str(src)!r}, '--n', '1', '--out', {str(dst)!r}]) == 0")  # fmt: skip
     assert "recorded 1 episodes" in out and "macro" not in out
+
+
+# ---- levels (--axis/--levels), the default path, and seeds evaluate never shares -------------------------------
+SIDECAR_KEYS = ["episode_index", "regime", "scene", "task", "seed", "level", "frames", "object_poses"]
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--levels", "0:2"], "--levels, --step and --axes-preset need --axis"),
+        (["--axis", "pick_y"], "--axis pick_y needs --levels"),
+        (["--axis", "pick_y,scale", "--levels", "0:1"], "one axis per dataset"),
+        (["--axis", "pick_yy", "--levels", "0:1"], "unknown axis 'pick_yy'; did you mean 'pick_y'"),
+        (
+            ["--axis", "pick_y", "--levels", "-4:-2"],
+            "level -4 is outside axis pick_y's range -3..3",
+        ),  # a range, not a flag
+        (["--axis", "scale", "--levels", "2:0"], "write it as 0:2"),
+        (
+            ["--axis", "scale", "--levels", "0:1", "--task", "milkk"],
+            "unknown task of scene pick_place 'milkk'",
+        ),
+        (["--scene", "libero_object", "--axis", "scale", "--levels", "0:1"], "fixed initial states"),
+    ],
+)
+def test_bad_level_arguments_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, flags, message):
+    from indgen_vla.cli import main
+
+    out = tmp_path / "demos"
+    assert main(["demos", "--scene", "pick_place", "--n", "1", "--out", str(out), *flags]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_default_demos_keep_the_features_sidecar_and_seeds_they_always_had(demos):
+    """Without --axis nothing changed: no level columns, the sidecar's keys in their order, T0's seed formula."""
+    import json
+
+    from indgen_vla.regimes.demos import LEVEL_FEATURES, features, read_episode_sidecar
+
+    info = json.loads((demos / "meta" / "info.json").read_text())
+    assert not set(LEVEL_FEATURES) & set(info["features"])
+    assert set(features((), (96, 96), False, objects=True)) <= set(info["features"])
+    records = read_episode_sidecar(demos)
+    assert [list(r) for r in records] == [SIDECAR_KEYS] * 2 and {r["level"] for r in records} == {0}
+    assert [r["seed"] for r in records] == [
+        2370510695,
+        1920048413,
+    ]  # episode_seed(5, "demos", "pick_place", "milk", i)
+
+
+def _demo_seeds(seed: int, task: str, n: int, key: tuple = ()) -> list[int]:
+    from indgen_vla.seeding import episode_seed
+
+    return [
+        episode_seed(seed, "demos", "pick_place", task, *key, a) for a in range(3 * n)
+    ]  # every attempt allowed
+
+
+def test_default_demo_and_mimicgen_seeds_are_disjoint_from_evaluations():
+    """Every seed demos (3 n attempts, n = 200) and mimicgen (5 n) may take with default arguments, at T0 and at pick_y
+    levels, lies outside the held-out evaluation seeds (evaluate --seed 0..9, 1000 episodes), so the guard never
+    bumps one: default datasets keep their seeds, and none starts where an evaluation episode does."""
+    import scenes
+    from indgen_vla.seeding import episode_seed, evaluation_seed, fresh_seed, held_out_seeds
+
+    for task in scenes.tasks("pick_place"):
+        held = held_out_seeds("pick_place", task)
+        evaluate_default = {evaluation_seed(0, "pick_place", task, e) for e in range(50)}
+        assert evaluate_default <= held
+        seeds = _demo_seeds(0, task, 200)
+        for k in (-3, -1, 1, 3):
+            seeds += _demo_seeds(0, task, 200, ("pick_y", k))
+        seeds += [episode_seed(0, "mimicgen", "pick_place", task, a, 0) for a in range(1000)]
+        assert not set(seeds) & held
+        assert fresh_seed(0, "demos", "pick_place", task, 0, avoid=held) == seeds[0]
+
+
+def test_level_demos_record_each_level_with_its_axis_parameter(level_demos, demos):
+    """Per frame (lerobot reads the columns back) and in the sidecar; level 0 is the default recording's episode."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    import scenes
+    from indgen_vla.regimes.demos import read_episode_sidecar
+
+    out, stats = level_demos
+    assert stats["episodes"] == 2 and stats["axis"] == "pick_y" and stats["levels"] == [0, 1]
+    records = read_episode_sidecar(out)
+    want = {k: scenes.level_param("pick_place", "milk", "pick_y", k) for k in (0, 1)}
+    assert [(r["level"], r["axis"], r["param"]) for r in records] == [(k, "pick_y", want[k]) for k in (0, 1)]
+    data = LeRobotDataset("local/indgen_demos", root=out).hf_dataset.with_format("numpy")
+    cols = {k: np.asarray(data[k]) for k in ("episode_index", "level", "axis", "axis_param")}
+    for r in records:
+        rows = np.flatnonzero(cols["episode_index"] == r["episode_index"])
+        assert len(rows) == r["frames"] and set(cols["level"][rows]) == {r["level"]}
+        assert set(cols["axis"][rows]) == {"pick_y"}
+        np.testing.assert_allclose(cols["axis_param"][rows], want[r["level"]])
+    t0 = read_episode_sidecar(demos)[0]
+    assert records[0]["seed"] == t0["seed"] and records[0]["object_poses"] == t0["object_poses"]
+    # level 1 moved the pick object one pick_y step (25 mm) from T0's, up to T0's placement jitter
+    y0, y1 = (r["object_poses"]["pick"][0][1] for r in records)
+    assert abs((y1 - want[1]) - (y0 - want[0])) < 0.03 and records[1]["seed"] != records[0]["seed"]
+
+
+def test_demos_start_from_other_initial_states_than_evaluation_episodes(level_demos):
+    import scenes
+    from indgen_vla.regimes.demos import read_episode_sidecar
+    from indgen_vla.seeding import evaluation_seed
+    from scenes.poses import object_poses
+    from scenes.privileged import privileged_of, with_privileged
+
+    env = scenes.make_env("pick_place", task="milk", cameras=())
+    try:
+        starts = []
+        for e in range(5):
+            obs, _ = env.reset(seed=evaluation_seed(0, "pick_place", "milk", e))
+            starts.append(object_poses(privileged_of(with_privileged(obs, env), "test"))["pick"][:2])
+    finally:
+        env.close()
+    demo = read_episode_sidecar(level_demos[0])[0]["object_poses"]["pick"][0][:2]
+    assert min(np.hypot(*(np.asarray(demo) - s)) for s in starts) > 1e-4

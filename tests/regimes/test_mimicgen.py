@@ -8,17 +8,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.regimes.mimicgen import (
-    MimicGenConfig,
-    _new_seed,
+from indgen_vla.regimes.mimicgen import MimicGenConfig, _new_seed, load_sources, split_subtasks
+from indgen_vla.regimes.se3 import (
     interpolate_poses,
     invert_pose,
-    load_sources,
     pose_from_pq,
     pose_from_state,
     pose_matrix,
     pose_to_action,
-    split_subtasks,
     target_poses,
     transform_segment,
 )
@@ -164,3 +161,35 @@ def test_mimicgen_round_trip_through_lerobot(tmp_path, one_demo):
         and gen[0]["seed"] != rec[0]["seed"]
         and gen[0]["source_episodes"] == [0, 0]
     )
+
+
+def test_mimicgen_generates_each_level_from_its_own_sources(level_demos, tmp_path):
+    """A source recorded at pick_y levels 0 and 1: each level's episodes are generated at that level, from that
+    level's sources, with the level columns and sidecar fields carried over and seeds evaluate never uses."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from indgen_vla.regimes.demos import LEVEL_FEATURES, read_episode_sidecar
+    from indgen_vla.regimes.mimicgen import generate
+    from indgen_vla.seeding import held_out_seeds
+
+    src = level_demos[0]
+    stats = generate(
+        MimicGenConfig(source=src, out=tmp_path / "gen", n=1, seed=1, guarantee=True, max_attempts=3)
+    )
+    assert set(stats["tasks"]) == {"milk pick_y level 0", "milk pick_y level 1"} and stats["successes"] == 2
+    sources = {r["episode_index"]: r for r in read_episode_sidecar(src)}
+    gen = read_episode_sidecar(tmp_path / "gen")
+    assert sorted((r["level"], r["axis"], r["param"]) for r in gen) == sorted(
+        (r["level"], r["axis"], r["param"]) for r in sources.values()
+    )
+    for r in gen:
+        assert {sources[i]["level"] for i in r["source_episodes"]} == {
+            r["level"]
+        }  # never another level's source
+        assert r["seed"] not in held_out_seeds("pick_place", "milk", also=(1,))
+        assert (
+            abs(r["object_poses"]["pick"][0][1] - r["param"]) < 0.03
+        )  # the pick object starts at its level's y
+    ds = LeRobotDataset("local/indgen_mimicgen", root=tmp_path / "gen")
+    assert set(LEVEL_FEATURES) <= set(ds.features)
+    assert {int(ds[i]["level"]) for i in range(len(ds))} == {0, 1}

@@ -11,21 +11,12 @@ import pytest
 from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import Observation
 from indgen_vla.regimes.train import TrainConfig, train_policy
+from indgen_vla.training_support import TrainedCell
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(180)
 
 SHIPPED = Path(__file__).resolve().parents[2] / "checkpoints" / "act_pick_place_human"
-
-
-@pytest.fixture(scope="module")
-def demos(tmp_path_factory) -> Path:
-    """Two state-only noisy-oracle T0 demos of pick_place, with the object poses recorded."""
-    from indgen_vla.regimes.demos import record_demos
-
-    out = tmp_path_factory.mktemp("train") / "demos"
-    record_demos("pick_place", out, n=2, seed=5, cameras=(), objects=True)
-    return out
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +37,9 @@ def test_loss_decreases_and_checkpoint_is_saved(trained, demos):
     losses = info["losses"]
     assert len(losses) == 6 and losses[-1] < 0.7 * info["first_loss"], (info["first_loss"], losses)
     assert info["episodes"] == 4 and info["data_regime"] == "test" and info["config"]["seed"] == 1
+    # T0 demos recorded without --axis, given twice: level 0 of every axis, 4 episodes
+    t0 = {"scene": "pick_place", "task": "milk", "level": 0, "axis": None, "param": None, "episodes": 4}
+    assert info["levels"] == [t0]
     for name in ("config.json", "model.safetensors", "policy_preprocessor.json", "policy_postprocessor.json"):
         assert (trained / name).is_file(), name
     steps = json.loads((trained / "policy_preprocessor.json").read_text())["steps"]
@@ -59,6 +53,7 @@ def test_checkpoint_loads_through_lerobot_policy_path(trained, demos):
 
     policy = load_policy(f"lerobot:{trained}")
     assert policy.spec.cameras == () and (policy.spec.chunk_size, policy.spec.replan_steps) == (20, 10)
+    assert policy.spec.training == (TrainedCell("pick_place", "milk", 0, episodes=4),)  # from train_info.json
     item = LeRobotDataset("local/indgen_demos", root=demos)[0]
     policy.reset("pick up the milk carton", seed=0)
     chunk = policy.act([_obs(item["observation.state"].numpy())] * 2)
@@ -166,3 +161,25 @@ def test_shipped_checkpoint_is_small_documented_and_loads():
     assert policy.spec.cameras == ()
     state = np.array([-0.1, 0.0, 1.0, 2.2, 2.2, 0.0, 0.02, -0.02], dtype=np.float32)
     assert policy.act([_obs(state)]).shape[-1] == 7
+
+
+def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_demos, tmp_path):
+    """Trained on pick_y levels 0 and 1: train_info.json and the policy's spec name them, evaluate records them in
+    the manifest, and the report marks levels 0 and 1 (not 2) "trained"."""
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.run import evaluate
+    from indgen_vla.training_support import cells_from_json
+
+    cfg = TrainConfig(steps=5, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5)
+    ckpt = train_policy([level_demos[0]], tmp_path / "act", cfg)
+    cells = cells_from_json(json.loads((ckpt / "train_info.json").read_text())["levels"])
+    assert sorted((c.axis, c.level, c.episodes) for c in cells) == [("pick_y", 0, 1), ("pick_y", 1, 1)]
+    out = evaluate(EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0:2",
+                              episodes=1, max_steps=5, workers=1, out=str(tmp_path / "run")), quiet=True)  # fmt: skip
+    assert cells_from_json(json.loads((out / "manifest.json").read_text())["training_levels"]) == cells
+    summary = json.loads((out / "summary.json").read_text())
+    assert [e["level"] for e in summary["axes"]["pick_y"]["trained"]] == [0, 1]
+    marked = [
+        line.split(" | ")[0] for line in (out / "report.md").read_text().splitlines() if "· trained" in line
+    ]
+    assert marked == ["| 0", "| 1"]
