@@ -109,6 +109,13 @@ class Cell:
             raise ConfigError(f"level {self.level}: need 0 <= successes <= n, got {self.successes}/{self.n}")
 
 
+def cell_param(params: Sequence[float]) -> float:
+    """A cell's parameter: its episodes' one value, or their mean where each episode has its own (RoboCasa's pick_x
+    offset in each episode's kitchen)."""
+    first = float(params[0])
+    return first if max(params) - min(params) <= 1e-12 else sum(map(float, params)) / len(params)
+
+
 def cells_from_records(records: Iterable[Mapping], cluster_keys: Sequence[str] = ()) -> list[Cell]:
     """Aggregate episode records (dicts with level, param, success[, status]) into cells; errors skipped."""
     acc: dict[tuple, list] = {}
@@ -117,7 +124,8 @@ def cells_from_records(records: Iterable[Mapping], cluster_keys: Sequence[str] =
             continue
         try:
             key = (tuple(r[c] for c in cluster_keys), int(r["level"]))
-            a = acc.setdefault(key, [float(r["param"]), 0, 0])
+            a = acc.setdefault(key, [[], 0, 0])
+            a[0].append(float(r["param"]))
             a[1] += bool(r["success"])
             a[2] += 1
         except KeyError as e:
@@ -125,14 +133,14 @@ def cells_from_records(records: Iterable[Mapping], cluster_keys: Sequence[str] =
                 f"episode record lacks column {e.args[0]!r} needed for the break point"
             ) from None
     return [
-        Cell(level=lv, param=p, successes=s, n=n, cluster=c)
+        Cell(level=lv, param=cell_param(p), successes=s, n=n, cluster=c)
         for (c, lv), (p, s, n) in sorted(acc.items(), key=str)
     ]
 
 
 def cells_from_frame(df, cluster_keys: Sequence[str] = ()) -> list[Cell]:
     """``cells_from_records`` of an episode table, grouped in one vectorised pass instead of a Python loop over its
-    rows: the same cells in the same order (each cell's param is its first row's)."""
+    rows: the same cells in the same order (each cell's param is ``cell_param`` of its rows')."""
     from indgen_vla.frames import group_items, py
 
     ok = df[df["status"] == "ok"] if "status" in df else df
@@ -143,11 +151,8 @@ def cells_from_frame(df, cluster_keys: Sequence[str] = ()) -> list[Cell]:
         raise ConfigError(f"episode record lacks column {need[0]!r} needed for the break point")
     ok = ok.assign(_level=ok["level"].astype("int64"), _success=ok["success"].astype(bool))
     keys = [*cluster_keys, "_level"]
-    firsts = ok.drop_duplicates(keys)
-    acc = {
-        (tuple(py(v) for v in k), py(lv)): [float(p), 0, 0]
-        for *k, lv, p in zip(*(firsts[c] for c in keys), firsts["param"], strict=True)
-    }
+    params = ok.groupby(keys, sort=False, dropna=False)["param"].agg(list)
+    acc = {(tuple(py(v) for v in k[:-1]), py(k[-1])): [cell_param(p), 0, 0] for k, p in group_items(params)}
     grouped = ok.groupby(keys, sort=False, dropna=False)["_success"]
     for (*k, lv), s in group_items(grouped.sum()):
         acc[(tuple(k), lv)][1] = s

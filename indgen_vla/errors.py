@@ -59,5 +59,10 @@ class SceneError(IndgenError):
     """A scene that cannot be built or stepped."""
 
 
+class EpisodeUnavailableError(SceneError):
+    """A level this episode's initial state cannot hold (a RoboCasa kitchen too narrow for pick_x's levels): its
+    seed decides it, so the engine records the episode once as an error, never retried."""
+
+
 class InfeasibleLevelError(IndgenError):
     """A level the privileged oracle does not certify (Assumption 2 of the paper)."""

@@ -19,7 +19,7 @@ import re
 import time
 from pathlib import Path
 
-from indgen_vla.errors import ConfigError, RunDirError
+from indgen_vla.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
 from indgen_vla.metrics import clopper_pearson_ci
 from indgen_vla.progression import parse_levels
 from indgen_vla.seeding import episode_seed
@@ -105,8 +105,11 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
     return bool(info["success"]), env.steps
 
 
-def level_row(level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float) -> dict:
-    """The certification row of one level from its episodes' (success, steps)."""
+def level_row(
+    level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float, unavailable: int = 0
+) -> dict:
+    """The certification row of one level from its episodes' (success, steps); ``unavailable``: the seeds skipped
+    because their initial state cannot hold the level (a key only when some were)."""
     n, successes = len(results), sum(ok for ok, _ in results)
     status = rule.status(successes, n)
     return {
@@ -114,7 +117,7 @@ def level_row(level: int, param: float, results: list[tuple[bool, int]], rule: R
         "lower_bound": round(lower_bound(successes, n, rule.confidence), 6), "status": status,
         "certified": status == "certified", "feasible": status == "certified",
         "stopped_early": n < rule.n_max, "mean_steps": sum(s for _, s in results) / n if n else 0.0,
-        "wall_s": round(wall_s, 1),
+        "wall_s": round(wall_s, 1), **({"unavailable": unavailable} if unavailable else {}),
     }  # fmt: skip
 
 
@@ -123,7 +126,8 @@ def certify_level(
     max_steps: int | None, rule: Rule, on_episode=None,
 ) -> dict:  # fmt: skip
     """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility);
-    ``on_episode(level, successes, n)`` hears of each finished episode."""
+    ``on_episode(level, successes, n)`` hears of each finished episode. A seed whose initial state cannot hold the
+    level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x) is skipped and counted."""
     import scenes
     from scenes.oracle import oracle_for
 
@@ -132,19 +136,28 @@ def certify_level(
         scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps, preset=preset
     )
     results: list[tuple[bool, int]] = []
+    unavailable = 0
     try:
         policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not rule.stop(sum(ok for ok, _ in results), len(results)):
-            i = len(results)
-            results.append(
-                run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
-            )
+            i = len(results) + unavailable
+            try:
+                results.append(
+                    run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
+                )
+            except EpisodeUnavailableError as e:
+                unavailable += 1
+                if unavailable > rule.n_max:
+                    raise SceneError(
+                        f"{unavailable} of {i + 1} seeds cannot hold this level, e.g. {e}"
+                    ) from None
+                continue
             if on_episode is not None:
                 on_episode(level, sum(ok for ok, _ in results), len(results))
         param = env.axis_param
     finally:
         env.close()
-    return level_row(level, param, results, rule, time.time() - t0)
+    return level_row(level, param, results, rule, time.time() - t0, unavailable)
 
 
 _EVENTS = None  # in a pool worker: the queue its episodes are reported on (``_init_worker``)

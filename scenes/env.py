@@ -100,6 +100,9 @@ class BaseSceneEnv(gym.Env):
     _sim_env = None  # the backend's robosuite-style env; None before it is built and once closed
     _trace: FailureTrace | None = None  # this episode's contacts and lifts (privileged; never observed)
     _observing: bool = True  # whether the step in progress must produce camera images (``step(observe=...)``)
+    # the last reset's own axis parameter where a backend sets one per episode (RoboCasa's pick_x: the offset in its
+    # kitchen); None: the level's ``axis_param``
+    episode_param: float | None = None
     has_progress: bool = (
         True  # the failure trace's signals are real (external proxies have none: no progress)
     )

@@ -70,8 +70,8 @@ class ExternalSceneEnv(BaseSceneEnv):
             self._worker.close()
             self._worker = None
             raise WorkerDied(f"{self._where()}: {e}") from None
-        except SceneError as e:
-            raise SceneError(f"{self._where()}: {e}") from None
+        except SceneError as e:  # EpisodeUnavailableError stays itself: the engine does not retry it
+            raise type(e)(f"{self._where()}: {e}") from None
 
     def _build(self) -> None:
         if self._worker is None or not self._worker.alive:
@@ -89,6 +89,8 @@ class ExternalSceneEnv(BaseSceneEnv):
             self._worker = None
             self._build()
         self._last = self._call("reset", self.episode_seed)
+        # a backend may send the episode's own axis parameter (RoboCasa's pick_x: the offset in its kitchen)
+        self.episode_param = float(self._last.get("axis_param", self.axis_param))
         self.has_progress = bool(self._facts())  # a task without a pick object: failures unknown, no progress
         self.instruction = self._last.get("instruction") or self.instruction
         self._t, self._done = 0, False

@@ -6,7 +6,8 @@ defines ``build(config: dict)`` returning an object with ``reset(seed) -> dict``
 ``privileged() -> dict``, ``mj_data()`` and ``close()``, and ``versions() -> dict``.
 
 Protocol: length-prefixed pickles on the original stdout/stdin (fd 1 is redirected to stderr so a library's prints
-cannot corrupt a frame). Requests are ``(op, arg)``; replies ``("ok", value)`` or ``("error", one_line)``. After every
+cannot corrupt a frame). Requests are ``(op, arg)``; replies ``("ok", value)``, ``("error", one_line)``, or
+``("unavailable", one_line)`` for an exception whose ``unavailable`` attribute is true. After every
 reset and step the worker reads MuJoCo's warning counters: a new ``mjWARN_BADQACC`` (MuJoCo reset mjData to qpos0
 without raising) or any other new instability warning is an error reply, never a silently reset episode.
 """
@@ -114,8 +115,8 @@ def serve(backend_path: str, inp, out) -> None:
             else:
                 raise ValueError(f"unknown op {op!r}")
             write_frame(out, ("ok", value))
-        except Exception as e:
-            write_frame(out, ("error", describe(e)))
+        except Exception as e:  # "unavailable": the episode's seed rules the level out (never retried)
+            write_frame(out, ("unavailable" if getattr(e, "unavailable", False) else "error", describe(e)))
     if env is not None:
         env.close()
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.errors import SceneError
+from indgen_vla.errors import EpisodeUnavailableError, SceneError
 
 WORKER = Path(__file__).with_name("external_worker.py")
 
@@ -53,7 +53,8 @@ class WorkerProcess:
         return self.proc.poll() is None
 
     def request(self, op: str, arg: Any = None) -> Any:
-        """Send one request and return its value; ``SceneError`` carries the worker's one-line error."""
+        """Send one request and return its value; ``SceneError`` carries the worker's one-line error
+        (``EpisodeUnavailableError`` when the worker says the episode's seed rules the level out)."""
         data = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
         try:
             self.proc.stdin.write(struct.pack("<I", len(data)) + data)
@@ -69,6 +70,8 @@ class WorkerProcess:
                 f"the {self.runtime.name} worker (pid {self.proc.pid}) died with exit code {self.proc.returncode}"
                 f"{self._last_log_line()}"
             ) from None
+        if status == "unavailable":
+            raise EpisodeUnavailableError(value)
         if status == "error":
             raise SceneError(value)
         return value

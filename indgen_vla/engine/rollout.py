@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from indgen_vla.errors import EpisodeUnavailableError
 from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
 from indgen_vla.plan import EpisodeJob, LevelBuilder
 from indgen_vla.records import EpisodeRecord
@@ -53,6 +54,8 @@ class Transition:
     wall_s: float = 0.0
     failure: str = ""  # scenes.failure mode, set when the episode ends
     progress: int | None = None  # scenes.failure progress score 0..5, set when the episode ends (None: none)
+    param: float | None = None  # the episode's own axis parameter (``env.episode_param``; None: the plan's)
+    final: bool = False  # an error its seed decides (EpisodeUnavailableError): recorded once, not retried
 
 
 @dataclass(frozen=True)
@@ -127,6 +130,8 @@ class EnvRunner:
                 obs, _, _, _, _ = env.step(WARMUP_ACTION)
             self._record_frame()
             return Transition(job.key, self._observe(obs))
+        except EpisodeUnavailableError as e:  # the seed rules this level out: the env stays, no retry
+            return Transition(job.key, None, done=True, error=_describe(e), final=True)
         except Exception as e:  # a simulator failure becomes an episode error, retried by the engine
             self._env_key = None
             return Transition(job.key, None, done=True, error=_describe(e))
@@ -157,6 +162,7 @@ class EnvRunner:
         if done:
             t.failure = env.failure_mode(success)
             t.progress = env.progress(success) if hasattr(env, "progress") else None
+            t.param = getattr(env, "episode_param", None)
             t.video = self._write_video(job, success)
             t.wall_s = time.perf_counter() - self._t0
         return t
@@ -212,7 +218,8 @@ def make_record(
 ) -> EpisodeRecord:
     return EpisodeRecord(
         run_id=meta.run_id, policy=meta.policy, data_regime=meta.data_regime, scene=meta.scene, task=job.task,
-        axis=job.axis, level=job.level, param=job.param, episode=job.episode, seed=job.seed,
+        axis=job.axis, level=job.level, param=job.param if t.param is None else float(t.param),
+        episode=job.episode, seed=job.seed,
         success=bool(t.success) and status == "ok", steps=int(t.steps), status=status, error=error,
         wall_s=float(t.wall_s), video=t.video, failure="error" if status == "error" else t.failure,
         progress=None if status == "error" else t.progress,
@@ -231,7 +238,8 @@ def run_episode(
     """The reference loop: reset, then act → execute ``replan_steps`` of each chunk until done.
 
     A policy or simulator failure retries the episode from its seed up to ``max_retries`` times, then
-    returns a record with status "error" and the message (never a silent failure). A connection fault
+    returns a record with status "error" and the message (never a silent failure); an error the seed decides
+    (``Transition.final``) is recorded at once. A connection fault
     (``PolicyConnectionError``) waits with backoff and re-runs the episode without using up a retry; past
     ``server_patience_s`` it raises ``ServerUnreachableError``.
     """
@@ -258,4 +266,6 @@ def run_episode(
             return make_record(meta, job, t)
         attempt += 1
         last_error = f"attempt {attempt}: {t.error}"
+        if t.final:
+            break
     return make_record(meta, job, t, status="error", error=last_error)

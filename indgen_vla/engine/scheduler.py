@@ -128,11 +128,12 @@ class Slots:
         self.send(i, "reset", slot.job)
 
     def fail(self, i: int, error: str, t: Transition | None = None) -> None:
-        """An episode fault: retry from the seed, or record the error once the retries are spent."""
+        """An episode fault: retry from the seed, or record the error once the retries are spent (at once when the
+        seed decides it: ``Transition.final``)."""
         slot = self.active[i]
         slot.attempt += 1
         slot.last_error = f"attempt {slot.attempt}: {error}"
-        if slot.attempt <= self.limits.max_retries:
+        if slot.attempt <= self.limits.max_retries and not (t is not None and t.final):
             self.start(i, slot)
         else:
             t = t or Transition(slot.job.key, None)

@@ -35,7 +35,8 @@ class PickRegion:
 # Appendix B's pick_x tasks, in its order, with the region RoboCasa 1.0.1 (rlinf-robocasa365 1.0.1) samples each
 # one's pick object in: upstream constants, read from the pinned install (tests/scenes/robocasa check each line).
 # RoboCasa clips a region to the fixture's own top where that is narrower (utils/env_utils.py
-# _get_placement_initializer: inner_size = min(outer_size - margin, size)), which a plan cannot know.
+# _get_placement_initializer: inner_size = min(outer_size - margin, size)), which a plan cannot know: the worker
+# divides the range RoboCasa samples in each episode's kitchen (scenes/robocasa/pick_window.py).
 PICK_REGIONS: dict[str, PickRegion] = {
     "CheesyBread": PickRegion("cheese", 1.0, "kitchen_pick_place.py:1757"),
     "CoffeeSetupMug": PickRegion("obj", 0.30, "kitchen_coffee.py:67"),  # PickPlaceCoffee, counter_to_machine
@@ -77,7 +78,7 @@ KITCHEN_SETS: dict[str, tuple[tuple[int, int], ...]] = {
 }
 # the canonical layouts an appendix-B task's class excludes (its EXCLUDE_LAYOUTS; no EXCLUDE_STYLES meets the sets)
 EXCLUDED_KITCHENS: dict[str, frozenset[int]] = {"PickPlaceFridgeDrawerToShelf": frozenset({18})}
-PICK_JITTER = 0.02  # T0's pick window on pick_x: +-2 cm in x (backend.PICK_JITTER): condition 2 sees it
+PICK_JITTER = 0.02  # T0's pick window on pick_x: +-2 cm in x (pick_window.PICK_JITTER): condition 2 sees it
 
 PANDA_OMRON = EnvSpec(
     name="robocasa_panda_omron",
@@ -103,7 +104,8 @@ PANDA_OMRON = EnvSpec(
 
 @dataclass(frozen=True)
 class RoboCasaPick:
-    """The pick object's offset (metres, the placement's fixture frame) from T0's sampled placement."""
+    """The pick object's offset (metres, the placement's fixture frame) from T0's sampled placement: the plan's; an
+    episode whose kitchen clips the region moves 1/5 of its own range a level (``pick_window``, its param)."""
 
     x: float = 0.0
 
@@ -231,7 +233,8 @@ def pick_part(successor: Successor):
 
 def check_pick_region(task: str, successor: Successor) -> None:
     """Every level of the axis's range (as condition 2, whatever --levels runs) keeps its pick window (2 x
-    ``PICK_JITTER`` wide, T0's at the region's low-x end) inside the task's region: one line naming the fix."""
+    ``PICK_JITTER`` wide, T0's at the region's low-x end) inside the task's declared region: one line naming the
+    fix. A kitchen that clips the region is the worker's to judge, per episode (``pick_window.level_offset``)."""
     from indgen_vla.progression import ProgressionError
 
     part = pick_part(successor)
@@ -248,6 +251,21 @@ def check_pick_region(task: str, successor: Successor) -> None:
             f"/ {PICK_PROGRESSIONS}), give one <= {room / top:.4f} m for this task, or a smaller max_level in "
             "--axes-preset"
         )
+
+
+def pick_config(task: str, successor: Successor, level: int) -> dict:
+    """What the worker's pick_x window needs (``pick_window.level_offset``): the task's object config and declared
+    region, the level and the axis's last level (a kitchen hosts all of 0..top or none), and the step: None where it
+    is the task's own (``pick_step``: 1/5 of the range RoboCasa samples in each kitchen), else the user's metres.
+    ``report``: the episode's offset is its axis parameter (pick_x alone; a composition records its level)."""
+    part = pick_part(successor)
+    name = split_task(task)[0]
+    own = abs(part.axis.step - pick_step(name)) <= 1e-12  # a --step equal to the task's own is the task's own
+    return {
+        "cfg": PICK_REGIONS[name].cfg, "declared": PICK_REGIONS[name].width, "level": int(level),
+        "top": int(successor.axis.max_level), "step": None if own else float(part.axis.step),
+        "progressions": PICK_PROGRESSIONS, "report": part is successor,
+    }  # fmt: skip
 
 
 def _python() -> Path:
@@ -318,8 +336,9 @@ class RoboCasa(Scene):
         if len(parts) > 1:
             return successor
         base, region = split_task(name)[0], PICK_REGIONS[split_task(name)[0]]
-        what = (f"translate the pick object along x by 1/{PICK_PROGRESSIONS} of {base}'s {region.width:.2f} m pick "
-                f"region (RoboCasa's {region.source})")  # fmt: skip
+        what = (f"translate the pick object along x by 1/{PICK_PROGRESSIONS} of the range RoboCasa samples it in, "
+                f"in the episode's kitchen ({base}'s {region.width:.2f} m region, RoboCasa's {region.source}, where "
+                "the kitchen holds it)")  # fmt: skip
         return dataclasses.replace(successor, axis=dataclasses.replace(successor.axis, description=what))
 
     def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
@@ -453,7 +472,6 @@ class RoboCasa(Scene):
         spec = spec_at_level(self.base(task), successor, level)
         parts = {resolve_alias(p) for p in successor.axis.name.split("+")}
         name, kitchen = split_task(task)
-        pick = PICK_REGIONS[name] if "pick_x" in parts else None
         return {
             "task": name,
             # a canonical kitchen (KITCHEN_SETS): RoboCasa's layout_ids / style_ids; None: drawn from the seed
@@ -467,10 +485,8 @@ class RoboCasa(Scene):
                 "fixture_x": spec.fixture_x,
                 "clutter": spec.clutter,
             },  # fmt: skip
-            # pick_x's T0: the pick region shrunk to a window (a level shifts it), on the task's pick object
-            "pick_window": pick is not None,
-            "pick_cfg": pick.cfg if pick else None,
-            "pick_region": pick.width if pick else None,
+            # pick_x: the window on RoboCasa's range in the episode's kitchen (backend: pick_window.py)
+            "pick": pick_config(task, successor, level) if "pick_x" in parts else None,
             "axis_param": axis_param(spec, successor, level),
             "spec": spec,
         }

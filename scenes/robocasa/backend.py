@@ -25,7 +25,6 @@ MOVED_FIXTURE = {
     "CloseStandMixerHead": "stand_mixer", "OpenStandMixerHead": "stand_mixer", "TurnOnElectricKettle": "electric_kettle",
     "OpenElectricKettleLid": "electric_kettle", "CloseElectricKettleLid": "electric_kettle", "TurnOnBlender": "blender",
 }  # fmt: skip
-PICK_JITTER = 0.02  # T0's pick region on pick_x: 2 x 2 cm at the valid region's low-x end (levels shift it)
 FIXTURE_KEY = (
     "indgen_fixture_offset"  # the ep_meta field fixture_x edits: {"fixture": name, "offset": [dx, 0, 0]}
 )
@@ -33,19 +32,22 @@ FIXTURE_KEY = (
 _T0: dict[tuple, dict] = {}
 
 
-def _load_facts():
-    """``worker_facts.py`` beside this file, by path: the worker's sys.path has no ``scenes`` package."""
+def _load_beside(name: str):
+    """``NAME.py`` beside this file, by path: the worker's sys.path has no ``scenes`` package."""
     import importlib.util
 
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "worker_facts.py")
-    spec = importlib.util.spec_from_file_location("indgen_robocasa_worker_facts", path)
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), f"{name}.py")
+    spec = importlib.util.spec_from_file_location(f"indgen_robocasa_{name}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-_facts = _load_facts()
+_facts = _load_beside("worker_facts")
 versions, failure_facts, check_kitchen = _facts.versions, _facts.failure_facts, _facts.check_kitchen
+oracle_facts = _facts.oracle_facts
+window = _load_beside("pick_window")  # pick_x's window on RoboCasa's range in the episode's kitchen
+PICK_JITTER = window.PICK_JITTER
 
 
 def _yaw(quat_wxyz) -> float:
@@ -135,7 +137,8 @@ def _dedupe_counter_geoms_in_order() -> None:
 
 
 def _install_patches() -> None:
-    """Worker-wide: counter regions in first-seen order; placement samplers honour ``env._indgen_pins``; RoboCasa's
+    """Worker-wide: counter regions in first-seen order; placement samplers honour ``env._indgen_pins`` and
+    pick_x's window (``env._indgen_pick``: ``pick_window.narrow``); RoboCasa's
     fixture style YAML (re-parsed ~100 times per reset with the pure-Python loader, ~70 % of a reset) is parsed once
     with libyaml and copied."""
     import types
@@ -157,6 +160,9 @@ def _install_patches() -> None:
             # draws the same numbers for the one it moves, so pick_x's levels are shifts of T0's pose
             for name, sub in sampler.samplers.items():
                 sub.rng = np.random.default_rng([seed, 2, zlib.crc32(name.encode())])
+        pick = getattr(env, "_indgen_pick", None)
+        if pick and all(c.get("type") == "object" for c in cfg_list):
+            window.narrow(env, sampler, cfg_list, pick)
         pins = getattr(env, "_indgen_pins", None)
         if pins:
             sampler.sample = types.MethodType(_pinned_sample(pins), sampler)
@@ -226,8 +232,9 @@ def _flat_action(env, action: np.ndarray) -> np.ndarray:
 class RoboCasaLevel:
     """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed.
 
-    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick region
-    shrunk to a 2 x ``PICK_JITTER`` window at its low-x end). Its ep_meta and the placements it drew are kept per
+    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick object's x
+    drawn in a 2 x ``PICK_JITTER`` window at the low-x end of the range RoboCasa samples it in, in that kitchen:
+    ``pick_window``). Its ep_meta and the placements it drew are kept per
     worker; a level k > 0 (or a later reset of the same seed) replays that ep_meta with the level's one field edited,
     every fixture and object placement pinned to T0's except what the edit moves, and the post-load draws
     (``_setup_scene``) from the same stream, so T0 and level k differ in the one field only.
@@ -260,12 +267,14 @@ class RoboCasaLevel:
         )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
         self.env._indgen_task_fixture = None  # T0's task fixture on a replay (keep_task_fixture)
+        self.env._indgen_pick = config.get("pick")  # pick_x: the window's config (pick_window.level_offset)
+        self.env._indgen_pick_range = None  # RoboCasa's x range of the pick object at the last load
         self.env._indgen_drawn = {}  # cfg name -> (object kwargs, info) RoboCasa drew at the last load
         self.meta: dict = {}
         self._seed = 0
         self._placed: dict = {}
         env = self.env
-        load, settle, obj_cfgs = env._load_model, env._reset_internal, env._get_obj_cfgs
+        load, settle = env._load_model, env._reset_internal
 
         def load_model(*args, **kwargs):  # what T0 drew, before _reset_internal moves sliding-fixture objects
             load(*args, **kwargs)
@@ -286,25 +295,7 @@ class RoboCasaLevel:
             env.rng = np.random.default_rng([self._seed, 1])
             settle()
 
-        def get_obj_cfgs():  # pick_x's T0: the pick region shrunk to a window at its low-x end
-            cfgs = obj_cfgs()
-            if self.cfg.get("pick_window"):
-                name, want = self.cfg.get("pick_cfg") or "obj", self.cfg.get("pick_region")
-                cfg = next(c for c in cfgs if c.get("name") == name)
-                pl = cfg["placement"]
-                size, off = list(pl["size"]), list(pl.get("offset", (0.0, 0.0)))
-                if want is not None and abs(float(size[0]) - want) > 1e-9:  # the plan's step came from want
-                    raise ValueError(f"RoboCasa's {self.cfg['task']} samples {name} in a {size[0]} m region, the "
-                                     f"plan's step assumed {want} m (scenes/robocasa PICK_REGIONS): not the "
-                                     "pinned RoboCasa 1.0.1; run 'indgen setup robocasa'")  # fmt: skip
-                self.pick_region = float(size[0])
-                off[0] = float(off[0]) - size[0] / 2 + PICK_JITTER
-                size[0] = 2 * PICK_JITTER
-                # the window bounds the object's centre (upstream shrinks the range by the object's radius)
-                pl.update(size=tuple(size), offset=tuple(off), ensure_object_boundary_in_range=False)
-            return cfgs
-
-        env._load_model, env._reset_internal, env._get_obj_cfgs = load_model, reset_internal, get_obj_cfgs
+        env._load_model, env._reset_internal = load_model, reset_internal
 
     def mj_data(self):
         return self.env.sim.data._data if self.env.sim is not None else None
@@ -316,6 +307,7 @@ class RoboCasaLevel:
         self.env.unset_ep_meta()
         self.env.set_ep_meta(copy.deepcopy(meta))
         self.env._indgen_pins, self.env._indgen_made, self.env._indgen_fixture_shift = pins, made, shift
+        self.env._indgen_pick_range = None
         self.env.rng = np.random.default_rng([self._seed, 0])
         try:
             return self.env.reset()
@@ -325,7 +317,7 @@ class RoboCasaLevel:
     def _t0(self, seed: int) -> tuple[dict, dict | None]:
         """T0 of ``seed`` (cached per worker) and, when this reset made it, its observation."""
         key = (self.cfg["task"], str(self.cfg.get("layout_ids")), str(self.cfg.get("style_ids")), int(seed),
-               bool(self.cfg.get("pick_window")))  # fmt: skip
+               bool(self.cfg.get("pick")))  # fmt: skip
         if key in _T0:
             return _T0[key], None
         # RoboCasa's own layout/style draw (kitchen.py _setup_model: rng.choice(layout_and_style_ids)), from seed
@@ -341,7 +333,7 @@ class RoboCasaLevel:
                 for n, (p, q, _) in self.env.fxtr_placements.items()
             },
             "fixture": getattr(self.env, moved).name if moved and hasattr(self.env, moved) else None,
-            "pick_region": getattr(self, "pick_region", None),
+            "pick_range": self.env._indgen_pick_range,  # pick_x: RoboCasa's x range of the object in this kitchen
         }
         _T0[key] = t0
         return t0, raw
@@ -350,7 +342,7 @@ class RoboCasaLevel:
         """T0's object placements except what the edit moves; fixture_x's moved fixture (objects on it go along)."""
         pins = dict(t0["placed"])
         if edits.get("pick_x"):  # drawn by RoboCasa in the shifted window, clear of the pinned items
-            pins.pop(self.cfg.get("pick_cfg") or "obj", None)
+            pins.pop(self._pick_cfg(), None)
         shift = meta.get(FIXTURE_KEY)
         if not shift:
             return pins, None
@@ -369,20 +361,32 @@ class RoboCasaLevel:
                 pins[c["name"]] = (tuple(np.add(pins[c["name"]][0], d)), pins[c["name"]][1])
         return pins, (name, d)
 
+    def _pick_cfg(self) -> str:
+        return (self.cfg.get("pick") or {}).get("cfg", "obj")  # CheesyBread's is "cheese"
+
+    def _pick_offset(self, t0: dict, seed: int) -> float:
+        """pick_x: the level's offset in this kitchen (``pick_window.level_offset``; ``LevelUnavailable`` when the
+        kitchen's range cannot hold the levels)."""
+        if t0["pick_range"] is None:
+            raise ValueError(
+                f"pick_x: RoboCasa's {self.cfg['task']} placed no object config {self._pick_cfg()!r}"
+            )
+        lo, hi = t0["pick_range"]
+        meta = t0["meta"]
+        where = f"{self.cfg['task']} seed {seed} (layout {meta['layout_id']}, style {meta['style_id']})"
+        return window.level_offset(hi - lo, self.cfg["pick"], self.cfg["edits"].get("pick_x", 0.0), where)
+
     def reset(self, seed: int) -> dict:
-        edits = {k: v for k, v in self.cfg.get("edits", {}).items() if v}
+        edits = {k: v for k, v in self.cfg.get("edits", {}).items() if v and k != "pick_x"}
         t0, raw = self._t0(seed)
+        pick = self.cfg.get("pick")
+        dx = self._pick_offset(t0, seed) if pick else 0.0
+        if dx:
+            edits["pick_x"] = dx
         if raw is None or edits:
-            if edits.get("pick_x") and t0.get("pick_region"):
-                room = t0["pick_region"] - 2 * PICK_JITTER
-                if float(edits["pick_x"]) > room + 1e-9:
-                    raise ValueError(
-                        f"pick_x {edits['pick_x']:.3f} m leaves {self.cfg['task']}'s valid pick region "
-                        f"({t0['pick_region']:.2f} m wide: at most {room:.3f} m); use fewer levels or a smaller --step"
-                    )
             fixture_refs = t0["meta"].get("fixture_refs", {})
             meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"),
-                                pick=self.cfg.get("pick_cfg") or "obj")  # fmt: skip
+                                pick=self._pick_cfg())  # fmt: skip
             pins, shift = self._pins(t0, meta, edits)
             self.env._indgen_task_fixture = t0["fixture"]
             try:
@@ -390,7 +394,22 @@ class RoboCasaLevel:
             finally:
                 self.env._indgen_task_fixture = None
         self.meta = self.env.get_ep_meta()
-        return {**self._obs(raw), "facts": failure_facts(self.env)}
+        out = {**self._obs(raw), "facts": failure_facts(self.env)}
+        if pick:
+            self._check_window(t0, dx)
+            self.meta[window.PICK_KEY] = window.record(t0["pick_range"], pick, dx)
+            if pick.get("report"):
+                out["axis_param"] = dx  # the episode's own offset (m): episodes.parquet's param
+        return out
+
+    def _check_window(self, t0: dict, dx: float) -> None:
+        """The level drew the object in T0's window moved by ``dx``: RoboCasa computed the same range, moved."""
+        lo, got = t0["pick_range"][0], self.env._indgen_pick_range[0]
+        if abs(got - lo - dx) > 1e-6:
+            raise RuntimeError(
+                f"pick_x: RoboCasa's range of the pick object moved {got - lo:.4f} m at this level, not the "
+                f"{dx:.4f} m edited (the kitchen was drawn again?)"
+            )
 
     def step(self, action) -> dict:
         raw, _, _, _ = self.env.step(_flat_action(self.env, action))
@@ -485,39 +504,6 @@ def keep_task_fixture(env, task: str, name: str | None) -> None:
     attr = MOVED_FIXTURE.get(task)
     if name and attr and name in getattr(env, "fixtures", {}):
         setattr(env, attr, env.fixtures[name])
-
-
-def oracle_facts(env, task: str) -> dict:
-    """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
-    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
-
-
-def fixture_part_facts(env) -> dict:
-    """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
-    the press lands on the head's free end (most lever; pushing on the hinge closes nothing)."""
-    data, model = env.sim.data, env.sim.model
-    out: dict = {}
-    mixer = getattr(env, "stand_mixer", None)
-    jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
-    if jn and jn in model.joint_names:
-        out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
-    return out
-
-
-def object_extent_facts(env) -> dict:
-    """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
-    the fingers across the narrower side."""
-    obj = getattr(env, "objects", {}).get("obj")
-    return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
-
-
-def unload_facts(env, task: str) -> dict:
-    """Where an object taken out of a fixture goes down (cabinet to counter): the counter's top (its body centre
-    plus half its size, ``robocasa/models/fixtures/counter.py``); empty for the other tasks."""
-    counter = getattr(env, "counter", None)
-    if task != "PickPlaceCabinetToCounter" or counter is None:
-        return {}
-    return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
 
 
 def build(config: dict) -> RoboCasaLevel:

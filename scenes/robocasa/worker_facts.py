@@ -1,5 +1,6 @@
 """What RoboCasa's worker reports besides observations: the environment's versions and RoboCasa release (for the
-manifest), the per-step failure facts (for ``scenes/failure.py`` over the pipe) and the canonical-kitchen check.
+manifest), the per-step failure facts (for ``scenes/failure.py`` over the pipe), the canonical-kitchen check and the
+facts only the oracle reads (``oracle_facts``).
 
 Runs in RoboCasa's venv, loaded by ``backend.py`` by path; imports only the standard library and numpy at module
 level (RoboCasa inside the functions), so our own venv's tests import it as ``scenes.robocasa.worker_facts``.
@@ -106,3 +107,36 @@ def check_kitchen(config: dict) -> None:
                 f"RoboCasa's {config['task']} excludes {what} {bad[0]} ({cls.__name__}.EXCLUDE_{what.upper()}S): "
                 "drop that kitchen from the run"
             )
+
+
+def oracle_facts(env, task: str) -> dict:
+    """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
+    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
+
+
+def fixture_part_facts(env) -> dict:
+    """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
+    the press lands on the head's free end (most lever; pushing on the hinge closes nothing)."""
+    data, model = env.sim.data, env.sim.model
+    out: dict = {}
+    mixer = getattr(env, "stand_mixer", None)
+    jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
+    if jn and jn in model.joint_names:
+        out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
+    return out
+
+
+def object_extent_facts(env) -> dict:
+    """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
+    the fingers across the narrower side."""
+    obj = getattr(env, "objects", {}).get("obj")
+    return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
+
+
+def unload_facts(env, task: str) -> dict:
+    """Where an object taken out of a fixture goes down (cabinet to counter): the counter's top (its body centre
+    plus half its size, ``robocasa/models/fixtures/counter.py``); empty for the other tasks."""
+    counter = getattr(env, "counter", None)
+    if task != "PickPlaceCabinetToCounter" or counter is None:
+        return {}
+    return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}

@@ -1,5 +1,6 @@
 """The rollout engine on the real pick_place scene with CPU stand-ins (short episodes)."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -169,3 +170,73 @@ def test_one_unpipelined_env_runs_in_process_without_a_forkserver():
         and worker_processes(3, 2, False) == 2
         and worker_processes(9, 4, True) == 4
     )
+
+
+class _Unavailable:
+    """A real pick_place level whose reset raises EpisodeUnavailableError for the seeds in ``ruled_out`` (as
+    RoboCasa's worker does for a kitchen too narrow for pick_x) and otherwise reports its own ``episode_param``."""
+
+    def __init__(self, env, ruled_out: set[int], resets: list[int]):
+        self._env, self._out, self._resets = env, ruled_out, resets
+        self.episode_param = None
+
+    def __getattr__(self, name):
+        return getattr(self._env, name)
+
+    def reset(self, *, seed=None, options=None):
+        from indgen_vla.errors import EpisodeUnavailableError
+
+        self._resets.append(seed)
+        if seed in self._out:
+            raise EpisodeUnavailableError(f"seed {seed}: a 0.180 m range (not retried)")
+        self.episode_param = 0.5 + seed % 7 / 100  # the episode's own parameter, as the backend measured it
+        return self._env.reset(seed=seed, options=options)
+
+
+class _Zeros(FlakyPolicy):
+    def act(self, observations):
+        return np.zeros((len(observations), 4, ACTION_DIM), np.float32)
+
+
+@dataclasses.dataclass(frozen=True)
+class _UnavailableLevels:
+    inner: object
+    ruled_out: frozenset
+    resets: list
+
+    scene = "pick_place"
+    preload = ()
+
+    def make_env(self, task, axis, level, **kw):
+        return _Unavailable(self.inner.make_env(task, axis, level, **kw), set(self.ruled_out), self.resets)
+
+    def describe(self):
+        return self.inner.describe()
+
+
+def test_an_unavailable_episode_is_one_error_row_and_a_backends_own_param_is_recorded(tmp_path):
+    """An EpisodeUnavailableError at reset is recorded once (no retry: its seed decides it), with its line; an
+    episode whose env reports ``episode_param`` records that, not the plan's parameter. Both loops: the local
+    scheduler and the reference ``run_episode`` (Ray)."""
+    from indgen_vla.engine.rollout import EnvRunner, run_episode
+
+    c = cfg(tmp_path, levels="0", episodes=3)
+    jobs = plan_episodes(c, _first_task(), {"pick_y": [0]}, {(t, "pick_y", 0): 0.0 for t in _first_task()})
+    out = jobs[1].seed
+    resets: list[int] = []
+    levels = _UnavailableLevels(scene_levels("pick_place", ["pick_y"]), frozenset({out}), resets)
+    rc = RunnerConfig(levels=levels, cameras=(), image_size=(64, 64), max_steps=4, privileged=False)
+    records = []
+    run_local(jobs, rc, _Zeros, RunMeta("r", "test:zeros", "", "pick_place"), records.append,
+              workers=1, replan_steps=4, max_retries=2)  # fmt: skip
+    by_ep = {r.episode: r for r in records}
+    assert by_ep[1].status == "error" and by_ep[1].error.startswith(
+        "attempt 1: EpisodeUnavailableError: seed"
+    )
+    assert resets.count(out) == 1 and by_ep[1].param == 0.0  # not retried; no parameter of its own
+    assert len(resets) == 3  # the others ran once each
+    for e in (0, 2):
+        assert by_ep[e].status == "ok" and by_ep[e].param == 0.5 + jobs[e].seed % 7 / 100
+    resets.clear()
+    rec = run_episode(EnvRunner(rc), _Zeros(), jobs[1], RunMeta("r", "test:zeros", "", "pick_place"), 4, 2)
+    assert rec.status == "error" and resets == [out] and "attempt 1:" in rec.error

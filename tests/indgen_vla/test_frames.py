@@ -101,6 +101,15 @@ def test_cells_from_frame_equal_cells_from_records():
         cells_from_frame(df.drop(columns="param"))
 
 
+def test_a_cells_param_is_its_episodes_value_or_their_mean():
+    """Each RoboCasa pick_x episode records its own kitchen's offset: the break point's cell takes their mean; a cell
+    of one value keeps it bit for bit (0.1 three times, not 0.30000000000000004 / 3)."""
+    rows = [{"level": 1, "param": p, "success": True} for p in (0.1, 0.1, 0.1)]
+    rows += [{"level": 2, "param": p, "success": False} for p in (0.2, 0.146)]
+    for cells in (cells_from_records(rows), cells_from_frame(pd.DataFrame(rows))):
+        assert [(c.level, c.param, c.n) for c in cells] == [(1, 0.1, 3), (2, pytest.approx(0.173), 2)]
+
+
 def test_group_items_gives_python_keys_and_values():
     df = pd.DataFrame({"task": ["a", "a", "b"], "level": [1, 1, -2]})
     items = list(group_items(df.groupby(["task", "level"], sort=False).size()))

@@ -255,3 +255,37 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     del old["assets"]  # as written before certificates recorded their tree
     out.write_text(json.dumps(old))
     assert find_certification("stack", None, "stack", root=root) is None
+
+
+def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
+    """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
+    certification goes on with the next seed index and the row counts it; a level no seed holds is one line."""
+    import scenes.oracle
+    from indgen_vla.errors import EpisodeUnavailableError, SceneError
+    from scenes import certify_run
+
+    class Env:
+        axis_param, calls, out = 0.0, [], {1}
+
+        def reset(self, seed):
+            self.calls.append(seed)
+            if len(self.calls) - 1 in self.out:
+                raise EpisodeUnavailableError(f"seed {seed}: a 0.165 m range")
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(scenes, "make_env", lambda *a, **k: Env())
+    monkeypatch.setattr(scenes.oracle, "oracle_for", lambda scene: None)
+    monkeypatch.setattr(
+        certify_run, "run_oracle_episode", lambda env, policy, seed, i: (env.reset(seed), (True, 9))[1]
+    )
+    rule = certify_run.Rule(n_max=3)
+    row = certify_run.certify_level("stack", "t", "a", 0, None, None, 0, None, rule)
+    assert (row["n"], row["unavailable"], len(Env.calls), len(set(Env.calls))) == (3, 1, 4, 4)
+    assert "unavailable" not in certify_run.level_row(0, 0.0, [(True, 9)], rule, 1.0)
+    Env.calls, Env.out = [], set(range(10))
+    with pytest.raises(
+        SceneError, match=r"^4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range$"
+    ):
+        certify_run.certify_level("stack", "t", "a", 0, None, None, 0, None, rule)

@@ -46,6 +46,24 @@ def test_each_tasks_step_is_its_region_over_five():
         sc.successor("pick_x", task="CloseStandMixerHead")
 
 
+def test_the_worker_gets_what_its_pick_window_needs():
+    """The worker divides each kitchen's range itself (``pick_window.level_offset``) for the task's own step (also
+    when --step equals it); a user's step stays metres; only pick_x alone records the episode's offset as param."""
+    from scenes.registry import get_scene
+
+    sc = get_scene("robocasa")
+
+    def pick(task, axis="pick_x", step=None, level=2):
+        return sc.level_config(task, sc.successor(axis, step, task=task), level, (), (64, 64))["pick"]
+
+    assert pick("CheesyBread") == {"cfg": "cheese", "declared": 1.0, "level": 2, "top": 4, "step": None,
+                                   "progressions": 5, "report": True}  # fmt: skip
+    assert pick("CheesyBread", step=0.2)["step"] is None and pick("CheesyBread", step=0.05)["step"] == 0.05
+    composed = pick("PickPlaceCounterToSink", "pick_x+horizon")
+    assert (composed["step"], composed["report"], composed["top"], composed["cfg"]) == (None, False, 3, "obj")
+    assert pick("PickPlaceCounterToSink", "base_y") is None
+
+
 @pytest.mark.parametrize(
     ("task", "step", "fits"),
     [("PickPlaceSinkToCounter", 0.0525, True), ("PickPlaceSinkToCounter", 0.06, False),  # 4 x 0.06 + 0.04 > 0.25
@@ -135,15 +153,22 @@ def test_a_step_that_leaves_a_region_exits_2_before_any_episode(placeholders, tm
 
 
 @needs_venv
-@pytest.mark.slow  # ~10 s: two kitchens built; test_pick_x_successor_shifts_the_pick_window covers the "obj" tasks
+@pytest.mark.slow  # ~10 s: two kitchens built; test_robocasa covers the "obj" tasks
 def test_cheesy_bread_moves_its_cheese(placeholders):
-    """CheesyBread's pick object is the cheese (no "obj" config): level 1 moves its window by 1/5 of 1.0 m."""
+    """CheesyBread's pick object is the cheese (no "obj" config): level 1 moves its window by 1/5 of the range
+    RoboCasa samples it in, in the episode's kitchen (1/5 of the declared 1.0 m where the kitchen holds it all)."""
+    from scenes.robocasa.pick_window import PICK_KEY
     from tests.scenes.robocasa.test_robocasa import _changed, _levels
 
     (m0, s0), (m1, _) = _levels("CheesyBread", "pick_x", (0, 1), seed=3)
-    assert _changed(m0, m1) == {"object_cfgs"}
+    assert _changed(m0, m1) == {"object_cfgs", PICK_KEY}
     c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "cheese"][0]["placement"] for m in (m0, m1))
-    assert c1["offset"][0] - c0["offset"][0] == pytest.approx(0.2) and c0["size"][0] == pytest.approx(0.04)
+    lo, hi = m0[PICK_KEY]["range"]
+    dx = c1["offset"][0] - c0.get("offset", (0.0,))[0]
+    assert (
+        dx == pytest.approx((hi - lo) / 5) == pytest.approx(m1[PICK_KEY]["offset"]) and hi - lo <= 1.0 + 1e-9
+    )
+    assert m1[PICK_KEY]["cfg"] == "cheese" and c0["size"][0] == pytest.approx(1.0)
 
 
 @needs_venv
@@ -168,3 +193,45 @@ def test_certificates_are_keyed_by_the_tasks_own_step(placeholders, tmp_path, mo
         path.write_text(json.dumps(cert))
         found = find_certification("robocasa", task, "pick_x")
         assert (found is not None) == (steps == {"pick_x": 0.05})
+
+
+@needs_venv
+@pytest.mark.slow  # ~40 s: three short RoboCasa runs; test_robocasa's pick_x test covers the worker by default
+def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(placeholders, tmp_path, capsys):
+    """CounterToBlender, --seed 0: episodes 0..2 draw kitchens whose range is 0.485, 0.50 and 0.404 m. At the task's
+    own step level 1 records 0.097, 0.1 and 0.0808 m (1 and 2 workers alike) and pools to no one parameter; at
+    --step 0.11 episode 2's kitchen cannot hold level 4's window (0.44..0.48 m): one error row per level, not
+    retried, and the run exits 3 (finished with error episodes)."""
+    import pandas as pd
+
+    from indgen_vla.cli import main
+
+    args = ["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "PickPlaceCounterToBlender",
+            "--axis", "pick_x", "--levels", "0:1", "--episodes", "3", "--max-steps", "2"]  # fmt: skip
+    runs = {}
+    for name, extra in (
+        ("own", ["--workers", "1"]),
+        ("own2", ["--workers", "2"]),
+        ("step", ["--step", "0.11"]),
+    ):
+        runs[name] = (main([*args, *extra, "--out", str(tmp_path / name)]), tmp_path / name)
+    own = pd.read_parquet(runs["own"][1] / "episodes.parquet").sort_values(["level", "episode"])
+    assert runs["own"][0] == 0 and (own["status"] == "ok").all()
+    assert list(own["param"]) == pytest.approx([0, 0, 0, 0.097, 0.1, 0.0808], abs=5e-4)
+    cols = ["level", "episode", "seed", "param", "status"]
+    two = pd.read_parquet(runs["own2"][1] / "episodes.parquet").sort_values(["level", "episode"])
+    assert own[cols].values.tolist() == two[cols].values.tolist()  # the seed decides, not the worker
+    summary = (runs["own"][1] / "summary.json").read_text()
+    assert '"param": null' in summary  # level 1: each kitchen's own offset, no one parameter
+    assert (
+        "2 episode(s) ended with errors (see the 'error' column), 2 of them unavailable"
+        in capsys.readouterr().err
+    )
+    step = pd.read_parquet(runs["step"][1] / "episodes.parquet").sort_values(["level", "episode"])
+    assert runs["step"][0] == 3 and list(step["status"]) == ["ok", "ok", "error"] * 2
+    bad = step[step["status"] == "error"]["error"]
+    assert (
+        bad.str.startswith("attempt 1: EpisodeUnavailableError").all()
+        and bad.str.contains("0.404 m range").all()
+    )
+    assert list(step[step["status"] == "ok"]["param"]) == pytest.approx([0, 0, 0.11, 0.11])

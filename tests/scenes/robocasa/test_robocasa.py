@@ -168,18 +168,51 @@ def test_a_replay_of_t0_is_t0(base_y):
 
 
 @needs_venv
-def test_pick_x_successor_shifts_the_pick_window(placeholders):
-    """pick_x's T0 draws the object's x in a 4 cm window; level 1 moves that window's offset (one ep_meta field)
-    by one step (12 cm) and the object by the same draw inside it."""
-    (m0, s0), (m1, s1) = _levels("PickPlaceCounterToCabinet", "pick_x", (0, 1), seed=3)
-    assert _changed(m0, m1) == {"object_cfgs"}
+def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placeholders):
+    """CounterToBlender seed 0 (layout 52, style 3): RoboCasa clips the declared 0.50 m region to 0.365 m of counter
+    there, so T0's 4 cm window sits at that range's low-x end and level 1 moves it 1/5 of the range, 0.073 m (one
+    ep_meta field: the offset; the worker reports the window beside it), which the episode records as its param.
+    Level 1 draws T0 itself in a fresh worker (no cached T0): the kitchen's range, so the offset, is the seed's.
+    A user's --step whose level 4 leaves that range makes the episode unavailable, in one line, not a moved level."""
+    import scenes
+    from indgen_vla.errors import EpisodeUnavailableError
+    from scenes.external import close_idle_workers
+    from scenes.robocasa.pick_window import PICK_KEY
+
+    task, got = "PickPlaceCounterToBlender", []
+    close_idle_workers()
+    for level, step in ((1, None), (0, None), (1, 0.09)):
+        env = scenes.make_env("robocasa", task=task, axis="pick_x", level=level, step=step, cameras=())
+        try:
+            if step is not None:  # level 4 at 0.09 m a level: 0.36..0.40 m, past the kitchen's 0.365 m
+                with pytest.raises(
+                    EpisodeUnavailableError, match=r"level 4's window at 0\.360\.\.0\.400 m"
+                ) as e:
+                    env.reset(seed=0)
+                assert (
+                    "\n" not in str(e.value)
+                    and "layout 52, style 3" in str(e.value)
+                    and "not retried" in str(e.value)
+                )
+                continue
+            env.reset(seed=0)
+            got.append((env.call("ep_meta"), env.call("privileged"), env.episode_param, env.axis_param))
+        finally:
+            env.close()
+    (m1, s1, p1, plan1), (m0, s0, p0, _) = got
+    assert _changed(m0, m1) == {"object_cfgs", PICK_KEY}
+    w0, w1 = m0[PICK_KEY], m1[PICK_KEY]
+    lo, hi = w0["range"]
+    dx = (hi - lo) / 5
+    assert hi - lo == pytest.approx(0.365, abs=5e-4) and w1["range"] == w0["range"]
+    assert (p0, p1, plan1) == (0.0, pytest.approx(dx), pytest.approx(0.1))  # the episode's own, the plan's
+    assert w0["window"] == pytest.approx([lo, lo + 0.04])
+    assert w1["window"] == pytest.approx([lo + dx, lo + dx + 0.04]) and lo + 4 * dx + 0.04 <= hi
     c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "obj"][0]["placement"] for m in (m0, m1))
-    assert {k for k in c0 if repr(c0[k]) != repr(c1.get(k))} == {"offset"}
-    assert c1["offset"][0] - c0["offset"][0] == pytest.approx(0.12) and c0["size"][0] == pytest.approx(0.04)
-    for a, b in zip(m0["object_cfgs"], m1["object_cfgs"], strict=True):
-        if a["name"] != "obj":
-            assert repr(a["placement"]) == repr(b["placement"])
-    assert np.linalg.norm(s1["obj_pos"][:2] - s0["obj_pos"][:2]) == pytest.approx(0.12, abs=1e-3)
+    assert {k for k in c0.keys() | c1.keys() if repr(c0.get(k)) != repr(c1.get(k))} == {"offset"}
+    assert c1["offset"][0] - c0.get("offset", (0.0,))[0] == pytest.approx(dx)
+    assert c0["size"][0] == 0.5  # RoboCasa's own config: the window is on its sampler
+    assert np.linalg.norm(s1["obj_pos"][:2] - s0["obj_pos"][:2]) == pytest.approx(dx, abs=1e-3)
 
 
 @needs_venv

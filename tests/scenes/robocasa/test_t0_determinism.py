@@ -46,7 +46,7 @@ spec = importlib.util.spec_from_file_location("backend", sys.argv[1])
 backend = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(backend)
 cfg = {"task": "CloseStandMixerHead", "layout_ids": [2], "style_ids": [10], "cameras": [], "image_size": (64, 64),
-       "edits": {}, "pick_window": False, "assets": sys.argv[2]}
+       "edits": {}, "assets": sys.argv[2]}
 level = backend.build(cfg)
 out = []
 for seed in json.loads(sys.argv[3]):

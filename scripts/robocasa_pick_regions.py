@@ -1,0 +1,94 @@
+"""RoboCasa365 pick_x per kitchen: the range RoboCasa samples each task's pick object in (its declared region clipped
+to the fixture), the level offsets and windows the worker uses there, and the kitchens too narrow for the levels.
+
+    INDGEN_ROBOCASA_ASSETS=DIR python scripts/robocasa_pick_regions.py [--seeds 16] [--task T ...] [--json OUT]
+
+Every level 0..4 of every task is built and reset through ``scenes.make_env`` (the run's own path: the plan's pick
+config, the worker's window, its T0 cache); prints one markdown table for docs/results/robocasa_pick_regions.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import time
+
+
+def measure(task: str, seeds: list[int]) -> dict:
+    """Each seed's range, and per level the episode's offset and window, or why the kitchen holds no level."""
+    import scenes
+    from indgen_vla.errors import EpisodeUnavailableError
+    from scenes.robocasa.pick_window import PICK_KEY
+
+    rows: dict[int, dict] = {s: {"levels": {}} for s in seeds}
+    for level in range(5):
+        env = scenes.make_env("robocasa", task=task, axis="pick_x", level=level, cameras=())
+        try:
+            for seed in seeds:
+                try:
+                    env.reset(seed=seed)
+                except EpisodeUnavailableError as e:  # its line names the kitchen's range
+                    rows[seed].update(
+                        unavailable=str(e), width=float(re.search(r"a ([\d.]+) m range", str(e))[1])
+                    )
+                    continue
+                meta = env.call("ep_meta")
+                lo, hi = meta[PICK_KEY]["range"]
+                rows[seed].update(
+                    range=[lo, hi], width=hi - lo, kitchen=(meta["layout_id"], meta["style_id"])
+                )
+                rows[seed]["levels"][level] = {"param": env.episode_param, "window": meta[PICK_KEY]["window"]}
+        finally:
+            env.close()
+    return rows
+
+
+def summarize(task: str, rows: dict[int, dict]) -> dict:
+    """The task's line: kitchens, clipped ones, their widths, unavailable ones, and whether every window held."""
+    from scenes.robocasa import PICK_REGIONS
+
+    declared = PICK_REGIONS[task].width
+    widths = [r["width"] for r in rows.values()]
+    held = all(
+        lv["window"][0] >= r["range"][0] - 1e-9 and lv["window"][1] <= r["range"][1] + 1e-9
+        for r in rows.values() if "range" in r for lv in r["levels"].values()
+    )  # fmt: skip
+    return {
+        "task": task, "declared": declared, "kitchens": len(rows),
+        "clipped": sum(w < declared - 1e-9 for w in widths), "min": min(widths), "median": statistics.median(widths),
+        "unavailable": sum("unavailable" in r for r in rows.values()), "windows_in_range": held,
+    }  # fmt: skip
+
+
+def table(lines: list[dict]) -> str:
+    out = ["| task | declared (m) | kitchens | clipped | range min / median (m) | unavailable | windows in range |",
+           "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for s in lines:
+        out.append(f"| {s['task']} | {s['declared']:.2f} | {s['kitchens']} | {s['clipped']} | {s['min']:.3f} / "
+                   f"{s['median']:.3f} | {s['unavailable']} | {'yes' if s['windows_in_range'] else 'NO'} |")  # fmt: skip
+    return "\n".join(out)
+
+
+def main() -> None:
+    from scenes.robocasa import AXIS_TASKS
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--seeds", type=int, default=16, help="episode seeds 0..N-1 (RoboCasa draws each kitchen)")
+    p.add_argument("--task", nargs="*", default=list(AXIS_TASKS["pick_x"]))
+    p.add_argument("--json", help="also write every seed's numbers here")
+    args = p.parse_args()
+    t0, seeds, lines, raw = time.time(), list(range(args.seeds)), [], {}
+    for task in args.task:
+        raw[task] = measure(task, seeds)
+        lines.append(summarize(task, raw[task]))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(raw, f, indent=1)
+    print(table(lines))
+    print(f"\n({len(seeds)} seeds x {len(args.task)} tasks x 5 levels in {time.time() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
