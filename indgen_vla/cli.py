@@ -379,7 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
     _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
     _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
-    _add_passthrough(sp, "mimicgen", "MimicGen-style augmentation of demonstrations (each at its source level)")
+    _add_passthrough(
+        sp, "mimicgen", "MimicGen-style augmentation of demonstrations (each at its source level)"
+    )
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
     return parser

@@ -128,6 +128,9 @@ def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
         if not math.isnan(tp):
             text += (f"; equivalent within ±{100 * margin:.0f} points (TOST p = {tp:.2g})" if tp < alpha else
                      f"; equivalence within ±{100 * margin:.0f} points not shown (TOST p = {tp:.2g})")  # fmt: skip
+        elif min(len(area["a"]), len(area["b"])) >= 2:
+            text += ("; no interval and no equivalence test: the seeds' OOD means do not vary at all (more seeds "
+                     "or episodes per seed would give them a spread)")  # fmt: skip
         for d in ("pos", "neg"):
             if f"kstar_{d}" in sl:
                 k = sl[f"kstar_{d}"]
@@ -138,6 +141,10 @@ def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
 
 def _pts(x: float) -> str:
     return "n/a" if math.isnan(x) else f"{100 * x:+.1f}"
+
+
+def _ci3(ci: list[float]) -> str:
+    return "n/a (no spread across runs)" if math.isnan(ci[0]) else f"[{ci[0]:.3f}, {ci[1]:.3f}]"
 
 
 def render_markdown(result: dict, label_a: str, label_b: str) -> str:
@@ -158,7 +165,7 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
         for name, e in ax["seed_level"].items():
             fmt = (lambda v: f"{v:.3f}") if name == "ood_area" else (lambda v: f"{v:+d}")
             lines.append(f"| {name} | {', '.join(fmt(v) for v in e['a'])} | {', '.join(fmt(v) for v in e['b'])} | "
-                         f"{e['diff']:+.3f} | [{e['ci'][0]:.3f}, {e['ci'][1]:.3f}] |")  # fmt: skip
+                         f"{e['diff']:+.3f} | {_ci3(e['ci'])} |")  # fmt: skip
         lines += [
             "",
             f"OOD area TOST p (margin ±{result['margin']}): {ax['seed_level']['ood_area']['tost_p']:.3g}",

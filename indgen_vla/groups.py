@@ -80,14 +80,18 @@ def mean_difference(a: Sequence[float], b: Sequence[float], conf: float = 0.95) 
         d = sum(b) / len(b) - sum(a) / len(a)
         return MeanDifference(d, math.nan, math.nan, len(a), len(b))
     d, se, df = _welch(a, b)
-    half = 0.0 if se == 0 else float(t.ppf(0.5 + conf / 2, df)) * se
+    if se == 0:  # no spread across seeds: a t-interval does not exist (a zero-width one would overclaim)
+        return MeanDifference(d, math.nan, math.nan, len(a), len(b))
+    half = float(t.ppf(0.5 + conf / 2, df)) * se
     return MeanDifference(d, d - half, d + half, len(a), len(b))
 
 
 def tost(a: Sequence[float], b: Sequence[float], margin: float) -> float:
     """Two one-sided Welch t-tests of |mean(b) − mean(a)| < margin; returns the TOST p-value (max of the two).
 
-    A p-value below α supports equivalence within ±margin; NaN when either side has fewer than two values.
+    A p-value below α supports equivalence within ±margin; NaN when either side has fewer than two values or the
+    values do not vary at all (every seed the same rate: the t-test is undefined, and a few identical seeds are no
+    evidence of equivalence, so this never returns p = 0 for them).
     """
     from scipy.stats import t
 
@@ -97,7 +101,7 @@ def tost(a: Sequence[float], b: Sequence[float], margin: float) -> float:
         return math.nan
     d, se, df = _welch(a, b)
     if se == 0:
-        return 0.0 if abs(d) < margin else 1.0
+        return math.nan
     p_lower = float(t.sf((d + margin) / se, df))  # H0: d <= -margin
     p_upper = float(t.cdf((d - margin) / se, df))  # H0: d >= +margin
     return max(p_lower, p_upper)

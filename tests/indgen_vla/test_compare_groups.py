@@ -98,3 +98,15 @@ def test_cli_compares_groups(tmp_path, capsys):
     twice = ["compare", "--a", str(a[0].path), str(tmp_path / "a0" / "."), "--b", *(str(r.path) for r in b)]
     assert main(twice) == 2  # the same run twice would double its evidence
     assert "given twice to --a/--b" in capsys.readouterr().err
+
+
+def test_verdict_says_why_seeds_without_spread_give_no_interval():
+    from indgen_vla.compare_groups import axis_verdicts, render_markdown
+
+    nan = math.nan
+    area = {"a": [1.0, 1.0], "b": [1.0, 1.0], "diff": 0.0, "ci": [nan, nan], "tost_p": nan}
+    result = {"alpha": 0.05, "margin": 0.1, "strata": 2, "verdict": "", "axes": {"pick_y": {
+        "levels": [], "seed_level": {"ood_area": area}}}}  # fmt: skip
+    text = axis_verdicts(result, "A", "B")["pick_y"]
+    assert "do not vary at all" in text and "equivalent" not in text
+    assert "n/a (no spread across runs)" in render_markdown(result, "A", "B")

@@ -57,3 +57,11 @@ def test_ood_area():
     assert ood_area({-1: 0.5, 0: 1.0, 1: 0.3, 2: 0.1}) == pytest.approx(0.3)
     with pytest.raises(ConfigError):
         ood_area({0: 1.0, 1: float("nan")})
+
+
+def test_no_spread_across_seeds_claims_neither_an_interval_nor_equivalence():
+    """Three seeds at 100 % on both sides: the t-test is undefined, so no zero-width CI and no TOST p = 0."""
+    same = [1.0, 1.0, 1.0]
+    assert math.isnan(tost(same, same, 0.1))
+    diff = mean_difference(same, same)
+    assert diff.diff == 0 and math.isnan(diff.ci_low) and math.isnan(diff.ci_high)
