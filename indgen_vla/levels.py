@@ -194,14 +194,16 @@ def pool_ladders(pooled: list[dict], tasks: dict[str, dict]) -> None:
     """Pooled rows of a several-task adaptive run: a level pools the tasks whose ladder ran it, and its data floor
     counts against what their rules planned (a task whose ladder broke earlier never runs the level)."""
     for r in pooled:
-        ran = [
-            row
-            for e in tasks.values()
+        ran = {
+            t: row
+            for t, e in tasks.items()
             for row in e["levels"]
             if row["level"] == r["level"] and row["n"] + row["errors"]
-        ]
-        r["planned"] = sum(int(row["planned"] or 0) for row in ran) or None
+        }
+        r["planned"] = sum(int(row["planned"] or 0) for row in ran.values()) or None
         r["pooled_from"] = len(ran)
+        if 0 < len(ran) < len(tasks):  # a rate over a subset: say which, beside it (report.partial_pool_text)
+            r["pooled_only"] = sorted(ran)
         r["insufficient"] = r["n"] == 0 or below_floor(r["n"], r["planned"])
 
 

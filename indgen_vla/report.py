@@ -192,7 +192,13 @@ def _fmt_rate(row: dict) -> str:
         return insufficient_text(row)
     errs = f"; {row['errors']} error{'s' * (row['errors'] != 1)}" if row.get("errors") else ""
     verdict = f" {row['decision']}" if row.get("decision") else ""
-    return f"{100 * row['rate']:.0f}% [{100 * row['ci_low']:.0f}, {100 * row['ci_high']:.0f}] (n={row['n']}{errs}){verdict}"
+    return (f"{100 * row['rate']:.0f}% [{100 * row['ci_low']:.0f}, {100 * row['ci_high']:.0f}] (n={row['n']}{errs}"
+            f"{partial_pool_text(row)}){verdict}")  # fmt: skip
+
+
+def partial_pool_text(row: dict) -> str:
+    """ "; only t1, t2" beside a pooled rate of an adaptive run that pools a subset of its tasks at that level."""
+    return f"; only {', '.join(row['pooled_only'])}" if row.get("pooled_only") else ""
 
 
 def _fmt_break(b: dict, signed: bool) -> str:
@@ -267,6 +273,19 @@ def error_warnings(label: str, axis_summary: dict, limit: float = 0.10) -> list[
                        f"({100 * r['errors'] / total:.0f} % > {100 * limit:.0f} %); errors that grow with the level "
                        "bias the curve: re-run the same evaluate command to retry them.")  # fmt: skip
     return out
+
+
+def pool_warnings(label: str, axis_summary: dict) -> list[str]:
+    """One line when an adaptive run's pooled rows pool different tasks at different levels (a task's ladder stops
+    at its break): such a pooled curve can rise past a break and is not comparable across levels."""
+    partial = [r for r in axis_summary["levels"] if r.get("pooled_only")]
+    if not partial:
+        return []
+    n = len(axis_summary.get("pooled_tasks") or [])
+    where = ", ".join(f"{r['level']} ({len(r['pooled_only'])} of {n})" for r in partial)
+    return [f"**Note** ({label}): the pooled rows at level(s) {where} pool only the tasks whose ladder ran them "
+            "(--adaptive stops a task at its break), so the pooled curve is not comparable across levels: read "
+            "each task's k* (below)."]  # fmt: skip
 
 
 def _pools(present: list[tuple[str, dict]]) -> str:
@@ -349,7 +368,7 @@ def render_markdown(
             + " | ".join(_fmt_tests(a.get("trend", {}), a["signed"]) for _, a in present)
             + " |"
         )
-        warnings = [w for lbl, a in present for w in error_warnings(lbl, a)]
+        warnings = [w for lbl, a in present for w in [*error_warnings(lbl, a), *pool_warnings(lbl, a)]]
         if warnings:
             lines += ["", *warnings]
         lines += render_vs_t0(present)
@@ -465,7 +484,9 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                 if r.get("insufficient", r["n"] == 0):
                     rate, ci = insufficient_text(r), ""
                 else:
-                    rate = f"{100 * r['rate']:.0f}%"
+                    rate = f"{100 * r['rate']:.0f}%" + (
+                        f" ({len(r['pooled_only'])} tasks)" if r.get("pooled_only") else ""
+                    )
                     ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
                 t.add_row(str(r["level"]), _param(r["param"]), str(r["n"]), str(r["errors"]), rate, ci)
             console.print(t)
@@ -485,5 +506,5 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                 )
             for line in t0_lines(a):
                 console.print(line, markup=False, highlight=False)
-            for w in error_warnings(label, a):
+            for w in [*error_warnings(label, a), *pool_warnings(label, a)]:
                 console.print(w.replace("**", ""))

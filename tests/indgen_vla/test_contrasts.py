@@ -268,6 +268,14 @@ def test_adaptive_ladders_pair_only_what_ran(tmp_path):
         assert v["n_pairs"] == expect
         assert v["unpaired"] == [sum(len(ran[(t, 0)]) for t in rates) - expect, rows[k]["n"] - expect]
     assert ax["tasks"]["hard"]["levels"][2]["vs_t0"]["n_pairs"] == 0  # never ran: no pairs, no test
+    # the pooled rate says which tasks it pools where that is a subset, and the report says why that matters
+    from indgen_vla.report import _fmt_rate, pool_warnings
+
+    assert "pooled_only" not in rows[0] and rows[2]["pooled_only"] == ["easy"]
+    if not rows[2]["insufficient"]:
+        assert "; only easy)" in _fmt_rate(rows[2])
+    (note,) = pool_warnings("p", ax)
+    assert "level(s) 2 (1 of 2)" in note and "not comparable across levels" in note
 
 
 def test_verdict_tells_levels_below_the_floor_from_no_pairs():
