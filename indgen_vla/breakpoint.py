@@ -31,7 +31,8 @@ def verdict_from_ci(ci_low: float, ci_high: float, gamma: float) -> str:
     return "undetermined"
 
 
-def _fmt(k: int) -> str:
+def signed_level(k: int) -> str:
+    """A level as printed beside a direction: "+2", "-1", "0"."""
     return f"+{k}" if k > 0 else str(k)
 
 
@@ -54,20 +55,20 @@ def kstar_status(verdicts: Mapping[int, str], order: Sequence[int]) -> dict:
             break
     last = order[-1] if order else None
     if earliest is None:
-        text = f"no break through {_fmt(last)}, determined" if last is not None else "no levels"
+        text = f"no break through {signed_level(last)}, determined" if last is not None else "no levels"
         return {"earliest": None, "latest": None, "determined": last is not None, "text": text}
     if latest == earliest:
         return {
             "earliest": earliest,
             "latest": latest,
             "determined": True,
-            "text": f"k* = {_fmt(earliest)}, determined",
+            "text": f"k* = {signed_level(earliest)}, determined",
         }
     if latest is None:
-        text = f"k* at or beyond {_fmt(earliest)} (no level through {_fmt(last)} is decided broken)"
+        text = f"k* at or beyond {signed_level(earliest)} (no level through {signed_level(last)} is decided broken)"
     else:
         lo, hi = sorted((earliest, latest))
-        text = f"k* ∈ [{_fmt(lo)}, {_fmt(hi)}]"
+        text = f"k* ∈ [{signed_level(lo)}, {signed_level(hi)}]"
     return {"earliest": earliest, "latest": latest, "determined": False, "text": text}
 
 

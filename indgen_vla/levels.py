@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+from indgen_vla.breakpoint import signed_level
 from indgen_vla.failures import failure_counts_by
 from indgen_vla.metrics import below_floor, break_levels, success_rate
 from indgen_vla.progress import level_progress_by
@@ -219,10 +220,6 @@ def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson")
     return None
 
 
-def _signed(k: int) -> str:
-    return f"+{k}" if k > 0 else str(k)
-
-
 def _rate(r: dict) -> str:
     return (
         f"{100 * r['rate']:.0f} %, n = {r['n']}, 95 % CI [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
@@ -237,17 +234,19 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
     if k == "undetermined":
         hole = next(r for r in rows if r["insufficient"])
         of = f" of {hole['planned']}" if hole.get("planned") else ""
-        return f"undetermined: level {_signed(hole['level'])} has too little data (n = {hole['n']}{of}); finish it"
+        return f"undetermined: level {signed_level(hole['level'])} has too little data (n = {hole['n']}{of}); finish it"
     if k is None:
-        last = _signed(rows[-1]["level"])
-        open_ = [_signed(r["level"]) for r in rows if r.get("decision") != "intact" and not r["insufficient"]]
+        last = signed_level(rows[-1]["level"])
+        open_ = [
+            signed_level(r["level"]) for r in rows if r.get("decision") != "intact" and not r["insufficient"]
+        ]
         if not open_:
             return f"no break through {last}: every level is significantly at or above γ = {gamma:g}"
         return (
             f"no level below γ = {gamma:g} through {last} ({', '.join(open_)} not yet significantly above it)"
         )
     r = next(x for x in rows if x["level"] == k)
-    head = f"{_signed(k)} ({_rate(r)})"
+    head = f"{signed_level(k)} ({_rate(r)})"
     if r.get("observed_break"):  # the paper's until-failure design stopped here
         why = ("its CI lies below γ too" if r.get("decision") == "broken"
                else f"the CI reaches {100 * r['ci_high']:.0f} % ≥ γ")  # fmt: skip
@@ -263,7 +262,7 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
     more = episodes_to_decide(r["successes"], r["n"], gamma, ci)
     if more is None:
         return f"first level below γ: {head}; not significant, and no feasible number of episodes at this rate decides it"
-    return f"first level below γ: {head}; not yet significant: about {more} more episodes at {_signed(k)} would decide it if the rate holds"
+    return f"first level below γ: {head}; not yet significant: about {more} more episodes at {signed_level(k)} would decide it if the rate holds"
 
 
 def axis_verdicts(

@@ -18,7 +18,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from indgen_vla.breakpoint import kstar_status, verdict_from_ci
+from indgen_vla.breakpoint import kstar_status, signed_level, verdict_from_ci
 from indgen_vla.errors import ConfigError
 from indgen_vla.metrics import success_rate
 
@@ -206,13 +206,13 @@ class UntilFailure:
             d = decisions[k]
             r = success_rate(d.successes, d.n)
             also = "; its CI lies below γ too" if d.verdict == "broken" else ""
-            return (f"k* = {_signed(k)} observed ({d.successes}/{d.n} < γ = {self.gamma:g}, 95 % Wilson CI "
+            return (f"k* = {signed_level(k)} observed ({d.successes}/{d.n} < γ = {self.gamma:g}, 95 % Wilson CI "
                     f"{100 * r.ci_low:.0f}-{100 * r.ci_high:.0f} %): the paper's fixed design stops there, an "
                     f"observed break, not a statistically decided one{also}")  # fmt: skip
         running = next((j for j in order if j in decisions and not decisions[j].final), None)
         if running is not None:
-            return f"no level observed below γ = {self.gamma:g} yet; level {_signed(running)} is running"
-        return f"no level observed below γ = {self.gamma:g} through {_signed(order[-1])}"
+            return f"no level observed below γ = {self.gamma:g} yet; level {signed_level(running)} is running"
+        return f"no level observed below γ = {self.gamma:g} through {signed_level(order[-1])}"
 
 
 def make_rule(mode: str, gamma: float, delta: float, alpha: float, round_size: int, episodes: int):
@@ -360,10 +360,6 @@ def _bisect(holds, ok: float, bad: float, steps: int = 45) -> float:
         else:
             bad = mid
     return ok
-
-
-def _signed(k: int) -> str:
-    return f"+{k}" if k > 0 else str(k)
 
 
 def level_order(levels: Iterable[int], signed: bool | None = None) -> dict[str, list[int]]:
