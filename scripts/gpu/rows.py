@@ -6,7 +6,8 @@ On the device machine (a bare box with torch but no lerobot, MuJoCo or robosuite
 first, which fills the git-ignored ``.whl/`` and ``.gl/``)::
 
     python3 scripts/gpu/rows.py a --budget 360   # carry [".whl", ".gl"]; env, scaling, vs lerobot-eval, pinned
-    python3 scripts/gpu/rows.py b --budget 420   # env, real-size pi0.5: build, in-engine +/- pipeline, compile
+    python3 scripts/gpu/rows.py b --budget 540   # env, real-size pi0.5: build, alone eager and compiled,
+                                                 # compiled and eager in the engine (b0: 2026-11-26's call b)
 
 Rows run in the order given and each gets the smaller of its cap and what ``--budget`` leaves (a row that would
 start with under 20 s is skipped and says so), so the most wanted rows come first in each group; docs/benchmarks.md
@@ -75,8 +76,12 @@ SIZES = {
     "pi05_build": ("", "--reduced"),
     "pi05_scaling": ("--precision bf16 --workers 8,16 --episodes 32 --max-steps 50 --seconds 3",
                      "--workers 2 --episodes 2 --max-steps 10 --seconds 0.2"),
+    "pi05_model": ("--precision bf16 --batches 1,16 --seconds 3", "--batches 1,2 --seconds 0.2"),
     "pi05_compile": ("--precision bf16 --compile reduce-overhead --batches 1,16 --seconds 3",
                      "--batches 1,2 --seconds 0.2"),
+    "pi05_compiled_scaling": ("--precision bf16 --compile reduce-overhead --workers 16 --episodes 32 "
+                              "--max-steps 50 --seconds 3",
+                              "--workers 2 --episodes 2 --max-steps 10 --seconds 0.2"),
 }  # fmt: skip
 
 
@@ -149,13 +154,18 @@ ROWS = {
             "pi0.5 in the engine at 8 and 16 workers: share_of_model_alone (goal >= 0.8), gpu_busy_pct (>= 70)"),
         Row("pi05_pipeline", 150, lambda c: _pi05(c, "scaling", "pi05_scaling", "--pipeline"),
             "the same with two lanes per worker"),
+        Row("pi05_model", 120, lambda c: _pi05(c, "model", "pi05_model"),
+            "pi0.5 alone, eager, batches 1 and 16: this machine's baseline for the compiled rows"),
         Row("pi05_compile", 300, lambda c: _pi05(c, "model", "pi05_compile"),
-            "--compile reduce-overhead (CUDA graphs) on pi0.5; first_call_s holds the compile"),
+            "--compile reduce-overhead (CUDA graphs on one flow step) on pi0.5; first_call_s holds the compile"),
+        Row("pi05_compiled_scaling", 200, lambda c: _pi05(c, "scaling", "pi05_compiled_scaling"),
+            "pi0.5 compiled in the engine at 16 workers (the batch-16 compile cached by pi05_compile): GPU busy"),
     ]
 }  # fmt: skip
 GROUPS = {
     "a": ["env", "scaling", "vs_lerobot", "scaling_pin"],
-    "b": ["env", "pi05_build", "pi05_scaling", "pi05_pipeline", "pi05_compile"],
+    "b": ["env", "pi05_build", "pi05_model", "pi05_compile", "pi05_compiled_scaling", "pi05_scaling"],
+    "b0": ["env", "pi05_build", "pi05_scaling", "pi05_pipeline", "pi05_compile"],  # 2026-11-26's call b
     "all": list(ROWS),
 }
 

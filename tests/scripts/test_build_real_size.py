@@ -81,12 +81,15 @@ def test_real_size_pi05_acts_on_cuda(tmp_path):
 
 def _compiled_matches_eager(spec_str: str, mode: str, device: str) -> None:
     """Same seed, same observations: the compiled per-call forward (``compile=``) gives the eager actions, noise
-    included (flow matching draws it inside the compiled ``sample_actions``)."""
+    included (drawn by the eager ``sample_actions`` around the compiled flow step)."""
     import torch
 
     from policy_wrappers.registry import load_policy
 
     eager, compiled = load_policy(spec_str, device=device), load_policy(spec_str, device=device, compile=mode)
+    model = compiled.policy.model  # one flow step is compiled, not the whole (loop-unrolling) sample_actions
+    assert "_torchdynamo_orig_callable" in vars(model.denoise_step)
+    assert "sample_actions" not in vars(model)
     obs = _obs(eager.spec, 2)
     try:
         for _ in range(2):  # the second call runs the compiled (or CUDA-graph replayed) code
