@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import glob
 import os
 import shlex
 import shutil
@@ -103,6 +104,7 @@ def write_merged(
     """Write the merged run under a temporary name beside ``out`` (manifest, episodes, the shards' videos of its
     episodes) and rename it into place, so ``out`` appears whole or not at all; returns the videos not found."""
     tmp = out.parent / f".{out.name}.merging-{os.getpid()}"
+    _remove_dead_merges(out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp.mkdir()
@@ -122,6 +124,25 @@ def write_merged(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return missing
+
+
+def _remove_dead_merges(out: Path) -> None:
+    """Temporary trees of earlier merges into ``out`` whose process is gone (killed before its rename) are removed;
+    a live one (another merge running now) is left alone."""
+    for stale in out.parent.glob(f".{glob.escape(out.name)}.merging-*"):
+        pid = stale.name.rpartition("-")[2]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+            shutil.rmtree(stale, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def _copy_videos(dest: Path, rows: list[dict[str, Any]], shards: Sequence[Shard]) -> int:

@@ -219,3 +219,26 @@ def test_per_task_shards_with_one_killed_resume_as_task_all(tmp_path, capsys):
     assert "--task all" in m["merged_from"]["resume"]
     assert main([*shlex.split(m["merged_from"]["resume"])[1:], "--workers", "1"]) == 0
     assert read(merged, "summary.json") == read(tmp_path / "whole", "summary.json")
+
+
+def test_a_killed_merges_temporary_tree_is_removed_by_the_next_merge(runs, tmp_path):
+    """A merge killed before its rename leaves ``.OUT.merging-PID``; the next merge into OUT removes it when PID is
+    gone, and leaves one whose process still runs (a merge in progress) alone."""
+    import subprocess
+    import sys
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        stale, running = (tmp_path / f".merged.merging-{p.pid}" for p in (dead, live))
+        for d in (stale, running):
+            (d / "videos").mkdir(parents=True)
+        assert (
+            main(["merge", str(runs / "pick_y"), str(runs / "scale"), "--out", str(tmp_path / "merged")]) == 0
+        )
+        assert not stale.exists() and running.is_dir()
+        assert (tmp_path / "merged" / "summary.json").is_file()
+    finally:
+        live.kill()
+        live.wait()
