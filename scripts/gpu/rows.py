@@ -79,6 +79,8 @@ SIZES = {
     "pi05_model": ("--precision bf16 --batches 1,16 --seconds 3", "--batches 1,2 --seconds 0.2"),
     "pi05_compile": ("--precision bf16 --compile reduce-overhead --batches 1,16 --seconds 3",
                      "--batches 1,2 --seconds 0.2"),
+    "pi05_wide": ("--precision bf16 --workers 32,48 --episodes 96 --max-steps 50 --seconds 3",
+                  "--workers 3 --episodes 3 --max-steps 10 --seconds 0.2"),
     "pi05_compiled_scaling": ("--precision bf16 --compile reduce-overhead --workers 16 --episodes 32 "
                               "--max-steps 50 --seconds 3",
                               "--workers 2 --episodes 2 --max-steps 10 --seconds 0.2"),
@@ -156,7 +158,9 @@ ROWS = {
             "the same with two lanes per worker"),
         Row("pi05_model", 120, lambda c: _pi05(c, "model", "pi05_model"),
             "pi0.5 alone, eager, batches 1 and 16: this machine's baseline for the compiled rows"),
-        Row("pi05_compile", 300, lambda c: _pi05(c, "model", "pi05_compile"),
+        Row("pi05_wide", 150, lambda c: _pi05(c, "scaling", "pi05_wide"),
+            "pi0.5 with more workers than cores (32, 48): a GPU-bound model leaves workers idle; bigger batches?"),
+        Row("pi05_compile", 240, lambda c: _pi05(c, "model", "pi05_compile"),
             "--compile reduce-overhead (CUDA graphs on one flow step) on pi0.5; first_call_s holds the compile"),
         Row("pi05_compiled_scaling", 200, lambda c: _pi05(c, "scaling", "pi05_compiled_scaling"),
             "pi0.5 compiled in the engine at 16 workers (the batch-16 compile cached by pi05_compile): GPU busy"),
@@ -164,7 +168,7 @@ ROWS = {
 }  # fmt: skip
 GROUPS = {
     "a": ["env", "scaling", "vs_lerobot", "scaling_pin"],
-    "b": ["env", "pi05_build", "pi05_model", "pi05_compile", "pi05_compiled_scaling", "pi05_scaling"],
+    "b": ["env", "pi05_build", "pi05_model", "pi05_wide", "pi05_compile", "pi05_compiled_scaling", "pi05_scaling"],
     "b0": ["env", "pi05_build", "pi05_scaling", "pi05_pipeline", "pi05_compile"],  # 2026-11-26's call b
     "all": list(ROWS),
 }
