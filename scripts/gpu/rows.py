@@ -168,7 +168,15 @@ ROWS = {
 }  # fmt: skip
 GROUPS = {
     "a": ["env", "scaling", "vs_lerobot", "scaling_pin"],
-    "b": ["env", "pi05_build", "pi05_model", "pi05_wide", "pi05_compile", "pi05_compiled_scaling", "pi05_scaling"],
+    "b": [
+        "env",
+        "pi05_build",
+        "pi05_model",
+        "pi05_wide",
+        "pi05_compile",
+        "pi05_compiled_scaling",
+        "pi05_scaling",
+    ],
     "b0": ["env", "pi05_build", "pi05_scaling", "pi05_pipeline", "pi05_compile"],  # 2026-11-26's call b
     "all": list(ROWS),
 }
