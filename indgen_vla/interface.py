@@ -158,7 +158,7 @@ class PolicySpec:
     """What a policy needs and returns, declared by its adapter so the engine can serve it.
 
     Attributes:
-        family: adapter family (``lerobot``, ``openpi``, ``openvla-oft``, ``groot``, ``standin``).
+        family: adapter family (``lerobot``, ``openpi``, ``openvla-oft``, ``groot``, ``univla``, ``rynnvla``, ``standin``).
         name: the full spec string the user passed.
         chunk_size: actions per returned chunk (T).
         replan_steps: actions the engine executes from each chunk before asking again.

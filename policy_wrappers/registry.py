@@ -35,6 +35,16 @@ FAMILIES.register(
     "groot", "policy_wrappers.groot:load", "Isaac-GR00T N1.5/N1.6 ZMQ inference service (tcp://HOST:PORT)"
 )
 FAMILIES.register(
+    "univla",
+    "policy_wrappers.served_vla:load_univla",
+    "UniVLA (baaivision) LIBERO checkpoint behind scripts/serve/libero_vla.py (ws://HOST:PORT)",
+)
+FAMILIES.register(
+    "rynnvla",
+    "policy_wrappers.served_vla:load_rynnvla",
+    "RynnVLA-002 LIBERO checkpoint behind scripts/serve/libero_vla.py (ws://HOST:PORT)",
+)
+FAMILIES.register(
     "standin", "policy_wrappers.standin:load", "CPU stand-ins: oracle, random, noop, or a tiny checkpoint dir"
 )
 
@@ -61,6 +71,8 @@ EXAMPLES = {
     "openpi": "openpi:ws://gpu-box:8000?replan=5",
     "openvla-oft": "openvla-oft:http://gpu-box:8777  or  openvla-oft:http://gpu-box:8000?variant=openvla&unnorm_key=libero_spatial_no_noops",
     "groot": "groot:tcp://gpu-box:5555?api=n1.5",
+    "univla": "univla:ws://gpu-box:8000",
+    "rynnvla": "rynnvla:ws://gpu-box:8000  or, for a LIBERO-Spatial/Long checkpoint, rynnvla:ws://gpu-box:8000?chunk=10",
     "standin": "standin:oracle | standin:random | standin:noop | standin:PATH_TO_CHECKPOINT",
 }
 

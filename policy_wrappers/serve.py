@@ -4,7 +4,8 @@ Requests use the keys of openpi's LIBERO example: images arrive rotated 180° (t
 convention), so the server rotates them back to the simulator's raw orientation before the wrapped policy
 applies its own conventions. Replies are ``{"actions": (T, 7) float32, "server_timing": {...}}``.
 One policy instance serves all connections, one request at a time; a new prompt (or our client's
-``indgen/reset`` hint) calls ``reset``, so stateful (non-batched) policies should serve one simulator each.
+``indgen/reset`` hint) calls ``reset``, so stateful (non-batched) policies should serve one simulator each, or
+be served with ``session`` (a fresh policy per connection, e.g. per-episode history over one shared model).
 """
 
 from __future__ import annotations
@@ -64,8 +65,10 @@ class PolicyServer:
         port: int = 8000,
         api_key: str | None = None,
         unflip: bool = True,
+        session=None,
     ):
         self.policy, self.host, self.port, self.api_key, self.unflip = policy, host, port, api_key, unflip
+        self.session = session  # () -> Policy for each connection; None: ``policy`` serves them all
         spec = policy.spec
         self.metadata = {
             "server": INDGEN_SERVER,
@@ -95,21 +98,22 @@ class PolicyServer:
 
     def _act(self, request: dict, state: dict) -> np.ndarray:
         obs = observation_from_request(request, self.unflip)
+        policy = state.get("policy", self.policy)
         hint = request.get("indgen/reset")
         if isinstance(hint, dict):
             seed = int(hint.get("seed", -1))
-            self.policy.reset(str(hint.get("instruction", obs.instruction)), None if seed < 0 else seed)
+            policy.reset(str(hint.get("instruction", obs.instruction)), None if seed < 0 else seed)
             state["prompt"] = obs.instruction
         elif state.get("prompt") != obs.instruction:
-            self.policy.reset(obs.instruction, None)
+            policy.reset(obs.instruction, None)
             state["prompt"] = obs.instruction
-        return np.asarray(self.policy.act([obs])[0], dtype=np.float32)
+        return np.asarray(policy.act([obs])[0], dtype=np.float32)
 
     async def _handler(self, websocket) -> None:
         import websockets
 
         await websocket.send(msgpack_numpy.packb(self.metadata))
-        state: dict = {}
+        state: dict = {} if self.session is None else {"policy": self.session()}
         prev_total = None
         while True:
             try:

@@ -241,6 +241,13 @@ LIBERO_GROOT_N16 = replace(LIBERO_GROOT_N15, replan=8)
 # render size and the chunking come from the checkpoint.
 LIBERO_LEROBOT = Conventions(render=None, images=compose(Flip180()))
 
+# UniVLA (baaivision/UniVLA reference/RoboVLMs/eval/libero/evaluate_libero_emu.py:prepare_observation): both cameras
+# flipped at 256, sent as is (the model wrapper resizes to 200 and maps actions); the 10-step FAST chunk, all executed.
+LIBERO_UNIVLA = Conventions(images=compose(Flip180()), chunk=10)
+# RynnVLA-002 (rynnvla-002/eval_solver_libero_continous_w_state.py:val_libero): both cameras flipped at 256, sent as
+# is; the continuous head's chunk (time_horizon 5 on LIBERO-Object/Goal, 10 on Spatial/Long), all executed.
+LIBERO_RYNNVLA = Conventions(images=compose(Flip180()), chunk=5)
+
 # ---- RoboCasa365 (PandaOmron): images upright, actions in the layout's order (policy_wrappers/layouts.py) -------
 # GR00T N1.6 (Isaac-GR00T examples/robocasa/README.md, --n-action-steps 8; squarefk/robocasa gymnasium_groot.py):
 # PandaOmronKeyConverter renders 512x512, process_img brings each camera to 256; gripper_close and control_mode

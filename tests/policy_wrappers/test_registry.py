@@ -82,7 +82,8 @@ def test_oracle_is_lazy(monkeypatch):
 def test_policies_main_json(capsys):
     assert policies_main(SimpleNamespace(json=True)) == 0
     data = json.loads(capsys.readouterr().out)
-    assert {f["name"] for f in data["families"]} == {"lerobot", "openpi", "openvla-oft", "groot", "standin"}
+    families = {"lerobot", "openpi", "openvla-oft", "groot", "univla", "rynnvla", "standin"}
+    assert {f["name"] for f in data["families"]} == families
     assert {"standin:oracle", "standin:random", "standin:noop"} <= {s["name"] for s in data["standins"]}
     assert policies_main(SimpleNamespace(json=False)) == 0
     assert "openpi:" in capsys.readouterr().out
