@@ -119,7 +119,9 @@ def test_an_error_copy_gives_way_to_its_owners_retry(tmp_path, runs):
     plan = build_plan(cfg(tmp_path))
     run = RunDir.create_or_resume(tmp_path / "r", {"plan": {}})
     owner = next(r for r in RunDir(runs[0]).rows() if r["axis"] == "pick_y" and r["level"] == 0)
-    run.append([EpisodeRecord(**{**owner, "status": "error", "error": "attempt 3: boom", "failure": "error"})])
+    run.append(
+        [EpisodeRecord(**{**owner, "status": "error", "error": "attempt 3: boom", "failure": "error"})]
+    )
     assert fill_copies(plan, run) == 1 and run.rows()[-1]["status"] == "error"  # scale's level 0 errs with it
     run.append([EpisodeRecord(**owner)])  # the retry on resume
     assert fill_copies(plan, run) == 1
