@@ -122,7 +122,7 @@ class EvalPlan:
 
     ``shared`` maps (task, axis) to the earlier axis whose level-0 episodes it reports as its own (``share_t0``): the
     jobs keep one episode per (task, axis, level, episode), but only ``rollouts()`` are run, and each level-0 record
-    of an owner axis is copied to the axes that share it (``shared_copies``).
+    of an owner axis is recorded again for the axes that share it (``engine/share.py``).
     """
 
     scene_plan: ScenePlan

@@ -61,6 +61,8 @@ class Scene:
             the seed (LIBERO: its 50 fixed states, episode % 50), "" when the seed draws each episode's own.
             ``evaluate`` runs through that set, so ``indgen demos`` refuses such a family (its demonstrations, and
             mimicgen's from them, would start from the evaluation's initial states).
+        env_from_spec: True when the env a level builds depends on its successor only through the level's
+            ``SceneSpec`` (``level_identity`` is then that spec: axes with one level-0 spec share their T0 runs).
     """
 
     name: ClassVar[str]
@@ -82,7 +84,6 @@ class Scene:
     )
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
     fixed_initial_states: ClassVar[str] = ""
-    # the env a level builds depends on its successor only through the level's SceneSpec (``level_identity``)
     env_from_spec: ClassVar[bool] = False
 
     def __repr__(self) -> str:
