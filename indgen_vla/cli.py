@@ -127,6 +127,13 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         help="two environments per worker: one steps while the policy computes the other's chunk (default off)",
     )
     p.add_argument(
+        "--share-t0",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="run level 0 once per task for the axes whose level 0 is the same environment; each such axis reports "
+        "those episodes as its own (episodes.parquet shared_from; default on, off with --adaptive)",
+    )
+    p.add_argument(
         "--backend",
         choices=["local", "ray"],
         default=None,

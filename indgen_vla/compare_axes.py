@@ -79,6 +79,19 @@ def equivalence_sentence(rows: list[dict], margin: float, alpha: float = ALPHA) 
     return f"{head}: shown at L{', L'.join(shown)}; not shown at L{', L'.join(rest)}."
 
 
+def same_rollouts(ea, eb, axis_a: str, axis_b: str) -> int:
+    """Level-0 pairs of A and B that are one rollout recorded for both axes (``evaluate``'s shared T0): the same run
+    (``run_id``) and the same source axis (``shared_from``, else the row's own axis)."""
+    on = ["scene", "task", "episode", "run_id"]
+
+    def t0(e, axis):
+        rows = e[(e["axis"] == axis) & (e["level"] == 0) & (e["status"] == "ok")]
+        return rows[on].assign(source=rows["shared_from"].where(rows["shared_from"] != "", axis))
+
+    m = t0(ea, axis_a).merge(t0(eb, axis_b), on=on, suffixes=("_a", "_b"))
+    return int((m["source_a"] == m["source_b"]).sum())
+
+
 def as_one_axis(e, axis: str, key: str):
     """``axis``'s episodes renamed ``key``: both sides under one name, so compare's per-axis helpers (progress pairs,
     break points) read the two axes as one."""
@@ -101,6 +114,14 @@ def compare_axes(
     a, b = sa["axes"][axis_a], sb["axes"][axis_b]
     ra, rb = as_one_axis(ea, axis_a, key), as_one_axis(eb, axis_b, key)
     rows = contrast_rows(pairs, margin, alpha)
+    pairing, same = pairs.describe(), same_rollouts(ea, eb, axis_a, axis_b)
+    for r in rows:
+        if r["level"] == 0 and same:  # a shared T0: these pairs are one rollout, equal by construction
+            r["same_rollout"] = same
+            pairing += (f"; at level 0, {same} of {r['pairs']} pair(s) are one rollout recorded for both axes (T0 run "
+                        "once: episodes.parquet shared_from), equal by construction, so level 0 checks nothing")  # fmt: skip
+            if same == r["pairs"]:
+                r["p_value"] = float("nan")
     return {
         "test": "mcnemar_exact", "paired": True, "gamma": sa["gamma"], "margin": margin,
         "contrast": {"axis_a": axis_a, "axis_b": axis_b, "paired_on": ["scene", "task", "level", "episode", "seed"],
@@ -108,7 +129,7 @@ def compare_axes(
         "axes": {key: {
             "axis_a": axis_a, "axis_b": axis_b, "levels": rows, "break_level_a": a["break_level"],
             "break_level_b": b["break_level"], "failures": failure_shift(a["levels"], b["levels"]),
-            "pairing": pairs.describe(), "progress": compare_progress(ra, rb, key, True),
+            "pairing": pairing, "progress": compare_progress(ra, rb, key, True),
             "equivalence": equivalence_sentence(rows, margin, alpha),
         }},
     }  # fmt: skip

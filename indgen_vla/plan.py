@@ -68,6 +68,9 @@ class Cell:
     param: float
     certificate: str  # CERTIFIED | FAILED | UNCERTIFIED (no certificate, or not enough evidence)
     evidence: str = ""  # the oracle's successes/n behind the certificate, "" when there is none
+    # level 0 only: a hash of what the scene layer builds for it (``Scene.level_identity``), the axis's name left out;
+    # equal keys of one task's axes mean one environment, so evaluate runs that T0 once. "" = unknown: never shared
+    env_key: str = ""
 
 
 @dataclass(frozen=True)
@@ -115,10 +118,16 @@ class EpisodeJob:
 
 @dataclass(frozen=True)
 class EvalPlan:
-    """A resolved config: the scene plan plus every planned episode, in a fixed order."""
+    """A resolved config: the scene plan plus every planned episode, in a fixed order.
+
+    ``shared`` maps (task, axis) to the earlier axis whose level-0 episodes it reports as its own (``share_t0``): the
+    jobs keep one episode per (task, axis, level, episode), but only ``rollouts()`` are run, and each level-0 record
+    of an owner axis is recorded again for the axes that share it (``engine/share.py``).
+    """
 
     scene_plan: ScenePlan
     jobs: tuple[EpisodeJob, ...]
+    shared: Mapping[tuple[str, str], str] = dataclasses.field(default_factory=dict)
 
     @property
     def scene(self) -> str:
@@ -139,6 +148,14 @@ class EvalPlan:
     @property
     def builder(self) -> LevelBuilder:
         return self.scene_plan.builder
+
+    def rollouts(self) -> tuple[EpisodeJob, ...]:
+        """The jobs that are run: all but the level-0 episodes another axis's rollouts stand for."""
+        return tuple(j for j in self.jobs if not (j.level == 0 and (j.task, j.axis) in self.shared))
+
+    def sharers(self, task: str, axis: str) -> tuple[str, ...]:
+        """The axes that report ``axis``'s level-0 episodes of ``task`` as their own (in the config's order)."""
+        return tuple(b for (t, b), owner in self.shared.items() if t == task and owner == axis)
 
     def jobs_hash(self) -> str:
         """SHA-256 of every planned episode (``jobs_sha256``): equal plans, equal hashes."""
@@ -195,3 +212,37 @@ def plan_jobs(
                         )
                     )
     return tuple(jobs)
+
+
+def shared_t0(sp: ScenePlan) -> dict[tuple[str, str], str]:
+    """(task, axis) -> the first axis (config order) of ``task`` whose level 0 is the same environment: equal,
+    non-empty ``Cell.env_key`` (the scene layer's description of the level, never the axis's name); axes whose level 0
+    differs (RoboCasa's ``pick_x`` window) or is unknown map to nothing."""
+    out: dict[tuple[str, str], str] = {}
+    for task in sp.tasks:
+        owners: dict[str, str] = {}
+        for axis in sp.axes:
+            if 0 not in sp.levels[axis]:
+                continue
+            key = sp.cell(task, axis, 0).env_key
+            if not key:
+                continue
+            owner = owners.setdefault(key, axis)
+            if owner != axis:
+                out[(task, axis)] = owner
+    return out
+
+
+def sharing_record(plan: EvalPlan, enabled: bool, reason: str = "") -> dict[str, Any]:
+    """The manifest's ``t0_sharing``: whether it was on (``reason`` when off), per task the groups of axes that
+    share one T0 (owner first), and how many rollouts that saves."""
+    groups: dict[str, list[list[str]]] = {}
+    for task in plan.tasks:
+        for owner in plan.axes:
+            if (task, owner) not in plan.shared and (b := plan.sharers(task, owner)):
+                groups.setdefault(task, []).append([owner, *b])
+    out: dict[str, Any] = {"enabled": enabled}
+    if reason:
+        out["reason"] = reason
+    run = len(plan.rollouts())
+    return out | {"groups": groups, "rollouts": run, "saved": len(plan.jobs) - run}

@@ -22,9 +22,10 @@ SECTIONS = "report.d"  # extra report.md sections other tools keep in the run di
 COLUMNS = (
     "run_id", "policy", "data_regime", "scene", "task", "axis", "level", "param",
     "episode", "seed", "success", "steps", "status", "error", "wall_s", "video", "failure", "progress",
+    "shared_from",
 )  # fmt: skip
 # columns added after the first release: older run dirs read with this default (progress: missing, never 0)
-OPTIONAL = {"failure": "", "progress": None}
+OPTIONAL = {"failure": "", "progress": None, "shared_from": ""}
 KEY = ("task", "axis", "level", "episode")
 # episodes.parquet is rewritten whole per append up to FLUSH_EVERY_ROWS rows; past that (the cost grows with the
 # run: 150 ms CPU per rewrite at 20,000 rows) at most FLUSH_SHARE of the wall time goes into rewriting it, so a
@@ -58,6 +59,8 @@ class EpisodeRecord:
     failure: str = ""  # scenes.failure mode ("none" on success, "error" for error rows; "" = not classified)
     # scenes.failure progress 0..5 (indgen_vla.progress.STAGES); None = not scored (stored as missing, never 0)
     progress: int | None = None
+    # "" = rolled out for its own axis; else the axis whose level-0 rollout this row copies (T0 run once, plan.shared)
+    shared_from: str = ""
 
     def __post_init__(self) -> None:
         if self.status not in ("ok", "error"):
@@ -146,6 +149,7 @@ def _schema():
         ("level", pa.int64()), ("param", pa.float64()), ("episode", pa.int64()), ("seed", pa.int64()),
         ("success", pa.bool_()), ("steps", pa.int64()), ("status", pa.string()), ("error", pa.string()),
         ("wall_s", pa.float64()), ("video", pa.string()), ("failure", pa.string()), ("progress", pa.int8()),
+        ("shared_from", pa.string()),
     ])  # fmt: skip
 
 

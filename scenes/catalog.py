@@ -30,6 +30,7 @@ class RobosuiteScene(Scene):
 
     tasks: ClassVar[tuple[str, ...]]
     builder: ClassVar[str]
+    env_from_spec = True  # SceneEnv builds scene.layout(spec_at_level(...)); the successor adds nothing else
 
     def layout(self, spec: SceneSpec) -> Layout:
         """The simulator layout of one level (imports robosuite)."""

@@ -8,6 +8,9 @@ each level's env in the worker processes (so nothing downstream looks a scene up
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -89,6 +92,20 @@ class SceneLevels:
         return gl_renderer()
 
 
+def env_key(identity: Any) -> str:
+    """A short hash of a level's ``Scene.level_identity`` (dataclasses as dicts, floats exact); "" for None."""
+    if identity is None:
+        return ""
+
+    def plain(obj: Any) -> Any:
+        if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+            return dataclasses.asdict(obj)
+        return repr(obj)
+
+    text = json.dumps(identity, sort_keys=True, default=plain)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def task_steps(per_task: Mapping[str, Successor]) -> dict[str, dict[str, float]]:
     """Each task's component steps (``successor_steps``), in the run's task order."""
     return {t: successor_steps(s) for t, s in per_task.items()}
@@ -158,7 +175,8 @@ def resolve_scene_plan(
                 row = rows.get(k)
                 evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
-                cells.append(Cell(t, name, k, param, status, evidence))
+                key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
+                cells.append(Cell(t, name, k, param, status, evidence, key))
     steps = {a: task_steps(by_task) for a, by_task in per_task.items()}
     return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), SceneLevels(scene, successors, per_task),
                      task_steps=steps)  # fmt: skip

@@ -61,6 +61,8 @@ class Scene:
             the seed (LIBERO: its 50 fixed states, episode % 50), "" when the seed draws each episode's own.
             ``evaluate`` runs through that set, so ``indgen demos`` refuses such a family (its demonstrations, and
             mimicgen's from them, would start from the evaluation's initial states).
+        env_from_spec: True when the env a level builds depends on its successor only through the level's
+            ``SceneSpec`` (``level_identity`` is then that spec: axes with one level-0 spec share their T0 runs).
     """
 
     name: ClassVar[str]
@@ -82,6 +84,7 @@ class Scene:
     )
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
     fixed_initial_states: ClassVar[str] = ""
+    env_from_spec: ClassVar[bool] = False
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
@@ -123,6 +126,17 @@ class Scene:
         return self.env_class()(
             self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
         )
+
+    def level_identity(self, task: str, successor: Successor, level: int) -> Any:
+        """What ``make_env`` builds for (task, level) along ``successor``, as plain data without the axis's name:
+        two axes whose level-0 identities are equal build one environment, so ``evaluate`` runs that T0 once
+        (``indgen_vla.plan.shared_t0``). None: the family cannot tell, and nothing is shared. A family whose env
+        reads the successor only through the level's spec says so with ``env_from_spec``."""
+        if not self.env_from_spec:
+            return None
+        from scenes.axes import spec_at_level
+
+        return {"scene": self.name, "task": task, "spec": spec_at_level(self.base(task), successor, level)}
 
     def check_ready(self) -> None:
         """Fail fast, in one line, when external assets are missing (nothing to check by default)."""

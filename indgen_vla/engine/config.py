@@ -63,6 +63,8 @@ class EvalConfig:
     adaptive_delta: float = 0.1  # indifference half-width around gamma
     adaptive_alpha: float = 0.025  # stated error rate of each verdict (alpha = beta)
     round_size: int = 5  # episodes between two looks of the sequential rule
+    # run level 0 once per task for the axes whose level 0 is one environment (plan.shared_t0, engine/share.py)
+    share_t0: bool = True
 
     def __post_init__(self) -> None:
         if not self.policy:
@@ -81,8 +83,9 @@ class EvalConfig:
             raise ConfigError(f"--workers must be >= 1, got {self.workers}")
         if self.backend not in ("local", "ray"):
             raise ConfigError(f"--backend must be 'local' or 'ray', got {self.backend!r}")
-        if not isinstance(self.pipeline, bool):
-            raise ConfigError(f"pipeline must be true or false, got {self.pipeline!r}")
+        for name in ("pipeline", "share_t0"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if self.pipeline and self.backend == "ray":
             raise ConfigError(
                 "--pipeline is for --backend local; with Ray, overlap by running 2 simulator actors per CPU "
@@ -157,7 +160,8 @@ class EvalConfig:
 
 
 FLAG_FIELDS = {f.name for f in dataclasses.fields(EvalConfig)}
-EXPLICIT_FALSE = {"pipeline"}  # --no-pipeline (False) overrides a preset; other False flags are "not given"
+# --no-pipeline / --no-share-t0 (False) override a preset; other False flags are "not given"
+EXPLICIT_FALSE = {"pipeline", "share_t0"}
 
 
 def load_config_preset(path: str) -> dict[str, Any]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from indgen_vla.engine.config import EvalConfig
+from indgen_vla.engine.share import copies, fill_copies, record_sharing, taken_keys, with_sharing
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
 from indgen_vla.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.records import RunDir
@@ -56,7 +57,7 @@ def build_plan(cfg: EvalConfig) -> EvalPlan:
     sp = resolve_scene_plan(cfg.scene, cfg.task, cfg.axes, cfg.levels, cfg.step, cfg.axes_preset)
     jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), cfg.episodes, cfg.seed, cfg.video,
                      cfg.video_per_level)  # fmt: skip
-    return EvalPlan(sp, jobs)
+    return with_sharing(cfg, EvalPlan(sp, jobs))[0]
 
 
 def _levels_text(levels: list[int]) -> str:
@@ -122,6 +123,7 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
         ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
         "resolved": plan.record(),
+        "t0_sharing": with_sharing(cfg, plan)[1],
         "config": dataclasses.asdict(cfg),
         "versions": package_versions(),
         "git_sha": git_sha(),
@@ -207,13 +209,15 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
+        record_sharing(run, with_sharing(cfg, plan)[1])
         if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
             from indgen_vla.engine.adaptive import next_round
 
             todo = next_round(plan, run.episodes(), cfg)
         else:
+            fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
             done = run.done_keys()
-            todo = [j for j in plan.jobs if j.key not in done]
+            todo = [j for j in plan.rollouts() if j.key not in done]
         if todo:
             if probe is None:
                 early = prestart(todo)
@@ -240,7 +244,7 @@ def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
     """The jobs a new run starts with: the whole plan, or the adaptive rule's first round (its workers prepare
     the scenes of those, not of levels the rule may never reach)."""
     if not cfg.adaptive:
-        return plan.jobs
+        return plan.rollouts()
     from indgen_vla.engine.adaptive import next_round
     from indgen_vla.records import episodes_frame
 
@@ -284,8 +288,11 @@ def _run_todo(
             console.print(f"[yellow]warning:[/] {line}")
         # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
         if not cfg.adaptive:
-            console.print(f"resuming {run.path}: {len(plan.jobs) - len(todo)} of {len(plan.jobs)} planned episodes "
-                          f"already recorded; running the other {len(todo)}", soft_wrap=True)  # fmt: skip
+            left = len(plan.jobs) - len(run.done_keys() & {j.key for j in plan.jobs})
+            why = f" ({len(todo)} rollouts: level 0 runs once for the axes sharing it)"
+            shared = "" if left == len(todo) else why
+            console.print(f"resuming {run.path}: {len(plan.jobs) - left} of {len(plan.jobs)} planned episodes "
+                          f"already recorded; running the other {left}{shared}", soft_wrap=True)  # fmt: skip
     meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
     try:
         _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
@@ -350,9 +357,12 @@ def _run_with_progress(
         if r.status == "ok":
             stats[(r.axis, int(r.level))][0] += int(r.success)
             stats[(r.axis, int(r.level))][1] += 1
+    rollouts = {j.key for j in plan.rollouts()}  # the total and its ETA count rollouts, not shared copies
+    taken = taken_keys(plan, run)
     with Progress(*progress_columns(), console=console, transient=False) as progress:
-        done = sum(s[1] for s in stats.values())  # what finished: an adaptive run skips planned episodes
-        total = progress.add_task("all episodes", total=len(plan.jobs), completed=done, info="")
+        done = len(run.done_keys() & rollouts)  # what finished: an adaptive run skips planned episodes
+        label = "all episodes" if len(rollouts) == len(plan.jobs) else "rollouts (T0 shared)"
+        total = progress.add_task(label, total=len(rollouts), completed=done, info="")
         rows = {}
         for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
             s = stats[key]
@@ -360,14 +370,17 @@ def _run_with_progress(
                                           info=level_info(*s))  # fmt: skip
 
         def on_record(rec) -> None:
-            run.append([rec])
-            s = stats[(rec.axis, rec.level)]
-            if rec.status == "ok":
-                s[0] += int(rec.success)
-                s[1] += 1
-            else:
-                s[2] += 1
-            progress.update(rows[(rec.axis, rec.level)], advance=1, info=level_info(*s))
+            # one append: the copies are journalled with their rollout
+            recs = [rec, *copies(plan, rec, taken)]
+            run.append(recs)
+            for r in recs:
+                s = stats[(r.axis, r.level)]
+                if r.status == "ok":
+                    s[0] += int(r.success)
+                    s[1] += 1
+                else:
+                    s[2] += 1
+                progress.update(rows[(r.axis, r.level)], advance=1, info=level_info(*s))
             progress.update(total, advance=1)
 
         made, handed = [probe], [0]

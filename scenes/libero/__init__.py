@@ -63,6 +63,8 @@ class LiberoSuite(Scene):
     success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
     committed_certificates = False  # certificates depend on the user's LIBERO asset tree
     fixed_initial_states = "LIBERO's 50 fixed initial states (episode % 50)"
+    # LiberoSceneEnv's BDDL and placement read the level's spec (its successor only checks condition 2)
+    env_from_spec = True
 
     @property
     def tasks(self) -> tuple[str, ...]:

@@ -464,6 +464,12 @@ class RoboCasa(Scene):
                     f"{', '.join(AXIS_TASKS.get(part, ()))}"
                 )
 
+    def level_identity(self, task: str, successor: Successor, level: int) -> dict:
+        """What the worker builds for (task, level): ``level_config`` without the cameras (the run's, every axis
+        alike) and the axis's reading of the level (``axis_param``); pick_x's window, even at level 0, stays in."""
+        config = self.level_config(task, successor, level, (), (0, 0))
+        return {k: v for k, v in config.items() if k not in ("cameras", "image_size", "axis_param")}
+
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
         from scenes.axes import axis_param, resolve_alias, spec_at_level

@@ -40,8 +40,9 @@ def read(run: Path, name: str) -> dict:
 
 
 def outcomes(run: Path) -> pd.DataFrame:
-    """The episodes without what differs between two runs of one protocol (run id, wall time)."""
-    df = pd.read_parquet(run / "episodes.parquet").drop(columns=["run_id", "wall_s"])
+    """The episodes without what differs between two runs of one protocol (run id, wall time, and whether a level-0 row
+    is another axis's rollout: the unsharded run shares T0, shards of one axis each cannot)."""
+    df = pd.read_parquet(run / "episodes.parquet").drop(columns=["run_id", "wall_s", "shared_from"])
     return df.sort_values(["axis", "task", "level", "episode"]).reset_index(drop=True)
 
 
@@ -75,6 +76,9 @@ def test_merged_shards_report_like_one_unsharded_run(runs, tmp_path, capsys):
     assert read(merged, "summary.json") == read(whole, "summary.json")
     assert (merged / "report.md").read_text() == (whole / "report.md").read_text()
     pd.testing.assert_frame_equal(outcomes(merged), outcomes(whole))
+    shared = {n: set(pd.read_parquet(r / "episodes.parquet").query("level == 0 and axis == 'scale'")["shared_from"])
+              for n, r in (("merged", merged), ("whole", whole))}  # fmt: skip
+    assert shared == {"merged": {""}, "whole": {"pick_y"}}  # the same outcomes, rolled out once or twice
     m, w = read(merged, "manifest.json"), read(whole, "manifest.json")
     for key in ("plan", "axes", "resolved", "fingerprint", "policy", "scene", "seed", "versions"):
         assert m[key] == w[key], key  # the union plan is the unsharded plan, its jobs' hash included

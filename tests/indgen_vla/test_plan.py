@@ -1,11 +1,21 @@
 """The resolved plan (core): episode order and seeds, the jobs' hash, and the manifest record."""
 
+import dataclasses
 import json
 import pickle
 
 import pytest
 
-from indgen_vla.plan import CERTIFIED, UNCERTIFIED, Cell, EvalPlan, ScenePlan, plan_jobs
+from indgen_vla.plan import (
+    CERTIFIED,
+    UNCERTIFIED,
+    Cell,
+    EvalPlan,
+    ScenePlan,
+    plan_jobs,
+    shared_t0,
+    sharing_record,
+)
 from indgen_vla.progression import AxisSpec
 from indgen_vla.seeding import episode_seed
 
@@ -68,3 +78,32 @@ def test_a_plan_travels_to_workers_by_pickle():
     sp.cell("a", "pick_y", 0)  # fills the lookup cache, which must pickle too
     back = pickle.loads(pickle.dumps(sp))
     assert back.cells == sp.cells and back.cell("a", "pick_y", 0) == sp.cell("a", "pick_y", 0)
+
+
+def shared_plan(keys: dict[str, str], levels=(0, 1)) -> EvalPlan:
+    """Axes named by ``keys`` (axis -> its level-0 ``env_key``) on tasks a and b, one episode per level."""
+    axes = {a: AxisSpec(a, "move", a, 0.1, "m", False, 1) for a in keys}
+    cells = tuple(Cell(t, a, k, 0.1 * k, CERTIFIED, "", keys[a] if k == 0 else "")
+                  for a in keys for t in ("a", "b") for k in levels)  # fmt: skip
+    sp = ScenePlan("toy", ("a", "b"), axes, {a: levels for a in keys}, cells, Builder())
+    plan = EvalPlan(sp, plan_jobs("toy", sp.tasks, sp.levels, sp.params(), 1, 0))
+    return dataclasses.replace(plan, shared=shared_t0(sp))
+
+
+def test_axes_share_t0_only_where_the_scene_layer_calls_level_0_one_environment():
+    plan = shared_plan({"x": "k1", "y": "k2", "z": "k1", "w": "", "v": "k2"})
+    # z shares x's T0 and v shares y's (the first axis of that key owns it); w's level 0 is unknown: not shared
+    assert plan.shared == {("a", "z"): "x", ("a", "v"): "y", ("b", "z"): "x", ("b", "v"): "y"}
+    assert plan.sharers("a", "x") == ("z",) and plan.sharers("a", "z") == ()
+    run = {j.key for j in plan.rollouts()}
+    assert len(plan.jobs) == 20 and len(run) == 16 and ("a", "z", 0, 0) not in run and ("a", "z", 1, 0) in run
+    rec = sharing_record(plan, True)
+    assert rec["groups"] == {"a": [["x", "z"], ["y", "v"]], "b": [["x", "z"], ["y", "v"]]}
+    assert (rec["rollouts"], rec["saved"]) == (16, 4)
+    assert (
+        plan.jobs_hash() == dataclasses.replace(plan, shared={}).jobs_hash()
+    )  # the planned episodes are the same
+
+
+def test_no_level_0_no_sharing():
+    assert shared_plan({"x": "k", "y": "k"}, levels=(1,)).shared == {}

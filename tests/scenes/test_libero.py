@@ -234,3 +234,25 @@ def test_real_assets_level0_and_oracle():
     cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=2)
     print(cert)
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
+
+
+@pytest.mark.slow  # 6 s (two LIBERO builds); pick_place's shared T0 is checked against rollouts by default
+def test_level_0_of_axes_with_one_key_is_one_environment(mini):
+    """What a shared T0 (``evaluate``'s share_t0) relies on: axes whose level-0 ``env_key`` is equal build envs that
+    start and step alike (images, state, privileged poses) from the same seed and episode."""
+    from scenes.planning import resolve_scene_plan
+
+    sp = resolve_scene_plan(SCENE, "alphabet_soup", ["pick_y", "scale+distractor"], "0")
+    keys = {sp.cell("alphabet_soup", a, 0).env_key for a in sp.axes}
+    assert len(keys) == 1 and "" not in keys
+    envs = [_env(a, 0, cameras=("agentview",), image_size=(32, 32)) for a in sp.axes]
+    try:
+        obs = [e.reset(seed=5, options={"episode": 4})[0] for e in envs]
+        for _ in range(3):
+            obs = [e.step(np.array([0.3, -0.2, 0.1, 0, 0, 0, 1.0]))[0] for e in envs]
+        np.testing.assert_array_equal(obs[0].images["agentview"], obs[1].images["agentview"])
+        np.testing.assert_array_equal(obs[0].state, obs[1].state)
+        np.testing.assert_array_equal(*(e.privileged_state().pick.pos for e in envs))
+    finally:
+        for e in envs:
+            e.close()

@@ -99,3 +99,37 @@ def test_the_fork_servers_preload_is_quiet():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "macro" not in out.stderr, out.stderr
+
+
+def test_level_0_keys_come_from_the_levels_spec_not_the_axis_name():
+    sp = resolve_scene_plan("pick_place", "all", ["pick_y", "scale", "pick_y+distractor"], "0:1")
+    for t in sp.tasks:  # level 0 of each is the task's T0 spec (a composition's level 0 adds no distractor)
+        keys = {sp.cell(t, a, 0).env_key for a in sp.axes}
+        assert len(keys) == 1 and "" not in keys
+        assert sp.cell(t, "pick_y", 1).env_key == ""  # only level 0 is keyed
+    assert len({sp.cell(t, "pick_y", 0).env_key for t in sp.tasks}) == len(sp.tasks)  # tasks differ
+    # a preset that moves T0 itself is not needed to tell them apart: a step changes level 1, never level 0's key
+    other = resolve_scene_plan("pick_place", "milk", ["pick_y"], "0:1", step=0.03)
+    assert other.cell("milk", "pick_y", 0).env_key == sp.cell("milk", "pick_y", 0).env_key
+
+
+def test_robocasa_pick_x_level_0_is_a_window_so_it_shares_nothing():
+    from indgen_vla.plan import Cell, ScenePlan, shared_t0
+    from indgen_vla.progression import AxisSpec
+    from scenes.planning import env_key
+
+    sc, task = scenes.get_scene("robocasa"), "PickPlaceCabinetToCounter"  # on both axes' task lists
+    keys = {
+        a: env_key(sc.level_identity(task, sc.successor(a, None, None, task), 0))
+        for a in ("pick_x", "clutter")
+    }
+    assert keys["pick_x"] != keys["clutter"] and "" not in keys.values()
+    axes = {a: AxisSpec(a, "", a, 1.0, "", False, 1) for a in keys}
+    cells = tuple(Cell(task, a, 0, 0.0, UNCERTIFIED, "", k) for a, k in keys.items())
+    assert shared_t0(ScenePlan("robocasa", (task,), axes, {a: (0,) for a in keys}, cells, None)) == {}
+
+
+def test_a_family_that_cannot_describe_its_level_shares_nothing(monkeypatch):
+    monkeypatch.setattr(type(scenes.get_scene("pick_place")), "env_from_spec", False)
+    sp = resolve_scene_plan("pick_place", "milk", ["pick_y", "scale"], "0")
+    assert {c.env_key for c in sp.cells} == {""}

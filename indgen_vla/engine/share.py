@@ -1,0 +1,83 @@
+"""T0 run once per task: the axes whose level 0 is one environment report the same level-0 rollouts.
+
+Episode i of a task gets the same seed at every level and axis (``indgen_vla.seeding.evaluation_seed``), so where
+the scene layer says two axes build the same level-0 environment (``plan.shared_t0``, from ``Cell.env_key``) their
+level-0 episodes would be the same rollout twice. ``evaluate`` runs the first axis's (the owner's) and records each
+of its level-0 episodes once more per sharing axis, marked ``shared_from`` = the owner, with the sharer's own level-0
+parameter; ``episodes.parquet`` keeps one row per (task, axis, level, episode), so every reader works unchanged.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, Any
+
+from indgen_vla.plan import EvalPlan, shared_t0, sharing_record
+
+if TYPE_CHECKING:
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.records import EpisodeRecord, RunDir
+
+ADAPTIVE_OFF = (
+    "off under --adaptive: each (task, axis) ladder's rule asks for its own level-0 episodes, and a shared T0 would "
+    "hand one ladder episodes its rule did not ask for"
+)
+
+
+def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> tuple[EvalPlan, dict[str, Any]]:
+    """``plan`` with its shared level-0 cells (when ``cfg.share_t0`` and the run is not adaptive) and the manifest's
+    ``t0_sharing`` entry saying what is shared, or why nothing is."""
+    if not cfg.share_t0:
+        return plan, sharing_record(plan, False, "off (--no-share-t0)")
+    if cfg.adaptive:
+        return plan, sharing_record(plan, False, ADAPTIVE_OFF)
+    shared = dataclasses.replace(plan, shared=shared_t0(plan.scene_plan))
+    return shared, sharing_record(shared, True)
+
+
+def copies(plan: EvalPlan, rec: EpisodeRecord, taken: set) -> list[EpisodeRecord]:
+    """``rec`` as the level-0 episode of every axis that shares its axis's T0, except keys in ``taken`` (episodes
+    such an axis already holds ``ok``: rolled out before sharing was on)."""
+    if rec.level != 0:
+        return []
+    out = []
+    for axis in plan.sharers(rec.task, rec.axis):
+        if (rec.task, axis, 0, rec.episode) not in taken:
+            param = plan.scene_plan.cell(rec.task, axis, 0).param
+            out.append(dataclasses.replace(rec, axis=axis, param=param, wall_s=0.0, shared_from=rec.axis))
+    return out
+
+
+def fill_copies(plan: EvalPlan, run: RunDir) -> int:
+    """Record the copies a resume finds missing (an owner's episode recorded, the kill before its copies were, or a
+    run started with --no-share-t0); an error copy is replaced once its owner is ok. Returns how many it wrote."""
+    from indgen_vla.records import EpisodeRecord
+
+    if not plan.shared:
+        return 0
+    rows = {(r["task"], r["axis"], int(r["level"]), int(r["episode"])): r for r in run.rows()}
+    owners = {(t, owner) for (t, _), owner in plan.shared.items()}
+    new = []
+    for (task, axis, level, _), row in rows.items():
+        if level != 0 or (task, axis) not in owners or row.get("shared_from"):
+            continue
+        rec = EpisodeRecord(**row)
+        for c in copies(plan, rec, set()):
+            have = rows.get(c.key)
+            if have is None or (have["status"] == "error" and rec.status == "ok"):
+                new.append(c)
+    run.append(new)
+    return len(new)
+
+
+def taken_keys(plan: EvalPlan, run: RunDir) -> set:
+    """Sharers' level-0 keys already ``ok`` in ``run`` (a copy must not overwrite them)."""
+    return {k for k in run.done_keys() if k[2] == 0 and (k[0], k[1]) in plan.shared}
+
+
+def record_sharing(run: RunDir, now: dict[str, Any]) -> None:
+    """A resume under another sharing setting (or of a run made before it) records the setting it goes on with;
+    the rows keep saying where each came from (``shared_from``)."""
+    was = run.manifest.get("t0_sharing")
+    if was != now:
+        run.update_manifest(t0_sharing={**now, "earlier": was} if was else now)
