@@ -80,7 +80,8 @@ def build_fingerprint(
 def policy_conventions(spec, policy) -> dict[str, Any]:
     """A policy's resolved conventions: its spec's serving facts and the frozen transforms it applies (crop,
     resize, flip, gripper map), as their reprs, and on a scene family with its own robot the layout it used
-    (``layout``: which upstream state/action order, e.g. lerobot's base-first RoboCasa action)."""
+    (``layout``: which upstream state/action order, e.g. lerobot's base-first RoboCasa action); the earlier
+    steps it sees (``history_steps``), where it sees any."""
     conv = getattr(policy, "conventions", None) or getattr(
         getattr(policy, "config", None), "conventions", None
     )
@@ -91,6 +92,8 @@ def policy_conventions(spec, policy) -> dict[str, Any]:
         "flip_180": spec.flip_180,
         "conventions": repr(conv) if conv is not None else None,
     }
+    if getattr(spec, "history_steps", 0):  # absent without history: those fingerprints are unchanged
+        out["history_steps"] = spec.history_steps
     layout = getattr(policy, "layout", None)  # a ``layouts.Layout`` on a scene family with its own robot
     if layout is not None:  # absent on the tabletop families, so their fingerprints are unchanged
         out["layout"] = layout.describe()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -102,7 +102,9 @@ class Observation:
 
     Privileged simulator state never appears here; oracles read it from the scene directly. ``objects``
     (the pick object's and the target's pose, ``OBJECT_NAMES``) is filled only for low-dimensional policies
-    whose spec declares ``observes_objects``; image policies never get it.
+    whose spec declares ``observes_objects``; image policies never get it. ``history`` (the cameras' images of
+    the env steps just before this one, oldest first) is filled only for policies whose spec declares
+    ``history_steps``: at most that many, none at an episode's first query.
     """
 
     images: dict[str, np.ndarray]
@@ -110,6 +112,7 @@ class Observation:
     instruction: str
     extras: dict[str, object] = field(default_factory=dict)
     objects: np.ndarray | None = None
+    history: tuple[dict[str, np.ndarray], ...] = ()
 
     def __post_init__(self) -> None:
         if np.ndim(self.state) != 1:
@@ -118,9 +121,20 @@ class Observation:
             )
         if self.objects is not None and np.shape(self.objects) != (OBJECT_DIM,):
             raise ValueError(f"objects must have shape ({OBJECT_DIM},), got {np.shape(self.objects)}")
-        for name, img in self.images.items():
-            if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-                raise ValueError(f"image {name!r} must be uint8 HxWx3, got {img.dtype} {img.shape}")
+        _check_images(self.images, "image")
+        if not isinstance(self.history, tuple):
+            raise ValueError(f"history must be a tuple of image dicts, got {type(self.history).__name__}")
+        for k, frame in enumerate(self.history):
+            _check_images(frame, f"history[{k}] image")
+
+
+def _check_images(images: dict[str, np.ndarray], what: str) -> None:
+    """Refuse anything but uint8 HxWx3 camera images."""
+    if not isinstance(images, Mapping):
+        raise ValueError(f"{what}s must be a dict of camera name -> image, got {type(images).__name__}")
+    for name, img in images.items():
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise ValueError(f"{what} {name!r} must be uint8 HxWx3, got {img.dtype} {img.shape}")
 
 
 def validate_chunk(chunk: np.ndarray, batch: int, who: str, action_dim: int = ACTION_DIM) -> np.ndarray:
@@ -172,6 +186,9 @@ class PolicySpec:
             observation); never an image policy.
         action_dim: the size of its actions, when the adapter knows it (checked against the scene's ``EnvSpec``
             before any episode); None: whatever the scene takes.
+        history_steps: how many env steps before each query the policy also sees (``Observation.history``:
+            its cameras' images of those steps, e.g. RynnVLA-002's previous frame); the engine renders them,
+            one extra render per query and history step. 0: the current observation only.
         training: the (scene, task, axis, level) cells its training data covered, when its files say
             (``indgen train``'s ``train_info.json``); ``evaluate`` records them and ``report`` marks those levels.
     """
@@ -188,6 +205,7 @@ class PolicySpec:
     observes_objects: bool = False
     action_dim: int | None = None
     training: tuple[TrainedCell, ...] = ()
+    history_steps: int = 0
 
     def __post_init__(self) -> None:
         if self.chunk_size < 1:
@@ -206,6 +224,14 @@ class PolicySpec:
                 f"policy {self.name}: object poses are for low-dimensional policies only; drop its cameras "
                 "or observes_objects"
             )
+        steps = self.history_steps
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+            raise ConfigError(f"policy {self.name}: history_steps must be an integer >= 0, got {steps!r}")
+        if self.history_steps and not self.cameras:
+            raise ConfigError(
+                f"policy {self.name}: history_steps={self.history_steps} keeps camera images, but it reads no "
+                "camera; declare its cameras or history_steps=0"
+            )
 
 
 @dataclass(frozen=True)
@@ -218,6 +244,7 @@ class ScenePreview:
     image_size: tuple[int, int] | None = None
     privileged: bool = False
     observes_objects: bool = False
+    history_steps: int = 0
 
 
 @runtime_checkable

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import traceback
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,7 @@ class RunnerConfig:
     video_dir: str | None = None
     video_size: tuple[int, int] = (256, 256)
     lazy_render: bool = True  # render cameras only for the observation a chunk slice ends on (the one read)
+    history_steps: int = 0  # also render the steps before each query (PolicySpec.history_steps)
 
     @property
     def scene(self) -> str:
@@ -79,6 +81,8 @@ class EnvRunner:
         self._steps = 0
         self._t0 = 0.0
         self._frames: list[np.ndarray] = []
+        # the images of the last history_steps + 1 steps, the current one last (None: a step not rendered)
+        self._recent: deque[dict[str, np.ndarray] | None] = deque(maxlen=cfg.history_steps + 1)
         self._can_skip_render = False
         # prepare(): (the job, its reset's transition, the reset's seconds)
         self._prepared: tuple[EpisodeJob, Transition, float] | None = None
@@ -104,7 +108,11 @@ class EnvRunner:
 
     def _observe(self, obs: Observation) -> Observation:
         """Attach privileged state for oracles only (learned policies never see it), object poses for
-        the low-dim policies that declare them."""
+        the low-dim policies that declare them, the earlier steps' images for those that declare history."""
+        if self.cfg.history_steps:
+            earlier = tuple(self._recent)[:-1]
+            assert all(f is not None for f in earlier), "a history step was not rendered"
+            obs = dataclasses.replace(obs, history=earlier)
         if self.cfg.objects:
             obs = dataclasses.replace(obs, objects=self._env.object_observation())
         if self.cfg.privileged:
@@ -128,6 +136,9 @@ class EnvRunner:
             obs, _ = env.reset(seed=job.seed, options={"episode": job.episode})  # LIBERO: fixed init state
             for _ in range(self.cfg.warmup_steps):
                 obs, _, _, _, _ = env.step(WARMUP_ACTION)
+            # the warm-up's frames are no history: RynnVLA-002's eval keeps only the frames it acted on
+            self._recent.clear()
+            self._recent.append(obs.images)
             self._record_frame()
             return Transition(job.key, self._observe(obs))
         except EpisodeUnavailableError as e:  # the seed rules this level out: the env stays, no retry
@@ -145,11 +156,14 @@ class EnvRunner:
             obs, done, success = None, False, False
             rows = np.asarray(actions, dtype=np.float32).reshape(-1, env.action_space.shape[0])
             lazy = self.cfg.lazy_render and self._can_skip_render
+            first_read = len(rows) - 1 - self.cfg.history_steps  # the query's step and its history are read
             for j, a in enumerate(rows):
-                if lazy and j < len(rows) - 1:  # nobody reads this step's images: physics only
+                if lazy and j < first_read:  # nobody reads this step's images: physics only
                     obs, _, terminated, truncated, info = env.step(a, observe=False)
+                    self._recent.append(None)
                 else:
                     obs, _, terminated, truncated, info = env.step(a)
+                    self._recent.append(obs.images)
                 self._steps += 1
                 success = bool(info.get("success", False))
                 self._record_frame()

@@ -260,7 +260,7 @@ def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
     return RunnerConfig(
         levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.max_steps,
         privileged=view.privileged, warmup_steps=cfg.warmup_steps, objects=view.observes_objects,
-        video_dir=str(Path(cfg.out) / "videos") if cfg.video else None,
+        video_dir=str(Path(cfg.out) / "videos") if cfg.video else None, history_steps=view.history_steps,
     )  # fmt: skip
 
 

@@ -52,6 +52,21 @@ def test_conventions_refuse_within_one_policy_family_only():
     assert any("policy.flip_180 differs (informational)" in x for x in lines)
 
 
+def test_history_steps_are_in_the_policys_conventions_only_when_it_sees_history():
+    """A policy seeing the step before each query (RynnVLA-002) is another protocol than one seeing the query's
+    frames only; policies without history keep the fingerprints they had."""
+    from indgen_vla.fingerprint import policy_conventions
+    from indgen_vla.interface import PolicySpec
+
+    plain = policy_conventions(PolicySpec("rynnvla", "x"), None)
+    seeing = policy_conventions(PolicySpec("rynnvla", "x", history_steps=1), None)
+    assert "history_steps" not in plain and seeing == {**plain, "history_steps": 1}
+    a, b = copy.deepcopy(base()), copy.deepcopy(base())
+    b["policy"]["history_steps"] = 1
+    with pytest.raises(ProtocolMismatchError, match="policy.history_steps"):
+        check_comparable([("A", a), ("B", b)])
+
+
 def test_certificates_and_plan_are_shown_but_never_refuse():
     other = {**base(), "certificates": {}, "plan_sha256": "ef"}
     lines = check_comparable([("A", base()), ("B", other)])
