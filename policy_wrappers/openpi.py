@@ -25,6 +25,10 @@ from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
 from policy_wrappers.transforms import LIBERO_OPENPI, ROBOCASA_OPENPI, Compose, Conventions
 
 INDGEN_SERVER = "indgen-vla"  # metadata["server"] of our own `indgen serve`, which accepts reset hints
+# request key prefix of the earlier steps' images (Observation.history): HISTORY_PREFIX + the camera's own request
+# key, a (steps, H, W, 3) stack oldest first; sent only by clients whose spec declares history_steps, and only
+# when there is history (none at an episode's first query)
+HISTORY_PREFIX = "indgen/history/"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,11 +52,17 @@ LIBERO_KEYS = (("observation/image", "agentview"), ("observation/wrist_image", "
 
 def make_request(obs: Observation, images: Compose, keys=LIBERO_KEYS, state=None) -> dict:
     """One observation in openpi's request format (``images``: e.g. rotate 180°, resize-with-pad; ``keys``:
-    (request key, our camera), LIBERO's by default; ``state``: our state -> the order the server reads)."""
+    (request key, our camera), LIBERO's by default; ``state``: our state -> the order the server reads), with
+    its earlier steps' images under ``HISTORY_PREFIX`` keys when it has any."""
     for _, cam in keys:
         if cam not in obs.images:
             raise PolicyError(f"openpi needs the {cam!r} camera but the observation has {sorted(obs.images)}")
     request = {key: images(obs.images[cam]) for key, cam in keys}
+    if obs.history:  # the same conventions as the current images (e.g. flipped 180°)
+        if any(cam not in frame for frame in obs.history for _, cam in keys):
+            raise PolicyError(f"openpi needs the cameras {[c for _, c in keys]} in every history frame too")
+        for key, cam in keys:
+            request[HISTORY_PREFIX + key] = np.stack([images(frame[cam]) for frame in obs.history])
     s = np.asarray(obs.state, dtype=np.float32)
     request["observation/state"] = s if state is None else np.ascontiguousarray(state(s))
     request["prompt"] = str(obs.instruction)
@@ -63,6 +73,7 @@ class OpenpiPolicy(RemotePolicy):
     """Client for one openpi websocket server; one request per observation."""
 
     family, schemes, default_port, server = "openpi", ("ws", "wss"), 8000, "the openpi server"
+    history_steps = 0  # earlier steps' images sent with each request (a served family's server reads them)
 
     def __init__(self, name: str, config: OpenpiConfig):
         conv = config.conventions
@@ -81,6 +92,7 @@ class OpenpiPolicy(RemotePolicy):
             image_size=(conv.render, conv.render),
             flip_180=conv.flips,
             action_dim=self._action_dim,
+            history_steps=self.history_steps,
         )
         super().__init__(spec, config)
         self._ws = None

@@ -23,13 +23,14 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.interface import Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180
-from policy_wrappers.openpi import INDGEN_SERVER
+from policy_wrappers.openpi import HISTORY_PREFIX, INDGEN_SERVER, LIBERO_KEYS
 
 log = logging.getLogger(__name__)
 
 
 def observation_from_request(request: dict, unflip: bool = True) -> Observation:
-    """openpi LIBERO request dict -> our ``Observation`` (images back to raw orientation)."""
+    """openpi LIBERO request dict -> our ``Observation`` (images back to raw orientation; the earlier steps'
+    images, ``HISTORY_PREFIX`` keys, as ``Observation.history`` when the client sent them)."""
     if not isinstance(request, dict):
         raise ValueError(f"request must be a dict, got {type(request).__name__}")
     missing = [k for k in ("observation/image", "observation/state") if k not in request]
@@ -38,21 +39,33 @@ def observation_from_request(request: dict, unflip: bool = True) -> Observation:
             f"request lacks {missing}; send openpi's LIBERO keys observation/image, "
             "observation/wrist_image, observation/state, prompt"
         )
-    images = {}
-    for key, cam in (("observation/image", "agentview"), ("observation/wrist_image", "wrist")):
+    images, history = {}, {}
+    for key, cam in LIBERO_KEYS:
         if key in request:
-            img = np.asarray(request[key])
-            if img.dtype != np.uint8:
-                img = (
-                    (255 * img).astype(np.uint8)
-                    if np.issubdtype(img.dtype, np.floating)
-                    else img.astype(np.uint8)
-                )
-            if img.ndim == 3 and img.shape[0] == 3 and img.shape[-1] != 3:
-                img = np.transpose(img, (1, 2, 0))
-            images[cam] = flip_180(img) if unflip else np.ascontiguousarray(img)
+            images[cam] = _image(request[key], unflip)
+        if HISTORY_PREFIX + key in request:
+            history[cam] = [_image(img, unflip) for img in np.asarray(request[HISTORY_PREFIX + key])]
+    lengths = {len(frames) for frames in history.values()}
+    if len(lengths) > 1:
+        raise ValueError(
+            f"history stacks of different lengths {sorted(lengths)}; send one frame per step and camera"
+        )
+    steps = lengths.pop() if lengths else 0
     state = np.asarray(request["observation/state"], dtype=np.float32).reshape(-1)
-    return Observation(images=images, state=state, instruction=str(request.get("prompt", "")))
+    return Observation(
+        images=images, state=state, instruction=str(request.get("prompt", "")),
+        history=tuple({cam: frames[k] for cam, frames in history.items()} for k in range(steps)),
+    )  # fmt: skip
+
+
+def _image(value, unflip: bool) -> np.ndarray:
+    """One request image as uint8 HxWx3 (floats in [0, 1] scaled, CHW transposed), rotated back if ``unflip``."""
+    img = np.asarray(value)
+    if img.dtype != np.uint8:
+        img = (255 * img).astype(np.uint8) if np.issubdtype(img.dtype, np.floating) else img.astype(np.uint8)
+    if img.ndim == 3 and img.shape[0] == 3 and img.shape[-1] != 3:
+        img = np.transpose(img, (1, 2, 0))
+    return flip_180(img) if unflip else np.ascontiguousarray(img)
 
 
 class PolicyServer:

@@ -7,7 +7,8 @@ own environment, wraps the upstream inference behind openpi's websocket protocol
 (``policy_wrappers/serve.py``: metadata frame, openpi's LIBERO request keys, ``indgen/reset`` hints at episode
 starts). These clients are the openpi client with the families' client-side conventions (``LIBERO_UNIVLA``,
 ``LIBERO_RYNNVLA``: both cameras flipped at 256, nothing resized, the whole chunk executed); what the model does
-to its inputs and outputs (resize, prompt, history, de-normalisation, gripper) stays in the server script. At
+to its inputs and outputs (resize, prompt, history, de-normalisation, gripper) stays in the server script; the
+RynnVLA client declares ``history_steps=1``, so each request also carries the frames of the env step before it. At
 connect the client checks that the server serves its family and the chunk it expects, so a wrong server or a
 Spatial/Long RynnVLA checkpoint (10 actions per query) without ``?chunk=10`` is one line, not a silent mismatch.
 """
@@ -79,6 +80,7 @@ class UniVLAPolicy(ServedVLAPolicy):
 
 class RynnVLAPolicy(ServedVLAPolicy):
     family = "rynnvla"
+    history_steps = 1  # his_2: the frames of the env step before each query (the engine renders that step)
 
 
 OPTIONS = {"api_key": "api_key", **REMOTE_OPTIONS}  # ServedConfig field -> spec option (openpi's)

@@ -16,9 +16,11 @@ RynnVLA-002 (``rynnvla-002/eval_solver_libero_continous_w_state.py:val_libero``)
 previous frames go to ``libero_util/Chameleon_utils.py:get_action_Chameleon_dis_awm_ck_continous_action`` with
 ``his_2_third_view_wrist_w_state``; its chunk is de-normalised with ``Solver.unnorm_action_min_max`` (below:
 ``ACTION_MIN``/``ACTION_MAX``, gripper left continuous) and executed whole. Upstream's history frame is the one
-rendered one env step before the query; a client sees only the frames it is asked at, so ours is the previous
-*query's* frame (``time_horizon`` steps earlier). History is kept per connection (per simulator) and cleared
-at each episode start (the client's ``indgen/reset`` hint).
+rendered one env step before the query (none at an episode's first query); the ``rynnvla:`` client declares
+``history_steps=1``, so the engine renders that step and the request carries it (``indgen/history/...`` keys). A
+client that sends none (a plain openpi client) gets the previous *query's* frames instead (``time_horizon`` steps
+earlier; said once in the log): kept per connection (per simulator), cleared at each episode start (the
+client's ``indgen/reset`` hint).
 
 Examples (docs/policies.md has the full commands):
   cd UniVLA/reference/RoboVLMs && PYTHONPATH=../Emu3:eval/libero python /path/indgen-vla/scripts/serve/libero_vla.py \\
@@ -30,6 +32,8 @@ Examples (docs/policies.md has the full commands):
 from __future__ import annotations
 
 import argparse
+import functools
+import logging
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -39,7 +43,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this repository, for the protocol
 
 from indgen_vla.interface import Observation, PolicySpec  # noqa: E402
+from policy_wrappers.openpi import HISTORY_PREFIX  # noqa: E402
 from policy_wrappers.serve import PolicyServer  # noqa: E402
+
+log = logging.getLogger("libero_vla")
 
 CAMERAS = ("agentview", "wrist")
 RENDER = 256  # get_libero_env(task, resolution=256) in both evals
@@ -67,13 +74,14 @@ def server_spec(model: str, chunk: int, target: str) -> PolicySpec:
     )  # fmt: skip
 
 
-def _cameras(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-    missing = [c for c in CAMERAS if c not in obs.images]
+def _cameras(images: dict[str, np.ndarray], prefix: str = "") -> tuple[np.ndarray, np.ndarray]:
+    missing = [c for c in CAMERAS if c not in images]
     if missing:
         raise ValueError(
-            f"request lacks camera(s) {missing}; send observation/image and observation/wrist_image"
+            f"request lacks {'history ' if prefix else ''}camera(s) {missing}; send {prefix}observation/image and "
+            f"{prefix}observation/wrist_image"
         )
-    return obs.images["agentview"], obs.images["wrist"]
+    return images["agentview"], images["wrist"]
 
 
 class UniVLASession:
@@ -87,7 +95,7 @@ class UniVLASession:
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
         (obs,) = observations
-        full, wrist = _cameras(obs)
+        full, wrist = _cameras(obs.images)
         observation = {"full_image": full, "wrist_image": wrist, "state": np.asarray(obs.state, np.float64)}
         actions = np.asarray(self.model.step(observation, obs.instruction), dtype=np.float32)
         return actions[None]
@@ -97,10 +105,12 @@ class UniVLASession:
 
 
 class RynnVLASession:
-    """One simulator's RynnVLA-002 episode: the previous query's frames as history, de-normalised chunks.
+    """One simulator's RynnVLA-002 episode: the step-before frames as history, de-normalised chunks.
 
     ``infer(cur_img, cur_wrist, task, his_img, his_wrist, state)`` is the upstream call (PIL images, lists of
-    earlier PIL frames, the raw 8-d state) returning the normalised (T, >=7) chunk.
+    earlier PIL frames, the raw 8-d state) returning the normalised (T, >=7) chunk. The history is the
+    request's (the frames of the env step before the query) when it has one; otherwise, for clients that send
+    none, the previous query's frames (empty at an episode's first query, as upstream's).
     """
 
     def __init__(self, infer: Callable, spec: PolicySpec):
@@ -112,12 +122,16 @@ class RynnVLASession:
         self.his_img, self.his_wrist = [], []
 
     def act(self, observations: Sequence[Observation]) -> np.ndarray:
-        from PIL import Image
-
         (obs,) = observations
-        cur, wrist = (Image.fromarray(np.ascontiguousarray(img)) for img in _cameras(obs))
+        cur, wrist = (_pil(img) for img in _cameras(obs.images))
+        if obs.history:  # eval_solver_libero_continous_w_state.py:val_libero, his_img[-1:]: the step before
+            his_img, his_wrist = ([_pil(img)] for img in _cameras(obs.history[-1], HISTORY_PREFIX))
+        else:
+            his_img, his_wrist = self.his_img[-1:], self.his_wrist[-1:]
+            if his_img:
+                _warn_query_history()
         state = np.asarray(obs.state, dtype=np.float64)
-        out = self.infer(cur, wrist, obs.instruction, self.his_img[-1:], self.his_wrist[-1:], state)
+        out = self.infer(cur, wrist, obs.instruction, his_img, his_wrist, state)
         chunk = np.asarray(out.float().cpu().numpy() if hasattr(out, "cpu") else out, dtype=np.float64)
         if chunk.ndim != 2 or chunk.shape[0] != self.spec.chunk_size or chunk.shape[1] < 7:
             raise ValueError(
@@ -129,6 +143,21 @@ class RynnVLASession:
 
     def close(self) -> None:
         pass
+
+
+def _pil(image: np.ndarray):
+    from PIL import Image
+
+    return Image.fromarray(np.ascontiguousarray(image))
+
+
+@functools.cache
+def _warn_query_history() -> None:
+    """Say once per server that a client sends no history (upstream's is the step before, not the query before)."""
+    log.warning(
+        "a client sent no history frames: RynnVLA-002 gets the previous query's frames (time_horizon steps "
+        "earlier), not the previous env step's as upstream; use the rynnvla: client (history_steps=1)"
+    )
 
 
 def load_univla(args) -> Callable[[], UniVLASession]:
@@ -179,8 +208,6 @@ def load_univla(args) -> Callable[[], UniVLASession]:
 
 def load_rynnvla(args) -> Callable[[], RynnVLASession]:
     """Upstream's model class, ItemProcessor and continuous-action call, loaded as its LIBERO eval loads them."""
-    import functools
-
     import torch
     from data.pre_tokenize_action_state import ItemProcessor
     from libero_util.Chameleon_utils import get_action_Chameleon_dis_awm_ck_continous_action as get_action
@@ -236,6 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 0 <= args.port <= 65535:
         print(f"--port must be in 0..65535, got {args.port}", file=sys.stderr)
         return 2
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
     session = {"univla": load_univla, "rynnvla": load_rynnvla}[args.model](args)
     first = session()
     server = PolicyServer(

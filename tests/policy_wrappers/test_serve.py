@@ -183,3 +183,29 @@ def test_indgen_serve_cli_bad_spec_is_one_line():
         and out.stderr.strip().count("\n") == 0
         and "nothing after 'lerobot:'" in out.stderr
     )
+
+
+def test_history_travels_under_its_own_keys_only_when_present(obs_factory):
+    """``make_request`` sends ``Observation.history`` as ``indgen/history/<key>`` stacks, transformed like the
+    current images; ``observation_from_request`` reads it back in raw orientation; no history, no keys."""
+    import dataclasses
+
+    from policy_wrappers.openpi import HISTORY_PREFIX, make_request
+    from policy_wrappers.serve import observation_from_request
+    from policy_wrappers.transforms import Flip180, compose
+
+    now, before, earlier = obs_factory(1, size=16), obs_factory(2, size=16), obs_factory(3, size=16)
+    plain = make_request(now, compose(Flip180()))
+    assert not [k for k in plain if k.startswith("indgen/")]
+    assert observation_from_request(plain).history == ()
+    with_history = dataclasses.replace(now, history=(earlier.images, before.images))
+    request = make_request(with_history, compose(Flip180()))
+    stack = request[HISTORY_PREFIX + "observation/wrist_image"]
+    assert stack.shape == (2, 16, 16, 3) and np.array_equal(stack[1], flip_180(before.images["wrist"]))
+    got = observation_from_request(request)
+    assert [set(f) for f in got.history] == [{"agentview", "wrist"}] * 2
+    for frame, want in zip(got.history, (earlier, before), strict=True):
+        assert all(np.array_equal(frame[c], want.images[c]) for c in frame)
+    request[HISTORY_PREFIX + "observation/image"] = request[HISTORY_PREFIX + "observation/image"][:1]
+    with pytest.raises(ValueError, match=r"history stacks of different lengths \[1, 2\]"):
+        observation_from_request(request)

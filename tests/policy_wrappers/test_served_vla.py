@@ -106,9 +106,58 @@ def test_rynnvla_unnormalisation_is_the_eval_solvers_min_max():
     assert server_script.rynnvla_unnormalize(np.zeros((5, 9))).shape == (5, 7)  # dims past 7 dropped
 
 
-def test_rynnvla_history_state_and_episode_reset(obs_factory):
-    """``val_libero``: images flipped at 256 (``libero_utils.py:get_libero_image``), the raw 8-d state, and the
-    previous frames as history (empty at an episode's first query); ``his_2_third_view_wrist_w_state``."""
+def test_rynnvla_gets_the_step_before_each_query_from_the_engine():
+    """``val_libero`` appends each policy step's frames to ``his_img`` and ``Chameleon_utils.py`` takes
+    ``his_img[-1:]``: the frames of the env step just before the query, none at the first. The ``rynnvla:`` client
+    declares ``history_steps=1``, the engine renders that step, the request carries it (flipped like the current
+    frames) and the server hands it to the model: not the previous query's frames, 5 steps earlier."""
+    from indgen_vla.engine.rollout import EnvRunner, RunnerConfig
+    from indgen_vla.interface import validate_chunk
+    from indgen_vla.plan import EpisodeJob
+    from scenes.planning import scene_levels
+
+    calls, sent = [], []
+
+    def infer(cur, wrist, task, his_img, his_wrist, state):
+        calls.append(([np.asarray(h) for h in his_img], [np.asarray(h) for h in his_wrist]))
+        return np.tile([0.9, 0.2, -0.3, 0.0, 0.0, 0.0, -1.0], (5, 1))  # moves the arm: frames differ
+
+    levels = scene_levels("pick_place", ["pick_y"])
+    with serving(rynnvla_session(infer)) as port:
+        policy = load_policy(f"rynnvla:ws://127.0.0.1:{port}")
+        assert policy.spec.history_steps == 1
+        rc = RunnerConfig(levels=levels, cameras=policy.spec.cameras, image_size=(32, 32), max_steps=15,
+                          privileged=False, history_steps=policy.spec.history_steps)  # fmt: skip
+        runner = EnvRunner(rc)
+        try:
+            t = runner.reset(EpisodeJob(_first_task(), "pick_y", 0, 0, seed=5, param=0.0))
+            policy.reset(t.obs.instruction, seed=5)
+            while not t.done:
+                sent.append(t.obs)
+                chunk = validate_chunk(policy.act([t.obs]), 1, "rynnvla")
+                t = runner.execute(chunk[0])
+        finally:
+            runner.close()
+            policy.close()
+    assert [len(h) for h, _ in calls] == [0, 1, 1] and [o.history for o in sent[:1]] == [()]
+    for (his, his_wrist), obs, previous in zip(calls[1:], sent[1:], sent[:-1], strict=True):
+        (before,) = obs.history  # the engine's step t-1 (tests/indgen_vla/test_engine_history.py checks it)
+        assert np.array_equal(his[0], before["agentview"][::-1, ::-1])
+        assert np.array_equal(his_wrist[0], before["wrist"][::-1, ::-1])
+        # not the previous query's frames (what the server used before)
+        assert not np.array_equal(his[0], previous.images["agentview"][::-1, ::-1])
+
+
+def _first_task() -> str:
+    import scenes
+
+    return list(scenes.tasks("pick_place"))[0]
+
+
+def test_rynnvla_history_state_and_episode_reset(obs_factory, caplog):
+    """``val_libero``: images flipped at 256 (``libero_utils.py:get_libero_image``), the raw 8-d state, and
+    ``his_2_third_view_wrist_w_state``. A client that sends no history (observations without any) gets the
+    previous query's frames instead (empty at an episode's first query), said once in the server's log."""
     calls = []
     norm = np.tile(np.array([0.0, 0.5, -0.5, 1.0, -1.0, 0.25, 0.9]), (5, 1))
 
@@ -118,12 +167,14 @@ def test_rynnvla_history_state_and_episode_reset(obs_factory):
         )
         return norm
 
-    with serving(rynnvla_session(infer)) as port:
+    server_script._warn_query_history.cache_clear()  # once per server process: another test may have said it
+    with caplog.at_level("WARNING", logger="libero_vla"), serving(rynnvla_session(infer)) as port:
         policy = load_policy(f"rynnvla:ws://127.0.0.1:{port}")
         assert (policy.spec.chunk_size, policy.spec.replan_steps) == (5, 5)
         first, second = obs_factory(1), obs_factory(2)
         policy.reset(first.instruction, seed=0)
         chunk = policy.act([first])
+        policy.act([second])
         policy.act([second])
         policy.reset(first.instruction, seed=1)  # same task, next episode: history must not leak
         policy.act([first])
@@ -134,8 +185,10 @@ def test_rynnvla_history_state_and_episode_reset(obs_factory):
     assert his == [] and his_wrist == [] and state.dtype == np.float64 and np.allclose(state, first.state)
     assert len(calls[1][3]) == 1 and np.array_equal(calls[1][3][0], cur)  # the previous query's frames
     assert np.array_equal(np.asarray(calls[1][4][0]), wrist)
-    assert calls[2][3] == []
+    assert calls[3][3] == []
     assert np.allclose(chunk[0], server_script.rynnvla_unnormalize(norm))
+    fallback = [r for r in caplog.records if "sent no history frames" in r.getMessage()]
+    assert len(fallback) == 1  # once, not at every query
 
 
 def test_rynnvla_history_is_per_connection(obs_factory):
