@@ -14,6 +14,7 @@ from indgen_vla.interface import Observation, PolicySpec, ScenePreview
 from indgen_vla.plan import EpisodeJob
 from scenes.planning import scene_levels
 from tests.fixtures.feedback import feedback_policy_class
+from tests.fixtures.renders import count_renders
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -106,16 +107,7 @@ class _SeesHistory:
 def test_history_renders_only_when_asked_and_changes_no_outcome(monkeypatch):
     """The extra render does not step the simulator: the same states, actions and records with and without it; a
     policy without history gets none and one render per query, one with history one more per query."""
-    from scenes.env import SceneEnv
-
-    renders = Counter()
-    real = SceneEnv._render
-
-    def counted(self, camera, size):
-        renders["n"] += 1
-        return real(self, camera, size)
-
-    monkeypatch.setattr(SceneEnv, "_render", counted)
+    renders = count_renders(monkeypatch)
     c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
     jobs = plan_episodes(c, [_task()], {"pick_y": [0]}, {(_task(), "pick_y", 0): 0.0})
     runs = {}

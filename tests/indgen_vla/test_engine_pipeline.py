@@ -12,6 +12,7 @@ from indgen_vla.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.interface import PolicySpec
 from scenes.planning import scene_levels
 from tests.fixtures.feedback import feedback_policy_class
+from tests.fixtures.renders import count_renders
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -119,16 +120,7 @@ def test_lazy_render_reads_the_same_observations(monkeypatch):
     """Skipping the renders nobody reads (all but a chunk slice's last step) changes no observation the policy
     sees, no action and no record; it renders once per slice instead of once per step."""
 
-    from scenes.env import SceneEnv
-
-    calls = Counter()
-    real = SceneEnv._render
-
-    def counted(self, camera, size):
-        calls["n"] += 1
-        return real(self, camera, size)
-
-    monkeypatch.setattr(SceneEnv, "_render", counted)
+    calls = count_renders(monkeypatch)
     logs = {}
     for lazy in (False, True):
         log, records = Counter(), []
