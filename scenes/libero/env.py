@@ -311,7 +311,10 @@ class LiberoSceneEnv(BaseSceneEnv):
         raw = self._env.set_init_state(self._level_state(self.init_index))
         if self.spec.pick.scale != 1.0:
             raw = self._env.set_init_state(self._rest_scaled_pick(self._level_state(self.init_index)))
-        for _ in range(NUM_STEPS_WAIT):
+        for i in range(NUM_STEPS_WAIT):
+            # only the last settle step's frames are read: the earlier ones stay held, and a lazy step that ended
+            # the previous episode (``step(observe=False)``) must not leave the reset's frames held (stale)
+            self._observing = i == NUM_STEPS_WAIT - 1
             raw = self._sim_step(DUMMY_ACTION)
         for robot in self._env.robots:
             robot.controller.use_delta = True

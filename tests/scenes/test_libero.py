@@ -256,3 +256,22 @@ def test_level_0_of_axes_with_one_key_is_one_environment(mini):
     finally:
         for e in envs:
             e.close()
+
+
+def test_reset_after_an_episode_that_ended_on_a_lazy_step_sees_fresh_frames(mini):
+    """An episode that ends on a step nobody observed (``observe=False``) must not leave the next reset's cameras
+    held: the first observation of episode i is the same whatever ran on the env before (seen: stale frames,
+    pixel differences up to 101, before the fix)."""
+    kw = dict(cameras=("agentview",), image_size=(64, 64))
+    fresh, used = _env(**kw), _env(**kw)
+    try:
+        want, _ = fresh.reset(seed=3, options={"episode": 2})
+        used.reset(seed=5, options={"episode": 4})
+        for _ in range(3):
+            used.step(np.array([0.3, 0, 0, 0, 0, 0, -1.0]), observe=False)
+        got, _ = used.reset(seed=3, options={"episode": 2})
+        np.testing.assert_allclose(got.state, want.state, atol=1e-7)
+        np.testing.assert_array_equal(got.images["agentview"], want.images["agentview"])
+    finally:
+        fresh.close()
+        used.close()
