@@ -49,13 +49,14 @@ class CpuMeter:
         self.main_s, self.workers_s = time.process_time() - self._t0, sum(self._seen.values())
 
 
-def runner_config(scene: str, cameras, hw, max_steps: int):
-    """The RunnerConfig of the GPU-era parts below (one place to adapt when RunnerConfig changes)."""
+def runner_config(scene: str, cameras, hw, max_steps: int, history_steps: int = 0):
+    """The RunnerConfig of the GPU-era parts below (one place to adapt when RunnerConfig changes); a policy that
+    reads earlier steps' frames (``PolicySpec.history_steps``) gets them rendered, as ``evaluate`` does."""
     from indgen_vla.engine.rollout import RunnerConfig
     from scenes.planning import scene_levels
 
     return RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
-                        max_steps=max_steps, privileged=False)  # fmt: skip
+                        max_steps=max_steps, privileged=False, history_steps=history_steps)  # fmt: skip
 
 
 def level0_jobs(scene: str, episodes: int) -> tuple[str, list]:
@@ -240,9 +241,9 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
     cams = tuple(policy.spec.cameras) or tuple(cameras)
     hw = tuple(policy.spec.image_size or (size, size))
-    replan = policy.spec.replan_steps
+    replan, hist = policy.spec.replan_steps, policy.spec.history_steps
     meta = RunMeta("bench", spec_str, "", scene)
-    run_local(jobs[:2], runner_config(scene, cams, hw, 2), lambda: policy, meta, lambda r: None, workers=2,
+    run_local(jobs[:2], runner_config(scene, cams, hw, 2, hist), lambda: policy, meta, lambda r: None, workers=2,
               replan_steps=replan, close_policies=False)  # warm-up: fork server, kernels  # fmt: skip
     out: dict = {"scaling_policy": spec_str, "scaling_cameras": list(cams), "scaling_image": hw[0],
                  "scaling_episodes": len(jobs), "scaling_max_steps": max_steps, "replan": replan,
@@ -253,13 +254,13 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
         envs = w * (LANES if pipeline else 1)
         t0 = time.perf_counter()
         with CpuMeter() as start_meter, Pinner(pin):
-            run_local(jobs[:envs], runner_config(scene, cams, hw, 1), lambda: policy, meta, lambda r: None,
+            run_local(jobs[:envs], runner_config(scene, cams, hw, 1, hist), lambda: policy, meta, lambda r: None,
                       workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline)  # fmt: skip
         start_s = time.perf_counter() - t0
         records: list = []
         t0 = time.perf_counter()
         with CpuMeter() as meter, GpuBusy() as busy, Pinner(pin):
-            run_local(jobs, runner_config(scene, cams, hw, max_steps), lambda: policy, meta, records.append,
+            run_local(jobs, runner_config(scene, cams, hw, max_steps, hist), lambda: policy, meta, records.append,
                       workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline)  # fmt: skip
         wall = time.perf_counter() - t0
         steps = sum(r.steps for r in records)

@@ -63,8 +63,9 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
 
             inner.predict_action_chunk = timed
         cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
-        rc, meta = runner_config(scene, cams, hw, max_steps), RunMeta("bench", spec_str, "", scene)
-        run_local(jobs[:workers], runner_config(scene, cams, hw, 1), lambda: policy, meta, lambda r: None,
+        hist = policy.spec.history_steps
+        rc, meta = runner_config(scene, cams, hw, max_steps, hist), RunMeta("bench", spec_str, "", scene)
+        run_local(jobs[:workers], runner_config(scene, cams, hw, 1, hist), lambda: policy, meta, lambda r: None,
                   workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False)  # warm-up  # fmt: skip
         out: dict = {"profile_policy": spec_str if "tmp" not in spec_str else f"lerobot ACT (tiny), 2 cameras {hw[0]}px",
                      "profile_workers": workers, "profile_episodes": len(jobs), "profile_max_steps": max_steps,
