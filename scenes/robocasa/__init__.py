@@ -163,8 +163,10 @@ def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
     ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else where to push
-    that part (``press_point``: ``place_xy`` and ``grasp_z``).
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); with no ``goal``,
+    ``target`` is where a put-down task sets the object (``place_pos``: ``place_xy``, ``place_bottom``; ``clear_z``
+    the higher of that and the object's bottom), else where to push that part (``press_point``: ``place_xy`` and
+    ``grasp_z``).
     """
     import numpy as np
 
@@ -188,6 +190,10 @@ def privileged_state(raw: dict):
         facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
         if raw.get("counter_top") is not None:  # cabinet to counter: out of the cabinet, onto the counter
             target, facts = unload_target(raw, pick, c)
+    elif "place_pos" in raw:  # put down on a surface or into an open drawer (worker_facts.place_facts)
+        place = f64(raw["place_pos"])
+        target = Targets(place[:2].copy(), float(place[2]), max(float(place[2]), pick.bottom), float(pick.pos[2]),
+                         floor_z=float(place[2]))  # fmt: skip
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

@@ -25,6 +25,7 @@ from scenes.privileged import PrivilegedState, privileged_of
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
+CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
@@ -57,6 +58,7 @@ class RoboCasaOracle:
         self._offset = 0.0  # grip site above the object's bottom, measured at the grasp
         self._hold: np.ndarray | None = None
         self._clear: np.ndarray | None = None
+        self._carry_z: float | None = None  # the carry script's height for the object's bottom
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
         self._tilt = PRESS_TILT  # the press's hand tilt: raised while the approach stalls short of its target
@@ -147,6 +149,8 @@ class RoboCasaOracle:
             return self._press(s)
         if s.facts.fixture_centre is not None:
             return self._unload(s)
+        if s.goal is None:
+            return self._carry(s)
         return self._pick_place(s)
 
     # ---- stand mixer: push the head down --------------------------------------------------------
@@ -219,20 +223,7 @@ class RoboCasaOracle:
             if self._near(s, target, 0.015) or self._count > 40:
                 self._next("release")
             return self._goto(s, target, CLOSED, speed=0.3, tilt=TILT)
-        if self.phase == "release":
-            if self._hold_release is None or self._count == 1:
-                self._hold_release = s.eef_pos.copy()
-            if self._count > 12:
-                self._next("rise")
-            return self._goto(s, self._hold_release, OPEN, tilt=TILT)
-        up = self._hold_release + np.array([0.0, 0.0, 0.025])
-        if self.phase == "rise":  # fingers up off the object first: backing out low drags it along
-            if self._near(s, up, 0.008) or self._count > 20:
-                self._next("retreat")
-            return self._goto(s, up, OPEN, speed=0.3, tilt=TILT)
-        return self._goto(
-            s, up - fwd * 0.4, OPEN, speed=0.5, tilt=TILT
-        )  # back out, past gripper_obj_far's 0.25 m
+        return self._let_go(s, TILT, rise=0.025, tol=0.008, limit=20)
 
     # ---- out of a cabinet, onto the counter below ------------------------------------------------
     def _unload(self, s: PrivilegedState) -> np.ndarray:
@@ -277,15 +268,70 @@ class RoboCasaOracle:
                 self._next("release")
             # out of the cabinet: the hand straightens (a tipped hand this close to the base hits a joint limit)
             return self._goto(s, target, CLOSED, speed=0.5, tilt=max(0.0, TILT - 0.03 * self._count))
+        return self._let_go(s, 0.0, rise=0.06, tol=0.01, limit=25, back_up=0.05)
+
+    # ---- release, rise, back out (every pick-and-place script) ----------------------------------
+    def _let_go(
+        self, s: PrivilegedState, tilt: float, rise: float, tol: float, limit: int, back_up: float = 0.0
+    ) -> np.ndarray:
+        """Open where the hand stopped, rise ``rise`` straight up (fingers off the object first: backing out low
+        drags it along), then back 0.4 m away from the base's heading (past ``gripper_obj_far``'s 0.25 m),
+        ``back_up`` higher."""
+        yaw = float(s.robot_base[2])
+        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         if self.phase == "release":
             if self._hold_release is None or self._count == 1:
                 self._hold_release = s.eef_pos.copy()
             if self._count > 12:
                 self._next("rise")
-            return self._goto(s, self._hold_release, OPEN)
-        up = self._hold_release + np.array([0.0, 0.0, 0.06])
+            return self._goto(s, self._hold_release, OPEN, tilt=tilt)
+        up = self._hold_release + np.array([0.0, 0.0, rise])
         if self.phase == "rise":
-            if self._near(s, up, 0.01) or self._count > 25:
+            if self._near(s, up, tol) or self._count > limit:
                 self._next("retreat")
-            return self._goto(s, up, OPEN, speed=0.3)
-        return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, 0.05]), OPEN, speed=0.5)
+            return self._goto(s, up, OPEN, speed=0.3, tilt=tilt)
+        return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, back_up]), OPEN, speed=0.5, tilt=tilt)
+
+    # ---- onto a surface or into an open drawer (sink to counter, coffee machine, drawer) ---------
+    def _carry(self, s: PrivilegedState) -> np.ndarray:
+        """Hand pointing down: over the object, down, grasp, up until its bottom clears both surfaces by
+        ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``
+        high enough to clear a drawer's walls."""
+        p, t = s.pick, s.target
+        if (
+            self._carry_z is None
+        ):  # fixed before the grasp: the object's bottom (clear_z's part) rises with it
+            self._carry_z = t.clear_z + CLEARANCE
+        carry_z = self._carry_z + self._offset
+        if self.phase == "approach":
+            target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
+            if self._near(s, target, 0.015) or self._count > 120:
+                self._next("descend")
+            return self._goto(s, target, OPEN)
+        if self.phase == "descend":
+            return self._descend(s, p, 0.0)
+        if self.phase == "grasp":
+            a, closed = self._grasp(s, p, 0.0)
+            if closed:
+                self._next("lift")
+            return a
+        if self.phase == "lift":
+            target = np.array([self._hold[0], self._hold[1], carry_z])
+            if self._near(s, target, 0.02) or self._count > 80:
+                self._next("transport")
+            return self._goto(s, target, CLOSED)
+        if self.phase == "transport":
+            target = np.array([*t.place_xy, carry_z])
+            if (
+                np.linalg.norm(target - s.eef_pos) < 0.012
+                or (self._near(s, target) and self._count > 60)
+                or self._count > 150
+            ):
+                self._next("lower")
+            return self._goto(s, target, CLOSED, speed=0.6)
+        if self.phase == "lower":  # the stall (the object resting on the surface) ends it
+            target = np.array([*t.place_xy, t.place_bottom + 0.005 + self._offset])
+            if (self._near(s, target, 0.01) and self._count > 10) or self._count > 100:
+                self._next("release")
+            return self._goto(s, target, CLOSED, speed=0.3)
+        return self._let_go(s, 0.0, rise=0.2, tol=0.015, limit=60, back_up=0.05)

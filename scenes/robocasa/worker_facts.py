@@ -111,7 +111,9 @@ def check_kitchen(config: dict) -> None:
 
 def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
-    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
+    return {
+        **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
+    }  # fmt: skip
 
 
 def fixture_part_facts(env) -> dict:
@@ -140,3 +142,48 @@ def unload_facts(env, task: str) -> dict:
     if task != "PickPlaceCabinetToCounter" or counter is None:
         return {}
     return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
+
+
+COFFEE_SHIFT = 0.03  # m the mug goes down in front of the pour site (under the 0.04 m of RoboCasa's xy check)
+
+
+def place_facts(env, task: str) -> dict:
+    """Where a put-down task wants the pick object (``scenes.robocasa.oracle``'s carry script): ``place_pos``, the
+    world point its bottom goes to. On the sink-to-counter container's top; under the coffee machine's pour site
+    (``receptacle_place_site``), moved ``COFFEE_SHIFT`` toward the machine's front; into an open drawer, on its
+    floor at the middle of the part pulled out (``drawer_open``: how far); empty for the other tasks."""
+    data, model = env.sim.data, env.sim.model
+    if task == "PickPlaceSinkToCounter" and "container" in env.objects:
+        pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
+        return {"place_pos": pos + np.array([0.0, 0.0, env.objects["container"].top_offset[2]])}
+    if task == "CoffeeSetupMug":
+        site = model.site_name2id(f"{env.coffee_machine.naming_prefix}receptacle_place_site")
+        front = -np.array(data.site_xmat[site]).reshape(3, 3)[:2, 1]  # the machine's front: its -y
+        xy = np.array(data.site_xpos[site][:2]) + COFFEE_SHIFT * front / np.linalg.norm(front)
+        return {"place_pos": np.array([*xy, env.counter.pos[2] + env.counter.size[2] / 2])}
+    if task == "PickPlaceCounterToDrawer":
+        return drawer_facts(env)
+    return {}
+
+
+def drawer_facts(env) -> dict:
+    """The open drawer's floor point at the middle of its part pulled out from under the counter (RoboCasa opens
+    it in ``_setup_scene``): the interior's side nearest the robot base, half the opening back from it."""
+    data, drawer = env.sim.data, env.drawer
+    p0, px, py, _ = (
+        np.asarray(v, dtype=np.float64) for v in next(iter(drawer.get_int_sites(relative=False).values()))
+    )
+    joints = [j for j in env.sim.model.joint_names if j.startswith(drawer.naming_prefix) and "slide" in j]
+    opened = abs(float(data.get_joint_qpos(joints[0]))) if joints else 0.0
+    base = np.array(data.get_body_xpos("mobilebase0_base"))[:2]
+    corners = [p0[:2], px[:2], py[:2], (px + py - p0)[:2]]
+    centre = sum(corners) / 4
+    out = (
+        centre - base
+    )  # the drawer's own axis (an interior edge) nearest the base-to-drawer line, away from it
+    fwd = max(((px - p0)[:2], (py - p0)[:2]), key=lambda e: abs(np.dot(e, out)) / np.linalg.norm(e))
+    fwd = fwd * np.sign(np.dot(fwd, out)) / np.linalg.norm(fwd)
+    near = min(float(np.dot(c, fwd)) for c in corners)
+    depth = max(float(np.dot(c, fwd)) for c in corners) - near
+    xy = centre + fwd * (near + min(opened, depth) / 2 - float(np.dot(centre, fwd)))
+    return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened}
