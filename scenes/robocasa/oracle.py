@@ -4,11 +4,13 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Three scripts (``tasks``; certify refuses the others): counter to cabinet (lift to the
-cabinet floor, slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over
-the object at the cabinet's mouth, grasp, pull out, lower onto the counter) and the stand mixer's head (pushed down
-at its free end, the hand tipped further while the reach falls short). Fingers close across the object's narrower
-side. Deterministic given the episode; one instance per environment.
+control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
+pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
+also run, never certified, on CoffeeSetupMug and PickPlaceCounterToDrawer, which it does not solve on placeholder
+assets) and the stand mixer's head (pushed down at its free end, the hand tipped further while the reach falls
+short). ``tasks`` lists those certify may certify; it refuses the others. Fingers close across the object's
+narrower side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -42,11 +44,12 @@ class RoboCasaOracle:
 
     spec = oracle_spec(ACTION_DIM)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
+    # (TurnOnElectricKettle's switch push was tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
+        "PickPlaceSinkToCounter",
         "CloseStandMixerHead",
-        "TurnOnElectricKettle",
     )
 
     def __init__(self, gain: float = 10.0):
