@@ -7,8 +7,8 @@ base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's 
 control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
-also run, never certified, on CoffeeSetupMug and PickPlaceCounterToDrawer, which it does not solve on placeholder
-assets) and the stand mixer's head (pushed down at its free end, the hand tipped further while the reach falls
+counter to drawer: into the open drawer's uncovered part; also run, never certified, on CoffeeSetupMug, which it
+does not solve on placeholder assets) and the stand mixer's head (pushed down at its free end, the hand tipped further while the reach falls
 short). ``tasks`` lists those certify may certify; it refuses the others. Fingers close across the object's
 narrower side. Deterministic given the episode; one instance per environment.
 """
@@ -49,6 +49,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
         "PickPlaceSinkToCounter",
+        "PickPlaceCounterToDrawer",
         "CloseStandMixerHead",
     )
 

@@ -167,23 +167,50 @@ def place_facts(env, task: str) -> dict:
 
 
 def drawer_facts(env) -> dict:
-    """The open drawer's floor point at the middle of its part pulled out from under the counter (RoboCasa opens
-    it in ``_setup_scene``): the interior's side nearest the robot base, half the opening back from it."""
+    """The open drawer's floor point at the middle of its uncovered part (RoboCasa opens it in ``_setup_scene``):
+    from the interior's front back to where the opening ends or a counter top above it begins (an island's top
+    overhangs its cabinets by ~15 cm), whichever is nearer; ``drawer_gap``: that width."""
     data, drawer = env.sim.data, env.drawer
-    p0, px, py, _ = (
+    p0, px, py, pz = (
         np.asarray(v, dtype=np.float64) for v in next(iter(drawer.get_int_sites(relative=False).values()))
     )
     joints = [j for j in env.sim.model.joint_names if j.startswith(drawer.naming_prefix) and "slide" in j]
     opened = abs(float(data.get_joint_qpos(joints[0]))) if joints else 0.0
-    base = np.array(data.get_body_xpos("mobilebase0_base"))[:2]
     corners = [p0[:2], px[:2], py[:2], (px + py - p0)[:2]]
     centre = sum(corners) / 4
-    out = (
-        centre - base
-    )  # the drawer's own axis (an interior edge) nearest the base-to-drawer line, away from it
-    fwd = max(((px - p0)[:2], (py - p0)[:2]), key=lambda e: abs(np.dot(e, out)) / np.linalg.norm(e))
-    fwd = fwd * np.sign(np.dot(fwd, out)) / np.linalg.norm(fwd)
+    # into the drawer from its front: the fixture's +y (RoboCasa's fixtures face their -y; it slides out along it)
+    fwd = np.asarray(data.get_body_xmat(f"{drawer.naming_prefix}main")).reshape(3, 3)[:2, 1]
+    fwd = fwd / np.linalg.norm(fwd)
     near = min(float(np.dot(c, fwd)) for c in corners)
-    depth = max(float(np.dot(c, fwd)) for c in corners) - near
-    xy = centre + fwd * (near + min(opened, depth) / 2 - float(np.dot(centre, fwd)))
-    return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened}
+    end = min(
+        near + opened,
+        max(float(np.dot(c, fwd)) for c in corners),
+        _covered_from(env, pz[2], centre, fwd, near),
+    )
+    xy = centre + fwd * ((near + end) / 2 - float(np.dot(centre, fwd)))
+    return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened, "drawer_gap": max(0.0, end - near)}
+
+
+def _covered_from(env, z: float, centre, fwd, near: float) -> float:
+    """Where, along ``fwd`` and past ``near``, the first collision box (not the robot's, the drawer's or an
+    object's) within 15 cm above height ``z`` begins over the line through ``centre`` (inf when none): the counter
+    top a drawer slides out from under."""
+    data, model = env.sim.data, env.sim.model
+    side = np.array([-fwd[1], fwd[0]])
+    skip = ("robot0", "mobilebase0", "gripper0", env.drawer.naming_prefix, *env.objects)
+    start = np.inf
+    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
+        if (model.geom_id2name(g) or "").startswith(skip):
+            continue
+        half = (
+            np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
+        )  # world AABB half sizes
+        pos = data.geom_xpos[g]
+        if not (z - 0.01 < pos[2] - half[2] < z + 0.15):
+            continue
+        if abs(float(np.dot(pos[:2] - centre, side))) > float(np.abs(side) @ half[:2]):
+            continue  # not over the line through the drawer's centre
+        along, reach = float(np.dot(pos[:2], fwd)), float(np.abs(fwd) @ half[:2])
+        if along + reach > near:  # over the drawer's span, not behind the robot
+            start = min(start, max(near, along - reach))
+    return start
