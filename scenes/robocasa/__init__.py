@@ -163,10 +163,10 @@ def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
     ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); with no ``goal``,
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); with ``place_pos``,
     ``target`` is where a put-down task sets the object (``place_pos``: ``place_xy``, ``place_bottom``; ``clear_z``
-    the higher of that and the object's bottom), else where to push that part (``press_point``: ``place_xy`` and
-    ``grasp_z``).
+    the higher of that and the object's bottom; ``goal.top``, where given, the underside of what hangs over it),
+    else where to push that part (``press_point``: ``place_xy`` and ``grasp_z``).
     """
     import numpy as np
 
@@ -194,6 +194,10 @@ def privileged_state(raw: dict):
         place = f64(raw["place_pos"])
         target = Targets(place[:2].copy(), float(place[2]), max(float(place[2]), pick.bottom), float(pick.pos[2]),
                          floor_z=float(place[2]))  # fmt: skip
+        if (
+            raw.get("place_ceiling") is not None
+        ):  # something hangs over the place point (the coffee machine's)
+            goal = GoalState(place, f64([1.0, 0, 0, 0]), float(raw["place_ceiling"]))
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

@@ -149,9 +149,10 @@ COFFEE_SHIFT = 0.03  # m the mug goes down in front of the pour site (under the 
 
 def place_facts(env, task: str) -> dict:
     """Where a put-down task wants the pick object (``scenes.robocasa.oracle``'s carry script): ``place_pos``, the
-    world point its bottom goes to. On the sink-to-counter container's top; under the coffee machine's pour site
-    (``receptacle_place_site``), moved ``COFFEE_SHIFT`` toward the machine's front; into an open drawer, on its
-    floor at the middle of the part pulled out (``drawer_open``: how far); empty for the other tasks."""
+    world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
+    On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
+    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); empty for
+    the other tasks."""
     data, model = env.sim.data, env.sim.model
     if task == "PickPlaceSinkToCounter" and "container" in env.objects:
         pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
@@ -160,7 +161,8 @@ def place_facts(env, task: str) -> dict:
         site = model.site_name2id(f"{env.coffee_machine.naming_prefix}receptacle_place_site")
         front = -np.array(data.site_xmat[site]).reshape(3, 3)[:2, 1]  # the machine's front: its -y
         xy = np.array(data.site_xpos[site][:2]) + COFFEE_SHIFT * front / np.linalg.norm(front)
-        return {"place_pos": np.array([*xy, env.counter.pos[2] + env.counter.size[2] / 2])}
+        z = env.counter.pos[2] + env.counter.size[2] / 2
+        return {"place_pos": np.array([*xy, z]), "place_ceiling": _ceiling(env, xy, z)}
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
     return {}
@@ -191,21 +193,31 @@ def drawer_facts(env) -> dict:
     return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened, "drawer_gap": max(0.0, end - near)}
 
 
+def _boxes(env, skip=()):
+    """Each collision box of the scene not of the robot, an object or a name in ``skip``: (centre, world AABB
+    half sizes)."""
+    data, model = env.sim.data, env.sim.model
+    skip = ("robot0", "mobilebase0", "gripper0", *env.objects, *skip)
+    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
+        if not (model.geom_id2name(g) or "").startswith(skip):
+            yield data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
+
+
+def _ceiling(env, xy, z: float, reach: float = 0.05) -> float | None:
+    """The underside of the lowest collision box hanging over ``xy`` (within ``reach``: the hand's half width) above
+    height ``z`` + 2 cm: the coffee machine's spout or button over its pour site; None when nothing is."""
+    under = [pos[2] - half[2] for pos, half in _boxes(env)
+             if np.all(np.abs(pos[:2] - xy) <= half[:2] + reach) and pos[2] - half[2] > z + 0.02]  # fmt: skip
+    return float(min(under)) if under else None
+
+
 def _covered_from(env, z: float, centre, fwd, near: float) -> float:
     """Where, along ``fwd`` and past ``near``, the first collision box (not the robot's, the drawer's or an
     object's) within 15 cm above height ``z`` begins over the line through ``centre`` (inf when none): the counter
     top a drawer slides out from under."""
-    data, model = env.sim.data, env.sim.model
     side = np.array([-fwd[1], fwd[0]])
-    skip = ("robot0", "mobilebase0", "gripper0", env.drawer.naming_prefix, *env.objects)
     start = np.inf
-    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
-        if (model.geom_id2name(g) or "").startswith(skip):
-            continue
-        half = (
-            np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
-        )  # world AABB half sizes
-        pos = data.geom_xpos[g]
+    for pos, half in _boxes(env, (env.drawer.naming_prefix,)):
         if not (z - 0.01 < pos[2] - half[2] < z + 0.15):
             continue
         if abs(float(np.dot(pos[:2] - centre, side))) > float(np.abs(side) @ half[:2]):

@@ -30,6 +30,8 @@ def test_place_pos_is_the_carry_target():
     assert np.allclose(s.target.place_xy, [0.4, -0.5])
     assert (s.target.place_bottom, s.target.floor_z) == (1.03, 1.03)
     assert s.target.clear_z == 1.03  # the higher of the container's top and the object's bottom (0.87)
+    covered = privileged_state({**_raw(), "place_ceiling": 1.2})  # the coffee machine's button over its pour site
+    assert covered.goal.top == 1.2 and np.allclose(covered.goal.pos, [0.4, -0.5, 1.03])
 
 
 def test_the_carry_height_is_fixed_before_the_object_rises():
