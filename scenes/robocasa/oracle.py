@@ -7,10 +7,10 @@ base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's 
 control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
-counter to drawer: into the open drawer's uncovered part; also run, never certified, on CoffeeSetupMug, which it
-does not solve on placeholder assets) and the stand mixer's head (pushed down at its free end, the hand tipped further while the reach falls
-short). ``tasks`` lists those certify may certify; it refuses the others. Fingers close across the object's
-narrower side. Deterministic given the episode; one instance per environment.
+counter to drawer: into the open drawer's uncovered part; also run, not listed, on CoffeeSetupMug, which it solves
+only half the time on placeholder assets) and the stand mixer's head (pushed down at its free end, the hand tipped
+further while the reach falls short). ``tasks`` lists the tasks certify may certify; it refuses the others. Fingers
+close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -306,9 +306,7 @@ class RoboCasaOracle:
         ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``
         high enough to clear a drawer's walls."""
         p, t = s.pick, s.target
-        if (
-            self._carry_z is None
-        ):  # fixed first: the object's bottom (part of clear_z) rises with it once held
+        if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
             self._carry_z = t.clear_z + CLEARANCE
         carry_z = self._carry_z + self._offset
         # something low over the place point (the coffee machine's button): once grasped, the hand tips toward it
