@@ -163,8 +163,9 @@ def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
     ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling), else where to push
-    that part (``press_point``: ``place_xy`` and ``grasp_z``).
+    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); a put-down task's
+    ``place_pos`` is ``target`` (``clear_z``: the higher of it and the object's bottom; ``goal.top``: the underside
+    of what hangs over it, if anything), else ``target`` is where to push that part (``press_point``).
     """
     import numpy as np
 
@@ -188,6 +189,11 @@ def privileged_state(raw: dict):
         facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
         if raw.get("counter_top") is not None:  # cabinet to counter: out of the cabinet, onto the counter
             target, facts = unload_target(raw, pick, c)
+    elif "place_pos" in raw:  # put down on a surface or into an open drawer (worker_facts.place_facts)
+        place, ceiling = f64(raw["place_pos"]), raw.get("place_ceiling")  # ceiling: what hangs over it
+        target = Targets(place[:2].copy(), float(place[2]), max(float(place[2]), pick.bottom), float(pick.pos[2]),
+                         floor_z=float(place[2]))  # fmt: skip
+        goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

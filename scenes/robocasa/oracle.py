@@ -4,11 +4,13 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Three scripts (``tasks``; certify refuses the others): counter to cabinet (lift to the
-cabinet floor, slide in, set down, release, back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over
-the object at the cabinet's mouth, grasp, pull out, lower onto the counter) and the stand mixer's head (pushed down
-at its free end, the hand tipped further while the reach falls short). Fingers close across the object's narrower
-side. Deterministic given the episode; one instance per environment.
+control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
+pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
+counter to drawer: into the open drawer's uncovered part; also run, not listed, on CoffeeSetupMug, which it solves
+only half the time on placeholder assets) and the stand mixer's head (pushed down at its free end, the hand tipped
+further while the reach falls short). ``tasks`` lists the tasks certify may certify; it refuses the others. Fingers
+close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -25,10 +27,15 @@ from scenes.privileged import PrivilegedState, privileged_of
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
+CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
+HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
 MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
+# radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
+# coffee machine's face 5.1 cm from the mug's centre
+UNDER_TILT = 0.35
 
 
 def _rz(yaw: float) -> np.ndarray:
@@ -41,11 +48,13 @@ class RoboCasaOracle:
 
     spec = oracle_spec(ACTION_DIM)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
+    # (TurnOnElectricKettle's switch push was tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
+        "PickPlaceSinkToCounter",
+        "PickPlaceCounterToDrawer",
         "CloseStandMixerHead",
-        "TurnOnElectricKettle",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -57,6 +66,7 @@ class RoboCasaOracle:
         self._offset = 0.0  # grip site above the object's bottom, measured at the grasp
         self._hold: np.ndarray | None = None
         self._clear: np.ndarray | None = None
+        self._carry_z: float | None = None  # the carry script's height for the object's bottom
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
         self._tilt = PRESS_TILT  # the press's hand tilt: raised while the approach stalls short of its target
@@ -147,6 +157,8 @@ class RoboCasaOracle:
             return self._press(s)
         if s.facts.fixture_centre is not None:
             return self._unload(s)
+        if s.facts.receptacle_inner is None:  # no cabinet interior: a put-down onto place_pos
+            return self._carry(s)
         return self._pick_place(s)
 
     # ---- stand mixer: push the head down --------------------------------------------------------
@@ -219,20 +231,7 @@ class RoboCasaOracle:
             if self._near(s, target, 0.015) or self._count > 40:
                 self._next("release")
             return self._goto(s, target, CLOSED, speed=0.3, tilt=TILT)
-        if self.phase == "release":
-            if self._hold_release is None or self._count == 1:
-                self._hold_release = s.eef_pos.copy()
-            if self._count > 12:
-                self._next("rise")
-            return self._goto(s, self._hold_release, OPEN, tilt=TILT)
-        up = self._hold_release + np.array([0.0, 0.0, 0.025])
-        if self.phase == "rise":  # fingers up off the object first: backing out low drags it along
-            if self._near(s, up, 0.008) or self._count > 20:
-                self._next("retreat")
-            return self._goto(s, up, OPEN, speed=0.3, tilt=TILT)
-        return self._goto(
-            s, up - fwd * 0.4, OPEN, speed=0.5, tilt=TILT
-        )  # back out, past gripper_obj_far's 0.25 m
+        return self._let_go(s, TILT, rise=0.025, tol=0.008, limit=20)
 
     # ---- out of a cabinet, onto the counter below ------------------------------------------------
     def _unload(self, s: PrivilegedState) -> np.ndarray:
@@ -277,15 +276,74 @@ class RoboCasaOracle:
                 self._next("release")
             # out of the cabinet: the hand straightens (a tipped hand this close to the base hits a joint limit)
             return self._goto(s, target, CLOSED, speed=0.5, tilt=max(0.0, TILT - 0.03 * self._count))
+        return self._let_go(s, 0.0, rise=0.06, tol=0.01, limit=25, back_up=0.05)
+
+    # ---- release, rise, back out (every pick-and-place script) ----------------------------------
+    def _let_go(
+        self, s: PrivilegedState, tilt: float, rise: float, tol: float, limit: int, back_up: float = 0.0
+    ) -> np.ndarray:
+        """Open where the hand stopped, rise ``rise`` straight up (fingers off the object first: backing out low
+        drags it along), then back 0.4 m away from the base's heading (past ``gripper_obj_far``'s 0.25 m),
+        ``back_up`` higher."""
+        yaw = float(s.robot_base[2])
+        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         if self.phase == "release":
             if self._hold_release is None or self._count == 1:
                 self._hold_release = s.eef_pos.copy()
             if self._count > 12:
                 self._next("rise")
-            return self._goto(s, self._hold_release, OPEN)
-        up = self._hold_release + np.array([0.0, 0.0, 0.06])
+            return self._goto(s, self._hold_release, OPEN, tilt=tilt)
+        up = self._hold_release + np.array([0.0, 0.0, rise])
         if self.phase == "rise":
-            if self._near(s, up, 0.01) or self._count > 25:
+            if self._near(s, up, tol) or self._count > limit:
                 self._next("retreat")
-            return self._goto(s, up, OPEN, speed=0.3)
-        return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, 0.05]), OPEN, speed=0.5)
+            return self._goto(s, up, OPEN, speed=0.3, tilt=tilt)
+        return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, back_up]), OPEN, speed=0.5, tilt=tilt)
+
+    # ---- onto a surface or into an open drawer (sink to counter, coffee machine, drawer) ---------
+    def _carry(self, s: PrivilegedState) -> np.ndarray:
+        """Hand pointing down: over the object, down, grasp, up until its bottom clears both surfaces by
+        ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``
+        high enough to clear a drawer's walls."""
+        p, t = s.pick, s.target
+        if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
+            self._carry_z = t.clear_z + CLEARANCE
+        carry_z = self._carry_z + self._offset
+        # something low over the place point (the coffee machine's button): once grasped, the hand tips toward it
+        # (gradually, while lifting), so the wrist stays back from under it (as into a cabinet)
+        low = s.goal is not None and s.goal.top - t.place_bottom < HAND_ROOM
+        tilt = UNDER_TILT if low else 0.0
+        if self.phase == "lift":
+            tilt = min(tilt, 0.03 * self._count)
+        if self.phase == "approach":
+            target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
+            if self._near(s, target, 0.015) or self._count > 120:
+                self._next("descend")
+            return self._goto(s, target, OPEN)
+        if self.phase == "descend":
+            return self._descend(s, p, 0.0)
+        if self.phase == "grasp":
+            a, closed = self._grasp(s, p, 0.0)
+            if closed:
+                self._next("lift")
+            return a
+        if self.phase == "lift":
+            target = np.array([self._hold[0], self._hold[1], carry_z])
+            if (self._near(s, target, 0.02) and (not low or self._count > 25)) or self._count > 80:
+                self._next("transport")
+            return self._goto(s, target, CLOSED, tilt=tilt)
+        if self.phase == "transport":
+            target = np.array([*t.place_xy, carry_z])
+            if (
+                np.linalg.norm(target - s.eef_pos) < 0.012
+                or (self._near(s, target) and self._count > 60)
+                or self._count > 150
+            ):
+                self._next("lower")
+            return self._goto(s, target, CLOSED, speed=0.6, tilt=tilt)
+        if self.phase == "lower":  # the stall (the object resting on the surface) ends it
+            target = np.array([*t.place_xy, t.place_bottom + 0.005 + self._offset])
+            if (self._near(s, target, 0.01) and self._count > 10) or self._count > 100:
+                self._next("release")
+            return self._goto(s, target, CLOSED, speed=0.3, tilt=tilt)
+        return self._let_go(s, tilt, rise=0.2, tol=0.015, limit=60, back_up=0.05)

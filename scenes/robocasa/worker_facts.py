@@ -111,7 +111,9 @@ def check_kitchen(config: dict) -> None:
 
 def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
-    return {**fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env)}
+    return {
+        **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
+    }  # fmt: skip
 
 
 def fixture_part_facts(env) -> dict:
@@ -140,3 +142,87 @@ def unload_facts(env, task: str) -> dict:
     if task != "PickPlaceCabinetToCounter" or counter is None:
         return {}
     return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
+
+
+COFFEE_SHIFT = 0.03  # m the mug goes down in front of the pour site (under the 0.04 m of RoboCasa's xy check)
+
+
+def place_facts(env, task: str) -> dict:
+    """Where a put-down task wants the pick object (``scenes.robocasa.oracle``'s carry script): ``place_pos``, the
+    world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
+    On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
+    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); empty for
+    the other tasks."""
+    data, model = env.sim.data, env.sim.model
+    if task == "PickPlaceSinkToCounter" and "container" in env.objects:
+        pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
+        return {"place_pos": pos + np.array([0.0, 0.0, env.objects["container"].top_offset[2]])}
+    if task == "CoffeeSetupMug":
+        site = model.site_name2id(f"{env.coffee_machine.naming_prefix}receptacle_place_site")
+        front = -np.array(data.site_xmat[site]).reshape(3, 3)[:2, 1]  # the machine's front: its -y
+        xy = np.array(data.site_xpos[site][:2]) + COFFEE_SHIFT * front / np.linalg.norm(front)
+        z = env.counter.pos[2] + env.counter.size[2] / 2
+        return {"place_pos": np.array([*xy, z]), "place_ceiling": _ceiling(env, xy, z)}
+    if task == "PickPlaceCounterToDrawer":
+        return drawer_facts(env)
+    return {}
+
+
+def drawer_facts(env) -> dict:
+    """The open drawer's floor point at the middle of its uncovered part (RoboCasa opens it in ``_setup_scene``):
+    from the interior's front back to where the opening ends or a counter top above it begins (an island's top
+    overhangs its cabinets by ~15 cm), whichever is nearer; ``drawer_gap``: that width."""
+    data, drawer = env.sim.data, env.drawer
+    p0, px, py, pz = (
+        np.asarray(v, dtype=np.float64) for v in next(iter(drawer.get_int_sites(relative=False).values()))
+    )
+    joints = [j for j in env.sim.model.joint_names if j.startswith(drawer.naming_prefix) and "slide" in j]
+    opened = abs(float(data.get_joint_qpos(joints[0]))) if joints else 0.0
+    corners = [p0[:2], px[:2], py[:2], (px + py - p0)[:2]]
+    centre = sum(corners) / 4
+    # into the drawer from its front: the fixture's +y (RoboCasa's fixtures face their -y; it slides out along it)
+    fwd = np.asarray(data.get_body_xmat(f"{drawer.naming_prefix}main")).reshape(3, 3)[:2, 1]
+    fwd = fwd / np.linalg.norm(fwd)
+    near = min(float(np.dot(c, fwd)) for c in corners)
+    end = min(
+        near + opened,
+        max(float(np.dot(c, fwd)) for c in corners),
+        _covered_from(env, pz[2], centre, fwd, near),
+    )
+    xy = centre + fwd * ((near + end) / 2 - float(np.dot(centre, fwd)))
+    return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened, "drawer_gap": max(0.0, end - near)}
+
+
+def _boxes(env, skip=()):
+    """Each collision box of the scene not of the robot, an object or a name in ``skip``: (centre, world AABB
+    half sizes)."""
+    data, model = env.sim.data, env.sim.model
+    skip = ("robot0", "mobilebase0", "gripper0", *env.objects, *skip)
+    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
+        if not (model.geom_id2name(g) or "").startswith(skip):
+            yield data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
+
+
+def _ceiling(env, xy, z: float, reach: float = 0.05) -> float | None:
+    """The underside of the lowest collision box hanging over ``xy`` (within ``reach``: the hand's half width) above
+    height ``z`` + 2 cm: the coffee machine's spout or button over its pour site; None when nothing is."""
+    under = [pos[2] - half[2] for pos, half in _boxes(env)
+             if np.all(np.abs(pos[:2] - xy) <= half[:2] + reach) and pos[2] - half[2] > z + 0.02]  # fmt: skip
+    return float(min(under)) if under else None
+
+
+def _covered_from(env, z: float, centre, fwd, near: float) -> float:
+    """Where, along ``fwd`` and past ``near``, the first collision box (not the robot's, the drawer's or an
+    object's) within 15 cm above height ``z`` begins over the line through ``centre`` (inf when none): the counter
+    top a drawer slides out from under."""
+    side = np.array([-fwd[1], fwd[0]])
+    start = np.inf
+    for pos, half in _boxes(env, (env.drawer.naming_prefix,)):
+        if not (z - 0.01 < pos[2] - half[2] < z + 0.15):
+            continue
+        if abs(float(np.dot(pos[:2] - centre, side))) > float(np.abs(side) @ half[:2]):
+            continue  # not over the line through the drawer's centre
+        along, reach = float(np.dot(pos[:2], fwd)), float(np.abs(fwd) @ half[:2])
+        if along + reach > near:  # over the drawer's span, not behind the robot
+            start = min(start, max(near, along - reach))
+    return start
