@@ -13,6 +13,8 @@ as lerobot's eval does.
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
@@ -47,6 +49,8 @@ from policy_wrappers.lerobot_checkpoint import (
 )
 from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 
+# torch's default generators are per process: instances take turns, each with its own generator states (_own_rng)
+_RNG_LOCK = threading.Lock()
 NO_CONVENTIONS = Conventions(render=None)  # other checkpoints: images as rendered (unless ?flip=1)
 
 
@@ -111,6 +115,7 @@ class LeRobotPolicy:
             training=lerobot_checkpoint.training_cells(config.path),
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
+        self._rng: tuple | None = None  # this instance's generator states since its episode's seed (_own_rng)
         self.pads_batches = self.spec.batched  # act(..., pad_to=N): see interface.act_padded
 
     def _fail(self, what: str, err: BaseException) -> PolicyError:
@@ -234,8 +239,27 @@ class LeRobotPolicy:
         self._history.clear()
         self._queue.clear()
         self.policy.reset()
-        if seed is not None:  # flow-matching / diffusion noise is drawn from torch's global generator
-            self._torch.manual_seed(int(seed))
+        self._rng = None
+        if seed is not None:  # flow-matching / diffusion noise: drawn from this episode's own stream
+            with self._own_rng():
+                self._torch.manual_seed(int(seed))
+
+    @contextlib.contextmanager
+    def _own_rng(self):
+        """Run with torch's default CPU and CUDA generators set to this instance's states, kept afterwards and the
+        global ones restored: lerobot draws its noise from the global generators, which every instance in the
+        process shares (one per environment, acting from threads), so an episode's noise would otherwise depend on
+        when the other environments' episodes reset and act. (On MPS its generator stays the shared one.)"""
+        torch = self._torch
+        device = torch.device(self.config.device)
+        cuda = [device.index or 0] if device.type == "cuda" else []
+        with _RNG_LOCK, torch.random.fork_rng(devices=cuda):
+            if self._rng is not None:
+                torch.set_rng_state(self._rng[0])
+                if cuda:
+                    torch.cuda.set_rng_state(self._rng[1], cuda[0])
+            yield
+            self._rng = (torch.get_rng_state(), *(torch.cuda.get_rng_state(cuda[0]) for _ in cuda))
 
     def to_batch(self, observations: Sequence[Observation], pad_to: int | None = None) -> dict:
         """Our observations -> lerobot's raw batch (float CHW images in [0, 1] at the declared size, state, task).
@@ -316,7 +340,8 @@ class LeRobotPolicy:
         if self._ensemble:  # lerobot's select_action: predict a chunk, fold it into the ensemble, one action
             with self._torch.inference_mode():
                 with self._autocast():
-                    action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
+                    with self._own_rng():
+                        action = self.post(self.policy.select_action(self.pre(self.to_batch(observations))))
             chunk = action.detach().to("cpu", self._torch.float32).numpy()[:, None]
             return self._to_scene(validate_chunk(chunk, len(observations), self._name, self._action_dim))
         if not self._replan_inside:
@@ -339,7 +364,7 @@ class LeRobotPolicy:
             if self.n_obs_steps > 1:
                 batch = self._with_history(batch)
             try:
-                with self._autocast():
+                with self._autocast(), self._own_rng():
                     actions = self.policy.predict_action_chunk(batch)
             except Exception as e:
                 first = (str(e).strip().splitlines() or [""])[0][:300]

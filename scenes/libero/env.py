@@ -307,7 +307,9 @@ class LiberoSceneEnv(BaseSceneEnv):
         self.episode_seed = int(seed)
         self.init_index = int(episode if episode is not None else seed) % len(self._states)
         self._renderers.clear()  # hard resets rebuild the MuJoCo model
+        self._render_here()  # the hard reset frees the old render context's GL objects in the current GL context
         self._reset_sim(self.episode_seed)
+        self._render_here()
         raw = self._env.set_init_state(self._level_state(self.init_index))
         if self.spec.pick.scale != 1.0:
             raw = self._env.set_init_state(self._rest_scaled_pick(self._level_state(self.init_index)))
@@ -325,6 +327,10 @@ class LiberoSceneEnv(BaseSceneEnv):
             "seed": self.episode_seed,
             "init_state": self.init_index,
         }
+
+    def close(self) -> None:
+        self._render_here()  # robosuite frees the render context's GL objects in the current context
+        super().close()
 
     def _reset_sim(self, seed: int, tries: int = 20) -> None:
         from robosuite.utils.errors import RandomizationError
@@ -384,12 +390,24 @@ class LiberoSceneEnv(BaseSceneEnv):
     def _sim_step(self, action) -> dict:
         """One LIBERO control step, its raw observation: ``scenes.sim.fast_step`` (bit for bit) or LIBERO's."""
         with self._cameras_held(not self._observing):
+            if self._observing:
+                self._render_here()
             if not self.fast_physics:
                 return self._env.step(action)[0]
             from scenes.sim import fast_step
 
             # LIBERO's own step adds only a 4-d (OSC_POSITION) conversion
             return fast_step(self._env.env, action)[0]
+
+    def _render_here(self) -> None:
+        """Make this env's GL context current before robosuite renders its cameras or frees its render context
+        (``MjRenderContext.render`` and ``__del__`` act on whatever context is current): another env in this process
+        (a pipelined lane's) or a video frame's ``mujoco.Renderer`` may have made its own current since, and
+        rendering there gives another scene's pixels, freeing there deletes that env's textures and buffers."""
+        sim = getattr(self._env, "sim", None) if self._env is not None and self.cameras else None
+        ctx = getattr(sim, "_render_context_offscreen", None)
+        if ctx is not None:
+            ctx.gl_ctx.make_current()
 
     @contextlib.contextmanager
     def _cameras_held(self, hold: bool):

@@ -110,6 +110,7 @@ def test_diffusion_history_and_seed_match_select_action(tiny_diffusion, obs_fact
     policy.reset("x", seed=3)
     assert np.array_equal(ours[0], policy.act(seq[0]))  # the episode seed fixes the diffusion noise
     policy.reset("x", seed=3)
+    torch.manual_seed(3)  # lerobot draws from the global generator, which our instance leaves alone
     with torch.inference_mode():
         theirs = [
             policy.post(policy.policy.select_action(policy.pre(policy.to_batch(o)))).numpy() for o in seq
@@ -170,3 +171,19 @@ def test_a_typo_in_a_local_checkpoint_path_names_the_near_directory(tmp_path, mo
     monkeypatch.setenv("HF_HUB_OFFLINE", "1")
     with pytest.raises(PolicyError, match=r"did you mean 'checkpoints/act_pick_place_human'\?$"):
         load_policy("lerobot:checkpoints/act_pick_place_humn")
+
+
+def test_an_episode_noise_does_not_depend_on_other_instances(tiny_diffusion, obs_factory):
+    """Per-environment instances (one per slot, acting from threads) draw their episodes' diffusion noise from their
+    own streams: another instance's reset and acts in between change no action (seen before: torch's global
+    generator was shared, so with two slots an episode's noise depended on the other slot's schedule)."""
+    pytest.importorskip("diffusers")
+    a, b = load_policy(f"lerobot:{tiny_diffusion}"), load_policy(f"lerobot:{tiny_diffusion}")
+    seq = [[obs_factory(i, size=32)] for i in range(5)]  # the chunk is 4: two predictions each
+    a.reset("x", seed=3)
+    alone = [a.act(o) for o in seq]
+    a.reset("x", seed=3)
+    b.reset("x", seed=4)
+    for k, o in enumerate(seq):
+        np.testing.assert_array_equal(a.act(o), alone[k], err_msg=f"step {k}")
+        b.act(o)

@@ -275,3 +275,45 @@ def test_reset_after_an_episode_that_ended_on_a_lazy_step_sees_fresh_frames(mini
     finally:
         fresh.close()
         used.close()
+
+
+def test_envs_sharing_a_process_render_their_own_frames(mini):
+    """robosuite renders LIBERO's cameras, and frees a hard reset's old render context, in whatever GL context is
+    current; another env in the process (a pipelined lane's) and video frames (``mujoco.Renderer``) make their own
+    current. Interleaved with both, an env's frames are those it renders alone (seen before the fix: the other
+    scene's pixels, and after the other env's hard reset, deleted textures)."""
+    kw = dict(cameras=("agentview", "wrist"), image_size=(32, 32))
+    a, b = _env(**kw), _env(task="cream_cheese", **kw)
+    act = np.array([0.3, -0.2, 0.1, 0, 0, 0, -1.0])
+
+    def frames(obs):
+        return [obs.images[c].copy() for c in kw["cameras"]]
+
+    def episode(between=lambda k: None):
+        obs, _ = a.reset(seed=3, options={"episode": 2})
+        seen = [frames(obs)]
+        for k in range(4):
+            between(k)
+            obs, *_ = a.step(act)
+            seen.append(frames(obs))
+        return seen
+
+    def interfere(k):
+        if k == 0:
+            b.reset(seed=5, options={"episode": 4})
+        elif k == 1:
+            a.render_frame("agentview", (32, 32))
+        elif k == 2:
+            b.reset(seed=6, options={"episode": 1})  # frees b's previous render context
+        else:
+            b.close()
+
+    try:
+        want = episode()
+        got = episode(interfere)
+        for k, (w, g) in enumerate(zip(want, got, strict=True)):
+            for c, wi, gi in zip(kw["cameras"], w, g, strict=True):
+                np.testing.assert_array_equal(gi, wi, err_msg=f"{c} after step {k}")
+    finally:
+        a.close()
+        b.close()
