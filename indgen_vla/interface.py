@@ -23,6 +23,9 @@ ROT_SCALE = 0.5  # radians per unit action
 NOOP_ACTION = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0)  # no motion, gripper open
 # the in-process policy options the CLI flags and the lerobot: spec options share (--precision, --compile)
 PRECISIONS = ("fp32", "bf16")  # bf16: the forward under torch.autocast
+# Observation.extras key the engine fills with (episode seed, control steps taken) of each query: a sampling policy
+# draws that query's noise from it, so an episode's noise does not depend on the episodes it shares a batch with
+QUERY_KEY = "indgen/query"
 COMPILE_MODES = (
     "off",
     "default",

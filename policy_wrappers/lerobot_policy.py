@@ -25,6 +25,7 @@ from indgen_vla.errors import ConfigError, PolicyError
 from indgen_vla.interface import (
     ACTION_DIM,
     OBJECT_DIM,
+    QUERY_KEY,
     TABLETOP,
     EnvSpec,
     Observation,
@@ -32,6 +33,7 @@ from indgen_vla.interface import (
     ScenePreview,
     validate_chunk,
 )
+from indgen_vla.seeding import episode_seed
 from policy_wrappers import lerobot_checkpoint
 from policy_wrappers.layouts import layout_for
 from policy_wrappers.lerobot_checkpoint import (
@@ -116,6 +118,10 @@ class LeRobotPolicy:
         )
         self._history: deque = deque(maxlen=self.n_obs_steps)
         self._rng: tuple | None = None  # this instance's generator states since its episode's seed (_own_rng)
+        # flow matching (pi0, pi0.5, SmolVLA): the x_1 noise of one query, drawn per row (_query_noise)
+        model = getattr(self.policy, "model", None)
+        flow = callable(getattr(model, "sample_actions", None)) and hasattr(self.cfg, "max_action_dim")
+        self._noise_shape = (int(self.cfg.chunk_size), int(self.cfg.max_action_dim)) if flow else None
         self.pads_batches = self.spec.batched  # act(..., pad_to=N): see interface.act_padded
 
     def _fail(self, what: str, err: BaseException) -> PolicyError:
@@ -363,9 +369,12 @@ class LeRobotPolicy:
             batch = self.pre(self.to_batch(observations, pad_to))
             if self.n_obs_steps > 1:
                 batch = self._with_history(batch)
+            noise = self._query_noise(observations, pad_to)
             try:
                 with self._autocast(), self._own_rng():
-                    actions = self.policy.predict_action_chunk(batch)
+                    actions = self.policy.predict_action_chunk(
+                        batch, **({} if noise is None else {"noise": noise})
+                    )
             except Exception as e:
                 first = (str(e).strip().splitlines() or [""])[0][:300]
                 raise PolicyError(f"policy {self._name} failed to act: {type(e).__name__}: {first}") from e
@@ -374,6 +383,21 @@ class LeRobotPolicy:
             actions = self.post(actions)
         chunk = actions[: len(observations)].detach().to("cpu", torch.float32).numpy()
         return self._to_scene(validate_chunk(chunk, len(observations), self._name, self._action_dim))
+
+    def _query_noise(self, observations: Sequence[Observation], pad_to: int | None):
+        """Flow-matching noise for each row from its query's identity (the engine's ``QUERY_KEY``: episode seed,
+        steps taken), so a row's actions do not depend on which episodes share its batch or when they reset; padded
+        rows repeat the first row's. None (lerobot draws it from this instance's stream) for other policies or
+        observations without it. Standard-normal float32, as lerobot's ``sample_noise`` draws it."""
+        keys = [o.extras.get(QUERY_KEY) for o in observations]
+        if self._noise_shape is None or any(k is None for k in keys):
+            return None
+        torch = self._torch
+        rows = [torch.randn(self._noise_shape, dtype=torch.float32,
+                            generator=torch.Generator().manual_seed(episode_seed(seed, "noise", step)))
+                for seed, step in keys]  # fmt: skip
+        rows += rows[:1] * ((pad_to or len(rows)) - len(rows))
+        return torch.stack(rows).to(self.config.device)
 
     def _to_scene(self, chunk: np.ndarray) -> np.ndarray:
         """The checkpoint's action order -> the scene's (identity on the tabletop families)."""

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from indgen_vla.errors import EpisodeUnavailableError
-from indgen_vla.interface import ACTION_DIM, Observation, validate_chunk
+from indgen_vla.interface import ACTION_DIM, QUERY_KEY, Observation, validate_chunk
 from indgen_vla.plan import EpisodeJob, LevelBuilder
 from indgen_vla.records import EpisodeRecord
 
@@ -108,7 +108,9 @@ class EnvRunner:
 
     def _observe(self, obs: Observation) -> Observation:
         """Attach privileged state for oracles only (learned policies never see it), object poses for
-        the low-dim policies that declare them, the earlier steps' images for those that declare history."""
+        the low-dim policies that declare them, the earlier steps' images for those that declare history; and the
+        query's identity (``QUERY_KEY``) for policies that sample."""
+        obs = dataclasses.replace(obs, extras={**obs.extras, QUERY_KEY: (self._job.seed, self._steps)})
         if self.cfg.history_steps:
             earlier = tuple(self._recent)[:-1]
             assert all(f is not None for f in earlier), "a history step was not rendered"

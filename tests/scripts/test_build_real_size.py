@@ -119,3 +119,36 @@ def test_reduced_pi05_compiled_on_cuda_matches_eager(tmp_path, monkeypatch, mode
         pytest.skip("needs a CUDA device")
     monkeypatch.setenv("TORCHINDUCTOR_CACHE_DIR", str(tmp_path / "inductor"))
     _compiled_matches_eager(build.build_pi05(tmp_path / "pi05", reduced=True, device="cuda"), mode, "cuda")
+
+
+def test_flow_noise_is_drawn_per_query_not_per_batch(tmp_path):
+    """A sampling VLA's actions for one episode's query depend on that query (its ``QUERY_KEY``: episode seed, steps
+    taken), not on which other episodes share the batch, their order, or when they reset (the engine batches
+    whichever simulators wait, so a shared noise stream made an episode's noise depend on the schedule)."""
+    pytest.importorskip(
+        "num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])"
+    )
+    import dataclasses
+
+    from indgen_vla.interface import QUERY_KEY
+    from policy_wrappers.registry import load_policy
+
+    policy = load_policy(build.build_smolvla(tmp_path / "smolvla", reduced=True))
+    a, b = (
+        dataclasses.replace(o, extras={QUERY_KEY: key})
+        for o, key in zip(_obs(policy.spec, 2), [(11, 0), (22, 5)])
+    )
+    try:
+        policy.reset(a.instruction, seed=1)
+        together = policy.act([a, b])
+        policy.reset(
+            a.instruction, seed=2
+        )  # another episode starts: the stream a shared generator would reseed
+        alone_b = policy.act([b])
+        swapped = act_padded(policy, [b, a], 4, "smolvla")
+        np.testing.assert_allclose(alone_b[0], together[1], atol=1e-5)
+        np.testing.assert_allclose(swapped[1], together[0], atol=1e-5)
+        later = policy.act([dataclasses.replace(a, extras={QUERY_KEY: (11, 5)})])  # the episode's next query
+        assert np.abs(later[0] - together[0]).max() > 1e-3  # the noise does depend on the query
+    finally:
+        policy.close()
