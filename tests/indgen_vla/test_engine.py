@@ -240,3 +240,26 @@ def test_an_unavailable_episode_is_one_error_row_and_a_backends_own_param_is_rec
     resets.clear()
     rec = run_episode(EnvRunner(rc), _Zeros(), jobs[1], RunMeta("r", "test:zeros", "", "pick_place"), 4, 2)
     assert rec.status == "error" and resets == [out] and "attempt 1:" in rec.error
+
+
+def test_warmup_steps_render_only_the_last_and_change_no_image(monkeypatch):
+    """``--warmup-steps``: nobody reads the images of the warm-up's earlier steps, so only its last step renders; the
+    first observation is the one a fully rendered warm-up gives."""
+    from indgen_vla.engine.rollout import EnvRunner
+    from tests.fixtures.renders import count_renders
+
+    renders = count_renders(monkeypatch)
+    c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
+    task = "milk"
+    (job,) = plan_episodes(c, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
+    firsts = []
+    for lazy in (True, False):
+        rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=(32, 32),
+                          max_steps=10, privileged=False, warmup_steps=4, lazy_render=lazy)  # fmt: skip
+        runner = EnvRunner(rc)
+        renders["n"] = 0
+        firsts.append((runner.reset(job).obs.images["agentview"], renders["n"]))
+        runner.close()
+    (lazy_img, lazy_n), (full_img, full_n) = firsts
+    np.testing.assert_array_equal(lazy_img, full_img)
+    assert full_n - lazy_n == 3, (lazy_n, full_n)  # the first three warm-up steps' renders are skipped

@@ -136,7 +136,7 @@ def test_flow_noise_is_drawn_per_query_not_per_batch(tmp_path):
     policy = load_policy(build.build_smolvla(tmp_path / "smolvla", reduced=True))
     a, b = (
         dataclasses.replace(o, extras={QUERY_KEY: key})
-        for o, key in zip(_obs(policy.spec, 2), [(11, 0), (22, 5)])
+        for o, key in zip(_obs(policy.spec, 2), [(11, 0), (22, 5)], strict=True)
     )
     try:
         policy.reset(a.instruction, seed=1)
