@@ -139,7 +139,9 @@ class EnvRunner:
             lazy = self.cfg.lazy_render and self._can_skip_render
             for i in range(self.cfg.warmup_steps):  # only the last warm-up step's images are read
                 observe = not lazy or i == self.cfg.warmup_steps - 1
-                obs, _, _, _, _ = env.step(WARMUP_ACTION, observe=observe) if lazy else env.step(WARMUP_ACTION)
+                obs, _, _, _, _ = (
+                    env.step(WARMUP_ACTION, observe=observe) if lazy else env.step(WARMUP_ACTION)
+                )
             # the warm-up's frames are no history: RynnVLA-002's eval keeps only the frames it acted on
             self._recent.clear()
             self._recent.append(obs.images)
