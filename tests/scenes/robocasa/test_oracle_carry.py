@@ -64,6 +64,7 @@ def test_certify_scripts_sink_to_counter_and_not_the_kettle():
 
 
 @needs_venv  # ~15 s: the carry script's episode of the smoke group (251 steps)
+@pytest.mark.slow  # ~13 s: one simulated episode (the unit tests above cover the script's targets)
 def test_the_carry_script_puts_an_object_on_the_container(placeholders):
     assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 0, (4,), 300) == [True]
 
