@@ -13,7 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from indgen_vla.engine.config import EvalConfig
-from indgen_vla.engine.share import copies, fill_copies, record_sharing, taken_keys, with_sharing
+from indgen_vla.engine.share import (
+    copies,
+    fill_copies,
+    record_sharing,
+    sharing_entry,
+    taken_keys,
+    with_sharing,
+)
 from indgen_vla.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
 from indgen_vla.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.records import RunDir
@@ -57,7 +64,7 @@ def build_plan(cfg: EvalConfig) -> EvalPlan:
     sp = resolve_scene_plan(cfg.scene, cfg.task, cfg.axes, cfg.levels, cfg.step, cfg.axes_preset)
     jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), cfg.episodes, cfg.seed, cfg.video,
                      cfg.video_per_level)  # fmt: skip
-    return with_sharing(cfg, EvalPlan(sp, jobs))[0]
+    return with_sharing(cfg, EvalPlan(sp, jobs))
 
 
 def _levels_text(levels: list[int]) -> str:
@@ -123,7 +130,7 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
         ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
         "resolved": plan.record(),
-        "t0_sharing": with_sharing(cfg, plan)[1],
+        "t0_sharing": sharing_entry(cfg, plan),
         "config": dataclasses.asdict(cfg),
         "versions": package_versions(),
         "git_sha": git_sha(),
@@ -209,7 +216,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             probe = make_policy()
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
-        record_sharing(run, with_sharing(cfg, plan)[1])
+        record_sharing(run, sharing_entry(cfg, plan))
         if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
             from indgen_vla.engine.adaptive import next_round
 

@@ -24,15 +24,21 @@ ADAPTIVE_OFF = (
 )
 
 
-def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> tuple[EvalPlan, dict[str, Any]]:
-    """``plan`` with its shared level-0 cells (when ``cfg.share_t0`` and the run is not adaptive) and the manifest's
-    ``t0_sharing`` entry saying what is shared, or why nothing is."""
+def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> EvalPlan:
+    """``plan`` with its shared level-0 cells, when ``cfg.share_t0`` and the run is not adaptive."""
+    return plan if _off_reason(cfg) else dataclasses.replace(plan, shared=shared_t0(plan.scene_plan))
+
+
+def sharing_entry(cfg: EvalConfig, plan: EvalPlan) -> dict[str, Any]:
+    """The manifest's ``t0_sharing`` of a plan ``with_sharing`` made: what is shared, or why nothing is."""
+    reason = _off_reason(cfg)
+    return sharing_record(plan, not reason, reason)
+
+
+def _off_reason(cfg: EvalConfig) -> str:
     if not cfg.share_t0:
-        return plan, sharing_record(plan, False, "off (--no-share-t0)")
-    if cfg.adaptive:
-        return plan, sharing_record(plan, False, ADAPTIVE_OFF)
-    shared = dataclasses.replace(plan, shared=shared_t0(plan.scene_plan))
-    return shared, sharing_record(shared, True)
+        return "off (--no-share-t0)"
+    return ADAPTIVE_OFF if cfg.adaptive else ""
 
 
 def copies(plan: EvalPlan, rec: EpisodeRecord, taken: set) -> list[EpisodeRecord]:

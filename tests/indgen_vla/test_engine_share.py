@@ -10,7 +10,7 @@ import pytest
 
 from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.run import build_plan, evaluate
-from indgen_vla.engine.share import ADAPTIVE_OFF, fill_copies, with_sharing
+from indgen_vla.engine.share import ADAPTIVE_OFF, fill_copies, sharing_entry, with_sharing
 from indgen_vla.records import EpisodeRecord, RunDir
 from tests.fixtures.kill import kill_midway
 
@@ -86,7 +86,9 @@ def test_compare_axes_says_shared_t0_pairs_check_nothing(runs, tmp_path):
 
 
 def test_adaptive_runs_share_nothing_and_say_why(tmp_path):
-    plan, record = with_sharing(cfg(tmp_path, adaptive="kstar"), build_plan(cfg(tmp_path, share_t0=False)))
+    adaptive = cfg(tmp_path, adaptive="kstar")
+    plan = with_sharing(adaptive, build_plan(cfg(tmp_path, share_t0=False)))
+    record = sharing_entry(adaptive, plan)
     assert plan.shared == {} and record["reason"] == ADAPTIVE_OFF and not record["enabled"]
 
 
