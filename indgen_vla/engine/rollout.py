@@ -110,13 +110,14 @@ class EnvRunner:
         """Attach privileged state for oracles only (learned policies never see it), object poses for
         the low-dim policies that declare them, the earlier steps' images for those that declare history; and the
         query's identity (``QUERY_KEY``) for policies that sample."""
-        obs = dataclasses.replace(obs, extras={**obs.extras, QUERY_KEY: (self._job.seed, self._steps)})
+        add: dict = {"extras": {**obs.extras, QUERY_KEY: (self._job.seed, self._steps)}}
         if self.cfg.history_steps:
             earlier = tuple(self._recent)[:-1]
             assert all(f is not None for f in earlier), "a history step was not rendered"
-            obs = dataclasses.replace(obs, history=earlier)
+            add["history"] = earlier
         if self.cfg.objects:
-            obs = dataclasses.replace(obs, objects=self._env.object_observation())
+            add["objects"] = self._env.object_observation()
+        obs = dataclasses.replace(obs, **add)  # one copy (and one validation) per query
         if self.cfg.privileged:
             obs = self._env.with_privileged(obs)
         return obs
