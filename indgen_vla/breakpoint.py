@@ -31,9 +31,9 @@ def verdict_from_ci(ci_low: float, ci_high: float, gamma: float) -> str:
     return "undetermined"
 
 
-def signed_level(k: int) -> str:
-    """A level as printed beside a direction: "+2", "-1", "0"."""
-    return f"+{k}" if k > 0 else str(k)
+def signed_level(k: int, minus: str = "-") -> str:
+    """A level as printed beside a direction: "+2", "-1", "0" (``minus``: e.g. "−" in tables and figures)."""
+    return f"+{k}" if k > 0 else f"{minus}{-k}" if k < 0 else "0"
 
 
 def kstar_status(verdicts: Mapping[int, str], order: Sequence[int]) -> dict:

@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.breakpoint import signed_level
 from indgen_vla.metrics import difference_ci
 from indgen_vla.records import atomic_savefig
 from indgen_vla.training_support import fully_trained
@@ -249,10 +250,6 @@ def plot_axes(
     return path
 
 
-def _signed(k: int) -> str:
-    return f"+{k}" if k > 0 else f"−{-k}" if k < 0 else "0"
-
-
 def largest_drop(rows: list[dict]) -> dict | None:
     """The level with the lowest rate below T0's and the drop from T0 with its 95 % interval: the paired one of the
     level's ``vs_t0`` (episodes sharing seeds, contrasts.py) where the run pairs them, else unpaired (MOVER from the
@@ -293,7 +290,7 @@ def _drop_text(d: dict | None) -> str:
         return "none: no level below T0"
     lo, hi = d["ci"]
     how = "paired" if d["paired"] else "unpaired"
-    return f"{100 * d['drop']:.0f} pp at {_signed(d['level'])} [{100 * lo:.0f}, {100 * hi:.0f}] {how}"
+    return f"{100 * d['drop']:.0f} pp at {signed_level(d['level'], minus='−')} [{100 * lo:.0f}, {100 * hi:.0f}] {how}"
 
 
 def overview_lines(summaries: Sequence[tuple[str, dict]], order: Sequence[str] | None = None) -> list[str]:
@@ -308,7 +305,7 @@ def overview_lines(summaries: Sequence[tuple[str, dict]], order: Sequence[str] |
     only = next(iter(tasks)) if len(tasks) == 1 else ()
     pooled = (f"Task{'s' * (len(only) > 1)}: {', '.join(only)}." if only
               else "Each row pools the tasks its axis's section below names.")  # fmt: skip
-    header = ["axis", *(["run"] if several else []), *(f"{_signed(k)}{' (T0)' * (k == 0)}" for k in levels),
+    header = ["axis", *(["run"] if several else []), *(f"{signed_level(k, minus='−')}{' (T0)' * (k == 0)}" for k in levels),
               "largest drop from T0 (pp, 95 % CI)"]  # fmt: skip
     lines = ["## Overview: success per axis and level (the paper's Table 2)", "",
              f"Each cell: success % [{summaries[0][1].get('ci', 'wilson')} 95 % CI] n = finished episodes; – = level "
