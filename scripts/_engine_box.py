@@ -177,8 +177,9 @@ class Pinner:
     def _loop(self) -> None:
         import psutil
 
-        me, cores = psutil.Process(), sorted(os.sched_getaffinity(0))
-        rest = cores[1:] or cores
+        # the cores saved before ``__enter__`` pinned this process: a thread started after that inherits core 0
+        # alone, and computing them here put every worker on core 0 with the coordinator: the 5.4x "slowdown" of 11-26
+        me, rest = psutil.Process(), self._cores[1:] or self._cores
         while not self._stop.wait(self._period):
             for child in sorted(me.children(recursive=True), key=lambda c: c.pid):
                 try:
