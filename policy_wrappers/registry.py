@@ -93,6 +93,12 @@ class ParsedSpec:
             )
 
 
+# lerobot's policy ``type`` names a user may write where the family goes (``act:ckpt`` for ``lerobot:ckpt``): a hint
+LEROBOT_TYPES = frozenset(
+    {"act", "diffusion", "pi0", "pi05", "pi0.5", "pi0_fast", "smolvla", "tdmpc", "vqbet", "xvla"}
+)
+
+
 def parse_spec(spec: str) -> ParsedSpec:
     """Split ``family:target[?k=v&...]``; raise ``ConfigError`` / ``UnknownNameError`` with the fix."""
     if not isinstance(spec, str) or not spec.strip():
@@ -108,6 +114,11 @@ def parse_spec(spec: str) -> ParsedSpec:
             f"policy spec {spec!r} lacks a family; use one of {', '.join(f + ':' for f in FAMILIES.names())}"
         )
     if family not in FAMILIES:
+        if family.lower() in LEROBOT_TYPES and "lerobot" in FAMILIES:
+            raise ConfigError(
+                f"policy spec {spec!r}: {family!r} is a LeRobot policy type, not a family; load its checkpoint "
+                f"with lerobot:{rest or 'HUB_ID_OR_DIR'} (a served model: openpi:ws://HOST:PORT, groot:tcp://...)"
+            )
         raise UnknownNameError("policy family", family, FAMILIES.names())
     target, _, query = rest.partition("?")
     try:

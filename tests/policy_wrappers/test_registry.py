@@ -36,6 +36,8 @@ def test_parse_spec_splits_family_target_options():
         ("openpi:ws://h:notaport", "bad port"),
         ("openpi:ws://h:8000/x", "unexpected path"),
         ("standin:oracel", "did you mean 'oracle'"),
+        ("act:checkpoints/act_pick_place_human", "with lerobot:checkpoints/act_pick_place_human"),
+        ("pi05:", "with lerobot:HUB_ID_OR_DIR"),
         ("standin:noop?chunck=3", "did you mean 'chunk'"),
         ("standin:random?chunk=x", "must be an integer"),
         ("openvla-oft:http://h:1?variant=oftt", "did you mean 'oft'"),
