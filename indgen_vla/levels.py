@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from indgen_vla.breakpoint import signed_level
 from indgen_vla.failures import failure_counts_by
-from indgen_vla.metrics import below_floor, break_levels, success_rate
+from indgen_vla.metrics import MIN_N, below_floor, break_levels, success_rate
 from indgen_vla.progress import level_progress_by
 
 
@@ -233,8 +233,13 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
         return "no levels"
     if k == "undetermined":
         hole = next(r for r in rows if r["insufficient"])
-        of = f" of {hole['planned']}" if hole.get("planned") else ""
-        return f"undetermined: level {signed_level(hole['level'])} has too little data (n = {hole['n']}{of}); finish it"
+        planned = hole.get("planned")
+        of = f" of {planned}" if planned else ""
+        if planned and planned < MIN_N and hole["n"] >= planned:  # the level is done; the design is too small
+            fix = f"every planned episode ran, and under {MIN_N} never give a k*: run --episodes {MIN_N} or more"
+        else:
+            fix = "finish it (re-run the same evaluate command: it runs what is missing and retries errors)"
+        return f"undetermined: level {signed_level(hole['level'])} has too little data (n = {hole['n']}{of}); {fix}"
     if k is None:
         last = signed_level(rows[-1]["level"])
         open_ = [

@@ -46,7 +46,15 @@ def test_no_break_and_a_hole_before_the_break():
     )
     hole = [row(0, 10, 10, "intact"), row(1, 0, 1, "undetermined", planned=10, insufficient=True)]
     assert direction_verdict(hole, "undetermined", 0.2) == (
-        "undetermined: level +1 has too little data (n = 1 of 10); finish it"
+        "undetermined: level +1 has too little data (n = 1 of 10); finish it (re-run the same evaluate command: "
+        "it runs what is missing and retries errors)"
+    )
+    smoke = [
+        row(0, 2, 2, "undetermined", planned=2, insufficient=True)
+    ]  # --episodes 2: done, yet below the floor
+    assert direction_verdict(smoke, "undetermined", 0.2) == (
+        "undetermined: level 0 has too little data (n = 2 of 2); every planned episode ran, and under 5 never "
+        "give a k*: run --episodes 5 or more"
     )
 
 
