@@ -20,7 +20,8 @@ from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_leve
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
-from indgen_vla.report import _safe, run_label, summarize
+from indgen_vla.report import _safe, run_label
+from indgen_vla.summary import summarize
 
 TESTS = ("auto", "mcnemar", "boschloo", "barnard")
 
@@ -35,7 +36,7 @@ def compare_summaries(
     """The compare.json dict for two runs (axes present in both).
 
     Args:
-        sa, sb: the runs' summaries (``report.summarize``); break levels are read from them, so a level below
+        sa, sb: the runs' summaries (``summary.summarize``); break levels are read from them, so a level below
             the data floor never yields a k*.
         test: "auto" (exact McNemar when the runs are paired, else Boschloo), "mcnemar" (refuse unpaired
             runs), "boschloo" or "barnard" (unpaired tests, even for paired runs).

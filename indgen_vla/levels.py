@@ -1,6 +1,6 @@
 """Per-level rows and verdicts of one axis: rates with CIs, the data floor, CI or sequential verdicts, k* status.
 
-``report.summarize`` builds the pooled rows and one entry per task with these. An adaptive run decides each
+``summary.summarize`` builds the pooled rows and one entry per task with these. An adaptive run decides each
 (task, axis) ladder with the sequential rule; several tasks' ladders are pooled per level afterwards
 (``pool_ladders``), counting only the tasks that ran that level.
 """

@@ -8,13 +8,10 @@ from indgen_vla.breakpoint import (
     break_point,
     break_point_difference,
     cells_from_records,
-    crossing,
-    isotonic_crossing,
     kstar_status,
-    logistic_fit,
-    pava_decreasing,
     verdict_from_ci,
 )
+from indgen_vla.crossing import crossing, isotonic_crossing, logistic_fit, pava_decreasing
 from indgen_vla.errors import ConfigError
 
 

@@ -232,8 +232,8 @@ def test_adaptive_ladders_pair_only_what_ran(tmp_path):
     """An adaptive run (the real sequential rule decides which episodes run): the pooled rows pool different tasks
     at different levels, and Δ vs T0 uses only the (task, episode) pairs both levels ran."""
     from indgen_vla.records import EpisodeRecord
-    from indgen_vla.report import summarize
     from indgen_vla.sequential import SequentialRule, plan_next
+    from indgen_vla.summary import summarize
 
     rule = SequentialRule(max_episodes=20, round_size=5)
     rates = {"easy": {0: 1.0, 1: 0.9, 2: 0.6, 3: 0.0}, "hard": {0: 1.0, 1: 0.0, 2: 0.0, 3: 0.0}}

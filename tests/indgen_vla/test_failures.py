@@ -8,7 +8,8 @@ import pandas as pd
 from indgen_vla.cli import main
 from indgen_vla.failures import UNCLASSIFIED, failure_counts, failure_shift
 from indgen_vla.records import RunDir
-from indgen_vla.report import summarize, write_run_report
+from indgen_vla.report import write_run_report
+from indgen_vla.summary import summarize
 from tests.indgen_vla.test_records import rec
 
 

@@ -16,7 +16,7 @@ from indgen_vla.figures import (
     overview_lines,
 )
 from indgen_vla.records import EpisodeRecord, RunDir
-from indgen_vla.report import summarize
+from indgen_vla.summary import summarize
 
 SIGNED = {"signed": True, "step": 0.025, "unit": "m"}
 

@@ -13,7 +13,7 @@ from indgen_vla.cli import main
 from indgen_vla.compare import compare_summaries
 from indgen_vla.progress import STAGES, level_progress, rank_sum_test, sign_test, signed_rank_exact
 from indgen_vla.records import EPISODES, RunDir
-from indgen_vla.report import summarize
+from indgen_vla.summary import summarize
 from tests.indgen_vla.test_records import rec
 
 

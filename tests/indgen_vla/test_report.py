@@ -5,7 +5,8 @@ import pytest
 
 from indgen_vla.cli import main
 from indgen_vla.records import RunDir
-from indgen_vla.report import plot_axis, render_markdown, summarize
+from indgen_vla.report import plot_axis, render_markdown
+from indgen_vla.summary import summarize
 from tests.indgen_vla.test_records import rec
 
 

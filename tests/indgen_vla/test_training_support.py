@@ -5,7 +5,8 @@ import pytest
 from indgen_vla.errors import ConfigError
 from indgen_vla.figures import plot_axis
 from indgen_vla.records import RunDir
-from indgen_vla.report import render_markdown, summarize
+from indgen_vla.report import render_markdown
+from indgen_vla.summary import summarize
 from indgen_vla.training_support import (
     TRAINED_NOTE,
     TrainedCell,

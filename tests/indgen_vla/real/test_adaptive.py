@@ -77,7 +77,7 @@ def test_kstar_decisions_and_next_level_match_hand_computation(tmp_path, capsys)
         (0, 5, 0, "intact"), (1, 15, 1, "broken"), (2, 0, 0, "not needed"), (3, 0, 0, "not needed")]  # fmt: skip
     # the report applies the same rule to episodes.parquet and agrees
     from indgen_vla.records import RunDir
-    from indgen_vla.report import summarize
+    from indgen_vla.summary import summarize
 
     r = RunDir.open(run)
     summary = summarize(r.episodes(), r.manifest)["axes"]["stack"]

@@ -42,7 +42,8 @@ def test_the_stack_preset_stops_after_the_first_level_observed_below_gamma(tmp_p
         (0, 10, "intact"), (1, 10, "intact"), (2, 10, "undetermined"), (3, 0, "not needed"), (4, 0, "not needed")
     ]  # fmt: skip
     from indgen_vla.records import RunDir
-    from indgen_vla.report import render_markdown, summarize
+    from indgen_vla.report import render_markdown
+    from indgen_vla.summary import summarize
 
     r = RunDir.open(run)
     summary = summarize(r.episodes(), r.manifest)
