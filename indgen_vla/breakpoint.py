@@ -71,6 +71,29 @@ def kstar_status(verdicts: Mapping[int, str], order: Sequence[int]) -> dict:
     return {"earliest": earliest, "latest": latest, "determined": False, "text": text}
 
 
+def kstar_spread(ks: Sequence[int | None | str], minus: str = "-") -> str:
+    """Per-task k* of one direction as one line, e.g. "L1 ×3, L2 ×5, none ×2 (10 tasks; median L2)": what a
+    several-task adaptive run can state where its pooled curve cannot (a task's ladder stops at its break).
+
+    ``ks``: each task's k*: a level, None (no break in range, so beyond every level) or "undetermined". The median
+    is the middle task's k* with None ranked past every level; it is left out while any task is undetermined."""
+    if not ks:
+        return "no tasks"
+
+    def name(k: int | None) -> str:  # as the per-task k* cells print it (report._fmt_break)
+        return "none" if k is None else f"L{k}".replace("-", minus)
+
+    broken = sorted((k for k in ks if isinstance(k, int)), key=abs)
+    n_none = sum(k is None for k in ks)
+    n_open = len(ks) - len(broken) - n_none
+    parts = [f"{name(k)} ×{broken.count(k)}" for k in dict.fromkeys(broken)]
+    parts += [f"none ×{n_none}"] * bool(n_none) + [f"undetermined ×{n_open}"] * bool(n_open)
+    ranked = broken + [None] * n_none  # sorted outward; None (no break in range) past every level
+    lo, hi = ranked[(len(ranked) - 1) // 2], ranked[len(ranked) // 2]
+    median = "" if n_open else f"; median {name(lo)}" + (f" to {name(hi)}" if hi != lo else "")
+    return f"{', '.join(parts)} ({len(ks)} task{'s' * (len(ks) != 1)}{median})"
+
+
 def fixed_run_status(levels: Sequence[Mapping], gamma: float, signed: bool | None = None) -> dict:
     """For a fixed-design run's summary levels ({level, rate, ci_low, ci_high, n}): each level's verdict and,
     per direction, the point k* (metrics.break_level) with its status. Levels with n == 0 stay "undetermined"."""

@@ -6,6 +6,7 @@ import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
+from indgen_vla.breakpoint import kstar_spread
 from indgen_vla.contrasts import check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
@@ -66,6 +67,17 @@ def _fmt_break(b: dict, signed: bool) -> str:
         return "none" if k is None else f"L{k}"
 
     return f"+: {one(b['pos'])}, −: {one(b.get('neg'))}" if signed else one(b["pos"])
+
+
+def _spread(a: dict) -> str:
+    """One run's per-task k* per direction, counted (``breakpoint.kstar_spread``)."""
+    tasks = a.get("tasks", {}).values()
+    if not a["signed"]:
+        return kstar_spread([t["break_level"]["pos"] for t in tasks], minus="−")
+    return "; ".join(
+        f"{sign}: {kstar_spread([t['break_level'].get(d) for t in tasks], minus='−')}"
+        for d, sign in (("pos", "+"), ("neg", "−"))
+    )
 
 
 def _fmt_tests(tests: dict, signed: bool, method: bool = False) -> str:
@@ -143,7 +155,7 @@ def pool_warnings(label: str, axis_summary: dict) -> list[str]:
     where = ", ".join(f"{r['level']} ({len(r['pooled_only'])} of {n})" for r in partial)
     return [f"**Note** ({label}): the pooled rows at level(s) {where} pool only the tasks whose ladder ran them "
             "(--adaptive stops a task at its break), so the pooled curve is not comparable across levels: read "
-            "each task's k* (below)."]  # fmt: skip
+            "each task's k* and their spread across tasks (below)."]  # fmt: skip
 
 
 def _pools(present: list[tuple[str, dict]]) -> str:
@@ -247,6 +259,7 @@ def render_markdown(
                     for _, a in present
                 ]
                 lines.append(f"| {t} | " + " | ".join(cells) + " |")
+            lines.append("| **across tasks** | " + " | ".join(_spread(a) for _, a in present) + " |")
         lines.append("")
     return "\n".join(lines)
 

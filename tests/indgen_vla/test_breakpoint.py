@@ -8,6 +8,7 @@ from indgen_vla.breakpoint import (
     break_point,
     break_point_difference,
     cells_from_records,
+    kstar_spread,
     kstar_status,
     verdict_from_ci,
 )
@@ -238,3 +239,18 @@ def test_two_stage_bootstrap_over_seeds_then_tasks():
     bp = break_point(cells, 0.2, n_boot=200, seed=3, cluster_names=("run", "task"))["pos"]
     assert bp["resampled"] == "run → task → episodes within levels"
     assert bp == break_point(cells, 0.2, n_boot=200, seed=3, cluster_names=("run", "task"))["pos"]
+
+
+@pytest.mark.parametrize(
+    "ks, text",
+    [
+        # ten tasks: sorted outward 1 1 2 2 2 2 2 3 none none -> the 5th and 6th are both L2
+        ([1, 2, 2, None, 2, 1, None, 2, 3, 2], "L1 ×2, L2 ×5, L3 ×1, none ×2 (10 tasks; median L2)"),
+        ([1, None], "L1 ×1, none ×1 (2 tasks; median L1 to none)"),  # even count, middle pair differs
+        ([-2, -1, -1], "L−1 ×2, L−2 ×1 (3 tasks; median L−1)"),  # outward is by |k|
+        ([-1, "undetermined", None], "L−1 ×1, none ×1, undetermined ×1 (3 tasks)"),  # no median while open
+        ([], "no tasks"),
+    ],
+)
+def test_kstar_spread_counts_each_tasks_break_and_its_median(ks, text):
+    assert kstar_spread(ks, minus="−") == text

@@ -106,6 +106,10 @@ def test_per_task_summary_and_pooled_curve(tmp_path):
     md = render_markdown([("run", s)])
     assert "Pooled over tasks: a, b." in md and "k* per task" in md
     assert "| a | +: L2, −: none |" in md and "| b | +: L1, −: none |" in md
+    assert (
+        "| **across tasks** | +: L1 ×1, L2 ×1 (2 tasks; median L1 to L2); −: none ×2 (2 tasks; median none) |"
+        in md
+    )
     assert plot_axis([("run", ax)], "pick_y", 0.2, tmp_path / "p.png").stat().st_size > 1000
 
 
