@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import hashlib
 import json
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -231,14 +231,15 @@ def shared_t0(sp: ScenePlan) -> dict[tuple[str, str], str]:
     """(task, axis) -> the first axis (config order) of ``task`` whose level 0 is the same environment: equal,
     non-empty ``Cell.env_key`` (the scene layer's description of the level, never the axis's name); axes whose level 0
     differs (RoboCasa's ``pick_x`` window) or is unknown map to nothing."""
-    return shared_t0_of(sp.tasks, list(sp.axes), sp.cells)
+    return shared_t0_of(
+        sp.tasks, list(sp.axes), {(c.task, c.axis): c.env_key for c in sp.cells if c.level == 0}
+    )
 
 
 def shared_t0_of(
-    tasks: Sequence[str], axes: Sequence[str], cells: Iterable[Cell]
+    tasks: Sequence[str], axes: Sequence[str], keys: Mapping[tuple[str, str], str]
 ) -> dict[tuple[str, str], str]:
-    """``shared_t0`` from the plan's level-0 cells alone (a merge of shards has their manifests' cells, no plan)."""
-    keys = {(c.task, c.axis): c.env_key for c in cells if c.level == 0}
+    """``shared_t0`` from the level-0 cells' ``env_key`` by (task, axis) alone (a merge has its shards' cells)."""
     out: dict[tuple[str, str], str] = {}
     for task in tasks:
         owners: dict[str, str] = {}
@@ -250,6 +251,9 @@ def shared_t0_of(
             if owner != axis:
                 out[(task, axis)] = owner
     return out
+
+
+SHARING_OFF = "off (--no-share-t0)"  # t0_sharing's reason when a run does not share
 
 
 def sharing_record(plan: EvalPlan, enabled: bool, reason: str = "") -> dict[str, Any]:

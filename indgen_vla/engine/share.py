@@ -16,15 +16,13 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
-from indgen_vla.plan import EpisodeJob, EvalPlan, shared_t0, sharing_record
+from indgen_vla.plan import SHARING_OFF, EpisodeJob, EvalPlan, shared_t0, sharing_record
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
     from indgen_vla.engine.config import EvalConfig
     from indgen_vla.records import EpisodeRecord, RunDir
-
-OFF = "off (--no-share-t0)"
 
 
 def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> EvalPlan:
@@ -34,7 +32,7 @@ def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> EvalPlan:
 
 def sharing_entry(cfg: EvalConfig, plan: EvalPlan) -> dict[str, Any]:
     """The manifest's ``t0_sharing`` of a plan ``with_sharing`` made: what is shared, or why nothing is."""
-    return sharing_record(plan, cfg.share_t0, "" if cfg.share_t0 else OFF)
+    return sharing_record(plan, cfg.share_t0, "" if cfg.share_t0 else SHARING_OFF)
 
 
 def round_rollouts(plan: EvalPlan, jobs: Iterable[EpisodeJob]) -> list[EpisodeJob]:

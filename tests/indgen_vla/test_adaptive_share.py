@@ -47,17 +47,19 @@ def _outcome(job) -> bool:
 
 
 def _run(tmp_path, name, c):
-    """``run_adaptive`` as ``evaluate`` drives it: each rollout recorded in one append with its copies."""
+    """``run_adaptive`` as ``evaluate`` drives it, each rollout recorded with its copies (a round in one append)."""
     plan = build_plan(c)
     run = RunDir.create_or_resume(tmp_path / name, {"plan": {}})
     rolled = []
 
     def run_jobs(batch):
+        recs = []
         for j in batch:
             rolled.append(j.key)
             rec = EpisodeRecord("r", c.policy, "", c.scene, j.task, j.axis, j.level, j.param, j.episode, j.seed,
                                 _outcome(j), 10)  # fmt: skip
-            run.append([rec, *copies(plan, rec, set())])
+            recs += [rec, *copies(plan, rec, set())]
+        run.append(recs)
 
     run_adaptive(plan, run.episodes, run_jobs, c)
     return plan, run.episodes(), rolled
@@ -88,9 +90,10 @@ def test_shared_ladders_decide_as_unshared_ones(tmp_path, mode):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """One until-failure run with T0 shared (the default) and one with --no-share-t0, by ``evaluate``."""
+    """One until-failure run with T0 shared (the default, 2 workers) and one with --no-share-t0 (1), by ``evaluate``."""
     root = tmp_path_factory.mktemp("adaptive_share")
-    return evaluate(cfg(root / "shared"), quiet=True), evaluate(cfg(root / "own", share_t0=False), quiet=True)
+    shared = evaluate(cfg(root / "shared", workers=2), quiet=True)
+    return shared, evaluate(cfg(root / "own", share_t0=False), quiet=True)
 
 
 def _episodes(run) -> pd.DataFrame:
@@ -111,7 +114,8 @@ def test_until_failure_runs_t0_once_and_reports_as_unshared(runs):
 
 def test_a_resume_of_a_half_done_shared_t0_finishes_it_like_an_unkilled_run(runs, tmp_path):
     """Killed with the owner's first level-0 episode recorded and its copy not (an older journal), the rest not
-    run: the resume writes the copy and runs the owner's second episode once, for both ladders."""
+    run: the resume (1 worker) writes the copy and runs the owner's second episode once, for both ladders, ending
+    where the 2-worker run did."""
     full = RunDir(runs[0])
     killed = RunDir.create_or_resume(tmp_path / "killed", full.manifest)
     first = next(r for r in full.rows() if r["axis"] == "pick_y" and r["episode"] == 0)

@@ -10,7 +10,8 @@ import pytest
 
 from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.run import build_plan, evaluate
-from indgen_vla.engine.share import OFF, fill_copies, sharing_entry, with_sharing
+from indgen_vla.engine.share import fill_copies, sharing_entry, with_sharing
+from indgen_vla.plan import SHARING_OFF
 from indgen_vla.records import EpisodeRecord, RunDir
 from tests.fixtures.kill import kill_midway
 
@@ -89,7 +90,12 @@ def test_no_share_t0_shares_nothing_and_says_why(tmp_path):
     off = cfg(tmp_path, share_t0=False, adaptive="kstar")
     plan = with_sharing(off, build_plan(cfg(tmp_path, share_t0=False)))
     record = sharing_entry(off, plan)
-    assert plan.shared == {} and record["reason"] == OFF and not record["enabled"] and record["saved"] == 0
+    assert (
+        plan.shared == {}
+        and record["reason"] == SHARING_OFF
+        and not record["enabled"]
+        and record["saved"] == 0
+    )
     on = cfg(tmp_path, adaptive="kstar")  # adaptive runs share too (test_adaptive_share.py)
     assert with_sharing(on, plan).shared == {("milk", "scale"): "pick_y"}
 
