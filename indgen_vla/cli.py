@@ -131,7 +131,7 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="run level 0 once per task for the axes whose level 0 is the same environment; each such axis reports "
-        "those episodes as its own (episodes.parquet shared_from; default on, off with --adaptive)",
+        "those episodes as its own (episodes.parquet shared_from; default on, --adaptive too)",
     )
     p.add_argument(
         "--backend",

@@ -151,7 +151,15 @@ class EvalPlan:
 
     def rollouts(self) -> tuple[EpisodeJob, ...]:
         """The jobs that are run: all but the level-0 episodes another axis's rollouts stand for."""
-        return tuple(j for j in self.jobs if not (j.level == 0 and (j.task, j.axis) in self.shared))
+        return rollouts(self.jobs, self.shared)
+
+    def job(self, key: tuple[str, str, int, int]) -> EpisodeJob:
+        """The planned episode of ``key`` (task, axis, level, episode)."""
+        return self._jobs_by_key[key]
+
+    @functools.cached_property
+    def _jobs_by_key(self) -> dict[tuple[str, str, int, int], EpisodeJob]:
+        return {j.key: j for j in self.jobs}
 
     def sharers(self, task: str, axis: str) -> tuple[str, ...]:
         """The axes that report ``axis``'s level-0 episodes of ``task`` as their own (in the config's order)."""
@@ -214,17 +222,29 @@ def plan_jobs(
     return tuple(jobs)
 
 
+def rollouts(jobs: Sequence[EpisodeJob], shared: Mapping[tuple[str, str], str]) -> tuple[EpisodeJob, ...]:
+    """``jobs`` but the level-0 episodes of the (task, axis) pairs in ``shared`` (another axis's rollouts)."""
+    return tuple(j for j in jobs if not (j.level == 0 and (j.task, j.axis) in shared))
+
+
 def shared_t0(sp: ScenePlan) -> dict[tuple[str, str], str]:
     """(task, axis) -> the first axis (config order) of ``task`` whose level 0 is the same environment: equal,
     non-empty ``Cell.env_key`` (the scene layer's description of the level, never the axis's name); axes whose level 0
     differs (RoboCasa's ``pick_x`` window) or is unknown map to nothing."""
+    return shared_t0_of(
+        sp.tasks, list(sp.axes), {(c.task, c.axis): c.env_key for c in sp.cells if c.level == 0}
+    )
+
+
+def shared_t0_of(
+    tasks: Sequence[str], axes: Sequence[str], keys: Mapping[tuple[str, str], str]
+) -> dict[tuple[str, str], str]:
+    """``shared_t0`` from the level-0 cells' ``env_key`` by (task, axis) alone (a merge has its shards' cells)."""
     out: dict[tuple[str, str], str] = {}
-    for task in sp.tasks:
+    for task in tasks:
         owners: dict[str, str] = {}
-        for axis in sp.axes:
-            if 0 not in sp.levels[axis]:
-                continue
-            key = sp.cell(task, axis, 0).env_key
+        for axis in axes:
+            key = keys.get((task, axis), "")
             if not key:
                 continue
             owner = owners.setdefault(key, axis)
@@ -233,16 +253,28 @@ def shared_t0(sp: ScenePlan) -> dict[tuple[str, str], str]:
     return out
 
 
+SHARING_OFF = "off (--no-share-t0)"  # t0_sharing's reason when a run does not share
+
+
 def sharing_record(plan: EvalPlan, enabled: bool, reason: str = "") -> dict[str, Any]:
+    """The manifest's ``t0_sharing`` of ``plan`` (whose ``shared`` is empty when sharing is off)."""
+    return sharing_summary(plan.tasks, list(plan.axes), plan.shared, plan.jobs, enabled, reason)
+
+
+def sharing_summary(
+    tasks: Sequence[str], axes: Sequence[str], shared: Mapping[tuple[str, str], str], jobs: Sequence[EpisodeJob],
+    enabled: bool, reason: str = "",
+) -> dict[str, Any]:  # fmt: skip
     """The manifest's ``t0_sharing``: whether it was on (``reason`` when off), per task the groups of axes that
-    share one T0 (owner first), and how many rollouts that saves."""
+    share one T0 (owner first), and how many of the planned ``jobs`` are rolled out and how many that saves."""
     groups: dict[str, list[list[str]]] = {}
-    for task in plan.tasks:
-        for owner in plan.axes:
-            if (task, owner) not in plan.shared and (b := plan.sharers(task, owner)):
+    for task in tasks:
+        for owner in axes:
+            b = [a for (t, a), o in shared.items() if t == task and o == owner]
+            if (task, owner) not in shared and b:
                 groups.setdefault(task, []).append([owner, *b])
     out: dict[str, Any] = {"enabled": enabled}
     if reason:
         out["reason"] = reason
-    run = len(plan.rollouts())
-    return out | {"groups": groups, "rollouts": run, "saved": len(plan.jobs) - run}
+    run = len(rollouts(jobs, shared))
+    return out | {"groups": groups, "rollouts": run, "saved": len(jobs) - run}

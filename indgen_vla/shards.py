@@ -20,7 +20,7 @@ from typing import Any
 
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.fingerprint import differences, short, show_difference
-from indgen_vla.plan import jobs_sha256, plan_jobs
+from indgen_vla.plan import SHARING_OFF, jobs_sha256, plan_jobs, shared_t0_of, sharing_summary
 from indgen_vla.records import KEY, RunDir
 
 # the plan entries a merge unions; every other one must be equal in every shard
@@ -173,6 +173,32 @@ def check_protocol(shards: Sequence[Shard]) -> None:
                                         f"{short(eb['successors'][axis])})")  # fmt: skip
 
 
+def sharing_setting(shards: Sequence[Shard]) -> bool | None:
+    """Whether the shards share T0 across axes (their manifests' ``t0_sharing.enabled``, as last run): the merged
+    run records, and its resume uses, that one setting; None when no shard says (made before T0 sharing). Refuses
+    shards that disagree, in one line."""
+    said = [(s, s.manifest["t0_sharing"]) for s in shards if isinstance(s.manifest.get("t0_sharing"), dict)]
+    a, first = said[0] if said else (None, {})
+    for b, entry in said[1:]:
+        if bool(entry.get("enabled")) != bool(first.get("enabled")):
+            (on, _), (off, why) = sorted([(a, first), (b, entry)], key=lambda se: not se[1].get("enabled"))
+            raise RunDirError(f"{on.path} shares level 0 across axes (manifest t0_sharing) and {off.path} does not "
+                              f"({why.get('reason') or 'off'}), and a merged run records one setting: resume one "
+                              "of them with the other's (--share-t0 or --no-share-t0; its episodes are kept) and merge "
+                              "again")  # fmt: skip
+    return bool(first.get("enabled")) if said else None
+
+
+def merged_sharing(
+    plan: Mapping[str, Any], cells: Sequence[Mapping[str, Any]], jobs, enabled: bool
+) -> dict[str, Any]:
+    """The merged manifest's ``t0_sharing``: what ``evaluate`` records for the union plan under the shards' setting
+    (``share.sharing_entry``), from the cells' level-0 ``env_key``, so a resume of the merge keeps it as it is."""
+    keys = {(c["task"], c["axis"]): c.get("env_key", "") for c in cells if int(c["level"]) == 0}
+    shared = shared_t0_of(plan["tasks"], plan["axes"], keys) if enabled else {}
+    return sharing_summary(plan["tasks"], plan["axes"], shared, jobs, enabled, "" if enabled else SHARING_OFF)
+
+
 def _environment(s: Shard) -> dict[str, Any]:
     return dict(s.manifest["resolved"].get("environment") or {})
 
@@ -214,7 +240,8 @@ def merged_manifest(
     resume: Mapping[str, Any], command: str,
 ) -> dict[str, Any]:  # fmt: skip
     """The merged run's manifest.json: an ordinary run's fields for the union plan (``resolved`` with every cell and
-    the union's jobs hash, the fingerprint with every certificate) plus ``merged_from``: the shards (path, run id,
+    the union's jobs hash, the fingerprint with every certificate, ``t0_sharing`` under the shards' setting, which
+    ``resume``'s config carries) plus ``merged_from``: the shards (path, run id,
     episodes, how many were kept: ``kept``), the duplicate counts (``merged_rows``) and how to resume (``resume``: the
     merged ``config``, and its ``command`` or a ``note`` saying why none resumes it); ``command``: the merge's own."""
     first = shards[0].manifest
@@ -237,6 +264,7 @@ def merged_manifest(
             "episodes": len(jobs),
             "jobs_sha256": digest,
         },
+        "t0_sharing": merged_sharing(plan, cells, jobs, bool(config.get("share_t0", True))),
         "config": config,
         "versions": _common(s.manifest.get("versions") or {} for s in shards),
         "git_sha": _common({"sha": s.manifest.get("git_sha")} for s in shards).get("sha", ""),

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from indgen_vla.engine.share import round_rollouts
 from indgen_vla.plan import EvalPlan
 from indgen_vla.sequential import Plan, level_outcomes, plan_next
 
@@ -40,15 +41,15 @@ def ladder_plans(plan: EvalPlan, episodes, cfg) -> dict[tuple[str, str], Plan]:
 
 
 def next_round(plan: EvalPlan, episodes, cfg) -> list:
-    """The planned episodes every ladder's rule wants next, in one round ([] = all settled): the ladders of all
-    tasks and axes run side by side, so a protocol-sized round keeps every worker busy."""
-    by_key = {j.key: j for j in plan.jobs}
-    return [
-        by_key[(t, a, k, i)]
+    """The rollouts of the planned episodes every ladder's rule wants next, in one round ([] = all settled): the
+    ladders of all tasks and axes run side by side, so a protocol-sized round keeps every worker busy; a shared
+    level-0 episode runs once, for its owner axis (``share.round_rollouts``)."""
+    return round_rollouts(plan, (
+        plan.job((t, a, k, i))
         for (t, a), p in ladder_plans(plan, episodes, cfg).items()
         for k, eps in sorted(p.to_run.items())
         for i in eps
-    ]
+    ))  # fmt: skip
 
 
 def run_adaptive(plan: EvalPlan, read_episodes: Callable, run_jobs: Callable[[list], None], cfg) -> None:

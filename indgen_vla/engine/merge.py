@@ -30,6 +30,7 @@ from indgen_vla.shards import (
     merged_plan,
     merged_rows,
     open_shards,
+    sharing_setting,
 )
 
 # the evaluate flags a resume command repeats where the shards' config differs from the default: what the plan, the
@@ -37,7 +38,7 @@ from indgen_vla.shards import (
 RESUME_FLAGS = ("policy", "scene", "task", "axes", "levels", "step", "axes_preset", "episodes", "seed", "max_steps",
                 "replan_steps", "warmup_steps", "image_size", "video", "video_per_level", "data_regime", "gamma",
                 "allow_infeasible", "smoke", "trust_remote_code", "device", "precision", "compile", "adaptive",
-                "adaptive_delta", "adaptive_alpha", "round_size")  # fmt: skip
+                "adaptive_delta", "adaptive_alpha", "round_size", "share_t0")  # fmt: skip
 DEFAULTS = {f.name: f.default for f in dataclasses.fields(EvalConfig)}
 
 
@@ -49,7 +50,9 @@ def resume_command(cfg: EvalConfig) -> str:
         if name not in ("policy", "scene", "axes") and (value is None or value == DEFAULTS[name]):
             continue
         flag = "--axis" if name == "axes" else "--" + name.replace("_", "-")
-        if isinstance(value, bool):
+        if name == "share_t0":  # the one flag whose non-default is False
+            parts.append("--no-share-t0")
+        elif isinstance(value, bool):
             parts.append(flag)
         else:
             parts += [flag, shlex.quote(",".join(value) if name == "axes" else str(value))]
@@ -57,16 +60,19 @@ def resume_command(cfg: EvalConfig) -> str:
 
 
 def resume_plan(
-    shards: Sequence[Shard], plan: dict[str, Any], out: Path
+    shards: Sequence[Shard], plan: dict[str, Any], out: Path, share_t0: bool | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The merged plan in the task order ``evaluate`` gives it, and how to resume the merge: ``{"config", "command"}``
     when one evaluate command plans exactly the union (resolved here as ``evaluate`` resolves it), else ``{"config",
-    "note"}`` saying why none does (the shards' tasks are neither one task nor all, their --levels differ by axis...)."""
+    "note"}`` saying why none does (the shards' tasks are neither one task nor all, their --levels differ by axis...).
+    ``share_t0``: the shards' T0 sharing as last run (``shards.sharing_setting``), over their first config's."""
     from indgen_vla.engine.run import build_plan
 
     tasks = plan["tasks"]
     config = {k: v for k, v in (shards[0].manifest.get("config") or {}).items() if k in FLAG_FIELDS}
     config.update(task=tasks[0] if len(tasks) == 1 else "all", axes=tuple(plan["axes"]), out=str(out))
+    if share_t0 is not None:
+        config["share_t0"] = share_t0
     try:
         cfg = EvalConfig(**config)
         resolved = build_plan(cfg)
@@ -175,7 +181,7 @@ def merge(
     merged_cells(shards, plan)  # refuses other parameters or a (task, axis) in no shard, before resolving
     check_protocol(shards)
     rows, counts, kept = merged_rows(shards)
-    plan, resume = resume_plan(shards, plan, out)
+    plan, resume = resume_plan(shards, plan, out, sharing_setting(shards))
     manifest = merged_manifest(shards, plan, counts, kept, resume, command)
     missing = write_merged(out, manifest, rows, shards)
     run = RunDir.open(out)

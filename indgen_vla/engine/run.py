@@ -217,12 +217,12 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
         record_sharing(run, sharing_entry(cfg, plan))
+        fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
         if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
             from indgen_vla.engine.adaptive import next_round
 
             todo = next_round(plan, run.episodes(), cfg)
         else:
-            fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
             done = run.done_keys()
             todo = [j for j in plan.rollouts() if j.key not in done]
         if todo:

@@ -5,6 +5,10 @@ the scene layer says two axes build the same level-0 environment (``plan.shared_
 level-0 episodes would be the same rollout twice. ``evaluate`` runs the first axis's (the owner's) and records each
 of its level-0 episodes once more per sharing axis, marked ``shared_from`` = the owner, with the sharer's own level-0
 parameter; ``episodes.parquet`` keeps one row per (task, axis, level, episode), so every reader works unchanged.
+
+Under ``--adaptive`` too: every ladder's level-0 decision reads only its level-0 outcomes, in episode order, under the
+run's one rule, and level 0 opens every direction of every mode, so the ladders of one task that share T0 ask for
+the same level-0 episodes in every round; a round runs the owner's (``round_rollouts``) and records the copies.
 """
 
 from __future__ import annotations
@@ -12,33 +16,35 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING, Any
 
-from indgen_vla.plan import EvalPlan, shared_t0, sharing_record
+from indgen_vla.plan import SHARING_OFF, EpisodeJob, EvalPlan, shared_t0, sharing_record
 
 if TYPE_CHECKING:
+    from collections.abc import Iterable
+
     from indgen_vla.engine.config import EvalConfig
     from indgen_vla.records import EpisodeRecord, RunDir
 
-ADAPTIVE_OFF = (
-    "off under --adaptive: each (task, axis) ladder's rule asks for its own level-0 episodes, and a shared T0 would "
-    "hand one ladder episodes its rule did not ask for"
-)
-
 
 def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> EvalPlan:
-    """``plan`` with its shared level-0 cells, when ``cfg.share_t0`` and the run is not adaptive."""
-    return plan if _off_reason(cfg) else dataclasses.replace(plan, shared=shared_t0(plan.scene_plan))
+    """``plan`` with its shared level-0 cells, when ``cfg.share_t0``."""
+    return dataclasses.replace(plan, shared=shared_t0(plan.scene_plan)) if cfg.share_t0 else plan
 
 
 def sharing_entry(cfg: EvalConfig, plan: EvalPlan) -> dict[str, Any]:
     """The manifest's ``t0_sharing`` of a plan ``with_sharing`` made: what is shared, or why nothing is."""
-    reason = _off_reason(cfg)
-    return sharing_record(plan, not reason, reason)
+    return sharing_record(plan, cfg.share_t0, "" if cfg.share_t0 else SHARING_OFF)
 
 
-def _off_reason(cfg: EvalConfig) -> str:
-    if not cfg.share_t0:
-        return "off (--no-share-t0)"
-    return ADAPTIVE_OFF if cfg.adaptive else ""
+def round_rollouts(plan: EvalPlan, jobs: Iterable[EpisodeJob]) -> list[EpisodeJob]:
+    """The rollouts that record ``jobs`` (an adaptive round's episodes): a sharer's level-0 episode is its owner's,
+    whose copy ``copies`` records with it; each rollout once, in first-wanted order."""
+    out: dict[tuple, EpisodeJob] = {}
+    for j in jobs:
+        owner = plan.shared.get((j.task, j.axis)) if j.level == 0 else None
+        if owner is not None:
+            j = plan.job((j.task, owner, 0, j.episode))
+        out.setdefault(j.key, j)
+    return list(out.values())
 
 
 def copies(plan: EvalPlan, rec: EpisodeRecord, taken: set) -> list[EpisodeRecord]:

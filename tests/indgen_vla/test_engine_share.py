@@ -10,7 +10,8 @@ import pytest
 
 from indgen_vla.engine.config import EvalConfig
 from indgen_vla.engine.run import build_plan, evaluate
-from indgen_vla.engine.share import ADAPTIVE_OFF, fill_copies, sharing_entry, with_sharing
+from indgen_vla.engine.share import fill_copies, sharing_entry, with_sharing
+from indgen_vla.plan import SHARING_OFF
 from indgen_vla.records import EpisodeRecord, RunDir
 from tests.fixtures.kill import kill_midway
 
@@ -85,11 +86,18 @@ def test_compare_axes_says_shared_t0_pairs_check_nothing(runs, tmp_path):
     assert "one rollout" not in got["own"]["pairing"]
 
 
-def test_adaptive_runs_share_nothing_and_say_why(tmp_path):
-    adaptive = cfg(tmp_path, adaptive="kstar")
-    plan = with_sharing(adaptive, build_plan(cfg(tmp_path, share_t0=False)))
-    record = sharing_entry(adaptive, plan)
-    assert plan.shared == {} and record["reason"] == ADAPTIVE_OFF and not record["enabled"]
+def test_no_share_t0_shares_nothing_and_says_why(tmp_path):
+    off = cfg(tmp_path, share_t0=False, adaptive="kstar")
+    plan = with_sharing(off, build_plan(cfg(tmp_path, share_t0=False)))
+    record = sharing_entry(off, plan)
+    assert (
+        plan.shared == {}
+        and record["reason"] == SHARING_OFF
+        and not record["enabled"]
+        and record["saved"] == 0
+    )
+    on = cfg(tmp_path, adaptive="kstar")  # adaptive runs share too (test_adaptive_share.py)
+    assert with_sharing(on, plan).shared == {("milk", "scale"): "pick_y"}
 
 
 def test_a_resume_writes_the_copies_a_kill_cut_off(tmp_path, runs):

@@ -80,8 +80,21 @@ def test_merged_shards_report_like_one_unsharded_run(runs, tmp_path, capsys):
               for n, r in (("merged", merged), ("whole", whole))}  # fmt: skip
     assert shared == {"merged": {""}, "whole": {"pick_y"}}  # the same outcomes, rolled out once or twice
     m, w = read(merged, "manifest.json"), read(whole, "manifest.json")
-    for key in ("plan", "axes", "resolved", "fingerprint", "policy", "scene", "seed", "versions"):
-        assert m[key] == w[key], key  # the union plan is the unsharded plan, its jobs' hash included
+    for key in (
+        "plan",
+        "axes",
+        "resolved",
+        "fingerprint",
+        "policy",
+        "scene",
+        "seed",
+        "versions",
+        "t0_sharing",
+    ):
+        assert m[key] == w[key], (
+            key
+        )  # the union plan is the unsharded plan, its jobs' hash and T0 sharing included
+    assert m["t0_sharing"]["groups"] == {"milk": [["pick_y", "scale"]]}  # what a resume would share
     shard_manifests = [read(s, "manifest.json") for s in shards]
     assert [(e["path"], e["run_id"], e["episodes"], e["kept"]) for e in m["merged_from"]["shards"]] == [
         (str(s.resolve()), sm["run_id"], 4, 4) for s, sm in zip(shards, shard_manifests, strict=True)
@@ -108,10 +121,41 @@ def test_merge_resumes_what_a_shard_did_not_finish(runs, tmp_path, capsys):
                       f"--levels 0:1 --episodes 2 --max-steps 5 --out {merged}")  # fmt: skip
     err = refusal(capsys, *EVAL, "--axis", "scale", "--out", str(merged))
     assert f"is a merge of shards (indgen merge): resume it with {resume}" in err
+    sharing = read(merged, "manifest.json")["t0_sharing"]
     assert main([*shlex.split(resume)[1:], "--workers", "1"]) == 0
+    assert read(merged, "manifest.json")["t0_sharing"] == sharing  # the resume records the setting it found
     assert read(merged, "summary.json") == read(runs / "whole", "summary.json")
     pd.testing.assert_frame_equal(outcomes(merged), outcomes(runs / "whole"))
     assert snapshot(partial) == before
+
+
+def _sharing_off(m):
+    m["t0_sharing"] = {
+        "enabled": False,
+        "reason": "off (--no-share-t0)",
+        "groups": {},
+        "rollouts": 4,
+        "saved": 0,
+    }
+
+
+def test_the_merged_manifest_carries_the_shards_t0_sharing_and_refuses_two_settings(runs, tmp_path, capsys):
+    """Shards run with --no-share-t0: the merge records sharing off and resumes with --no-share-t0; a shard that
+    shares beside one that does not is refused in one line naming both."""
+    off = [copy_shard(runs / a, tmp_path / a, manifest=_sharing_off) for a in ("pick_y", "scale")]
+    assert main(["merge", *map(str, off), "--out", str(tmp_path / "merged")]) == 0
+    m = read(tmp_path / "merged", "manifest.json")
+    assert m["t0_sharing"] == {"enabled": False, "reason": "off (--no-share-t0)", "groups": {}, "rollouts": 8,
+                               "saved": 0}  # fmt: skip
+    assert m["config"]["share_t0"] is False
+    assert m["merged_from"]["resume"].endswith(f"--no-share-t0 --out {tmp_path / 'merged'}")
+    capsys.readouterr()
+    err = refusal(capsys, "merge", str(runs / "pick_y"), str(off[1]), "--out", str(tmp_path / "mixed"))
+    assert (
+        f"{runs / 'pick_y'} shares level 0 across axes (manifest t0_sharing) and {off[1]} does not (off "
+        in err
+    )
+    assert "resume one of them with the other's (--share-t0 or --no-share-t0" in err
 
 
 def test_identical_duplicates_are_kept_once_and_retried_errors_give_way(runs, tmp_path, capsys):
