@@ -261,8 +261,9 @@ class RunDir:
             return None
         import pyarrow.parquet as pq
 
-        try:
-            table = pq.read_table(p)
+        try:  # one open file: a path read can stat the old file and open the new one a rewrite just put there
+            with open(p, "rb") as f:
+                table = pq.read_table(f)
         except Exception as e:  # pyarrow raises several types for a damaged file
             raise RunDirError(
                 f"{p} is corrupt ({type(e).__name__}); move it away to restart the run"

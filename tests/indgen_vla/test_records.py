@@ -229,3 +229,32 @@ def test_a_journal_or_an_append_sends_episodes_through_the_rows(tmp_path, monkey
     assert len(reader.episodes()) == 2 and reader._rows is None
     reader.append([rec(0, 2)])  # a reader turned writer keeps its rows from then on
     assert len(reader.episodes()) == 3 and reader._rows is not None
+
+
+def test_a_reader_never_sees_a_run_being_rewritten_as_corrupt(tmp_path):
+    """``indgen report`` on a live run: each append rewrites episodes.parquet by rename; a read by path could take the
+    old file's size and the new file's bytes ("Page was smaller than expected": about 2 % of such reads here)."""
+    import threading
+
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])
+    done, failures = threading.Event(), []
+
+    def write() -> None:
+        for i in range(1, 250):
+            run.append(
+                [rec(i % 7, i, task=f"t{i}")]
+            )  # < FLUSH_EVERY_ROWS rows: every append rewrites the file
+        done.set()
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    reads = 0
+    while not done.is_set():
+        try:
+            RunDir(tmp_path / "run")._read_table()
+        except RunDirError as e:
+            failures.append(str(e))
+        reads += 1
+    writer.join()
+    assert reads > 20 and not failures, (reads, failures[:1])
