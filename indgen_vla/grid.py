@@ -171,9 +171,7 @@ def _cmap():
     """Red (0) to green (1), grey where a cell has no rate."""
     from matplotlib import colormaps
 
-    cmap = colormaps["RdYlGn"].copy()
-    cmap.set_bad("lightgrey")
-    return cmap
+    return colormaps["RdYlGn"].with_extremes(bad="lightgrey")
 
 
 def _outline(c: int, i: int):
