@@ -83,7 +83,7 @@ def split_held(name: str) -> tuple[str, str, int] | None:
     if ":" in at:
         raise ConfigError(
             f"axis {name!r}: the range form A@B=i:j is for --axis and a config's axes (it expands to one axis per "
-            "level); name one held level here, e.g. " + f"{inner}@{held}={at.partition(':')[0] or 0}"
+            f"level); name one held level here, e.g. {inner}@{held}={at.partition(':')[0] or 0}"
         )
     try:
         return inner, held, int(at)

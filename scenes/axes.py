@@ -266,7 +266,7 @@ def _held(
     inner_succ = get_successor(inner, step, overrides)
     held_succ = get_successor(held, None, overrides)
     assert isinstance(held_succ, Shift)
-    components = {p.axis.name for p in getattr(inner_succ, "parts", (inner_succ,))}
+    components = {p.axis.name for p in shifts(inner_succ)}
     if held_succ.axis.name in components:
         raise ConfigError(
             f"axis {name!r} holds {held_succ.axis.name}, which its ladder {inner} already moves; hold another axis"
