@@ -119,10 +119,14 @@ def test_description(result: dict) -> str:
     """Which test ran and whether it is paired, in words (compare.md and the verdict say it)."""
     if result.get("contrast"):
         c = result["contrast"]
+        same = c.get("same_t0", True)
+        zero = ("the same initial state on both axes; pooled over tasks, pairs within task); level 0 is T0 on both "
+                "axes, shown as a check of the pairing, outside the Holm family" if same else "the same seed on both "
+                "axes; pooled over tasks, pairs within task); level 0 differs (another held level: two rows of a "
+                "grid), tested as every level is")  # fmt: skip
         return (f"paired: axis `{c['axis_a']}` (A) against axis `{c['axis_b']}` (B), two-sided exact McNemar test on "
                 "the discordant episode pairs per level (episodes matched on scene, task, level, episode and seed: "
-                "the same initial state on both axes; pooled over tasks, pairs within task); level 0 is T0 on both axes, "
-                "shown as a check of the pairing, outside the Holm family")  # fmt: skip
+                f"{zero}")  # fmt: skip
     if result["paired"]:
         return ("paired: two-sided exact McNemar test on the discordant episode pairs per level (episodes matched "
                 "on task, axis, level, episode and seed)")  # fmt: skip

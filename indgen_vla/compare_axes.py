@@ -15,6 +15,7 @@ from typing import Any
 from indgen_vla.contrasts import ALPHA, AxisPairs, pair_axes, paired_delta
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.metrics import compare_paired_levels
+from indgen_vla.progression import split_held
 
 
 def parse_axes(text: str) -> tuple[str, str]:
@@ -45,19 +46,31 @@ def check_plans(ra, rb, ea, eb, axis_a: str, axis_b: str) -> None:
         raise RunDirError(f"{axis_a} ran on scene {', '.join(sorted(sc_a))} and {axis_b} on "
                           f"{', '.join(sorted(sc_b))}: episodes of different scenes are not paired")  # fmt: skip
     st_a, st_b = _steps(ra.manifest, axis_a), _steps(rb.manifest, axis_b)
-    for comp in sorted(set(st_a) & set(st_b)):
+    for comp in sorted(set(st_a) & set(st_b) - {"held_level"}):  # a held level is a start, not a step
         if abs(st_a[comp] - st_b[comp]) > 1e-9 * max(1.0, abs(st_a[comp])):
             raise RunDirError(f"component {comp} moves {st_a[comp]:g} per level on {axis_a} but {st_b[comp]:g} on "
                               f"{axis_b}, so level k is not the same shift; evaluate both with the same "
                               "--axes-preset")  # fmt: skip
 
 
-def contrast_rows(pairs: AxisPairs, margin: float, alpha: float = ALPHA) -> list[dict]:
+def same_start(axis_a: str, axis_b: str) -> bool:
+    """Whether level 0 is one environment on both axes: T0, or the same held level of the same held axis (``A@B=j``
+    starts at B's level j; ``A@B=0`` at T0)."""
+
+    def start(axis: str) -> tuple[str, int] | None:
+        held = split_held(axis)
+        return (held[1], held[2]) if held and held[2] != 0 else None
+
+    return start(axis_a) == start(axis_b)
+
+
+def contrast_rows(pairs: AxisPairs, margin: float, alpha: float = ALPHA, same_t0: bool = True) -> list[dict]:
     """compare's paired rows (exact McNemar, Holm over the levels k != 0) plus Δ = B − A, its 95 % interval, the
     paired equivalence test and the episodes left without a partner. Level 0 is T0 on both axes: its row checks the
-    pairing (a difference there is run-to-run noise) and stays out of the Holm family (``p_holm`` NaN)."""
-    rows = compare_paired_levels({k: v for k, v in pairs.pairs.items() if k != 0})
-    if 0 in pairs.pairs:  # T0 on both axes: a check of the pairing, outside the tested family
+    pairing (a difference there is run-to-run noise) and stays out of the Holm family (``p_holm`` NaN); where level 0
+    differs (``same_t0`` False: two rows of a grid, ``same_start``) it is tested like any other level."""
+    rows = compare_paired_levels({k: v for k, v in pairs.pairs.items() if k != 0 or not same_t0})
+    if 0 in pairs.pairs and same_t0:  # T0 on both axes: a check of the pairing, outside the tested family
         rows = sorted([*rows, {**compare_paired_levels({0: pairs.pairs[0]})[0], "p_holm": float("nan")}],
                       key=lambda r: r["level"])  # fmt: skip
     for r in rows:
@@ -113,7 +126,8 @@ def compare_axes(
     key = f"{axis_a} vs {axis_b}"
     a, b = sa["axes"][axis_a], sb["axes"][axis_b]
     ra, rb = as_one_axis(ea, axis_a, key), as_one_axis(eb, axis_b, key)
-    rows = contrast_rows(pairs, margin, alpha)
+    same_t0 = same_start(axis_a, axis_b)
+    rows = contrast_rows(pairs, margin, alpha, same_t0)
     pairing, same = pairs.describe(), same_rollouts(ea, eb, axis_a, axis_b)
     for r in rows:
         if r["level"] == 0 and same:  # a shared T0: these pairs are one rollout, equal by construction
@@ -125,7 +139,7 @@ def compare_axes(
     return {
         "test": "mcnemar_exact", "paired": True, "gamma": sa["gamma"], "margin": margin,
         "contrast": {"axis_a": axis_a, "axis_b": axis_b, "paired_on": ["scene", "task", "level", "episode", "seed"],
-                     "levels_only_a": list(pairs.only_a), "levels_only_b": list(pairs.only_b)},
+                     "levels_only_a": list(pairs.only_a), "levels_only_b": list(pairs.only_b), "same_t0": same_t0},
         "axes": {key: {
             "axis_a": axis_a, "axis_b": axis_b, "levels": rows, "break_level_a": a["break_level"],
             "break_level_b": b["break_level"], "failures": failure_shift(a["levels"], b["levels"]),

@@ -44,8 +44,10 @@ class AxisSpec:
     base: float = 0.0
 
     def __post_init__(self) -> None:
-        if not self.name or not self.name.replace("_", "").replace("+", "").isalnum():
-            raise ConfigError(f"axis name {self.name!r} must be alphanumeric with '_' or '+'")
+        held = split_held(self.name)
+        for part in (held[0], held[1]) if held else (self.name,):
+            if not part or not part.replace("_", "").replace("+", "").isalnum():
+                raise ConfigError(f"axis name {self.name!r} must be alphanumeric with '_' or '+' (or A@B=j)")
         if not (self.step > 0 and math.isfinite(self.step)):
             raise ConfigError(f"axis {self.name}: step must be a positive number, got {self.step}")
         if self.max_level < 1:
@@ -64,6 +66,54 @@ class AxisSpec:
     def param(self, level: int) -> float:
         """The axis parameter at ``level``: its level-0 value plus ``level`` atomic steps."""
         return self.base + level * self.step
+
+
+def split_held(name: str) -> tuple[str, str, int] | None:
+    """``("pick_y", "distractor", 2)`` for the held axis ``pick_y@distractor=2`` (pick_y's ladder with distractor held
+    at its level 2: one row of a 2-D grid); None for a name without ``@``. One-line ConfigError for a malformed one."""
+    if "@" not in name:
+        return None
+    example = "e.g. pick_y@distractor=2: pick_y's levels, each with distractor at its level 2"
+    inner, _, rest = name.partition("@")
+    held, eq, at = rest.partition("=")
+    if "@" in rest:
+        raise ConfigError(f"axis {name!r}: hold one axis at a time (A@B=j); for more, compose A as 'a+b'")
+    if not inner or not held or not eq:
+        raise ConfigError(f"axis {name!r}: write a held axis as A@B=j, {example}")
+    if ":" in at:
+        raise ConfigError(
+            f"axis {name!r}: the range form A@B=i:j is for --axis and a config's axes (it expands to one axis per "
+            f"level); name one held level here, e.g. {inner}@{held}={at.partition(':')[0] or 0}"
+        )
+    try:
+        return inner, held, int(at)
+    except ValueError:
+        raise ConfigError(f"axis {name!r}: the held level {at!r} is not an integer; {example}") from None
+
+
+def expand_axes(names: Sequence[str]) -> tuple[str, ...]:
+    """``--axis`` names with each range ``A@B=i:j`` expanded to the held axes ``A@B=i``, ..., ``A@B=j`` (a 2-D grid
+    as a family of 1-D ladders); other names as given, in order. Refuses a backwards range and repeated axes."""
+    out: list[str] = []
+    for name in names:
+        head, eq, at = name.rpartition("=")
+        if "@" not in head or not eq or ":" not in at:
+            out.append(name)
+            continue
+        lo_s, _, hi_s = at.partition(":")
+        try:
+            lo, hi = int(lo_s), int(hi_s)
+        except ValueError:
+            raise ConfigError(
+                f"axis {name!r}: a held range is A@B=i:j with integers i <= j, e.g. pick_y@distractor=0:3"
+            ) from None
+        if lo > hi:
+            raise ConfigError(f"axis {name!r}: start {lo} is after end {hi}; write it as {head}={hi}:{lo}")
+        out += [f"{head}={j}" for j in range(lo, hi + 1)]
+    repeated = sorted({a for a in out if out.count(a) > 1})
+    if repeated:
+        raise ConfigError(f"--axis names {', '.join(repeated)} more than once; name each axis once")
+    return tuple(out)
 
 
 def parse_levels(text: str | Sequence[int] | None, axis: AxisSpec) -> list[int]:

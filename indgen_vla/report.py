@@ -11,6 +11,7 @@ from indgen_vla.contrasts import check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.figures import AXES_PLOT, axis_order, axis_specs, overview_lines, plot_axes, plot_axis
+from indgen_vla.grid import grid_lines, plot_grids
 from indgen_vla.levels import fmt_condition2, verdict_line
 from indgen_vla.metrics import DEFAULT_GAMMA, MIN_N, UNDETERMINED
 from indgen_vla.progress import plot_progress, render_levels
@@ -173,7 +174,8 @@ def render_markdown(
     order: Sequence[str] = (),
 ) -> str:
     """A levels × runs table per axis with rate, CI, n, errors and k*, the trend tests, and k* per task; with two
-    or more axes first the axes × levels overview (``figures.overview_lines``, in ``order``)."""
+    or more axes first the axes × levels overview (``figures.overview_lines``, in ``order``), then the grids of
+    held axes (``grid.grid_lines``)."""
     s0 = summaries[0][1]
     gamma = s0["gamma"]
     lines = [f"# {title}", "",
@@ -185,6 +187,7 @@ def render_markdown(
              "(success falls with |k|), per direction, on the levels with enough data. param \"—\": no episode, or "
              "the pooled tasks use different parameters (see each task in summary.json).", ""]  # fmt: skip
     lines += overview_lines(summaries, order or None)
+    lines += grid_lines(summaries, _fmt_rate, _fmt_break)  # held axes A@B=j: (level of A) × (held level of B)
     axes = sorted({a for _, s in summaries for a in s["axes"]})
     for axis in axes:
         present = [(label, s["axes"][axis]) for label, s in summaries if axis in s["axes"]]
@@ -281,6 +284,7 @@ def write_run_report(
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
         plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
     plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
+    plot_grids([(label, summary)], gamma, run.path / "plots")
     return summary
 
 
@@ -333,6 +337,7 @@ def report_main(args: argparse.Namespace) -> int:
         plot_axes(
             results, args.gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs])
         )
+        plot_grids(results, args.gamma, out / "plots")
         print(f"overlay: {out / REPORT}, {out / 'plots'}/")
     print_tables(results)
     return 0

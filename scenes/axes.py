@@ -3,7 +3,9 @@
 Each axis owns one spec field and a step (the paper's defaults, DESIGN.md's table). A successor is a
 small frozen object: calling it returns a new spec with that field moved one step, nothing else.
 Compositions such as ``pick_y+distractor`` apply every component once per level (one-sided
-components always step forwards, so level -k of ``pick_y+distractor`` has k distractors).
+components always step forwards, so level -k of ``pick_y+distractor`` has k distractors). A held axis
+``pick_y@distractor=2`` is pick_y's ladder started from T0 moved 2 steps along distractor: one row of the
+2-D grid (pick_y level) x (distractor level), which a run covers as a family of such 1-D ladders.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.progression import AxisSpec, apply_level
+from indgen_vla.progression import AxisSpec, apply_level, split_held
 from scenes.spec import SceneSpec
 
 # name -> (description, field, step, unit, signed, max_level)
@@ -75,6 +77,13 @@ AXIS_ALIASES: dict[str, str] = {"base_y": "horizon"}
 def resolve_alias(name: str) -> str:
     """The axis ``name`` stands for (itself unless it is an alias)."""
     return AXIS_ALIASES.get(name, name)
+
+
+def axis_components(name: str) -> list[str]:
+    """The single axes ``name`` moves (aliases resolved): its components, then a held axis's held one."""
+    held = split_held(name)
+    inner = held[0] if held else name
+    return [resolve_alias(p) for p in inner.split("+")] + ([resolve_alias(held[1])] if held else [])
 
 
 # Axes that translate a jittered item: their support at level k is param +- spec.jitter.
@@ -150,7 +159,31 @@ class Composite:
         return spec
 
 
-Successor = Shift | Composite
+@dataclass(frozen=True)
+class Held:
+    """Axis ``inner``'s ladder from T0 moved ``at`` steps along ``held``: level k is held^at, then inner^k.
+
+    Its ``axis`` is inner's (range, sign, step) named ``A@B=j``; a step moves inner's fields only.
+    """
+
+    axis: AxisSpec
+    inner: Shift | Composite
+    held: Shift
+    at: int
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        return self.inner.fields
+
+    def start(self, base: SceneSpec) -> SceneSpec:
+        """This ladder's level 0: the base moved ``at`` steps along the held axis."""
+        return apply_level(base, self.held, self.at)
+
+    def __call__(self, spec: SceneSpec, direction: int = 1) -> SceneSpec:
+        return self.inner(spec, direction)
+
+
+Successor = Shift | Composite | Held
 
 
 def _validate_step(axis: AxisSpec, step: float) -> None:
@@ -178,6 +211,9 @@ def get_successor(
     ``overrides`` maps axis names to ``{"step": s, "max_level": K}`` (a YAML preset's ``axes``).
     ``step`` overrides a single axis's step; a composition's components take steps from presets only.
     """
+    held = split_held(name)
+    if held is not None:
+        return _held(name, *held, step, overrides)
     overrides = overrides or {}
     names = [resolve_alias(n) for n in name.split("+")]
     if any(not n for n in names):
@@ -219,6 +255,37 @@ def get_successor(
     return Composite(comp, tuple(parts))
 
 
+def _held(
+    name: str, inner: str, held: str, at: int, step: float | None, overrides: Mapping[str, Mapping] | None
+) -> Held:
+    """``inner@held=at``: inner's successor (``--step`` applies to it) over T0 moved ``at`` steps along ``held``."""
+    if "+" in held:
+        raise ConfigError(
+            f"axis {name!r}: the held axis must be a single axis, e.g. {inner}@{held.split('+')[0]}={at}"
+        )
+    inner_succ = get_successor(inner, step, overrides)
+    held_succ = get_successor(held, None, overrides)
+    assert isinstance(held_succ, Shift)
+    components = {p.axis.name for p in shifts(inner_succ)}
+    if held_succ.axis.name in components:
+        raise ConfigError(
+            f"axis {name!r} holds {held_succ.axis.name}, which its ladder {inner} already moves; hold another axis"
+        )
+    h = held_succ.axis
+    if not h.min_level <= at <= h.max_level:
+        raise ConfigError(
+            f"axis {name!r}: held level {at} is outside axis {h.name}'s range {h.min_level}..{h.max_level}; "
+            f"hold it at one of {h.min_level}..{h.max_level}"
+        )
+    a = inner_succ.axis
+    moved, unit = at * h.step, h.unit
+    unit = unit[:-1] if abs(moved) == 1 and unit.endswith("s") else unit  # "1 object"
+    axis = dataclasses.replace(
+        a, name=name, description=f"{a.description}, with {h.name} held at level {at} ({moved:g} {unit})"
+    )
+    return Held(axis, inner_succ, held_succ, at)
+
+
 def get_axis(name: str, step: float | None = None, preset: str | Path | None = None) -> AxisSpec:
     """The ``AxisSpec`` of a single axis or a composition, with optional step / preset overrides."""
     overrides = load_preset(preset) if preset is not None else None
@@ -232,11 +299,15 @@ def spec_at_level(base: SceneSpec, successor: Successor, level: int) -> SceneSpe
         raise ConfigError(
             f"level {level} is outside axis {axis.name}'s range {axis.min_level}..{axis.max_level}"
         )
+    if isinstance(successor, Held):
+        base = successor.start(base)
     return apply_level(base, successor, level)
 
 
 def axis_param(spec: SceneSpec, successor: Successor, level: int) -> float:
-    """The axis parameter of a level: the field's value (a composition reports its level)."""
+    """The axis parameter of a level: the field's value (a composition reports its level; a held axis its ladder's)."""
+    if isinstance(successor, Held):
+        return axis_param(spec, successor.inner, level)
     if isinstance(successor, Composite):
         return float(level)
     return float(get_path(spec, successor.axis.field))
@@ -244,16 +315,26 @@ def axis_param(spec: SceneSpec, successor: Successor, level: int) -> float:
 
 def level_support(spec: SceneSpec, successor: Successor, level: int) -> tuple[float, float]:
     """The closed interval the axis parameter can take at this level, T0 jitter included."""
+    if isinstance(successor, Held):
+        return level_support(spec, successor.inner, level)
     p = axis_param(spec, successor, level)
     if isinstance(successor, Shift) and successor.axis.field in JITTERED_FIELDS:
         return (p - spec.jitter, p + spec.jitter)
     return (p, p)
 
 
+def shifts(successor: Successor) -> tuple[Shift, ...]:
+    """The atomic successors ``successor`` moves: itself, a composition's components, then a held axis's held one."""
+    if isinstance(successor, Held):
+        return (*shifts(successor.inner), successor.held)
+    return successor.parts if isinstance(successor, Composite) else (successor,)
+
+
 def successor_steps(successor: Successor) -> dict[str, float]:
-    """Each component's step (one entry for a single axis): what a certificate was made at."""
-    parts = successor.parts if isinstance(successor, Composite) else (successor,)
-    return {p.axis.name: float(p.axis.step) for p in parts}
+    """Each component's step (one entry for a single axis): what a certificate was made at. A held axis adds its
+    held axis's step and ``held_level`` (its own certificate: its level 0 is not its ladder axis's T0)."""
+    steps = {p.axis.name: float(p.axis.step) for p in shifts(successor)}
+    return steps | ({"held_level": float(successor.at)} if isinstance(successor, Held) else {})
 
 
 def presets_dir() -> Path:
@@ -310,14 +391,18 @@ def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[
     """Condition 2 (strict: disjoint supports) over the axis's default range, T0 jitter included.
 
     A composition is checked component by component: each component's field, read off the composed
-    spec at every level (jitter included), must leave the easier levels' support on its own.
+    spec at every level (jitter included), must leave the easier levels' support on its own. A held axis
+    checks its held axis's ladder from T0, then its own ladder from the held level.
     """
     from indgen_vla.progression import check_strictly_harder
 
     axis = successor.axis
+    if isinstance(successor, Held):
+        check_progression(base, successor.held)
     specs = {k: spec_at_level(base, successor, k) for k in axis.default_levels()}
-    if isinstance(successor, Composite):
-        for part in successor.parts:
+    inner = successor.inner if isinstance(successor, Held) else successor
+    if isinstance(inner, Composite):
+        for part in inner.parts:
             name = f"{axis.name} (component {part.axis.name} at step {part.axis.step:g} {part.axis.unit})"
             check_strictly_harder({k: level_support(s, part, k) for k, s in specs.items()}, name)
     supports = {k: level_support(s, successor, k) for k, s in specs.items()}

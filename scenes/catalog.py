@@ -9,7 +9,7 @@ import json
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.errors import ConfigError
-from scenes.axes import base_axis_names, get_successor
+from scenes.axes import axis_components, base_axis_names, get_successor
 from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
 from scenes.registry import Scene, register_scene, registered_scenes
 from scenes.spec import BLOCK_COLOURS, PICK_OBJECTS, Item, SceneSpec
@@ -203,7 +203,7 @@ def scene_rows() -> list[dict]:
 def _axis_rows() -> list[dict]:
     scenes = scene_rows()
     rows = []
-    for name in base_axis_names() + ["pick_y+distractor"]:
+    for name in base_axis_names() + ["pick_y+distractor", "pick_y@distractor=2"]:
         ax = get_successor(name).axis
         rows.append(
             {
@@ -214,7 +214,7 @@ def _axis_rows() -> list[dict]:
                 "signed": ax.signed,
                 "field": ax.field,
                 "description": ax.description,
-                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in name.split("+"))],
+                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in axis_components(name))],
             }
         )
     return rows
@@ -250,7 +250,10 @@ def axes_main(args) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title="axes (compose any supported pair with '+', e.g. pick_y+distractor)")
+    table = Table(
+        title="axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one "
+        "at a level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)"
+    )
     for col in ("axis", "step", "levels", "scenes", "description"):
         table.add_column(col)
     for r in rows:

@@ -143,12 +143,13 @@ def resolve_scene_plan(
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
+    for name in axes:  # every component one of the scene's axes, before select_tasks reads the axes
+        sc.check_axis(name)
     tasks = sc.select_tasks(task, axes)  # on RoboCasa365 "all" is the axes' own task list (appendix B)
     overrides = load_preset(preset) if preset else None
     overridden = step is not None or preset is not None
     successors, per_task, specs, planned = {}, {}, {}, {}
     for name in axes:
-        sc.check_axis(name)  # every component must be one of the scene's axes
         # the family's own steps/ranges under the preset's, each task's own where the family's differ by task
         by_task, shared = (
             {t: sc.successor(name, step, overrides, t) for t in tasks},

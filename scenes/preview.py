@@ -17,9 +17,10 @@ import numpy as np
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.figures import contact_sheet, unit_name
 from indgen_vla.plan import ScenePlan
+from indgen_vla.progression import expand_axes
 from indgen_vla.records import atomic_savefig
 from indgen_vla.seeding import evaluation_seed
-from scenes.axes import get_path, spec_at_level
+from scenes.axes import get_path, shifts, spec_at_level
 from scenes.env import check_env_args
 from scenes.registry import get_scene
 
@@ -69,11 +70,11 @@ class Tile:
 
 def level_caption(plan: ScenePlan, task: str, axis: str, level: int) -> str:
     """The level over its axis parameter as ``evaluate`` records it, e.g. "k = +2" over "pick_y = -0.080 m" (one
-    line per component of a composition)."""
+    line per component of a composition, and for a held axis's held one)."""
     successor = plan.builder.successors[axis]
     head = f"k = {level:+d}" if plan.axes[axis].signed and level else f"k = {level}"
-    parts = getattr(successor, "parts", None)
-    if parts is None:
+    parts = shifts(successor)
+    if len(parts) == 1:
         return f"{head}\n{axis} = {_value(plan.cell(task, axis, level).param, plan.axes[axis].unit)}"
     spec = spec_at_level(get_scene(plan.scene).base(task), successor, level)
     return "\n".join(
@@ -159,7 +160,7 @@ def _check_writable(out: Path) -> None:
 def preview_main(args: argparse.Namespace) -> int:
     """CLI: ``indgen preview --scene S [--task T] --axis A[,B] [--levels] [--camera] [--size] [--episode] --out F``."""
     req = PreviewRequest(
-        scene=args.scene, axes=tuple(a.strip() for a in args.axis.split(",") if a.strip()), out=Path(args.out),
+        scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),
         task=args.task, levels=args.levels, step=args.step, preset=args.axes_preset, camera=args.camera,
         size=args.size, episode=args.episode, seed=args.seed,
     )  # fmt: skip

@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.errors import ConfigError, UnknownNameError
 from indgen_vla.interface import TABLETOP, EnvSpec
-from scenes.axes import base_axis_names, resolve_alias
+from indgen_vla.progression import split_held
+from scenes.axes import axis_components, base_axis_names
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -205,9 +206,16 @@ class Scene:
         return [task]
 
     def check_axis(self, axis: str) -> None:
-        """Every component of ``axis`` must be one of the family's axes (one line naming the right ones)."""
-        for part in axis.split("+"):
-            part = resolve_alias(part)
+        """Every component of ``axis`` must be one of the family's axes (one line naming the right ones); a held axis
+        (``A@B=j``) only on a family that resolves successors as ``Scene.successor`` does (the held level is a level
+        of B's default ladder, which a family with its own per-task successors does not promise)."""
+        held = split_held(axis)
+        if held and type(self).successor is not Scene.successor:
+            raise ConfigError(
+                f"scene {self.name} resolves its axes its own way (per-task steps and task lists), so held axes "
+                f"(A@B=j) do not run there; evaluate {held[0]} and {held[1]} as separate axes on it"
+            )
+        for part in axis_components(axis):
             if part not in self.axes:
                 if part not in base_axis_names():
                     raise UnknownNameError("axis", part, base_axis_names())

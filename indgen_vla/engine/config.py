@@ -15,6 +15,7 @@ from typing import Any
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
 from indgen_vla.plan import EpisodeJob, plan_jobs
+from indgen_vla.progression import expand_axes
 from indgen_vla.resources import config_dir
 
 DEFAULT_EPISODES = 50
@@ -203,9 +204,9 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
             values[name] = value
     axes = values.get("axes")
     if isinstance(axes, str):
-        values["axes"] = tuple(a.strip() for a in axes.split(",") if a.strip())
+        values["axes"] = expand_axes([a.strip() for a in axes.split(",") if a.strip()])
     elif isinstance(axes, list):
-        values["axes"] = tuple(axes)
+        values["axes"] = expand_axes([str(a) for a in axes])  # A@B=i:j: one held axis per level of B
     if isinstance(values.get("levels"), list):
         values["levels"] = ",".join(str(x) for x in values["levels"])
     values.setdefault("workers", os.cpu_count() or 1)

@@ -21,7 +21,7 @@ import scenes.mujoco_geom as geom
 from indgen_vla.errors import SceneError
 from indgen_vla.interface import Observation
 from indgen_vla.progression import check_strictly_harder
-from scenes.axes import Successor, axis_param, spec_at_level
+from scenes.axes import Successor, axis_param, shifts, spec_at_level
 from scenes.env import BaseSceneEnv
 from scenes.libero.assets import config_dir, find_assets, import_libero
 from scenes.libero.bddl import LiberoTask, add_fixtures, shift_region
@@ -201,8 +201,7 @@ class LiberoSceneEnv(BaseSceneEnv):
 
     def _check_progression(self) -> None:
         """Condition 2 against T0's actual support (LIBERO's fixed states), for pick_y and goal_y components."""
-        parts = getattr(self._successor, "parts", (self._successor,))
-        for part in parts:
+        for part in shifts(self._successor):  # a held axis's held pick_y/goal_y too
             name = part.axis.name
             if name not in ("pick_y", "goal_y"):
                 continue

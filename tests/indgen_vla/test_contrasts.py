@@ -189,6 +189,32 @@ def test_compare_two_axes_of_one_run(tmp_path, capsys):
     capsys.readouterr()
 
 
+def test_compare_two_rows_of_a_grid_tests_level_0_too(tmp_path, capsys):
+    """Rows j = 2 and j = 0 of pick_y x distractor start from different scenes: level 0 is a tested level (Holm over
+    both), and the held level is no step to match."""
+    from indgen_vla.compare_axes import same_start
+
+    assert same_start("pick_y@distractor=0", "pick_y") and same_start(
+        "pick_y@distractor=2", "goal_y@distractor=2"
+    )
+    assert not same_start("pick_y@distractor=2", "pick_y@distractor=0")
+    row2 = {0: [(i, i < 4) for i in range(12)], 1: [(i, i < 2) for i in range(12)]}  # 4/12, 2/12
+    row0 = {0: [(i, 1) for i in range(12)], 1: [(i, i < 10) for i in range(12)]}  # 12/12, 10/12
+    steps = {"pick_y@distractor=2": {"pick_y": 0.025, "distractor": 1.0, "held_level": 2.0},
+             "pick_y@distractor=0": {"pick_y": 0.025, "distractor": 1.0, "held_level": 0.0}}  # fmt: skip
+    run = _run(tmp_path / "r", {"pick_y@distractor=2": row2, "pick_y@distractor=0": row0}, steps=steps)
+    assert main(["compare", str(run.path), "--axes", "pick_y@distractor=2:pick_y@distractor=0"]) == 0
+    (out_dir,) = run.path.glob("compare_*")
+    res = json.loads((out_dir / "compare.json").read_text())
+    assert res["contrast"]["same_t0"] is False
+    rows = {r["level"]: r for r in res["axes"]["pick_y@distractor=2 vs pick_y@distractor=0"]["levels"]}
+    p0, p1 = 2 / 2**8, 2 / 2**8  # binomial(8, 1/2), all one way, at both levels
+    assert (rows[0]["b_only"], rows[1]["b_only"]) == (8, 8) and rows[0]["p_value"] == pytest.approx(p0)
+    assert rows[0]["p_holm"] == pytest.approx(min(1.0, 2 * min(p0, p1)))  # Holm over levels 0 and 1
+    assert "level 0 differs (another held level" in (out_dir / "compare.md").read_text()
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [

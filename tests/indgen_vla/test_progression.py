@@ -11,8 +11,10 @@ from indgen_vla.progression import (
     check_semantics_preserved,
     check_single_axis,
     check_strictly_harder,
+    expand_axes,
     parse_levels,
     spec_diff,
+    split_held,
 )
 
 PICK_Y = AxisSpec("pick_y", "translate the pick object along y", "pick.y", 0.025, "m", True, 3)
@@ -104,3 +106,31 @@ def test_strictly_harder():
     check_strictly_harder({0: (0.0, 0.0), 1: (1.0, 1.0), 2: (0.5, 0.5)})  # between supports: outside
     # directions are independent: -1 is not compared with +1
     check_strictly_harder({-1: (-1, -1), 0: (0, 0), 1: (1, 1)})
+
+
+def test_held_names_split_and_ranges_expand():
+    assert split_held("pick_y@distractor=2") == ("pick_y", "distractor", 2)
+    assert split_held("pick_y+scale@goal_y=-3") == ("pick_y+scale", "goal_y", -3)
+    assert split_held("pick_y+distractor") is None
+    assert AxisSpec("pick_y@goal_y=-1", "", "pick.y", 0.025, "m", True, 3).name == "pick_y@goal_y=-1"
+    with pytest.raises(ConfigError, match="must be alphanumeric"):
+        AxisSpec("pick y@goal_y=1", "", "pick.y", 0.025, "m", True, 3)
+    assert expand_axes(["pick_y@distractor=0:3"]) == tuple(f"pick_y@distractor={j}" for j in range(4))
+    assert expand_axes(["scale", "pick_y@goal_y=-1:1", "pick_y+distractor"]) == (
+        "scale", "pick_y@goal_y=-1", "pick_y@goal_y=0", "pick_y@goal_y=1", "pick_y+distractor"
+    )  # fmt: skip
+    assert expand_axes(["pick_y@distractor=2"]) == ("pick_y@distractor=2",)
+
+
+@pytest.mark.parametrize(
+    ("axes", "match"),
+    [
+        (["pick_y@distractor=3:1"], "start 3 is after end 1; write it as pick_y@distractor=1:3"),
+        (["pick_y@distractor=0:x"], "a held range is A@B=i:j with integers i <= j"),
+        (["pick_y@distractor=0:2", "pick_y@distractor=1"], "--axis names pick_y@distractor=1 more than once"),
+        (["pick_y", "pick_y"], "--axis names pick_y more than once"),
+    ],
+)
+def test_bad_held_ranges_are_refused_in_one_line(axes, match):
+    with pytest.raises(ConfigError, match=match):
+        expand_axes(axes)

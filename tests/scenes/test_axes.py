@@ -13,13 +13,16 @@ from indgen_vla.errors import ConfigError, UnknownNameError
 from indgen_vla.progression import ProgressionError, check_semantics_preserved, check_single_axis, spec_diff
 from scenes.axes import (
     Composite,
+    Held,
     Shift,
+    axis_components,
     axis_param,
     check_progression,
     get_successor,
     load_preset,
     preset_names,
     spec_at_level,
+    successor_steps,
 )
 from scenes.catalog import builtin_scenes
 from scenes.registry import get_scene
@@ -160,3 +163,71 @@ def _repo_root() -> str:
     from pathlib import Path
 
     return str(Path(scenes.__file__).resolve().parent.parent)
+
+
+# ---- held axes A@B=j: A's ladder with B held at its level j (a row of the 2-D grid A x B) -------------------------
+@pytest.mark.parametrize(("inner", "held", "at"), [("pick_y", "distractor", 2), ("scale", "pick_y", -2),
+                                                   ("pick_y+scale", "goal_y", 3)])  # fmt: skip
+def test_held_level_k_is_b_applied_j_times_then_a_k_times(inner, held, at):
+    base = get_scene("pick_place").base("milk")
+    succ, a, b = get_successor(f"{inner}@{held}={at}"), get_successor(inner), get_successor(held)
+    assert isinstance(succ, Held) and succ.axis.name == f"{inner}@{held}={at}"
+    assert (succ.axis.signed, succ.axis.max_level, succ.axis.step) == (
+        a.axis.signed,
+        a.axis.max_level,
+        a.axis.step,
+    )
+    for k in a.axis.default_levels():
+        spec = spec_at_level(base, succ, k)
+        assert spec == spec_at_level(spec_at_level(base, b, at), a, k)
+        assert axis_param(spec, succ, k) == axis_param(spec, a, k)  # the ladder's own parameter
+    # one step moves the ladder's fields only, never the held one
+    assert check_single_axis(spec_at_level(base, succ, 0), spec_at_level(base, succ, 1), succ.fields, inner)
+    assert successor_steps(succ) == {**successor_steps(a), **successor_steps(b), "held_level": float(at)}
+    check_progression(base, succ)
+
+
+def test_held_at_zero_is_exactly_the_axis():
+    base = get_scene("pick_place").base("milk")
+    held, plain = get_successor("pick_y@distractor=0"), get_successor("pick_y")
+    for k in plain.axis.default_levels():
+        assert spec_at_level(base, held, k) == spec_at_level(base, plain, k)
+    assert check_progression(base, held) == check_progression(base, plain)
+    assert spec_at_level(base, get_successor("pick_y@distractor=3"), 0).distractors == 3
+    assert axis_components("pick_y+scale@base_y=1") == ["pick_y", "scale", "horizon"]
+
+
+@pytest.mark.parametrize(
+    ("name", "match"),
+    [
+        (
+            "pick_y@distractor=5",
+            "held level 5 is outside axis distractor's range 0..4; hold it at one of 0..4",
+        ),
+        ("pick_y@distractor", "write a held axis as A@B=j"),
+        ("pick_y@distractor=x", "held level 'x' is not an integer"),
+        ("pick_y@distractor=0:3", "range form A@B=i:j is for --axis"),
+        ("pick_y@pick_y=1", "holds pick_y, which its ladder pick_y already moves"),
+        ("pick_y+distractor@distractor=1", "holds distractor, which its ladder pick_y\\+distractor already"),
+        ("pick_y@goal_y+scale=1", "the held axis must be a single axis, e.g. pick_y@goal_y=1"),
+        ("pick_y@goal_y=1@scale=2", "hold one axis at a time"),
+        ("pick_y@@goal_y=1", "hold one axis at a time"),
+        ("@goal_y=1", "write a held axis as A@B=j"),
+    ],
+)
+def test_bad_held_axes_are_refused_in_one_line(name, match):
+    with pytest.raises(ConfigError, match=match) as e:
+        get_successor(name)
+    assert "\n" not in str(e.value)
+
+
+def test_held_axes_need_the_scenes_axes_and_stay_off_robocasa():
+    get_scene("pick_place").check_axis("pick_y@distractor=2")
+    with pytest.raises(UnknownNameError, match="axis of scene pick_place 'clutter'"):
+        get_scene("pick_place").check_axis("pick_y@clutter=1")
+    with pytest.raises(UnknownNameError, match="unknown axis 'nope'"):
+        get_successor("pick_y@nope=1")
+    with pytest.raises(
+        ConfigError, match="held axes \\(A@B=j\\) do not run there; evaluate pick_x and clutter"
+    ):
+        get_scene("robocasa").check_axis("pick_x@clutter=1")

@@ -317,3 +317,23 @@ def test_envs_sharing_a_process_render_their_own_frames(mini):
     finally:
         a.close()
         b.close()
+
+
+def test_a_held_axis_starts_its_ladder_at_the_held_level(mini):
+    """distractor@pick_y=-1 at level 1: the pick object one step in -y (LIBERO's fixed states moved, condition 2
+    checked against them) and one distractor; its level 0 is pick_y's level -1, and A@B=0 is A's T0."""
+    sc = scenes.get_scene(SCENE)
+    task = sc.tasks[0]
+    held = scenes.successor_for("distractor@pick_y=-1", scene=SCENE)
+    assert sc.level_identity(task, held, 0) == sc.level_identity(task, scenes.successor_for("pick_y"), -1)
+    zero = sc.level_identity(task, scenes.successor_for("pick_y@distractor=0"), 0)
+    assert zero == sc.level_identity(task, scenes.successor_for("pick_y"), 0)
+    env = _env("distractor@pick_y=-1", 1, max_steps=2)
+    try:
+        assert (
+            env.shift == (pytest.approx(-0.025), 0.0) and env.spec.distractors == 1 and env.axis_param == 1.0
+        )
+        names = [n for n in env._env.sim.model.body_names if n.startswith("indgen_distractor_")]
+        assert len({n.split("_main")[0] for n in names}) == 1
+    finally:
+        env.close()
