@@ -71,11 +71,15 @@ def grid_matrix(grid: Grid) -> tuple[list[int], list[int], np.ndarray, np.ndarra
     return js, ks, rate, n
 
 
-def cell_text(rate: float, n: int) -> str:
-    """A heatmap cell's annotation: "57%" over "n=14"; "insufficient" over n below the data floor; "–" not run."""
+def cell_text(rate: float, n: int, ci: tuple[float, float] | None = None) -> str:
+    """A heatmap cell's annotation: "57%" over its 95 % CI "[40, 72]" (when given) over "n=14"; "insufficient" over
+    n below the data floor; "–" not run."""
     if n == 0:
         return "–"
-    return f"insufficient\nn={n}" if np.isnan(rate) else f"{100 * rate:.0f}%\nn={n}"
+    if np.isnan(rate):
+        return f"insufficient\nn={n}"
+    interval = f"\n[{100 * ci[0]:.0f}, {100 * ci[1]:.0f}]" if ci else ""
+    return f"{100 * rate:.0f}%{interval}\nn={n}"
 
 
 def _signed(k: int) -> str:
@@ -145,8 +149,11 @@ def grid_figure(panels: Sequence[tuple[str, Grid]], gamma: float):
         )
         for i, j in enumerate(js):
             kstar = set((g.rows[j].get("break_level") or {}).values())
+            by_level = {r["level"]: r for r in g.rows[j]["levels"]}
             for c, k in enumerate(ks):
-                text = cell_text(rate[i, c], int(n[i, c]))
+                row = by_level.get(k) or {}
+                ci = (row["ci_low"], row["ci_high"]) if row.get("ci_low") is not None else None
+                text = cell_text(rate[i, c], int(n[i, c]), ci)
                 dark = not np.isnan(rate[i, c]) and not 0.25 < rate[i, c] < 0.8
                 ax.text(
                     c, i, text, ha="center", va="center", fontsize=6.5, color="white" if dark else "black"
@@ -157,7 +164,9 @@ def grid_figure(panels: Sequence[tuple[str, Grid]], gamma: float):
         ax.set_yticks(range(len(js)), [_signed(j) for j in js], fontsize=7)
         ax.set_xlabel(f"level k of {g.inner}", fontsize=8)
         ax.set_ylabel(f"{g.held} held at level j", fontsize=8)
-        ax.set_title(label, fontsize=8)
+        tasks = sorted({t for a in g.rows.values() for t in a.get("pooled_tasks") or []})
+        pooled = ", ".join(tasks) if len(tasks) <= 3 else f"{len(tasks)} tasks"
+        ax.set_title(f"{label}\npooled over: {pooled or '(unknown)'}; cells: rate, 95 % CI, n", fontsize=8)
     cbar = fig.colorbar(image, ax=list(axs), shrink=0.9)
     cbar.set_label("success rate", fontsize=8)
     cbar.ax.axhline(gamma, color="black", lw=1, ls="--")

@@ -44,6 +44,7 @@ def test_matrix_and_cells_hold_the_pooled_rates_and_n(tmp_path):
     assert n.tolist() == [[10, 10], [10, 2]]
     assert cell_text(0.9, 10) == "90%\nn=10" and cell_text(math.nan, 2) == "insufficient\nn=2"
     assert cell_text(math.nan, 0) == "–"
+    assert cell_text(0.9, 10, (0.596, 0.982)) == "90%\n[60, 98]\nn=10"
 
 
 def test_grid_table_rows_are_held_levels_with_the_reports_cells_and_each_rows_kstar(tmp_path):
