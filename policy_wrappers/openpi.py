@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from indgen_vla.errors import IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import TABLETOP, EnvSpec, Observation, PolicySpec, validate_chunk
+from indgen_vla.interface import QUERY_KEY, TABLETOP, EnvSpec, Observation, PolicySpec, validate_chunk
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.layouts import Layout, layout_for
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
@@ -29,6 +29,9 @@ INDGEN_SERVER = "indgen-vla"  # metadata["server"] of our own `indgen serve`, wh
 # key, a (steps, H, W, 3) stack oldest first; sent only by clients whose spec declares history_steps, and only
 # when there is history (none at an episode's first query)
 HISTORY_PREFIX = "indgen/history/"
+# request key of the query's identity (the engine's QUERY_KEY: episode seed, steps taken) as int64[2], sent to our own
+# server only: a flow-matching policy served by `indgen serve` then draws the noise it would draw in process
+QUERY_WIRE = "indgen/query"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -190,8 +193,11 @@ class OpenpiPolicy(RemotePolicy):
         chunks = []
         for obs in observations:
             request = make_request(obs, self.config.conventions.images, self._keys, self._state)
-            if self._pending_reset is not None and self.metadata.get("server") == INDGEN_SERVER:
-                request["indgen/reset"] = self._pending_reset
+            if self.metadata.get("server") == INDGEN_SERVER:
+                if self._pending_reset is not None:
+                    request["indgen/reset"] = self._pending_reset
+                if QUERY_KEY in obs.extras:
+                    request[QUERY_WIRE] = np.asarray(obs.extras[QUERY_KEY], dtype=np.int64)
             out = self.infer(request)
             self._pending_reset = None
             actions = np.asarray(out["actions"])

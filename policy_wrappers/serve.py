@@ -20,10 +20,10 @@ import traceback
 import numpy as np
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import Observation
+from indgen_vla.interface import QUERY_KEY, Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180
-from policy_wrappers.openpi import HISTORY_PREFIX, INDGEN_SERVER, LIBERO_KEYS
+from policy_wrappers.openpi import HISTORY_PREFIX, INDGEN_SERVER, LIBERO_KEYS, QUERY_WIRE
 
 log = logging.getLogger(__name__)
 
@@ -52,8 +52,16 @@ def observation_from_request(request: dict, unflip: bool = True) -> Observation:
         )
     steps = lengths.pop() if lengths else 0
     state = np.asarray(request["observation/state"], dtype=np.float32).reshape(-1)
+    extras = {}
+    if QUERY_WIRE in request:  # the query's identity: a sampling policy draws this query's own noise from it
+        key = np.asarray(request[QUERY_WIRE]).reshape(-1)
+        if key.size != 2 or key.dtype.kind not in "iu":
+            raise ValueError(
+                f"{QUERY_WIRE} must be two integers (episode seed, steps taken), got {key.tolist()}"
+            )
+        extras[QUERY_KEY] = (int(key[0]), int(key[1]))
     return Observation(
-        images=images, state=state, instruction=str(request.get("prompt", "")),
+        images=images, state=state, instruction=str(request.get("prompt", "")), extras=extras,
         history=tuple({cam: frames[k] for cam, frames in history.items()} for k in range(steps)),
     )  # fmt: skip
 

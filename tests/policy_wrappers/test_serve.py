@@ -209,3 +209,33 @@ def test_history_travels_under_its_own_keys_only_when_present(obs_factory):
     request[HISTORY_PREFIX + "observation/image"] = request[HISTORY_PREFIX + "observation/image"][:1]
     with pytest.raises(ValueError, match=r"history stacks of different lengths \[1, 2\]"):
         observation_from_request(request)
+
+
+def test_a_served_flow_policy_draws_each_querys_own_noise(tmp_path, obs_factory):
+    """Our client sends the query's identity (the engine's QUERY_KEY) to `indgen serve`, so a served flow-matching
+    policy samples what it samples in process: the same query gives the same chunk whatever came before it."""
+    pytest.importorskip(
+        "num2words", reason="transformers' SmolVLMProcessor needs num2words (lerobot[smolvla])"
+    )
+    import dataclasses
+
+    from indgen_vla.interface import QUERY_KEY
+    from tests.fixtures.tiny_policies import build_tiny_smolvla, build_tiny_vlm_dir
+
+    spec = f"lerobot:{build_tiny_smolvla(tmp_path / 'smolvla', build_tiny_vlm_dir(tmp_path / 'vlm'))}"
+    server = PolicyServer(load_policy(spec), port=0)
+    port = server.start_background()
+    try:
+        client = load_policy(f"openpi:ws://127.0.0.1:{port}?chunk=10&replan=5")
+        obs = obs_factory(5, size=32)
+        remote = [
+            client.act([dataclasses.replace(obs, extras={QUERY_KEY: k})]) for k in ((7, 0), (7, 5), (7, 0))
+        ]
+        assert np.array_equal(remote[0], remote[2]) and not np.allclose(remote[0], remote[1])
+        seen = {cam: flip_180(resize_with_pad(flip_180(img), 224, 224)) for cam, img in obs.images.items()}
+        local = load_policy(spec).act(
+            [Observation(seen, obs.state, obs.instruction, extras={QUERY_KEY: (7, 5)})]
+        )
+        np.testing.assert_allclose(remote[1], local, atol=1e-5)
+    finally:
+        server.stop()
