@@ -59,13 +59,13 @@ class IndgenParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def add_level_options(p: argparse.ArgumentParser) -> None:
+def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default: the axis range") -> None:
     """--levels, --step and --axes-preset: which levels run and how far apart (evaluate, certify, preview and demos
-    alike)."""
+    alike; ``levels_default`` says what an omitted --levels means there)."""
     p.add_argument(
         "--levels",
         default=None,
-        help="inclusive range like -3:3 or list like 0,1,2 (default: the axis range)",
+        help=f"inclusive range like -3:3 or list like 0,1,2 ({levels_default})",
     )
     p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
     p.add_argument(

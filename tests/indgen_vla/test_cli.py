@@ -91,6 +91,14 @@ def test_reference_subcommand_documents_every_option(capsys):
     assert "held-out" in out.replace("\n", " ") or "held out" in out
 
 
+def test_demos_help_says_levels_is_required_with_axis(capsys):
+    """demos refuses --axis without --levels, so its help must not promise evaluate's default (the axis range)."""
+    with pytest.raises(SystemExit):
+        main(["demos", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "(required with --axis)" in out and "default: the axis range" not in out
+
+
 class _Captured(Exception):
     """Carries the parser a passthrough handler built, instead of letting it parse."""
 
