@@ -147,7 +147,9 @@ def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) ->
                 f"train: {str(d)!r} is not a LeRobotDataset (no meta/info.json); record one with "
                 "`indgen demos` or `indgen mimicgen`"
             )
-        out.append(LeRobotDataset(repo_id, root=Path(d), delta_timestamps=delta_timestamps, video_backend=backend))
+        out.append(
+            LeRobotDataset(repo_id, root=Path(d), delta_timestamps=delta_timestamps, video_backend=backend)
+        )
     return out
 
 
