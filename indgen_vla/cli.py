@@ -384,7 +384,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--venv", default=None, help="where to create it (default: $INDGEN_ROBOCASA_VENV or "
                    "~/.cache/indgen/robocasa-venv)")  # fmt: skip
     p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
-    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
+    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce | ablate")
     _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
     _add_passthrough(
         sp, "mimicgen", "MimicGen-style augmentation of demonstrations (each at its source level)"
