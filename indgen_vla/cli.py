@@ -241,7 +241,9 @@ def _add_report(sp: argparse._SubParsersAction) -> None:
         help="also test, per level, whether the change from level 0 lies within ±M (paired equivalence test, e.g. "
         "0.1 for ±10 points): the only way the report says \"no change\"",
     )  # fmt: skip
-    p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
+    p.add_argument(
+        "--out", default=None, help="where to put the multi-run overlay (default: FIRST_RUN/overlay)"
+    )
 
 
 def _add_merge(sp: argparse._SubParsersAction) -> None:

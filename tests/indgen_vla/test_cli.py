@@ -99,6 +99,12 @@ def test_demos_help_says_levels_is_required_with_axis(capsys):
     assert "(required with --axis)" in out and "default: the axis range" not in out
 
 
+def test_report_help_names_where_the_overlay_goes(capsys):
+    with pytest.raises(SystemExit):
+        main(["report", "--help"])
+    assert "(default: FIRST_RUN/overlay)" in " ".join(capsys.readouterr().out.split())
+
+
 class _Captured(Exception):
     """Carries the parser a passthrough handler built, instead of letting it parse."""
 
