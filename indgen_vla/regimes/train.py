@@ -337,9 +337,9 @@ def train_policy(
 
 def train_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen train`` (its own parser over the passthrough arguments)."""
-    p = argparse.ArgumentParser(
-        prog="indgen train", description="train a small lerobot policy on indgen datasets"
-    )
+    from indgen_vla.cli import IndgenParser
+
+    p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
     p.add_argument(
         "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
     )

@@ -99,6 +99,24 @@ def test_demos_help_says_levels_is_required_with_axis(capsys):
     assert "(required with --axis)" in out and "default: the axis range" not in out
 
 
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["real", "plan", "--setup", "stack", "--out", "r"], "required: --policy"),
+        (["real", "plann"], "did you mean 'plan'?"),
+        (["blockenv", "sample"], "required: --level"),
+        (["mimicgen", "--n", "1"], "required: --source, --out"),
+        (["train", "--out", "x"], "required: datasets"),
+    ],
+)
+def test_passthrough_subcommands_refuse_bad_arguments_in_one_line(argv, says, capsys):
+    """Their own parsers are indgen's: one error line (no usage block), exit 2, a "did you mean" on a typo."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and says in err and err.count("\n") == 1 and "usage:" not in err
+
+
 def test_report_help_names_where_the_overlay_goes(capsys):
     with pytest.raises(SystemExit):
         main(["report", "--help"])
