@@ -88,9 +88,11 @@ def kstar_spread(ks: Sequence[int | None | str], minus: str = "-") -> str:
     n_open = len(ks) - len(broken) - n_none
     parts = [f"{name(k)} ×{broken.count(k)}" for k in dict.fromkeys(broken)]
     parts += [f"none ×{n_none}"] * bool(n_none) + [f"undetermined ×{n_open}"] * bool(n_open)
-    ranked = broken + [None] * n_none  # sorted outward; None (no break in range) past every level
-    lo, hi = ranked[(len(ranked) - 1) // 2], ranked[len(ranked) // 2]
-    median = "" if n_open else f"; median {name(lo)}" + (f" to {name(hi)}" if hi != lo else "")
+    median = ""
+    if not n_open:  # every task decided, so ranked is non-empty
+        ranked = broken + [None] * n_none  # sorted outward; None (no break in range) past every level
+        lo, hi = ranked[(len(ranked) - 1) // 2], ranked[len(ranked) // 2]
+        median = f"; median {name(lo)}" + (f" to {name(hi)}" if hi != lo else "")
     return f"{', '.join(parts)} ({len(ks)} task{'s' * (len(ks) != 1)}{median})"
 
 

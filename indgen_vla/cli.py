@@ -59,13 +59,13 @@ class IndgenParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def add_level_options(p: argparse.ArgumentParser) -> None:
+def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default: the axis range") -> None:
     """--levels, --step and --axes-preset: which levels run and how far apart (evaluate, certify, preview and demos
-    alike)."""
+    alike; ``levels_default`` says what an omitted --levels means there)."""
     p.add_argument(
         "--levels",
         default=None,
-        help="inclusive range like -3:3 or list like 0,1,2 (default: the axis range)",
+        help=f"inclusive range like -3:3 or list like 0,1,2 ({levels_default})",
     )
     p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
     p.add_argument(
@@ -241,7 +241,9 @@ def _add_report(sp: argparse._SubParsersAction) -> None:
         help="also test, per level, whether the change from level 0 lies within ±M (paired equivalence test, e.g. "
         "0.1 for ±10 points): the only way the report says \"no change\"",
     )  # fmt: skip
-    p.add_argument("--out", default=None, help="where to put the multi-run overlay (default: the first run)")
+    p.add_argument(
+        "--out", default=None, help="where to put the multi-run overlay (default: FIRST_RUN/overlay)"
+    )
 
 
 def _add_merge(sp: argparse._SubParsersAction) -> None:
@@ -384,7 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--venv", default=None, help="where to create it (default: $INDGEN_ROBOCASA_VENV or "
                    "~/.cache/indgen/robocasa-venv)")  # fmt: skip
     p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
-    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce")
+    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce | ablate")
     _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
     _add_passthrough(
         sp, "mimicgen", "MimicGen-style augmentation of demonstrations (each at its source level)"

@@ -143,6 +143,10 @@ def _pts(x: float) -> str:
     return "n/a" if math.isnan(x) else f"{100 * x:+.1f}"
 
 
+def _tost_p(p: float) -> str:
+    return "n/a (needs two or more runs per side whose OOD areas vary)" if math.isnan(p) else f"{p:.3g}"
+
+
 def _ci3(ci: list[float]) -> str:
     return "n/a (no spread across runs)" if math.isnan(ci[0]) else f"[{ci[0]:.3f}, {ci[1]:.3f}]"
 
@@ -168,7 +172,7 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
                          f"{e['diff']:+.3f} | {_ci3(e['ci'])} |")  # fmt: skip
         lines += [
             "",
-            f"OOD area TOST p (margin ±{result['margin']}): {ax['seed_level']['ood_area']['tost_p']:.3g}",
+            f"OOD area TOST p (margin ±{result['margin']}): {_tost_p(ax['seed_level']['ood_area']['tost_p'])}",
             "",
         ]
     return "\n".join(lines)

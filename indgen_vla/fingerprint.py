@@ -187,7 +187,8 @@ def check_comparable(
     for label, fp in runs:
         if fp is None:
             lines.append(
-                f"{label}: no protocol fingerprint (made before they were recorded); comparability not checked"
+                f"{label}: no protocol fingerprint (a real-robot run, or one made before fingerprints were recorded); "
+                "comparability not checked"
             )
     for label, fp in runs[1:]:
         if fp0 is None or fp is None:

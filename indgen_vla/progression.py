@@ -254,7 +254,8 @@ def check_strictly_harder(
             if hit is not None:
                 raise ProgressionError(
                     f"axis {axis}: level {k}'s parameter support [{lo:g}, {hi:g}] overlaps an easier level's "
-                    f"[{hit[0]:g}, {hit[1]:g}]; use a step larger than the placement jitter"
+                    f"[{hit[0]:g}, {hit[1]:g}]; use a step larger than the placement jitter (a level's support is "
+                    f"{max(hi - lo, hit[1] - hit[0]):.3g} wide here, so the step must exceed that)"
                 )
         elif _covered((lo, hi), easier, tol):
             raise ProgressionError(

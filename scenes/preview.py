@@ -54,7 +54,8 @@ class PreviewRequest:
             raise ConfigError("--task all: a preview shows one task; name one (see 'indgen scenes')")
         if self.out.suffix.lower() not in FORMATS:
             raise ConfigError(
-                f"--out {self.out}: the sheet is written as {', '.join(FORMATS)}; end the name so"
+                f"--out {self.out}: the sheet is written as {', '.join(FORMATS[:-1])} or {FORMATS[-1]}; end the "
+                f"name with one of them, e.g. --out {self.out.with_suffix('.png')}"
             )
 
 

@@ -22,7 +22,9 @@ def _levels(text: str) -> list[int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="indgen blockenv", description="the paper's toy inductive benchmark")
+    from indgen_vla.cli import IndgenParser  # one-line errors, as every indgen command
+
+    p = IndgenParser(prog="indgen blockenv", description="the paper's toy inductive benchmark")
     sp = p.add_subparsers(dest="cmd", required=True)
     s = sp.add_parser("sample", help="print initial grids of a level")
     s.add_argument(

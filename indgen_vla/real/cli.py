@@ -12,7 +12,9 @@ from indgen_vla.real.trigger import FIELDS, Trigger
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    from indgen_vla.cli import IndgenParser  # one-line errors, as every indgen command
+
+    p = IndgenParser(
         prog="indgen real",
         description="The paper's real-robot protocol (§5.3): plan the levels of a physical axis, record the "
         "operator's verdicts episode by episode, then 'indgen report' / 'indgen compare' the run directory.",

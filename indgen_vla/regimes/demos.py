@@ -351,7 +351,7 @@ def demos_main(args: argparse.Namespace) -> int:
     p.add_argument(
         "--axis", default=None, help="record levels of this axis (see 'indgen axes'); default: T0 only"
     )
-    add_level_options(p)
+    add_level_options(p, levels_default="required with --axis")
     p.add_argument("--n", type=int, required=True, help="successful episodes per task (and level)")
     p.add_argument("--out", required=True, help="dataset root directory (must not exist)")
     p.add_argument(

@@ -398,7 +398,9 @@ class _Writer:
 
 def mimicgen_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen mimicgen`` (its own parser over the passthrough arguments)."""
-    p = argparse.ArgumentParser(
+    from indgen_vla.cli import IndgenParser
+
+    p = IndgenParser(
         prog="indgen mimicgen",
         description="MimicGen-style augmentation of `indgen demos` demonstrations, level by level (LeRobotDataset)",
     )

@@ -125,9 +125,21 @@ def _policy_config(cfg: TrainConfig, input_features: dict, output_features: dict
                                                   "ACTION": NormalizationMode.MIN_MAX}, device="cpu")  # fmt: skip
 
 
+def video_backend() -> str:
+    """lerobot's own choice (torchcodec where it loads, else pyav), made without its ~200-line torchcodec
+    traceback, logged as a warning on every machine lacking FFmpeg's shared libraries."""
+    try:
+        import torchcodec  # noqa: F401
+
+        return "torchcodec"
+    except (ImportError, OSError, RuntimeError):
+        return "pyav"
+
+
 def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) -> list:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    backend = video_backend()
     out = []
     for d in dirs:
         if not (Path(d) / "meta" / "info.json").is_file():
@@ -135,7 +147,9 @@ def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) ->
                 f"train: {str(d)!r} is not a LeRobotDataset (no meta/info.json); record one with "
                 "`indgen demos` or `indgen mimicgen`"
             )
-        out.append(LeRobotDataset(repo_id, root=Path(d), delta_timestamps=delta_timestamps))
+        out.append(
+            LeRobotDataset(repo_id, root=Path(d), delta_timestamps=delta_timestamps, video_backend=backend)
+        )
     return out
 
 
@@ -323,9 +337,9 @@ def train_policy(
 
 def train_main(args: argparse.Namespace) -> int:
     """CLI handler for ``indgen train`` (its own parser over the passthrough arguments)."""
-    p = argparse.ArgumentParser(
-        prog="indgen train", description="train a small lerobot policy on indgen datasets"
-    )
+    from indgen_vla.cli import IndgenParser
+
+    p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
     p.add_argument(
         "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
     )

@@ -249,6 +249,7 @@ def test_two_stage_bootstrap_over_seeds_then_tasks():
         ([1, None], "L1 ×1, none ×1 (2 tasks; median L1 to none)"),  # even count, middle pair differs
         ([-2, -1, -1], "L−1 ×2, L−2 ×1 (3 tasks; median L−1)"),  # outward is by |k|
         ([-1, "undetermined", None], "L−1 ×1, none ×1, undetermined ×1 (3 tasks)"),  # no median while open
+        (["undetermined", "undetermined"], "undetermined ×2 (2 tasks)"),  # all open: no median
         ([], "no tasks"),
     ],
 )

@@ -91,6 +91,38 @@ def test_reference_subcommand_documents_every_option(capsys):
     assert "held-out" in out.replace("\n", " ") or "held out" in out
 
 
+def test_demos_help_says_levels_is_required_with_axis(capsys):
+    """demos refuses --axis without --levels, so its help must not promise evaluate's default (the axis range)."""
+    with pytest.raises(SystemExit):
+        main(["demos", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "(required with --axis)" in out and "default: the axis range" not in out
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["real", "plan", "--setup", "stack", "--out", "r"], "required: --policy"),
+        (["real", "plann"], "did you mean 'plan'?"),
+        (["blockenv", "sample"], "required: --level"),
+        (["mimicgen", "--n", "1"], "required: --source, --out"),
+        (["train", "--out", "x"], "required: datasets"),
+    ],
+)
+def test_passthrough_subcommands_refuse_bad_arguments_in_one_line(argv, says, capsys):
+    """Their own parsers are indgen's: one error line (no usage block), exit 2, a "did you mean" on a typo."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and says in err and err.count("\n") == 1 and "usage:" not in err
+
+
+def test_report_help_names_where_the_overlay_goes(capsys):
+    with pytest.raises(SystemExit):
+        main(["report", "--help"])
+    assert "(default: FIRST_RUN/overlay)" in " ".join(capsys.readouterr().out.split())
+
+
 class _Captured(Exception):
     """Carries the parser a passthrough handler built, instead of letting it parse."""
 

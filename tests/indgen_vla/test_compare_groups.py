@@ -62,6 +62,9 @@ def test_single_pair_is_exact_mcnemar():
     lv = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
     assert lv[1]["p_value"] == pytest.approx(stats.binomtest(0, 7, 0.5).pvalue)
     assert math.isnan(res["axes"]["pick_y"]["seed_level"]["ood_area"]["tost_p"])  # one seed: no TOST
+    res["verdict"] = verdict({**res, "alpha": 0.05}, "a", "b")
+    md = render_markdown(res, "a", "b")  # compare.md says why there is no TOST p instead of printing nan
+    assert "TOST p (margin ±0.1): n/a (needs two or more runs per side" in md and "nan" not in md
 
 
 def test_unpaired_or_unbalanced_groups_are_refused():

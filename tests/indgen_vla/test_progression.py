@@ -96,7 +96,7 @@ def test_strictly_harder():
     check_strictly_harder(ok, "pick_y")
     # jitter wider than the step: level 1 lies inside level 0's support
     bad = {k: (0.025 * k - 0.05, 0.025 * k + 0.05) for k in range(0, 3)}
-    with pytest.raises(ProgressionError, match="level 1's parameter support .* overlaps"):
+    with pytest.raises(ProgressionError, match="level 1's parameter support .* overlaps .* is 0.1 wide here"):
         check_strictly_harder(bad, "pick_y")
     check_strictly_harder(bad, "pick_y", strict=False)  # the paper's weaker wording: some tasks outside
     check_strictly_harder({0: (0, 0), 1: (1, 1), 2: (2, 2)})

@@ -140,6 +140,17 @@ def test_object_poses_are_recorded_and_carried_through_mimicgen(demos, tmp_path)
         np.testing.assert_allclose(ds[0][ENV_STATE].numpy()[7:10], [gx, gy, gz], atol=1e-5)
 
 
+def test_datasets_open_without_lerobots_torchcodec_warning(demos, caplog):
+    """Where torchcodec cannot load (no FFmpeg libraries), lerobot's own probe logs a ~200-line traceback per
+    dataset; train picks the same backend quietly."""
+    from indgen_vla.regimes.train import _open_datasets, video_backend
+
+    with caplog.at_level("WARNING"):
+        (ds,) = _open_datasets([demos], "local/test")
+    assert ds._video_backend == video_backend() in ("torchcodec", "pyav")
+    assert not [r for r in caplog.records if "torchcodec" in r.getMessage()]
+
+
 def test_objects_need_recorded_poses(tmp_path):
     from indgen_vla.regimes.demos import record_demos
 

@@ -45,7 +45,10 @@ def test_captions_of_compositions_name_every_component():
         (["--axis", "pick_y", "--task", "all"], "--task all: a preview shows one task"),
         (["--axis", "pick_y", "--task", "mlik"], "did you mean 'milk'"),
         (["--axis", "pick_y", "--size", "4"], "--size 4 must lie in 8..2048"),
-        (["--axis", "pick_y", "--out", "sheet.gif"], "the sheet is written as .png"),
+        (
+            ["--axis", "pick_y", "--out", "sheet.gif"],
+            "or .jpg; end the name with one of them, e.g. --out sheet.png",
+        ),
         (["--axis", "pick_y", "--out", "/proc/no/sheet.png"], "cannot write --out /proc/no/sheet.png"),
     ],
 )
