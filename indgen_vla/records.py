@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import RunDirError
+from indgen_vla.redact import redact, redact_tree
 
 MANIFEST = "manifest.json"
 EPISODES = "episodes.parquet"
@@ -175,7 +176,9 @@ class RunDir:
     # ----------------------------------------------------------------- creation / opening
     @classmethod
     def create_or_resume(cls, path: str | os.PathLike[str], manifest: Mapping[str, Any]) -> RunDir:
-        """Start a new run, or resume one whose manifest has the same ``plan``; refuse a different plan."""
+        """Start a new run, or resume one whose manifest has the same ``plan``; refuse a different plan. Secrets in
+        the policy spec are masked (``redact``) before anything is compared or written."""
+        manifest = redact_tree(dict(manifest))
         run = cls(path)
         try:
             run.path.mkdir(parents=True, exist_ok=True)
@@ -198,11 +201,14 @@ class RunDir:
         mpath = run.path / MANIFEST
         if mpath.exists():
             old = run.manifest
-            if old.get("plan") != manifest.get("plan"):
+            old_plan = redact_tree(
+                old.get("plan", {})
+            )  # a run recorded before secrets were masked resumes too
+            if old_plan != manifest.get("plan", {}):
                 diff = sorted(
                     k
-                    for k in set(old.get("plan", {})) | set(manifest.get("plan", {}))
-                    if old.get("plan", {}).get(k) != manifest.get("plan", {}).get(k)
+                    for k in set(old_plan) | set(manifest.get("plan", {}))
+                    if old_plan.get(k) != manifest.get("plan", {}).get(k)
                 )
                 raise RunDirError(
                     f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}); "
@@ -342,7 +348,7 @@ class RunDir:
                 raise RunDirError(
                     f"episode {rec.key} is already recorded in {self.path}; refusing to duplicate it"
                 )
-            rows[rec.key] = asdict(rec)
+            rows[rec.key] = _row(rec)
         self._journal([rows[rec.key] for rec in new])
         self._pending = True
         if (
@@ -360,7 +366,7 @@ class RunDir:
         """Add top-level fields to manifest.json (atomic); the ``plan`` a resume matches is never changed here."""
         if "plan" in fields:
             raise RunDirError("the manifest's plan is fixed when the run is created")
-        atomic_write_json(self.path / MANIFEST, {**self.manifest, **fields})
+        atomic_write_json(self.path / MANIFEST, {**self.manifest, **redact_tree(fields)})
 
     def rewrite(self, records: Iterable[EpisodeRecord]) -> None:
         """Replace every row by ``records`` at once (atomic), for runs whose source of truth is another file
@@ -371,7 +377,7 @@ class RunDir:
                 raise RunDirError(
                     f"episode {rec.key} appears twice; refusing to write {self.path / EPISODES}"
                 )
-            rows[rec.key] = asdict(rec)
+            rows[rec.key] = _row(rec)
         (self.path / JOURNAL).unlink(missing_ok=True)  # the source of truth is elsewhere: nothing to replay
         self._rows = rows
         self._flush()
@@ -397,6 +403,13 @@ class RunDir:
         """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
         df = self._stored_frame()
         return episodes_frame(list(self._load().values())) if df is None else _typed(df)
+
+
+def _row(rec: EpisodeRecord) -> dict[str, Any]:
+    """An episode's Parquet row, the policy spec's secrets masked in its ``policy`` and ``error``."""
+    row = asdict(rec)
+    row["policy"], row["error"] = redact(row["policy"]), row["error"] and redact(row["error"])
+    return row
 
 
 def _resume_hint(manifest: Mapping[str, Any]) -> str:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
 
 from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
+from indgen_vla.redact import redact
 from indgen_vla.registry import Registry
 
 if TYPE_CHECKING:
@@ -127,7 +128,9 @@ def parse_spec(spec: str) -> ParsedSpec:
         raise ConfigError(
             f"policy spec {spec!r}: bad options {query!r}; write ?key=value&key2=value2"
         ) from None
-    return ParsedSpec(spec, family, target.strip(), options)
+    return ParsedSpec(
+        redact(spec), family, target.strip(), options
+    )  # the name shown masks secrets; options keep them
 
 
 class Options:
