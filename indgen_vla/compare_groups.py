@@ -16,7 +16,7 @@ from typing import Any
 from indgen_vla.errors import RunDirError
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
-from indgen_vla.metrics import UndeterminedBreakError, holm, kstar
+from indgen_vla.metrics import MIN_N, UNDETERMINED, UndeterminedBreakError, below_floor, holm, kstar
 from indgen_vla.pairing import pair_episodes
 
 
@@ -34,6 +34,18 @@ def _pairs(a, b, axis: str) -> dict[int, list[tuple[bool, bool]]]:
 
 def _rates(df) -> dict[int, float]:
     return {int(k): float(g["success"].mean()) for k, g in _ok(df).groupby("level")}
+
+
+def _kstar_rates(df) -> dict[int, float]:
+    """Rates for a seed's k*, as ``report`` reads them: a level below the data floor (fewer than 5 finished episodes,
+    or under half its recorded ones, errors included) is NaN, never a measurement (``levels.usable_rates``)."""
+    ok = _ok(df)
+    return {
+        int(k): math.nan
+        if below_floor(int((ok["level"] == k).sum()), len(g))
+        else float(ok[ok["level"] == k]["success"].mean())
+        for k, g in df.groupby("level")
+    }
 
 
 def compare_groups(
@@ -85,20 +97,25 @@ def _seed_level(episodes_a: list, episodes_b: list, axis: str, gamma: float, mar
     per: dict[str, dict[str, list]] = {"a": {}, "b": {}}
     for side, group in (("a", episodes_a), ("b", episodes_b)):
         for df in group:
-            rates = _rates(df[df["axis"] == axis])
+            rows = df[df["axis"] == axis]
+            rates, usable = _rates(rows), _kstar_rates(rows)
             signed = any(k < 0 for k in rates)
             for d in ("pos", "neg") if signed else ("pos",):
-                own = {k: r for k, r in rates.items() if (k >= 0 if d == "pos" else k <= 0)}
+                own = {k: r for k, r in usable.items() if (k >= 0 if d == "pos" else k <= 0)}
                 try:
-                    per[side].setdefault(f"kstar_{d}", []).append(kstar(own, gamma))  # K+1 when none breaks
-                except UndeterminedBreakError:
-                    raise RunDirError(
-                        f"axis {axis}: a run lacks data at a level before its break; finish it"
-                    ) from None
+                    k = kstar(own, gamma)  # K+1 when none breaks
+                except (
+                    UndeterminedBreakError
+                ):  # a level before the break is below the data floor, as report says
+                    k = UNDETERMINED
+                per[side].setdefault(f"kstar_{d}", []).append(k)
             per[side].setdefault("ood_area", []).append(ood_area(rates))
     res = {}
     for name in per["a"]:
         a, b = per["a"][name], per["b"][name]
+        if UNDETERMINED in a + b:  # no difference of k* while a seed's k* is unknown
+            res[name] = {"a": a, "b": b, "diff": math.nan, "ci": [math.nan, math.nan]}
+            continue
         md = mean_difference(a, b)
         res[name] = {"a": a, "b": b, "diff": md.diff, "ci": [md.ci_low, md.ci_high]}
     res["ood_area"]["tost_p"] = tost(per["a"]["ood_area"], per["b"]["ood_area"], margin)
@@ -135,6 +152,10 @@ def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
             if f"kstar_{d}" in sl:
                 k = sl[f"kstar_{d}"]
                 text += f"; k* {d} {label_a} {k['a']} vs {label_b} {k['b']}"
+                if UNDETERMINED in k["a"] + k["b"]:
+                    text += (
+                        f" ({UNDETERMINED}: a level before the break is below the {MIN_N}-episode data floor)"
+                    )
         parts[axis] = text + "."
     return parts
 
@@ -167,9 +188,14 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
                          f"{r['b_only']} | {r['p_value']:.3g} | {r['p_holm']:.3g} |")  # fmt: skip
         lines += ["", "| endpoint | A per run | B per run | B − A | 95% CI |", "|---|---|---|---|---|"]
         for name, e in ax["seed_level"].items():
-            fmt = (lambda v: f"{v:.3f}") if name == "ood_area" else (lambda v: f"{v:+d}")
+            fmt = (
+                (lambda v: f"{v:.3f}")
+                if name == "ood_area"
+                else (lambda v: v if isinstance(v, str) else f"{v:+d}")
+            )
+            diff = "n/a" if math.isnan(e["diff"]) else f"{e['diff']:+.3f}"
             lines.append(f"| {name} | {', '.join(fmt(v) for v in e['a'])} | {', '.join(fmt(v) for v in e['b'])} | "
-                         f"{e['diff']:+.3f} | {_ci3(e['ci'])} |")  # fmt: skip
+                         f"{diff} | {_ci3(e['ci'])} |")  # fmt: skip
         lines += [
             "",
             f"OOD area TOST p (margin ±{result['margin']}): {_tost_p(ax['seed_level']['ood_area']['tost_p'])}",

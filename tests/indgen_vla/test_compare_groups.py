@@ -44,14 +44,32 @@ def test_paired_levels_pool_discordant_pairs_over_seeds():
     welch = stats.ttest_ind([0.625, 0.625], [0.375, 0.125], equal_var=False)
     assert sl["ood_area"]["diff"] == pytest.approx(0.375)
     assert (sl["ood_area"]["ci"][0] > 0) == (welch.pvalue < 0.05)
-    # k* with gamma 0.2: A seed 2 breaks at -1 (0 %) and at +1 (25 % >= 0.2: no break -> +2); B never breaks
-    assert sl["kstar_neg"]["a"] == [-2, -1] and sl["kstar_neg"]["b"] == [-2, -2]
-    assert sl["kstar_pos"]["a"] == [2, 2] and sl["kstar_pos"]["b"] == [2, 2]
+    # 4 episodes a level: below the 5-episode data floor, so no seed has a k* (report says "undetermined" too)
+    assert sl["kstar_neg"]["a"] == sl["kstar_pos"]["b"] == ["undetermined"] * 2
+    assert math.isnan(sl["kstar_pos"]["diff"]) and math.isnan(sl["kstar_pos"]["ci"][0])
     text = verdict({**res, "alpha": 0.05}, "h-only", "h+mg")
     assert "no level differs after Holm" in text and "+37.5 points" in text and "2 vs 2 seeds" in text
     res["verdict"] = text
+    assert "(undetermined: a level before the break is below the 5-episode data floor)" in text
     md = render_markdown(res, "h-only", "h+mg")
     assert "| -1 | 8 | 1 | 7 | 0 | 6 |" in md
+    assert "| kstar_pos | undetermined, undetermined | undetermined, undetermined | n/a |" in md
+
+
+def test_seed_kstar_reads_only_levels_above_the_data_floor():
+    # gamma 0.2. A seed 1: -1 at 1/5 (20 %, not below) then no break -> -2; +1 at 0/5 -> +1.
+    # A seed 2: -1 at 0/5 -> -1; +1 at 2/5 -> +2. B: every level 5/5 -> -2 and +2.
+    a1 = table({-1: [1, 0, 0, 0, 0], 0: [1] * 5, 1: [0] * 5})
+    a2 = table({-1: [0] * 5, 0: [1] * 5, 1: [1, 1, 0, 0, 0]})
+    b1, b2 = (table({-1: [1] * 5, 0: [1] * 5, 1: [1] * 5}) for _ in range(2))
+    sl = compare_groups([a1, a2], [b1, b2])["axes"]["pick_y"]["seed_level"]
+    assert sl["kstar_neg"]["a"] == [-2, -1] and sl["kstar_neg"]["b"] == [-2, -2]
+    assert sl["kstar_pos"]["a"] == [1, 2] and sl["kstar_pos"]["b"] == [2, 2]
+    assert sl["kstar_pos"]["diff"] == pytest.approx(0.5)  # mean 2 - mean 1.5
+    # a level whose errors leave fewer than half its episodes finished is below the floor as well
+    errors = table({0: [1] * 6, 1: [1] * 11}).assign(status=["ok"] * 6 + ["ok"] * 5 + ["error"] * 6)  # 5 of 11
+    sl = compare_groups([errors], [errors])["axes"]["pick_y"]["seed_level"]
+    assert sl["kstar_pos"]["a"] == ["undetermined"]
 
 
 def test_single_pair_is_exact_mcnemar():
