@@ -168,7 +168,8 @@ def tool_command(tool: str, a, ckpt: Path, size: int, task_id: int, out: Path) -
         return [str(Path(py).parent / "indgen"), "evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object",
                 "--task", a.task, "--axis", "pick_y", "--levels", "0", "--episodes", str(a.episodes),
                 "--workers", str(a.cores), "--max-steps", str(a.max_steps), "--image-size", str(size),
-                "--seed", "0", "--device", a.device, "--out", str(out)]  # fmt: skip
+                "--seed", "0", "--device", a.device, "--out", str(out),
+                *(["--smoke"] if a.miniature else [])]  # boxes: a timing, not a measurement  # fmt: skip
     args = [f"--policy.path={ckpt}", f"--policy.device={a.device}", "--env.type=libero", "--env.task=libero_object",
             f"--env.task_ids=[{task_id}]", f"--env.observation_height={size}", f"--env.observation_width={size}",
             f"--env.episode_length={a.max_steps}", f"--eval.n_episodes={a.episodes}",

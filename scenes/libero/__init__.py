@@ -108,6 +108,13 @@ class LiberoSuite(Scene):
 
         return find_assets(required=False)
 
+    def placeholder_assets(self) -> bool:
+        """The asset tree in use is the miniature or a gap-filled overlay (``assets.PLACEHOLDER_MARK``)."""
+        from scenes.libero.assets import find_assets, is_placeholder_tree
+
+        tree = find_assets(required=False)
+        return tree is not None and is_placeholder_tree(tree)
+
     def check_ready(self) -> None:
         """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
         from scenes.libero.assets import find_assets, libero_root

@@ -25,6 +25,23 @@ HOPE_OBJECTS = (
 )  # fmt: skip
 
 
+# a file at the top of a tree whose files are not all LIBERO's (the miniature tree, an overlay that filled gaps):
+# an image policy's success there is not a measurement (``LiberoSuite.placeholder_assets``)
+PLACEHOLDER_MARK = "INDGEN_PLACEHOLDER_ASSETS.txt"
+
+
+def mark_placeholder(root: Path, why: str) -> None:
+    """Say in ``root`` that its pictures are not LIBERO's (``why``: what made them)."""
+    (Path(root) / PLACEHOLDER_MARK).write_text(
+        f"{why}\nindgen refuses an image policy on this tree unless --smoke (the manifest then says 'not a measurement').\n"
+    )
+
+
+def is_placeholder_tree(root: Path) -> bool:
+    """Whether ``root`` carries ``PLACEHOLDER_MARK``."""
+    return (Path(root) / PLACEHOLDER_MARK).is_file()
+
+
 def libero_root() -> Path:
     """The installed ``libero/libero`` package directory (BDDL files, init files), found without importing it."""
     spec = importlib.util.find_spec("libero")

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import scenes.libero.miniature_common as common
-from scenes.libero.assets import HOPE_OBJECTS
+from scenes.libero.assets import HOPE_OBJECTS, mark_placeholder
 from scenes.libero.miniature_spatial import write_spatial_assets
 
 HOPE_COLOURS = {  # LIBERO-Object's grocery items (assets.HOPE_OBJECTS) -> an RGB for their miniature
@@ -70,4 +70,7 @@ def write_miniature_assets(root: str | Path) -> Path:
         common.write_hope_object(root / "stable_hope_objects" / name, CUBE_HALF, rgb)
     common.write_box_object(root / "stable_scanned_objects" / "basket", BASKET, (0.6, 0.45, 0.25))
     write_spatial_assets(root)
+    mark_placeholder(
+        root, "A miniature LIBERO asset tree (scenes.libero.miniature): boxes for objects, flat textures."
+    )
     return root

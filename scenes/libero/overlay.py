@@ -2,7 +2,8 @@
 with a tiny placeholder for every file its MJCF references but that is missing, and the list of what was filled.
 
 For physics checks only (the oracle, certification, the ``real_assets`` tests, timing): a filled visual mesh or
-texture changes what a camera sees, so never evaluate an image policy on such a tree. ``collision`` in the
+texture changes what a camera sees, so such a tree is marked (``assets.PLACEHOLDER_MARK``) and
+``evaluate`` refuses an image policy on it unless ``--smoke``. ``collision`` in the
 report names any filled file that a collision geom could use (those change the physics too).
 
     python -m scenes.libero.overlay SRC DST     # then: export INDGEN_LIBERO_ASSETS=DST
@@ -73,6 +74,12 @@ def overlay_assets(src: Path, dst: Path) -> list[str]:
         q = dst / p.relative_to(src)
         q.parent.mkdir(parents=True, exist_ok=True)
         q.write_bytes(placeholder_bytes(q.suffix.lower()))
+    if missing:  # a filled mesh or texture changes what a camera sees
+        from scenes.libero.assets import mark_placeholder
+
+        mark_placeholder(
+            dst, f"An overlay of {src} (scenes.libero.overlay) with {len(missing)} missing file(s) filled."
+        )
     return [str(p.relative_to(src)) for p in missing]
 
 

@@ -3,6 +3,7 @@ LiberoEnv, the axes, the oracle, certify/evaluate and the missing-assets error."
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -337,3 +338,23 @@ def test_a_held_axis_starts_its_ladder_at_the_held_level(mini):
         assert len({n.split("_main")[0] for n in names}) == 1
     finally:
         env.close()
+
+
+def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path, capsys):
+    """The miniature tree is boxes and flat textures: like RoboCasa's placeholders, an image policy is refused there
+    unless --smoke (whose manifest says "not a measurement"); the oracle, which reads no image, runs as before."""
+    pytest.importorskip("lerobot")
+    from indgen_vla.cli import main
+    from scenes.registry import get_scene
+    from tests.fixtures.tiny_policies import build_tiny_checkpoint
+
+    assert get_scene("libero_object").placeholder_assets()
+    ckpt = build_tiny_checkpoint("act", tmp_path / "act")
+    args = ["evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object", "--task", "alphabet_soup",
+            "--axis", "scale", "--levels", "0", "--episodes", "1", "--max-steps", "2", "--workers", "1"]  # fmt: skip
+    assert main([*args, "--out", str(tmp_path / "refused")]) == 2
+    assert "runs on placeholder assets" in capsys.readouterr().err
+    assert main([*args, "--smoke", "--out", str(tmp_path / "smoke")]) == 0
+    assert json.loads((tmp_path / "smoke" / "manifest.json").read_text())["measurement"].startswith(
+        "not a measurement"
+    )

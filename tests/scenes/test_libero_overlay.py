@@ -3,6 +3,7 @@ are linked, and a filled mesh that is not named as visual is reported as a possi
 
 import mujoco
 
+from scenes.libero.assets import PLACEHOLDER_MARK, is_placeholder_tree
 from scenes.libero.overlay import (
     collision_suspects,
     main,
@@ -51,6 +52,14 @@ def test_overlay_fills_missing_files_that_mujoco_then_loads(tmp_path):
     assert model.nmesh == 3 and model.ntex == 1
     assert collision_suspects(filled) == ["thing/frame.stl"]  # not under visual/ nor *_vis.*
     assert overlay_assets(src, tmp_path / "dst") == filled  # re-running keeps what is there
+    assert is_placeholder_tree(tmp_path / "dst") and not is_placeholder_tree(
+        src
+    )  # filled pictures: no measurement
+    whole = tmp_path / "whole"
+    overlay_assets(
+        tmp_path / "dst", whole
+    )  # nothing missing: a faithful copy is not marked by the overlay...
+    assert (whole / PLACEHOLDER_MARK).is_symlink()  # ...but keeps the mark of a tree that had one
 
 
 def test_overlay_cli(tmp_path, capsys):
