@@ -151,8 +151,8 @@ def place_facts(env, task: str) -> dict:
     """Where a put-down task wants the pick object (``scenes.robocasa.oracle``'s carry script): ``place_pos``, the
     world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
-    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); empty for
-    the other tasks."""
+    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
+    sink basin's floor at its middle; empty for the other tasks."""
     data, model = env.sim.data, env.sim.model
     if task == "PickPlaceSinkToCounter" and "container" in env.objects:
         pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
@@ -165,6 +165,10 @@ def place_facts(env, task: str) -> dict:
         return {"place_pos": np.array([*xy, z]), "place_ceiling": _ceiling(env, xy, z)}
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
+    if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
+        p0, px, py, _ = (np.asarray(v, dtype=np.float64)
+                         for v in next(iter(env.sink.get_int_sites(relative=False).values())))  # fmt: skip
+        return {"place_pos": np.array([*((px[:2] + py[:2]) / 2), p0[2]])}
     return {}
 
 
