@@ -36,7 +36,8 @@ def unload_target(raw: dict, pick, centre):
 def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
-    ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
+    ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head, the blender's
+    power button: ``touching_gripper`` is the gripper's contact with the button); ``goal`` and
     ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); a put-down task's
     ``place_pos`` is ``target`` (``clear_z``: the higher of it and the object's bottom; ``goal.top``: the underside
     of what hangs over it, if anything), else ``target`` is where to push that part (``press_point``).
@@ -46,14 +47,17 @@ def privileged_state(raw: dict):
     from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
     f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
-    if "obj_pos" in raw:
+    if (
+        "obj_pos" in raw and "button_pos" not in raw
+    ):  # TurnOnBlender's fruit waits in the jar: the button is it
         pos = f64(raw["obj_pos"])
         ext = raw.get("obj_half_extents")
         pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],
                          raw["obj_half_width"], raw["obj_touching"], None if ext is None else f64(ext))  # fmt: skip
     else:
-        pos = f64(raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
-        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, False)
+        part = raw.get("button_pos", raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
+        pos, touched = f64(part), bool(raw.get("button_touched", False))
+        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, touched)
     goal, facts = None, SceneFacts()
     if "goal_centre" in raw:
         c = f64(raw["goal_centre"])
@@ -71,6 +75,7 @@ def privileged_state(raw: dict):
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
+        facts = SceneFacts(button="button_pos" in raw)
     return PrivilegedState(
         eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
         pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),

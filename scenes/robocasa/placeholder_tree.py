@@ -249,7 +249,7 @@ def fixture_model(kind: str, name: str) -> str:
         inner = (hx * 0.7, depth * 0.7)
         m.hollow((hx, depth), inner, base, hz, y0)
         m.region("int", (0, y0, hz * 0.2), (*inner, hz * 0.6))
-        m.box("power_button_main", (0, -hy + m.slab * 0.6, (base - hz) / 2), (0.015, m.slab * 0.4, 0.012))
+        m.box("power_button_main", (0, front, (base - hz) / 2), (0.015, m.slab / 2, 0.012))
         m.site("anchor_site", (0, y0, hz + SIZES["blender_lid"][2] / 2), outer=True)
     elif kind == "toaster":
         for i, pair in enumerate(("0_0", "0_1")):

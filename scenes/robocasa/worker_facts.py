@@ -113,6 +113,7 @@ def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {
         **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
+        **button_facts(env, task),
     }  # fmt: skip
 
 
@@ -126,6 +127,26 @@ def fixture_part_facts(env) -> dict:
     if jn and jn in model.joint_names:
         out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
     return out
+
+
+def button_facts(env, task: str) -> dict:
+    """TurnOnBlender's power button (``Blender.update_state``: a press is the gripper's contact with
+    ``<blender>_power_button_main``, counted at its release): ``button_pos``, a point of its top face
+    ``BUTTON_EDGE`` in from its front edge (a finger pressing its middle touches the blender's face first), and
+    ``button_touched``, that contact now; empty for the other tasks or a blender without that geom."""
+    blender = getattr(env, "blender", None)
+    name = f"{getattr(blender, 'name', '')}_power_button_main"
+    model, data = env.sim.model, env.sim.data
+    if task != "TurnOnBlender" or blender is None or name not in model.geom_names:
+        return {}
+    g = model.geom_name2id(name)
+    mat, size = np.asarray(data.geom_xmat[g]).reshape(3, 3), model.geom_size[g]
+    out = -mat[:, 1]  # the button stands out along the blender's -y (RoboCasa's fixtures face their -y)
+    top = np.array(data.geom_xpos[g], dtype=np.float64) + mat[:, 2] * size[2]
+    return {
+        "button_pos": top + out * max(0.0, float(size[1]) - BUTTON_EDGE),
+        "button_touched": bool(env.check_contact(env.robots[0].gripper["right"], name)),
+    }
 
 
 def object_extent_facts(env) -> dict:
@@ -144,6 +165,7 @@ def unload_facts(env, task: str) -> dict:
     return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
 
 
+BUTTON_EDGE = 0.012  # m in from a button's front edge the blender's press lands (a finger's half thickness)
 COFFEE_SHIFT = 0.03  # m the mug goes down in front of the pour site (under the 0.04 m of RoboCasa's xy check)
 
 
