@@ -174,10 +174,11 @@ class RoboCasaLevel:
             shift = getattr(env, "_indgen_fixture_shift", None)
             if shift:  # fixture_x: the moved fixture, after the objects were placed clear of it at T0's pose
                 name, d = shift
-                fx = env.fixtures[name]
-                pos, quat, _ = env.fxtr_placements[name]
-                fx.set_pos(np.add(pos, d))
-                env.fxtr_placements[name] = (np.add(pos, d), quat, fx)
+                for n in (name, *auxiliaries(env, name)):  # the blender's lid goes along (RoboCasa checks it)
+                    fx = env.fixtures[n]
+                    pos, quat, _ = env.fxtr_placements[n]
+                    fx.set_pos(np.add(pos, d))
+                    env.fxtr_placements[n] = (np.add(pos, d), quat, fx)
 
         def reset_internal():  # the post-load draws (door angles, mixer head) from one stream, fresh or replayed
             env.rng = np.random.default_rng([self._seed, 1])
@@ -383,6 +384,13 @@ def fixture_shift(quat_wxyz, base_yaw: float, dx: float) -> np.ndarray:
     own_x, own_y = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
     axis = own_x if abs(own_x @ across) >= abs(own_y @ across) else own_y
     return np.array([*(axis * dx), 0.0])
+
+
+def auxiliaries(env, name: str) -> list[str]:
+    """The auxiliary fixtures RoboCasa placed with fixture ``name`` (``<name>_auxiliary_<group>``: the blender's
+    lid, at its ``anchor_site``): fixture_x moves them with it (a lid left behind is off the blender, and
+    ``Blender.update_state`` then keeps it off)."""
+    return [n for n in getattr(env, "fxtr_placements", {}) if n.startswith(f"{name}_auxiliary_")]
 
 
 def keep_task_fixture(env, task: str, name: str | None) -> None:

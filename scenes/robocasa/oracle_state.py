@@ -37,10 +37,11 @@ def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
     ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head, the blender's
-    power button: ``touching_gripper`` is the gripper's contact with the button); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); a put-down task's
-    ``place_pos`` is ``target`` (``clear_z``: the higher of it and the object's bottom; ``goal.top``: the underside
-    of what hangs over it, if anything), else ``target`` is where to push that part (``press_point``).
+    power button: ``touching_gripper`` is the gripper's contact with the button); ``goal`` and ``target`` are the
+    cabinet interior the object goes into (its centre, floor and ceiling); a put-down task's ``place_pos`` is
+    ``target`` (``clear_z``: the highest of it, the object's bottom and ``place_clear``, a container's rim;
+    ``goal.top``: the underside of what hangs over it, if anything), else ``target`` is where to push that part
+    (``press_point``).
     """
     import numpy as np
 
@@ -69,8 +70,10 @@ def privileged_state(raw: dict):
             target, facts = unload_target(raw, pick, c)
     elif "place_pos" in raw:  # put down on a surface or into an open drawer (worker_facts.place_facts)
         place, ceiling = f64(raw["place_pos"]), raw.get("place_ceiling")  # ceiling: what hangs over it
-        target = Targets(place[:2].copy(), float(place[2]), max(float(place[2]), pick.bottom), float(pick.pos[2]),
-                         floor_z=float(place[2]))  # fmt: skip
+        clear = max(float(place[2]), pick.bottom, float(raw.get("place_clear", place[2])))  # a jar's rim
+        target = Targets(
+            place[:2].copy(), float(place[2]), clear, float(pick.pos[2]), floor_z=float(place[2])
+        )
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
     else:
         press = press_point(raw, pick.pos)

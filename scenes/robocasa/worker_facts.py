@@ -174,7 +174,8 @@ def place_facts(env, task: str) -> dict:
     world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
     ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
-    sink basin's floor at its middle; empty for the other tasks."""
+    sink basin's floor at its middle; onto the blender jar's floor, carried over its rim (``place_clear``, the
+    height the carried object's bottom must clear); empty for the other tasks."""
     data, model = env.sim.data, env.sim.model
     if task == "PickPlaceSinkToCounter" and "container" in env.objects:
         pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
@@ -188,10 +189,19 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
     if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
-        p0, px, py, _ = (np.asarray(v, dtype=np.float64)
-                         for v in next(iter(env.sink.get_int_sites(relative=False).values())))  # fmt: skip
-        return {"place_pos": np.array([*((px[:2] + py[:2]) / 2), p0[2]])}
+        return {"place_pos": _floor_centre(env.sink)}
+    if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
+        top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
+        return {"place_pos": _floor_centre(env.blender), "place_clear": top}
     return {}
+
+
+def _floor_centre(fixture) -> np.ndarray:
+    """The middle of the floor of ``fixture``'s first interior region (world): where an object put in it rests."""
+    p0, px, py, _ = (
+        np.asarray(v, dtype=np.float64) for v in next(iter(fixture.get_int_sites(relative=False).values()))
+    )
+    return np.array([*((px[:2] + py[:2]) / 2), p0[2]])
 
 
 def drawer_facts(env) -> dict:

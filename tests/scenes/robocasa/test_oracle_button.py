@@ -59,3 +59,16 @@ def test_the_oracle_turns_the_blender_on(placeholders):
 def test_the_oracle_turns_the_blender_on_after_it_slides_away(placeholders):
     assert _oracle_episodes("TurnOnBlender", "fixture_x", 0, (1, 2), 150) == [True, True]
     assert _oracle_episodes("TurnOnBlender", "fixture_x", 1, (0,), 150) == [True]
+
+
+def test_fixture_x_moves_the_blenders_lid_with_it():
+    """The lid is an auxiliary fixture placed at the blender's anchor_site: left at T0's pose by fixture_x, it was
+    off the blender, and RoboCasa keeps a blender without its lid off (0/4 at fixture_x level 1 before)."""
+    from types import SimpleNamespace
+
+    from scenes.robocasa.backend import auxiliaries
+
+    env = SimpleNamespace(fxtr_placements=dict.fromkeys(
+        ["blender_left_group", "blender_left_group_auxiliary_left_group", "blender_left_group_2", "counter_main"]))  # fmt: skip
+    assert auxiliaries(env, "blender_left_group") == ["blender_left_group_auxiliary_left_group"]
+    assert auxiliaries(env, "counter_main") == []

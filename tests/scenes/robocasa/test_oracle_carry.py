@@ -36,6 +36,14 @@ def test_place_pos_is_the_carry_target():
     assert covered.goal.top == 1.2 and np.allclose(covered.goal.pos, [0.4, -0.5, 1.03])
 
 
+def test_a_container_rim_raises_the_carry_height():
+    """Counter to blender: the jar's floor is the place point and its rim (``place_clear``) the height to clear."""
+    from scenes.robocasa import privileged_state
+
+    s = privileged_state({**_raw(), "place_pos": [0.4, -0.5, 1.04], "place_clear": 1.34})
+    assert s.target.place_bottom == 1.04 and s.target.clear_z == 1.34
+
+
 def test_the_carry_height_is_fixed_before_the_object_rises():
     """The carry height is the higher surface plus CLEARANCE, fixed at the first action: the object's bottom
     (one of the two surfaces) rises with it once grasped, and a height read live rose without end."""
