@@ -7,10 +7,10 @@ base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's 
 control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
-counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; also run, not
-listed, on CoffeeSetupMug, which it solves only half the time on placeholder assets) and a press: the stand mixer's
-head (pushed down at its free end, the hand tipped further while the reach falls short) or the blender's power
-button (touched, then left straight up). ``tasks`` lists the tasks certify may certify; it refuses the others.
+counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
+blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
+time on placeholder assets) and a press: the stand mixer's head (pushed down at its free end, the hand tipped
+further while the reach falls short) or the blender's power button (touched, then left straight up). ``tasks`` lists the tasks certify may certify; it refuses the others.
 Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -59,6 +59,7 @@ class RoboCasaOracle:
         "PickPlaceSinkToCounter",
         "PickPlaceCounterToDrawer",
         "PickPlaceCounterToSink",
+        "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
         "TurnOnBlender",
     )
@@ -319,7 +320,7 @@ class RoboCasaOracle:
             return self._goto(s, up, OPEN, speed=0.3, tilt=tilt)
         return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, back_up]), OPEN, speed=0.5, tilt=tilt)
 
-    # ---- onto a surface, into an open drawer or a sink (sink to counter, coffee machine, drawer, sink) --
+    # ---- onto a surface, into a drawer, a sink or a jar (sink to counter, coffee, drawer, sink, blender) --
     def _carry(self, s: PrivilegedState) -> np.ndarray:
         """Hand pointing down: over the object, down, grasp, up until its bottom clears both surfaces by
         ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``

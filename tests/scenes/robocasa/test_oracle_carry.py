@@ -62,7 +62,12 @@ def test_the_carry_height_is_fixed_before_the_object_rises():
 def test_certify_scripts_sink_to_counter_and_not_the_kettle():
     from scenes.oracle import oracle_scripts
 
-    for task in ("PickPlaceSinkToCounter", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink"):
+    for task in (
+        "PickPlaceSinkToCounter",
+        "PickPlaceCounterToDrawer",
+        "PickPlaceCounterToSink",
+        "PickPlaceCounterToBlender",
+    ):
         assert oracle_scripts("robocasa", task), task
     # the switch push was left out (docs/results/robocasa_oracle.md): uncertified, not a 'failed' certification
     assert not oracle_scripts("robocasa", "TurnOnElectricKettle")
@@ -91,3 +96,17 @@ def test_the_oracle_puts_the_object_in_the_open_drawer(placeholders):
     (the script's first target) lay under it."""
     assert _oracle_episodes("PickPlaceCounterToDrawer", "horizon", 0, (1, 2), 400) == [True, True]
     assert _oracle_episodes("PickPlaceCounterToDrawer", "horizon", 2, (0, 1), 500) == [True, True]
+
+
+@needs_venv
+@pytest.mark.slow  # ~35 s: two certification episodes
+def test_the_oracle_puts_the_object_in_the_sink_basin(placeholders):
+    """Counter to sink (placeholder tree v5: the basin is open): RoboCasa wants the object's centre in reg_basin."""
+    assert _oracle_episodes("PickPlaceCounterToSink", "horizon", 0, (0, 1), 400) == [True, True]
+
+
+@needs_venv
+@pytest.mark.slow  # ~20 s: one certification episode
+def test_the_oracle_drops_the_object_into_the_blender_jar(placeholders):
+    """Counter to blender: carried over the jar's rim (place_clear), let go where the hand stalls, inside reg_int."""
+    assert _oracle_episodes("PickPlaceCounterToBlender", "horizon", 1, (0,), 500) == [True]
