@@ -10,8 +10,8 @@ pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
 time on placeholder assets) and a press: the stand mixer's head (pushed down at its free end, the hand tipped
-further while the reach falls short) or the blender's power button (touched, then left straight up). ``tasks`` lists the tasks certify may certify; it refuses the others.
-Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
+further while the reach falls short) or the blender's power button (touched, then left straight up). ``tasks``
+lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations

@@ -48,9 +48,8 @@ def privileged_state(raw: dict):
     from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
     f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
-    if (
-        "obj_pos" in raw and "button_pos" not in raw
-    ):  # TurnOnBlender's fruit waits in the jar: the button is it
+    # TurnOnBlender's fruit waits in the jar: the power button is what its oracle pushes
+    if "obj_pos" in raw and "button_pos" not in raw:
         pos = f64(raw["obj_pos"])
         ext = raw.get("obj_half_extents")
         pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],

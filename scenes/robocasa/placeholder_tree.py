@@ -3,9 +3,10 @@ starts it). Imports only the standard library, numpy, PyYAML and RoboCasa: it is
 
 The tree is the wheel's own ``models/assets`` (layouts, styles, fixture registry, procedural cabinet XML) plus, for
 every file those reference that the wheel does not ship: a box ``model.xml`` per fixture carrying the joints, sites
-and regions its fixture class looks up; one box object per (registry, category); flat one-colour textures; a
-one-box mesh for any mesh file. Pitfalls handled (issue 25): every joint has its own body (two joints on one body and
-axis make the mass matrix singular); a door sits outside its body's collider (inside, MuJoCo resets mjData to qpos0
+and regions its fixture class looks up (the sink and the blender open at the top: a floor and four walls around
+their basin / jar region); one box object per (registry, category); flat one-colour textures; a one-box mesh for
+any mesh file. Pitfalls handled (issue 25): every joint has its own body (two joints on one body and axis make the
+mass matrix singular); a door sits outside its body's collider (inside, MuJoCo resets mjData to qpos0
 with only mjWARN_BADQACC set); the tree is written writable (objects write temporary XML into their folders).
 """
 
@@ -46,7 +47,8 @@ def fmt(*v: float) -> str:
 
 
 class Model:
-    """One fixture's MJCF: a root body ``object`` with a collision box and children with one joint each."""
+    """One fixture's MJCF: a root body ``object`` with a collision box (or ``hollow``'s floor and walls) and
+    children with one joint each."""
 
     def __init__(self, name: str, size: tuple[float, float, float], solid: bool = True):
         self.name, (w, d, h) = name, size
