@@ -81,6 +81,7 @@ class SceneFacts:
     receptacle_inner: tuple[float, float] | None = None  # interior half extents (x, y) of the receptacle
     fixture_centre: np.ndarray | None = None  # world xy of the fixture the object must leave
     fixture_half: tuple[float, float] | None = None  # its footprint's half extents (x, y)
+    button: bool = False  # a press task's part is a button: one touch counts, at its release (RoboCasa)
 
 
 NO_FACTS = SceneFacts()

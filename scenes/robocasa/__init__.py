@@ -15,6 +15,7 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.interface import EnvSpec
 from indgen_vla.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
+from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
 
 if TYPE_CHECKING:
@@ -128,80 +129,6 @@ class RoboCasaSuccess:
 
     def __call__(self, state) -> bool:
         return bool(state.bddl_success)
-
-
-def press_point(raw: dict, part):
-    """Where a fixture oracle pushes: on the stand mixer's head, 70 % of the hinge-to-centre lever beyond the
-    head's centre (toward its free end: pushing at the hinge closes nothing); else the part itself."""
-    import numpy as np
-
-    part = np.asarray(part, dtype=np.float64)
-    hinge = raw.get("mixer_hinge_pos")
-    if hinge is None or np.linalg.norm(part - hinge) < 0.01:
-        return part.copy()
-    return part + 0.7 * (part - np.asarray(hinge, dtype=np.float64))
-
-
-def unload_target(raw: dict, pick, centre):
-    """Cabinet to counter: put the object down on the counter 12 cm (plus its half width) in front of the cabinet's
-    face, straight back from where it stands; the cabinet is the fixture it must leave (``SceneFacts``)."""
-    import numpy as np
-
-    from scenes.privileged import SceneFacts, Targets
-
-    yaw = float(raw["base_yaw"])
-    fwd = np.array([np.cos(yaw), np.sin(yaw)])  # the base faces the cabinet
-    half = tuple(float(h) for h in raw["goal_half"])
-    front = float(np.dot(centre[:2], fwd)) - half[1]
-    xy = pick.pos[:2] + fwd * (front - 0.12 - pick.half_width - float(np.dot(pick.pos[:2], fwd)))
-    top = float(raw["counter_top"])
-    target = Targets(xy, top, float(pick.top), float(pick.pos[2]), floor_z=top)
-    return target, SceneFacts(receptacle_inner=half, fixture_centre=np.asarray(centre[:2]), fixture_half=half)
-
-
-def privileged_state(raw: dict):
-    """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
-
-    ``pick`` is the object to move, or on a fixture task the part to push (the stand mixer's head); ``goal`` and
-    ``target`` are the cabinet interior the object goes into (its centre, floor and ceiling); a put-down task's
-    ``place_pos`` is ``target`` (``clear_z``: the higher of it and the object's bottom; ``goal.top``: the underside
-    of what hangs over it, if anything), else ``target`` is where to push that part (``press_point``).
-    """
-    import numpy as np
-
-    from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
-
-    f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
-    if "obj_pos" in raw:
-        pos = f64(raw["obj_pos"])
-        ext = raw.get("obj_half_extents")
-        pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],
-                         raw["obj_half_width"], raw["obj_touching"], None if ext is None else f64(ext))  # fmt: skip
-    else:
-        pos = f64(raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
-        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, False)
-    goal, facts = None, SceneFacts()
-    if "goal_centre" in raw:
-        c = f64(raw["goal_centre"])
-        goal = GoalState(c, f64([1.0, 0, 0, 0]), float(raw["goal_top"]))
-        target = Targets(c[:2].copy(), float(raw["goal_floor"]), float(raw["goal_floor"]), float(pick.pos[2]),
-                         floor_z=float(raw["goal_floor"]))  # fmt: skip
-        facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
-        if raw.get("counter_top") is not None:  # cabinet to counter: out of the cabinet, onto the counter
-            target, facts = unload_target(raw, pick, c)
-    elif "place_pos" in raw:  # put down on a surface or into an open drawer (worker_facts.place_facts)
-        place, ceiling = f64(raw["place_pos"]), raw.get("place_ceiling")  # ceiling: what hangs over it
-        target = Targets(place[:2].copy(), float(place[2]), max(float(place[2]), pick.bottom), float(pick.pos[2]),
-                         floor_z=float(place[2]))  # fmt: skip
-        goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
-    else:
-        press = press_point(raw, pick.pos)
-        target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
-    return PrivilegedState(
-        eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
-        pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),
-        robot_base=f64([*raw["base_pos"][:2], raw["base_yaw"]]),
-    )  # fmt: skip
 
 
 def split_task(task: str) -> tuple[str, tuple[int, int] | None]:

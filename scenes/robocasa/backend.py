@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import os
-import zlib
 
 import numpy as np
 
@@ -48,6 +47,8 @@ versions, failure_facts, check_kitchen = _facts.versions, _facts.failure_facts, 
 oracle_facts = _facts.oracle_facts
 window = _load_beside("pick_window")  # pick_x's window on RoboCasa's range in the episode's kitchen
 PICK_JITTER = window.PICK_JITTER
+_patches = _load_beside("worker_patches")
+unique_in_order = _patches.unique_in_order  # what counter.py's ``set`` becomes (tests read it here)
 
 
 def _yaw(quat_wxyz) -> float:
@@ -97,119 +98,6 @@ def edit_ep_meta(
     return meta
 
 
-def _pinned_sample(pins: dict):
-    """SequentialCompositeSampler.sample (robocasa/utils/placement_samplers.py) that places each pinned item at
-    T0's pose instead of drawing it, so every draw left is for what the level edited."""
-    from copy import copy as shallow
-
-    def sample(self, placed_objects=None, reference=None, on_top=True):
-        placed = {} if placed_objects is None else shallow(placed_objects)
-        for sampler, s_args in zip(self.samplers.values(), self.sample_args.values(), strict=True):
-            objs = list(sampler.mujoco_objects)
-            if objs and all(o.name in pins for o in objs):
-                placed.update(
-                    {o.name: (np.array(pins[o.name][0]), np.array(pins[o.name][1]), o) for o in objs}
-                )
-                continue
-            s_args = dict(s_args or {})
-            s_args.setdefault("reference", reference)
-            s_args.setdefault("on_top", on_top)
-            placed.update(sampler.sample(placed_objects=placed, **s_args))
-        names = {o.name for s in self.samplers.values() for o in s.mujoco_objects}
-        return {k: v for k, v in placed.items() if k in names}
-
-    return sample
-
-
-def unique_in_order(items=()) -> list:
-    """``list(set(items))`` in first-seen order: a set of XML elements iterates in id() (memory address) order."""
-    return list(dict.fromkeys(items))
-
-
-def _dedupe_counter_geoms_in_order() -> None:
-    """RoboCasa's ``Counter.get_reset_regions`` (robocasa/models/fixtures/counter.py) dedupes the counter tops beside
-    a reference fixture with ``list(set(valid_geoms))``, its module's only ``set``: the regions' order, so the one
-    ``rng.choice`` takes, followed memory addresses, and one seed put the stand mixer (and the robot base placed at
-    it) on either side of the island sink, 1.775 m apart, depending on the process. Shadow that ``set``."""
-    import robocasa.models.fixtures.counter as counter
-
-    counter.set = unique_in_order
-
-
-def _install_patches() -> None:
-    """Worker-wide: counter regions in first-seen order; placement samplers honour ``env._indgen_pins`` and
-    pick_x's window (``env._indgen_pick``: ``pick_window.narrow``); RoboCasa's
-    fixture style YAML (re-parsed ~100 times per reset with the pure-Python loader, ~70 % of a reset) is parsed once
-    with libyaml and copied."""
-    import types
-
-    import robocasa.models.scenes.scene_utils as scene_utils
-    import robocasa.utils.env_utils as env_utils
-    import yaml
-
-    if getattr(env_utils, "_indgen_patched", False):
-        return
-    _dedupe_counter_geoms_in_order()
-    original = env_utils._get_placement_initializer
-
-    def placement_initializer(env, cfg_list, z_offset=0.01):
-        sampler = original(env, cfg_list, z_offset)
-        seed = getattr(env, "_indgen_seed", None)
-        if seed is not None and all(c.get("type") == "object" for c in cfg_list):
-            # each object draws from its own stream of (seed, name): a level that pins or adds other objects
-            # draws the same numbers for the one it moves, so pick_x's levels are shifts of T0's pose
-            for name, sub in sampler.samplers.items():
-                sub.rng = np.random.default_rng([seed, 2, zlib.crc32(name.encode())])
-        pick = getattr(env, "_indgen_pick", None)
-        if pick and all(c.get("type") == "object" for c in cfg_list):
-            window.narrow(env, sampler, cfg_list, pick)
-        pins = getattr(env, "_indgen_pins", None)
-        if pins:
-            sampler.sample = types.MethodType(_pinned_sample(pins), sampler)
-        return sampler
-
-    env_utils._get_placement_initializer = placement_initializer
-    create = env_utils.create_obj
-
-    def create_obj(env, cfg):
-        """T0's exact object (model and scale): a replay by ``info.mjcf_path`` looks the category up again and can
-        pick another category's scale for a model folder two categories share."""
-        made = getattr(env, "_indgen_made", None)
-        if made and cfg["name"] in made:
-            kwargs, info = copy.deepcopy(made[cfg["name"]])
-            return env_utils.MJCFObject(name=cfg["name"], **kwargs), info
-        drawn: list = []
-        sample = env.sample_object
-        env.sample_object = lambda *a, **k: drawn.append(sample(*a, **k)) or drawn[-1]
-        try:
-            obj, info = create(env, cfg)
-        finally:
-            del env.sample_object
-        env._indgen_drawn[cfg["name"]] = copy.deepcopy(drawn[-1])
-        return obj, info
-
-    env_utils.create_obj = create_obj
-    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    cache: dict = {}
-
-    class CachedYaml(types.ModuleType):
-        def __getattr__(self, name):
-            return getattr(yaml, name)
-
-        @staticmethod
-        def safe_load(stream):
-            name = getattr(stream, "name", None)
-            if not isinstance(name, str) or not os.path.isfile(name):
-                return yaml.load(stream, Loader=loader)
-            key = (name, os.stat(name).st_mtime_ns)
-            if key not in cache:
-                cache[key] = yaml.load(stream, Loader=loader)
-            return copy.deepcopy(cache[key])
-
-    scene_utils.yaml = CachedYaml("yaml")
-    env_utils._indgen_patched = True
-
-
 def _flat_action(env, action: np.ndarray) -> np.ndarray:
     """RoboCasa's flat 12-d action -> robosuite's composite-controller action (RoboCasaGymEnv.step's composition)."""
     from robocasa.utils.env_utils import convert_action
@@ -244,7 +132,7 @@ class RoboCasaLevel:
         import robocasa  # noqa: F401  (registers the kitchen tasks with robosuite)
         import robosuite
 
-        _install_patches()
+        _patches.install_patches(window)
         self.cfg = config
         self.cameras = tuple(config.get("cameras", ()))
         h, w = config.get("image_size", (256, 256))
@@ -286,10 +174,11 @@ class RoboCasaLevel:
             shift = getattr(env, "_indgen_fixture_shift", None)
             if shift:  # fixture_x: the moved fixture, after the objects were placed clear of it at T0's pose
                 name, d = shift
-                fx = env.fixtures[name]
-                pos, quat, _ = env.fxtr_placements[name]
-                fx.set_pos(np.add(pos, d))
-                env.fxtr_placements[name] = (np.add(pos, d), quat, fx)
+                for n in (name, *auxiliaries(env, name)):  # the blender's lid goes along (RoboCasa checks it)
+                    fx = env.fixtures[n]
+                    pos, quat, _ = env.fxtr_placements[n]
+                    fx.set_pos(np.add(pos, d))
+                    env.fxtr_placements[n] = (np.add(pos, d), quat, fx)
 
         def reset_internal():  # the post-load draws (door angles, mixer head) from one stream, fresh or replayed
             env.rng = np.random.default_rng([self._seed, 1])
@@ -495,6 +384,13 @@ def fixture_shift(quat_wxyz, base_yaw: float, dx: float) -> np.ndarray:
     own_x, own_y = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
     axis = own_x if abs(own_x @ across) >= abs(own_y @ across) else own_y
     return np.array([*(axis * dx), 0.0])
+
+
+def auxiliaries(env, name: str) -> list[str]:
+    """The auxiliary fixtures RoboCasa placed with fixture ``name`` (``<name>_auxiliary_<group>``: the blender's
+    lid, at its ``anchor_site``): fixture_x moves them with it (a lid left behind is off the blender, and
+    ``Blender.update_state`` then keeps it off)."""
+    return [n for n in getattr(env, "fxtr_placements", {}) if n.startswith(f"{name}_auxiliary_")]
 
 
 def keep_task_fixture(env, task: str, name: str | None) -> None:

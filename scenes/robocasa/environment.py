@@ -135,12 +135,39 @@ def is_placeholder(path: Path) -> bool:
     return (path / PLACEHOLDER_MARKER).is_file()
 
 
+def stale_placeholders(path: Path) -> str | None:
+    """One line when ``path`` is a placeholder tree an older generator wrote (its geometry is not what the oracle
+    and the docs' numbers assume, and its listing hash names other certificates); None otherwise."""
+    from scenes.robocasa.placeholder_tree import VERSION
+
+    if not is_placeholder(path):
+        return None
+    first = (path / PLACEHOLDER_MARKER).read_text().partition("\n")[0]
+    if first == f"version {VERSION}":
+        return None
+    return (
+        f"{path} holds RoboCasa placeholders of an older generator ({first or 'no version'}; current: version "
+        f"{VERSION}); rewrite them with 'python -m scenes.robocasa.placeholders {path}'"
+    )
+
+
+def _usable(p: Path, required: bool) -> bool:
+    """``p`` is an asset tree and not a stale placeholder tree (refused in one line when ``required``)."""
+    if not is_asset_tree(p):
+        return False
+    stale = stale_placeholders(p)
+    if stale and required:
+        raise SceneError(stale)
+    return stale is None
+
+
 def find_assets(required: bool = True) -> Path | None:
-    """The kitchen asset tree: $INDGEN_ROBOCASA_ASSETS, $ROBOCASA_ASSETS_PATH, then the default cache path."""
+    """The kitchen asset tree: $INDGEN_ROBOCASA_ASSETS, $ROBOCASA_ASSETS_PATH, then the default cache path (a
+    placeholder tree of an older generator is refused)."""
     for var in (ASSETS_ENV, "ROBOCASA_ASSETS_PATH"):
         if os.environ.get(var):
             p = Path(os.environ[var]).expanduser()
-            if is_asset_tree(p):
+            if _usable(p, required):
                 return p.resolve()
             if required:
                 raise SceneError(
@@ -148,7 +175,7 @@ def find_assets(required: bool = True) -> Path | None:
                 )
             return None
     p = default_assets()
-    if is_asset_tree(p):
+    if _usable(p, required):
         return p.resolve()
     if required:
         raise SceneError(f"RoboCasa's kitchen assets are missing (looked in {p}); {_hint()}")

@@ -7,10 +7,11 @@ base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's 
 control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
-counter to drawer: into the open drawer's uncovered part; also run, not listed, on CoffeeSetupMug, which it solves
-only half the time on placeholder assets) and the stand mixer's head (pushed down at its free end, the hand tipped
-further while the reach falls short). ``tasks`` lists the tasks certify may certify; it refuses the others. Fingers
-close across the object's narrower side. Deterministic given the episode; one instance per environment.
+counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
+blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
+time on placeholder assets) and a press: the stand mixer's head (pushed down at its free end, the hand tipped
+further while the reach falls short) or the blender's power button (touched, then left straight up). ``tasks``
+lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ from scenes.privileged import PrivilegedState, privileged_of
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
 OPEN, CLOSED = -1.0, 1.0
+# radians the hand tips forward to press a button low on an appliance's front (the blender's): PRESS_TILT swings
+# the fingers into the appliance's face above it
+BUTTON_TILT = 0.25
 CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
@@ -54,7 +58,10 @@ class RoboCasaOracle:
         "PickPlaceCabinetToCounter",
         "PickPlaceSinkToCounter",
         "PickPlaceCounterToDrawer",
+        "PickPlaceCounterToSink",
+        "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
+        "TurnOnBlender",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -69,7 +76,8 @@ class RoboCasaOracle:
         self._carry_z: float | None = None  # the carry script's height for the object's bottom
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
-        self._tilt = PRESS_TILT  # the press's hand tilt: raised while the approach stalls short of its target
+        # the press's hand tilt (PRESS_TILT, a button's BUTTON_TILT): raised while the approach stalls short
+        self._tilt: float | None = None
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self.seed = seed
 
@@ -161,12 +169,15 @@ class RoboCasaOracle:
             return self._carry(s)
         return self._pick_place(s)
 
-    # ---- stand mixer: push the head down --------------------------------------------------------
+    # ---- press: the stand mixer's head down, the blender's button ------------------------------
     def _press(self, s: PrivilegedState) -> np.ndarray:
         """Above the head's free end (``target``: most lever from the hinge), then straight down at full OSC
-        force until RoboCasa reports it closed (frictionloss of the hinge needs it), then up."""
+        force until RoboCasa reports it closed (frictionloss of the hinge needs it), then up; a button (the
+        blender's power button, ``target`` its top) is left straight up at the first touch."""
         press = np.array([*s.target.place_xy, s.target.grasp_z])
         above = press + np.array([0.0, 0.0, 0.10])
+        if self._tilt is None:
+            self._tilt = BUTTON_TILT if s.facts.button else PRESS_TILT
         if self.phase == "approach":
             if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")
@@ -176,10 +187,19 @@ class RoboCasaOracle:
                 else:  # a hand tipped further reaches farther (its wrist stays nearer the shoulder)
                     self._tilt, self._count = min(MAX_PRESS_TILT, self._tilt + 0.2), 1
             return self._goto(s, above, CLOSED, tilt=self._tilt)
-        if self.phase == "press":  # down onto the head until RoboCasa says it is closed
-            if s.bddl_success or self._count > 200:
+        if self.phase == "press":  # down onto the head until RoboCasa says it is closed, or onto a button
+            if s.pick.touching_gripper:  # a button: RoboCasa counts the press when the contact ends
+                self._hold_release = s.eef_pos.copy()
+                self._next("lift_off")
+            elif s.bddl_success or self._count > 200:
                 self._next("retreat")
+            if s.facts.button:  # gently: at full force the fingers swing into the face above the button
+                return self._goto(s, press - np.array([0.0, 0.0, 0.03]), CLOSED, speed=0.4, tilt=self._tilt)
             return self._goto(s, press - np.array([0.0, 0.0, 0.15]), CLOSED, speed=1.0, tilt=self._tilt)
+        if self.phase == "lift_off":  # straight up, the hand kept tipped: a second touch would count again
+            return self._goto(
+                s, self._hold_release + np.array([0.0, 0.0, 0.15]), CLOSED, speed=0.5, tilt=self._tilt
+            )
         return self._goto(s, s.pick.pos + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
 
     # ---- pick and place into a cabinet ---------------------------------------------------------
@@ -300,7 +320,7 @@ class RoboCasaOracle:
             return self._goto(s, up, OPEN, speed=0.3, tilt=tilt)
         return self._goto(s, up - fwd * 0.4 + np.array([0.0, 0.0, back_up]), OPEN, speed=0.5, tilt=tilt)
 
-    # ---- onto a surface or into an open drawer (sink to counter, coffee machine, drawer) ---------
+    # ---- onto a surface, into a drawer, a sink or a jar (sink to counter, coffee, drawer, sink, blender) --
     def _carry(self, s: PrivilegedState) -> np.ndarray:
         """Hand pointing down: over the object, down, grasp, up until its bottom clears both surfaces by
         ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``

@@ -3,9 +3,10 @@ starts it). Imports only the standard library, numpy, PyYAML and RoboCasa: it is
 
 The tree is the wheel's own ``models/assets`` (layouts, styles, fixture registry, procedural cabinet XML) plus, for
 every file those reference that the wheel does not ship: a box ``model.xml`` per fixture carrying the joints, sites
-and regions its fixture class looks up; one box object per (registry, category); flat one-colour textures; a
-one-box mesh for any mesh file. Pitfalls handled (issue 25): every joint has its own body (two joints on one body and
-axis make the mass matrix singular); a door sits outside its body's collider (inside, MuJoCo resets mjData to qpos0
+and regions its fixture class looks up (the sink and the blender open at the top: a floor and four walls around
+their basin / jar region); one box object per (registry, category); flat one-colour textures; a one-box mesh for
+any mesh file. Pitfalls handled (issue 25): every joint has its own body (two joints on one body and axis make the
+mass matrix singular); a door sits outside its body's collider (inside, MuJoCo resets mjData to qpos0
 with only mjWARN_BADQACC set); the tree is written writable (objects write temporary XML into their folders).
 """
 
@@ -23,7 +24,7 @@ import zlib
 from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
-VERSION = 4
+VERSION = 5  # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -32,12 +33,13 @@ SIZES = {
     "oven": (0.76, 0.66, 0.7), "microwave": (0.6, 0.4, 0.35), "hood": (0.76, 0.5, 0.4), "dishwasher": (0.6, 0.6, 0.85),
     "fridge_french_door": (0.9, 0.75, 1.8), "fridge_side_by_side": (0.9, 0.75, 1.8),
     "fridge_bottom_freezer": (0.76, 0.75, 1.8), "coffee_machine": (0.25, 0.35, 0.4), "toaster": (0.3, 0.2, 0.2),
-    "toaster_oven": (0.45, 0.35, 0.28), "blender": (0.18, 0.18, 0.4), "blender_lid": (0.12, 0.12, 0.04),
+    "toaster_oven": (0.45, 0.35, 0.28), "blender": (0.18, 0.18, 0.4), "blender_lid": (0.18, 0.18, 0.04),
     "stand_mixer": (0.22, 0.36, 0.36), "electric_kettle": (0.2, 0.16, 0.25), "stool": (0.4, 0.4, 0.65),
     "window": (1.0, 0.05, 1.0), "dish_rack": (0.45, 0.35, 0.15), "utensil_rack": (0.5, 0.05, 0.08),
     "wall_accessory": (0.08, 0.02, 0.12), "handle": (0.02, 0.03, 0.2), "panel": (0.5, 0.02, 0.7),
 }  # fmt: skip
 DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
+HOLLOW = ("sink", "blender")  # fixtures built open at the top (Model.hollow), not as one solid box
 
 
 def fmt(*v: float) -> str:
@@ -45,21 +47,36 @@ def fmt(*v: float) -> str:
 
 
 class Model:
-    """One fixture's MJCF: a root body ``object`` with a collision box and children with one joint each."""
+    """One fixture's MJCF: a root body ``object`` with a collision box (or ``hollow``'s floor and walls) and
+    children with one joint each."""
 
-    def __init__(self, name: str, size: tuple[float, float, float]):
+    def __init__(self, name: str, size: tuple[float, float, float], solid: bool = True):
         self.name, (w, d, h) = name, size
         self.hx, self.hy, self.hz = w / 2, d / 2, h / 2
         self.geoms: list[str] = []
         self.bodies: list[str] = []
         self.sites: list[str] = []
+        self.outer_sites: list[str] = []  # children of the model's outer body (RoboCasa's ``./body/site``)
         # the collider leaves a front and a top slab of the footprint free: moving parts sit there, inside the
-        # footprint RoboCasa's placement checks use, and never inside a collider (MuJoCo would reset to qpos0)
+        # footprint RoboCasa's placement checks use, and never inside a collider (MuJoCo would reset to qpos0);
+        # ``solid=False``: no collider box, the caller builds its own (``hollow``)
         s = min(SLAB, self.hy / 2, self.hz / 2)
         self.front, self.top = -self.hy + s / 2, self.hz - s / 2  # the slabs' mid-planes
         self.slab = s
-        self.box("body", (0, s / 2, -s / 2), (self.hx, self.hy - s / 2, self.hz - s / 2))
+        if solid:
+            self.box("body", (0, s / 2, -s / 2), (self.hx, self.hy - s / 2, self.hz - s / 2))
         self.region("main", (0, 0, 0), (self.hx, self.hy, self.hz))
+
+    def hollow(self, outer, inner, floor: float, rim: float, y0: float = 0.0) -> None:
+        """A container open at the top (a sink's basin, a blender's jar): a floor box over the ``outer`` half
+        footprint (x, y) from the model's bottom up to height ``floor`` and four walls from there up to ``rim``
+        around the ``inner`` half footprint, both centred at y ``y0``; the interior is free space."""
+        (ox, oy), (ix, iy), hz = outer, inner, self.hz
+        self.box("floor", (0, y0, (floor - hz) / 2), (ox, oy, (floor + hz) / 2))
+        h, zc = (rim - floor) / 2, (rim + floor) / 2
+        for side, tag in ((-1, "neg"), (1, "pos")):
+            self.box(f"wall_x{tag}", (side * (ox + ix) / 2, y0, zc), ((ox - ix) / 2, oy, h))
+            self.box(f"wall_y{tag}", (0, y0 + side * (oy + iy) / 2, zc), (ix, (oy - iy) / 2, h))
 
     def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1") -> None:
         self.geoms.append(
@@ -77,8 +94,12 @@ class Model:
             'contype="0" conaffinity="0" density="0"/>'
         )
 
-    def site(self, name: str, pos, size=0.01) -> None:
-        self.sites.append(f'<site name="{name}" pos="{fmt(*pos)}" size="{size}" rgba="1 0 0 0"/>')
+    def site(self, name: str, pos, size=0.01, outer: bool = False) -> None:
+        """A site on the ``object`` body, or with ``outer`` on the outer body (where RoboCasa's ``MJCFObject.
+        anchor_offset`` looks: ``./body/site``)."""
+        (self.outer_sites if outer else self.sites).append(
+            f'<site name="{name}" pos="{fmt(*pos)}" size="{size}" rgba="1 0 0 0"/>'
+        )
 
     def part(self, name: str, joint: str | None, pos, half, kind="hinge", axis=(1, 0, 0), rng=(0.0, 1.57),
              sites=(), geom_names=(), children="", collide=True, pivot=(0, 0, 0), friction=0.2) -> None:  # fmt: skip
@@ -104,6 +125,7 @@ class Model:
     def xml(self) -> str:
         hx, hy, hz = self.hx, self.hy, self.hz
         inner = "\n        ".join(self.geoms + self.sites + self.bodies)
+        outer = "".join("\n      " + x for x in self.outer_sites)
         return f"""<mujoco model="{self.name}">
   <compiler angle="radian"/>
   <asset>
@@ -117,7 +139,7 @@ class Model:
       </body>
       <site rgba="0 0 0 0" size="0.005" pos="0 0 {-hz:.5g}" name="bottom_site"/>
       <site rgba="0 0 0 0" size="0.005" pos="0 0 {hz:.5g}" name="top_site"/>
-      <site rgba="0 0 0 0" size="0.005" pos="{hx:.5g} {hy:.5g} 0" name="horizontal_radius_site"/>
+      <site rgba="0 0 0 0" size="0.005" pos="{hx:.5g} {hy:.5g} 0" name="horizontal_radius_site"/>{outer}
     </body>
   </worldbody>
 </mujoco>
@@ -129,11 +151,15 @@ def fixture_model(kind: str, name: str) -> str:
     w, d, h = SIZES.get(kind, DEFAULT_SIZE)
     if kind.startswith("fridge"):
         kind = "fridge"
-    m = Model(name, (w, d, h))
+    m = Model(name, (w, d, h), solid=kind not in HOLLOW)
     hx, hy, hz = m.hx, m.hy, m.hz
     front, top, t = m.front, m.top, m.slab / 2 - 0.005  # slab mid-planes; a part's half-thickness in its slab
     small = (0.015, t * 0.6, 0.015)
     if kind == "sink":
+        # a basin open at the top: RoboCasa's checks want the object's centre inside reg_basin (obj_inside_of with
+        # partial_check), which a solid box would hold only for objects under 6 cm tall; its floor is the region's
+        # bottom (RoboCasa drops objects placed in the sink there), its rim the sink's top (the counter's top)
+        m.hollow((hx, hy), (hx * 0.7, hy * 0.6), -hz * 0.4, hz)
         m.region("basin", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.6, hz * 0.6))
         # the class finds ./body/body/body/joint[@name=handle_joint] and ./body/body/body/site[@name=water];
         # the spout stands above the basin's rear, inside the footprint (behind it is the wall)
@@ -216,8 +242,17 @@ def fixture_model(kind: str, name: str) -> str:
         m.site("receptacle_place_site", (0, front, -hz * 0.8))
         m.box("start_button", (0, front, hz * 0.6), (0.01, t * 0.5, 0.01))
     elif kind == "blender":
-        m.box("power_button", (0, front, -hz * 0.8), (0.01, t * 0.5, 0.01))
-        m.region("int", (0, 0, hz * 0.2), (hx * 0.7, hy * 0.7, hz * 0.6))
+        # a motor base (up to 0.4 of the height) under an open jar, behind the front slab; the jar's interior is
+        # reg_int (objects go in; RoboCasa drops TurnOnBlender's fruit there), its rim the blender's top, where the
+        # lid (an auxiliary fixture) is placed at anchor_site: its origin half its height above the rim (the lid's
+        # nominal size matches the blender's footprint, so both scale alike); Blender.update_state counts a press
+        # on the geom <blender>_power_button_main, a button standing out of the base's front into the slab
+        depth, y0, base = hy - m.slab / 2, m.slab / 2, -hz * 0.4
+        inner = (hx * 0.7, depth * 0.7)
+        m.hollow((hx, depth), inner, base, hz, y0)
+        m.region("int", (0, y0, hz * 0.2), (*inner, hz * 0.6))
+        m.box("power_button_main", (0, front, (base - hz) / 2), (0.015, m.slab / 2, 0.012))
+        m.site("anchor_site", (0, y0, hz + SIZES["blender_lid"][2] / 2), outer=True)
     elif kind == "toaster":
         for i, pair in enumerate(("0_0", "0_1")):
             m.part(f"knob_{pair}", f"knob_{pair}_joint", (hx * (0.3 + 0.3 * i), front, 0), small, axis=(0, 1, 0),

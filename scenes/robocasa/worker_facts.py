@@ -113,6 +113,7 @@ def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {
         **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
+        **button_facts(env, task),
     }  # fmt: skip
 
 
@@ -126,6 +127,26 @@ def fixture_part_facts(env) -> dict:
     if jn and jn in model.joint_names:
         out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
     return out
+
+
+def button_facts(env, task: str) -> dict:
+    """TurnOnBlender's power button (``Blender.update_state``: a press is the gripper's contact with
+    ``<blender>_power_button_main``, counted at its release): ``button_pos``, a point of its top face
+    ``BUTTON_EDGE`` in from its front edge (a finger pressing its middle touches the blender's face first), and
+    ``button_touched``, that contact now; empty for the other tasks or a blender without that geom."""
+    blender = getattr(env, "blender", None)
+    name = f"{getattr(blender, 'name', '')}_power_button_main"
+    model, data = env.sim.model, env.sim.data
+    if task != "TurnOnBlender" or blender is None or name not in model.geom_names:
+        return {}
+    g = model.geom_name2id(name)
+    mat, size = np.asarray(data.geom_xmat[g]).reshape(3, 3), model.geom_size[g]
+    out = -mat[:, 1]  # the button stands out along the blender's -y (RoboCasa's fixtures face their -y)
+    top = np.array(data.geom_xpos[g], dtype=np.float64) + mat[:, 2] * size[2]
+    return {
+        "button_pos": top + out * max(0.0, float(size[1]) - BUTTON_EDGE),
+        "button_touched": bool(env.check_contact(env.robots[0].gripper["right"], name)),
+    }
 
 
 def object_extent_facts(env) -> dict:
@@ -144,6 +165,7 @@ def unload_facts(env, task: str) -> dict:
     return {"counter_top": float(counter.pos[2] + counter.size[2] / 2)}
 
 
+BUTTON_EDGE = 0.012  # m in from a button's front edge the blender's press lands (a finger's half thickness)
 COFFEE_SHIFT = 0.03  # m the mug goes down in front of the pour site (under the 0.04 m of RoboCasa's xy check)
 
 
@@ -151,8 +173,9 @@ def place_facts(env, task: str) -> dict:
     """Where a put-down task wants the pick object (``scenes.robocasa.oracle``'s carry script): ``place_pos``, the
     world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
-    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); empty for
-    the other tasks."""
+    ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
+    sink basin's floor at its middle; onto the blender jar's floor, carried over its rim (``place_clear``, the
+    height the carried object's bottom must clear); empty for the other tasks."""
     data, model = env.sim.data, env.sim.model
     if task == "PickPlaceSinkToCounter" and "container" in env.objects:
         pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
@@ -165,7 +188,20 @@ def place_facts(env, task: str) -> dict:
         return {"place_pos": np.array([*xy, z]), "place_ceiling": _ceiling(env, xy, z)}
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
+    if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
+        return {"place_pos": _floor_centre(env.sink)}
+    if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
+        top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
+        return {"place_pos": _floor_centre(env.blender), "place_clear": top}
     return {}
+
+
+def _floor_centre(fixture) -> np.ndarray:
+    """The middle of the floor of ``fixture``'s first interior region (world): where an object put in it rests."""
+    p0, px, py, _ = (
+        np.asarray(v, dtype=np.float64) for v in next(iter(fixture.get_int_sites(relative=False).values()))
+    )
+    return np.array([*((px[:2] + py[:2]) / 2), p0[2]])
 
 
 def drawer_facts(env) -> dict:

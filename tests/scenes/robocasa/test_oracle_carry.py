@@ -36,6 +36,14 @@ def test_place_pos_is_the_carry_target():
     assert covered.goal.top == 1.2 and np.allclose(covered.goal.pos, [0.4, -0.5, 1.03])
 
 
+def test_a_container_rim_raises_the_carry_height():
+    """Counter to blender: the jar's floor is the place point and its rim (``place_clear``) the height to clear."""
+    from scenes.robocasa import privileged_state
+
+    s = privileged_state({**_raw(), "place_pos": [0.4, -0.5, 1.04], "place_clear": 1.34})
+    assert s.target.place_bottom == 1.04 and s.target.clear_z == 1.34
+
+
 def test_the_carry_height_is_fixed_before_the_object_rises():
     """The carry height is the higher surface plus CLEARANCE, fixed at the first action: the object's bottom
     (one of the two surfaces) rises with it once grasped, and a height read live rose without end."""
@@ -54,13 +62,16 @@ def test_the_carry_height_is_fixed_before_the_object_rises():
 def test_certify_scripts_sink_to_counter_and_not_the_kettle():
     from scenes.oracle import oracle_scripts
 
-    assert oracle_scripts("robocasa", "PickPlaceSinkToCounter") and oracle_scripts(
-        "robocasa", "PickPlaceCounterToDrawer"
-    )
+    for task in (
+        "PickPlaceSinkToCounter",
+        "PickPlaceCounterToDrawer",
+        "PickPlaceCounterToSink",
+        "PickPlaceCounterToBlender",
+    ):
+        assert oracle_scripts("robocasa", task), task
     # the switch push was left out (docs/results/robocasa_oracle.md): uncertified, not a 'failed' certification
     assert not oracle_scripts("robocasa", "TurnOnElectricKettle")
-    for task in ("PickPlaceCounterToSink", "CoffeeSetupMug"):
-        assert not oracle_scripts("robocasa", task)  # unsolved on placeholder assets: uncertified
+    assert not oracle_scripts("robocasa", "CoffeeSetupMug")  # solved half the time on placeholders
 
 
 @needs_venv  # ~15 s: the carry script's episode of the smoke group (251 steps)
@@ -85,3 +96,17 @@ def test_the_oracle_puts_the_object_in_the_open_drawer(placeholders):
     (the script's first target) lay under it."""
     assert _oracle_episodes("PickPlaceCounterToDrawer", "horizon", 0, (1, 2), 400) == [True, True]
     assert _oracle_episodes("PickPlaceCounterToDrawer", "horizon", 2, (0, 1), 500) == [True, True]
+
+
+@needs_venv
+@pytest.mark.slow  # ~35 s: two certification episodes
+def test_the_oracle_puts_the_object_in_the_sink_basin(placeholders):
+    """Counter to sink (placeholder tree v5: the basin is open): RoboCasa wants the object's centre in reg_basin."""
+    assert _oracle_episodes("PickPlaceCounterToSink", "horizon", 0, (0, 1), 400) == [True, True]
+
+
+@needs_venv
+@pytest.mark.slow  # ~20 s: one certification episode
+def test_the_oracle_drops_the_object_into_the_blender_jar(placeholders):
+    """Counter to blender: carried over the jar's rim (place_clear), let go where the hand stalls, inside reg_int."""
+    assert _oracle_episodes("PickPlaceCounterToBlender", "horizon", 1, (0,), 500) == [True]

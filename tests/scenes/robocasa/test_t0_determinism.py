@@ -30,7 +30,7 @@ def test_counter_geoms_dedupe_in_first_seen_order_not_memory_order():
 def test_the_counter_set_the_worker_shadows_is_robocasas_only_one():
     """robocasa/models/fixtures/counter.py (``Counter.get_reset_regions``) dedupes the counter tops beside a reference
     fixture with ``list(set(valid_geoms))``, and that is its module's only use of the name ``set``: shadowing it
-    (``backend._dedupe_counter_geoms_in_order``) changes that line only."""
+    (``worker_patches._dedupe_counter_geoms_in_order``) changes that line only."""
     import re
 
     from scenes.robocasa.environment import venv_dir
