@@ -67,7 +67,9 @@ def test_seed_kstar_reads_only_levels_above_the_data_floor():
     assert sl["kstar_pos"]["a"] == [1, 2] and sl["kstar_pos"]["b"] == [2, 2]
     assert sl["kstar_pos"]["diff"] == pytest.approx(0.5)  # mean 2 - mean 1.5
     # a level whose errors leave fewer than half its episodes finished is below the floor as well
-    errors = table({0: [1] * 6, 1: [1] * 11}).assign(status=["ok"] * 6 + ["ok"] * 5 + ["error"] * 6)  # 5 of 11
+    errors = table({0: [1] * 6, 1: [1] * 11}).assign(
+        status=["ok"] * 6 + ["ok"] * 5 + ["error"] * 6
+    )  # 5 of 11
     sl = compare_groups([errors], [errors])["axes"]["pick_y"]["seed_level"]
     assert sl["kstar_pos"]["a"] == ["undetermined"]
 
