@@ -180,9 +180,14 @@ def build(
         timing["read_s"] += time.perf_counter() - t0
         return e
 
+    from indgen_vla.engine.share import copies, taken_keys
+
+    taken = taken_keys(plan, run)
+
     def run_jobs(batch):
         t0 = time.perf_counter()
-        run.append(synthetic_records(batch, meta, shift, error_rate=error_rate))
+        recs = synthetic_records(batch, meta, shift, error_rate=error_rate)
+        run.append([c for r in recs for c in (r, *copies(plan, r, taken))])  # shared T0: as evaluate records it
         timing["rounds"] += 1
         timing["write_s"] = timing.get("write_s", 0.0) + time.perf_counter() - t0
 
