@@ -3,7 +3,6 @@ LiberoEnv, the axes, the oracle, certify/evaluate and the missing-assets error."
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -353,8 +352,4 @@ def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path,
     args = ["evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object", "--task", "alphabet_soup",
             "--axis", "scale", "--levels", "0", "--episodes", "1", "--max-steps", "2", "--workers", "1"]  # fmt: skip
     assert main([*args, "--out", str(tmp_path / "refused")]) == 2
-    assert "runs on placeholder assets" in capsys.readouterr().err
-    assert main([*args, "--smoke", "--out", str(tmp_path / "smoke")]) == 0
-    assert json.loads((tmp_path / "smoke" / "manifest.json").read_text())["measurement"].startswith(
-        "not a measurement"
-    )
+    assert "runs on placeholder assets" in capsys.readouterr().err  # --smoke runs it: tests/scenes/robocasa
