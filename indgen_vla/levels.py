@@ -279,6 +279,11 @@ def axis_verdicts(
         (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
     ):
         side = sorted((r for r in rows if keep(r["level"])), key=lambda r: abs(r["level"]))
+        if signed and [r["level"] for r in side] == [
+            0
+        ]:  # e.g. pick_y run at 0:3: this direction is level 0 alone
+            out[d] = "not evaluated (no level on this side of 0 was run)"
+            continue
         out[d] = direction_verdict(side, break_level.get(d), gamma, ci)
     return out
 

@@ -240,7 +240,9 @@ def check_strictly_harder(
     With ``strict`` (DESIGN.md) level k's support must be disjoint from the union of the easier ones;
     otherwise (the paper's wording) it must merely contain values outside that union.
     """
-    for k in sorted(supports, key=lambda k: (abs(k), k < 0)):  # +k before -k: the side a one-sided run asked for
+    for k in sorted(
+        supports, key=lambda k: (abs(k), k < 0)
+    ):  # +k before -k: the side a one-sided run asked for
         if k == 0:
             continue
         lo, hi = supports[k]

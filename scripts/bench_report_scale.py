@@ -187,7 +187,9 @@ def build(
     def run_jobs(batch):
         t0 = time.perf_counter()
         recs = synthetic_records(batch, meta, shift, error_rate=error_rate)
-        run.append([c for r in recs for c in (r, *copies(plan, r, taken))])  # shared T0: as evaluate records it
+        run.append(
+            [c for r in recs for c in (r, *copies(plan, r, taken))]
+        )  # shared T0: as evaluate records it
         timing["rounds"] += 1
         timing["write_s"] = timing.get("write_s", 0.0) + time.perf_counter() - t0
 

@@ -26,7 +26,7 @@ def cfg(tmp_path, **kw):
 @pytest.mark.parametrize(
     "extra,match",
     [
-        (["--axis", "pick_y", "--step", "0.005"], "axis pick_y: level -1's parameter support"),
+        (["--axis", "pick_y", "--step", "0.005"], "axis pick_y: level 1's parameter support"),
         (["--axis", "pick_y+distractor", "--axes-preset", "PRESET"], "component pick_y at step 0.005"),
     ],
 )

@@ -74,3 +74,13 @@ def test_axis_verdicts_split_the_directions_of_a_signed_axis(signed):
         assert "; −: breaks at -1" in verdict_line(v, True)
     else:
         assert set(v) == {"pos"} and verdict_line(v, False) == v["pos"]
+
+
+def test_a_signed_axis_run_on_one_side_says_the_other_was_not_evaluated():
+    """pick_y at --levels 0:1: the − direction is level 0 alone, not a break at 0 (it read "first level below γ: 0")."""
+    rows = [row(0, 0, 10, "broken"), row(1, 0, 10, "broken")]
+    v = axis_verdicts(rows, {"pos": 0, "neg": 0}, 0.2, True)
+    assert (
+        v["pos"].startswith("breaks at 0")
+        and v["neg"] == "not evaluated (no level on this side of 0 was run)"
+    )
