@@ -10,13 +10,14 @@ import math
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.caveats import compare_caveats
 from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.figures import plot_axis
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.levels import usable_levels
-from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels
+from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels, wilson_ci
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
@@ -176,7 +177,8 @@ def _k(b: dict) -> str:
 
 def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
     paired = result.get("paired", False)
-    lines = [f"# Comparison: {label_a} (A) vs {label_b} (B)", "",
+    caveats = compare_caveats(result)  # what the comparison cannot answer comes first
+    lines = [f"# Comparison: {label_a} (A) vs {label_b} (B)", "", *[x for c in caveats for x in (c, "")],
              "Break levels k* (first level with success < γ) read \"positive side / negative side\" on signed axes; "
              "a level below the data floor never yields a k* (\"undetermined\" when one precedes the break).", "",
              f"Test: {test_description(result)}; Holm-corrected per axis.", "",
@@ -189,7 +191,8 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
             if "axis_a" in ax
             else f"Axis `{axis}`"
         )
-        lines += [f"## {head}", ""]
+        lines += [f"## {head}", ""] + ([f"Tasks: {ax['tasks']}. A and B: successes/n = rate [Wilson 95 % CI].", ""]
+                                       if ax.get("tasks") else [])  # fmt: skip
         if paired:
             lines += [f"Pairs: {ax.get('pairing', '')}.", "",
                       "| level | A | B | A only | B only | p | p (Holm) |" + (" B − A (pp) [95% CI] |" if delta else ""),
@@ -199,7 +202,7 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
         for r in ax["levels"]:
             disc = f"{r['a_only']} | {r['b_only']} | " if paired else ""
             lines.append(
-                f"| {r['level']} | {r['successes_a']}/{r['n_a']} | {r['successes_b']}/{r['n_b']} | {disc}"
+                f"| {r['level']} | {_rate(r['successes_a'], r['n_a'])} | {_rate(r['successes_b'], r['n_b'])} | {disc}"
                 f"{_p(r['p_value'])} | {_p(r['p_holm'])} |" + (f" {_fmt_delta(r)} |" if delta else "")
             )
         if ax.get("equivalence"):
@@ -211,6 +214,28 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
         lines += [*render_shift(ax.get("failures", {"modes": []}), label_a, label_b)]
         lines += [*render_compare(ax.get("progress")), ""]
     return "\n".join(lines)
+
+
+def pairing_note(result: dict) -> str:
+    """Whether a comparison's curves are paired, for its plots' titles."""
+    if result.get("paired") or result.get("contrast"):
+        return "paired episode by episode (same seeds): exact McNemar per level, compare.md"
+    return f"unpaired: {result.get('test', 'boschloo').capitalize()} per level, compare.md"
+
+
+def _rate(successes: int, n: int) -> str:
+    """A run's count at one level with its rate and Wilson 95 % CI: "5/5 = 100% [57, 100]"."""
+    if not n:
+        return f"{successes}/{n}"
+    lo, hi = wilson_ci(successes, n)
+    return f"{successes}/{n} = {100 * successes / n:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}]"
+
+
+def tasks_text(ta: list[str], tb: list[str]) -> str:
+    """compare.md's "Tasks:" line of one axis: the tasks both runs pool, or each run's where they differ."""
+    if ta == tb:
+        return ", ".join(ta) or "unknown"
+    return f"A: {', '.join(ta) or 'unknown'}; B: {', '.join(tb) or 'unknown'} (rates pool different tasks)"
 
 
 def _p(x: float) -> str:
@@ -278,10 +303,11 @@ def axes_main(args: argparse.Namespace) -> int:
 def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: float) -> None:
     """compare.json, compare.md and per compared axis (title, file stem, curves) its overlay plots; compare.md to
     stdout."""
+    result["caveats"] = compare_caveats(result)  # human-readable: what the comparison cannot answer
     text = render_markdown(result, result["label_a"], result["label_b"], result["verdict"])
     write_result(out, "compare", result, text)
     for axis, stem, curves in plots:
-        plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png")
+        plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png", "wilson", pairing_note(result))
         plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
     print(text)
@@ -321,6 +347,7 @@ def compare_main(args: argparse.Namespace) -> int:
     result["protocol"] = protocol
     for axis, ax in result["axes"].items():
         usable = (usable_levels(sa["axes"][axis]["levels"]), usable_levels(sb["axes"][axis]["levels"]))
+        ax["tasks"] = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
         ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
     out = Path(args.out) if args.out else ra.path / "compare"

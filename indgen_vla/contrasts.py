@@ -288,7 +288,7 @@ def render_vs_t0(present: list[tuple[str, dict]]) -> list[str]:
         tasks = a.get("pooled_tasks") or []
         lines += ["", f"**Change from T0** ({label}): Δ = rate at level k − rate at level 0 over the episodes run at "
                   "both (paired: same task, episode and seed), 95 % Newcombe CI; " + TEST + ", Holm over the levels "
-                  f"tested{f'; pooled over {len(tasks)} tasks' if len(tasks) > 1 else ''}"
+                  f"tested; {f'pooled over {len(tasks)} tasks: ' if len(tasks) > 1 else 'task '}{', '.join(tasks)}"
                   + (f"; equivalence: 90 % CI inside ±{100 * margin:.0f} pp (TOST, α = {ALPHA:g})" if margin else "")
                   + ".", "", f"Verdict: {head['verdict']}.", "",
                   "| level | Δ vs T0 (pp) [95% CI] | pairs | discordant T0 only / level only | p | p (Holm) | "
@@ -318,7 +318,8 @@ def _per_task(a: dict, rows: list[dict]) -> list[str]:
     if len(tasks) < 2:
         return []
     ks = [r["level"] for r in rows]
-    lines = ["", "Δ vs T0 per task, pp (discordant T0 only / level only; Holm p within the task):", "",
+    lines = ["", "Δ vs T0 per task, pp [95 % Newcombe CI] (paired n; discordant T0 only / level only; Holm p within "
+             "the task):", "",
              "| task | " + " | ".join(_k(k) for k in ks) + " |", "|---|" + "---|" * len(ks)]  # fmt: skip
     for t in sorted(tasks):
         by = {r["level"]: r.get("vs_t0") for r in tasks[t]["levels"]}
@@ -326,7 +327,8 @@ def _per_task(a: dict, rows: list[dict]) -> list[str]:
         for k in ks:
             v = by.get(k)
             cells.append("—" if not v or not v["n_pairs"] else "insufficient data" if v.get("insufficient") else
-                         f"{pp(v['delta'])} ({v['discordant'][0]}/{v['discordant'][1]}; p {v['p_holm']:.2g})")  # fmt: skip
+                         f"{pp(v['delta'])} [{pp(v['ci'][0])}, {pp(v['ci'][1])}] (n={v['n_pairs']}; "
+                         f"{v['discordant'][0]}/{v['discordant'][1]}; p {v['p_holm']:.2g})")  # fmt: skip
         lines.append(f"| {t} | " + " | ".join(cells) + " |")
     return lines
 
@@ -338,8 +340,9 @@ def t0_lines(a: dict) -> list[str]:
         return []
     if "unpaired_reason" in head:
         return [f"change from T0: not tested, {head['unpaired_reason']}"]
-    n = len(a.get("pooled_tasks") or [])
-    out = [f"change from T0 (paired within task, pooled over {n} task(s)): {head['verdict']}"]
+    tasks = a.get("pooled_tasks") or []
+    pool = f"task {tasks[0]}" if len(tasks) == 1 else f"pooled over {len(tasks)} tasks: {', '.join(tasks)}"
+    out = [f"change from T0 (paired within task, {pool}): {head['verdict']}"]
     for r in a["levels"]:
         if "vs_t0" in r:
             eq = r["vs_t0"].get("equivalence")

@@ -67,6 +67,8 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
+    from indgen_vla.figures import count_note
+
     fig = Figure(figsize=(4.2 * len(curves), 3.2), dpi=120)
     axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
@@ -78,7 +80,8 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
             if any(share):
                 ax.bar(ks, share, bottom=bottom, color=COLOURS[m], label=m, width=0.8)
                 bottom = [b + s for b, s in zip(bottom, share, strict=True)]
-        ax.set_title(f"{label}", fontsize=8)
+        note = count_note([sum(r["failures"].values()) for r in rows], a.get("pooled_tasks") or [])
+        ax.set_title(f"{label}\n{note}; descriptive, no CI", fontsize=7)
         ax.set_xlabel(f"level k along {axis}")
         ax.set_ylim(0, 1)
         if ks:

@@ -112,19 +112,27 @@ def _level_axis(ax, levels: list[int], signed: bool) -> None:
     ax.grid(alpha=0.3)
 
 
-def plot_axis(curves: list[tuple[str, dict]], axis: str, gamma: float, path: Path) -> Path:
+def plot_axis(
+    curves: list[tuple[str, dict]], axis: str, gamma: float, path: Path, ci: str = "", note: str = ""
+) -> Path:
     """Success vs level of one axis in the style of the paper's Fig. 3: level 0 centred, γ line, CI bands, k*
     ringed, the break point on the γ line; each task's curve faintly behind a run that pools several; levels
-    without enough data are not drawn."""
+    without enough data are not drawn. Each run's legend entry says its n per level and the tasks it pools; ``note``
+    (e.g. whether a comparison is paired) goes under the title."""
     from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
 
     fig = Figure(figsize=(6.4, 4.2), dpi=120)
     ax = fig.subplots()
     draw_curves(ax, curves, gamma)
     ax.set_xlabel(f"level k along {axis}")
     ax.set_ylabel("success rate")
-    ax.set_title(axis)
+    ax.set_title(f"{axis}\n{note}" if note else axis, fontsize=10 if note else None)
     handles, labels = ax.get_legend_handles_labels()  # below the axes, so the curves keep the full width
+    notes = {lbl: curve_note([a]) for lbl, a in curves}
+    labels = [f"{lbl} ({notes[lbl]})" if notes.get(lbl) else lbl for lbl in labels]
+    handles.append(Patch(color="grey", alpha=0.25, lw=0))
+    labels.append(f"{ci + ' ' if ci else ''}95 % CI (shaded)")
     ncol = 2 if len(labels) > 1 and max(map(len, labels)) <= 48 else 1
     fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
@@ -171,13 +179,24 @@ def unit_name(unit: str, x: float) -> str:
     return unit[:-1] if x == 1 and unit.endswith("s") else unit
 
 
+def curve_note(axes: Sequence[dict]) -> str:
+    """The episodes behind each point and the tasks pooled, for a legend or title: "n = 10 per level; tasks bread,
+    milk" (more than four tasks: their count and the first three)."""
+    ns = [r["n"] for a in axes for r in usable(a["levels"])]
+    return count_note(ns, sorted({t for a in axes for t in a.get("pooled_tasks") or []}))
+
+
+def count_note(ns: Sequence[int], tasks: Sequence[str]) -> str:
+    """``curve_note`` from the counts behind each point (their range) and the tasks pooled."""
+    n = "" if not ns else f"n = {min(ns)}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
+    pooled = ("" if not tasks else f"task {tasks[0]}" if len(tasks) == 1 else f"tasks {', '.join(tasks)}"
+              if len(tasks) <= 4 else f"{len(tasks)} tasks pooled ({', '.join(tasks[:3])}, …)")  # fmt: skip
+    return "; ".join(p for p in (f"{n} per level" if n else "", pooled) if p)
+
+
 def _legend_label(label: str, s: dict) -> str:
     """A run's legend entry with the episodes behind each point and the tasks it pools."""
-    ns = [r["n"] for a in s["axes"].values() for r in usable(a["levels"])]
-    n = "" if not ns else f"n = {min(ns)}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
-    tasks = sorted({t for a in s["axes"].values() for t in a.get("pooled_tasks") or []})
-    pooled = "" if not tasks else f"task {tasks[0]}" if len(tasks) == 1 else f"{len(tasks)} tasks pooled"
-    detail = "; ".join(p for p in (f"{n} per level" if n else "", pooled) if p)
+    detail = curve_note(list(s["axes"].values()))
     return f"{label} ({detail})" if detail else label
 
 

@@ -314,6 +314,8 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
+    from indgen_vla.figures import count_note
+
     fig = Figure(figsize=(4.2 * len(curves), 3.4), dpi=120)
     axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
@@ -328,7 +330,8 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
         twin.plot(ks, [r["progress"]["mean"] for r in rows], "k.-", label="mean progress")
         twin.set_ylim(0, 5.2)
         twin.set_ylabel("mean progress (0..5)", fontsize=7)
-        ax.set_title(label, fontsize=8)
+        note = count_note([r["progress"]["n"] for r in rows], a.get("pooled_tasks") or [])
+        ax.set_title(f"{label}\n{note}; descriptive, no CI", fontsize=7)
         ax.set_xlabel(f"level k along {axis}")
         ax.set_ylim(0, 1)
         if ks:

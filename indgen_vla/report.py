@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.breakpoint import kstar_spread
+from indgen_vla.caveats import report_caveats
 from indgen_vla.contrasts import check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
@@ -159,6 +160,13 @@ def pool_warnings(label: str, axis_summary: dict) -> list[str]:
             "each task's k* and their spread across tasks (below)."]  # fmt: skip
 
 
+def pooled_text(tasks: Sequence[str]) -> str:
+    """Which tasks a pooled rate pools, by name: "task milk", "pooled over 2 tasks: bread, milk"."""
+    if len(tasks) == 1:
+        return f"task {tasks[0]}"
+    return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}" if tasks else "tasks unknown"
+
+
 def _pools(present: list[tuple[str, dict]]) -> str:
     """Which tasks each run's pooled curve pools (one line)."""
     texts = {lbl: ", ".join(a.get("pooled_tasks") or ["(unknown)"]) for lbl, a in present}
@@ -178,7 +186,8 @@ def render_markdown(
     held axes (``grid.grid_lines``)."""
     s0 = summaries[0][1]
     gamma = s0["gamma"]
-    lines = [f"# {title}", "",
+    caveats = report_caveats(summaries)  # what the study cannot answer comes first, before any rate
+    lines = [f"# {title}", "", *[x for c in caveats for x in (c, "")],
              f"Success rate with {s0['ci']} 95 % CI; n = finished episodes (episodes with status \"error\" are "
              "excluded from n and counted beside it). Break level k* = first level with success < "
              f"γ = {gamma} (per direction for signed axes). A level with n < {s0.get('min_n', MIN_N)} or fewer "
@@ -280,7 +289,7 @@ def write_run_report(
     text = render_markdown([(label, summary)], f"Report: {label}", order)
     atomic_write_text(run.path / REPORT, "\n".join([text, *extra]))
     for axis, a in summary["axes"].items():
-        plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png")
+        plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png", summary["ci"])
         plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
         plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
     plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
@@ -331,7 +340,14 @@ def report_main(args: argparse.Namespace) -> int:
         )
         for axis in sorted({a for _, s in results for a in s["axes"]}):
             curves = [(lbl, s["axes"][axis]) for lbl, s in results if axis in s["axes"]]
-            plot_axis(curves, axis, args.gamma, out / "plots" / f"{_safe(axis)}.png")
+            plot_axis(
+                curves,
+                axis,
+                args.gamma,
+                out / "plots" / f"{_safe(axis)}.png",
+                results[0][1]["ci"],
+                "side by side, not compared (indgen compare tests the difference)",
+            )
             plot_failures(curves, axis, out / "plots" / f"{_safe(axis)}_failures.png")
             plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
         plot_axes(
@@ -349,10 +365,12 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
     from rich.table import Table
 
     console = Console()
+    for line in report_caveats(results):  # first, as in report.md: what the study cannot answer
+        console.print(line.replace("**", ""), markup=False, highlight=False)
     for label, s in results:
         for axis, a in s["axes"].items():
             t = Table(
-                title=f"{label} — {axis} (γ = {s['gamma']}; pooled over {len(a.get('pooled_tasks', []))} task(s))"
+                title=f"{label} — {axis} (γ = {s['gamma']}; {pooled_text(a.get('pooled_tasks') or [])})"
             )
             for col in ("level", "param", "n", "errors", "success", "95% CI"):
                 t.add_column(col, justify="right")

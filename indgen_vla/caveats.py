@@ -1,0 +1,104 @@
+"""The first lines of report.md, compare.md and the terminal: where a study cannot answer its question (a policy
+that fails T0, too few episodes for any verdict), it says so before any rate."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from indgen_vla.metrics import exact_2x2, mcnemar_exact, success_rate
+
+MAX_SEARCH = 10_000  # the largest episode count a "would need n" hint searches
+
+
+def best_holm_p(n: int, m: int, paired: bool = True, test: str = "boschloo") -> float:
+    """The smallest Holm-adjusted p any outcome can give: every one of ``n`` episodes (pairs) favouring one side at
+    each of ``m`` tested levels (paired: exact McNemar with n discordant pairs; else ``test`` on n/n vs 0/n)."""
+    if n <= 0 or m <= 0:
+        return 1.0
+    p = mcnemar_exact(n, 0) if paired else exact_2x2(n, n, 0, n, test)
+    return min(1.0, m * p)
+
+
+def needed_pairs(m: int, alpha: float) -> int | None:
+    """The fewest pairs a level with which a paired McNemar test over ``m`` levels can reach Holm p < α."""
+    return next((n for n in range(1, MAX_SEARCH) if best_holm_p(n, m) < alpha), None)
+
+
+def break_undecidable(n: int, gamma: float, ci: str = "wilson") -> bool:
+    """True when even 0/n successes leave the CI's upper end at or above γ: no level can be decided broken."""
+    return n > 0 and success_rate(0, n, ci).ci_high >= gamma
+
+
+def needed_for_break(gamma: float, ci: str = "wilson") -> int | None:
+    """The fewest episodes a level with which 0/n puts the CI's upper end below γ."""
+    return next((n for n in range(1, MAX_SEARCH) if not break_undecidable(n, gamma, ci)), None)
+
+
+def _usable(levels: list[dict]) -> list[dict]:
+    return [r for r in levels if r["n"] > 0 and not r.get("insufficient", False)]
+
+
+def _tasks(a: dict) -> str:
+    tasks = a.get("pooled_tasks") or []
+    return f"task {tasks[0]}" if len(tasks) == 1 else f"tasks {', '.join(tasks)}" if tasks else "its tasks"
+
+
+def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: float = 0.05) -> list[str]:
+    """What one run's axis cannot answer: T0 below γ, a break no level could show, a change from T0 no level could
+    show (each line names the run, axis, n and tasks)."""
+    out = []
+    where = f"{label}, `{axis}`, {_tasks(a)}"
+    t0 = next((r for r in _usable(a["levels"]) if r["level"] == 0), None)
+    if t0 is not None and t0["rate"] < gamma:
+        out.append(f"**Cannot answer** ({where}): T0 succeeds in {t0['successes']}/{t0['n']} "
+                   f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {ci} 95 % CI), "
+                   f"below γ = {gamma}: a policy that does not solve the base task (or acts blind to it) has no "
+                   "generalization to measure; its k* is 0 by construction.")  # fmt: skip
+    ns = [r["n"] for r in _usable(a["levels"])]
+    if ns and break_undecidable(max(ns), gamma, ci):
+        need = needed_for_break(gamma, ci)
+        out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
+                   f"{ci} 95 % CI above γ = {gamma}, so no level can be shown below γ (k* stays undecided; that "
+                   f"needs n ≥ {need} a level).")  # fmt: skip
+    head = a.get("vs_t0") or {}
+    m = len(head.get("holm_over") or [])
+    pairs = [r["vs_t0"]["n_pairs"] for r in a["levels"] if "vs_t0" in r and not math.isnan(r["vs_t0"]["p"])]
+    if m and pairs and best_holm_p(max(pairs), m) >= alpha:
+        need = needed_pairs(m, alpha)
+        out.append(f"**No power against T0** ({where}): at most {max(pairs)} pairs a level and Holm over {m} "
+                   f"level{'s' * (m != 1)}: even every pair discordant one way gives Holm p = "
+                   f"{best_holm_p(max(pairs), m):.3g} ≥ α = {alpha:g}, so no level can be shown to differ from T0 "
+                   f"(that needs ≥ {need} pairs a level).")  # fmt: skip
+    return out
+
+
+def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
+    """Every run's and axis's caveat lines (``axis_caveats``), in the summaries' order; [] when none applies."""
+    return [
+        line
+        for label, s in summaries
+        for axis, a in s["axes"].items()
+        for line in axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
+    ]
+
+
+def compare_caveats(result: dict, alpha: float = 0.05) -> list[str]:
+    """compare.md's first lines: each axis on which no level could differ at α whatever the outcomes (too few
+    episodes or pairs for the test and the Holm family)."""
+    paired = bool(result.get("paired") or result.get("contrast"))
+    out = []
+    for axis, ax in result["axes"].items():
+        rows = [r for r in ax["levels"] if not math.isnan(r.get("p_holm", float("nan")))]
+        if not rows:
+            continue
+        n = max(r["pairs"] if paired else min(r["n_a"], r["n_b"]) for r in rows)
+        best = best_holm_p(n, len(rows), paired, result.get("test", "boschloo"))
+        if best >= alpha:
+            kind = f"{n} episode pairs" if paired else f"{n} episodes a run"
+            test = "paired exact McNemar" if paired else f"unpaired {result.get('test', 'boschloo')}"
+            out.append(f"**Cannot answer** (`{axis}`): at most {kind} a level and Holm over {len(rows)} level"
+                       f"{'s' * (len(rows) != 1)}: even the most lopsided outcome gives Holm p = {best:.3g} ≥ "
+                       f"α = {alpha:g} ({test}), so \"no level differs\" here says nothing about the policies; "
+                       "run more episodes a level.")  # fmt: skip
+    return out
