@@ -35,6 +35,13 @@ def needed_for_break(gamma: float, ci: str = "wilson") -> int | None:
     return next((n for n in range(1, MAX_SEARCH) if not break_undecidable(n, gamma, ci)), None)
 
 
+def pooled_text(tasks: Sequence[str]) -> str:
+    """Which tasks a pooled rate pools, by name: "task milk", "pooled over 2 tasks: bread, milk"."""
+    if len(tasks) == 1:
+        return f"task {tasks[0]}"
+    return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}" if tasks else "tasks unknown"
+
+
 def _usable(levels: list[dict]) -> list[dict]:
     return [r for r in levels if r["n"] > 0 and not r.get("insufficient", False)]
 

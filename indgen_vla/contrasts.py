@@ -16,6 +16,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from indgen_vla.caveats import pooled_text
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.levels import usable_levels
 from indgen_vla.metrics import compare_paired_levels, wilson_ci
@@ -288,7 +289,7 @@ def render_vs_t0(present: list[tuple[str, dict]]) -> list[str]:
         tasks = a.get("pooled_tasks") or []
         lines += ["", f"**Change from T0** ({label}): Δ = rate at level k − rate at level 0 over the episodes run at "
                   "both (paired: same task, episode and seed), 95 % Newcombe CI; " + TEST + ", Holm over the levels "
-                  f"tested; {f'pooled over {len(tasks)} tasks: ' if len(tasks) > 1 else 'task '}{', '.join(tasks)}"
+                  f"tested; {pooled_text(tasks)}"
                   + (f"; equivalence: 90 % CI inside ±{100 * margin:.0f} pp (TOST, α = {ALPHA:g})" if margin else "")
                   + ".", "", f"Verdict: {head['verdict']}.", "",
                   "| level | Δ vs T0 (pp) [95% CI] | pairs | discordant T0 only / level only | p | p (Holm) | "
@@ -341,8 +342,7 @@ def t0_lines(a: dict) -> list[str]:
     if "unpaired_reason" in head:
         return [f"change from T0: not tested, {head['unpaired_reason']}"]
     tasks = a.get("pooled_tasks") or []
-    pool = f"task {tasks[0]}" if len(tasks) == 1 else f"pooled over {len(tasks)} tasks: {', '.join(tasks)}"
-    out = [f"change from T0 (paired within task, {pool}): {head['verdict']}"]
+    out = [f"change from T0 (paired within task, {pooled_text(tasks)}): {head['verdict']}"]
     for r in a["levels"]:
         if "vs_t0" in r:
             eq = r["vs_t0"].get("equivalence")

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.breakpoint import kstar_spread
-from indgen_vla.caveats import report_caveats
+from indgen_vla.caveats import pooled_text, report_caveats
 from indgen_vla.contrasts import check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
@@ -158,13 +158,6 @@ def pool_warnings(label: str, axis_summary: dict) -> list[str]:
     return [f"**Note** ({label}): the pooled rows at level(s) {where} pool only the tasks whose ladder ran them "
             "(--adaptive stops a task at its break), so the pooled curve is not comparable across levels: read "
             "each task's k* and their spread across tasks (below)."]  # fmt: skip
-
-
-def pooled_text(tasks: Sequence[str]) -> str:
-    """Which tasks a pooled rate pools, by name: "task milk", "pooled over 2 tasks: bread, milk"."""
-    if len(tasks) == 1:
-        return f"task {tasks[0]}"
-    return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}" if tasks else "tasks unknown"
 
 
 def _pools(present: list[tuple[str, dict]]) -> str:

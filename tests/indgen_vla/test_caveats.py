@@ -12,11 +12,11 @@ from indgen_vla.caveats import (
     compare_caveats,
     needed_for_break,
     needed_pairs,
+    pooled_text,
 )
 from indgen_vla.compare import _rate, pairing_note, render_markdown, tasks_text
 from indgen_vla.contrasts import t0_lines
 from indgen_vla.figures import count_note, curve_note
-from indgen_vla.report import pooled_text
 from indgen_vla.report import render_markdown as report_md
 
 
