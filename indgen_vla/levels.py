@@ -160,13 +160,24 @@ def design_text(adaptive: dict | None, episodes: int | None) -> str | None:
             "observed, not statistically decided (its 95 % CI is in the verdict)")  # fmt: skip
 
 
+NOT_EVALUATED = "not evaluated (no level on this side of 0 was run)"  # a signed axis run one-sided
+
+
 def kstar_status_of(rows: list[dict], signed: bool) -> dict:
     """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]")."""
     from indgen_vla.breakpoint import kstar_status
 
     verdicts = {r["level"]: r["decision"] for r in rows}
     sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
-    return {d: kstar_status(verdicts, sorted((k for k in verdicts if s * k >= 0), key=abs)) for d, s in sides}
+    out = {}
+    for d, s in sides:
+        order = sorted((k for k in verdicts if s * k >= 0), key=abs)
+        out[d] = (
+            {"earliest": None, "latest": None, "determined": False, "text": NOT_EVALUATED}
+            if signed and order == [0]  # a signed axis run on the other side only: this side has no level
+            else kstar_status(verdicts, order)
+        )
+    return out
 
 
 def episodes_used(df, per_task: int | None, n_tasks: int, n_levels: int) -> dict:
@@ -279,10 +290,8 @@ def axis_verdicts(
         (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
     ):
         side = sorted((r for r in rows if keep(r["level"])), key=lambda r: abs(r["level"]))
-        if signed and [r["level"] for r in side] == [
-            0
-        ]:  # e.g. pick_y run at 0:3: this direction is level 0 alone
-            out[d] = "not evaluated (no level on this side of 0 was run)"
+        if signed and [r["level"] for r in side] == [0]:  # pick_y run at 0:3: this side is level 0 alone
+            out[d] = NOT_EVALUATED
             continue
         out[d] = direction_verdict(side, break_level.get(d), gamma, ci)
     return out

@@ -2,7 +2,13 @@
 
 import pytest
 
-from indgen_vla.levels import axis_verdicts, direction_verdict, episodes_to_decide, verdict_line
+from indgen_vla.levels import (
+    axis_verdicts,
+    direction_verdict,
+    episodes_to_decide,
+    kstar_status_of,
+    verdict_line,
+)
 from indgen_vla.metrics import success_rate
 
 
@@ -84,3 +90,8 @@ def test_a_signed_axis_run_on_one_side_says_the_other_was_not_evaluated():
         v["pos"].startswith("breaks at 0")
         and v["neg"] == "not evaluated (no level on this side of 0 was run)"
     )
+    status = kstar_status_of(
+        rows, True
+    )  # the k* status row agrees (it said "−: no break through 0, determined")
+    assert status["neg"]["text"] == v["neg"] and not status["neg"]["determined"]
+    assert status["pos"]["text"] == "k* = 0, determined"
