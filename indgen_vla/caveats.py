@@ -35,6 +35,14 @@ def needed_for_break(gamma: float, ci: str = "wilson") -> int | None:
     return next((n for n in range(1, MAX_SEARCH) if not break_undecidable(n, gamma, ci)), None)
 
 
+def rate_text(successes: int, n: int) -> str:
+    """A count with its rate and Wilson 95 % CI, as compare.md and verdicts print it: "5/5 = 100% [57, 100]"."""
+    if not n:
+        return f"{successes}/{n}"
+    r = success_rate(successes, n)
+    return f"{successes}/{n} = {100 * r.rate:.0f}% [{100 * r.ci_low:.0f}, {100 * r.ci_high:.0f}]"
+
+
 def pooled_text(tasks: Sequence[str]) -> str:
     """Which tasks a pooled rate pools, by name: "task milk", "pooled over 2 tasks: bread, milk"."""
     if len(tasks) == 1:
@@ -103,7 +111,8 @@ def compare_caveats(result: dict, alpha: float = 0.05) -> list[str]:
         best = best_holm_p(n, len(rows), paired, result.get("test", "boschloo"))
         if best >= alpha:
             kind = f"{n} episode pairs" if paired else f"{n} episodes a run"
-            test = "paired exact McNemar" if paired else f"unpaired {result.get('test', 'boschloo')}"
+            test = ("paired exact McNemar" + (", stratified by seed" if result.get("strata", 1) > 1 else "")
+                    if paired else f"unpaired {result.get('test', 'boschloo')}")  # fmt: skip
             out.append(f"**Cannot answer** (`{axis}`): at most {kind} a level and Holm over {len(rows)} level"
                        f"{'s' * (len(rows) != 1)}: even the most lopsided outcome gives Holm p = {best:.3g} ≥ "
                        f"α = {alpha:g} ({test}), so \"no level differs\" here says nothing about the policies; "

@@ -10,14 +10,20 @@ import math
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.caveats import compare_caveats
+from indgen_vla.caveats import compare_caveats, rate_text
 from indgen_vla.compare_groups import groups_main
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.figures import plot_axis
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.levels import usable_levels
-from indgen_vla.metrics import UNDETERMINED, compare_levels, compare_paired_levels, wilson_ci
+from indgen_vla.metrics import (
+    UNDETERMINED,
+    compare_levels,
+    compare_paired_levels,
+    difference_ci,
+    success_rate,
+)
 from indgen_vla.pairing import pair_episodes
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
@@ -25,6 +31,10 @@ from indgen_vla.report import _safe, run_label
 from indgen_vla.summary import summarize
 
 TESTS = ("auto", "mcnemar", "boschloo", "barnard")
+DELTA_CI = {
+    True: "Newcombe paired (method 10), 95 %",
+    False: "Newcombe unpaired (MOVER of Wilson intervals), 95 %",
+}
 
 
 def _counts(axis_summary: dict) -> dict[int, tuple[int, int]]:
@@ -61,7 +71,13 @@ def compare_summaries(
     else:
         paired = False
     name = "mcnemar_exact" if paired else ("boschloo" if test in ("auto", "mcnemar") else test)
-    out: dict[str, Any] = {"test": name, "paired": paired, "gamma": gamma, "axes": {}}
+    out: dict[str, Any] = {
+        "test": name,
+        "paired": paired,
+        "gamma": gamma,
+        "delta_interval": DELTA_CI[paired],
+        "axes": {},
+    }
     if not paired and pairing:
         out["unpaired_reason"] = next(why for p, why in pairing.values() if p is None)
     for axis in axes:
@@ -70,6 +86,7 @@ def compare_summaries(
             rows = compare_paired_levels(pairing[axis][0])
         else:
             rows = compare_levels(_counts(a), _counts(b), test=name)
+        add_deltas(rows, paired)
         out["axes"][axis] = {
             "levels": rows,
             "break_level_a": a["break_level"],
@@ -81,6 +98,23 @@ def compare_summaries(
         if episodes is not None:  # partial credit, beside the binary test (indgen_vla.progress)
             out["axes"][axis]["progress"] = compare_progress(episodes[0], episodes[1], axis, paired)
     return out
+
+
+def add_deltas(rows: list[dict], paired: bool) -> None:
+    """Each level row's Δ = B − A with its 95 % interval (``delta``, ``delta_ci``): Newcombe's paired interval on
+    the episode pairs (``contrasts.paired_delta``), or for unpaired runs the MOVER combination of the two Wilson
+    intervals (``metrics.difference_ci``); NaN without episodes on a side."""
+    from indgen_vla.contrasts import paired_delta
+
+    for r in rows:
+        if paired:
+            r["delta"], r["delta_ci"], _ = paired_delta(r, None)
+        elif r["n_a"] and r["n_b"]:
+            a, b = (success_rate(r[f"successes_{s}"], r[f"n_{s}"]) for s in ("a", "b"))
+            r["delta"] = b.rate - a.rate
+            r["delta_ci"] = list(difference_ci((b.rate, b.ci_low, b.ci_high), (a.rate, a.ci_low, a.ci_high)))
+        else:
+            r["delta"], r["delta_ci"] = math.nan, [math.nan, math.nan]
 
 
 def break_point_diff(ea, eb, axis: str, gamma: float, usable: tuple[set, set] | None = None) -> dict:
@@ -142,15 +176,18 @@ def verdict(result: dict, label_a: str, label_b: str, alpha: float = 0.05) -> st
     for axis, ax in result["axes"].items():
         sig = [r for r in ax["levels"] if not math.isnan(r["p_holm"]) and r["p_holm"] < alpha]
         ka, kb = ax["break_level_a"], ax["break_level_b"]
-        k_text = f"k* {_k(ka)} ({label_a}) vs {_k(kb)} ({label_b})"
+        k_text = f"k* {_k(ka)} ({label_a}) vs {_k(kb)} ({label_b})" + (
+            f"; tasks: {ax['tasks']}" if ax.get("tasks") else ""
+        )
         if not sig:
             sentences.append(
                 f"{axis}: no level differs at α = {alpha} ({kind}, Holm-corrected) "
                 f"(this does not show the runs are equal); {k_text}."
             )
         else:
-            parts = [f"L{r['level']} ({r['successes_a']}/{r['n_a']} = {100 * r['rate_a']:.0f}% vs "
-                     f"{r['successes_b']}/{r['n_b']} = {100 * r['rate_b']:.0f}%, p_holm = {r['p_holm']:.3g})"
+            parts = [f"L{r['level']} ({rate_text(r['successes_a'], r['n_a'])} vs "
+                     f"{rate_text(r['successes_b'], r['n_b'])}"
+                     + (f", B − A (pp) {_fmt_delta(r)}" if "delta" in r else "") + f", p_holm = {r['p_holm']:.3g})"
                      for r in sig]  # fmt: skip
             sentences.append(
                 f"{axis}: {len(sig)} level(s) differ at α = {alpha} ({kind}, Holm-corrected): "
@@ -194,15 +231,19 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
         lines += [f"## {head}", ""] + ([f"Tasks: {ax['tasks']}. A and B: successes/n = rate [Wilson 95 % CI].", ""]
                                        if ax.get("tasks") else [])  # fmt: skip
         if paired:
-            lines += [f"Pairs: {ax.get('pairing', '')}.", "",
-                      "| level | A | B | A only | B only | p | p (Holm) |" + (" B − A (pp) [95% CI] |" if delta else ""),
-                      "|---|---|---|---|---|---|---|" + ("---|" if delta else "")]  # fmt: skip
-        else:
-            lines += ["| level | A | B | p | p (Holm) |", "|---|---|---|---|---|"]
+            lines += [f"Pairs: {ax.get('pairing', '')}.", ""]
+        if delta and result.get("delta_interval"):
+            lines += [
+                f"B − A: difference of the rates in percentage points, {result['delta_interval']} CI.",
+                "",
+            ]
+        cols = ["level", "A", "B", *(["A only", "B only"] if paired else []), "p", "p (Holm)",
+                *(["B − A (pp) [95% CI]"] if delta else [])]  # fmt: skip
+        lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         for r in ax["levels"]:
             disc = f"{r['a_only']} | {r['b_only']} | " if paired else ""
             lines.append(
-                f"| {r['level']} | {_rate(r['successes_a'], r['n_a'])} | {_rate(r['successes_b'], r['n_b'])} | {disc}"
+                f"| {r['level']} | {rate_text(r['successes_a'], r['n_a'])} | {rate_text(r['successes_b'], r['n_b'])} | {disc}"
                 f"{_p(r['p_value'])} | {_p(r['p_holm'])} |" + (f" {_fmt_delta(r)} |" if delta else "")
             )
         if ax.get("equivalence"):
@@ -223,14 +264,6 @@ def pairing_note(result: dict) -> str:
     return f"unpaired: {result.get('test', 'boschloo').capitalize()} per level, compare.md"
 
 
-def _rate(successes: int, n: int) -> str:
-    """A run's count at one level with its rate and Wilson 95 % CI: "5/5 = 100% [57, 100]"."""
-    if not n:
-        return f"{successes}/{n}"
-    lo, hi = wilson_ci(successes, n)
-    return f"{successes}/{n} = {100 * successes / n:.0f}% [{100 * lo:.0f}, {100 * hi:.0f}]"
-
-
 def tasks_text(ta: list[str], tb: list[str]) -> str:
     """compare.md's "Tasks:" line of one axis: the tasks both runs pool, or each run's where they differ."""
     if ta == tb:
@@ -245,8 +278,8 @@ def _p(x: float) -> str:
 def _fmt_delta(r: dict) -> str:
     from indgen_vla.contrasts import pp
 
-    if not r["pairs"]:
-        return "no pairs"
+    if math.isnan(r["delta"]):
+        return "no pairs" if "pairs" in r else "n/a"
     lo, hi = r["delta_ci"]
     return f"{pp(r['delta'])} [{pp(lo)}, {pp(hi)}]"
 

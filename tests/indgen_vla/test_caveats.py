@@ -13,8 +13,9 @@ from indgen_vla.caveats import (
     needed_for_break,
     needed_pairs,
     pooled_text,
+    rate_text,
 )
-from indgen_vla.compare import _rate, pairing_note, render_markdown, tasks_text
+from indgen_vla.compare import pairing_note, render_markdown, tasks_text
 from indgen_vla.contrasts import t0_lines
 from indgen_vla.figures import count_note, curve_note
 from indgen_vla.report import render_markdown as report_md
@@ -98,7 +99,7 @@ def test_compare_first_lines_say_a_powerless_comparison_cannot_answer():
 
 
 def test_compare_helpers_say_paired_and_tasks():
-    assert _rate(0, 0) == "0/0"
+    assert rate_text(0, 0) == "0/0" and rate_text(5, 5) == "5/5 = 100% [57, 100]"
     assert tasks_text(["milk"], ["milk"]) == "milk"
     assert tasks_text(["a"], ["b"]).startswith("A: a; B: b")
     assert pairing_note({"paired": True}).startswith("paired")

@@ -1,4 +1,5 @@
 import json
+import math
 
 import pytest
 from scipy.stats import binomtest, boschloo_exact
@@ -33,6 +34,30 @@ def test_compare_against_scipy_and_hand_holm(tmp_path, capsys):
         assert rows[k]["p_holm"] == pytest.approx(expect[k])
     assert rows[1]["p_holm"] < 0.05 and "1 level(s) differ" in res["verdict"] and "L1" in res["verdict"]
     assert (tmp_path / "c" / "plots" / "pick_y.png").exists()
+
+
+def _wilson(s: int, n: int) -> tuple[float, float]:
+    ci = binomtest(s, n).proportion_ci(method="wilson")
+    return ci.low, ci.high
+
+
+def test_unpaired_delta_is_the_mover_wilson_interval(tmp_path):
+    a = make_run(tmp_path / "a", {0: (19, 20), 1: (15, 20)})
+    b = make_run(tmp_path / "b", {0: (20, 20), 1: (4, 20)}, regime="h+mg")
+    assert (
+        main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c"), "--test", "boschloo"]) == 0
+    )
+    res = json.loads((tmp_path / "c" / "compare.json").read_text())
+    row = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}[1]
+    # by hand (Newcombe 1998 method 10): B 4/20 − A 15/20 = −0.55; lower end −√((pB−lB)² + (uA−pA)²) etc.
+    (la, ua), (lb, ub) = _wilson(15, 20), _wilson(4, 20)
+    lo, hi = -0.55 - math.hypot(0.2 - lb, ua - 0.75), -0.55 + math.hypot(ub - 0.2, 0.75 - la)
+    assert row["delta"] == pytest.approx(-0.55)
+    assert row["delta_ci"] == [pytest.approx(lo), pytest.approx(hi)]
+    assert res["delta_interval"].startswith("Newcombe unpaired")
+    md = (tmp_path / "c" / "compare.md").read_text()
+    assert f"| −55 [{round(100 * lo):+d}, {round(100 * hi):+d}] |".replace("-", "−") in md
+    assert "4/20 = 20% [8, 42]" in res["verdict"] and "B − A (pp) −55 [" in res["verdict"]
 
 
 def test_compare_never_overstates(tmp_path):
@@ -92,6 +117,15 @@ def test_paired_runs_use_exact_mcnemar(tmp_path, capsys):
     md = (tmp_path / "c" / "compare.md").read_text()
     assert "paired: two-sided exact McNemar" in md and "| A only | B only |" in md
     assert "paired exact McNemar" in res["verdict"]
+    # Δ = 3/12 − 10/12 with Newcombe's paired interval, computed here from scipy's Wilson intervals:
+    # both 2, A only 8, B only 1, neither 1; φ = (2·1 − 8·1) / √(3·9·10·2) (negative: no continuity shift)
+    (la, ua), (lb, ub) = _wilson(10, 12), _wilson(3, 12)
+    pa, pb, phi = 10 / 12, 3 / 12, -6 / math.sqrt(3 * 9 * 10 * 2)
+    lo = pb - pa - math.sqrt((pb - lb) ** 2 + (ua - pa) ** 2 - 2 * phi * (pb - lb) * (ua - pa))
+    hi = pb - pa + math.sqrt((pa - la) ** 2 + (ub - pb) ** 2 - 2 * phi * (pa - la) * (ub - pb))
+    assert rows[1]["delta"] == pytest.approx(pb - pa)
+    assert rows[1]["delta_ci"] == [pytest.approx(lo), pytest.approx(hi)]
+    assert res["delta_interval"].startswith("Newcombe paired") and "| −58 [" in md
     assert (
         main(["compare", str(a.path), str(b.path), "--test", "boschloo", "--out", str(tmp_path / "u")]) == 0
     )
