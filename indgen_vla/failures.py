@@ -100,32 +100,43 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
 
 
 def failure_shift(a_levels: list[dict], b_levels: list[dict]) -> dict:
-    """Which failure modes changed between two runs on one axis: per mode, its share of all episodes of the
-    shared levels in A and in B and the difference (B − A), largest change first."""
+    """Which failure modes changed between two runs on one axis: per mode, its count and share of all episodes of
+    the shared levels in A and in B (``n_a``, ``n_b``) and the difference (B − A), largest change first."""
     shared = {r["level"] for r in a_levels} & {r["level"] for r in b_levels}
 
-    def shares(levels: list[dict]) -> dict[str, float]:
-        counts: dict[str, int] = {}
+    def counts(levels: list[dict]) -> dict[str, int]:
+        found: dict[str, int] = {}
         for r in levels:
             if r["level"] in shared:
                 for m, c in r.get("failures", {}).items():
-                    counts[m] = counts.get(m, 0) + c
-        total = sum(counts.values())
-        return {m: c / total for m, c in counts.items()} if total else {}
+                    found[m] = found.get(m, 0) + c
+        return found
 
-    sa, sb = shares(a_levels), shares(b_levels)
-    rows = [{"mode": m, "share_a": sa.get(m, 0.0), "share_b": sb.get(m, 0.0), "diff": sb.get(m, 0.0) - sa.get(m, 0.0)}
-            for m in MODES if m in sa or m in sb]  # fmt: skip
-    return {"levels": sorted(shared), "modes": sorted(rows, key=lambda r: -abs(r["diff"]))}
+    ca, cb = counts(a_levels), counts(b_levels)
+    na, nb = sum(ca.values()), sum(cb.values())
+
+    def share(c: dict[str, int], n: int, m: str) -> float:
+        return c.get(m, 0) / n if n else 0.0
+
+    rows = [{"mode": m, "count_a": ca.get(m, 0), "count_b": cb.get(m, 0), "share_a": share(ca, na, m),
+             "share_b": share(cb, nb, m), "diff": share(cb, nb, m) - share(ca, na, m)}
+            for m in MODES if m in ca or m in cb]  # fmt: skip
+    return {
+        "levels": sorted(shared),
+        "n_a": na,
+        "n_b": nb,
+        "modes": sorted(rows, key=lambda r: -abs(r["diff"])),
+    }
 
 
 def render_shift(shift: dict, label_a: str, label_b: str) -> list[str]:
-    """Markdown lines for ``failure_shift``: each mode's share in A and B over the shared levels."""
+    """Markdown lines for ``failure_shift``: each mode's count and share of n in A and B over the shared levels."""
     if not shift["modes"]:
         return []
-    lines = ["", f"Failure modes, share of all episodes on the shared levels ({label_a} → {label_b}); descriptive, "
-             "not tested:", "", "| mode | A | B | B − A |", "|---|---|---|---|"]  # fmt: skip
+    levels = ", ".join(str(k) for k in shift["levels"])
+    lines = ["", f"Failure modes, count/n and share of all episodes on the shared levels {levels} ({label_a} → "
+             f"{label_b}); descriptive: no CI, not tested:", "", "| mode | A | B | B − A |", "|---|---|---|---|"]  # fmt: skip
     for r in shift["modes"]:
-        lines.append(f"| {r['mode']} | {100 * r['share_a']:.0f}% | {100 * r['share_b']:.0f}% | "
-                     f"{100 * r['diff']:+.0f} pts |")  # fmt: skip
+        lines.append(f"| {r['mode']} | {r['count_a']}/{shift['n_a']} = {100 * r['share_a']:.0f}% | "
+                     f"{r['count_b']}/{shift['n_b']} = {100 * r['share_b']:.0f}% | {100 * r['diff']:+.0f} pts |")  # fmt: skip
     return lines

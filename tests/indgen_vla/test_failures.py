@@ -60,10 +60,12 @@ def test_shift_between_runs(tmp_path):
     assert by["no_grasp"]["share_a"] == 0.5 and by["no_grasp"]["share_b"] == 0.0
     assert by["dropped"]["diff"] == 0.25 and by["none"]["diff"] == 0.25
     assert shift["modes"][0]["mode"] == "no_grasp"  # the largest change comes first
+    assert (shift["n_a"], shift["n_b"], by["dropped"]["count_a"], by["dropped"]["count_b"]) == (20, 20, 0, 5)
     ra = run_with(tmp_path / "a", {0: ["none", "no_grasp"] * 3})
     rb = run_with(tmp_path / "b", {0: ["none", "dropped"] * 3}, regime="h+mg")
     assert main(["compare", str(ra.path), str(rb.path), "--out", str(tmp_path / "c")]) == 0
     res = json.loads((tmp_path / "c" / "compare.json").read_text())
     assert {r["mode"] for r in res["axes"]["pick_y"]["failures"]["modes"]} == {"none", "no_grasp", "dropped"}
-    assert "| dropped | 0% | 50% | +50 pts |" in (tmp_path / "c" / "compare.md").read_text()
+    md = (tmp_path / "c" / "compare.md").read_text()
+    assert "| dropped | 0/6 = 0% | 3/6 = 50% | +50 pts |" in md and "descriptive: no CI, not tested" in md
     assert (tmp_path / "c" / "plots" / "pick_y_failures.png").exists()
