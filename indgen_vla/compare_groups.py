@@ -13,10 +13,19 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from indgen_vla.caveats import compare_caveats, pooled_text, rate_text
 from indgen_vla.errors import RunDirError
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
-from indgen_vla.metrics import MIN_N, UNDETERMINED, UndeterminedBreakError, below_floor, holm, kstar
+from indgen_vla.metrics import (
+    MIN_N,
+    UNDETERMINED,
+    UndeterminedBreakError,
+    below_floor,
+    holm,
+    kstar,
+    success_rate,
+)
 from indgen_vla.pairing import pair_episodes
 
 
@@ -81,14 +90,18 @@ def compare_groups(
             n = sum(s[2] for s in strata)
             succ_a = sum(x for p in pairs for x, _ in p.get(k, []))
             succ_b = sum(y for p in pairs for _, y in p.get(k, []))
+            ra, rb = success_rate(succ_a, n), success_rate(succ_b, n)  # pooled over the strata's pairs
             rows.append({
                 "level": int(k), "pairs": n, "successes_a": succ_a, "successes_b": succ_b,
-                "rate_a": succ_a / n if n else math.nan, "rate_b": succ_b / n if n else math.nan,
+                "rate_a": ra.rate, "rate_b": rb.rate, "ci_a": [ra.ci_low, ra.ci_high], "ci_b": [rb.ci_low, rb.ci_high],
                 "a_only": test.a_only, "b_only": test.b_only, "p_value": test.p_value,
             })  # fmt: skip
         for r, p in zip(rows, holm([r["p_value"] for r in rows]), strict=True):
             r["p_holm"] = p
-        out["axes"][axis] = {"levels": rows, **_seed_level(episodes_a, episodes_b, axis, gamma, margin)}
+        tasks = sorted(set().union(*(df.loc[df["axis"] == axis, "task"] for df in episodes_a + episodes_b)))
+        out["axes"][axis] = {"levels": rows, "tasks": tasks,
+                             **_seed_level(episodes_a, episodes_b, axis, gamma, margin)}  # fmt: skip
+    out["caveats"] = compare_caveats(out, alpha)  # what no outcome of these pairs could show, said first
     return out
 
 
@@ -133,11 +146,11 @@ def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
     parts = {}
     for axis, ax in result["axes"].items():
         sig = [r for r in ax["levels"] if r["p_holm"] < alpha]
-        lv = ", ".join(f"L{r['level']:+d} ({100 * r['rate_a']:.0f}% vs {100 * r['rate_b']:.0f}%, "
-                       f"p_holm = {r['p_holm']:.2g})" for r in sig)  # fmt: skip
+        lv = ", ".join(f"L{r['level']:+d} ({rate_text(r['successes_a'], r['pairs'])} vs "
+                       f"{rate_text(r['successes_b'], r['pairs'])}, p_holm = {r['p_holm']:.2g})" for r in sig)  # fmt: skip
         sl = ax["seed_level"]
         area = sl["ood_area"]
-        text = (f"{axis}: " + (f"{len(sig)} level(s) differ after Holm ({lv})" if sig else
+        text = (f"{axis} ({_pool(ax, result['strata'])}): " + (f"{len(sig)} level(s) differ after Holm ({lv})" if sig else
                 "no level differs after Holm") + f"; OOD mean success {label_b} − {label_a} = "
                 f"{100 * area['diff']:+.1f} points, 95% CI [{_pts(area['ci'][0])}, {_pts(area['ci'][1])}] over "
                 f"{len(area['a'])} vs {len(area['b'])} seeds")  # fmt: skip
@@ -160,6 +173,12 @@ def axis_verdicts(result: dict, label_a: str, label_b: str) -> dict[str, str]:
     return parts
 
 
+def _pool(ax: dict, strata: int) -> str:
+    """What an axis's level rates pool and how they are compared: "task milk; paired, stratified by seed (2 seeds)"."""
+    how = "paired, stratified by seed" if strata > 1 else "paired"
+    return f"{pooled_text(ax.get('tasks') or [])}; {how} ({strata} run pair{'s' * (strata != 1)})"
+
+
 def _pts(x: float) -> str:
     return "n/a" if math.isnan(x) else f"{100 * x:+.1f}"
 
@@ -175,17 +194,20 @@ def _ci3(ci: list[float]) -> str:
 def render_markdown(result: dict, label_a: str, label_b: str) -> str:
     """compare.md for groups: per-level paired table, then the seed-level endpoints."""
     lines = [f"# Comparison: {label_a} (A, {result['strata']} run(s)) vs {label_b} (B, {result['strata']} run(s))", "",
+             *[x for c in result.get("caveats", []) for x in (c, "")],
              "Paired episode by episode within each stratum (run i of A with run i of B: same episodes); per level the "
              "exact matched-pairs test on the discordant pairs pooled over strata (stratified McNemar), Holm-corrected "
              "per axis. Seed-level endpoints: Welch t-intervals across runs; TOST for equivalence.", "",
              f"**Verdict.** {result['verdict']}", ""]  # fmt: skip
     lines += protocol_section(result.get("protocol", []))
     for axis, ax in result["axes"].items():
-        lines += [f"## Axis `{axis}`", "", "| level | pairs | A | B | A only | B only | p | p (Holm) |",
-                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        lines += [f"## Axis `{axis}`", "", f"Rates pooled over the strata's pairs ({_pool(ax, result['strata'])}): "
+                  "successes/pairs = rate [Wilson 95 % CI].", "",
+                  "| level | pairs | A | B | A only | B only | p | p (Holm) |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for r in ax["levels"]:
-            lines.append(f"| {r['level']} | {r['pairs']} | {r['successes_a']} | {r['successes_b']} | {r['a_only']} | "
-                         f"{r['b_only']} | {r['p_value']:.3g} | {r['p_holm']:.3g} |")  # fmt: skip
+            lines.append(f"| {r['level']} | {r['pairs']} | {rate_text(r['successes_a'], r['pairs'])} | "
+                         f"{rate_text(r['successes_b'], r['pairs'])} | {r['a_only']} | {r['b_only']} | "
+                         f"{r['p_value']:.3g} | {r['p_holm']:.3g} |")  # fmt: skip
         lines += ["", "| endpoint | A per run | B per run | B − A | 95% CI |", "|---|---|---|---|---|"]
         for name, e in ax["seed_level"].items():
             fmt = (

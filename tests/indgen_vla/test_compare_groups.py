@@ -5,6 +5,7 @@ import math
 import pandas as pd
 import pytest
 from scipy import stats
+from scipy.stats import binomtest
 
 from indgen_vla.compare_groups import compare_groups, render_markdown, verdict
 from indgen_vla.errors import RunDirError
@@ -52,7 +53,13 @@ def test_paired_levels_pool_discordant_pairs_over_seeds():
     res["verdict"] = text
     assert "(undetermined: a level before the break is below the 5-episode data floor)" in text
     md = render_markdown(res, "h-only", "h+mg")
-    assert "| -1 | 8 | 1 | 7 | 0 | 6 |" in md
+    assert (
+        "| -1 | 8 | 1/8 = 12% [2, 47] | 7/8 = 88% [53, 98] | 0 | 6 |" in md
+    )  # Wilson, scipy: 1/8 -> [.022, .47]
+    assert (
+        res["caveats"] == [] and "**Cannot answer**" not in md
+    )  # 3 · 2 · 0.5**8 = 0.023 < 0.05 was possible
+    assert text.startswith("pick_y (task milk; paired, stratified by seed (2 run pairs)): no level differs")
     assert "| kstar_pos | undetermined, undetermined | undetermined, undetermined | n/a |" in md
 
 
@@ -112,6 +119,11 @@ def test_cli_compares_groups(tmp_path, capsys):
     lv = {r["level"]: r for r in res["axes"]["pick_y"]["levels"]}
     # make_run solves episodes 0..s-1: level -1 pairs differ on episodes 2..8 in both seeds -> 0 vs 14 discordant
     assert (lv[-1]["a_only"], lv[-1]["b_only"]) == (0, 14)
+    ci = binomtest(18, 20).proportion_ci(method="wilson")  # B: 9 + 9 of 20 pairs
+    assert lv[-1]["ci_b"] == [pytest.approx(ci.low), pytest.approx(ci.high)]
+    assert (
+        f"L-1 (4/20 = 20% [8, 42] vs 18/20 = 90% [{100 * ci.low:.0f}, {100 * ci.high:.0f}]" in res["verdict"]
+    )
     assert lv[-1]["p_value"] == pytest.approx(stats.binomtest(0, 14, 0.5).pvalue)
     assert res["test"] == "mcnemar_exact_stratified" and "h+mg" in res["verdicts"]["pick_y"]
     assert "## Axis `pick_y`" in (tmp_path / "c" / "compare.md").read_text()
@@ -133,3 +145,25 @@ def test_verdict_says_why_seeds_without_spread_give_no_interval():
     text = axis_verdicts(result, "A", "B")["pick_y"]
     assert "do not vary at all" in text and "equivalent" not in text
     assert "n/a (no spread across runs)" in render_markdown(result, "A", "B")
+
+
+def test_group_comparison_that_cannot_reach_alpha_says_so_first():
+    # 2 seeds x 2 episodes a level: 4 pooled pairs, all A-only -> p = 2 · 0.5**4 = 0.125, Holm over 2 levels 0.25
+    a, b = table({0: [1, 1], 1: [1, 1]}), table({0: [0, 0], 1: [0, 0]})
+    res = compare_groups([a, a.copy()], [b, b.copy()])
+    assert res["axes"]["pick_y"]["tasks"] == ["milk"]
+    row = res["axes"]["pick_y"]["levels"][0]
+    ci = binomtest(4, 4).proportion_ci(method="wilson")
+    assert (row["pairs"], row["ci_a"], row["ci_b"][0]) == (
+        4,
+        [pytest.approx(ci.low), pytest.approx(1.0)],
+        0.0,
+    )
+    assert row["p_holm"] == pytest.approx(0.25)
+    (line,) = res["caveats"]
+    assert line.startswith(
+        "**Cannot answer** (`pick_y`): at most 4 episode pairs a level and Holm over 2 levels"
+    )
+    assert "Holm p = 0.25 ≥ α = 0.05 (paired exact McNemar, stratified by seed)" in line
+    res["verdict"] = verdict(res, "a", "b")
+    assert render_markdown(res, "a", "b").splitlines()[2] == line
