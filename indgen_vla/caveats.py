@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from indgen_vla.metrics import exact_2x2, mcnemar_exact, success_rate
+from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, success_rate
 
 MAX_SEARCH = 10_000  # the largest episode count a "would need n" hint searches
 
@@ -70,6 +70,11 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                    f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {ci} 95 % CI), "
                    f"below γ = {gamma}: a policy that does not solve the base task (or acts blind to it) has no "
                    "generalization to measure; its k* is 0 by construction.")  # fmt: skip
+    ran = [r["n"] for r in a["levels"] if r["n"] > 0]
+    if ran and not _usable(a["levels"]):
+        out.append(f"**Too few episodes** ({where}): every level is below the data floor (at most n = {max(ran)} a "
+                   f"level; a rate needs ≥ {MIN_N} finished episodes and half the planned ones), so no rate, no k* "
+                   "and no test is given.")  # fmt: skip
     ns = [r["n"] for r in _usable(a["levels"])]
     if ns and break_undecidable(max(ns), gamma, ci):
         need = needed_for_break(gamma, ci)
@@ -85,6 +90,32 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                    f"level{'s' * (m != 1)}: even every pair discordant one way gives Holm p = "
                    f"{best_holm_p(max(pairs), m):.3g} ≥ α = {alpha:g}, so no level can be shown to differ from T0 "
                    f"(that needs ≥ {need} pairs a level).")  # fmt: skip
+    return out
+
+
+def design_caveats(where: str, episodes: int, tested: int, gamma: float, break_by_ci: bool = True,
+                   alpha: float = 0.05) -> list[str]:  # fmt: skip
+    """What a plan of at most ``episodes`` a level can never show, whatever the outcomes: a protocol's first lines.
+
+    Args:
+        where: the set-up, axis and task, in words.
+        tested: levels k ≠ 0 sure to be tested against T0 (a walk that may stop early: 1; none without level 0).
+        break_by_ci: whether a break is read off the Wilson CI (fixed and until-failure designs; an SPRT decides
+            its own).
+    """
+    if episodes < MIN_N:
+        return [f"**Too few episodes** ({where}): {episodes} a level is below the {MIN_N}-episode data floor, so the "
+                f"report will give no rate, no k* and no test; plan --episodes {MIN_N} or more."]  # fmt: skip
+    out = []
+    if break_by_ci and break_undecidable(episodes, gamma):
+        out.append(f"**Too few episodes** ({where}): {episodes} a level; even 0/{episodes} leaves the Wilson 95 % CI "
+                   f"above γ = {gamma:g}, so no level can be shown below γ (a break is only observed; showing one "
+                   f"needs n ≥ {needed_for_break(gamma)} a level).")  # fmt: skip
+    if tested and best_holm_p(episodes, tested) >= alpha:
+        out.append(f"**No power against T0** ({where}): {episodes} pairs a level and Holm over at least {tested} "
+                   f"level{'s' * (tested != 1)}: even every pair discordant one way gives Holm p = "
+                   f"{best_holm_p(episodes, tested):.3g} ≥ α = {alpha:g}, so no level can be shown to differ from T0 "
+                   f"(that needs ≥ {needed_pairs(tested, alpha)} pairs a level).")  # fmt: skip
     return out
 
 

@@ -194,7 +194,8 @@ def status(rr) -> dict:
                "placement": rr.setup.placement(i), "instruction": rr.setup.instruction}  # fmt: skip
     return {"run": str(rr.run.path), "task": rr.task, "axis": rr.axis.name, "ci": "wilson 95%", "levels": levels,
             "queued": len(queue), "next": nxt, "complete": not queue,
-            "stopping": rr.mode, "kstar": seq.kstar.get("pos", {}).get("text") if seq else None}  # fmt: skip
+            "stopping": rr.mode, "kstar": seq.kstar.get("pos", {}).get("text") if seq else None,
+            "caveats": rr.caveats()}  # fmt: skip
 
 
 # the sequential rule's verdict for a level it has not settled yet, as ``real status`` prints it (``--json``: raw)
@@ -208,6 +209,8 @@ def _status(ns: argparse.Namespace) -> int:
     if ns.json:
         print(json.dumps(s, indent=2))
         return 0
+    for line in s["caveats"]:  # first: what this plan can never show
+        print(line)
     print(f"{s['run']}: task {s['task']}, axis {s['axis']} (95 % Wilson CIs, one task, not pooled)")
     for r in s["levels"]:
         rate = f"{r['successes']}/{r['n']} = {100 * r['rate']:.0f} % [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]" if r["n"] else "no episodes"  # fmt: skip

@@ -195,6 +195,18 @@ class RealRun:
         self.rule = rule_from_plan(self.plan["adaptive"], self.episodes) if self.mode else None
         self.seeds = {i: episode_seed(m["seed"], m["scene"], self.task, i) for i in range(self.episodes)}
         self.params = {k: self.axis.level(k).param for k in self.levels}
+        self.gamma: float = self.rule.gamma if self.rule else float(m.get("config", {}).get("gamma", 0.2))
+
+    def caveats(self) -> list[str]:
+        """What this plan can never show, whatever the operator records: protocol.md's and ``real status``' first
+        lines (``caveats.design_caveats``)."""
+        from indgen_vla.caveats import design_caveats
+
+        tested = (
+            0 if 0 not in self.levels else 1 if self.mode else len(self.levels) - 1
+        )  # a walk may stop early
+        where = f"set-up {self.setup.name}, `{self.axis.name}`, task {self.task}"
+        return design_caveats(where, self.episodes, tested, self.gamma, self.mode in (None, UNTIL_FAILURE))
 
     @classmethod
     def open(cls, path: str | Path) -> RealRun:
@@ -271,7 +283,7 @@ def _yaml(text: str):
 def protocol_markdown(r: RealRun) -> str:
     """The operator's printable sheet: task, fixed conditions, each level's set-up, the order and the rule."""
     s, a = r.setup, r.axis
-    lines = [f"# Real-robot protocol: {s.name} / {a.name}", "",
+    lines = [f"# Real-robot protocol: {s.name} / {a.name}", "", *[x for c in r.caveats() for x in (c, "")],
              f"- task `{r.task}`: \"{s.instruction}\"", f"- robot: {r.manifest['real']['robot'] or 'not named'}; "
              f"policy: {r.manifest['policy']}; operator: {r.manifest['real']['operator'] or 'not named'}",
              f"- fixed: {s.base or 'not stated'}", f"- axis `{a.name}`: {a.description} ({a.unit})", "",

@@ -10,6 +10,7 @@ from indgen_vla.caveats import (
     best_holm_p,
     break_undecidable,
     compare_caveats,
+    design_caveats,
     needed_for_break,
     needed_pairs,
     pooled_text,
@@ -76,6 +77,30 @@ def test_axis_caveats_no_power_against_t0_and_none_for_a_sound_study():
     sound = _axis(40, 40)
     sound["levels"][1].update(successes=40, rate=1.0)
     assert axis_caveats("A", "x", sound, 0.2, "wilson") == []
+
+
+def test_a_study_below_the_data_floor_everywhere_says_so_first():
+    a = _axis(3, 3)
+    for r in a["levels"]:
+        r["insufficient"] = True  # 3 < 5 finished episodes: no rate is printed
+    a["levels"][1]["vs_t0"]["p"] = float("nan")  # and no test (summary: NaN below the floor)
+    (line,) = axis_caveats("real", "stack", a, 0.2, "wilson")
+    assert line.startswith(
+        "**Too few episodes** (real, `stack`, tasks bread, milk): every level is below the data floor"
+    )
+    assert "at most n = 3 a level" in line
+
+
+def test_design_caveats_bound_any_outcome_of_the_plan():
+    assert design_caveats("s", 4, 2, 0.2)[0].endswith("plan --episodes 5 or more.")
+    ten = design_caveats("s", 10, 1, 0.2)  # one level surely tested: 2 · 0.5**10 < 0.05 can answer
+    assert len(ten) == 1 and "even 0/10 leaves the Wilson 95 % CI above γ = 0.2" in ten[0]
+    assert design_caveats("s", 10, 1, 0.2, break_by_ci=False) == []  # an SPRT decides a break its own way
+    assert design_caveats("s", 16, 5, 0.2) == []  # 0/16 is below γ; 5 · 2 · 0.5**16 = 1.5e-4 < 0.05
+    (power,) = design_caveats("s", 6, 5, 0.2, break_by_ci=False)  # 5 · 2 · 0.5**6 = 0.156; 0.5**8 < 0.005
+    assert (
+        power.startswith("**No power against T0** (s)") and "Holm p = 0.156" in power and "≥ 8 pairs" in power
+    )
 
 
 def _compare(paired: bool, n: int) -> dict:

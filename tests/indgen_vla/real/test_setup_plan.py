@@ -149,3 +149,30 @@ def test_compare_pairs_two_real_runs_of_the_same_setup(tmp_path):
     pairs, why = pair_episodes(ea, eb, "stack")  # compare's rule: same set-up, episodes, seeds and params
     assert pairs == {0: [(True, True), (True, False)], 1: [(True, True), (True, False)]}, why
     assert pair_episodes(ea, ec, "stack") == (None, "episode seeds differ on stack (different --seed)")
+
+
+@pytest.mark.parametrize(
+    ("extra", "first"),
+    [
+        (("--episodes", "3"), "3 a level is below the 5-episode data floor"),
+        (
+            ("--episodes", "10"),
+            "even 0/10 leaves the Wilson 95 % CI above γ = 0.2",
+        ),  # Wilson 0/15 > 0.2 > 0/16
+        # fixed design, 3 levels: 5 pairs and Holm over 2 levels -> best p = 2 · 2 · 0.5**5 = 0.125
+        (("--episodes", "5", "--adaptive", "off"), "even 0/5 leaves the Wilson 95 % CI"),
+        (("--episodes", "16", "--adaptive", "off"), None),
+    ],
+)
+def test_protocol_and_status_open_with_what_the_plan_cannot_show(tmp_path, capsys, extra, first):
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:2", "--policy", "p", "--out", str(run),
+                 *extra]) == 0  # fmt: skip
+    lines = (run / "protocol.md").read_text().splitlines()
+    caveats = RealRun.open(run).caveats()
+    assert (first is None) == (caveats == []) and (first is None or first in lines[2])
+    if "off" in extra and first:  # every level is tested against T0: the power line follows
+        assert "Holm p = 0.125 ≥ α = 0.05" in lines[4] and "needs ≥ 7 pairs a level" in lines[4]
+    capsys.readouterr()
+    assert main(["real", "status", str(run)]) == 0
+    assert capsys.readouterr().out.splitlines()[: len(caveats)] == caveats
