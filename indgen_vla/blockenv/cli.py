@@ -152,6 +152,7 @@ def _train(a) -> int:
 def _eval(a) -> int:
     from indgen_vla.blockenv.env import BlockEnvConfig
     from indgen_vla.blockenv.evaluate import evaluate_model, oracle_rollout
+    from indgen_vla.caveats import axis_caveats
     from indgen_vla.metrics import break_level, wilson_ci
 
     levels = _levels(a.levels)
@@ -174,12 +175,20 @@ def _eval(a) -> int:
     for k, (s, n) in res.items():
         lo, hi = wilson_ci(s, n)
         rows.append({"level": k, "successes": s, "n": n, "rate": s / n, "ci_low": lo, "ci_high": hi})
-        print(f"L{k}: {100 * s / n:5.1f}%  [{100 * lo:.0f}, {100 * hi:.0f}]  (n={n})")
+    task = f"BlockEnv {cfg.grid_size}×{cfg.grid_size}"
+    caveats = axis_caveats(a.method, "k", {"levels": rows, "pooled_tasks": [task]}, a.gamma, "wilson")
+    for line in caveats:  # first: what these episodes cannot show (a method failing L0, too few episodes)
+        print(line.replace("**", ""))
+    print(f"{a.method} on task {task}, seed {a.seed}: success per level with Wilson 95 % CI")
+    for r in rows:
+        print(f"L{r['level']}: {100 * r['rate']:5.1f}%  [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]  "
+              f"(n={r['n']})")  # fmt: skip
     brk = break_level({r["level"]: r["rate"] for r in rows}, a.gamma)
-    print(f"break level (gamma {a.gamma}): {'none in range' if brk is None else f'L{brk}'}")
+    print(f"break level (gamma {a.gamma}, observed rate): {'none in range' if brk is None else f'L{brk}'}")
     if a.out:
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.out).write_text(json.dumps({"method": a.method, "levels": rows, "break_level": brk}, indent=2))
+        Path(a.out).write_text(json.dumps({"method": a.method, "task": task, "ci": "wilson 95%", "levels": rows,
+                                           "break_level": brk, "caveats": caveats}, indent=2))  # fmt: skip
     return 0
 
 

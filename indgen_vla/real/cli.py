@@ -210,7 +210,7 @@ def _status(ns: argparse.Namespace) -> int:
         print(json.dumps(s, indent=2))
         return 0
     for line in s["caveats"]:  # first: what this plan can never show
-        print(line)
+        print(line.replace("**", ""))
     print(f"{s['run']}: task {s['task']}, axis {s['axis']} (95 % Wilson CIs, one task, not pooled)")
     for r in s["levels"]:
         rate = f"{r['successes']}/{r['n']} = {100 * r['rate']:.0f} % [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]" if r["n"] else "no episodes"  # fmt: skip

@@ -392,3 +392,38 @@ def test_train_cli_passes_variant_options(tmp_path):
         _run([*rest, "--option", "legal_head"])
     with pytest.raises(ConfigError, match="no option"):
         _run([*rest, "--option", "patch=2"])
+
+
+def test_table1_opens_with_what_it_cannot_answer():
+    from indgen_vla.blockenv.reproduce import render_markdown, table_caveats
+
+    def method(s0: int, n: int) -> dict:
+        lv = {
+            "rate": s0 / n,
+            "ci_low": 0.0,
+            "ci_high": 1.0,
+            "n": n,
+            "per_seed": [{"seed": 0, "successes": s0, "n": n}],
+        }
+        return {"levels": {"0": lv}, "break_level": 0, "break_level_per_seed": {"0": 0}}
+
+    result = {"config": {"seeds": [0], "eval_levels": [0], "episodes": 10, "train_steps": 2, "demos_per_level": 4,
+                         "gamma": 0.2}, "wall_s": 1.0, "methods": {"rnn": method(1, 10), "ind": method(10, 10)}}  # fmt: skip
+    blind, few, seeds = table_caveats(result)
+    assert blind.startswith("**Cannot answer** (rnn 1/10 = 10% [2, 40] at L0")  # Wilson 1/10: [0.018, 0.404]
+    assert "0/10 leaves the Wilson 95 % CI above γ = 0.2" in few and "n ≥ 16" in few
+    assert seeds.startswith("**Too few seeds**: 1 training seed")
+    assert render_markdown(result).splitlines()[2] == blind
+    result["config"].update(seeds=[0, 1, 2], episodes=100)
+    result["methods"] = {"ind": method(100, 100)}
+    assert table_caveats(result) == []
+
+
+def test_eval_cli_names_task_ci_and_caveats(tmp_path, capsys):
+    out = tmp_path / "e.json"
+    assert _run(["eval", "--method", "oracle", "--levels", "0:1", "--episodes", "10", "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("Too few episodes (oracle, `k`, task BlockEnv 12×12): at most n = 10 a level")
+    assert lines[1] == "oracle on task BlockEnv 12×12, seed 1000: success per level with Wilson 95 % CI"
+    res = json.loads(out.read_text())
+    assert res["task"] == "BlockEnv 12×12" and res["caveats"][0].startswith("**Too few episodes**")
