@@ -222,6 +222,9 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
             "",
             f"OOD area TOST p (margin ±{result['margin']}): {_tost_p(ax['seed_level']['ood_area']['tost_p'])}",
             "",
+            "kstar_pos / kstar_neg: each run's k* (Definition 2): the first level below γ, or K+1 when no level "
+            "through the last one run (K) breaks, e.g. +2 for a run at levels 0..1 that never broke.",
+            "",
         ]
     return "\n".join(lines)
 
