@@ -79,8 +79,9 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
     if ns and break_undecidable(max(ns), gamma, ci):
         need = needed_for_break(gamma, ci)
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
-                   f"{ci} 95 % CI above γ = {gamma}, so no level can be shown below γ (k* stays undecided; that "
-                   f"needs n ≥ {need} a level).")  # fmt: skip
+                   f"{ci} 95 % CI above γ = {gamma}, so no level can be decided broken: the k* below is the first level "
+                   f"whose observed rate is under γ, not a statistically decided break (that needs n ≥ {need} a "
+                   "level).")  # fmt: skip
     head = a.get("vs_t0") or {}
     m = len(head.get("holm_over") or [])
     pairs = [r["vs_t0"]["n_pairs"] for r in a["levels"] if "vs_t0" in r and not math.isnan(r["vs_t0"]["p"])]

@@ -65,7 +65,11 @@ def test_axis_caveats_name_run_axis_n_ci_and_tasks():
         "**Cannot answer** (standin:random, `pick_y`, tasks bread, milk): T0 succeeds in 0/10"
     )
     assert "0% [0, 28], wilson 95 % CI" in lines[0]
-    assert lines[1].startswith("**Too few episodes**") and "n ≥ 16" in lines[1]
+    assert (
+        lines[1].startswith("**Too few episodes**")
+        and "n ≥ 16" in lines[1]
+        and "not a statistically decided break" in lines[1]
+    )
     assert len(lines) == 2  # 10 pairs, one level: 2 * 0.5**10 < 0.05, the T0 test can answer
 
 
