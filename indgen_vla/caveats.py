@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, success_rate
+from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, success_rate, usable_rows
 
 MAX_SEARCH = 10_000  # the largest episode count a "would need n" hint searches
 
@@ -50,10 +50,6 @@ def pooled_text(tasks: Sequence[str]) -> str:
     return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}" if tasks else "tasks unknown"
 
 
-def _usable(levels: list[dict]) -> list[dict]:
-    return [r for r in levels if r["n"] > 0 and not r.get("insufficient", False)]
-
-
 def _tasks(a: dict) -> str:
     tasks = a.get("pooled_tasks") or []
     return f"task {tasks[0]}" if len(tasks) == 1 else f"tasks {', '.join(tasks)}" if tasks else "its tasks"
@@ -64,18 +60,18 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
     show (each line names the run, axis, n and tasks)."""
     out = []
     where = f"{label}, `{axis}`, {_tasks(a)}"
-    t0 = next((r for r in _usable(a["levels"]) if r["level"] == 0), None)
+    t0 = next((r for r in usable_rows(a["levels"]) if r["level"] == 0), None)
     if t0 is not None and t0["rate"] < gamma:
         out.append(f"**Cannot answer** ({where}): T0 succeeds in {t0['successes']}/{t0['n']} "
                    f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {ci} 95 % CI), "
                    f"below γ = {gamma}: a policy that does not solve the base task (or acts blind to it) has no "
                    "generalization to measure; its k* is 0 by construction.")  # fmt: skip
     ran = [r["n"] for r in a["levels"] if r["n"] > 0]
-    if ran and not _usable(a["levels"]):
+    if ran and not usable_rows(a["levels"]):
         out.append(f"**Too few episodes** ({where}): every level is below the data floor (at most n = {max(ran)} a "
                    f"level; a rate needs ≥ {MIN_N} finished episodes and half the planned ones), so no rate, no k* "
                    "and no test is given.")  # fmt: skip
-    ns = [r["n"] for r in _usable(a["levels"])]
+    ns = [r["n"] for r in usable_rows(a["levels"])]
     if ns and break_undecidable(max(ns), gamma, ci):
         need = needed_for_break(gamma, ci)
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.breakpoint import signed_level
-from indgen_vla.metrics import difference_ci
+from indgen_vla.metrics import difference_ci, usable_rows
 from indgen_vla.records import atomic_savefig
 from indgen_vla.training_support import fully_trained
 
@@ -22,11 +22,6 @@ AXES_PLOT = (
 )
 PANELS_PER_ROW = 4  # the paper's Fig. 3/4 row; a report with more axes wraps onto further rows
 KSTAR_LABEL = "k* (first level below γ)"
-
-
-def usable(rows: list[dict]) -> list[dict]:
-    """The rows a curve draws: levels with finished episodes above the data floor."""
-    return [r for r in rows if r["n"] > 0 and not r.get("insufficient", False)]
 
 
 def _once(shown: set[str], label: str) -> str | None:
@@ -56,7 +51,7 @@ def draw_curves(
     levels: list[int] = []
     signed = False
     for i, (label, a) in enumerate(curves):
-        rows = usable(a["levels"])
+        rows = usable_rows(a["levels"])
         ks = [r["level"] for r in rows]
         levels += ks
         signed |= a["signed"]
@@ -84,7 +79,7 @@ def draw_curves(
         per_task = a.get("tasks", {})
         if tasks and len(per_task) > 1:
             for j, t in enumerate(sorted(per_task)):
-                tr = usable(per_task[t]["levels"])
+                tr = usable_rows(per_task[t]["levels"])
                 ax.plot([r["level"] for r in tr], [r["rate"] for r in tr], color=colour, alpha=0.25, lw=0.8,
                         zorder=1, label=f"{label}: single tasks ({len(per_task)})" if j == 0 else None)  # fmt: skip
     ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
@@ -182,7 +177,7 @@ def unit_name(unit: str, x: float) -> str:
 def curve_note(axes: Sequence[dict]) -> str:
     """The episodes behind each point and the tasks pooled, for a legend or title: "n = 10 per level; tasks bread,
     milk" (more than four tasks: their count and the first three)."""
-    ns = [r["n"] for a in axes for r in usable(a["levels"])]
+    ns = [r["n"] for a in axes for r in usable_rows(a["levels"])]
     return count_note(ns, sorted({t for a in axes for t in a.get("pooled_tasks") or []}))
 
 
@@ -273,7 +268,7 @@ def largest_drop(rows: list[dict]) -> dict | None:
     """The level with the lowest rate below T0's and the drop from T0 with its 95 % interval: the paired one of the
     level's ``vs_t0`` (episodes sharing seeds, contrasts.py) where the run pairs them, else unpaired (MOVER from the
     two levels' intervals); ties go to the level nearer T0. None when T0 or every other level lacks data."""
-    rows = usable(rows)
+    rows = usable_rows(rows)
     t0 = next((r for r in rows if r["level"] == 0), None)
     rest = [r for r in rows if r["level"] != 0]
     if t0 is None or not rest:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.metrics import is_usable
 from indgen_vla.progression import split_held
 from indgen_vla.records import atomic_savefig
 
@@ -27,6 +28,11 @@ class Grid:
     def levels(self) -> list[int]:
         """The levels k of A evaluated in any row, ascending."""
         return sorted({r["level"] for a in self.rows.values() for r in a["levels"]})
+
+    @property
+    def tasks(self) -> list[str]:
+        """Every task any row pools, sorted (the table's and the heatmap's "pooled over")."""
+        return sorted({t for a in self.rows.values() for t in a.get("pooled_tasks") or []})
 
 
 def find_grids(axes: Mapping[str, dict]) -> list[Grid]:
@@ -50,11 +56,6 @@ def find_grids(axes: Mapping[str, dict]) -> list[Grid]:
     return grids
 
 
-def usable(row: dict | None) -> bool:
-    """A level with finished episodes above the data floor (its rate is reported)."""
-    return row is not None and row["n"] > 0 and not row.get("insufficient", False)
-
-
 def grid_matrix(grid: Grid) -> tuple[list[int], list[int], np.ndarray, np.ndarray]:
     """(held levels j, levels k, rate[j, k], n[j, k]): rate NaN where the level was not run or is below the data
     floor, n 0 where it was not run."""
@@ -66,7 +67,7 @@ def grid_matrix(grid: Grid) -> tuple[list[int], list[int], np.ndarray, np.ndarra
         for c, k in enumerate(ks):
             row = by_level.get(k)
             n[i, c] = row["n"] if row else 0
-            if usable(row):
+            if is_usable(row):
                 rate[i, c] = row["rate"]
     return js, ks, rate, n
 
@@ -98,7 +99,7 @@ def grid_lines(
     several = len(summaries) > 1
     for label, s in summaries:
         for g in find_grids(s["axes"]):
-            tasks = sorted({t for a in g.rows.values() for t in a.get("pooled_tasks") or []})
+            tasks = g.tasks
             own = f"; row 0 is `{g.inner}` itself, the same environments" if g.names.get(0) == g.inner else ""
             first, last = g.names[min(g.names)], g.names[max(g.names)]
             lines += [
@@ -164,8 +165,7 @@ def grid_figure(panels: Sequence[tuple[str, Grid]], gamma: float):
         ax.set_yticks(range(len(js)), [_signed(j) for j in js], fontsize=7)
         ax.set_xlabel(f"level k of {g.inner}", fontsize=8)
         ax.set_ylabel(f"{g.held} held at level j", fontsize=8)
-        tasks = sorted({t for a in g.rows.values() for t in a.get("pooled_tasks") or []})
-        pooled = ", ".join(tasks) if len(tasks) <= 3 else f"{len(tasks)} tasks"
+        pooled = ", ".join(g.tasks) if len(g.tasks) <= 3 else f"{len(g.tasks)} tasks"
         ax.set_title(f"{label}\npooled over: {pooled or '(unknown)'}; cells: rate, 95 % CI, n", fontsize=8)
     cbar = fig.colorbar(image, ax=list(axs), shrink=0.9)
     cbar.set_label("success rate", fontsize=8)

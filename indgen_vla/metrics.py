@@ -6,6 +6,7 @@ import functools
 import math
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from indgen_vla.errors import ConfigError
 
@@ -90,6 +91,16 @@ MIN_N = 5  # data floor: fewer finished episodes than this never yields a printe
 def below_floor(n: int, planned: int | None = None) -> bool:
     """Issue 18's data floor: a level is insufficient when n < 5 or n < half the planned episodes."""
     return n < MIN_N or (planned is not None and planned > 0 and 2 * n < planned)
+
+
+def is_usable(row: Mapping[str, Any] | None) -> bool:
+    """A summary level row a rate may be printed or drawn from: finished episodes, above the data floor."""
+    return row is not None and row["n"] > 0 and not row.get("insufficient", False)
+
+
+def usable_rows(rows: Sequence[Mapping[str, Any]]) -> list:
+    """The level rows ``is_usable`` keeps, in order (a curve's points, a caveat's evidence)."""
+    return [r for r in rows if is_usable(r)]
 
 
 class UndeterminedBreakError(ConfigError):
