@@ -45,15 +45,13 @@ def _rates(df) -> dict[int, float]:
     return {int(k): float(g["success"].mean()) for k, g in _ok(df).groupby("level")}
 
 
-def _kstar_rates(df) -> dict[int, float]:
-    """Rates for a seed's k*, as ``report`` reads them: a level below the data floor (fewer than 5 finished episodes,
-    or under half its recorded ones, errors included) is NaN, never a measurement (``levels.usable_rates``)."""
-    ok = _ok(df)
+def _floored(rates: dict[int, float], df) -> dict[int, float]:
+    """``rates`` as ``report`` reads them for a seed's k*: a level below the data floor (fewer than 5 finished
+    episodes, or under half its recorded ones, errors included) is NaN, never a measurement (``levels.usable_rates``)."""
+    finished, recorded = _ok(df)["level"].value_counts(), df["level"].value_counts()
     return {
-        int(k): math.nan
-        if below_floor(int((ok["level"] == k).sum()), len(g))
-        else float(ok[ok["level"] == k]["success"].mean())
-        for k, g in df.groupby("level")
+        int(k): math.nan if below_floor(int(finished.get(k, 0)), int(m)) else rates[int(k)]
+        for k, m in recorded.items()
     }
 
 
@@ -111,7 +109,8 @@ def _seed_level(episodes_a: list, episodes_b: list, axis: str, gamma: float, mar
     for side, group in (("a", episodes_a), ("b", episodes_b)):
         for df in group:
             rows = df[df["axis"] == axis]
-            rates, usable = _rates(rows), _kstar_rates(rows)
+            rates = _rates(rows)
+            usable = _floored(rates, rows)
             signed = any(k < 0 for k in rates)
             for d in ("pos", "neg") if signed else ("pos",):
                 own = {k: r for k, r in usable.items() if (k >= 0 if d == "pos" else k <= 0)}
