@@ -56,7 +56,9 @@ def test_paired_levels_pool_discordant_pairs_over_seeds():
     assert (
         "| -1 | 8 | 1/8 = 12% [2, 47] | 7/8 = 88% [53, 98] | 0 | 6 |" in md
     )  # Wilson, scipy: 1/8 -> [.022, .47]
-    assert "or K+1 when no level through the last one run (K) breaks" in md  # what a k* of +2 at levels 0..1 is
+    assert (
+        "or K+1 when no level through the last one run (K) breaks" in md
+    )  # what a k* of +2 at levels 0..1 is
     assert (
         res["caveats"] == [] and "**Cannot answer**" not in md
     )  # 3 · 2 · 0.5**8 = 0.023 < 0.05 was possible
