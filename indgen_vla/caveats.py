@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, success_rate, usable_rows
+from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, pooled_text, success_rate, usable_rows
 
 MAX_SEARCH = 10_000  # the largest episode count a "would need n" hint searches
 
@@ -43,23 +43,11 @@ def rate_text(successes: int, n: int) -> str:
     return f"{successes}/{n} = {100 * r.rate:.0f}% [{100 * r.ci_low:.0f}, {100 * r.ci_high:.0f}]"
 
 
-def pooled_text(tasks: Sequence[str]) -> str:
-    """Which tasks a pooled rate pools, by name: "task milk", "pooled over 2 tasks: bread, milk"."""
-    if len(tasks) == 1:
-        return f"task {tasks[0]}"
-    return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}" if tasks else "tasks unknown"
-
-
-def _tasks(a: dict) -> str:
-    tasks = a.get("pooled_tasks") or []
-    return f"task {tasks[0]}" if len(tasks) == 1 else f"tasks {', '.join(tasks)}" if tasks else "its tasks"
-
-
 def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: float = 0.05) -> list[str]:
     """What one run's axis cannot answer: T0 below γ, a break no level could show, a change from T0 no level could
     show (each line names the run, axis, n and tasks)."""
     out = []
-    where = f"{label}, `{axis}`, {_tasks(a)}"
+    where = f"{label}, `{axis}`, {pooled_text(a.get('pooled_tasks') or [])}"
     t0 = next((r for r in usable_rows(a["levels"]) if r["level"] == 0), None)
     if t0 is not None and t0["rate"] < gamma:
         out.append(f"**Cannot answer** ({where}): T0 succeeds in {t0['successes']}/{t0['n']} "

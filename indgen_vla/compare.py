@@ -22,6 +22,7 @@ from indgen_vla.metrics import (
     compare_levels,
     compare_paired_levels,
     difference_ci,
+    pooled_text,
     success_rate,
 )
 from indgen_vla.pairing import pair_episodes
@@ -177,7 +178,7 @@ def verdict(result: dict, label_a: str, label_b: str, alpha: float = 0.05) -> st
         sig = [r for r in ax["levels"] if not math.isnan(r["p_holm"]) and r["p_holm"] < alpha]
         ka, kb = ax["break_level_a"], ax["break_level_b"]
         k_text = f"k* {_k(ka)} ({label_a}) vs {_k(kb)} ({label_b})" + (
-            f"; tasks: {ax['tasks']}" if ax.get("tasks") else ""
+            f"; {ax['tasks']}" if ax.get("tasks") else ""
         )
         if not sig:
             sentences.append(
@@ -228,7 +229,7 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
             if "axis_a" in ax
             else f"Axis `{axis}`"
         )
-        lines += [f"## {head}", ""] + ([f"Tasks: {ax['tasks']}. A and B: successes/n = rate [Wilson 95 % CI].", ""]
+        lines += [f"## {head}", ""] + ([f"A and B: successes/n = rate [Wilson 95 % CI]; {ax['tasks']}.", ""]
                                        if ax.get("tasks") else [])  # fmt: skip
         if paired:
             lines += [f"Pairs: {ax.get('pairing', '')}.", ""]
@@ -265,10 +266,10 @@ def pairing_note(result: dict) -> str:
 
 
 def tasks_text(ta: list[str], tb: list[str]) -> str:
-    """compare.md's "Tasks:" line of one axis: the tasks both runs pool, or each run's where they differ."""
+    """The tasks both runs' rates on one axis pool, or each run's where they differ (``metrics.pooled_text``)."""
     if ta == tb:
-        return ", ".join(ta) or "unknown"
-    return f"A: {', '.join(ta) or 'unknown'}; B: {', '.join(tb) or 'unknown'} (rates pool different tasks)"
+        return pooled_text(ta)
+    return f"A: {pooled_text(ta)}; B: {pooled_text(tb)} (rates pool different tasks)"
 
 
 def _p(x: float) -> str:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from indgen_vla.caveats import compare_caveats, pooled_text, rate_text
+from indgen_vla.caveats import compare_caveats, rate_text
 from indgen_vla.errors import RunDirError
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
@@ -24,6 +24,7 @@ from indgen_vla.metrics import (
     below_floor,
     holm,
     kstar,
+    pooled_text,
     success_rate,
 )
 from indgen_vla.pairing import pair_episodes

@@ -16,10 +16,9 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from indgen_vla.caveats import pooled_text
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.levels import usable_levels
-from indgen_vla.metrics import compare_paired_levels, wilson_ci
+from indgen_vla.metrics import compare_paired_levels, pooled_text, wilson_ci
 
 ALPHA = 0.05  # the level of the report's Δ-vs-T0 verdicts (Holm) and of its equivalence tests
 EPISODE_KEY = ("scene", "task", "episode")  # what pairs two levels of one axis; "level" too between two axes
@@ -366,8 +365,9 @@ class AxisPairs:
         """The pairing in one line (compare.md's "Pairs:")."""
         n = sum(len(p) for p in self.pairs.values())
         ua, ub = (sum(u[i] for u in self.unpaired.values()) for i in (0, 1))
-        text = (f"{n} episode pairs over task{'s' * (len(self.tasks) != 1)} {', '.join(self.tasks) or '—'} "
-                "(matched on scene, task, level, episode and seed)")  # fmt: skip
+        text = (
+            f"{n} episode pairs ({pooled_text(self.tasks)}; matched on scene, task, level, episode and seed)"
+        )
         if ua or ub:
             text += (
                 f"; pairing incomplete: {ua} finished episode(s) of A and {ub} of B have no finished partner"

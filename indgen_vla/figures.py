@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.breakpoint import signed_level
-from indgen_vla.metrics import difference_ci, usable_rows
+from indgen_vla.metrics import difference_ci, pooled_text, usable_rows
 from indgen_vla.records import atomic_savefig
 from indgen_vla.training_support import fully_trained
 
@@ -175,8 +175,8 @@ def unit_name(unit: str, x: float) -> str:
 
 
 def curve_note(axes: Sequence[dict]) -> str:
-    """The episodes behind each point and the tasks pooled, for a legend or title: "n = 10 per level; tasks bread,
-    milk" (more than four tasks: their count and the first three)."""
+    """The episodes behind each point and the tasks pooled, for a legend or title: "n = 10 per level; pooled over 2
+    tasks: bread, milk" (``metrics.pooled_text``)."""
     ns = [r["n"] for a in axes for r in usable_rows(a["levels"])]
     return count_note(ns, sorted({t for a in axes for t in a.get("pooled_tasks") or []}))
 
@@ -184,9 +184,7 @@ def curve_note(axes: Sequence[dict]) -> str:
 def count_note(ns: Sequence[int], tasks: Sequence[str]) -> str:
     """``curve_note`` from the counts behind each point (their range) and the tasks pooled."""
     n = "" if not ns else f"n = {min(ns)}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
-    pooled = ("" if not tasks else f"task {tasks[0]}" if len(tasks) == 1 else f"tasks {', '.join(tasks)}"
-              if len(tasks) <= 4 else f"{len(tasks)} tasks pooled ({', '.join(tasks[:3])}, …)")  # fmt: skip
-    return "; ".join(p for p in (f"{n} per level" if n else "", pooled) if p)
+    return "; ".join(p for p in (f"{n} per level" if n else "", pooled_text(tasks)) if p)
 
 
 def _legend_label(label: str, s: dict) -> str:
@@ -317,8 +315,11 @@ def overview_lines(summaries: Sequence[tuple[str, dict]], order: Sequence[str] |
     several = len(summaries) > 1
     tasks = {tuple(a.get("pooled_tasks") or ()) for _, s in summaries for a in s["axes"].values()}
     only = next(iter(tasks)) if len(tasks) == 1 else ()
-    pooled = (f"Task{'s' * (len(only) > 1)}: {', '.join(only)}." if only
-              else "Each row pools the tasks its axis's section below names.")  # fmt: skip
+    pooled = (
+        f"Every row: {pooled_text(only)}."
+        if only
+        else "Each row pools the tasks its axis's section below names."
+    )
     header = ["axis", *(["run"] if several else []), *(f"{signed_level(k, minus='−')}{' (T0)' * (k == 0)}" for k in levels),
               "largest drop from T0 (pp, 95 % CI)"]  # fmt: skip
     lines = ["## Overview: success per axis and level (the paper's Table 2)", "",

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.metrics import is_usable
+from indgen_vla.metrics import is_usable, pooled_text
 from indgen_vla.progression import split_held
 from indgen_vla.records import atomic_savefig
 
@@ -105,8 +105,8 @@ def grid_lines(
             lines += [
                 f"## Grid `{g.inner}` × `{g.held}`" + (f" — {label}" if several else ""), "",
                 f"Success per level k of `{g.inner}` (columns) with `{g.held}` held at level j (rows: axis "
-                f"`{g.inner}@{g.held}=j`{own}). Cells as in the axis tables, each row its own ladder; pooled over "
-                f"task{'s' * (len(tasks) > 1)}: {', '.join(tasks) or '(unknown)'}. k*: the row's first level below "
+                f"`{g.inner}@{g.held}=j`{own}). Cells as in the axis tables, each row its own ladder; "
+                f"{pooled_text(tasks)}. k*: the row's first level below "
                 f"γ = {s['gamma']}. No test between rows here: `indgen compare RUN --axes {last}:{first}` pairs two "
                 "rows episode by episode (same seeds).", "",
                 f"| {g.held} j \\ {g.inner} k | " + " | ".join(_signed(k) for k in g.levels) + " | k\\* |",
@@ -165,8 +165,7 @@ def grid_figure(panels: Sequence[tuple[str, Grid]], gamma: float):
         ax.set_yticks(range(len(js)), [_signed(j) for j in js], fontsize=7)
         ax.set_xlabel(f"level k of {g.inner}", fontsize=8)
         ax.set_ylabel(f"{g.held} held at level j", fontsize=8)
-        pooled = ", ".join(g.tasks) if len(g.tasks) <= 3 else f"{len(g.tasks)} tasks"
-        ax.set_title(f"{label}\npooled over: {pooled or '(unknown)'}; cells: rate, 95 % CI, n", fontsize=8)
+        ax.set_title(f"{label}\n{pooled_text(g.tasks)}; cells: rate, 95 % CI, n", fontsize=8)
     cbar = fig.colorbar(image, ax=list(axs), shrink=0.9)
     cbar.set_label("success rate", fontsize=8)
     cbar.ax.axhline(gamma, color="black", lw=1, ls="--")

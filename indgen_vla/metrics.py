@@ -103,6 +103,22 @@ def usable_rows(rows: Sequence[Mapping[str, Any]]) -> list:
     return [r for r in rows if is_usable(r)]
 
 
+NAMED_TASKS = 4  # a task list longer than this names its first NAMED_TASKS - 1 and counts the rest
+
+
+def pooled_text(tasks: Sequence[str]) -> str:
+    """Which tasks a rate pools, in the one wording every report, plot and terminal line uses: "task milk", "pooled
+    over 2 tasks: bread, milk", "pooled over 12 tasks: a, b, c and 9 more", "tasks unknown"."""
+    if len(tasks) == 1:
+        return f"task {tasks[0]}"
+    if not tasks:
+        return "tasks unknown"
+    if len(tasks) <= NAMED_TASKS:
+        return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}"
+    shown = NAMED_TASKS - 1
+    return f"pooled over {len(tasks)} tasks: {', '.join(tasks[:shown])} and {len(tasks) - shown} more"
+
+
 class UndeterminedBreakError(ConfigError):
     """k* cannot be read off: a level with no usable data lies before the first break (a hole)."""
 

@@ -7,14 +7,14 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.breakpoint import kstar_spread
-from indgen_vla.caveats import pooled_text, report_caveats
+from indgen_vla.caveats import report_caveats
 from indgen_vla.contrasts import check_margin, render_vs_t0, t0_lines
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.failures import plot_failures, render_breakdown
 from indgen_vla.figures import AXES_PLOT, axis_order, axis_specs, overview_lines, plot_axes, plot_axis
 from indgen_vla.grid import grid_lines, plot_grids
 from indgen_vla.levels import fmt_condition2, verdict_line
-from indgen_vla.metrics import DEFAULT_GAMMA, MIN_N, UNDETERMINED
+from indgen_vla.metrics import DEFAULT_GAMMA, MIN_N, UNDETERMINED, pooled_text
 from indgen_vla.progress import plot_progress, render_levels
 from indgen_vla.records import REPORT, SECTIONS, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 from indgen_vla.summary import summarize
@@ -58,8 +58,8 @@ def _fmt_rate(row: dict) -> str:
 
 
 def partial_pool_text(row: dict) -> str:
-    """ "; only t1, t2" beside a pooled rate of an adaptive run that pools a subset of its tasks at that level."""
-    return f"; only {', '.join(row['pooled_only'])}" if row.get("pooled_only") else ""
+    """ "; task t1 only" beside a pooled rate of an adaptive run that pools a subset of its tasks at that level."""
+    return f"; {pooled_text(row['pooled_only'])} only" if row.get("pooled_only") else ""
 
 
 def _fmt_break(b: dict, signed: bool) -> str:
@@ -162,11 +162,10 @@ def pool_warnings(label: str, axis_summary: dict) -> list[str]:
 
 def _pools(present: list[tuple[str, dict]]) -> str:
     """Which tasks each run's pooled curve pools (one line)."""
-    texts = {lbl: ", ".join(a.get("pooled_tasks") or ["(unknown)"]) for lbl, a in present}
+    texts = {lbl: pooled_text(a.get("pooled_tasks") or []) for lbl, a in present}
     if len(set(texts.values())) == 1:
-        t = next(iter(texts.values()))
-        return f"Pooled over task{'s' * (',' in t)}: {t}."
-    return "Pooled over tasks: " + "; ".join(f"{lbl}: {t}" for lbl, t in texts.items()) + "."
+        return f"Every rate below: {next(iter(texts.values()))}."
+    return "Rates by run: " + "; ".join(f"{lbl}: {t}" for lbl, t in texts.items()) + "."
 
 
 def render_markdown(
@@ -372,7 +371,7 @@ def print_tables(results: list[tuple[str, dict]]) -> None:
                     rate, ci = insufficient_text(r), ""
                 else:
                     rate = f"{100 * r['rate']:.0f}%" + (
-                        f" ({len(r['pooled_only'])} tasks)" if r.get("pooled_only") else ""
+                        f" ({pooled_text(r['pooled_only'])} only)" if r.get("pooled_only") else ""
                     )
                     ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
                 t.add_row(str(r["level"]), _param(r["param"]), str(r["n"]), str(r["errors"]), rate, ci)

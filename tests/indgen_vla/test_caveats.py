@@ -13,12 +13,12 @@ from indgen_vla.caveats import (
     design_caveats,
     needed_for_break,
     needed_pairs,
-    pooled_text,
     rate_text,
 )
 from indgen_vla.compare import pairing_note, render_markdown, tasks_text
 from indgen_vla.contrasts import t0_lines
 from indgen_vla.figures import count_note, curve_note
+from indgen_vla.metrics import pooled_text
 from indgen_vla.report import render_markdown as report_md
 
 
@@ -62,7 +62,7 @@ def _axis(t0_successes: int, n: int) -> dict:
 def test_axis_caveats_name_run_axis_n_ci_and_tasks():
     lines = axis_caveats("standin:random", "pick_y", _axis(0, 10), 0.2, "wilson")
     assert lines[0].startswith(
-        "**Cannot answer** (standin:random, `pick_y`, tasks bread, milk): T0 succeeds in 0/10"
+        "**Cannot answer** (standin:random, `pick_y`, pooled over 2 tasks: bread, milk): T0 succeeds in 0/10"
     )
     assert "0% [0, 28], wilson 95 % CI" in lines[0]
     assert (
@@ -90,7 +90,7 @@ def test_a_study_below_the_data_floor_everywhere_says_so_first():
     a["levels"][1]["vs_t0"]["p"] = float("nan")  # and no test (summary: NaN below the floor)
     (line,) = axis_caveats("real", "stack", a, 0.2, "wilson")
     assert line.startswith(
-        "**Too few episodes** (real, `stack`, tasks bread, milk): every level is below the data floor"
+        "**Too few episodes** (real, `stack`, pooled over 2 tasks: bread, milk): every level is below the data floor"
     )
     assert "at most n = 3 a level" in line
 
@@ -111,7 +111,7 @@ def _compare(paired: bool, n: int) -> dict:
     row = {"level": 0, "n_a": n, "successes_a": n, "rate_a": 1.0, "n_b": n, "successes_b": 0, "rate_b": 0.0,
            "pairs": n, "a_only": n, "b_only": 0, "p_value": 0.0625, "p_holm": 0.125}  # fmt: skip
     ax = {"levels": [row, {**row, "level": 1}], "break_level_a": {"pos": None}, "break_level_b": {"pos": 0},
-          "tasks": "milk"}  # fmt: skip
+          "tasks": "task milk"}  # fmt: skip
     return {"test": "mcnemar_exact" if paired else "boschloo", "paired": paired, "axes": {"d": ax}}
 
 
@@ -122,15 +122,18 @@ def test_compare_first_lines_say_a_powerless_comparison_cannot_answer():
     assert first.startswith("**Cannot answer** (`d`): at most 5 episode pairs a level and Holm over 2 levels")
     assert "Holm p = 0.125" in first
     assert "| 0 | 5/5 = 100% [57, 100] | 0/5 = 0% [0, 43] |" in text  # Wilson: 5/(5 + z²) = 0.566
-    assert "Tasks: milk." in text
+    assert "A and B: successes/n = rate [Wilson 95 % CI]; task milk." in text
     assert compare_caveats(_compare(True, 10)) == []  # 2 * 2 * 0.5**10 < 0.05
     assert compare_caveats(_compare(False, 5)) == []  # Boschloo 5/5 vs 0/5: p = 0.0079, Holm 0.016
 
 
 def test_compare_helpers_say_paired_and_tasks():
     assert rate_text(0, 0) == "0/0" and rate_text(5, 5) == "5/5 = 100% [57, 100]"
-    assert tasks_text(["milk"], ["milk"]) == "milk"
-    assert tasks_text(["a"], ["b"]).startswith("A: a; B: b")
+    assert tasks_text(["milk"], ["milk"]) == "task milk"
+    assert (
+        tasks_text(["a"], ["b", "c"])
+        == "A: task a; B: pooled over 2 tasks: b, c (rates pool different tasks)"
+    )
     assert pairing_note({"paired": True}).startswith("paired")
     assert pairing_note({"paired": False, "test": "boschloo"}).startswith("unpaired: Boschloo")
 
@@ -138,6 +141,9 @@ def test_compare_helpers_say_paired_and_tasks():
 def test_pools_are_named_in_terminal_and_report():
     assert pooled_text(["milk"]) == "task milk"
     assert pooled_text(["bread", "milk"]) == "pooled over 2 tasks: bread, milk"
+    assert pooled_text(list("abcd")) == "pooled over 4 tasks: a, b, c, d"
+    assert pooled_text(list("abcdefg")) == "pooled over 7 tasks: a, b, c and 4 more"  # long lists: 3 named
+    assert pooled_text([]) == "tasks unknown"
     a = _axis(0, 10)
     a["levels"][1]["vs_t0"].update(
         delta=0.0, ci=[-0.28, 0.28], discordant=[0, 0], p_holm=1.0, unpaired=[0, 0]
@@ -155,6 +161,6 @@ def test_pools_are_named_in_terminal_and_report():
 
 def test_plot_notes_carry_n_and_tasks():
     assert count_note([10, 10], ["milk"]) == "n = 10 per level; task milk"
-    assert count_note([5, 10], ["bread", "milk"]) == "n = 5–10 per level; tasks bread, milk"
-    assert count_note([3], list("abcde")) == "n = 3 per level; 5 tasks pooled (a, b, c, …)"
-    assert curve_note([_axis(0, 10)]) == "n = 10 per level; tasks bread, milk"
+    assert count_note([5, 10], ["bread", "milk"]) == "n = 5–10 per level; pooled over 2 tasks: bread, milk"
+    assert count_note([3], list("abcde")) == "n = 3 per level; pooled over 5 tasks: a, b, c and 2 more"
+    assert curve_note([_axis(0, 10)]) == "n = 10 per level; pooled over 2 tasks: bread, milk"

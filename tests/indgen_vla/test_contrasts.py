@@ -115,6 +115,9 @@ def test_pair_axes_matches_levels_and_refuses_unpaired_axes():
     assert sorted(p.pairs) == [0, 1] and p.only_a == (3,) and p.only_b == (2,)
     assert sum(a and not b for a, b in p.pairs[1]) == 0 and sum(b and not a for a, b in p.pairs[1]) == 4
     assert p.unpaired == {0: (0, 0), 1: (1, 0)}
+    assert p.describe().startswith(
+        "11 episode pairs (task t; matched on scene, task, level, episode and seed)"
+    )
     assert "pairing incomplete: 1 finished episode(s) of A" in p.describe()
     with pytest.raises(RunDirError, match="share no level"):
         pair_axes(comp[comp["level"] == 3], single, "c", "p")
@@ -299,7 +302,7 @@ def test_adaptive_ladders_pair_only_what_ran(tmp_path):
 
     assert "pooled_only" not in rows[0] and rows[2]["pooled_only"] == ["easy"]
     if not rows[2]["insufficient"]:
-        assert "; only easy)" in _fmt_rate(rows[2])
+        assert "; task easy only)" in _fmt_rate(rows[2])
     (note,) = pool_warnings("p", ax)
     assert "level(s) 2 (1 of 2)" in note and "not comparable across levels" in note
 

@@ -98,7 +98,7 @@ def test_overview_table_matches_table_2(tmp_path):
         "| `pick_y` | 60% [31, 83] n=10 | 90% [60, 98] n=10 | **10% [2, 40] n=10** | 80 pp at +1"
     )
     assert goal.endswith("| 90% [60, 98] n=10 | 100% [72, 100] n=10 | none: no level below T0 |")
-    assert scale.startswith("| `scale` | – | 100% [72, 100] n=10 |") and "Task: milk." in lines[2]
+    assert scale.startswith("| `scale` | – | 100% [72, 100] n=10 |") and "Every row: task milk." in lines[2]
     # one axis: its own table shows the same
     assert overview_lines([_summary(tmp_path, {"pick_y": {0: 9, 1: 1}}, name="b")]) == []
 

@@ -62,7 +62,10 @@ def test_grid_table_rows_are_held_levels_with_the_reports_cells_and_each_rows_ks
     assert row0[3] == "+: L1, −: none |"  # 10 % < γ = 0.2 at k = 1; no negative level evaluated
     assert row2[0] == "| 2" and row2[1].startswith("80% [49, 94] (n=10)")
     assert row2[2] == "insufficient data (n = 2)" and row2[3] == "+: undetermined, −: none |"
-    assert "pooled over task: t" in lines[2] and "--axes pick_y@distractor=2:pick_y@distractor=0" in lines[2]
+    assert (
+        "each row its own ladder; task t." in lines[2]
+        and "--axes pick_y@distractor=2:pick_y@distractor=0" in lines[2]
+    )
     # the report places it after the overview, and a single held axis makes no grid
     md = render_markdown([("h-only", s)])
     assert md.index("## Grid `pick_y` × `distractor`") < md.index("## Axis `pick_y@distractor=0`")

@@ -104,7 +104,7 @@ def test_per_task_summary_and_pooled_curve(tmp_path):
     assert ta["break_level"]["pos"] == 2 and tb["break_level"]["pos"] == 1
     assert tb["levels"][1]["ci_low"] == pytest.approx(0.030053, abs=1e-5)  # Wilson 1/6
     md = render_markdown([("run", s)])
-    assert "Pooled over tasks: a, b." in md and "k* per task" in md
+    assert "Every rate below: pooled over 2 tasks: a, b." in md and "k* per task" in md
     assert "| a | +: L2, −: none |" in md and "| b | +: L1, −: none |" in md
     assert (
         "| **across tasks** | +: L1 ×1, L2 ×1 (2 tasks; median L1 to L2); −: none ×2 (2 tasks; median none) |"
