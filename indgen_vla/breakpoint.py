@@ -10,7 +10,7 @@ episodes (multi-stage over clusters such as tasks or training seeds when given).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,12 +35,16 @@ def signed_level(k: int, minus: str = "-") -> str:
     return f"+{k}" if k > 0 else f"{minus}{-k}" if k < 0 else "0"
 
 
-def kstar_status(verdicts: Mapping[int, str], order: Sequence[int]) -> dict:
+def kstar_status(
+    verdicts: Mapping[int, str], order: Sequence[int], run: Collection[int] | None = None
+) -> dict:
     """Where k* can be, given per-level verdicts walked in `order` (outward from level 0, one direction).
 
     The earliest possible break is the first level not "intact"; the latest is the first "broken" one.
     k* is determined when they coincide. A level missing from `verdicts` (not run) or still open counts
     as unknown. Returns {"earliest", "latest", "determined", "text"}; latest None = beyond the last level.
+    The text speaks only of the levels in ``run`` (those with a finished episode; default: those in
+    ``verdicts``) and names the planned levels of ``order`` not run yet (an adaptive run stopped or running).
     """
     earliest = latest = None
     for k in order:
@@ -63,12 +67,29 @@ def kstar_status(verdicts: Mapping[int, str], order: Sequence[int]) -> dict:
             "determined": True,
             "text": f"k* = {signed_level(earliest)}, determined",
         }
+    ran = set(verdicts) if run is None else set(run)
     if latest is None:
-        text = f"k* at or beyond {signed_level(earliest)} (no level through {signed_level(last)} is decided broken)"
+        text = f"k* at or beyond {signed_level(earliest)} ({_open_text(order, ran)})"
     else:
         lo, hi = sorted((earliest, latest))
-        text = f"k* ∈ [{signed_level(lo)}, {signed_level(hi)}]"
+        holes = _levels_text([k for k in order[: order.index(latest)] if k not in ran])
+        text = f"k* ∈ [{signed_level(lo)}, {signed_level(hi)}]" + (f" ({holes} not run)" if holes else "")
     return {"earliest": earliest, "latest": latest, "determined": False, "text": text}
+
+
+def _levels_text(levels: Sequence[int]) -> str:
+    return ", ".join(signed_level(k) for k in levels)
+
+
+def _open_text(order: Sequence[int], ran: set[int]) -> str:
+    """Why no break is decided yet, naming only levels that ran: "no level through +2 is decided broken; +3 not
+    run" (a level planned but not run is never counted as tested)."""
+    done = [k for k in order if k in ran]
+    missing = _levels_text([k for k in order if k not in ran])
+    if not done:
+        return f"no level run yet; {missing} planned"
+    tail = f"; {missing} not run" if missing else ""
+    return f"no level through {signed_level(done[-1])} is decided broken{tail}"
 
 
 def kstar_spread(ks: Sequence[int | None | str], minus: str = "-") -> str:
@@ -108,12 +129,13 @@ def fixed_run_status(levels: Sequence[Mapping], gamma: float, signed: bool | Non
         for r in levels
     }
     rates = {int(r["level"]): float(r["rate"]) for r in levels if r.get("n", 1)}
+    ran = {int(r["level"]) for r in levels if r.get("n", 1) or r.get("errors")}
     if signed is None:
         signed = any(k < 0 for k in verdicts)
     out: dict = {"verdicts": verdicts, "kstar": {}}
     for direction, sign in (("pos", 1), ("neg", -1)) if signed else (("pos", 1),):
         order = sorted((k for k in verdicts if sign * k >= 0), key=abs)
-        status = kstar_status(verdicts, order)
+        status = kstar_status(verdicts, order, ran)
         status["k"] = break_level({k: v for k, v in rates.items() if sign * k >= 0}, gamma)
         out["kstar"][direction] = status
     return out

@@ -164,10 +164,12 @@ NOT_EVALUATED = "not evaluated (no level on this side of 0 was run)"  # a signed
 
 
 def kstar_status_of(rows: list[dict], signed: bool) -> dict:
-    """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]")."""
+    """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]"), speaking only
+    of the levels that ran (a planned level with no finished episode is named as not run)."""
     from indgen_vla.breakpoint import kstar_status
 
     verdicts = {r["level"]: r["decision"] for r in rows}
+    ran = {r["level"] for r in rows if r["n"] + r.get("errors", 0)}  # planned but not run: n = 0, no errors
     sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
     out = {}
     for d, s in sides:
@@ -175,7 +177,7 @@ def kstar_status_of(rows: list[dict], signed: bool) -> dict:
         out[d] = (
             {"earliest": None, "latest": None, "determined": False, "text": NOT_EVALUATED}
             if signed and order == [0]  # a signed axis run on the other side only: this side has no level
-            else kstar_status(verdicts, order)
+            else kstar_status(verdicts, order, ran)
         )
     return out
 

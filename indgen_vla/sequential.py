@@ -474,7 +474,7 @@ def plan_next(
     ks = {}
     for direction, seq in order.items():
         verdicts = {k: shown[k].verdict for k in seq if k in shown}
-        status = kstar_status(verdicts, seq)
+        status = kstar_status(verdicts, seq, [k for k in verdicts if shown[k].episodes])
         status["k"] = kstar_from_decisions(shown, seq, rule.gamma)
         if isinstance(rule, UntilFailure):
             status["text"] = rule.status_text(status["k"], shown, seq)

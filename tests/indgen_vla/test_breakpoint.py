@@ -46,6 +46,14 @@ def test_kstar_status_cases():
     assert none["determined"] and none["text"] == "no break through +1, determined"
     open_ = kstar_status({0: "intact", 1: "undetermined"}, [0, 1])
     assert open_["latest"] is None and not open_["determined"] and "at or beyond +1" in open_["text"]
+    # levels planned but not run are named as such, never counted as tested
+    planned = {0: "intact", 1: "undetermined", 2: "undetermined", 3: "undetermined"}
+    assert kstar_status(planned, pos, run=[0, 1])["text"] == (
+        "k* at or beyond +1 (no level through +1 is decided broken; +2, +3 not run)"
+    )
+    assert kstar_status(planned, pos)["text"] == "k* at or beyond +1 (no level through +3 is decided broken)"
+    hole = kstar_status({0: "intact", 1: "undetermined", 2: "broken"}, pos, run=[0, 2])
+    assert hole["text"] == "k* ∈ [+1, +2] (+1 not run)"
 
 
 def test_pava_by_hand():

@@ -203,3 +203,23 @@ def test_a_black_box_run_shows_condition_2_validated_next_to_kstar(tmp_path):
         line for line in render_markdown([("run", s)]).splitlines() if line.startswith("| condition 2")
     )
     assert "−: validated (monotone decrease" in row and "+: NOT validated" in row
+
+
+def test_kstar_status_of_an_unfinished_adaptive_run_speaks_only_of_levels_run(tmp_path):
+    """An adaptive run stopped after level +1's first look: +2 and +3 were planned, not run, so the status must not
+    say "no level through +3 is decided broken" (the summary's and the live plan's text agree)."""
+    from indgen_vla.sequential import SequentialRule, plan_entry, plan_next
+
+    rule = SequentialRule(max_episodes=20, round_size=5)
+    outcomes = {0: dict.fromkeys(range(20), True), 1: {i: i < 2 for i in range(5)}}  # 20/20, then 2/5
+    plan = {"tasks": ["t"], "levels": {"pick_y": [0, 1, 2, 3]}, "episodes": 20,
+            "adaptive": plan_entry("kstar", rule)}  # fmt: skip
+    run = RunDir.create_or_resume(tmp_path / "r", {"plan": plan, "axes": {"pick_y": {"signed": False}}})
+    run.append([rec(k, i, success=ok) for k, eps in outcomes.items() for i, ok in eps.items()])
+    ax = summarize(run.episodes(), run.manifest)["axes"]["pick_y"]
+    assert [r["decision"] for r in ax["levels"]] == ["intact", "undetermined", "undetermined", "undetermined"]
+    want = "k* at or beyond +1 (no level through +1 is decided broken; +2, +3 not run)"
+    assert ax["kstar_status"]["pos"]["text"] == want
+    assert plan_next(rule, [0, 1, 2, 3], outcomes, "kstar").kstar["pos"]["text"] == want
+    nothing = summarize(run.episodes().iloc[:0], run.manifest)["axes"]["pick_y"]["kstar_status"]["pos"]
+    assert nothing["text"] == "k* at or beyond 0 (no level run yet; 0, +1, +2, +3 planned)"
