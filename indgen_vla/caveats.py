@@ -43,6 +43,18 @@ def rate_text(successes: int, n: int) -> str:
     return f"{successes}/{n} = {100 * r.rate:.0f}% [{100 * r.ci_low:.0f}, {100 * r.ci_high:.0f}]"
 
 
+def blind_caveat(label: str, compared: bool = False) -> str:
+    """The first line for a run whose policy declares it reads no observation (``PolicySpec.reads_observations``):
+    T0 passed by chance on an easy scene must not read as a generalization curve."""
+    what = ("a difference from it says how far the other policy is from chance, not how the two generalize"
+            if compared else "k*, the trend tests and the change from T0 describe the scene, not the policy")  # fmt: skip
+    return (
+        f"**Cannot answer** ({label}): the policy declares it reads no observation, so it can neither generalize "
+        "nor fail to: its per-level rates measure each level's difficulty for a policy acting blind (chance), not "
+        f"generalization; {what}. The rates below are kept as that baseline."
+    )
+
+
 def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: float = 0.05) -> list[str]:
     """What one run's axis cannot answer: T0 below γ, a break no level could show, a change from T0 no level could
     show (each line names the run, axis, n and tasks)."""
@@ -105,20 +117,29 @@ def design_caveats(where: str, episodes: int, tested: int, gamma: float, break_b
 
 
 def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
-    """Every run's and axis's caveat lines (``axis_caveats``), in the summaries' order; [] when none applies."""
-    return [
-        line
-        for label, s in summaries
-        for axis, a in s["axes"].items()
-        for line in axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
-    ]
+    """Every run's caveat lines in the summaries' order: a declared-blind policy first (``blind_caveat``), then
+    each axis's (``axis_caveats``); [] when none applies. A run whose summary predates the declaration (no
+    ``reads_observations``) is treated as unknown: no blind line."""
+    out = []
+    for label, s in summaries:
+        if s.get("reads_observations") is False:
+            out.append(blind_caveat(label))
+        for axis, a in s["axes"].items():
+            out += axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
+    return out
 
 
 def compare_caveats(result: dict, alpha: float = 0.05) -> list[str]:
-    """compare.md's first lines: each axis on which no level could differ at α whatever the outcomes (too few
-    episodes or pairs for the test and the Holm family)."""
+    """compare.md's first lines: a side whose policy declares it reads no observation (``reads_observations``
+    {"a", "b"}), then each axis on which no level could differ at α whatever the outcomes (too few episodes or
+    pairs for the test and the Holm family)."""
     paired = bool(result.get("paired") or result.get("contrast"))
+    reads = result.get("reads_observations") or {}
     out = []
+    for side in ("a", "b"):
+        label = result.get(f"label_{side}") or side.upper()
+        if reads.get(side) is False:
+            out.append(blind_caveat(label if label == side.upper() else f"{label} ({side.upper()})", True))
     for axis, ax in result["axes"].items():
         rows = [r for r in ax["levels"] if not math.isnan(r.get("p_holm", float("nan")))]
         if not rows:

@@ -77,6 +77,7 @@ def compare_summaries(
         "paired": paired,
         "gamma": gamma,
         "delta_interval": DELTA_CI[paired],
+        "reads_observations": reads_observations(sa, sb),
         "axes": {},
     }
     if not paired and pairing:
@@ -258,6 +259,11 @@ def render_markdown(result: dict, label_a: str, label_b: str, text: str) -> str:
     return "\n".join(lines)
 
 
+def reads_observations(sa: dict, sb: dict) -> dict[str, bool | None]:
+    """Each side's policy declaration from its summary (None: a run made before policies declared it)."""
+    return {"a": sa.get("reads_observations"), "b": sb.get("reads_observations")}
+
+
 def pairing_note(result: dict) -> str:
     """Whether a comparison's curves are paired, for its plots' titles."""
     if result.get("paired") or result.get("contrast"):
@@ -321,7 +327,7 @@ def axes_main(args: argparse.Namespace) -> int:
     sb = sa if within else summarize(eb, rb.manifest, args.gamma)
     result = compare_axes(ea, eb, sa, sb, axis_a, axis_b, args.margin, args.alpha)
     result["contrast"].update(run_a=str(ra.path), run_b=str(rb.path), within_run=within)
-    result.update(label_a=la, label_b=lb, protocol=protocol)
+    result.update(label_a=la, label_b=lb, protocol=protocol, reads_observations=reads_observations(sa, sb))
     key, ax = next(iter(result["axes"].items()))
     usable = (usable_levels(sa["axes"][axis_a]["levels"]), usable_levels(sb["axes"][axis_b]["levels"]))
     ax["break_point_diff"] = break_point_diff(as_one_axis(ea, axis_a, key), as_one_axis(eb, axis_b, key), key,

@@ -17,6 +17,7 @@ from indgen_vla.caveats import compare_caveats, rate_text
 from indgen_vla.errors import RunDirError
 from indgen_vla.fingerprint import check_comparable, protocol_section
 from indgen_vla.groups import mean_difference, ood_area, stratified_mcnemar, tost
+from indgen_vla.interface import declared_reads
 from indgen_vla.metrics import (
     MIN_N,
     UNDETERMINED,
@@ -260,6 +261,11 @@ def groups_main(args) -> int:
         label_a=la, label_b=lb, runs_a=[str(r.path) for r in runs_a], runs_b=[str(r.path) for r in runs_b]
     )
     result["protocol"] = protocol
+    result["reads_observations"] = {
+        side: declared_reads(r.manifest.get("reads_observations") for r in runs)
+        for side, runs in (("a", runs_a), ("b", runs_b))
+    }
+    result["caveats"] = compare_caveats(result, args.alpha)  # again, now that the sides' policies are known
     result["verdicts"] = axis_verdicts(result, la, lb)
     result["verdict"] = " ".join(result["verdicts"].values())
     out = Path(args.out) if args.out else runs_a[0].path / "compare_groups"

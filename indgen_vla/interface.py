@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -194,6 +194,9 @@ class PolicySpec:
             one extra render per query and history step. 0: the current observation only.
         training: the (scene, task, axis, level) cells its training data covered, when its files say
             (``indgen train``'s ``train_info.json``); ``evaluate`` records them and ``report`` marks those levels.
+        reads_observations: False for a policy whose actions ignore every observation (``standin:random``,
+            ``standin:noop``, a replayed or open-loop script): it can neither generalize nor fail to, so
+            ``evaluate`` records it in the manifest and every report opens with "Cannot answer" for it.
     """
 
     family: str
@@ -209,6 +212,7 @@ class PolicySpec:
     action_dim: int | None = None
     training: tuple[TrainedCell, ...] = ()
     history_steps: int = 0
+    reads_observations: bool = True
 
     def __post_init__(self) -> None:
         if self.chunk_size < 1:
@@ -227,6 +231,10 @@ class PolicySpec:
                 f"policy {self.name}: object poses are for low-dimensional policies only; drop its cameras "
                 "or observes_objects"
             )
+        if not isinstance(self.reads_observations, bool):
+            raise ConfigError(
+                f"policy {self.name}: reads_observations must be true or false, got {self.reads_observations!r}"
+            )
         steps = self.history_steps
         if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
             raise ConfigError(f"policy {self.name}: history_steps must be an integer >= 0, got {steps!r}")
@@ -235,6 +243,16 @@ class PolicySpec:
                 f"policy {self.name}: history_steps={self.history_steps} keeps camera images, but it reads no "
                 "camera; declare its cameras or history_steps=0"
             )
+
+
+def declared_reads(values: Iterable[bool | None]) -> bool | None:
+    """Several runs' manifest ``reads_observations`` as one (a merge's shards, a group of seeds): False when any
+    declares a blind policy, True when all declare a seeing one, None (unknown: a run made before the field)
+    otherwise."""
+    values = list(values)
+    if False in values:
+        return False
+    return True if values and all(v is True for v in values) else None
 
 
 @dataclass(frozen=True)

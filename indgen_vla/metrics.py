@@ -109,14 +109,11 @@ NAMED_TASKS = 4  # a task list longer than this names its first NAMED_TASKS - 1 
 def pooled_text(tasks: Sequence[str]) -> str:
     """Which tasks a rate pools, in the one wording every report, plot and terminal line uses: "task milk", "pooled
     over 2 tasks: bread, milk", "pooled over 12 tasks: a, b, c and 9 more", "tasks unknown"."""
-    if len(tasks) == 1:
-        return f"task {tasks[0]}"
-    if not tasks:
-        return "tasks unknown"
-    if len(tasks) <= NAMED_TASKS:
-        return f"pooled over {len(tasks)} tasks: {', '.join(tasks)}"
-    shown = NAMED_TASKS - 1
-    return f"pooled over {len(tasks)} tasks: {', '.join(tasks[:shown])} and {len(tasks) - shown} more"
+    if len(tasks) < 2:
+        return f"task {tasks[0]}" if tasks else "tasks unknown"
+    shown = tasks if len(tasks) <= NAMED_TASKS else tasks[: NAMED_TASKS - 1]
+    more = f" and {len(tasks) - len(shown)} more" if len(shown) < len(tasks) else ""
+    return f"pooled over {len(tasks)} tasks: {', '.join(shown)}{more}"
 
 
 class UndeterminedBreakError(ConfigError):

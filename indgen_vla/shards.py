@@ -20,6 +20,7 @@ from typing import Any
 
 from indgen_vla.errors import ConfigError, RunDirError
 from indgen_vla.fingerprint import differences, short, show_difference
+from indgen_vla.interface import declared_reads
 from indgen_vla.plan import SHARING_OFF, jobs_sha256, plan_jobs, shared_t0_of, sharing_summary
 from indgen_vla.records import KEY, RunDir
 
@@ -286,6 +287,11 @@ def merged_manifest(
     for key in EQUAL_MANIFEST:
         if key in first:
             manifest[key] = first[key]
+    reads = declared_reads(s.manifest.get("reads_observations") for s in shards)
+    if (
+        reads is not None
+    ):  # the policy's declaration (interface.PolicySpec), absent where no shard recorded one
+        manifest["reads_observations"] = reads
     return manifest
 
 

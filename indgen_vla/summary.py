@@ -45,6 +45,8 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
     per_task = plan.get("episodes") if isinstance(plan.get("episodes"), int) else None
     plan_levels = plan.get("levels") if isinstance(plan.get("levels"), dict) else {}
     out: dict[str, Any] = {"gamma": gamma, "ci": ci, "min_n": MIN_N, "axes": {}}
+    # the policy's declaration (PolicySpec.reads_observations); None: unknown (a run made before it was recorded)
+    out["reads_observations"] = manifest.get("reads_observations")
     # the levels the policy's training data covered, when it declared them (manifest training_levels)
     training = cells_from_json(manifest.get("training_levels"))
     seen = set(episodes["axis"].unique()) if len(episodes) else set()

@@ -13,7 +13,7 @@ RoboCasa365 (the scene's ``EnvSpec`` picks ``layouts.OPENPI_ROBOCASA``): RoboCas
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -103,6 +103,8 @@ class OpenpiPolicy(RemotePolicy):
         self.metadata: dict = {}
         self._pending_reset: dict | None = None
         self._connect()
+        if self.metadata.get("reads_observations") is False:  # `indgen serve` of a blind stand-in says so
+            self.spec = replace(self.spec, reads_observations=False)
 
     def _map_error(self, error: BaseException, connecting: bool) -> IndgenError | None:
         from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidStatus, InvalidURI

@@ -100,6 +100,7 @@ class PolicyServer:
             "cameras": list(spec.cameras),
             "flip_180": spec.flip_180,
             "image_size": list(spec.image_size) if spec.image_size else None,
+            "reads_observations": spec.reads_observations,
         }
         self._lock: asyncio.Lock | None = None
         self._server = None

@@ -25,12 +25,12 @@ def _noop(action_dim: int) -> np.ndarray:
 
 
 class NoopPolicy:
-    """Zero motion with the gripper open; stateless and batched, renders no cameras."""
+    """Zero motion with the gripper open; stateless and batched, renders no cameras, reads no observation."""
 
     def __init__(self, name: str = "standin:noop", chunk_size: int = 8, action_dim: int = ACTION_DIM):
         self.spec = PolicySpec(
             "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), batched=True,
-            action_dim=action_dim,
+            action_dim=action_dim, reads_observations=False,
         )  # fmt: skip
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
@@ -45,7 +45,8 @@ class NoopPolicy:
 
 
 class RandomPolicy:
-    """Uniform random deltas in [-scale, scale], gripper ±1; the same episode seed gives the same actions."""
+    """Uniform random deltas in [-scale, scale], gripper ±1; the same episode seed gives the same actions (it reads
+    no observation: chance, the floor a scene's levels give a blind policy)."""
 
     def __init__(
         self,
@@ -55,8 +56,9 @@ class RandomPolicy:
         action_dim: int = ACTION_DIM,
     ):
         self.spec = PolicySpec(
-            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), action_dim=action_dim
-        )
+            "standin", name, chunk_size=chunk_size, replan_steps=chunk_size, cameras=(), action_dim=action_dim,
+            reads_observations=False,
+        )  # fmt: skip
         self.scale = float(scale)
         self._rng = np.random.default_rng(0)
 

@@ -289,10 +289,12 @@ def _run_todo(
     if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
         # and the levels its training data covered, where the policy declares them (report marks them "trained")
         trained = {"training_levels": cells_to_json(spec.training)} if spec.training else {}
-        run.update_manifest(fingerprint=fingerprint, **trained)
+        run.update_manifest(fingerprint=fingerprint, reads_observations=spec.reads_observations, **trained)
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
         for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
             console.print(f"[yellow]warning:[/] {line}")
+        if "reads_observations" not in manifest:  # a run started before policies declared it: the same policy
+            run.update_manifest(reads_observations=spec.reads_observations)
         # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
         if not cfg.adaptive:
             left = len(plan.jobs) - len(run.done_keys() & {j.key for j in plan.jobs})

@@ -14,6 +14,7 @@ from indgen_vla.caveats import (
     needed_for_break,
     needed_pairs,
     rate_text,
+    report_caveats,
 )
 from indgen_vla.compare import pairing_note, render_markdown, tasks_text
 from indgen_vla.contrasts import t0_lines
@@ -164,3 +165,21 @@ def test_plot_notes_carry_n_and_tasks():
     assert count_note([5, 10], ["bread", "milk"]) == "n = 5–10 per level; pooled over 2 tasks: bread, milk"
     assert count_note([3], list("abcde")) == "n = 3 per level; pooled over 5 tasks: a, b, c and 2 more"
     assert curve_note([_axis(0, 10)]) == "n = 10 per level; pooled over 2 tasks: bread, milk"
+
+
+def test_a_declared_blind_policy_comes_first_and_an_undeclared_one_is_unknown():
+    s = {"gamma": 0.2, "ci": "wilson", "axes": {"pick_y": _axis(0, 10)}}  # T0 0/10: its own caveats follow
+    own = report_caveats([("r", s)])
+    assert not any("declares" in line for line in own)  # no field: a run made before it, unknown
+    assert report_caveats([("r", {**s, "reads_observations": True})]) == own
+    blind = report_caveats([("r", {**s, "reads_observations": False})])
+    assert (
+        blind[0].startswith("**Cannot answer** (r): the policy declares it reads no observation")
+        and blind[1:] == own
+    )
+    res = {"axes": {}, "reads_observations": {"a": None, "b": False}}
+    assert [line[:24] for line in compare_caveats({**res, "label_b": "B"})] == ["**Cannot answer** (B): t"]
+    assert compare_caveats({**res, "label_b": "oracle"})[0].startswith(
+        "**Cannot answer** (oracle (B)): the policy"
+    )
+    assert compare_caveats({"axes": {}}) == []

@@ -112,8 +112,14 @@ def test_cli_compares_groups(tmp_path, capsys):
     from tests.indgen_vla.test_report import make_run
 
     a = [make_run(tmp_path / f"a{s}", {-1: (2, 10), 0: (10, 10), 1: (3, 10)}) for s in range(2)]
-    b = [
-        make_run(tmp_path / f"b{s}", {-1: (9, 10), 0: (10, 10), 1: (8, 10)}, regime="h+mg") for s in range(2)
+    b = [  # one of B's seeds declares a blind policy: the group is blind (interface.declared_reads)
+        make_run(
+            tmp_path / f"b{s}",
+            {-1: (9, 10), 0: (10, 10), 1: (8, 10)},
+            regime="h+mg",
+            reads_observations=bool(s),
+        )
+        for s in range(2)
     ]
     args = ["compare", "--a", *(str(r.path) for r in a), "--b", *(str(r.path) for r in b), "--label-a", "h-only",
             "--label-b", "h+mg", "--out", str(tmp_path / "c")]  # fmt: skip
@@ -129,7 +135,11 @@ def test_cli_compares_groups(tmp_path, capsys):
     )
     assert lv[-1]["p_value"] == pytest.approx(stats.binomtest(0, 14, 0.5).pvalue)
     assert res["test"] == "mcnemar_exact_stratified" and "h+mg" in res["verdicts"]["pick_y"]
-    assert "## Axis `pick_y`" in (tmp_path / "c" / "compare.md").read_text()
+    md = (tmp_path / "c" / "compare.md").read_text()
+    assert "## Axis `pick_y`" in md and res["reads_observations"] == {"a": None, "b": False}
+    assert md.splitlines()[2].startswith(
+        "**Cannot answer** (h+mg (B)): the policy declares it reads no observation"
+    )
     assert main(["compare", str(a[0].path), "--a", str(a[0].path), "--b", str(b[0].path)]) == 2
     assert main(["compare", "--a", str(a[0].path)]) == 2
     capsys.readouterr()

@@ -48,7 +48,14 @@ def test_two_level_run_writes_run_dir(tmp_path):
     assert [lv["n"] for lv in summary["axes"]["pick_y"]["levels"]] == [2, 2]
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["plan"]["episodes"] == 2 and manifest["versions"]["robosuite"] == "1.4.0"
-    assert (out / "report.md").exists() and (out / "plots" / "pick_y.png").exists()
+    assert (
+        manifest["reads_observations"] is False and summary["reads_observations"] is False
+    )  # standin:random
+    report = (out / "report.md").read_text().splitlines()
+    assert report[2].startswith(
+        "**Cannot answer** (standin:random): the policy declares it reads no observation"
+    )
+    assert any(line.startswith("| 0 |") for line in report) and (out / "plots" / "pick_y.png").exists()
 
 
 @pytest.mark.slow  # 8 s; 1 vs 2 workers stay covered by default (pipeline, Ray and adaptive-protocol tests)

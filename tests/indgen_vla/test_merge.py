@@ -90,6 +90,7 @@ def test_merged_shards_report_like_one_unsharded_run(runs, tmp_path, capsys):
         "seed",
         "versions",
         "t0_sharing",
+        "reads_observations",
     ):
         assert m[key] == w[key], (
             key

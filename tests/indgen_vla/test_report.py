@@ -10,9 +10,9 @@ from indgen_vla.summary import summarize
 from tests.indgen_vla.test_records import rec
 
 
-def make_run(path, successes_by_level, regime="h-only", errors=0):
+def make_run(path, successes_by_level, regime="h-only", errors=0, **manifest):
     run = RunDir.create_or_resume(path, {"plan": {"x": 1}, "data_regime": regime, "policy": "standin:noop",
-                                         "axes": {"pick_y": {"signed": True}}})  # fmt: skip
+                                         "axes": {"pick_y": {"signed": True}}, **manifest})  # fmt: skip
     recs = []
     for level, (s, n) in successes_by_level.items():
         recs += [rec(level, i, success=i < s) for i in range(n)]
@@ -223,3 +223,34 @@ def test_kstar_status_of_an_unfinished_adaptive_run_speaks_only_of_levels_run(tm
     assert plan_next(rule, [0, 1, 2, 3], outcomes, "kstar").kstar["pos"]["text"] == want
     nothing = summarize(run.episodes().iloc[:0], run.manifest)["axes"]["pick_y"]["kstar_status"]["pos"]
     assert nothing["text"] == "k* at or beyond 0 (no level run yet; 0, +1, +2, +3 planned)"
+
+
+def test_a_declared_blind_policy_opens_report_terminal_and_compare_with_cannot_answer(tmp_path, capsys):
+    """T0 passed (10/10) by a policy that declares it reads no observation: every output says first that its
+    curve is the scene's difficulty for chance, and still prints the rates; a run made before the declaration
+    existed (no manifest field) reports as before."""
+    blind = make_run(tmp_path / "blind", {0: (10, 10), 1: (9, 10)}, reads_observations=False)
+    old = make_run(tmp_path / "old", {0: (10, 10), 1: (9, 10)}, regime="h+mg")
+    assert main(["report", str(blind.path)]) == 0
+    said = "Cannot answer (h-only / standin:noop): the policy declares it reads no observation"
+    terminal = " ".join(capsys.readouterr().out.split())  # rich wraps long lines
+    assert said in terminal and terminal.index(said) < terminal.index("success")  # before the table
+    md = (blind.path / "report.md").read_text()
+    assert md.splitlines()[2] == (
+        "**Cannot answer** (h-only / standin:noop): the policy declares it reads no observation, so it can neither "
+        "generalize nor fail to: its per-level rates measure each level's difficulty for a policy acting blind "
+        "(chance), not generalization; k*, the trend tests and the change from T0 describe the scene, not the "
+        "policy. The rates below are kept as that baseline."
+    )
+    assert "| 0 | 0 | 100% [72, 100] (n=10) intact |" in md
+    assert main(["report", str(old.path)]) == 0
+    assert json.loads((old.path / "summary.json").read_text())["reads_observations"] is None  # unknown
+    assert "declares it reads no observation" not in (old.path / "report.md").read_text()
+    out = tmp_path / "cmp"
+    assert main(["compare", str(blind.path), str(old.path), "--out", str(out)]) == 0
+    cmp = (out / "compare.md").read_text().splitlines()
+    assert cmp[2].startswith("**Cannot answer** (h-only / standin:noop (A)): the policy declares it reads no")
+    assert "a difference from it says how far the other policy is from chance" in cmp[2]
+    assert "declares" not in cmp[4] and json.loads((out / "compare.json").read_text())[
+        "reads_observations"
+    ] == {"a": False, "b": None}

@@ -58,6 +58,7 @@ def test_roundtrip_undoes_the_client_flip(served, obs_factory):
     rec, port = served
     client = load_policy(f"openpi:ws://127.0.0.1:{port}?api_key=k&chunk=8&render=224")
     assert client.metadata["server"] == "indgen-vla" and client.metadata["policy"] == "standin:noop"
+    assert client.spec.reads_observations is False  # the served noop's declaration reaches the client's spec
     obs = obs_factory(1, size=224)
     client.reset(obs.instruction, seed=11)
     chunk = client.act([obs])

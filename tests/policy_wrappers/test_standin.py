@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from indgen_vla.errors import ConfigError
+from indgen_vla.interface import PolicySpec, declared_reads
 from policy_wrappers.registry import load_policy
 
 
@@ -28,3 +31,15 @@ def test_random_is_reproducible_from_the_seed(obs_factory):
     assert a.shape == (1, 10, 7) and np.array_equal(a, b) and not np.array_equal(a[:, :5], c)
     assert np.all(np.abs(a[..., :6]) <= 0.5) and set(np.unique(a[..., 6])) <= {-1.0, 1.0}
     assert not policy.spec.batched  # per-episode RNG state
+
+
+def test_stand_ins_that_ignore_observations_declare_it():
+    """random and noop read no observation (report then says it cannot answer); a spec reads them by default."""
+    assert not load_policy("standin:random").spec.reads_observations
+    assert not load_policy("standin:noop").spec.reads_observations
+    assert PolicySpec("lerobot", "lerobot:x").reads_observations
+    with pytest.raises(ConfigError, match="reads_observations must be true or false, got 'no'"):
+        PolicySpec("standin", "standin:x", reads_observations="no")
+    # several runs as one (a merge's shards, a group of seeds): any blind run makes the group blind
+    assert declared_reads([True, False]) is False and declared_reads([True, True]) is True
+    assert declared_reads([True, None]) is None and declared_reads([]) is None
