@@ -287,10 +287,9 @@ def merged_manifest(
     for key in EQUAL_MANIFEST:
         if key in first:
             manifest[key] = first[key]
+    # the policy's declaration (interface.PolicySpec), absent where no shard recorded one
     reads = declared_reads(s.manifest.get("reads_observations") for s in shards)
-    if (
-        reads is not None
-    ):  # the policy's declaration (interface.PolicySpec), absent where no shard recorded one
+    if reads is not None:
         manifest["reads_observations"] = reads
     return manifest
 

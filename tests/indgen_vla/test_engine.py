@@ -48,9 +48,8 @@ def test_two_level_run_writes_run_dir(tmp_path):
     assert [lv["n"] for lv in summary["axes"]["pick_y"]["levels"]] == [2, 2]
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["plan"]["episodes"] == 2 and manifest["versions"]["robosuite"] == "1.4.0"
-    assert (
-        manifest["reads_observations"] is False and summary["reads_observations"] is False
-    )  # standin:random
+    # standin:random declares it reads no observation: recorded, and the report says first what it cannot answer
+    assert manifest["reads_observations"] is False and summary["reads_observations"] is False
     report = (out / "report.md").read_text().splitlines()
     assert report[2].startswith(
         "**Cannot answer** (standin:random): the policy declares it reads no observation"
