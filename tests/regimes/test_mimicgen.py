@@ -8,7 +8,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.regimes.mimicgen import MimicGenConfig, _new_seed, load_sources, split_subtasks
+from indgen_vla.regimes.mimicgen import MimicGenConfig, _new_seed
+from indgen_vla.regimes.mimicgen_sources import load_sources, split_subtasks
 from indgen_vla.regimes.se3 import (
     interpolate_poses,
     invert_pose,
@@ -116,7 +117,7 @@ def test_config_errors(tmp_path):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=0)
     with pytest.raises(ConfigError, match="--selection"):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=1, selection="best")
-    with pytest.raises(ConfigError, match="already exists"):
+    with pytest.raises(ConfigError, match="must differ from --source"):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "src", n=1)
     with pytest.raises(ConfigError, match="indgen_episodes.jsonl"):
         load_sources(tmp_path / "src")
