@@ -89,8 +89,7 @@ def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
         log(f"recording {n_demos} T0 demos with object poses into {demos}")
         record_demos(SCENE, demos, n_demos, seed=0, cameras=(), objects=True)
         (demos / ".done").touch()
-    if not (mg / STATS_FILE).is_file():
-        shutil.rmtree(mg, ignore_errors=True)
+    if not (mg / STATS_FILE).is_file():  # a generation killed half way resumes
         log(f"generating {n_mg} MimicGen T0 episodes from the demos into {mg}")
         generate(MimicGenConfig(source=demos, out=mg, n=n_mg, seed=0, guarantee=True))
     return {"h-only": [demos], "h+mg": [demos, mg]}
@@ -106,8 +105,7 @@ def train(
     for regime in REGIMES:
         for seed in seeds:
             out = work / "ckpt" / f"{regime.replace('+', '_')}_s{seed}"
-            if not (out / INFO_FILE).is_file():
-                shutil.rmtree(out, ignore_errors=True)  # a training run killed half way
+            if not (out / INFO_FILE).is_file():  # a training run killed half way resumes
                 log(f"training {regime} seed {seed} ({steps} updates)")
                 cfg = TrainConfig(steps=steps, seed=seed, objects=True, log_every=max(steps // 5, 1))
                 train_policy(data[regime], out, cfg, data_regime=regime)

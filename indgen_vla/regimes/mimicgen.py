@@ -7,7 +7,8 @@ T0 initial state every segment's end-effector target poses are moved rigidly wit
 and driven with robosuite OSC_POSE delta actions; only episodes the scene's success predicate accepts are
 kept. The output is a LeRobotDataset with exactly the features, fps, cameras and task strings of the source.
 A source recorded at levels of an axis (``indgen demos --axis A --levels 0:2``) is augmented level by level:
-each episode is generated at its sources' level, from sources of that level only.
+each episode is generated at its sources' level, from sources of that level only. Every attempt is saved as it
+ends (``staging``), so a killed run resumes after its last saved attempt when the same command is rerun.
 """
 
 from __future__ import annotations
@@ -17,20 +18,19 @@ import json
 import math
 import shutil
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import ACTION_DIM, STATE_DIM, Observation
+from indgen_vla.interface import Observation
+from indgen_vla.records import atomic_write_json
 from indgen_vla.regimes import quiet_datasets
 from indgen_vla.regimes.demos import (
     ENV_STATE,
-    EPISODES_SIDECAR,
     FPS,
     LEVEL_FEATURES,
     append_episode_sidecar,
@@ -40,127 +40,30 @@ from indgen_vla.regimes.demos import (
     rounded_poses,
     save_episode,
 )
+from indgen_vla.regimes.mimicgen_sources import SUBTASKS, SourceDemo, load_sources, select_source
+from indgen_vla.regimes.resume import (
+    INPUTS,
+    RESUME_DIR,
+    RUN_FILE,
+    check_same_run,
+    dataset_size,
+    out_state,
+    start_run,
+)
 from indgen_vla.regimes.se3 import (
     interpolate_poses,
     pose_from_pq,
     pose_from_state,
     pose_to_action,
-    target_poses,
     transform_segment,
 )
+from indgen_vla.regimes.staging import FrameCapture, Stage
 from indgen_vla.seeding import episode_seed, held_out_seeds
 from scenes.poses import object_poses
 
-SUBTASKS = (("grasp", "pick"), ("place", "goal"))  # (segment name, reference object) in execution order
 SELECTIONS = ("nearest", "random")
 STATS_FILE = "mimicgen_stats.json"
-LEVEL_KEYS = ("axis", "step", "axes_preset")  # sidecar keys that rebuild a source's level beside "level"
-
-
-def split_subtasks(
-    states: np.ndarray, actions: np.ndarray, lift_frac: float = 0.9
-) -> list[tuple[int, int]] | None:
-    """Frame ranges of the grasp and place segments, or None when the demo has no single grasp and release.
-
-    The grasp segment runs from the start through the gripper closing to ``lift_frac`` of the lift height
-    (so the switch to the receptacle frame happens in the air); the place segment runs to the end.
-    """
-    closed = np.asarray(actions)[:, -1] > 0
-    closes = np.flatnonzero(closed & ~np.concatenate([[False], closed[:-1]]))
-    if len(closes) != 1:
-        return None
-    c = int(closes[0])
-    opens = np.flatnonzero(~closed[c:])
-    if len(opens) == 0:
-        return None
-    r = c + int(opens[0])
-    z = np.asarray(states)[:, 2]
-    top = z[c:r].max()
-    above = np.flatnonzero(z[c + 1 : r] >= z[c] + lift_frac * (top - z[c]) - 1e-9)
-    e = c + 1 + int(above[0]) if len(above) else r
-    return [(0, e), (e, len(states))]
-
-
-# ---- sources --------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class SourceDemo:
-    """One source demonstration with its subtask split and the reference-object poses it was recorded with."""
-
-    index: int
-    scene: str
-    task: str
-    seed: int
-    targets: np.ndarray  # (T, 4, 4) controller goal poses
-    gripper: np.ndarray  # (T,) gripper actions
-    refs: dict[str, np.ndarray]  # object name -> (T, 7) per-frame world pose
-    bounds: tuple[tuple[int, int], ...]
-    level: int = 0
-    # the sidecar's LEVEL_KEYS that rebuild its level, and its axis parameter; empty for T0 without --axis
-    where: tuple[tuple[str, object], ...] = ()
-    param: float | None = None
-
-    @property
-    def cell(self) -> tuple:
-        """What its generated episodes share: scene, task and level (generation never leaves the level)."""
-        return (self.scene, self.task, self.level, self.where)
-
-    def segment(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(targets, gripper actions, reference object pose at the segment start) of subtask ``k``."""
-        lo, hi = self.bounds[k]
-        return self.targets[lo:hi], self.gripper[lo:hi], pose_from_pq(self.refs[SUBTASKS[k][1]][lo])
-
-
-def load_sources(root: Path, lift_frac: float = 0.9) -> tuple[dict, list[SourceDemo], int]:
-    """(lerobot info.json, usable source demos, number skipped) of a dataset written by ``indgen demos``."""
-    info = json.loads((root / "meta" / "info.json").read_text())
-    feats = info.get("features", {})
-    if feats.get("observation.state", {}).get("shape") not in ([STATE_DIM], (STATE_DIM,)) or feats.get(
-        "action", {}
-    ).get("shape") not in ([ACTION_DIM], (ACTION_DIM,)):
-        raise ConfigError(f"--source {root} lacks the {STATE_DIM}-d observation.state and {ACTION_DIM}-d action "
-                          "of `indgen demos` datasets; record one with `indgen demos`")  # fmt: skip
-    records = {r["episode_index"]: r for r in read_episode_sidecar(root)}
-    if not records or not all("object_poses" in r for r in records.values()):
-        raise ConfigError(f"--source {root} has no {EPISODES_SIDECAR} with per-episode seeds and object poses; "
-                          "record the source with `indgen demos` (this version or newer)")  # fmt: skip
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    # only parquet columns are read: pyav spares the torchcodec probe (and its warning) when FFmpeg is missing
-    ds = LeRobotDataset(info.get("repo_id", "local/indgen_demos"), root=root, video_backend="pyav")
-    cols = ds.hf_dataset.select_columns(["observation.state", "action", "episode_index"]).with_format("numpy")
-    ep_idx = np.asarray(cols["episode_index"]).reshape(-1)
-    states, actions = np.stack(cols["observation.state"]), np.stack(cols["action"])
-    demos, skipped = [], 0
-    for i in sorted(set(ep_idx.tolist())):
-        rec = records.get(int(i))
-        rows = np.flatnonzero(ep_idx == i)
-        if rec is None or any(len(rec["object_poses"].get(k, ())) != len(rows) for _, k in SUBTASKS):
-            skipped += 1
-            continue
-        s, a = states[rows], actions[rows]
-        bounds = split_subtasks(s, a, lift_frac)
-        if bounds is None or any(hi - lo < 2 for lo, hi in bounds):
-            skipped += 1  # regrasps or no release: no clean object-centric split
-            continue
-        refs = {k: np.asarray(v, dtype=float) for k, v in rec["object_poses"].items()}
-        where = tuple((k, rec[k]) for k in LEVEL_KEYS if k in rec)
-        demos.append(SourceDemo(int(i), rec["scene"], rec["task"], int(rec["seed"]), target_poses(s, a),
-                                a[:, -1].astype(float), refs, tuple(bounds), int(rec.get("level", 0)), where,
-                                rec.get("param")))  # fmt: skip
-    return info, demos, skipped
-
-
-def select_source(demos: list[SourceDemo], k: int, new_ref: np.ndarray, rng: np.random.Generator,
-                  strategy: str = "nearest", nn_k: int = 3) -> SourceDemo:  # fmt: skip
-    """MimicGen's per-subtask source choice: uniform, or uniform among the ``nn_k`` nearest reference poses."""
-    if strategy == "random" or len(demos) == 1:
-        return demos[int(rng.integers(len(demos)))]
-    d = []
-    for demo in demos:
-        src = demo.segment(k)[2]
-        angle = np.linalg.norm(Rotation.from_matrix(src[:3, :3].T @ new_ref[:3, :3]).as_rotvec())
-        d.append(np.linalg.norm(src[:3, 3] - new_ref[:3, 3]) + 0.05 * angle)  # 5 cm per radian
-    return demos[int(rng.choice(np.argsort(d, kind="stable")[:nn_k]))]
+CLI_FLAGS = ("source", "n", "seed", "guarantee", "max_attempts", "selection", "action_noise", "repo_id")
 
 
 # ---- configuration and execution ---------------------------------------------------------------------------
@@ -170,7 +73,7 @@ class MimicGenConfig:
 
     Attributes:
         source: a LeRobotDataset written by ``indgen demos`` (with its per-episode sidecar).
-        out: the new dataset's root (must not exist or be empty).
+        out: the new dataset's root: new, empty, or an unfinished run of the same arguments to resume.
         n: attempts per task (and level, for a source recorded at levels); with ``guarantee`` the number of
             successful episodes instead.
         seed: generation seed (new initial states, source choice, action noise).
@@ -217,8 +120,6 @@ class MimicGenConfig:
         if not (self.source / "meta" / "info.json").is_file():
             raise ConfigError(f"--source {self.source} is not a LeRobotDataset (no meta/info.json); point it at "
                               "the output of `indgen demos`")  # fmt: skip
-        if self.out.exists() and (not self.out.is_dir() or any(self.out.iterdir())):
-            raise ConfigError(f"--out {self.out} already exists and is not empty; choose a new directory")
         if self.out.resolve() == self.source.resolve():
             raise ConfigError("--out must differ from --source")
 
@@ -289,111 +190,192 @@ def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, 
                            preset=where.get("axes_preset"), cameras=cams, image_size=size)  # fmt: skip
 
 
-def generate(cfg: MimicGenConfig, progress=None) -> dict:
-    """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats."""
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:
+    """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats.
 
-    t0 = time.perf_counter()
+    Every attempt is saved as it ends (``staging``) and the dataset is written once all are in: an unfinished
+    ``cfg.out`` made with the same arguments resumes after its last saved attempt (``say`` is told), a finished one
+    is returned as it is, other arguments are refused in one line.
+    """
+    run = run_identity(cfg)
+    state = out_state(cfg.out, STATS_FILE, "mimicgen")
+    if state == "finished":
+        return _finished(cfg, run, say)
+    if state == "unfinished":
+        saved = json.loads((cfg.out / RESUME_DIR / RUN_FILE).read_text())
+        check_same_run(cfg.out, saved, run, "mimicgen", CLI_FLAGS, finished=False)
     info, demos, skipped = load_sources(cfg.source, cfg.lift_frac)
     if not demos:
         raise ConfigError(f"--source {cfg.source} has no demo with one clean grasp and release to split; "
                           "record more with `indgen demos`")  # fmt: skip
-    feats = info["features"]
-    cams = tuple(k.removeprefix("observation.images.") for k in feats if k.startswith("observation.images."))
-    shape = feats[f"observation.images.{cams[0]}"]["shape"] if cams else [96, 96, 3]
-    size = (int(shape[0]), int(shape[1]))
-    use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
-    objects = ENV_STATE in feats  # the source records object poses: so do the generated episodes
-    # the source records its levels per frame: so does the output
-    levels = all(k in feats for k in LEVEL_FEATURES)
+    layout = _Layout.of(info)
     by_cell: dict[tuple, list[SourceDemo]] = {}
     for d in demos:
         by_cell.setdefault(d.cell, []).append(d)
     taken = {d.seed for d in demos} | {int(r["seed"]) for r in read_episode_sidecar(cfg.source)}
-    if cfg.out.exists():
-        cfg.out.rmdir()
-    cfg.out.parent.mkdir(parents=True, exist_ok=True)
-    ds = LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=cfg.out,
-                               features=features(cams, size, use_videos, objects, levels),
-                               robot_type=info.get("robot_type", "panda"), use_videos=use_videos,
-                               video_backend="pyav")  # fmt: skip
-    stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": 0, "successes": 0,
-             "frames": 0, "source_demos": len(demos), "source_skipped": skipped, "tasks": {}}  # fmt: skip
-    writer = _Writer(ds, cfg, cams, objects, levels)
-    try:
-        for pool in by_cell.values():
-            # the scene's own episode budget: a generated episode must succeed within the evaluation horizon
-            src = pool[0]
-            env = _level_env(src.scene, src.task, src.level, dict(src.where), cams, size)
-            try:
-                label, ok, attempt, frames = writer.cell(env, pool, taken, progress)
-            finally:
-                env.close()
-            stats["tasks"][label] = {"attempts": attempt, "successes": ok, "rate": ok / max(attempt, 1)}
-            stats["attempts"] += attempt
-            stats["successes"] += ok
-            stats["frames"] += frames
-    except BaseException:
-        ds.finalize()
-        raise
-    ds.finalize()
-    stats["rate"] = stats["successes"] / max(stats["attempts"], 1)
-    stats["wall_s"] = round(time.perf_counter() - t0, 2)
-    stats["config"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()}
-    (cfg.out / STATS_FILE).write_text(json.dumps(stats, indent=2) + "\n")
+    stage = Stage(start_run(cfg.out, run))
+    prior, t0 = (stage.entries[-1]["wall_s"] if stage.entries else 0.0), time.perf_counter()
+    if stage.entries and say is not None:
+        kept = sum(e["success"] for e in stage.entries)
+        say(f"mimicgen: resuming {cfg.out}: {len(stage.entries)} attempts already saved ({kept} kept)")
+    writer = _Writer(stage, cfg, layout, lambda: round(prior + time.perf_counter() - t0, 2))
+    for k, pool in enumerate(by_cell.values()):
+        writer.cell(k, pool, taken, progress)
+
+    def create(root: Path):
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+        return LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=root,
+                                     features=features(layout.cams, layout.size, layout.use_videos,
+                                                       layout.objects, layout.levels),
+                                     robot_type=info.get("robot_type", "panda"), use_videos=layout.use_videos,
+                                     video_backend="pyav")  # fmt: skip
+
+    def sidecar(root: Path, index: int, record: dict) -> None:
+        append_episode_sidecar(root, {"episode_index": index, **record["episode"]})
+
+    stage.write_dataset(cfg.out, create, sidecar, kept=lambda e: e["success"])
+    stats = _stats(cfg, stage.entries, len(demos), skipped, run)
+    stats["wall_s"] = round(prior + time.perf_counter() - t0, 2)  # every session's, to its last saved attempt
+    atomic_write_json(cfg.out / STATS_FILE, stats)  # written last: the mark of a finished dataset
+    shutil.rmtree(cfg.out / RESUME_DIR)
     return stats
+
+
+def run_identity(cfg: MimicGenConfig) -> dict:
+    """What decides the generated dataset: the options (not ``out``) and the source's size."""
+    config = {
+        k: (str(v.resolve()) if isinstance(v, Path) else v) for k, v in asdict(cfg).items() if k != "out"
+    }
+    return {"config": config, INPUTS: {config["source"]: dataset_size(cfg.source)}}
+
+
+def _finished(cfg: MimicGenConfig, run: dict, say) -> dict:
+    """The stats of a finished ``cfg.out`` made with the same arguments (nothing is generated again)."""
+    stats = json.loads((cfg.out / STATS_FILE).read_text())
+    if "run" not in stats:
+        raise ConfigError(f"mimicgen: --out {cfg.out} holds a dataset from before generation could resume; "
+                          "choose a new directory")  # fmt: skip
+    check_same_run(cfg.out, stats["run"], run, "mimicgen", CLI_FLAGS, finished=True)
+    shutil.rmtree(cfg.out / RESUME_DIR, ignore_errors=True)  # a kill between the stats and this cleanup
+    if say is not None:
+        say(f"mimicgen: {cfg.out} is already complete ({stats['successes']} episodes); nothing to do")
+    return stats
+
+
+def _stats(cfg: MimicGenConfig, entries: list[dict], n_demos: int, skipped: int, run: dict) -> dict:
+    """Generation stats from the saved attempts (the same whether or not the run was resumed)."""
+    stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": len(entries),
+             "successes": sum(e["success"] for e in entries),
+             "frames": sum(e["episode"]["frames"] for e in entries if e["success"]),
+             "source_demos": n_demos, "source_skipped": skipped, "tasks": {}}  # fmt: skip
+    for e in entries:
+        t = stats["tasks"].setdefault(e["label"], {"attempts": 0, "successes": 0})
+        t["attempts"] += 1
+        t["successes"] += e["success"]
+    for t in stats["tasks"].values():
+        t["rate"] = t["successes"] / max(t["attempts"], 1)
+    stats["rate"] = stats["successes"] / max(stats["attempts"], 1)
+    stats["config"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()}
+    stats["run"] = run
+    return stats
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """What the generated episodes record, as the source does: cameras, image size, videos, poses, levels."""
+
+    cams: tuple[str, ...]
+    size: tuple[int, int]
+    use_videos: bool
+    objects: bool
+    levels: bool
+
+    @classmethod
+    def of(cls, info: dict) -> _Layout:
+        feats = info["features"]
+        cams = tuple(
+            k.removeprefix("observation.images.") for k in feats if k.startswith("observation.images.")
+        )
+        shape = feats[f"observation.images.{cams[0]}"]["shape"] if cams else [96, 96, 3]
+        use_videos = any(feats[f"observation.images.{c}"]["dtype"] == "video" for c in cams)
+        # the source records object poses / its levels per frame: so do the generated episodes
+        return cls(cams, (int(shape[0]), int(shape[1])), use_videos, ENV_STATE in feats,
+                   all(k in feats for k in LEVEL_FEATURES))  # fmt: skip
 
 
 @dataclass
 class _Writer:
-    """Generates one source level's episodes and writes the successful ones (frames, level columns, sidecar)."""
+    """Generates one source level's episodes and stages every attempt (a kept one with its frames and sidecar)."""
 
-    ds: Any
+    stage: Stage
     cfg: MimicGenConfig
-    cams: tuple[str, ...]
-    objects: bool
-    levels: bool
+    layout: _Layout
+    clock: Callable[[], float]  # seconds generating, over every session
 
-    def cell(self, env, pool: list[SourceDemo], taken: set[int], progress) -> tuple[str, int, int, int]:
-        """Attempt one level of one task from its sources ``pool``; return (label, successes, attempts, frames)."""
+    def cell(self, k: int, pool: list[SourceDemo], taken: set[int], progress) -> None:
+        """Attempt level/task ``k`` from its sources ``pool``, after the attempts already saved for it."""
         cfg, src = self.cfg, pool[0]
         where = dict(src.where)
         at = () if src.level == 0 else (where.get("axis"), src.level)  # T0 keeps the seeds it always had
         label = src.task if where.get("axis") is None else f"{src.task} {where['axis']} level {src.level}"
         avoid = taken | held_out_seeds(src.scene, src.task, also=(cfg.seed,))
         per_cell = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
-        ok = attempt = total = 0
-        while attempt < per_cell and not (cfg.guarantee and ok >= cfg.n):
-            seed = _new_seed(cfg, src.scene, src.task, attempt, avoid, at)
-            rng = np.random.default_rng(
-                episode_seed(cfg.seed, "mimicgen-rng", src.scene, src.task, *at, attempt)
-            )
-            attempt += 1
-            used: list[int] = []
-            frames, success = [], False
-            for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, cfg, used):
-                frames.append((obs, a, poses))
-                success = bool(step_info.get("success", False))
-            if success:
-                self._save(src, seed, frames, used)
-                ok += 1
-                total += len(frames)
-            if progress is not None:
-                progress(label, ok, attempt, per_cell)
-        return label, ok, attempt, total
+        done = [e for e in self.stage.entries if e["cell"] == k]
+        attempt, ok = len(done), sum(e["success"] for e in done)
+        if progress is not None and attempt:
+            progress(label, ok, attempt, per_cell)
+        env = None
+        try:
+            while attempt < per_cell and not (cfg.guarantee and ok >= cfg.n):
+                if env is None:  # the scene's own episode budget: a generated episode must succeed in time
+                    env = _level_env(
+                        src.scene, src.task, src.level, where, self.layout.cams, self.layout.size
+                    )
+                ok += self._attempt(env, k, label, pool, attempt, _new_seed(cfg, src.scene, src.task, attempt,
+                                                                             avoid, at), at)  # fmt: skip
+                attempt += 1
+                if progress is not None:
+                    progress(label, ok, attempt, per_cell)
+        finally:
+            if env is not None:
+                env.close()
 
-    def _save(self, src: SourceDemo, seed: int, frames: list, used: list[int]) -> None:
+    def _attempt(
+        self, env, k: int, label: str, pool: list[SourceDemo], attempt: int, seed: int, at: tuple
+    ) -> bool:
+        """Run one attempt from T0 seed ``seed`` and save it; True when it succeeded (and was kept)."""
+        src = pool[0]
+        rng = np.random.default_rng(
+            episode_seed(self.cfg.seed, "mimicgen-rng", src.scene, src.task, *at, attempt)
+        )
+        used: list[int] = []
+        frames, success = [], False
+        for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, self.cfg, used):
+            frames.append((obs, a, poses))
+            success = bool(step_info.get("success", False))
+        entry = {"cell": k, "label": label, "attempt": attempt, "seed": seed, "success": success}
+        if not success:
+            self.stage.add({**entry, "wall_s": self.clock()})
+            return False
         where = dict(src.where)
-        per_level = level_columns(src.level, where.get("axis"), src.param) if self.levels else {}
-        save_episode(self.ds, frames, self.cams, self.objects, per_level)
-        record = {"episode_index": self.ds.num_episodes - 1, "regime": "mimicgen", "scene": src.scene,
-                  "task": src.task, "seed": seed, "level": src.level}  # fmt: skip
+        per_level = level_columns(src.level, where.get("axis"), src.param) if self.layout.levels else {}
+        capture = FrameCapture()
+        save_episode(capture, frames, self.layout.cams, self.layout.objects, per_level)
+        record = {
+            "regime": "mimicgen",
+            "scene": src.scene,
+            "task": src.task,
+            "seed": seed,
+            "level": src.level,
+        }
         if where:
             record.update(where, param=src.param)
         record.update(
             frames=len(frames), source_episodes=used, object_poses=rounded_poses([p for _, _, p in frames])
         )
-        append_episode_sidecar(self.cfg.out, record)
+        self.stage.add({**entry, "episode": record, "wall_s": self.clock()}, capture.frames)
+        return True
 
 
 def mimicgen_main(args: argparse.Namespace) -> int:
@@ -411,7 +393,8 @@ def mimicgen_main(args: argparse.Namespace) -> int:
         required=True,
         help="generation attempts per task and level (successes with --guarantee)",
     )
-    p.add_argument("--out", required=True, help="new dataset root directory (must not exist)")
+    p.add_argument("--out", required=True,
+                   help="dataset root: new, or an unfinished one to resume with the same arguments")  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="seed of the new initial states and the source choice")
     p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task and level")
     p.add_argument(
@@ -432,19 +415,18 @@ def mimicgen_main(args: argparse.Namespace) -> int:
 
     console = Console(stderr=True)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-    try:
-        with Progress(*columns, console=console, transient=True) as bar:
-            bars: dict[str, object] = {}
+    done = (cfg.out / STATS_FILE).is_file()
+    with Progress(*columns, console=console, transient=True) as bar:
+        bars: dict[str, object] = {}
 
-            def progress(task, ok, attempt, total):
-                if task not in bars:
-                    bars[task] = bar.add_task(task, total=total)
-                bar.update(bars[task], completed=attempt, description=f"{task}: {ok} ok")
+        def progress(task, ok, attempt, total):
+            if task not in bars:
+                bars[task] = bar.add_task(task, total=total)
+            bar.update(bars[task], completed=attempt, description=f"{task}: {ok} ok")
 
-            stats = generate(cfg, progress)
-    except KeyboardInterrupt:
-        shutil.rmtree(cfg.out, ignore_errors=True)
-        raise
+        stats = generate(cfg, progress, say=console.print)
+    if done:
+        return 0
     console.print(f"generated {stats['successes']}/{stats['attempts']} attempts succeeded "
                   f"({100 * stats['rate']:.1f} %) → {cfg.out}")  # fmt: skip
     return 0 if stats["successes"] else 1

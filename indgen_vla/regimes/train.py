@@ -3,7 +3,8 @@
 A compact loop over lerobot's own ``LeRobotDataset`` (delta timestamps from the policy config) and the
 policy's own pre/post processors, normalised with statistics aggregated over every dataset given (e.g.
 human demos + MimicGen demos). The output directory is a LeRobot checkpoint that ``--policy lerobot:<dir>``
-loads exactly like a Hub checkpoint.
+loads exactly like a Hub checkpoint. Until the run completes it also holds ``resume/``, the state saved every
+``save_every`` steps: rerunning the same command resumes from it (``train_state``).
 """
 
 from __future__ import annotations
@@ -11,14 +12,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from indgen_vla.errors import ConfigError
 from indgen_vla.interface import OBJECT_DIM
+from indgen_vla.records import atomic_write_json
 from indgen_vla.regimes.demos import ENV_STATE, read_episode_sidecar
+from indgen_vla.regimes.resume import RESUME_DIR, RUN_FILE, check_same_run, out_state, start_run
+from indgen_vla.regimes.train_state import CLI_FLAGS, LossLog, run_identity
 from indgen_vla.training_support import cells_from_json, cells_from_records, cells_to_json, support_text
 
 POLICIES = ("act", "diffusion")
@@ -43,6 +49,7 @@ class TrainConfig:
         horizon, n_obs_steps, down_dims, num_inference_steps: Diffusion size.
         cache: keep decoded samples in memory after their first use (default: only when state-only).
         log_every: steps between loss log lines.
+        save_every: steps between resumable states in ``<out>/resume`` (default: every 10 % of ``steps``).
     """
 
     policy: str = "act"
@@ -68,6 +75,7 @@ class TrainConfig:
     num_inference_steps: int = 10
     cache: bool | None = None
     log_every: int = 100
+    save_every: int | None = None
 
     def __post_init__(self) -> None:
         if self.policy not in POLICIES:
@@ -76,6 +84,8 @@ class TrainConfig:
                      "n_obs_steps", "num_inference_steps", "log_every"):  # fmt: skip
             if int(getattr(self, name)) < 1:
                 raise ConfigError(f"train: {name} must be >= 1, got {getattr(self, name)}")
+        if self.save_every is not None and self.save_every < 1:
+            raise ConfigError(f"train: --save-every must be >= 1 step, got {self.save_every}")
         if self.n_action_steps > self.chunk_size:
             raise ConfigError(
                 f"train: n_action_steps {self.n_action_steps} exceeds chunk_size {self.chunk_size}"
@@ -93,6 +103,11 @@ class TrainConfig:
             raise ConfigError(
                 f"train: unknown camera(s) {bad}; cameras are agentview, wrist (or none: state-only)"
             )
+
+    @property
+    def every(self) -> int:
+        """Steps between saved states: ``save_every``, or 10 % of ``steps``."""
+        return self.save_every or max(1, math.ceil(self.steps / 10))
 
 
 def _policy_config(cfg: TrainConfig, input_features: dict, output_features: dict):
@@ -136,17 +151,22 @@ def video_backend() -> str:
         return "pyav"
 
 
-def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) -> list:
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    backend = video_backend()
-    out = []
+def _require_datasets(dirs: Sequence[Path]) -> None:
     for d in dirs:
         if not (Path(d) / "meta" / "info.json").is_file():
             raise ConfigError(
                 f"train: {str(d)!r} is not a LeRobotDataset (no meta/info.json); record one with "
                 "`indgen demos` or `indgen mimicgen`"
             )
+
+
+def _open_datasets(dirs: Sequence[Path], repo_id: str, delta_timestamps=None) -> list:
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    _require_datasets(dirs)
+    backend = video_backend()
+    out = []
+    for d in dirs:
         out.append(
             LeRobotDataset(repo_id, root=Path(d), delta_timestamps=delta_timestamps, video_backend=backend)
         )
@@ -252,25 +272,75 @@ def _seed_all(seed: int) -> None:
 def train_policy(
     dataset_dirs: Sequence[Path | str], out_dir: Path | str, config: TrainConfig | None = None, *,
     repo_id: str = DEFAULT_REPO_ID, data_regime: str = "", progress: Callable[[int, float], None] | None = None,
-    **overrides,
+    say: Callable[[str], None] | None = None, **overrides,
 ) -> Path:  # fmt: skip
-    """Train a lerobot policy on ``dataset_dirs`` and save it (weights + processors) to ``out_dir``."""
+    """Train a lerobot policy on ``dataset_dirs`` and save it (weights + processors) to ``out_dir``.
+
+    An unfinished ``out_dir`` made with the same arguments is resumed from its last saved state (``say`` is told
+    from which step); a finished one is returned unchanged; other arguments are refused in one line.
+    """
     import dataclasses
-
-    import torch
-    from lerobot.datasets.factory import resolve_delta_timestamps
-    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
-
-    from policy_wrappers.lerobot_steps import ObjectPosesStep, ProprioAsEnvStateStep
 
     cfg = dataclasses.replace(config or TrainConfig(), **overrides)
     dirs = [Path(d) for d in dataset_dirs]
     if not dirs:
         raise ConfigError("train: give at least one dataset directory")
-    out = Path(out_dir)
-    if out.exists() and any(out.iterdir()):
-        raise ConfigError(f"train: --out {out} already exists and is not empty; choose a new directory")
+    _require_datasets(dirs)
+    out, run = Path(out_dir), run_identity(cfg, dirs, repo_id, data_regime)
+    state = out_state(out, INFO_FILE, "train")
+    if state == "finished":
+        _check_finished(out, run)
+        shutil.rmtree(out / RESUME_DIR, ignore_errors=True)  # a kill between the checkpoint and this cleanup
+        if say is not None:
+            say(f"train: {out} is already complete ({cfg.steps} steps); nothing to do")
+        return out
+    if state == "unfinished":
+        saved = json.loads((out / RESUME_DIR / RUN_FILE).read_text())
+        check_same_run(out, saved, run, "train", CLI_FLAGS, finished=False)
     _seed_all(cfg.seed)
+    model = _build(cfg, dirs, repo_id)
+    root = start_run(out, run)
+    log, train_s = _fit(cfg, model, root, progress, say)
+    model.policy.eval()
+    for obj in (model.policy, model.pre, model.post):
+        obj.save_pretrained(str(out))
+    info = {"config": asdict(cfg), "datasets": [str(d) for d in dirs], "data_regime": data_regime,
+            "episodes": sum(ds.num_episodes for ds in model.datasets), "frames": len(model.samples),
+            "train_s": round(train_s, 1), "first_loss": round(log.first_loss, 5), "loss_every": cfg.log_every,
+            "losses": [round(x, 5) for x in log.losses],
+            "params": sum(p.numel() for p in model.policy.parameters()),
+            "levels": training_levels(dirs, model.datasets), "run": run}  # fmt: skip
+    atomic_write_json(out / INFO_FILE, info)  # written last: the mark of a finished checkpoint
+    shutil.rmtree(root, ignore_errors=True)
+    return out
+
+
+def _check_finished(out: Path, run: dict) -> None:
+    saved = json.loads((out / INFO_FILE).read_text()).get("run")
+    if saved is None:
+        raise ConfigError(f"train: --out {out} holds a checkpoint from before training could resume; choose a "
+                          "new directory")  # fmt: skip
+    check_same_run(out, saved, run, "train", CLI_FLAGS, finished=True)
+
+
+@dataclass
+class _Model:
+    """A policy with its processors and the samples it trains on."""
+
+    policy: Any
+    pre: Any
+    post: Any
+    datasets: list
+    samples: _Samples
+
+
+def _build(cfg: TrainConfig, dirs: list[Path], repo_id: str) -> _Model:
+    """The freshly initialised policy, its processors (dataset statistics) and the training samples."""
+    from lerobot.datasets.factory import resolve_delta_timestamps
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+    from policy_wrappers.lerobot_steps import ObjectPosesStep, ProprioAsEnvStateStep
+
     datasets = _open_datasets(dirs, repo_id)
     inputs, outputs = _features(datasets, cfg.cameras, cfg.objects)
     policy_cfg = _policy_config(cfg, inputs, outputs)
@@ -286,11 +356,19 @@ def train_policy(
     cache = cfg.cache if cfg.cache is not None else not cfg.cameras
     copied = () if cfg.objects else ("observation.environment_state",)  # filled by ProprioAsEnvStateStep
     samples = _Samples(datasets, tuple(k for k in keys if k not in copied), cache)
-    gen = torch.Generator().manual_seed(cfg.seed)
-    loader = torch.utils.data.DataLoader(samples, batch_size=cfg.batch_size, shuffle=True, drop_last=True,
-                                         generator=gen, num_workers=0)  # fmt: skip
-    if len(loader) == 0:
+    if len(samples) < cfg.batch_size:
         raise ConfigError(f"train: {len(samples)} samples is fewer than one batch of {cfg.batch_size}")
+    return _Model(policy, pre, post, datasets, samples)
+
+
+def _fit(cfg: TrainConfig, model: _Model, root: Path, progress, say) -> tuple[LossLog, float]:
+    """AdamW with warm-up and cosine decay from the last saved state in ``root`` (or step 0) to ``cfg.steps``,
+    saving the state every ``cfg.every`` steps and after the last; (loss log, training seconds over sessions)."""
+    import torch
+
+    from indgen_vla.regimes.train_state import StepBatches, load_train_state, save_train_state
+
+    policy = model.policy
     optimizer = torch.optim.AdamW(policy.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     warmup = min(100, cfg.steps // 10)
 
@@ -301,38 +379,29 @@ def train_policy(
         return 0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * t))
 
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lr_at)
+    step, log = load_train_state(root, policy, optimizer, scheduler)
+    if step and say is not None:
+        say(f"train: resuming {root.parent} from step {step} of {cfg.steps}")
+    batches = StepBatches(len(model.samples), cfg.batch_size, cfg.seed, step, cfg.steps)
+    # its own generator: a loader draws a worker base seed at each iteration start, from torch's global RNG otherwise
+    loader = torch.utils.data.DataLoader(model.samples, batch_sampler=batches, num_workers=0,
+                                         generator=torch.Generator().manual_seed(cfg.seed))  # fmt: skip
     policy.train()
-    losses: list[float] = []
-    t0, step, window, first_loss = time.perf_counter(), 0, [], math.nan
-    while step < cfg.steps:
-        for batch in loader:
-            loss, _ = policy.forward(pre(batch))
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            torch.nn.utils.clip_grad_norm_(policy.parameters(), cfg.grad_clip)
-            optimizer.step()
-            scheduler.step()
-            window.append(float(loss.detach()))
-            first_loss = window[0] if step == 0 else first_loss
-            step += 1
-            if step % cfg.log_every == 0 or step == cfg.steps:
-                losses.append(sum(window) / len(window))
-                window = []
-                if progress is not None:
-                    progress(step, losses[-1])
-            if step >= cfg.steps:
-                break
-    train_s = time.perf_counter() - t0
-    policy.eval()
-    out.mkdir(parents=True, exist_ok=True)
-    for obj in (policy, pre, post):
-        obj.save_pretrained(str(out))
-    info = {"config": asdict(cfg), "datasets": [str(d) for d in dirs], "data_regime": data_regime,
-            "episodes": sum(ds.num_episodes for ds in datasets), "frames": len(samples),
-            "train_s": round(train_s, 1), "first_loss": round(first_loss, 5), "loss_every": cfg.log_every, "losses": [round(x, 5) for x in losses],
-            "params": sum(p.numel() for p in policy.parameters()), "levels": training_levels(dirs, datasets)}  # fmt: skip
-    (out / INFO_FILE).write_text(json.dumps(info, indent=2) + "\n")
-    return out
+    before, t0 = log.train_s, time.perf_counter()
+    for batch in loader:
+        loss, _ = policy.forward(model.pre(batch))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(policy.parameters(), cfg.grad_clip)
+        optimizer.step()
+        scheduler.step()
+        step += 1
+        if log.add(step, float(loss.detach()), cfg.log_every, cfg.steps) and progress is not None:
+            progress(step, log.losses[-1])
+        if step % cfg.every == 0 or step == cfg.steps:
+            log.train_s = before + time.perf_counter() - t0
+            save_train_state(root, step, cfg.steps, policy, optimizer, scheduler, log)
+    return log, before + time.perf_counter() - t0
 
 
 def train_main(args: argparse.Namespace) -> int:
@@ -343,7 +412,8 @@ def train_main(args: argparse.Namespace) -> int:
     p.add_argument(
         "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
     )
-    p.add_argument("--out", required=True, help="checkpoint directory to create (must not exist)")
+    p.add_argument("--out", required=True,
+                   help="checkpoint directory: new, or an unfinished one to resume with the same arguments")  # fmt: skip
     p.add_argument("--policy", default="act", choices=POLICIES, help="lerobot policy type to train")
     p.add_argument("--steps", type=int, default=TrainConfig.steps, help="optimiser updates")
     p.add_argument("--batch-size", type=int, default=TrainConfig.batch_size, help="frames per update")
@@ -363,12 +433,18 @@ def train_main(args: argparse.Namespace) -> int:
         "--data-regime", default="", help="label stored with the checkpoint (e.g. human, human+mimicgen)"
     )
     p.add_argument("--repo-id", default=DEFAULT_REPO_ID, help="repo id stored in the checkpoint config")
+    p.add_argument("--save-every", type=int, default=None,
+                   help="steps between resumable states in OUT/resume (default: every 10%% of --steps)")  # fmt: skip
     a = p.parse_args(getattr(args, "rest", args))
     cameras = tuple(c for c in a.cameras.split(",") if c)
     cfg = TrainConfig(policy=a.policy, steps=a.steps, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
-                      cameras=cameras, objects=a.objects, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps)  # fmt: skip
-    out = train_policy(a.datasets, a.out, cfg, repo_id=a.repo_id, data_regime=a.data_regime,
+                      cameras=cameras, objects=a.objects, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps,
+                      save_every=a.save_every)  # fmt: skip
+    done = (Path(a.out) / INFO_FILE).is_file()
+    out = train_policy(a.datasets, a.out, cfg, repo_id=a.repo_id, data_regime=a.data_regime, say=print,
                        progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True))  # fmt: skip
+    if done:
+        return 0
     info = json.loads((out / INFO_FILE).read_text())
     print(f"trained {a.policy} for {cfg.steps} steps in {info['train_s']:.0f} s; checkpoint in {out}")
     if info["levels"]:

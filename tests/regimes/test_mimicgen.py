@@ -8,7 +8,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.regimes.mimicgen import MimicGenConfig, _new_seed, load_sources, split_subtasks
+from indgen_vla.regimes.mimicgen import MimicGenConfig, _new_seed
+from indgen_vla.regimes.mimicgen_sources import load_sources, split_subtasks
 from indgen_vla.regimes.se3 import (
     interpolate_poses,
     invert_pose,
@@ -116,7 +117,7 @@ def test_config_errors(tmp_path):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=0)
     with pytest.raises(ConfigError, match="--selection"):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "out", n=1, selection="best")
-    with pytest.raises(ConfigError, match="already exists"):
+    with pytest.raises(ConfigError, match="must differ from --source"):
         MimicGenConfig(source=tmp_path / "src", out=tmp_path / "src", n=1)
     with pytest.raises(ConfigError, match="indgen_episodes.jsonl"):
         load_sources(tmp_path / "src")
@@ -193,3 +194,110 @@ def test_mimicgen_generates_each_level_from_its_own_sources(level_demos, tmp_pat
     ds = LeRobotDataset("local/indgen_mimicgen", root=tmp_path / "gen")
     assert set(LEVEL_FEATURES) <= set(ds.features)
     assert {int(ds[i]["level"]) for i in range(len(ds))} == {0, 1}
+
+
+def _dataset(root) -> dict:
+    """What a generated dataset holds, out-independent: every frame's columns, the sidecar, and the stats."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from indgen_vla.regimes.demos import read_episode_sidecar
+
+    ds = LeRobotDataset("local/indgen_mimicgen", root=root)
+    cols = {k: np.stack(ds.hf_dataset.with_format("numpy")[k]) for k in ds.hf_dataset.column_names}
+    stats = json.loads((root / "mimicgen_stats.json").read_text())
+    for key in ("out", "wall_s", "config"):
+        stats.pop(key)
+    return {"cols": cols, "sidecar": read_episode_sidecar(root), "stats": stats,
+            "files": sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())}  # fmt: skip
+
+
+def _assert_same_dataset(a: dict, b: dict) -> None:
+    assert a["files"] == b["files"] and not any(f.startswith("resume") for f in a["files"])
+    assert a["cols"].keys() == b["cols"].keys()
+    for k in a["cols"]:
+        np.testing.assert_array_equal(a["cols"][k], b["cols"][k], err_msg=k)
+    assert a["sidecar"] == b["sidecar"] and a["stats"] == b["stats"]
+
+
+@pytest.fixture(scope="module")
+def generated(demos, tmp_path_factory):
+    """Three uninterrupted attempts from the two T0 demos."""
+    from indgen_vla.regimes.mimicgen import generate
+
+    out = tmp_path_factory.mktemp("mg") / "gen"
+    generate(MimicGenConfig(source=demos, out=out, n=3, seed=1))
+    return out
+
+
+def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tmp_path):
+    """Stopped after its first attempt, with what kills mid-save leave (the next attempt's frames without their
+    record, a half-moved dataset), the rerun generates only the other attempts and writes the same dataset."""
+    from indgen_vla.regimes.mimicgen import generate
+
+    out, said = tmp_path / "gen", []
+
+    def stop(label, ok, attempt, total):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        generate(MimicGenConfig(source=demos, out=out, n=3, seed=1), stop)
+    episodes = out / "resume" / "episodes"
+    assert sorted(p.name for p in episodes.iterdir())[:1] == ["000000.json"]
+    (episodes / "000001.npz").write_bytes(b"torn")
+    (out / "meta").mkdir()
+    (out / "meta" / "info.json").write_text("{")
+    (out / "resume" / "dataset" / "data").mkdir(parents=True)
+    generate(MimicGenConfig(source=demos, out=out, n=3, seed=1), say=said.append)
+    assert said[0].startswith(f"mimicgen: resuming {out}: 1 attempts already saved")
+    _assert_same_dataset(_dataset(generated), _dataset(out))
+
+
+def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generated, demos, tmp_path):
+    from indgen_vla.regimes.mimicgen import generate
+
+    stamp = {str(p): p.stat().st_mtime_ns for p in generated.rglob("*")}
+    said = []
+    stats = generate(MimicGenConfig(source=demos, out=generated, n=3, seed=1), say=said.append)
+    assert said == [
+        f"mimicgen: {generated} is already complete ({stats['successes']} episodes); nothing to do"
+    ]
+    assert {str(p): p.stat().st_mtime_ns for p in generated.rglob("*")} == stamp
+    with pytest.raises(
+        ConfigError, match="finished run made with --n 3, not --n 4; rerun with --n 3, or choose"
+    ):
+        generate(MimicGenConfig(source=demos, out=generated, n=4, seed=1))
+    with pytest.raises(ConfigError, match="made with no --guarantee, not --guarantee"):
+        generate(MimicGenConfig(source=demos, out=generated, n=3, seed=1, guarantee=True))
+    foreign = tmp_path / "notes"
+    foreign.mkdir()
+    (foreign / "todo.txt").write_text("keep me")
+    with pytest.raises(ConfigError, match="already exists and is not empty"):
+        generate(MimicGenConfig(source=demos, out=foreign, n=1))
+
+
+def _saved_attempts(out) -> int:
+    d = out / "resume" / "episodes"
+    return len(list(d.glob("*.json"))) if d.is_dir() else 0
+
+
+@pytest.mark.slow  # two interpreter start-ups with robosuite (~15 s each here)
+def test_sigkilled_generation_resumes_to_the_same_dataset(generated, demos, tmp_path):
+    import subprocess
+    import sys
+
+    from tests.fixtures.kill import kill_midway
+
+    argv = ["mimicgen", "--source", str(demos), "--n", "3", "--seed", "1"]
+    out = tmp_path / "killed"
+    saved = kill_midway(argv, out, total=3, count=_saved_attempts)
+    assert 1 <= saved < 3
+    run = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(out)], capture_output=True,
+                         text=True)  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert f"{saved} attempts already saved" in " ".join(run.stderr.split())
+    _assert_same_dataset(_dataset(generated), _dataset(out))
+    bad = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv[:-1], "2", "--out", str(out)],
+                         capture_output=True, text=True)  # fmt: skip
+    assert (
+        bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "--seed 1, not --seed 2" in bad.stderr
+    )

@@ -194,3 +194,102 @@ def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_
         line.split(" | ")[0] for line in (out / "report.md").read_text().splitlines() if "· trained" in line
     ]
     assert marked == ["| 0", "| 1"]
+
+
+TINY = TrainConfig(
+    steps=12, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5, save_every=4
+)
+
+
+def _same_checkpoint(a: Path, b: Path) -> None:
+    """Every file of two checkpoints byte for byte, train_info.json but its training seconds."""
+    files = sorted(p.name for p in a.iterdir())
+    assert files == sorted(p.name for p in b.iterdir()) and "resume" not in files
+    for name in files:
+        if name != "train_info.json":
+            assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    ia, ib = (json.loads((d / "train_info.json").read_text()) for d in (a, b))
+    assert {k for k in ia if ia[k] != ib[k]} <= {"train_s"}
+
+
+@pytest.fixture(scope="module")
+def tiny(demos, tmp_path_factory) -> Path:
+    """An uninterrupted 12-step run of TINY."""
+    return train_policy([demos], tmp_path_factory.mktemp("tiny") / "act", TINY)
+
+
+def test_interrupted_training_resumes_to_the_same_checkpoint(tiny, demos, tmp_path):
+    """Stopped at step 6 (state saved at step 4) and after a save a kill cut short, the rerun resumes from step 4
+    and writes the uninterrupted run's checkpoint bit for bit: weights, optimiser path and loss log."""
+    out, said = tmp_path / "act", []
+
+    def stop(step, loss):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):  # the first logged loss is step 5: the state of step 4 is on disk
+        train_policy([demos], out, TINY, progress=stop)
+    assert sorted(p.name for p in (out / "resume").iterdir()) == ["last.json", "run.json", "step_000004"]
+    half = out / "resume" / ".step_000008.x1y2"  # what a kill in the middle of the next save leaves
+    half.mkdir()
+    (half / "model.safetensors").write_bytes(b"torn")
+    train_policy([demos], out, TINY, say=said.append)
+    assert said == [f"train: resuming {out} from step 4 of 12"]
+    _same_checkpoint(tiny, out)
+
+
+def test_finished_rerun_is_a_no_op_and_other_arguments_are_refused(tiny, demos, tmp_path):
+    stamp = {p.name: p.stat().st_mtime_ns for p in tiny.iterdir()}
+    said = []
+    assert train_policy([demos], tiny, TINY, say=said.append) == tiny
+    assert said == [f"train: {tiny} is already complete (12 steps); nothing to do"]
+    assert {p.name: p.stat().st_mtime_ns for p in tiny.iterdir()} == stamp
+    assert train_policy([demos], tiny, TINY, save_every=3) == tiny  # how often it saves changes no checkpoint
+    with pytest.raises(
+        ConfigError, match=r"finished run made with --steps 12, not --steps 13; rerun with --steps 12"
+    ):
+        train_policy([demos], tiny, TINY, steps=13)
+    with pytest.raises(ConfigError, match="made with --seed 0, not --seed 1"):
+        train_policy([demos], tiny, TINY, seed=1)
+    foreign = tmp_path / "notes"
+    foreign.mkdir()
+    (foreign / "todo.txt").write_text("keep me")
+    with pytest.raises(ConfigError, match="already exists and is not empty"):
+        train_policy([demos], foreign, TINY)
+    assert (foreign / "todo.txt").read_text() == "keep me"
+
+
+def _saved_step(out: Path) -> int:
+    try:
+        return int(json.loads((out / "resume" / "last.json").read_text())["state"].split("_")[1])
+    except (OSError, ValueError, KeyError):
+        return 0
+
+
+@pytest.mark.slow  # three interpreter start-ups (~10 s each here) and a default-size ACT
+def test_sigkilled_train_resumes_to_the_same_checkpoint(demos, tmp_path):
+    import subprocess
+    import sys
+
+    from tests.fixtures.kill import kill_midway
+
+    argv = ["train", str(demos), "--steps", "30", "--batch-size", "8", "--save-every", "5"]
+    ref, out = tmp_path / "ref", tmp_path / "killed"
+    subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(ref)], check=True,
+                   capture_output=True)  # fmt: skip
+    saved = kill_midway(argv, out, total=30, at_least=5, count=_saved_step)
+    assert 5 <= saved < 30
+    run = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(out)], check=True,
+                         capture_output=True, text=True)  # fmt: skip
+    assert f"resuming {out} from step {saved} of 30" in run.stdout
+    _same_checkpoint(ref, out)
+    again = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(out)], capture_output=True,
+                           text=True)  # fmt: skip
+    assert again.returncode == 0 and "already complete" in again.stdout
+    bad = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv[:-1], "6", "--out", str(out)],
+                         capture_output=True, text=True)  # fmt: skip
+    assert bad.returncode == 0 and "already complete" in bad.stdout  # --save-every is not part of the run
+    bad = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--seed", "2", "--out", str(out)],
+                         capture_output=True, text=True)  # fmt: skip
+    assert (
+        bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "--seed 0, not --seed 2" in bad.stderr
+    )
