@@ -90,7 +90,7 @@ def _umask() -> int:
     return mask
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
+def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write to a temp file in the same directory, fsync, then rename over ``path``. The file gets the mode a
     plain ``open(path, "w")`` would (0o666 less the umask), not mkstemp's owner-only 0o600, so a run directory
     stays readable by the group and others as the user's umask intends."""
@@ -113,11 +113,11 @@ def _atomic_write_bytes(path: Path, data: bytes) -> None:
 
 
 def atomic_write_json(path: Path, obj: Any) -> None:
-    _atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False, default=str) + "\n").encode())
+    atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False, default=str) + "\n").encode())
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    _atomic_write_bytes(Path(path), text.encode())
+    atomic_write_bytes(Path(path), text.encode())
 
 
 def atomic_savefig(fig, path: Path) -> None:
@@ -127,7 +127,7 @@ def atomic_savefig(fig, path: Path) -> None:
 
     buf = io.BytesIO()
     fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png")
-    _atomic_write_bytes(Path(path), buf.getvalue())
+    atomic_write_bytes(Path(path), buf.getvalue())
 
 
 def write_result(out: Path, stem: str, data: Any, markdown: str) -> None:
@@ -392,7 +392,7 @@ class RunDir:
         table = pa.Table.from_pylist(ordered, schema=_schema())
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
-        _atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
+        atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
         (self.path / JOURNAL).unlink(
             missing_ok=True
         )  # after the rewrite: a kill between the two replays rows
