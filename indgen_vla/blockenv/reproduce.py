@@ -189,12 +189,17 @@ def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int, cache: Pa
             yield job, *_job(*job, cfg, env_cfg)
         return
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = {pool.submit(_job, *job, cfg, env_cfg): job for job in jobs}
-        for fut in as_completed(futures):
-            yield futures[fut], *fut.result()
+    # a Pool, not a ProcessPoolExecutor: leaving the block (Ctrl-C, SIGTERM, an error) terminates the jobs still
+    # running where the executor waited for every queued job and then dropped them unsaved, and a pool worker whose
+    # parent was killed ends (its task pipe closes) where the executor's kept training, orphaned, for ever
+    with mp.get_context("spawn").Pool(workers) as pool:
+        yield from pool.imap_unordered(_pooled_job, [(job, cfg, env_cfg) for job in jobs])
+
+
+def _pooled_job(args: tuple) -> tuple[tuple[str, int], dict, float]:
+    job, cfg, env_cfg = args
+    return job, *_job(*job, cfg, env_cfg)
 
 
 def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1, resume: bool = False) -> dict:

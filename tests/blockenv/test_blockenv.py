@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 
 import numpy as np
 import pytest
@@ -468,3 +469,20 @@ def test_eval_cli_names_task_ci_and_caveats(tmp_path, capsys):
     assert lines[1] == "oracle on task BlockEnv 12×12, seed 1000: success per level with Wilson 95 % CI"
     res = json.loads(out.read_text())
     assert res["task"] == "BlockEnv 12×12" and res["caveats"][0].startswith("**Too few episodes**")
+
+
+@pytest.mark.slow  # 30-60 s: two --quick reproductions with 2 worker processes, stopped after their first job
+def test_a_stopped_reproduce_leaves_no_worker_running(tmp_path):
+    """SIGTERM stops the jobs in progress at once (the old ProcessPoolExecutor waited for every queued job, then
+    dropped them unsaved), and the workers of a SIGKILLed reproduce end (the executor's trained on, orphaned)."""
+    from tests.fixtures.kill import stop_midway
+
+    def first_job_saved(out):
+        return lambda: any((out / "jobs").glob("*.json"))
+
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        out = tmp_path / sig.name
+        argv = ["blockenv", "reproduce", "--quick", "--workers", "2", "--resume", "--out", str(out)]
+        stopped = stop_midway(argv, sig, first_job_saved(out), linger_s=60)
+        assert stopped.survivors == [], sig.name
+        assert sig == signal.SIGKILL or (stopped.returncode == 143 and stopped.exit_s < 10), stopped

@@ -11,7 +11,7 @@ import pytest
 from indgen_vla.cli import main, sigterm_raises
 from indgen_vla.errors import EXIT_SIGTERM, Terminated
 from indgen_vla.records import JOURNAL
-from tests.fixtures.kill import stop_midway
+from tests.fixtures.kill import episodes_on_disk, stop_midway
 
 ARGS = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0:1",
         "--episodes", "4", "--workers", "2", "--max-steps", "8"]  # fmt: skip
@@ -21,14 +21,14 @@ def test_sigterm_closes_the_workers_and_says_one_line(tmp_path):
     """A ``kill PID`` of a run with two worker processes; that a stopped run resumes exactly is
     ``test_engine.test_resume_after_sigkill``'s (SIGTERM keeps the same journal, and flushes it too)."""
     out = tmp_path / "run"
-    stopped = stop_midway(ARGS, out, signal.SIGTERM)
+    stopped = stop_midway([*ARGS, "--out", str(out)], signal.SIGTERM, lambda: episodes_on_disk(out) >= 1)
     assert stopped.returncode == EXIT_SIGTERM, stopped.stderr
     assert "Traceback" not in stopped.stderr  # the workers may not print one either
     assert stopped.stderr.strip().splitlines()[-1] == (
         "terminated (SIGTERM): finished episodes are saved; re-run the same command to resume"
     )
     assert stopped.survivors == []  # the fork server and its workers ended with the run
-    assert 0 < stopped.kept < 8
+    assert 0 < episodes_on_disk(out) < 8
     assert (out / "episodes.parquet").is_file() and not (out / JOURNAL).exists()  # flushed on the way out
 
 
@@ -73,9 +73,11 @@ def test_ray_init_does_not_take_over_sigterm():
 @pytest.mark.slow  # 20-30 s: a local Ray cluster starts
 def test_sigterm_stops_a_ray_run_as_a_local_one(tmp_path):
     pytest.importorskip("ray")
-    stopped = stop_midway([*ARGS, "--backend", "ray"], tmp_path / "run", signal.SIGTERM, timeout_s=180)
+    out = tmp_path / "run"
+    stopped = stop_midway([*ARGS, "--backend", "ray", "--out", str(out)], signal.SIGTERM,
+                          lambda: episodes_on_disk(out) >= 1, timeout_s=180)  # fmt: skip
     assert stopped.returncode == EXIT_SIGTERM, stopped.stderr[-2000:]
     assert "SIGTERM received" not in stopped.stderr  # Ray's C++ handler's stack dump
     last = stopped.stderr.strip().splitlines()[-1]
     assert last.startswith("terminated (SIGTERM): finished episodes are saved")
-    assert stopped.survivors == [] and 0 < stopped.kept < 8
+    assert stopped.survivors == [] and 0 < episodes_on_disk(out) < 8
