@@ -7,15 +7,18 @@ returning an exit code, so ``indgen --help`` never imports torch, robosuite or l
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import importlib
 import os
 import re
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 
 from indgen_vla import __version__
-from indgen_vla.errors import IndgenError
+from indgen_vla.errors import EXIT_SIGTERM, IndgenError, Terminated
 
 # subcommand -> "package.module:function" handler, imported only when that subcommand runs
 HANDLERS: dict[str, str] = {
@@ -405,7 +408,7 @@ def _resolve(command: str):
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``indgen`` console script. Exit codes (README "Exit codes"): 0 success, 1 an
     unexpected crash, 2 bad input (``IndgenError``), 3 ``evaluate`` finished with ``error`` episodes, 4 it
-    stopped early because the policy server stayed unreachable, 130 Ctrl-C."""
+    stopped early because the policy server stayed unreachable, 130 Ctrl-C, 143 SIGTERM."""
     try:
         return _main(argv)
     finally:
@@ -440,6 +443,26 @@ def _interrupted_message(args: argparse.Namespace) -> str:
     return f"interrupted: 'indgen {name}' keeps no partial output; re-run it to start over"
 
 
+@contextlib.contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """While a command runs, SIGTERM raises ``Terminated`` (a ``KeyboardInterrupt``) so that it stops as on Ctrl-C:
+    workers closed, finished work saved, one line. A second SIGTERM is ignored so it cannot cut that shutdown short
+    (SIGKILL still can). Signal handlers belong to the main thread: elsewhere this does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     # piped or logged: rich would cut tables (task names, readiness notes) to 80 columns
@@ -455,10 +478,14 @@ def _main(argv: Sequence[str] | None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(_resolve(args.command)(args) or 0)
+        with sigterm_raises():
+            return int(_resolve(args.command)(args) or 0)
     except IndgenError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
+    except Terminated:
+        print(_interrupted_message(args).replace("interrupted:", "terminated (SIGTERM):", 1), file=sys.stderr)
+        return EXIT_SIGTERM
     except KeyboardInterrupt:
         print(_interrupted_message(args), file=sys.stderr)
         return 130

@@ -42,6 +42,13 @@ class PolicyError(IndgenError):
 # (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130).
 EXIT_EPISODE_ERRORS = 3
 EXIT_STOPPED = 4
+EXIT_SIGTERM = 143  # 128 + SIGTERM, as a shell reports a process that SIGTERM ended
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a cluster scheduler's stop, ``kill PID``) raised in the main thread, so a run shuts its workers down
+    and keeps what it finished exactly as on Ctrl-C; Python's default would end the process with no cleanup,
+    leaving workers and ``pip`` children running on."""
 
 
 class PolicyConnectionError(PolicyError):

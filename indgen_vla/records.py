@@ -90,10 +90,11 @@ def _umask() -> int:
     return mask
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
+def atomic_write_bytes(path: Path, data: bytes) -> None:
     """Write to a temp file in the same directory, fsync, then rename over ``path``. The file gets the mode a
     plain ``open(path, "w")`` would (0o666 less the umask), not mkstemp's owner-only 0o600, so a run directory
     stays readable by the group and others as the user's umask intends."""
+    path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
@@ -112,16 +113,12 @@ def _atomic_write_bytes(path: Path, data: bytes) -> None:
         os.close(dir_fd)
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    _atomic_write_bytes(Path(path), data)
-
-
 def atomic_write_json(path: Path, obj: Any) -> None:
-    _atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False, default=str) + "\n").encode())
+    atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False, default=str) + "\n").encode())
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    _atomic_write_bytes(Path(path), text.encode())
+    atomic_write_bytes(Path(path), text.encode())
 
 
 def atomic_savefig(fig, path: Path) -> None:
@@ -131,7 +128,7 @@ def atomic_savefig(fig, path: Path) -> None:
 
     buf = io.BytesIO()
     fig.savefig(buf, format=Path(path).suffix.lstrip(".") or "png")
-    _atomic_write_bytes(Path(path), buf.getvalue())
+    atomic_write_bytes(Path(path), buf.getvalue())
 
 
 def write_result(out: Path, stem: str, data: Any, markdown: str) -> None:
@@ -396,7 +393,7 @@ class RunDir:
         table = pa.Table.from_pylist(ordered, schema=_schema())
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
-        _atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
+        atomic_write_bytes(self.path / EPISODES, sink.getvalue().to_pybytes())
         (self.path / JOURNAL).unlink(
             missing_ok=True
         )  # after the rewrite: a kill between the two replays rows

@@ -19,6 +19,7 @@ from indgen_vla.blockenv.env import BlockEnvConfig
 from indgen_vla.blockenv.reproduce import _pooled
 from indgen_vla.errors import ConfigError
 from indgen_vla.metrics import break_level
+from indgen_vla.records import atomic_write_json, atomic_write_text
 
 
 @dataclass(frozen=True)
@@ -234,8 +235,8 @@ def replace_section(doc: Path, begin: str, end: str, body: str, what: str) -> No
     text = doc.read_text()
     if begin not in text or end not in text:
         raise ConfigError(f"{doc} has no {what} markers; add the lines {begin!r} and {end!r} where tables go")
-    doc.write_text(re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: f"{begin}\n\n{body}\n{end}", text,
-                          flags=re.S))  # fmt: skip
+    atomic_write_text(doc, re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: f"{begin}\n\n{body}\n{end}",
+                                  text, flags=re.S))  # fmt: skip
 
 
 def write_doc(results: dict[str, dict], doc: Path) -> None:
@@ -251,7 +252,7 @@ def ablate(names: list[str], scale: AblationScale, results_path: Path, doc: Path
     for name in names:
         results[name] = run_ablation(name, scale, log, models)
         results_path.parent.mkdir(parents=True, exist_ok=True)
-        results_path.write_text(json.dumps(results, indent=2) + "\n")  # after each: a long run is resumable
+        atomic_write_json(results_path, results)  # after each, whole: a kill never costs the other ablations
         if doc is not None:
             write_doc(results, doc)
     return results

@@ -187,8 +187,10 @@ def _eval(a) -> int:
     print(f"break level (gamma {a.gamma}, observed rate): {'none in range' if brk is None else f'L{brk}'}")
     if a.out:
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.out).write_text(json.dumps({"method": a.method, "task": task, "ci": "wilson 95%", "levels": rows,
-                                           "break_level": brk, "caveats": caveats}, indent=2))  # fmt: skip
+        from indgen_vla.records import atomic_write_json
+
+        atomic_write_json(Path(a.out), {"method": a.method, "task": task, "ci": "wilson 95%", "levels": rows,
+                                        "break_level": brk, "caveats": caveats})  # fmt: skip
     return 0
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from indgen_vla.blockenv.env import BlockEnvConfig
 from indgen_vla.errors import ConfigError
 from indgen_vla.metrics import break_level, wilson_ci
+from indgen_vla.records import atomic_savefig, atomic_write_json, atomic_write_text
 
 BASELINES = ("rnn", "transformer", "transformer_rope", "transformer_goal_act", "trm", "maml", "ind")
 OURS = ("local_equivariant",)
@@ -148,6 +149,19 @@ def _job_path(cache: Path, method: str, seed: int, cfg, env_cfg, digest: str) ->
     return cache / f"{method}_seed{seed}_{hashlib.sha256(key.encode()).hexdigest()[:12]}.json"
 
 
+def _saved_job(path: Path) -> tuple[dict[int, tuple[int, int]], float] | None:
+    """(counts, seconds) of a finished job, or None to run it: never written, or unreadable (a file an older
+    version's plain write left half-written when it was killed)."""
+    try:
+        saved = json.loads(path.read_text())
+        return {int(k): (int(v[0]), int(v[1])) for k, v in saved["counts"].items()}, float(saved["seconds"])
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        path.unlink(missing_ok=True)
+        return None
+
+
 def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int, cache: Path | None = None):
     """Yield ((method, seed), counts, seconds) as jobs finish, in ``workers`` spawned processes.
 
@@ -159,16 +173,15 @@ def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int, cache: Pa
         cache.mkdir(parents=True, exist_ok=True)
         todo = []
         for job in jobs:
-            path = _job_path(cache, *job, cfg, env_cfg, digest)
-            if path.exists():
-                saved = json.loads(path.read_text())
-                yield job, {int(k): tuple(v) for k, v in saved["counts"].items()}, saved["seconds"]
+            saved = _saved_job(_job_path(cache, *job, cfg, env_cfg, digest))
+            if saved is not None:
+                yield job, *saved
             else:
                 todo.append(job)
         for job, res, sec in _run_jobs(todo, cfg, env_cfg, workers):
             path = _job_path(cache, *job, cfg, env_cfg, digest)
-            path.write_text(json.dumps({"job": list(job), "counts": {str(k): list(v) for k, v in res.items()},
-                                        "seconds": sec}) + "\n")  # fmt: skip
+            atomic_write_json(path, {"job": list(job), "counts": {str(k): list(v) for k, v in res.items()},
+                                     "seconds": sec})  # fmt: skip
             yield job, res, sec
         return
     if workers <= 1:
@@ -176,12 +189,17 @@ def _run_jobs(jobs: list[tuple[str, int]], cfg, env_cfg, workers: int, cache: Pa
             yield job, *_job(*job, cfg, env_cfg)
         return
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-        futures = {pool.submit(_job, *job, cfg, env_cfg): job for job in jobs}
-        for fut in as_completed(futures):
-            yield futures[fut], *fut.result()
+    # a Pool, not a ProcessPoolExecutor: leaving the block (Ctrl-C, SIGTERM, an error) terminates the jobs still
+    # running where the executor waited for every queued job and then dropped them unsaved, and a pool worker whose
+    # parent was killed ends (its task pipe closes) where the executor's kept training, orphaned, for ever
+    with mp.get_context("spawn").Pool(workers) as pool:
+        yield from pool.imap_unordered(_pooled_job, [(job, cfg, env_cfg) for job in jobs])
+
+
+def _pooled_job(args: tuple) -> tuple[tuple[str, int], dict, float]:
+    job, cfg, env_cfg = args
+    return job, *_job(*job, cfg, env_cfg)
 
 
 def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1, resume: bool = False) -> dict:
@@ -219,9 +237,9 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1, resu
                          "grid_size": env_cfg.grid_size, "gamma": cfg.gamma, "workers": workers},
               "wall_s": round(wall, 1), "job_seconds": job_seconds, "methods": table}  # fmt: skip
     result["caveats"] = table_caveats(result)  # human-readable: table1.md's first lines
-    (out / "table1.json").write_text(json.dumps(table, indent=2) + "\n")
-    (out / "table1_run.json").write_text(json.dumps(result, indent=2) + "\n")
-    (out / "table1.md").write_text(render_markdown(result))
+    atomic_write_json(out / "table1.json", table)
+    atomic_write_json(out / "table1_run.json", result)
+    atomic_write_text(out / "table1.md", render_markdown(result))
     plot(table, cfg.gamma, out / "table1.png")
     return result
 
@@ -359,5 +377,5 @@ def plot(table: dict, gamma: float, path: Path) -> None:
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path)
+    atomic_savefig(fig, path)
     plt.close(fig)

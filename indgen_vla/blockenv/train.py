@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import pickle
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -13,6 +14,7 @@ import numpy as np
 from indgen_vla.blockenv.data import Demos, legality_targets, make_demos
 from indgen_vla.blockenv.env import BlockEnvConfig
 from indgen_vla.errors import ConfigError
+from indgen_vla.records import atomic_write_bytes, atomic_write_text
 
 
 @dataclass(frozen=True)
@@ -208,12 +210,19 @@ def _train_maml(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> No
 
 
 def save_checkpoint(model, cfg: TrainConfig, out: Path) -> Path:
-    """state_dict (torch.save) + config JSON; load with ``load_checkpoint`` (weights_only=True)."""
+    """state_dict (torch.save) + config JSON; load with ``load_checkpoint`` (weights_only=True). Each file is
+    written whole or not at all, config.json last and the old one removed first: a save cut short (Ctrl-C, a
+    kill, a full disk) over an older checkpoint never leaves its config beside other weights."""
+    import io
+
     import torch
 
     out.mkdir(parents=True, exist_ok=True)
-    torch.save(model.state_dict(), out / "model.pt")
-    (out / "config.json").write_text(json.dumps(asdict(cfg), indent=2))
+    (out / "config.json").unlink(missing_ok=True)
+    weights = io.BytesIO()
+    torch.save(model.state_dict(), weights)
+    atomic_write_bytes(out / "model.pt", weights.getvalue())
+    atomic_write_text(out / "config.json", json.dumps(asdict(cfg), indent=2))
     return out
 
 
@@ -231,7 +240,13 @@ def load_checkpoint(path: Path):
     raw["train_levels"] = tuple(raw["train_levels"])
     cfg = TrainConfig(**raw)
     model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
-    model.load_state_dict(torch.load(path / "model.pt", weights_only=True))
+    try:
+        state = torch.load(path / "model.pt", weights_only=True)
+    except (OSError, EOFError, RuntimeError, pickle.UnpicklingError):
+        raise ConfigError(
+            f"{path / 'model.pt'} is missing or unreadable (a save cut short?); train again"
+        ) from None
+    model.load_state_dict(state)
     model.eval()
     return model, cfg
 

@@ -89,7 +89,10 @@ def _worker_main(
                 break
             reply = _handle(runners, cfg, msg)
             if reply is not None:
-                conn.send_bytes(_dumps(reply))
+                try:
+                    conn.send_bytes(_dumps(reply))
+                except OSError:  # the main process is gone (killed): no one to answer, no traceback
+                    break
     finally:
         for runner in runners.values():
             runner.close()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import glob
+import json
 import os
 import shlex
 import shutil
@@ -176,17 +177,36 @@ def merge(
 
     out = Path(out)
     shards = open_shards(paths)
-    _check_out(out, shards)
-    plan = merged_plan(shards)
-    merged_cells(shards, plan)  # refuses other parameters or a (task, axis) in no shard, before resolving
-    check_protocol(shards)
-    rows, counts, kept = merged_rows(shards)
-    plan, resume = resume_plan(shards, plan, out, sharing_setting(shards))
-    manifest = merged_manifest(shards, plan, counts, kept, resume, command)
-    missing = write_merged(out, manifest, rows, shards)
-    run = RunDir.open(out)
-    summary = write_run_report(run, float(resume["config"].get("gamma", 0.2)))
+    run = _merged_already(out, shards)
+    if run is not None:  # the same merge again, e.g. after one stopped between its rename and its report
+        manifest, rows = run.manifest, run.rows()
+        counts = manifest["merged_from"]
+        missing = sum(bool(r.get("video")) and not (out / r["video"]).is_file() for r in rows)
+    else:
+        _check_out(out, shards)
+        plan = merged_plan(shards)
+        merged_cells(shards, plan)  # refuses other parameters or a (task, axis) in no shard, before resolving
+        check_protocol(shards)
+        rows, counts, kept = merged_rows(shards)
+        plan, resume = resume_plan(shards, plan, out, sharing_setting(shards))
+        manifest = merged_manifest(shards, plan, counts, kept, resume, command)
+        missing = write_merged(out, manifest, rows, shards)
+        run = RunDir.open(out)
+    summary = write_run_report(run, float(manifest["config"].get("gamma", 0.2)))
     return run, summary, _lines(manifest, rows, counts, missing)
+
+
+def _merged_already(out: Path, shards: Sequence[Shard]) -> RunDir | None:
+    """``out`` when it is the merge of exactly these shards as they are now (their paths, run ids and row counts),
+    so that a second merge only rewrites its report: a merge stopped after its rename, before its report was
+    whole, is finished by running it again. None for anything else (``_check_out`` refuses a non-empty ``out``)."""
+    try:
+        listed = json.loads((out / MANIFEST).read_text())["merged_from"]["shards"]
+        was = [(e["path"], e["run_id"], e["episodes"]) for e in listed]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    now = [(str(s.path.resolve()), s.manifest.get("run_id"), len(s.rows)) for s in shards]
+    return RunDir.open(out) if was == now else None
 
 
 def _lines(

@@ -272,7 +272,8 @@ def run_ray(
         import math
 
         cpus = math.ceil(n * knobs["INDGEN_RAY_CPUS_PER_SIM"]) + 1  # the simulators and one policy actor
-        ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False, ignore_reinit_error=True)
+        _keeping_sigterm(lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False,
+                                          ignore_reinit_error=True))  # fmt: skip
     gpu = cfg.device.startswith("cuda")
     gpus_per = knobs["INDGEN_RAY_GPUS_PER_POLICY"]
     resources = ray.cluster_resources()
@@ -297,6 +298,7 @@ def run_ray(
     sim_cls = ray.remote(num_cpus=knobs["INDGEN_RAY_CPUS_PER_SIM"])(_SimActor)
     render_threads = max(1, int(knobs["INDGEN_RAY_CPUS_PER_SIM"]))
     actors = [sim_cls.remote(runner_cfg, render_threads) for _ in range(n)]
+    stopped = False
     try:
         specs = ray.get([s.get_spec.remote() for s in servers])
         _connect(ray, actors, servers, specs)
@@ -323,12 +325,32 @@ def run_ray(
         if stats is not None:
             stats["batch_sizes"] = [b for s in ray.get([s.batch_sizes.remote() for s in servers]) for b in s]
             stats["policy_actors"] = len(servers)
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM: a scheduler's SIGTERM reaches Ray's own processes too, and a call that waits on a
+        # GCS gone with them hangs 60 s, then Ray aborts with status 1
+        stopped = True
+        raise
     finally:
-        ray.get([a.close.remote() for a in actors + servers], timeout=60)
-        for a in actors + servers:
-            ray.kill(a)
+        if not stopped:  # the actors are not detached: they end with this driver in any case
+            ray.get([a.close.remote() for a in actors + servers], timeout=60)
+            for a in actors + servers:
+                ray.kill(a)
         if started_here:
             ray.shutdown()
+
+
+def _keeping_sigterm(start: Callable[[], object]) -> None:
+    """Call ``start`` (``ray.init``) and put back the SIGTERM handler it replaces: Ray's exits with status 15 and a
+    C++ stack dump instead of the one-line stop and exit 143 of ``indgen`` (``cli.sigterm_raises``)."""
+    import signal
+
+    if threading.current_thread() is not threading.main_thread():
+        start()
+        return
+    previous = signal.getsignal(signal.SIGTERM)
+    start()
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _connect(ray, actors: list, servers: list, specs: list) -> None:

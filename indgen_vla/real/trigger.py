@@ -166,20 +166,11 @@ class EpisodeCommand:
                 raise TriggerError(
                     f"--episode-command could not start {argv[0]!r}: {e.strerror or e}"
                 ) from None
-            assert proc.stdout is not None
-            fd = proc.stdout.fileno()
-            while True:
-                if interrupted and time.monotonic() - interrupted[0] > STOP_GRACE_S and proc.poll() is None:
-                    proc.send_signal(signal.SIGKILL)
-                if not select.select([fd], [], [], 0.2)[0]:
-                    continue
-                data = os.read(fd, 65536)
-                if not data:
-                    break
-                chunks.append(data)
-                f.write(data)
-                f.flush()
-                write(data.decode(errors="replace"))
+            try:
+                _relay(proc, f, write, interrupted, chunks)
+            except BaseException:  # SIGTERM to the session (``Terminated``) or a fault of ours: the robot's
+                _stop(proc)  # command must not run on with nobody watching it, orphaned
+                raise
             rc = proc.wait()
             proc.stdout.close()
             f.write(f"# exit {rc}\n".encode())
@@ -192,6 +183,38 @@ class EpisodeCommand:
 
     def close(self) -> None:
         pass
+
+
+def _relay(proc: subprocess.Popen, log, write: Callable[[str], None], interrupted: list[float],
+           chunks: list[bytes]) -> None:  # fmt: skip
+    """Copy the command's output to the log, ``write`` and ``chunks`` until it ends; kill it ``STOP_GRACE_S`` after
+    a Ctrl-C (``interrupted``) if it has not exited by then."""
+    assert proc.stdout is not None
+    fd = proc.stdout.fileno()
+    while True:
+        if interrupted and time.monotonic() - interrupted[0] > STOP_GRACE_S and proc.poll() is None:
+            proc.send_signal(signal.SIGKILL)
+        if not select.select([fd], [], [], 0.2)[0]:
+            continue
+        data = os.read(fd, 65536)
+        if not data:
+            return
+        chunks.append(data)
+        log.write(data)
+        log.flush()
+        write(data.decode(errors="replace"))
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGTERM, then SIGKILL after ``STOP_GRACE_S``: the grace Ctrl-C gives a command to exit on its own."""
+    if proc.poll() is not None:
+        return
+    proc.terminate()
+    try:
+        proc.wait(timeout=STOP_GRACE_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 @contextmanager

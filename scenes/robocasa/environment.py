@@ -6,8 +6,10 @@ in a second venv and ``scenes.external`` drives it over a pipe. Importing this i
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -105,7 +107,7 @@ def setup_venv(target: Path | None = None, force: bool = False, log=print) -> Pa
         [str(v / "bin" / "python"), "-m", "pip", "install", "-q", *PINNED],
     )
     for cmd in steps:
-        r = subprocess.run(cmd, capture_output=True, text=True)
+        r = _run_group(cmd)
         if r.returncode != 0:
             tail = (r.stderr or r.stdout).strip().splitlines()
             raise SceneError(
@@ -115,6 +117,23 @@ def setup_venv(target: Path | None = None, force: bool = False, log=print) -> Pa
     (v / STAMP).write_text(stamp_text())
     log(f"RoboCasa venv ready: {v} ({time.perf_counter() - t0:.0f} s)")
     return v / "bin" / "python"
+
+
+def _run_group(cmd: list[str]) -> subprocess.CompletedProcess:
+    """``cmd`` in a process group of its own, killed whole if this process stops first (Ctrl-C, SIGTERM): ``venv``
+    runs ensurepip, which runs pip, and killing ``venv`` alone (``subprocess.run``) left them installing into the
+    folder that the re-run removes and makes again."""
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        out, err = proc.communicate()
+    except BaseException:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
 # ---- assets -------------------------------------------------------------------------------------------------

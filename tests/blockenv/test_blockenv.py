@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 
 import numpy as np
 import pytest
@@ -165,6 +166,11 @@ def test_reproduce_results_do_not_depend_on_workers(tmp_path):
     assert len(list((tmp_path / "w1" / "jobs").glob("*.json"))) == 4
     again = reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1, resume=True)
     assert again["methods"] == one and again["job_seconds"] == first["job_seconds"]
+    # a job file cut short (an older version wrote it in place; a kill mid-write) is run again, not a crash
+    job = sorted((tmp_path / "w1" / "jobs").glob("*.json"))[0]
+    job.write_text(job.read_text()[:20])
+    assert reproduce(cfg, tmp_path / "w1", log=lambda m: None, workers=1, resume=True)["methods"] == one
+    assert json.loads(job.read_text())["counts"]
 
 
 @pytest.mark.slow
@@ -394,6 +400,42 @@ def test_train_cli_passes_variant_options(tmp_path):
         _run([*rest, "--option", "patch=2"])
 
 
+def test_a_checkpoint_save_cut_short_never_loads_as_another(tmp_path):
+    """A save cut short over an older checkpoint leaves no config.json beside other weights, and a model.pt cut
+    short (what the old in-place torch.save left on a kill) is one clear error, not a torch traceback."""
+    from indgen_vla.blockenv.train import TrainConfig, load_checkpoint, save_checkpoint, train
+    from tests.fixtures.kill import writes_cut_short_after
+
+    out = tmp_path / "ckpt"
+    small, _ = train(TrainConfig("rnn", steps=1, demos_per_level=2, hidden=8))
+    save_checkpoint(small, TrainConfig("rnn", steps=1, demos_per_level=2, hidden=8), out)
+    big_cfg = TrainConfig("rnn", steps=1, demos_per_level=2, hidden=64)
+    big, _ = train(big_cfg)
+    with pytest.raises(OSError), writes_cut_short_after((out / "model.pt").stat().st_size + 100):
+        save_checkpoint(big, big_cfg, out)
+    with pytest.raises(ConfigError, match="no readable config.json"):
+        load_checkpoint(out)
+    save_checkpoint(big, big_cfg, out)
+    weights = (out / "model.pt").read_bytes()
+    (out / "model.pt").write_bytes(weights[: len(weights) // 2])
+    with pytest.raises(ConfigError, match="model.pt is missing or unreadable"):
+        load_checkpoint(out)
+
+
+def test_ablation_doc_and_results_survive_a_write_cut_short(tmp_path):
+    """docs/blockenv.md and the results JSON hold every ablation run so far: a rewrite cut short keeps the old file."""
+    from indgen_vla.blockenv.ablate import BEGIN, END, replace_section
+    from tests.fixtures.kill import writes_cut_short_after
+
+    doc = tmp_path / "doc.md"
+    before = f"# head\n\n{BEGIN}\nold\n{END}\n\ntail\n"
+    doc.write_text(before)
+    with pytest.raises(OSError), writes_cut_short_after(len(before) + 10):
+        replace_section(doc, BEGIN, END, "x" * 1000, "ablation")
+    assert doc.read_text() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["doc.md"]  # and no temporary file is left beside it
+
+
 def test_table1_opens_with_what_it_cannot_answer():
     from indgen_vla.blockenv.reproduce import render_markdown, table_caveats
 
@@ -427,3 +469,20 @@ def test_eval_cli_names_task_ci_and_caveats(tmp_path, capsys):
     assert lines[1] == "oracle on task BlockEnv 12×12, seed 1000: success per level with Wilson 95 % CI"
     res = json.loads(out.read_text())
     assert res["task"] == "BlockEnv 12×12" and res["caveats"][0].startswith("**Too few episodes**")
+
+
+@pytest.mark.slow  # 30-60 s: two --quick reproductions with 2 worker processes, stopped after their first job
+def test_a_stopped_reproduce_leaves_no_worker_running(tmp_path):
+    """SIGTERM stops the jobs in progress at once (the old ProcessPoolExecutor waited for every queued job, then
+    dropped them unsaved), and the workers of a SIGKILLed reproduce end (the executor's trained on, orphaned)."""
+    from tests.fixtures.kill import stop_midway
+
+    def first_job_saved(out):
+        return lambda: any((out / "jobs").glob("*.json"))
+
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        out = tmp_path / sig.name
+        argv = ["blockenv", "reproduce", "--quick", "--workers", "2", "--resume", "--out", str(out)]
+        stopped = stop_midway(argv, sig, first_job_saved(out), linger_s=60)
+        assert stopped.survivors == [], sig.name
+        assert sig == signal.SIGKILL or (stopped.returncode == 143 and stopped.exit_s < 10), stopped

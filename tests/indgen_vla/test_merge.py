@@ -291,3 +291,22 @@ def test_a_killed_merges_temporary_tree_is_removed_by_the_next_merge(runs, tmp_p
     finally:
         live.kill()
         live.wait()
+
+
+def test_a_merge_stopped_before_its_report_is_finished_by_running_it_again(runs, tmp_path, capsys):
+    """Ctrl-C or a kill between the rename and the report leaves OUT with the merged episodes and no report; the same
+    merge again writes the report (it used to refuse: "exists and is not empty"). Other shards still refuse."""
+    shards, out = [str(runs / "pick_y"), str(runs / "scale")], tmp_path / "merged"
+    assert main(["merge", *shards, "--out", str(out)]) == 0
+    want = (out / "report.md").read_text()
+    kept = {n: (out / n).stat().st_mtime_ns for n in ("episodes.parquet", "manifest.json")}
+    (out / "report.md").unlink()
+    shutil.rmtree(out / "plots")
+    (out / "summary.json").unlink()
+    assert main(["merge", *shards, "--out", str(out)]) == 0
+    assert (out / "report.md").read_text() == want and (out / "plots").is_dir()
+    assert {n: (out / n).stat().st_mtime_ns for n in kept} == kept  # the episodes are not written again
+    capsys.readouterr()
+    assert "exists and is not empty" in refusal(
+        capsys, "merge", shards[0], str(runs / "whole"), "--out", str(out)
+    )

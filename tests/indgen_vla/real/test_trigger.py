@@ -239,3 +239,29 @@ def test_check_policy_cli_refuses_an_unreachable_server_before_the_session(tmp_p
     assert rc == 4 and "\n" not in err  # exit 4: the policy server is unreachable (README "Exit codes")
     assert err.endswith(f"connection refused at ws://127.0.0.1:{port}; is the openpi server running?")
     assert not (run / "journal.jsonl").exists()
+
+
+def test_sigterm_to_the_session_stops_the_episode_command(tmp_path):
+    """``kill PID`` of ``indgen real record`` (or a SIGTERM from a logout) while the robot's command runs: the
+    session stops as on Ctrl-C and takes the command with it; it used to run on, orphaned, with no one watching."""
+    import threading
+
+    from indgen_vla.cli import sigterm_raises
+    from indgen_vla.errors import Terminated
+    from indgen_vla.real.trigger import EpisodeCommand, EpisodeContext
+
+    hang = "import os, time; print(os.getpid(), flush=True); time.sleep(60)"
+    trigger = EpisodeCommand(f"{shlex.quote(sys.executable)} -c {shlex.quote(hang)}", str(tmp_path))
+    ctx = EpisodeContext(run=str(tmp_path), axis="stack", task="stack", level=0, param=0.0, unit="", episode=0,
+                         attempt=0, seed=1, instruction="", placement="", policy="p", video="")  # fmt: skip
+    said: list[str] = []
+
+    def sigterm_once_running(text: str) -> None:
+        said.append(text)
+        threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM)).start()
+
+    with pytest.raises(Terminated), sigterm_raises():
+        trigger.start(ctx, sigterm_once_running)
+    pid = int(said[0].split()[0])
+    with pytest.raises(ProcessLookupError):  # ended and reaped, not left running
+        os.kill(pid, 0)
