@@ -27,9 +27,32 @@ def write_mp4(frames: Iterable[np.ndarray], path: str | Path, fps: int = 20) -> 
     pad = ((0, h % 2), (0, w % 2), (0, 0))  # H.264 needs even sides
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with imageio.get_writer(
-        path, fps=fps, codec="libx264", macro_block_size=2, quality=7, ffmpeg_log_level="error"
-    ) as writer:
-        for f in frames:
-            writer.append_data(np.pad(f, pad, mode="edge") if any(p[1] for p in pad) else f)
+    # encoded beside its name, then renamed: a kill mid-encode leaves no truncated video under a final name
+    partial = path.with_name(f".{path.stem}.partial{path.suffix}")
+    try:
+        with imageio.get_writer(
+            partial, fps=fps, codec="libx264", macro_block_size=2, quality=7, ffmpeg_log_level="error"
+        ) as writer:
+            for f in frames:
+                writer.append_data(np.pad(f, pad, mode="edge") if any(p[1] for p in pad) else f)
+        _check_complete(partial, len(frames))
+        partial.replace(path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
     return path
+
+
+def _check_complete(path: Path, n_frames: int) -> None:
+    """imageio's writer does not check ffmpeg's exit status, so a failed encode (a full disk) would pass as a
+    video: count the frames back (one ffmpeg decode, ≈ 0.1 s for an episode's video)."""
+    import imageio_ffmpeg
+
+    try:
+        written = imageio_ffmpeg.count_frames_and_secs(str(path))[0]
+    except (RuntimeError, OSError) as error:
+        raise OSError(
+            f"video {path.name}: ffmpeg's output is unreadable ({str(error).splitlines()[0]}); disk full?"
+        ) from error
+    if written != n_frames:
+        raise OSError(f"video {path.name}: ffmpeg wrote {written} of {n_frames} frames; disk full?")
