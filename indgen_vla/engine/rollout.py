@@ -4,6 +4,7 @@ is the plain single-episode loop (used by the Ray backend and by tests as the re
 from __future__ import annotations
 
 import dataclasses
+import sys
 import time
 import traceback
 from collections import deque
@@ -196,8 +197,12 @@ class EnvRunner:
         name = f"{job.axis}_L{job.level}_{job.task}_ep{job.episode}_{'success' if success else 'fail'}.mp4"
         path = Path(self.cfg.video_dir) / name
         path.parent.mkdir(parents=True, exist_ok=True)
-        write_mp4(self._frames, path, fps=20)
-        self._frames = []
+        frames, self._frames = self._frames, []
+        try:
+            write_mp4(frames, path, fps=20)
+        except OSError as error:  # the video is optional; the episode's outcome stands
+            print(f"[indgen] warning: {error}; episode recorded without its video", file=sys.stderr)
+            return ""
         return str(Path("videos") / name)
 
     def close(self) -> None:

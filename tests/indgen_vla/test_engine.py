@@ -57,6 +57,21 @@ def test_two_level_run_writes_run_dir(tmp_path):
     assert any(line.startswith("| 0 |") for line in report) and (out / "plots" / "pick_y.png").exists()
 
 
+def test_video_episodes_land_whole_and_named_by_outcome(tmp_path):
+    out = evaluate(
+        cfg(tmp_path, levels="0", episodes=2, max_steps=2, video=True, video_per_level=1), quiet=True
+    )
+    df = pd.read_parquet(out / "episodes.parquet").sort_values("episode")
+    outcome = "success" if df["success"].iloc[0] else "fail"
+    assert df["video"].tolist() == [f"videos/pick_y_L0_{df['task'].iloc[0]}_ep0_{outcome}.mp4", ""]
+    assert sorted(p.name for p in (out / "videos").iterdir()) == [
+        Path(df["video"].iloc[0]).name
+    ]  # no partials
+    import imageio_ffmpeg
+
+    assert imageio_ffmpeg.count_frames_and_secs(str(out / df["video"].iloc[0]))[0] >= 2
+
+
 @pytest.mark.slow  # 8 s; 1 vs 2 workers stay covered by default (pipeline, Ray and adaptive-protocol tests)
 def test_oracle_workers_1_vs_2_identical(tmp_path):
     kw = dict(policy="standin:oracle", levels="-1:1", episodes=1, max_steps=None)
