@@ -437,6 +437,9 @@ def _interrupted_message(args: argparse.Namespace) -> str:
                 "re-run the same command to resume")  # fmt: skip
     if args.command == "real":
         return "interrupted: every verdict shown as saved is kept; re-run 'indgen real record RUN'"
+    if args.command == "blockenv" and rest[:1] == ["ablate"]:
+        return ("interrupted: each finished ablation is saved in the results JSON (one in progress starts over); "
+                "re-run the ablations not yet done")  # fmt: skip
     if args.command == "blockenv" and "--resume" in rest:
         return "interrupted: finished (method, seed) jobs are saved; re-run the same command to resume"
     name = " ".join([args.command] + rest[:1]) if args.command == "blockenv" and rest else args.command

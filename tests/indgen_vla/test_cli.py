@@ -236,6 +236,7 @@ def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
         (["certify"], "levels finished so far are saved"),
         (["blockenv", "reproduce", "--resume"], "jobs are saved; re-run the same command to resume"),
         (["blockenv", "train"], "'indgen blockenv train' keeps no partial output; re-run it to start over"),
+        (["blockenv", "ablate"], "each finished ablation is saved in the results JSON"),
         (["demos"], "keeps no partial output; re-run it to start over"),
         (["train"], "last saved training state is kept; re-run the same command to resume"),
         (["mimicgen"], "every finished attempt is saved; re-run the same command to resume"),
