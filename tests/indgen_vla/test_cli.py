@@ -236,12 +236,13 @@ def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
         (["certify"], "levels finished so far are saved"),
         (["blockenv", "reproduce", "--resume"], "jobs are saved; re-run the same command to resume"),
         (["blockenv", "train"], "'indgen blockenv train' keeps no partial output; re-run it to start over"),
-        (["demos"], "keeps no partial output; re-run it to start over"),
+        (["demos"], "finished episodes are saved; re-run the same command to resume"),
+        (["train"], "keeps no partial output; re-run it to start over"),
     ],
 )
 def test_ctrl_c_promises_a_resume_only_where_there_is_one(argv, says, monkeypatch, capsys):
-    """Ctrl-C exits 130 with one line; `demos`, `train` and `blockenv train` keep nothing, so their line must
-    not say "finished episodes are saved; re-run to resume" (a re-run starts from scratch)."""
+    """Ctrl-C exits 130 with one line; `train` and `blockenv train` keep nothing, so their line must not say
+    "finished episodes are saved; re-run to resume" (a re-run starts from scratch); `demos` resumes."""
     import indgen_vla.cli as cli
 
     def interrupt(args):
