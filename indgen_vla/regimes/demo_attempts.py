@@ -224,19 +224,21 @@ class _OrderedPool:
     def run(self) -> Iterator[tuple[int, int, list]]:
         from concurrent.futures import ProcessPoolExecutor
 
-        from indgen_vla.engine.local import init_worker_process, start_forkserver
+        from indgen_vla.engine.local import start_forkserver
 
         plan = self.plan
         first = next(c for c in range(len(plan.cells)) if plan.kept[c] < plan.n)
         ctx = start_forkserver(plan.maker, plan.cells[first].task)
         threads = max(1, (os.cpu_count() or 1) // self.workers)
-        pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=init_worker_process,
-                                   initargs=(threads, None, dict(os.environ)))  # fmt: skip
+        alive, self.alive = ctx.Pipe(duplex=False)  # only this process holds the write end
+        pool = ProcessPoolExecutor(self.workers, mp_context=ctx, initializer=_init_worker,
+                                   initargs=(threads, dict(os.environ), alive))  # fmt: skip
         try:
             for c in range(first, len(plan.cells)):
                 yield from self._cell(pool, c)
         finally:
             _stop(pool, busy=bool(self.running))
+            self.alive.close()
 
     def _cell(self, pool, c: int) -> Iterator[tuple[int, int, list]]:
         plan = self.plan
@@ -271,6 +273,24 @@ class _OrderedPool:
                 self.running[(c, a)] = future
                 future.add_done_callback(lambda f, key=(c, a): self.results.put((key, f)))
                 self.dispatched[c] += 1
+
+
+def _init_worker(render_threads: int, env: dict, alive) -> None:
+    """The engine's worker setup, and an exit once the main process is gone: a pool worker waits on a queue whose
+    write end it holds itself, so after a SIGKILL of the main process it would wait (with its scene) forever."""
+    import threading
+
+    from indgen_vla.engine.local import init_worker_process
+
+    init_worker_process(render_threads, None, env)
+
+    def watch() -> None:
+        try:
+            alive.recv()
+        except (EOFError, OSError):
+            os._exit(0)
+
+    threading.Thread(target=watch, name="indgen-demos-parent", daemon=True).start()
 
 
 def _stop(pool, busy: bool) -> None:

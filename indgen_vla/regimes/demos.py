@@ -21,8 +21,8 @@ from indgen_vla.regimes import quiet_datasets
 # `X as X`: re-exported for mimicgen, train and the tests, which import them from here (their home before the split)
 from indgen_vla.regimes.demo_attempts import AttemptPlan, DemoCell, EnvMaker, kept_episodes
 from indgen_vla.regimes.demo_attempts import HumanNoise as HumanNoise
-from indgen_vla.regimes.journal import CHECKPOINT_EVERY, JournaledDataset, drop_journal, read_record
 from indgen_vla.regimes.journal import EPISODES_SIDECAR as EPISODES_SIDECAR
+from indgen_vla.regimes.journal import JournaledDataset, drop_journal, read_record
 from indgen_vla.regimes.journal import append_episode_sidecar as append_episode_sidecar
 from indgen_vla.regimes.journal import read_episode_sidecar as read_episode_sidecar
 from scenes.poses import object_vector
@@ -229,7 +229,6 @@ def record_demos(
     cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
     repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
     objects: bool = False, levels: LevelRequest | None = None, workers: int = 1, notice=None,
-    checkpoint_every: int = CHECKPOINT_EVERY,
 ) -> dict:  # fmt: skip
     """Record ``n`` successful episodes per task (and level) into a LeRobotDataset at ``out``; return stats.
 
@@ -250,46 +249,53 @@ def record_demos(
         "noise": noise.sigma, "pause_prob": noise.pause_prob, "pause_steps": list(noise.pause_steps),
         "repo_id": repo_id, "videos": use_videos, "objects": objects, "max_attempts_factor": max_attempts_factor,
     }))  # fmt: skip
-    writer = _EpisodeWriter(scene, tuple(cameras), objects, levels)
-    kw = {"repo_id": repo_id, "record": ARGS_RECORD, "write": writer, "every": checkpoint_every}
-    recorded = _recorded(out)
-    if recorded is None:
-        feats = features(
-            tuple(cameras), (image_size, image_size), use_videos, objects, levels.axis is not None
-        )
-        lerobot = {"repo_id": repo_id, "fps": FPS, "features": feats, "robot_type": "panda",
-                   "use_videos": use_videos, "video_backend": "pyav"}  # fmt: skip
-        dataset = JournaledDataset.create(out, {"command": "indgen demos", "args": args}, lerobot, **kw)
-    else:
-        check_args(out, recorded.get("args", {}), args)
-        if recorded.get("complete"):
-            drop_journal(out)  # left by a run killed as it finished
-            return {**recorded["stats"], "already_complete": True}
-        dataset = JournaledDataset.reopen(out, **kw)
+    feats = features(tuple(cameras), (image_size, image_size), use_videos, objects, levels.axis is not None)
+    lerobot = {"repo_id": repo_id, "fps": FPS, "features": feats, "robot_type": "panda", "use_videos": use_videos,
+               "video_backend": "pyav"}  # fmt: skip
+    dataset = _open(out, args, lerobot, repo_id=repo_id, record=ARGS_RECORD,
+                    write=_EpisodeWriter(scene, tuple(cameras), objects, levels))  # fmt: skip
+    if isinstance(dataset, dict):
+        return dataset
     seeds = [c.attempt_seeds(scene, seed, max_attempts_factor * n) for c in cells]
     kept, attempts = _progress(cells, seeds, read_episode_sidecar(out))
-    if recorded is not None and notice is not None:
+    if sum(kept) and notice is not None:
         notice(f"resuming {out}: {sum(kept)} of {n * len(cells)} episodes already recorded")
     plan = AttemptPlan(maker, noise, cells, seeds, n, kept, attempts)
+    _record(dataset, plan, workers, progress)
+    stats = _stats(scene, cells, plan, read_episode_sidecar(out), levels)
+    dataset.complete({"stats": stats})
+    return stats
+
+
+def _open(out: Path, args: dict, lerobot: dict, **kw) -> JournaledDataset | dict:
+    """A new dataset at ``out``, or the one there recorded with ``args`` reopened (its stats if it is complete)."""
+    recorded = _recorded(out)
+    if recorded is None:
+        return JournaledDataset.create(out, {"command": "indgen demos", "args": args}, lerobot, **kw)
+    check_args(out, recorded.get("args", {}), args)
+    if recorded.get("complete"):
+        drop_journal(out)  # left by a run killed as it finished
+        return {**recorded["stats"], "already_complete": True}
+    return JournaledDataset.reopen(out, **kw)
+
+
+def _record(dataset: JournaledDataset, plan: AttemptPlan, workers: int, progress) -> None:
+    """Add every episode ``plan`` keeps to ``dataset``, in order; an interrupted run leaves it to the journal."""
     episodes = kept_episodes(plan, workers)
     try:
         for c, a, frames in episodes:
-            dataset.add({"cell": cells[c], "seed": seeds[c][a], "frames": frames})
+            dataset.add({"cell": plan.cells[c], "seed": plan.seeds[c][a], "frames": frames})
             if progress is not None:
-                progress(cells[c].label, plan.kept[c], a + 1)
+                progress(plan.cells[c].label, plan.kept[c], a + 1)
     except BaseException:
         try:
             dataset.abandon()
-        except (
-            Exception
-        ):  # closing must not mask the run's own outcome; a rerun rolls the session back anyway
+        # closing must not mask the run's own outcome; a rerun rolls the session back anyway
+        except Exception:
             logging.getLogger(__name__).debug("finalizing an interrupted dataset failed", exc_info=True)
         raise
     finally:
         episodes.close()  # stops the workers at once
-    stats = _stats(scene, cells, plan, read_episode_sidecar(out), levels)
-    dataset.complete({"stats": stats})
-    return stats
 
 
 def _recorded(out: Path) -> dict | None:

@@ -1,5 +1,7 @@
 """Noisy-oracle T0 demonstrations round-trip through lerobot's own LeRobotDataset."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -271,15 +273,37 @@ def test_a_directory_that_is_no_demos_dataset_is_refused(tmp_path, capsys):
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
 
 
+def _processes_with(marker: str) -> list[int]:
+    """Live processes whose environment holds ``marker`` (a killed run's fork server and workers inherit it)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and marker.encode() in (proc / "environ").read_bytes():
+                pids.append(int(proc.name))
+        except OSError:  # gone, or a zombie
+            continue
+    return pids
+
+
 @pytest.mark.slow  # ~40 s: two CLI runs (a fork server and 2 workers each), killed and resumed
-def test_a_killed_demos_command_resumes_into_the_uninterrupted_dataset(demos, tmp_path):
+def test_a_killed_demos_command_resumes_into_the_uninterrupted_dataset(demos, tmp_path, monkeypatch):
+    """SIGKILL after the first saved episode: the workers and the fork server exit too (a pool worker would
+    otherwise wait for work forever), and the rerun ends with the uninterrupted dataset."""
+    import time
+
     from indgen_vla.cli import main
     from tests.fixtures.datasets import dataset_digest
     from tests.fixtures.kill import kill_midway
 
+    marker = f"INDGEN_TEST_RUN={tmp_path.name}"
+    monkeypatch.setenv("INDGEN_TEST_RUN", tmp_path.name)
     out = tmp_path / "demos"
     argv = ["demos", *DEMOS_FLAGS, "--workers", "2"]
     assert kill_midway(argv, out, total=2, at_least=1, timeout_s=300, count=_sidecar_lines) == 1
+    deadline = time.time() + 15
+    while _processes_with(marker) and time.time() < deadline:
+        time.sleep(0.2)
+    assert _processes_with(marker) == []
     assert main([*argv, "--out", str(out)]) == 0
     assert dataset_digest(out) == dataset_digest(demos)
 
