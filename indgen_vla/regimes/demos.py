@@ -240,8 +240,9 @@ def record_demos(
     processes; the dataset is the same for any number.
     """
     noise, levels = noise or HumanNoise(), levels or LevelRequest()
-    if n < 1 or workers < 1:
-        raise ConfigError(f"--n and --workers must be >= 1, got --n {n} --workers {workers}")
+    for flag, value in (("--n", n), ("--workers", workers)):
+        if value < 1:
+            raise ConfigError(f"{flag} must be >= 1, got {value}")
     cells, maker = plan_cells(scene, task, levels, cameras, image_size)
     args = json.loads(json.dumps({
         "scene": scene, "task": task, "axis": levels.axis, "levels": levels.levels, "step": levels.step,
@@ -381,7 +382,7 @@ def demos_main(args: argparse.Namespace) -> int:
     stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
                          noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
                          use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects, levels=levels,
-                         workers=a.workers or os.cpu_count() or 1, notice=console.print)  # fmt: skip
+                         workers=(os.cpu_count() or 1) if a.workers is None else a.workers, notice=console.print)  # fmt: skip
     where = f" at levels {', '.join(map(str, stats['levels']))} of {stats['axis']}" if "axis" in stats else ""
     if stats.get("already_complete"):
         console.print(f"{out} is already complete: {stats['episodes']} episodes ({stats['frames']} frames) of "

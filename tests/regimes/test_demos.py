@@ -84,6 +84,7 @@ SIDECAR_KEYS = ["episode_index", "regime", "scene", "task", "seed", "level", "fr
             "unknown task of scene pick_place 'milkk'",
         ),
         (["--scene", "libero_object", "--axis", "scale", "--levels", "0:1"], "fixed initial states"),
+        (["--workers", "0"], "--workers must be >= 1, got 0"),
     ],
 )
 def test_bad_level_arguments_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, flags, message):
