@@ -423,10 +423,10 @@ PIPED_COLUMNS = 240  # the table width when stdout is not a terminal and $COLUMN
 
 
 def _interrupted_message(args: argparse.Namespace) -> str:
-    """The Ctrl-C line: only the commands that keep their progress say "resume" (``demos`` and ``blockenv
-    train`` write their output only when complete, so a re-run starts over)."""
+    """The Ctrl-C line: only the commands that keep their progress say "resume" (``blockenv train`` writes its
+    output only when complete, so a re-run starts over)."""
     rest = getattr(args, "rest", None) or []
-    if args.command == "evaluate":
+    if args.command in ("evaluate", "demos"):
         return "interrupted: finished episodes are saved; re-run the same command to resume"
     if args.command == "train":
         return "interrupted: the last saved training state is kept; re-run the same command to resume"

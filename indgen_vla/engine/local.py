@@ -62,10 +62,9 @@ def _adopt_environment(env: dict[str, str]) -> None:
     os.environ.update(own)
 
 
-def _worker_main(
-    conn, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None, env: dict | None = None
-) -> None:
-    """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
+def init_worker_process(render_threads: int, egl_device: int | None = None, env: dict | None = None) -> None:
+    """What a worker forked from the fork server does first (here, and as ``indgen demos``'s pool initializer):
+    leave Ctrl-C to the main process, take its environment (``env``), render with ``render_threads`` threads."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process handles Ctrl-C and closes us
@@ -78,6 +77,13 @@ def _worker_main(
     # (pixels do not depend on the thread count; docs/benchmarks.md "Where a CPU frame goes")
     os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
     logging.getLogger("robosuite").setLevel(logging.ERROR)
+
+
+def _worker_main(
+    conn, cfg: RunnerConfig, render_threads: int, egl_device: int | None = None, env: dict | None = None
+) -> None:
+    """Worker process loop: build scenes lazily, answer reset/step requests until told to close."""
+    init_worker_process(render_threads, egl_device, env)
     runners: dict[int, EnvRunner] = {}
     try:
         while True:
@@ -203,11 +209,11 @@ def worker_processes(n_jobs: int, workers: int, pipeline: bool) -> int:
     return 0 if n == 1 and not (pipeline and n_jobs > n) else n
 
 
-def start_forkserver(levels, task: str | None = None) -> None:
+def start_forkserver(levels, task: str | None = None):
     """Start the workers' forkserver now, so its preload (the simulator's imports; ``task``: the first the
     workers build) runs while this process does something else, e.g. load the policy; ``run_local`` then forks
-    its workers from it at once."""
-    _context(levels, task)
+    its workers from it at once. Returns its multiprocessing context (``indgen demos`` starts its pool in it)."""
+    return _context(levels, task)
 
 
 def egl_devices() -> int:

@@ -1,31 +1,35 @@
 """``indgen demos``: record demonstrations with the scripted oracle plus human-like noise and pauses, at T0 or at
 levels of one axis, written with lerobot's own ``LeRobotDataset`` API so lerobot's training code reads them
-unchanged."""
+unchanged. A killed run resumes where it stopped (``journal``); ``--workers`` records in worker processes, with the
+same dataset for any number of them (``demo_attempts``)."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import shutil
-from collections.abc import Callable, Iterator
+import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM, Observation
+from indgen_vla.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM
 from indgen_vla.regimes import quiet_datasets
-from indgen_vla.seeding import fresh_seed, held_out_seeds
-from scenes.poses import object_poses, object_vector
-from scenes.privileged import privileged_of, with_privileged
+
+# `X as X`: re-exported for mimicgen, train and the tests, which import them from here (their home before the split)
+from indgen_vla.regimes.demo_attempts import AttemptPlan, DemoCell, EnvMaker, kept_episodes
+from indgen_vla.regimes.demo_attempts import HumanNoise as HumanNoise
+from indgen_vla.regimes.journal import EPISODES_SIDECAR as EPISODES_SIDECAR
+from indgen_vla.regimes.journal import JournaledDataset, drop_journal, read_record
+from indgen_vla.regimes.journal import append_episode_sidecar as append_episode_sidecar
+from indgen_vla.regimes.journal import read_episode_sidecar as read_episode_sidecar
+from scenes.poses import object_vector
 
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]
 ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
-# per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
-EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
 ENV_STATE = "observation.environment_state"
 # per-frame columns of a dataset recorded with --axis: each frame's level, axis and axis parameter (lerobot reads
 # them back like any column: ds.hf_dataset.filter(lambda r: r["level"] <= 1); policies ignore them)
@@ -34,27 +38,6 @@ LEVEL_FEATURES = {
     "axis": {"dtype": "string", "shape": (1,), "names": None},
     "axis_param": {"dtype": "float64", "shape": (1,), "names": None},
 }
-
-
-@dataclass(frozen=True)
-class HumanNoise:
-    """Teleoperator-like imperfections layered on the oracle: jittery motion and short hesitations.
-
-    Attributes:
-        sigma: std of Gaussian noise added to the 6 motion dims (action units, [-1, 1] range).
-        pause_prob: chance per step of starting a pause (zero motion, gripper held).
-        pause_steps: (min, max) length of a pause in control steps.
-    """
-
-    sigma: float = 0.1
-    pause_prob: float = 0.02
-    pause_steps: tuple[int, int] = (2, 8)
-
-    def __post_init__(self) -> None:
-        if self.sigma < 0 or not 0 <= self.pause_prob < 1:
-            raise ConfigError(f"noise sigma must be >= 0 and pause probability in [0, 1); got {self}")
-        if not 1 <= self.pause_steps[0] <= self.pause_steps[1]:
-            raise ConfigError(f"pause_steps must be 1 <= min <= max, got {self.pause_steps}")
 
 
 def features(
@@ -103,69 +86,6 @@ def level_columns(level: int, axis: str | None, param: float | None) -> dict:
             "axis_param": np.array([np.nan if param is None else param], np.float64)}  # fmt: skip
 
 
-def append_episode_sidecar(root: Path, record: dict) -> None:
-    """Append one episode's record (seed, task, per-frame object poses) to the dataset's sidecar."""
-    path = Path(root) / EPISODES_SIDECAR
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("a") as f:
-        f.write(json.dumps(record, separators=(",", ":")) + "\n")
-
-
-def read_episode_sidecar(root: Path) -> list[dict]:
-    """The sidecar records of a dataset written by ``indgen demos`` or ``indgen mimicgen`` ([] if absent)."""
-    path = Path(root) / EPISODES_SIDECAR
-    if not path.is_file():
-        return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Observation, np.ndarray, dict]]:
-    """Yield (observation, executed action, info) for one episode of the noisy oracle, seeded."""
-    from scenes.oracle import OraclePolicy
-
-    rng = np.random.default_rng(seed)
-    oracle = OraclePolicy()
-    obs, _ = env.reset(seed=seed)
-    oracle.reset(obs.instruction, seed=seed)
-    pause = 0
-    for _ in range(env.max_steps):
-        obs = with_privileged(obs, env)  # yielded too, so recorders can keep object poses
-        a = oracle.act([obs])[0, 0].astype(np.float64)
-        if pause == 0 and rng.random() < noise.pause_prob:
-            pause = int(rng.integers(noise.pause_steps[0], noise.pause_steps[1] + 1))
-        if pause > 0:
-            pause -= 1
-            a[:6] = 0.0
-        else:
-            a[:6] = np.clip(a[:6] + rng.normal(0.0, noise.sigma, 6), -1.0, 1.0)
-        a = a.astype(np.float32)
-        next_obs, _, terminated, truncated, info = env.step(a)
-        yield obs, a, info
-        obs = next_obs
-        if terminated or truncated:
-            return
-
-
-@dataclass(frozen=True)
-class DemoCell:
-    """One (task, level) ``indgen demos`` records: ``axis`` None is T0 as recorded without ``--axis``."""
-
-    task: str
-    level: int = 0
-    axis: str | None = None
-    param: float | None = None
-
-    @property
-    def label(self) -> str:
-        return self.task if self.axis is None else f"{self.task} {self.axis} level {self.level}"
-
-    def seed_key(self, scene: str) -> tuple:
-        """The seed key of its episodes: level 0 keeps T0's key, so it holds the same episodes on every axis."""
-        if self.level == 0:
-            return ("demos", scene, self.task)
-        return ("demos", scene, self.task, self.axis, self.level)
-
-
 @dataclass(frozen=True)
 class LevelRequest:
     """``--axis``/``--levels``/``--step``/``--axes-preset`` of ``indgen demos``, resolved as ``evaluate`` resolves them.
@@ -204,9 +124,9 @@ class LevelRequest:
 
 
 def plan_cells(
-    scene: str, task: str | None, req: LevelRequest, cameras, image_size
-) -> tuple[list[DemoCell], Callable]:
-    """The cells to record and a ``make_env(cell)`` for them; with ``--axis`` resolved exactly as ``evaluate``
+    scene: str, task: str | None, req: LevelRequest, cameras, image_size: int
+) -> tuple[list[DemoCell], EnvMaker]:
+    """The cells to record and the ``EnvMaker`` of their scenes; with ``--axis`` resolved exactly as ``evaluate``
     resolves it (``scenes.planning.resolve_scene_plan``: names, level range, condition 2, certificates)."""
     import scenes
     from indgen_vla.plan import FAILED
@@ -217,10 +137,10 @@ def plan_cells(
         raise ConfigError(f"scene {scene} starts every episode from {fixed}, the initial states `evaluate` runs; "
                           "demonstrations there would train on them: record on a scene whose seed draws the "
                           "initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
-    size = (image_size, image_size)
     if req.axis is None:
-        cells = [DemoCell(t) for t in scenes.select_tasks(scene, task)]
-        return cells, lambda c: scenes.make_env(scene, task=c.task, level=0, cameras=cameras, image_size=size)
+        return [DemoCell(t) for t in scenes.select_tasks(scene, task)], EnvMaker(
+            scene, tuple(cameras), image_size
+        )
     from scenes.planning import resolve_scene_plan
 
     plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.preset)
@@ -231,111 +151,179 @@ def plan_cells(
         raise ConfigError(f"{scene}/{axis}: the oracle failed its certification at task {c.task} level {c.level} "
                           f"({c.evidence}); drop it from --levels")  # fmt: skip
     cells = [DemoCell(c.task, c.level, axis, c.param) for c in plan.cells]
+    return cells, EnvMaker(scene, tuple(cameras), image_size, plan.builder)
 
-    def make_env(c: DemoCell):
-        return plan.builder.make_env(c.task, axis, c.level, cameras=cameras, image_size=size, max_steps=None)
 
-    return cells, make_env
+ARGS_RECORD = (
+    "meta/indgen_demos.json"  # the arguments a dataset was recorded with, and whether it is complete
+)
+# what defines a dataset's content, in the order a mismatch is reported, with the option that sets it
+# (pause_steps and max_attempts_factor: record_demos arguments only)
+RECORDED = {"scene": "--scene", "task": "--task", "axis": "--axis", "levels": "--levels", "step": "--step",
+            "axes_preset": "--axes-preset", "n": "--n", "seed": "--seed", "image_size": "--image-size",
+            "cameras": "--cameras", "noise": "--noise", "pause_prob": "--pause-prob", "pause_steps": "pause_steps",
+            "repo_id": "--repo-id", "videos": "--videos", "objects": "--objects",
+            "max_attempts_factor": "max_attempts_factor"}  # fmt: skip
+
+
+def _shown(key: str, value) -> str:
+    """``value`` of ``key`` as the option that gives it (``--n 50``, ``--videos``, ``no --axis``)."""
+    flag = RECORDED[key]
+    if not flag.startswith("--"):
+        return f"{flag}={value}"
+    if value is None or value is False:
+        return f"no {flag}"
+    if value is True:
+        return flag
+    return f"{flag} {','.join(value) or repr('')}" if key == "cameras" else f"{flag} {value}"
+
+
+def check_args(out: Path, recorded: dict, args: dict) -> None:
+    """Refuse to continue a dataset with other arguments than it was recorded with: one line naming the first."""
+    for key in RECORDED:
+        if recorded.get(key) != args[key]:
+            was, now = _shown(key, recorded.get(key)), _shown(key, args[key])
+            raise ConfigError(f"--out {out} was recorded with {was}, not {now}: rerun with {was} to resume it, "
+                              "or choose a new --out")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _EpisodeWriter:
+    """Saves one kept episode into the dataset (frames, per-frame level columns) and returns its sidecar record."""
+
+    scene: str
+    cameras: tuple[str, ...]
+    objects: bool
+    levels: LevelRequest
+
+    def __call__(self, ds, kept: dict) -> dict:
+        cell, frames = kept["cell"], kept["frames"]
+        per_level = level_columns(cell.level, cell.axis, cell.param) if self.levels.axis is not None else {}
+        save_episode(ds, frames, self.cameras, self.objects, per_level)
+        record = {"episode_index": ds.num_episodes - 1, "regime": "demos", "scene": self.scene,
+                  "task": cell.task, "seed": kept["seed"], "level": cell.level}  # fmt: skip
+        if self.levels.axis is not None:
+            record.update(self.levels.extra(), param=cell.param)
+        record.update(frames=len(frames), object_poses=rounded_poses([p for _, _, p in frames]))
+        return record
+
+
+def _progress(
+    cells: list[DemoCell], seeds: list[list[int]], records: list[dict]
+) -> tuple[list[int], list[int]]:
+    """Per cell, (episodes kept, attempts run up to the last kept one) according to the sidecar ``records``."""
+    kept, attempts = [0] * len(cells), [0] * len(cells)
+    index = {(c.task, c.level): i for i, c in enumerate(cells)}
+    for r in records:
+        c = index.get((r["task"], r["level"]))
+        if c is None or r["seed"] not in seeds[c]:
+            raise ConfigError(f"episode {r['episode_index']} of the dataset ({r['task']} level {r['level']}, seed "
+                              f"{r['seed']}) is not one these arguments record; choose a new --out")  # fmt: skip
+        kept[c] += 1
+        attempts[c] = seeds[c].index(r["seed"]) + 1
+    return kept, attempts
 
 
 def record_demos(
     scene: str, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
     cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
     repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
-    objects: bool = False, levels: LevelRequest | None = None,
+    objects: bool = False, levels: LevelRequest | None = None, workers: int = 1, notice=None,
 ) -> dict:  # fmt: skip
     """Record ``n`` successful episodes per task (and level) into a LeRobotDataset at ``out``; return stats.
 
     ``objects`` adds the pick and target poses per frame as ``observation.environment_state``; ``levels`` (an axis
     and its levels) records each level, with its level, axis and axis parameter per frame (``LEVEL_FEATURES``)
     and in the sidecar. No episode starts from a seed of ``seeding.held_out_seeds`` (the ones ``evaluate`` uses).
+    An ``out`` recorded with the same arguments is resumed after its last saved episode (``notice`` gets the line
+    saying so); a complete one is left as it is (stats ``already_complete``). ``workers`` > 1 records in worker
+    processes; the dataset is the same for any number.
     """
     noise, levels = noise or HumanNoise(), levels or LevelRequest()
-    if n < 1:
-        raise ConfigError(f"--n must be >= 1, got {n}")
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ConfigError(f"--out {out} already exists and is not empty; choose a new directory")
-    cells, make_env = plan_cells(scene, task, levels, cameras, image_size)
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.exists():
-        out.rmdir()
-    feats = features(cameras, (image_size, image_size), use_videos, objects, levels.axis is not None)
-    ds = LeRobotDataset.create(repo_id=repo_id, fps=FPS, features=feats, root=out, robot_type="panda",
-                               use_videos=use_videos, video_backend="pyav")  # fmt: skip
-    stats = {"scene": scene, "tasks": list(dict.fromkeys(c.task for c in cells)), "episodes": 0, "attempts": 0,
-             "frames": 0, "cells": []}  # fmt: skip
-    if levels.axis is not None:
-        stats.update(axis=cells[0].axis, levels=sorted({c.level for c in cells}))
-    recorder = _Recorder(ds, out, scene, cameras, objects, levels, noise)
-    try:
-        for cell in cells:
-            env = make_env(cell)
-            try:
-                kept, attempt, frames = recorder.record(env, cell, n, seed, max_attempts_factor * n, progress)
-            finally:
-                env.close()
-            stats["episodes"] += kept
-            stats["attempts"] += attempt
-            stats["frames"] += frames
-            stats["cells"].append({"task": cell.task, "level": cell.level, "kept": kept, "attempts": attempt})
-    except BaseException:
-        ds.finalize()
-        raise
-    ds.finalize()
-    stats["success_rate"] = stats["episodes"] / max(stats["attempts"], 1)
+    for flag, value in (("--n", n), ("--workers", workers)):
+        if value < 1:
+            raise ConfigError(f"{flag} must be >= 1, got {value}")
+    cells, maker = plan_cells(scene, task, levels, cameras, image_size)
+    args = json.loads(json.dumps({
+        "scene": scene, "task": task, "axis": levels.axis, "levels": levels.levels, "step": levels.step,
+        "axes_preset": levels.preset, "n": n, "seed": seed, "image_size": image_size, "cameras": list(cameras),
+        "noise": noise.sigma, "pause_prob": noise.pause_prob, "pause_steps": list(noise.pause_steps),
+        "repo_id": repo_id, "videos": use_videos, "objects": objects, "max_attempts_factor": max_attempts_factor,
+    }))  # fmt: skip
+    feats = features(tuple(cameras), (image_size, image_size), use_videos, objects, levels.axis is not None)
+    lerobot = {"repo_id": repo_id, "fps": FPS, "features": feats, "robot_type": "panda", "use_videos": use_videos,
+               "video_backend": "pyav"}  # fmt: skip
+    dataset = _open(out, args, lerobot, repo_id=repo_id, record=ARGS_RECORD,
+                    write=_EpisodeWriter(scene, tuple(cameras), objects, levels))  # fmt: skip
+    if isinstance(dataset, dict):
+        return dataset
+    seeds = [c.attempt_seeds(scene, seed, max_attempts_factor * n) for c in cells]
+    kept, attempts = _progress(cells, seeds, read_episode_sidecar(out))
+    if sum(kept) and notice is not None:
+        notice(f"resuming {out}: {sum(kept)} of {n * len(cells)} episodes already recorded")
+    plan = AttemptPlan(maker, noise, cells, seeds, n, kept, attempts)
+    _record(dataset, plan, workers, progress)
+    stats = _stats(scene, cells, plan, read_episode_sidecar(out), levels)
+    dataset.complete({"stats": stats})
     return stats
 
 
-@dataclass
-class _Recorder:
-    """Writes kept noisy-oracle episodes of one dataset: frames, per-frame level columns, sidecar records."""
+def _open(out: Path, args: dict, lerobot: dict, **kw) -> JournaledDataset | dict:
+    """A new dataset at ``out``, or the one there recorded with ``args`` reopened (its stats if it is complete)."""
+    recorded = _recorded(out)
+    if recorded is None:
+        return JournaledDataset.create(out, {"command": "indgen demos", "args": args}, lerobot, **kw)
+    check_args(out, recorded.get("args", {}), args)
+    if recorded.get("complete"):
+        drop_journal(out)  # left by a run killed as it finished
+        return {**recorded["stats"], "already_complete": True}
+    return JournaledDataset.reopen(out, **kw)
 
-    ds: Any
-    out: Path
-    scene: str
-    cameras: tuple[str, ...]
-    objects: bool
-    levels: LevelRequest
-    noise: HumanNoise
 
-    def record(
-        self, env, cell: DemoCell, n: int, seed: int, max_attempts: int, progress
-    ) -> tuple[int, int, int]:
-        """Record ``n`` successful episodes of ``cell``; return (kept, attempts, frames)."""
-        avoid = held_out_seeds(self.scene, cell.task, also=(seed,))
-        kept = attempt = total = 0
-        while kept < n:
-            if attempt >= max_attempts:
-                raise ConfigError(f"only {kept}/{n} noisy oracle demos of {self.scene}/{cell.label} succeeded in "
-                                  f"{attempt} attempts; lower the noise")  # fmt: skip
-            ep_seed = fresh_seed(seed, *cell.seed_key(self.scene), attempt, avoid=avoid)
-            attempt += 1
-            frames, success = [], False
-            for obs, a, info in noisy_oracle_episode(env, ep_seed, self.noise):
-                frames.append((obs, a))
-                success = bool(info.get("success", False))
-            if not success:
-                continue  # keep only successful demonstrations, like a human operator's keepers
-            self._save(cell, ep_seed, frames)
-            kept += 1
-            total += len(frames)
+def _record(dataset: JournaledDataset, plan: AttemptPlan, workers: int, progress) -> None:
+    """Add every episode ``plan`` keeps to ``dataset``, in order; an interrupted run leaves it to the journal."""
+    episodes = kept_episodes(plan, workers)
+    try:
+        for c, a, frames in episodes:
+            dataset.add({"cell": plan.cells[c], "seed": plan.seeds[c][a], "frames": frames})
             if progress is not None:
-                progress(cell.label, kept, attempt)
-        return kept, attempt, total
+                progress(plan.cells[c].label, plan.kept[c], a + 1)
+    except BaseException:
+        try:
+            dataset.abandon()
+        # closing must not mask the run's own outcome; a rerun rolls the session back anyway
+        except Exception:
+            logging.getLogger(__name__).debug("finalizing an interrupted dataset failed", exc_info=True)
+        raise
+    finally:
+        episodes.close()  # stops the workers at once
 
-    def _save(self, cell: DemoCell, ep_seed: int, frames: list) -> None:
-        poses = [object_poses(privileged_of(obs, "indgen demos")) for obs, _ in frames]
-        per_level = level_columns(cell.level, cell.axis, cell.param) if self.levels.axis is not None else {}
-        save_episode(self.ds, [(o, a, p) for (o, a), p in zip(frames, poses, strict=True)], self.cameras,
-                     self.objects, per_level)  # fmt: skip
-        record = {"episode_index": self.ds.num_episodes - 1, "regime": "demos", "scene": self.scene,
-                  "task": cell.task, "seed": ep_seed, "level": cell.level}  # fmt: skip
-        if self.levels.axis is not None:
-            record.update(self.levels.extra(), param=cell.param)
-        record.update(frames=len(frames), object_poses=rounded_poses(poses))
-        append_episode_sidecar(self.out, record)
+
+def _recorded(out: Path) -> dict | None:
+    """The arguments record of ``out`` (None: ``out`` is absent or empty); refuses any other directory."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} is a file; choose a directory")
+    if not out.exists() or not any(out.iterdir()):
+        return None
+    recorded = read_record(out, ARGS_RECORD)
+    if recorded is None:
+        raise ConfigError(f"--out {out} already exists and is not an indgen demos dataset (it has no "
+                          f"{ARGS_RECORD}); choose a new directory")  # fmt: skip
+    return recorded
+
+
+def _stats(
+    scene: str, cells: list[DemoCell], plan: AttemptPlan, records: list[dict], levels: LevelRequest
+) -> dict:
+    """What ``record_demos`` returns (and the record keeps): episodes, frames and attempts, per cell too."""
+    stats = {"scene": scene, "tasks": list(dict.fromkeys(c.task for c in cells)), "episodes": len(records),
+             "attempts": sum(plan.next_attempt), "frames": sum(r["frames"] for r in records),
+             "cells": [{"task": c.task, "level": c.level, "kept": k, "attempts": a}
+                       for c, k, a in zip(cells, plan.kept, plan.next_attempt, strict=True)]}  # fmt: skip
+    if levels.axis is not None:
+        stats.update(axis=cells[0].axis, levels=sorted({c.level for c in cells}))
+    stats["success_rate"] = stats["episodes"] / max(stats["attempts"], 1)
+    return stats
 
 
 def demos_main(args: argparse.Namespace) -> int:
@@ -344,7 +332,8 @@ def demos_main(args: argparse.Namespace) -> int:
 
     p = IndgenParser(
         prog="indgen demos",
-        description="record noisy-oracle demonstrations (T0, or --axis A --levels 0:2) as a LeRobotDataset",
+        description="record noisy-oracle demonstrations (T0, or --axis A --levels 0:2) as a LeRobotDataset; "
+        "rerunning the same command resumes an interrupted recording",
     )
     p.add_argument("--scene", required=True, help="built-in scene to record (see `indgen scenes`)")
     p.add_argument("--task", default=None, help="task name or 'all' (default: the scene's first task)")
@@ -353,7 +342,9 @@ def demos_main(args: argparse.Namespace) -> int:
     )
     add_level_options(p, levels_default="required with --axis")
     p.add_argument("--n", type=int, required=True, help="successful episodes per task (and level)")
-    p.add_argument("--out", required=True, help="dataset root directory (must not exist)")
+    p.add_argument(
+        "--out", required=True, help="dataset root: a new directory, or one to resume (same arguments)"
+    )
     p.add_argument(
         "--seed", type=int, default=0, help="base seed; episode i of a task always gets the same seed"
     )
@@ -374,6 +365,8 @@ def demos_main(args: argparse.Namespace) -> int:
         action="store_true",
         help="also record the pick and target poses as observation.environment_state (low-dim policies)",
     )
+    p.add_argument("--workers", type=int, default=None, help="worker processes recording episodes (default: "
+                   "number of cores); the dataset is the same for any number")  # fmt: skip
     a = p.parse_args(args.rest)
     cams = tuple(c for c in a.cameras.split(",") if c)
     levels = LevelRequest(a.axis, a.levels, a.step, a.axes_preset)
@@ -386,18 +379,15 @@ def demos_main(args: argparse.Namespace) -> int:
         console.print(f"  {label}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
 
     out = Path(a.out)
-    # on a failure only what this run made is removed (a partial dataset would only block the re-run)
-    fresh = not out.exists() or (out.is_dir() and not any(out.iterdir()))
-    try:
-        stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
-                             noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
-                             use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects,
-                             levels=levels)  # fmt: skip
-    except BaseException:
-        if fresh:
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
+                         noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
+                         use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects, levels=levels,
+                         workers=(os.cpu_count() or 1) if a.workers is None else a.workers, notice=console.print)  # fmt: skip
     where = f" at levels {', '.join(map(str, stats['levels']))} of {stats['axis']}" if "axis" in stats else ""
+    if stats.get("already_complete"):
+        console.print(f"{out} is already complete: {stats['episodes']} episodes ({stats['frames']} frames) of "
+                      f"{a.scene} {', '.join(stats['tasks'])}{where}; nothing to do")  # fmt: skip
+        return 0
     console.print(f"\nrecorded {stats['episodes']} episodes ({stats['frames']} frames) of {a.scene} "
                   f"{', '.join(stats['tasks'])}{where} into {out}; oracle keep rate {100 * stats['success_rate']:.0f}% "
                   f"({stats['episodes']} of {stats['attempts']} attempts, pooled over tasks and levels)")  # fmt: skip

@@ -237,14 +237,14 @@ def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
         (["blockenv", "reproduce", "--resume"], "jobs are saved; re-run the same command to resume"),
         (["blockenv", "train"], "'indgen blockenv train' keeps no partial output; re-run it to start over"),
         (["blockenv", "ablate"], "each finished ablation is saved in the results JSON"),
-        (["demos"], "keeps no partial output; re-run it to start over"),
+        (["demos"], "finished episodes are saved; re-run the same command to resume"),
         (["train"], "last saved training state is kept; re-run the same command to resume"),
         (["mimicgen"], "every finished attempt is saved; re-run the same command to resume"),
     ],
 )
 def test_ctrl_c_promises_a_resume_only_where_there_is_one(argv, says, monkeypatch, capsys):
-    """Ctrl-C exits 130 with one line; `demos` and `blockenv train` keep nothing, so their line must not say
-    "finished episodes are saved; re-run to resume" (a re-run starts from scratch)."""
+    """Ctrl-C exits 130 with one line; `blockenv train` keeps nothing, so its line must not say "finished episodes
+    are saved; re-run to resume" (a re-run starts from scratch)."""
     import indgen_vla.cli as cli
 
     def interrupt(args):

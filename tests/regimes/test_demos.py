@@ -1,5 +1,7 @@
 """Noisy-oracle T0 demonstrations round-trip through lerobot's own LeRobotDataset."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -22,7 +24,7 @@ def test_demos_round_trip_through_lerobot(one_demo):
     actions = np.stack([ds[i]["action"].numpy() for i in range(len(ds))])
     assert np.all(np.abs(actions) <= 1.0) and set(np.unique(np.sign(actions[:, -1]))) <= {-1.0, 1.0}
     assert actions[:, -1].max() == 1.0  # the gripper closed at some point: a grasp happened
-    with pytest.raises(ConfigError, match="already exists"):
+    with pytest.raises(ConfigError, match="was recorded with --seed 3, not --seed 0"):
         record_demos("pick_place", out, n=1)
 
 
@@ -82,6 +84,7 @@ SIDECAR_KEYS = ["episode_index", "regime", "scene", "task", "seed", "level", "fr
             "unknown task of scene pick_place 'milkk'",
         ),
         (["--scene", "libero_object", "--axis", "scale", "--levels", "0:1"], "fixed initial states"),
+        (["--workers", "0"], "--workers must be >= 1, got 0"),
     ],
 )
 def test_bad_level_arguments_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, flags, message):
@@ -181,3 +184,136 @@ def test_demos_start_from_other_initial_states_than_evaluation_episodes(level_de
         env.close()
     demo = read_episode_sidecar(level_demos[0])[0]["object_poses"]["pick"][0][:2]
     assert min(np.hypot(*(np.asarray(demo) - s)) for s in starts) > 1e-4
+
+
+# ---- resuming, workers, and reruns into an existing dataset ------------------------------------------------------
+# the `demos` fixture's arguments as `indgen demos` flags
+DEMOS_FLAGS = ["--scene", "pick_place", "--n", "2", "--seed", "5", "--cameras", "", "--objects"]
+
+
+def _sidecar_lines(out) -> int:
+    path = out / "meta" / "indgen_episodes.jsonl"
+    return len(path.read_text().splitlines()) if path.is_file() else 0
+
+
+def test_an_interrupted_two_worker_recording_resumes_into_the_uninterrupted_dataset(demos, tmp_path):
+    """Ctrl-C after the first kept episode of a 2-worker run, resumed with 1 worker: the files of the `demos`
+    fixture (one uninterrupted in-process run), the first episode saved again from the journal."""
+    from tests.fixtures.datasets import dataset_digest
+
+    out = tmp_path / "demos"
+
+    def interrupt(label, kept, attempt):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        record_demos("pick_place", out, n=2, seed=5, cameras=(), objects=True, workers=2, progress=interrupt)
+    assert _sidecar_lines(out) == 1 and not json_of(out)["complete"]
+    said = []
+    stats = record_demos("pick_place", out, n=2, seed=5, cameras=(), objects=True, notice=said.append)
+    assert said == [f"resuming {out}: 1 of 2 episodes already recorded"]
+    assert stats["episodes"] == 2 and json_of(out)["stats"] == stats
+    assert dataset_digest(out) == dataset_digest(demos)
+
+
+def json_of(out) -> dict:
+    import json
+
+    return json.loads((out / "meta" / "indgen_demos.json").read_text())
+
+
+def test_a_complete_dataset_rerun_says_so_and_changes_nothing(demos, capsys):
+    from indgen_vla.cli import main
+    from tests.fixtures.datasets import dataset_digest
+
+    before = dataset_digest(demos)
+    assert main(["demos", *DEMOS_FLAGS, "--workers", "2", "--out", str(demos)]) == 0
+    err = capsys.readouterr().err
+    assert f"{demos} is already complete: 2 episodes" in err and "nothing to do" in err
+    assert dataset_digest(demos) == before
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (
+            ["--n", "3"],
+            "was recorded with --n 2, not --n 3: rerun with --n 2 to resume it, or choose a new --out",
+        ),
+        (["--noise", "0.2"], "was recorded with --noise 0.1, not --noise 0.2"),
+        (["--cameras", "agentview"], "was recorded with --cameras '', not --cameras agentview"),
+        (["--task", "milk"], "was recorded with no --task, not --task milk"),
+    ],
+)
+def test_a_rerun_with_other_arguments_is_refused_naming_the_option(demos, capsys, change, message):
+    from indgen_vla.cli import main
+    from tests.fixtures.datasets import dataset_digest
+
+    before = dataset_digest(demos)
+    flags = DEMOS_FLAGS.copy()
+    for flag, value in zip(change[::2], change[1::2], strict=True):
+        if flag in flags:
+            flags[flags.index(flag) + 1] = value
+        else:
+            flags += [flag, value]
+    assert main(["demos", *flags, "--out", str(demos)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.startswith("error: ") and err.count("\n") == 1
+    assert dataset_digest(demos) == before
+
+
+def test_a_directory_that_is_no_demos_dataset_is_refused(tmp_path, capsys):
+    from indgen_vla.cli import main
+
+    out = tmp_path / "other"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["demos", *DEMOS_FLAGS, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "already exists and is not an indgen demos dataset" in err and err.count("\n") == 1
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+
+
+def _processes_with(marker: str) -> list[int]:
+    """Live processes whose environment holds ``marker`` (a killed run's fork server and workers inherit it)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and marker.encode() in (proc / "environ").read_bytes():
+                pids.append(int(proc.name))
+        except OSError:  # gone, or a zombie
+            continue
+    return pids
+
+
+@pytest.mark.slow  # ~40 s: two CLI runs (a fork server and 2 workers each), killed and resumed
+def test_a_killed_demos_command_resumes_into_the_uninterrupted_dataset(demos, tmp_path, monkeypatch):
+    """SIGKILL after the first saved episode: the workers and the fork server exit too (a pool worker would
+    otherwise wait for work forever), and the rerun ends with the uninterrupted dataset."""
+    import time
+
+    from indgen_vla.cli import main
+    from tests.fixtures.datasets import dataset_digest
+    from tests.fixtures.kill import kill_midway
+
+    marker = f"INDGEN_TEST_RUN={tmp_path.name}"
+    monkeypatch.setenv("INDGEN_TEST_RUN", tmp_path.name)
+    out = tmp_path / "demos"
+    argv = ["demos", *DEMOS_FLAGS, "--workers", "2"]
+    assert kill_midway(argv, out, total=2, at_least=1, timeout_s=300, count=_sidecar_lines) == 1
+    deadline = time.time() + 15
+    while _processes_with(marker) and time.time() < deadline:
+        time.sleep(0.2)
+    assert _processes_with(marker) == []
+    assert main([*argv, "--out", str(out)]) == 0
+    assert dataset_digest(out) == dataset_digest(demos)
+
+
+@pytest.mark.slow  # ~2-4 min: 4 rendered episodes (16 px, both cameras)
+def test_rendered_demos_are_the_same_for_one_and_two_workers(tmp_path):
+    from tests.fixtures.datasets import dataset_digest
+
+    one, two = tmp_path / "one", tmp_path / "two"
+    record_demos("pick_place", one, n=2, seed=7, image_size=16, workers=1)
+    record_demos("pick_place", two, n=2, seed=7, image_size=16, workers=2)
+    assert dataset_digest(one) == dataset_digest(two)
