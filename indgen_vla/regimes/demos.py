@@ -25,6 +25,7 @@ from indgen_vla.regimes.journal import EPISODES_SIDECAR as EPISODES_SIDECAR
 from indgen_vla.regimes.journal import JournaledDataset, drop_journal, read_record
 from indgen_vla.regimes.journal import append_episode_sidecar as append_episode_sidecar
 from indgen_vla.regimes.journal import read_episode_sidecar as read_episode_sidecar
+from indgen_vla.regimes.resume import check_same_run
 from scenes.poses import object_vector
 
 FPS = 20  # robosuite control frequency used by every scene
@@ -166,25 +167,11 @@ RECORDED = {"scene": "--scene", "task": "--task", "axis": "--axis", "levels": "-
             "max_attempts_factor": "max_attempts_factor"}  # fmt: skip
 
 
-def _shown(key: str, value) -> str:
-    """``value`` of ``key`` as the option that gives it (``--n 50``, ``--videos``, ``no --axis``)."""
-    flag = RECORDED[key]
-    if not flag.startswith("--"):
-        return f"{flag}={value}"
-    if value is None or value is False:
-        return f"no {flag}"
-    if value is True:
-        return flag
-    return f"{flag} {','.join(value) or repr('')}" if key == "cameras" else f"{flag} {value}"
-
-
-def check_args(out: Path, recorded: dict, args: dict) -> None:
+def check_args(out: Path, recorded: dict, args: dict, finished: bool = False) -> None:
     """Refuse to continue a dataset with other arguments than it was recorded with: one line naming the first."""
-    for key in RECORDED:
-        if recorded.get(key) != args[key]:
-            was, now = _shown(key, recorded.get(key)), _shown(key, args[key])
-            raise ConfigError(f"--out {out} was recorded with {was}, not {now}: rerun with {was} to resume it, "
-                              "or choose a new --out")  # fmt: skip
+    flags = [key for key, flag in RECORDED.items() if flag.startswith("--")]
+    now = {key: args[key] for key in RECORDED}
+    check_same_run(out, {key: recorded.get(key) for key in RECORDED}, now, "demos", flags, finished)
 
 
 @dataclass(frozen=True)
@@ -273,7 +260,7 @@ def _open(out: Path, args: dict, lerobot: dict, **kw) -> JournaledDataset | dict
     recorded = _recorded(out)
     if recorded is None:
         return JournaledDataset.create(out, {"command": "indgen demos", "args": args}, lerobot, **kw)
-    check_args(out, recorded.get("args", {}), args)
+    check_args(out, recorded.get("args", {}), args, finished=bool(recorded.get("complete")))
     if recorded.get("complete"):
         drop_journal(out)  # left by a run killed as it finished
         return {**recorded["stats"], "already_complete": True}

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError
+from indgen_vla.records import atomic_write_json
 
 # per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
 EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
@@ -48,13 +49,6 @@ def read_episode_sidecar(root: Path) -> list[dict]:
     if not path.is_file():
         return []
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-
-
-def write_json(path: Path, data: dict) -> None:
-    """Write ``data`` so that a kill leaves either the old file or the new one."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, path)
 
 
 def read_record(out: Path, record: str) -> dict | None:
@@ -102,7 +96,7 @@ class JournaledDataset:
         shutil.rmtree(tmp, ignore_errors=True)  # a creation killed before its rename
         out.parent.mkdir(parents=True, exist_ok=True)
         LeRobotDataset.create(root=tmp, **lerobot_kwargs).finalize()
-        write_json(tmp / kw["record"], {**args, "complete": False})
+        atomic_write_json(tmp / kw["record"], {**args, "complete": False})
         made = cls(tmp, **kw)
         made._checkpoint()
         if out.exists():
@@ -137,7 +131,7 @@ class JournaledDataset:
         if self._ds is not None:
             self._checkpoint()
         path = self.out / self.record
-        write_json(path, {**json.loads(path.read_text()), **extra, "complete": True})
+        atomic_write_json(path, {**json.loads(path.read_text()), **extra, "complete": True})
         drop_journal(self.out)
 
     def abandon(self) -> None:
@@ -182,7 +176,7 @@ class JournaledDataset:
             if rel in files:
                 shutil.copy2(self.out / rel, tmp / Path(rel).name)
         immutable = {k: v for k, v in files.items() if k not in MUTABLE}
-        write_json(tmp / "manifest.json", {"episodes": self.episodes, "files": immutable})
+        atomic_write_json(tmp / "manifest.json", {"episodes": self.episodes, "files": immutable})
         done = self.journal / f"checkpoint-{self.episodes:06d}"
         shutil.rmtree(done, ignore_errors=True)
         tmp.rename(done)  # the commit: a rerun returns here

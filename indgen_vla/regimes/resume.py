@@ -1,4 +1,4 @@
-"""What ``indgen train`` and ``indgen mimicgen`` share to resume a killed run: the ``--out`` states (fresh, unfinished,
+"""What ``indgen train``, ``indgen mimicgen`` (and ``indgen demos``'s argument check) share to resume a killed run: the ``--out`` states (fresh, unfinished,
 finished, someone else's), the one-line refusal of a rerun with other arguments, and a state directory replaced
 atomically (the previous state survives a kill mid-save)."""
 
@@ -99,7 +99,7 @@ def _shown(key: str, value, flags: Iterable[str]) -> str:
     if key not in set(flags):
         return f"{key}={value!r}"
     flag = "--" + key.replace("_", "-")
-    if isinstance(value, bool):
+    if value is None or isinstance(value, bool):
         return flag if value else f"no {flag}"
     if isinstance(value, list):
         return f"{flag} {','.join(map(str, value))}" if value else f"no {flag}"

@@ -24,7 +24,7 @@ def test_demos_round_trip_through_lerobot(one_demo):
     actions = np.stack([ds[i]["action"].numpy() for i in range(len(ds))])
     assert np.all(np.abs(actions) <= 1.0) and set(np.unique(np.sign(actions[:, -1]))) <= {-1.0, 1.0}
     assert actions[:, -1].max() == 1.0  # the gripper closed at some point: a grasp happened
-    with pytest.raises(ConfigError, match="was recorded with --seed 3, not --seed 0"):
+    with pytest.raises(ConfigError, match="made with --seed 3, not --seed 0"):
         record_demos("pick_place", out, n=1)
 
 
@@ -238,11 +238,11 @@ def test_a_complete_dataset_rerun_says_so_and_changes_nothing(demos, capsys):
     [
         (
             ["--n", "3"],
-            "was recorded with --n 2, not --n 3: rerun with --n 2 to resume it, or choose a new --out",
+            "holds a finished run made with --n 2, not --n 3; rerun with --n 2, or choose a new --out",
         ),
-        (["--noise", "0.2"], "was recorded with --noise 0.1, not --noise 0.2"),
-        (["--cameras", "agentview"], "was recorded with --cameras '', not --cameras agentview"),
-        (["--task", "milk"], "was recorded with no --task, not --task milk"),
+        (["--noise", "0.2"], "made with --noise 0.1, not --noise 0.2"),
+        (["--cameras", "agentview"], "made with no --cameras, not --cameras agentview"),
+        (["--task", "milk"], "made with no --task, not --task milk"),
     ],
 )
 def test_a_rerun_with_other_arguments_is_refused_naming_the_option(demos, capsys, change, message):
