@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -271,17 +270,11 @@ def _record(dataset: JournaledDataset, plan: AttemptPlan, workers: int, progress
     """Add every episode ``plan`` keeps to ``dataset``, in order; an interrupted run leaves it to the journal."""
     episodes = kept_episodes(plan, workers)
     try:
-        for c, a, frames in episodes:
-            dataset.add({"cell": plan.cells[c], "seed": plan.seeds[c][a], "frames": frames})
-            if progress is not None:
-                progress(plan.cells[c].label, plan.kept[c], a + 1)
-    except BaseException:
-        try:
-            dataset.abandon()
-        # closing must not mask the run's own outcome; a rerun rolls the session back anyway
-        except Exception:
-            logging.getLogger(__name__).debug("finalizing an interrupted dataset failed", exc_info=True)
-        raise
+        with dataset.recording():
+            for c, a, frames in episodes:
+                dataset.add({"cell": plan.cells[c], "seed": plan.seeds[c][a], "frames": frames})
+                if progress is not None:
+                    progress(plan.cells[c].label, plan.kept[c], a + 1)
     finally:
         episodes.close()  # stops the workers at once
 

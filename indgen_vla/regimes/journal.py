@@ -11,10 +11,12 @@ checkpoint and saves the staged episodes again, so it writes the very files an u
 from __future__ import annotations
 
 import json
+import logging
 import os
 import pickle
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -133,6 +135,19 @@ class JournaledDataset:
         path = self.out / self.record
         atomic_write_json(path, {**json.loads(path.read_text()), **extra, "complete": True})
         drop_journal(self.out)
+
+    @contextmanager
+    def recording(self) -> Iterator[JournaledDataset]:
+        """The dataset while episodes are added: an interruption (Ctrl-C, an error) abandons it and goes on."""
+        try:
+            yield self
+        except BaseException:
+            try:
+                self.abandon()
+            # closing must not mask the run's own outcome; a rerun rolls the session back anyway
+            except Exception:
+                logging.getLogger(__name__).debug("finalizing an interrupted dataset failed", exc_info=True)
+            raise
 
     def abandon(self) -> None:
         """Finalize the open lerobot session without a checkpoint (an interrupted run; a rerun rolls it back and

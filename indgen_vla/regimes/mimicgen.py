@@ -7,8 +7,9 @@ T0 initial state every segment's end-effector target poses are moved rigidly wit
 and driven with robosuite OSC_POSE delta actions; only episodes the scene's success predicate accepts are
 kept. The output is a LeRobotDataset with exactly the features, fps, cameras and task strings of the source.
 A source recorded at levels of an axis (``indgen demos --axis A --levels 0:2``) is augmented level by level:
-each episode is generated at its sources' level, from sources of that level only. Every attempt is saved as it
-ends (``staging``), so a killed run resumes after its last saved attempt when the same command is rerun.
+each episode is generated at its sources' level, from sources of that level only. Every kept episode is saved as
+it ends (``journal``, as ``indgen demos`` does), so a killed run resumes after its last saved episode when the same
+command is rerun.
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shutil
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
@@ -33,23 +33,15 @@ from indgen_vla.regimes.demos import (
     ENV_STATE,
     FPS,
     LEVEL_FEATURES,
-    append_episode_sidecar,
     features,
     level_columns,
     read_episode_sidecar,
     rounded_poses,
     save_episode,
 )
+from indgen_vla.regimes.journal import JournaledDataset, drop_journal, read_record
 from indgen_vla.regimes.mimicgen_sources import SUBTASKS, SourceDemo, load_sources, select_source
-from indgen_vla.regimes.resume import (
-    INPUTS,
-    RESUME_DIR,
-    RUN_FILE,
-    check_same_run,
-    dataset_size,
-    out_state,
-    start_run,
-)
+from indgen_vla.regimes.resume import INPUTS, check_same_run, dataset_size, out_state
 from indgen_vla.regimes.se3 import (
     interpolate_poses,
     pose_from_pq,
@@ -57,12 +49,14 @@ from indgen_vla.regimes.se3 import (
     pose_to_action,
     transform_segment,
 )
-from indgen_vla.regimes.staging import FrameCapture, Stage
 from indgen_vla.seeding import episode_seed, held_out_seeds
 from scenes.poses import object_poses
 
 SELECTIONS = ("nearest", "random")
-STATS_FILE = "mimicgen_stats.json"
+STATS_FILE = "mimicgen_stats.json"  # written last: the mark of a finished dataset
+RECORD = (
+    "meta/indgen_mimicgen.json"  # the run's arguments, its generation time so far and whether it is complete
+)
 CLI_FLAGS = ("source", "n", "seed", "guarantee", "max_attempts", "selection", "action_noise", "repo_id")
 
 
@@ -193,17 +187,20 @@ def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, 
 def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:
     """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats.
 
-    Every attempt is saved as it ends (``staging``) and the dataset is written once all are in: an unfinished
-    ``cfg.out`` made with the same arguments resumes after its last saved attempt (``say`` is told), a finished one
-    is returned as it is, other arguments are refused in one line.
+    Every kept episode is saved as it ends (``journal``): an unfinished ``cfg.out`` made with the same arguments
+    resumes after its last saved episode (``say`` is told), a finished one is returned as it is, other arguments
+    are refused in one line.
     """
     run = run_identity(cfg)
-    state = out_state(cfg.out, STATS_FILE, "mimicgen")
+    state = out_state(cfg.out, STATS_FILE, "mimicgen", run_file=RECORD)
     if state == "finished":
         return _finished(cfg, run, say)
-    if state == "unfinished":
-        saved = json.loads((cfg.out / RESUME_DIR / RUN_FILE).read_text())
-        check_same_run(cfg.out, saved, run, "mimicgen", CLI_FLAGS, finished=False)
+    recorded = read_record(cfg.out, RECORD) if state == "unfinished" else None
+    if recorded is not None:
+        check_same_run(cfg.out, recorded["run"], run, "mimicgen", CLI_FLAGS, finished=recorded["complete"])
+        if recorded["complete"]:  # killed between marking the dataset complete and writing the stats
+            atomic_write_json(cfg.out / STATS_FILE, recorded["stats"])
+            return _finished(cfg, run, say)
     info, demos, skipped = load_sources(cfg.source, cfg.lift_frac)
     if not demos:
         raise ConfigError(f"--source {cfg.source} has no demo with one clean grasp and release to split; "
@@ -213,33 +210,34 @@ def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:
     for d in demos:
         by_cell.setdefault(d.cell, []).append(d)
     taken = {d.seed for d in demos} | {int(r["seed"]) for r in read_episode_sidecar(cfg.source)}
-    stage = Stage(start_run(cfg.out, run))
-    prior, t0 = (stage.entries[-1]["wall_s"] if stage.entries else 0.0), time.perf_counter()
-    if stage.entries and say is not None:
-        kept = sum(e["success"] for e in stage.entries)
-        say(f"mimicgen: resuming {cfg.out}: {len(stage.entries)} attempts already saved ({kept} kept)")
-    writer = _Writer(stage, cfg, layout, lambda: round(prior + time.perf_counter() - t0, 2))
-    for k, pool in enumerate(by_cell.values()):
-        writer.cell(k, pool, taken, progress)
-
-    def create(root: Path):
-        from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
-        return LeRobotDataset.create(repo_id=cfg.repo_id, fps=int(info.get("fps", FPS)), root=root,
-                                     features=features(layout.cams, layout.size, layout.use_videos,
-                                                       layout.objects, layout.levels),
-                                     robot_type=info.get("robot_type", "panda"), use_videos=layout.use_videos,
-                                     video_backend="pyav")  # fmt: skip
-
-    def sidecar(root: Path, index: int, record: dict) -> None:
-        append_episode_sidecar(root, {"episode_index": index, **record["episode"]})
-
-    stage.write_dataset(cfg.out, create, sidecar, kept=lambda e: e["success"])
-    stats = _stats(cfg, stage.entries, len(demos), skipped, run)
-    stats["wall_s"] = round(prior + time.perf_counter() - t0, 2)  # every session's, to its last saved attempt
+    dataset = _open(cfg, run, recorded, info, layout)
+    if dataset.episodes and say is not None:
+        say(f"mimicgen: resuming {cfg.out}: {dataset.episodes} episodes already saved")
+    prior, t0 = (recorded or {}).get("wall_s", 0.0), time.perf_counter()
+    writer = _Writer(dataset, cfg, layout, lambda: round(prior + time.perf_counter() - t0, 2))
+    with dataset.recording():
+        tally: dict[str, tuple[int, int]] = {}
+        for pool in by_cell.values():
+            tally.update(writer.cell(pool, taken, progress))
+    stats = _stats(cfg, tally, read_episode_sidecar(cfg.out), len(demos), skipped, run)
+    stats["wall_s"] = writer.clock()  # every session's
+    dataset.complete({"stats": stats})
     atomic_write_json(cfg.out / STATS_FILE, stats)  # written last: the mark of a finished dataset
-    shutil.rmtree(cfg.out / RESUME_DIR)
     return stats
+
+
+def _open(
+    cfg: MimicGenConfig, run: dict, recorded: dict | None, info: dict, layout: _Layout
+) -> JournaledDataset:
+    """A new dataset at ``cfg.out`` with the source's fps, robot and features, or the unfinished one reopened."""
+    kw = {"repo_id": cfg.repo_id, "record": RECORD, "write": _EpisodeWriter(layout)}
+    if recorded is not None:
+        return JournaledDataset.reopen(cfg.out, **kw)
+    feats = features(layout.cams, layout.size, layout.use_videos, layout.objects, layout.levels)
+    lerobot = {"repo_id": cfg.repo_id, "fps": int(info.get("fps", FPS)), "robot_type": info.get("robot_type", "panda"),
+               "features": feats, "use_videos": layout.use_videos, "video_backend": "pyav"}  # fmt: skip
+    args = {"command": "indgen mimicgen", "run": run, "wall_s": 0.0}
+    return JournaledDataset.create(cfg.out, args, lerobot, **kw)
 
 
 def run_identity(cfg: MimicGenConfig) -> dict:
@@ -257,24 +255,21 @@ def _finished(cfg: MimicGenConfig, run: dict, say) -> dict:
         raise ConfigError(f"mimicgen: --out {cfg.out} holds a dataset from before generation could resume; "
                           "choose a new directory")  # fmt: skip
     check_same_run(cfg.out, stats["run"], run, "mimicgen", CLI_FLAGS, finished=True)
-    shutil.rmtree(cfg.out / RESUME_DIR, ignore_errors=True)  # a kill between the stats and this cleanup
+    drop_journal(cfg.out)  # a kill between marking the dataset complete and this cleanup
     if say is not None:
         say(f"mimicgen: {cfg.out} is already complete ({stats['successes']} episodes); nothing to do")
     return stats
 
 
-def _stats(cfg: MimicGenConfig, entries: list[dict], n_demos: int, skipped: int, run: dict) -> dict:
-    """Generation stats from the saved attempts (the same whether or not the run was resumed)."""
-    stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed, "attempts": len(entries),
-             "successes": sum(e["success"] for e in entries),
-             "frames": sum(e["episode"]["frames"] for e in entries if e["success"]),
-             "source_demos": n_demos, "source_skipped": skipped, "tasks": {}}  # fmt: skip
-    for e in entries:
-        t = stats["tasks"].setdefault(e["label"], {"attempts": 0, "successes": 0})
-        t["attempts"] += 1
-        t["successes"] += e["success"]
-    for t in stats["tasks"].values():
-        t["rate"] = t["successes"] / max(t["attempts"], 1)
+def _stats(cfg: MimicGenConfig, tally: dict[str, tuple[int, int]], episodes: list[dict], n_demos: int,
+           skipped: int, run: dict) -> dict:  # fmt: skip
+    """Generation stats from the (successes, attempts) per task and level and the saved episodes (the same whether
+    or not the run was resumed)."""
+    stats = {"source": str(cfg.source), "out": str(cfg.out), "seed": cfg.seed,
+             "attempts": sum(a for _, a in tally.values()), "successes": len(episodes),
+             "frames": sum(e["frames"] for e in episodes), "source_demos": n_demos, "source_skipped": skipped,
+             "tasks": {label: {"attempts": a, "successes": ok, "rate": ok / max(a, 1)}
+                       for label, (ok, a) in tally.items()}}  # fmt: skip
     stats["rate"] = stats["successes"] / max(stats["attempts"], 1)
     stats["config"] = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()}
     stats["run"] = run
@@ -304,25 +299,50 @@ class _Layout:
                    all(k in feats for k in LEVEL_FEATURES))  # fmt: skip
 
 
+@dataclass(frozen=True)
+class _EpisodeWriter:
+    """Saves one kept episode (frames, per-frame level columns) into the dataset; returns its sidecar record."""
+
+    layout: _Layout
+
+    def __call__(self, ds, kept: dict) -> dict:
+        frames, where = kept["frames"], kept["where"]
+        per_level = (
+            level_columns(kept["level"], where.get("axis"), kept["param"]) if self.layout.levels else {}
+        )
+        save_episode(ds, frames, self.layout.cams, self.layout.objects, per_level)
+        record = {"episode_index": ds.num_episodes - 1, "regime": "mimicgen", "scene": kept["scene"],
+                  "task": kept["task"], "seed": kept["seed"], "level": kept["level"]}  # fmt: skip
+        if where:
+            record.update(where, param=kept["param"])
+        record.update(frames=len(frames), source_episodes=kept["used"],
+                      object_poses=rounded_poses([p for _, _, p in frames]))  # fmt: skip
+        return record
+
+
 @dataclass
 class _Writer:
-    """Generates one source level's episodes and stages every attempt (a kept one with its frames and sidecar)."""
+    """Generates one source level's episodes and adds the kept ones to the dataset."""
 
-    stage: Stage
+    dataset: JournaledDataset
     cfg: MimicGenConfig
     layout: _Layout
     clock: Callable[[], float]  # seconds generating, over every session
 
-    def cell(self, k: int, pool: list[SourceDemo], taken: set[int], progress) -> None:
-        """Attempt level/task ``k`` from its sources ``pool``, after the attempts already saved for it."""
+    def cell(self, pool: list[SourceDemo], taken: set[int], progress) -> dict[str, tuple[int, int]]:
+        """Attempt the level/task of the sources ``pool``, after its last saved episode (the attempts between that
+        one and the interruption are run again: each is a pure function of its seeds); return {label: (successes,
+        attempts)}."""
         cfg, src = self.cfg, pool[0]
         where = dict(src.where)
         at = () if src.level == 0 else (where.get("axis"), src.level)  # T0 keeps the seeds it always had
         label = src.task if where.get("axis") is None else f"{src.task} {where['axis']} level {src.level}"
         avoid = taken | held_out_seeds(src.scene, src.task, also=(cfg.seed,))
         per_cell = (cfg.max_attempts or 5 * cfg.n) if cfg.guarantee else cfg.n
-        done = [e for e in self.stage.entries if e["cell"] == k]
-        attempt, ok = len(done), sum(e["success"] for e in done)
+        seeds = [_new_seed(cfg, src.scene, src.task, a, avoid, at) for a in range(per_cell)]
+        saved = [seeds.index(r["seed"]) for r in read_episode_sidecar(self.dataset.out)
+                 if (r["scene"], r["task"], r["level"]) == (src.scene, src.task, src.level)]  # fmt: skip
+        attempt, ok = (max(saved) + 1 if saved else 0), len(saved)
         if progress is not None and attempt:
             progress(label, ok, attempt, per_cell)
         env = None
@@ -332,19 +352,17 @@ class _Writer:
                     env = _level_env(
                         src.scene, src.task, src.level, where, self.layout.cams, self.layout.size
                     )
-                ok += self._attempt(env, k, label, pool, attempt, _new_seed(cfg, src.scene, src.task, attempt,
-                                                                             avoid, at), at)  # fmt: skip
+                ok += self._attempt(env, pool, attempt, seeds[attempt], at)
                 attempt += 1
                 if progress is not None:
                     progress(label, ok, attempt, per_cell)
         finally:
             if env is not None:
                 env.close()
+        return {label: (ok, attempt)}
 
-    def _attempt(
-        self, env, k: int, label: str, pool: list[SourceDemo], attempt: int, seed: int, at: tuple
-    ) -> bool:
-        """Run one attempt from T0 seed ``seed`` and save it; True when it succeeded (and was kept)."""
+    def _attempt(self, env, pool: list[SourceDemo], attempt: int, seed: int, at: tuple) -> bool:
+        """Run one attempt from T0 seed ``seed``; when it succeeds, add it to the dataset and return True."""
         src = pool[0]
         rng = np.random.default_rng(
             episode_seed(self.cfg.seed, "mimicgen-rng", src.scene, src.task, *at, attempt)
@@ -354,27 +372,12 @@ class _Writer:
         for obs, a, step_info, poses in generate_episode(env, pool, seed, rng, self.cfg, used):
             frames.append((obs, a, poses))
             success = bool(step_info.get("success", False))
-        entry = {"cell": k, "label": label, "attempt": attempt, "seed": seed, "success": success}
         if not success:
-            self.stage.add({**entry, "wall_s": self.clock()})
             return False
-        where = dict(src.where)
-        per_level = level_columns(src.level, where.get("axis"), src.param) if self.layout.levels else {}
-        capture = FrameCapture()
-        save_episode(capture, frames, self.layout.cams, self.layout.objects, per_level)
-        record = {
-            "regime": "mimicgen",
-            "scene": src.scene,
-            "task": src.task,
-            "seed": seed,
-            "level": src.level,
-        }
-        if where:
-            record.update(where, param=src.param)
-        record.update(
-            frames=len(frames), source_episodes=used, object_poses=rounded_poses([p for _, _, p in frames])
-        )
-        self.stage.add({**entry, "episode": record, "wall_s": self.clock()}, capture.frames)
+        self.dataset.add({"scene": src.scene, "task": src.task, "level": src.level, "where": dict(src.where),
+                          "param": src.param, "seed": seed, "used": used, "frames": frames})  # fmt: skip
+        path = self.dataset.out / RECORD  # the generation time so far, for the stats of a resumed run
+        atomic_write_json(path, {**json.loads(path.read_text()), "wall_s": self.clock()})
         return True
 
 

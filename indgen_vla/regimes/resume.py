@@ -1,6 +1,6 @@
-"""What ``indgen train``, ``indgen mimicgen`` (and ``indgen demos``'s argument check) share to resume a killed run: the ``--out`` states (fresh, unfinished,
-finished, someone else's), the one-line refusal of a rerun with other arguments, and a state directory replaced
-atomically (the previous state survives a kill mid-save)."""
+"""What ``indgen train``, ``indgen mimicgen`` (and ``indgen demos``'s argument check) share to resume a killed run:
+the ``--out`` states (fresh, unfinished, finished, someone else's), the one-line refusal of a rerun with other
+arguments, and a state directory replaced atomically (the previous state survives a kill mid-save)."""
 
 from __future__ import annotations
 
@@ -22,9 +22,11 @@ LAST_FILE = "last.json"  # in RESUME_DIR: the name of the newest complete state 
 OutState = Literal["fresh", "unfinished", "finished"]
 
 
-def out_state(out: Path, done_file: str, command: str) -> OutState:
-    """Whether ``out`` is new (absent or empty), an unfinished run of ``command`` or a finished one (``done_file``
-    is written last); anything else is refused, as it was before runs could resume."""
+def out_state(
+    out: Path, done_file: str, command: str, run_file: str = f"{RESUME_DIR}/{RUN_FILE}"
+) -> OutState:
+    """Whether ``out`` is new (absent or empty), an unfinished run of ``command`` (it has ``run_file``) or a
+    finished one (``done_file`` is written last); anything else is refused, as it was before runs could resume."""
     if not out.exists():
         return "fresh"
     if not out.is_dir():
@@ -32,9 +34,10 @@ def out_state(out: Path, done_file: str, command: str) -> OutState:
     names = set(os.listdir(out))
     if done_file in names:
         return "finished"
-    if (out / RESUME_DIR / RUN_FILE).is_file():
+    if (out / run_file).is_file():
         return "unfinished"
-    if names <= {RESUME_DIR}:  # killed before its first state was written: nothing to keep
+    # killed before its first state was written: nothing to keep (a run whose state lives elsewhere keeps it)
+    if names <= {RESUME_DIR} and run_file.startswith(f"{RESUME_DIR}/"):
         shutil.rmtree(out / RESUME_DIR, ignore_errors=True)
         return "fresh"
     raise ConfigError(

@@ -2,6 +2,7 @@
 and a generated dataset's round trip through lerobot's ``LeRobotDataset``."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -197,58 +198,59 @@ def test_mimicgen_generates_each_level_from_its_own_sources(level_demos, tmp_pat
 
 
 def _dataset(root) -> dict:
-    """What a generated dataset holds, out-independent: every frame's columns, the sidecar, and the stats."""
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-
+    """What a generated dataset holds, out-independent: every file's content (``dataset_digest``) but the two that
+    record paths and seconds, the sidecar, and the stats without them."""
     from indgen_vla.regimes.demos import read_episode_sidecar
+    from indgen_vla.regimes.mimicgen import RECORD, STATS_FILE
+    from tests.fixtures.datasets import dataset_digest
 
-    ds = LeRobotDataset("local/indgen_mimicgen", root=root)
-    cols = {k: np.stack(ds.hf_dataset.with_format("numpy")[k]) for k in ds.hf_dataset.column_names}
-    stats = json.loads((root / "mimicgen_stats.json").read_text())
+    digest = dataset_digest(root)
+    assert RECORD in digest and STATS_FILE in digest
+    stats = json.loads((root / STATS_FILE).read_text())
     for key in ("out", "wall_s", "config"):
         stats.pop(key)
-    return {"cols": cols, "sidecar": read_episode_sidecar(root), "stats": stats,
-            "files": sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())}  # fmt: skip
+    return {"digest": {k: v for k, v in digest.items() if k not in (RECORD, STATS_FILE)},
+            "sidecar": read_episode_sidecar(root), "stats": stats}  # fmt: skip
 
 
 def _assert_same_dataset(a: dict, b: dict) -> None:
-    assert a["files"] == b["files"] and not any(f.startswith("resume") for f in a["files"])
-    assert a["cols"].keys() == b["cols"].keys()
-    for k in a["cols"]:
-        np.testing.assert_array_equal(a["cols"][k], b["cols"][k], err_msg=k)
-    assert a["sidecar"] == b["sidecar"] and a["stats"] == b["stats"]
+    assert not any(f.startswith(".indgen_journal") for f in b["digest"])
+    assert a == b
+
+
+RUN = {"n": 3, "seed": 1, "action_noise": 0.3}  # its attempts: kept, discarded, kept
 
 
 @pytest.fixture(scope="module")
 def generated(demos, tmp_path_factory):
-    """Three uninterrupted attempts from the two T0 demos."""
+    """Three uninterrupted attempts from the two T0 demos (two kept)."""
     from indgen_vla.regimes.mimicgen import generate
 
     out = tmp_path_factory.mktemp("mg") / "gen"
-    generate(MimicGenConfig(source=demos, out=out, n=3, seed=1))
+    generate(MimicGenConfig(source=demos, out=out, **RUN))
     return out
 
 
 def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tmp_path):
-    """Stopped after its first attempt, with what kills mid-save leave (the next attempt's frames without their
-    record, a half-moved dataset), the rerun generates only the other attempts and writes the same dataset."""
-    from indgen_vla.regimes.mimicgen import generate
+    """Stopped (Ctrl-C) after its first kept episode and a discarded attempt, with the next staging cut short as a
+    kill leaves it, the rerun keeps that episode, runs the discarded attempt again and writes the same dataset,
+    file by file, as an uninterrupted run."""
+    from indgen_vla.regimes.journal import JOURNAL, read_episode_sidecar
+    from indgen_vla.regimes.mimicgen import RECORD, generate
 
     out, said = tmp_path / "gen", []
 
     def stop(label, ok, attempt, total):
-        raise KeyboardInterrupt
+        if attempt > ok > 0:  # after the discarded attempt that follows the first kept one
+            raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        generate(MimicGenConfig(source=demos, out=out, n=3, seed=1), stop)
-    episodes = out / "resume" / "episodes"
-    assert sorted(p.name for p in episodes.iterdir())[:1] == ["000000.json"]
-    (episodes / "000001.npz").write_bytes(b"torn")
-    (out / "meta").mkdir()
-    (out / "meta" / "info.json").write_text("{")
-    (out / "resume" / "dataset" / "data").mkdir(parents=True)
-    generate(MimicGenConfig(source=demos, out=out, n=3, seed=1), say=said.append)
-    assert said[0].startswith(f"mimicgen: resuming {out}: 1 attempts already saved")
+        generate(MimicGenConfig(source=demos, out=out, **RUN), stop)
+    assert json.loads((out / RECORD).read_text())["complete"] is False and len(read_episode_sidecar(out)) == 1
+    assert sorted(p.name for p in (out / JOURNAL).iterdir()) == ["checkpoint-000000", "ep-000000.pkl"]
+    (out / JOURNAL / "ep-000001.pkl.tmp").write_bytes(b"torn")
+    generate(MimicGenConfig(source=demos, out=out, **RUN), say=said.append)
+    assert said[0] == f"mimicgen: resuming {out}: 1 episodes already saved"
     _assert_same_dataset(_dataset(generated), _dataset(out))
 
 
@@ -257,7 +259,7 @@ def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generate
 
     stamp = {str(p): p.stat().st_mtime_ns for p in generated.rglob("*")}
     said = []
-    stats = generate(MimicGenConfig(source=demos, out=generated, n=3, seed=1), say=said.append)
+    stats = generate(MimicGenConfig(source=demos, out=generated, **RUN), say=said.append)
     assert said == [
         f"mimicgen: {generated} is already complete ({stats['successes']} episodes); nothing to do"
     ]
@@ -265,9 +267,14 @@ def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generate
     with pytest.raises(
         ConfigError, match="finished run made with --n 3, not --n 4; rerun with --n 3, or choose"
     ):
-        generate(MimicGenConfig(source=demos, out=generated, n=4, seed=1))
+        generate(MimicGenConfig(source=demos, out=generated, **{**RUN, "n": 4}))
     with pytest.raises(ConfigError, match="made with no --guarantee, not --guarantee"):
-        generate(MimicGenConfig(source=demos, out=generated, n=3, seed=1, guarantee=True))
+        generate(MimicGenConfig(source=demos, out=generated, **{**RUN, "guarantee": True}))
+    cut = tmp_path / "cut"  # killed between marking the dataset complete and writing its stats
+    shutil.copytree(generated, cut)
+    (cut / "mimicgen_stats.json").unlink()
+    assert generate(MimicGenConfig(source=demos, out=cut, **RUN)) == stats
+    assert (cut / "mimicgen_stats.json").read_text() == (generated / "mimicgen_stats.json").read_text()
     foreign = tmp_path / "notes"
     foreign.mkdir()
     (foreign / "todo.txt").write_text("keep me")
@@ -275,9 +282,9 @@ def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generate
         generate(MimicGenConfig(source=demos, out=foreign, n=1))
 
 
-def _saved_attempts(out) -> int:
-    d = out / "resume" / "episodes"
-    return len(list(d.glob("*.json"))) if d.is_dir() else 0
+def _staged_episodes(out) -> int:
+    """Kept episodes a rerun keeps (fewer than 20: none checkpointed yet), as the journal stages them."""
+    return len(list((out / ".indgen_journal").glob("ep-*.pkl")))
 
 
 @pytest.mark.slow  # two interpreter start-ups with robosuite (~15 s each here)
@@ -287,14 +294,15 @@ def test_sigkilled_generation_resumes_to_the_same_dataset(generated, demos, tmp_
 
     from tests.fixtures.kill import kill_midway
 
-    argv = ["mimicgen", "--source", str(demos), "--n", "3", "--seed", "1"]
+    argv = ["mimicgen", "--source", str(demos), "--n", "3", "--action-noise", "0.3", "--seed", "1"]
     out = tmp_path / "killed"
-    saved = kill_midway(argv, out, total=3, count=_saved_attempts)
-    assert 1 <= saved < 3
+    kept = json.loads((generated / "mimicgen_stats.json").read_text())["successes"]
+    saved = kill_midway(argv, out, total=kept, count=_staged_episodes)
+    assert 1 <= saved < kept
     run = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv, "--out", str(out)], capture_output=True,
                          text=True)  # fmt: skip
     assert run.returncode == 0, run.stderr
-    assert f"{saved} attempts already saved" in " ".join(run.stderr.split())
+    assert f"{saved} episodes already saved" in " ".join(run.stderr.split())
     _assert_same_dataset(_dataset(generated), _dataset(out))
     bad = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *argv[:-1], "2", "--out", str(out)],
                          capture_output=True, text=True)  # fmt: skip

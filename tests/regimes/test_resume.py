@@ -1,11 +1,10 @@
 """The pieces ``train`` and ``mimicgen`` resume with: --out states, the one-line refusal of other arguments, the
-atomically replaced state directory, and the attempt journal (what a kill mid-save leaves is dropped)."""
+atomically replaced state directory."""
 
 from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from indgen_vla.errors import ConfigError
@@ -16,7 +15,6 @@ from indgen_vla.regimes.resume import (
     save_state,
     start_run,
 )
-from indgen_vla.regimes.staging import FrameCapture, Stage
 
 
 def test_out_states(tmp_path):
@@ -26,6 +24,11 @@ def test_out_states(tmp_path):
     assert out_state(out, "done.json", "train") == "fresh"
     (out / "resume").mkdir()  # killed before its run.json: nothing to keep
     assert out_state(out, "done.json", "train") == "fresh" and not (out / "resume").exists()
+    # the same with its state elsewhere (mimicgen's meta/indgen_mimicgen.json): refused, kept
+    (out / "resume").mkdir()
+    with pytest.raises(ConfigError, match="not an unfinished 'mimicgen' output"):
+        out_state(out, "done.json", "mimicgen", run_file="meta/run.json")
+    assert (out / "resume").is_dir()
     start_run(out, {"config": {"n": 3}})
     assert json.loads((out / "resume" / "run.json").read_text()) == {"config": {"n": 3}}
     assert out_state(out, "done.json", "train") == "unfinished"
@@ -72,35 +75,3 @@ def test_a_state_replaced_atomically_survives_a_kill_mid_save(tmp_path):
     (tmp_path / ".step_12.abc" / "w").write_text("1")
     assert (last_state(tmp_path) / "w").read_text() == "8"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["last.json", "step_08"]
-
-
-def _frame(t: int) -> dict:
-    return {"observation.images.wrist": np.full((4, 4, 3), t, np.uint8), "action": np.arange(7, dtype=np.float32) * t,
-            "level": np.array([t], np.int64), "axis": "pick_y" if t else "", "task": "pick up the milk"}  # fmt: skip
-
-
-def test_the_journal_keeps_committed_attempts_and_their_exact_frames(tmp_path):
-    stage = Stage(tmp_path)
-    capture = FrameCapture()
-    for t in range(3):
-        capture.add_frame(_frame(t))
-    capture.save_episode()
-    stage.add({"attempt": 0, "success": True}, capture.frames)
-    stage.add({"attempt": 1, "success": False})
-    # a kill mid-save of attempt 2: its frames are written, its record is not; and a temp file of the next
-    (tmp_path / "episodes" / "000002.npz").write_bytes(b"partial")
-    (tmp_path / "episodes" / ".000003.json.xyz").write_text("{")
-    again = Stage(tmp_path)
-    assert again.entries == [{"attempt": 0, "success": True}, {"attempt": 1, "success": False}]
-    assert sorted(p.name for p in (tmp_path / "episodes").iterdir()) == [
-        "000000.json",
-        "000000.npz",
-        "000001.json",
-    ]
-    frames = list(again.frames(0))
-    for t, got in enumerate(frames):
-        want = _frame(t)
-        assert got.keys() == want.keys() and type(got["axis"]) is str and got["axis"] == want["axis"]
-        for k in ("observation.images.wrist", "action", "level"):
-            assert got[k].dtype == want[k].dtype and got[k].shape == want[k].shape
-            np.testing.assert_array_equal(got[k], want[k])
