@@ -145,15 +145,20 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
     }
 
 
+def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
+    """An image policy on placeholder assets without ``--smoke``: its cameras would see boxes."""
+    return bool(cameras) and getattr(plan.builder, "placeholder_assets", False) and not cfg.smoke
+
+
 def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
     """Before any episode: the policy's cameras and action size must be the scene family's (``EnvSpec``), and an
     image policy runs on placeholder assets only with ``--smoke`` (its cameras would see boxes). One line each."""
-    spec, builder = policy.spec, plan.builder
-    env_spec = getattr(builder, "env_spec", None)
+    spec = policy.spec
+    env_spec = getattr(plan.builder, "env_spec", None)
     try:
         if env_spec is not None:
             env_spec.check_policy(spec, cfg.scene)
-        if spec.cameras and getattr(builder, "placeholder_assets", False) and not cfg.smoke:
+        if _refused_on_placeholders(cfg, plan, spec.cameras):
             raise ConfigError(
                 f"scene {cfg.scene} runs on placeholder assets (boxes, flat textures): an image policy's success "
                 f"there is not a measurement; point the scene at its real assets, or pass --smoke to run "
@@ -202,6 +207,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
 
         n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
         view = preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec, **options)
+        if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
+            return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
         if view is not None:
             return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
         if n:

@@ -142,8 +142,12 @@ def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_
     """--task all: every task's ladder decided in one run; a 1-worker run killed with SIGKILL mid-protocol and
     resumed gives the same episodes, outcomes and per-task decisions as a 2-worker run."""
 
-    flags = dict(scene="stack", task="all", axes=("stack",), levels="0:1", episodes=20, max_steps=2)
-    need = SequentialRule(max_episodes=20).decide([False] * 20).episodes
+    # delta 0.12: a level is decided broken after 2 rounds (10 episodes) instead of 3 (the default 0.1's 15), so
+    # each of the 3 runs builds and rolls out a third less; still several rounds per ladder, killed mid-protocol
+    flags = dict(scene="stack", task="all", axes=("stack",), levels="0:1", episodes=20, max_steps=2,
+                 adaptive_delta=0.12)  # fmt: skip
+    need = SequentialRule(delta=0.12, max_episodes=20).decide([False] * 20).episodes
+    assert need == 2 * SequentialRule().round_size
     b = Path(evaluate(cfg(tmp_path / "w2", workers=2, **flags), quiet=True))
     df = pd.read_parquet(b / "episodes.parquet")
     s = json.loads((b / "summary.json").read_text())["axes"]["stack"]
@@ -156,7 +160,8 @@ def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_
     assert s["episodes"] == {"used": 4 * need, "fixed_design": 4 * 2 * 20}
     killed = tmp_path / "killed"
     argv = ["evaluate", "--policy", "standin:random", "--scene", "stack", "--task", "all", "--axis", "stack",
-            "--levels", "0:1", "--episodes", "20", "--max-steps", "2", "--workers", "1", "--adaptive", "kstar"]  # fmt: skip
+            "--levels", "0:1", "--episodes", "20", "--max-steps", "2", "--workers", "1", "--adaptive", "kstar",
+            "--adaptive-delta", "0.12"]  # fmt: skip
     assert 0 < kill_midway(argv, killed, total=4 * need, at_least=3) < 4 * need
     evaluate(cfg(tmp_path, out=str(killed), **flags), quiet=True)
     cols, key = ["task", "level", "episode", "seed", "success", "steps"], ["task", "level", "episode"]

@@ -2,8 +2,6 @@
 
 import dataclasses
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -83,19 +81,22 @@ def test_oracle_workers_1_vs_2_identical(tmp_path):
     assert set(pd.read_parquet(Path(a) / "episodes.parquet")["failure"]) == {"none"}
 
 
-def test_resume_after_sigkill(tmp_path):
+def test_resume_after_sigkill(tmp_path, capsys):
+    """The run SIGKILLed is a real process; the reference and the resume run in this one (the same CLI path, two
+    interpreter start-ups fewer): the resume reads only what the killed process left on disk."""
+    from indgen_vla.cli import main
+
     args = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y",
             "--levels", "0:1", "--episodes", "4", "--workers", "1", "--max-steps", "8"]  # fmt: skip
     ref = tmp_path / "ref"
-    subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(ref)], check=True,
-                   capture_output=True)  # fmt: skip
+    assert main([*args, "--out", str(ref)]) == 0
     killed = tmp_path / "killed"
     kept = kill_midway(args, killed, total=8)
     assert 0 < kept < 8
-    resumed = subprocess.run([sys.executable, "-m", "indgen_vla.cli", *args, "--out", str(killed)], check=True,
-                             capture_output=True, text=True)  # fmt: skip
+    capsys.readouterr()
+    assert main([*args, "--out", str(killed)]) == 0
     assert outcomes(killed) == outcomes(ref) and len(outcomes(ref)) == 8
-    said = " ".join(resumed.stderr.split())  # rich wraps at $COLUMNS
+    said = " ".join(capsys.readouterr().err.split())  # rich wraps at $COLUMNS
     assert f"{kept} of 8 planned episodes already recorded; running the other {8 - kept}" in said
 
 

@@ -42,10 +42,11 @@ def test_builds_and_steps_at_the_extreme_level(scene, axis):
         assert obs.images["agentview"].shape == (64, 64, 3) and obs.state.dtype == np.float32
         assert obs.instruction == env.instruction and info["seed"] == 1
         assert env.level == level and env.task == scenes.tasks(scene)[0] and env.max_steps == 3
-        for _ in range(3):
-            obs, reward, terminated, truncated, info = env.step(np.zeros(7, dtype=np.float32))
+        for k in range(3):  # the reset and the last step render; no check reads the frames of the two between
+            obs, reward, terminated, truncated, info = env.step(np.zeros(7, dtype=np.float32), observe=k == 2)
             assert isinstance(info["success"], bool) and reward == float(info["success"])
         assert truncated and not terminated and info["step"] == 3
+        assert obs.images["agentview"].shape == (64, 64, 3)  # the last step rendered
         with pytest.raises(SceneError, match="reset"):
             env.step(np.zeros(7))
     finally:

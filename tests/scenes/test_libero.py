@@ -339,14 +339,21 @@ def test_a_held_axis_starts_its_ladder_at_the_held_level(mini):
         env.close()
 
 
-def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path, capsys):
+def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path, capsys, monkeypatch):
     """The miniature tree is boxes and flat textures: like RoboCasa's placeholders, an image policy is refused there
-    unless --smoke (whose manifest says "not a measurement"); the oracle, which reads no image, runs as before."""
+    unless --smoke (whose manifest says "not a measurement"); the oracle, which reads no image, runs as before. The
+    policy's preview already says it will be refused, so no early worker builds a scene meanwhile (the refusal
+    waited ~6 s for that build)."""
     pytest.importorskip("lerobot")
+    import indgen_vla.engine.local as local
     from indgen_vla.cli import main
     from scenes.registry import get_scene
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
+    def no_early_workers(*a, **k):
+        raise AssertionError("early workers started for a policy the preview shows will be refused")
+
+    monkeypatch.setattr(local, "EarlyWorkers", no_early_workers)
     assert get_scene("libero_object").placeholder_assets()
     ckpt = build_tiny_checkpoint("act", tmp_path / "act")
     args = ["evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object", "--task", "alphabet_soup",
