@@ -353,7 +353,7 @@ def demos_main(args: argparse.Namespace) -> int:
     quiet_datasets()
     from rich.console import Console
 
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)  # a line is one line in a log, whatever the width
 
     def progress(label, kept, attempt):
         console.print(f"  {label}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
