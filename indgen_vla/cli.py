@@ -7,18 +7,16 @@ returning an exit code, so ``indgen --help`` never imports torch, robosuite or l
 from __future__ import annotations
 
 import argparse
-import contextlib
 import gc
 import importlib
 import os
 import re
-import signal
 import sys
-import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 from indgen_vla import __version__
 from indgen_vla.errors import EXIT_SIGTERM, IndgenError, Terminated
+from indgen_vla.interrupts import interrupted_message, sigterm_raises
 
 # subcommand -> "package.module:function" handler, imported only when that subcommand runs
 HANDLERS: dict[str, str] = {
@@ -422,50 +420,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 PIPED_COLUMNS = 240  # the table width when stdout is not a terminal and $COLUMNS is unset
 
 
-def _interrupted_message(args: argparse.Namespace) -> str:
-    """The Ctrl-C line: only the commands that keep their progress say "resume" (``blockenv train`` writes its
-    output only when complete, so a re-run starts over)."""
-    rest = getattr(args, "rest", None) or []
-    if args.command in ("evaluate", "demos"):
-        return "interrupted: finished episodes are saved; re-run the same command to resume"
-    if args.command == "train":
-        return "interrupted: the last saved training state is kept; re-run the same command to resume"
-    if args.command == "mimicgen":
-        return "interrupted: every finished attempt is saved; re-run the same command to resume"
-    if args.command == "certify":
-        return ("interrupted: the levels finished so far are saved (a level in progress starts over); "
-                "re-run the same command to resume")  # fmt: skip
-    if args.command == "real":
-        return "interrupted: every verdict shown as saved is kept; re-run 'indgen real record RUN'"
-    if args.command == "blockenv" and rest[:1] == ["ablate"]:
-        return ("interrupted: each finished ablation is saved in the results JSON (one in progress starts over); "
-                "re-run the ablations not yet done")  # fmt: skip
-    if args.command == "blockenv" and "--resume" in rest:
-        return "interrupted: finished (method, seed) jobs are saved; re-run the same command to resume"
-    name = " ".join([args.command] + rest[:1]) if args.command == "blockenv" and rest else args.command
-    return f"interrupted: 'indgen {name}' keeps no partial output; re-run it to start over"
-
-
-@contextlib.contextmanager
-def sigterm_raises() -> Iterator[None]:
-    """While a command runs, SIGTERM raises ``Terminated`` (a ``KeyboardInterrupt``) so that it stops as on Ctrl-C:
-    workers closed, finished work saved, one line. A second SIGTERM is ignored so it cannot cut that shutdown short
-    (SIGKILL still can). Signal handlers belong to the main thread: elsewhere this does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum, frame):
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        raise Terminated
-
-    previous = signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _main(argv: Sequence[str] | None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     # piped or logged: rich would cut tables (task names, readiness notes) to 80 columns
@@ -487,10 +441,10 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
     except Terminated:
-        print(_interrupted_message(args).replace("interrupted:", "terminated (SIGTERM):", 1), file=sys.stderr)
+        print(interrupted_message(args).replace("interrupted:", "terminated (SIGTERM):", 1), file=sys.stderr)
         return EXIT_SIGTERM
     except KeyboardInterrupt:
-        print(_interrupted_message(args), file=sys.stderr)
+        print(interrupted_message(args), file=sys.stderr)
         return 130
     except BrokenPipeError:  # e.g. `indgen axes | head`: the reader left; not an error of ours
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -341,7 +341,7 @@ def run_ray(
 
 def _keeping_sigterm(start: Callable[[], object]) -> None:
     """Call ``start`` (``ray.init``) and put back the SIGTERM handler it replaces: Ray's exits with status 15 and a
-    C++ stack dump instead of the one-line stop and exit 143 of ``indgen`` (``cli.sigterm_raises``)."""
+    C++ stack dump instead of the one-line stop and exit 143 of ``indgen`` (``interrupts.sigterm_raises``)."""
     import signal
 
     if threading.current_thread() is not threading.main_thread():

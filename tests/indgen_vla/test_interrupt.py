@@ -8,8 +8,9 @@ import sys
 
 import pytest
 
-from indgen_vla.cli import main, sigterm_raises
+from indgen_vla.cli import main
 from indgen_vla.errors import EXIT_SIGTERM, Terminated
+from indgen_vla.interrupts import sigterm_raises
 from indgen_vla.records import JOURNAL
 from tests.fixtures.kill import episodes_on_disk, stop_midway
 

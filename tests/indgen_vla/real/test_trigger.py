@@ -246,8 +246,8 @@ def test_sigterm_to_the_session_stops_the_episode_command(tmp_path):
     session stops as on Ctrl-C and takes the command with it; it used to run on, orphaned, with no one watching."""
     import threading
 
-    from indgen_vla.cli import sigterm_raises
     from indgen_vla.errors import Terminated
+    from indgen_vla.interrupts import sigterm_raises
     from indgen_vla.real.trigger import EpisodeCommand, EpisodeContext
 
     hang = "import os, time; print(os.getpid(), flush=True); time.sleep(60)"
