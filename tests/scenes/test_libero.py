@@ -203,16 +203,19 @@ def test_oracle_certifies_extreme_levels(mini):
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert
 
 
-@pytest.mark.slow  # 9 s; test_libero_adaptive runs evaluate on LIBERO end to end by default
+# the one default test of evaluate on LIBERO end to end (test_libero_adaptive is slow)
 def test_evaluate_cli_with_oracle(mini, tmp_path):
     out = tmp_path / "run"
-    args = ["--axis", "scale", "--levels", "-3,3", "--episodes", "1", "--out", str(out)]
-    r = _evaluate("standin:oracle", args, env=dict(os.environ), timeout=300)
-    assert r.returncode == 0, r.stderr[-3000:]
+    # one level: the extremes' feasibility is test_oracle_certifies_extreme_levels; this is the evaluate pipeline
+    args = ["--axis", "scale", "--levels", "3", "--episodes", "1", "--out", str(out)]
+    from indgen_vla.cli import main
+
+    # in-process: no interpreter start-up
+    assert main(["evaluate", "--policy", "standin:oracle", "--scene", SCENE, *args]) == 0
     import pandas as pd
 
     eps = pd.read_parquet(out / "episodes.parquet")
-    assert list(eps["success"]) == [True, True] and set(eps["status"]) == {"ok"}
+    assert list(eps["success"]) == [True] and set(eps["status"]) == {"ok"}
     assert set(eps["failure"]) == {"none"}
 
 
