@@ -241,27 +241,45 @@ def test_check_policy_cli_refuses_an_unreachable_server_before_the_session(tmp_p
     assert not (run / "journal.jsonl").exists()
 
 
+_SIGTERM_SESSION = """
+import os, shlex, signal, sys, threading
+from indgen_vla.errors import Terminated
+from indgen_vla.interrupts import sigterm_raises
+from indgen_vla.real.trigger import EpisodeCommand, EpisodeContext
+
+hang = "import os, time; print(os.getpid(), flush=True); time.sleep(60)"
+trigger = EpisodeCommand(f"{shlex.quote(sys.executable)} -c {shlex.quote(hang)}", sys.argv[1])
+ctx = EpisodeContext(run=sys.argv[1], axis="stack", task="stack", level=0, param=0.0, unit="", episode=0, attempt=0,
+                     seed=1, instruction="", placement="", policy="p", video="")
+said = []
+timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM))
+
+def sigterm_once_running(text):
+    said.append(text)
+    if not timer.is_alive() and not timer.finished.is_set():
+        timer.start()
+
+try:
+    with sigterm_raises():
+        trigger.start(ctx, sigterm_once_running)
+except Terminated:
+    print("terminated", said[0].split()[0], flush=True)
+"""
+
+
 def test_sigterm_to_the_session_stops_the_episode_command(tmp_path):
     """``kill PID`` of ``indgen real record`` (or a SIGTERM from a logout) while the robot's command runs: the
-    session stops as on Ctrl-C and takes the command with it; it used to run on, orphaned, with no one watching."""
-    import threading
+    session stops as on Ctrl-C and takes the command with it; it used to run on, orphaned, with no one watching.
+    The session runs in a process of its own: a SIGTERM that missed its handler must not end the test runner."""
+    import subprocess
 
-    from indgen_vla.errors import Terminated
-    from indgen_vla.interrupts import sigterm_raises
-    from indgen_vla.real.trigger import EpisodeCommand, EpisodeContext
-
-    hang = "import os, time; print(os.getpid(), flush=True); time.sleep(60)"
-    trigger = EpisodeCommand(f"{shlex.quote(sys.executable)} -c {shlex.quote(hang)}", str(tmp_path))
-    ctx = EpisodeContext(run=str(tmp_path), axis="stack", task="stack", level=0, param=0.0, unit="", episode=0,
-                         attempt=0, seed=1, instruction="", placement="", policy="p", video="")  # fmt: skip
-    said: list[str] = []
-
-    def sigterm_once_running(text: str) -> None:
-        said.append(text)
-        threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM)).start()
-
-    with pytest.raises(Terminated), sigterm_raises():
-        trigger.start(ctx, sigterm_once_running)
-    pid = int(said[0].split()[0])
+    r = subprocess.run([sys.executable, "-c", _SIGTERM_SESSION, str(tmp_path)], capture_output=True, text=True,
+                       timeout=60)  # fmt: skip
+    assert r.returncode == 0 and r.stdout.startswith("terminated "), (
+        r.returncode,
+        r.stdout,
+        r.stderr[-2000:],
+    )
+    pid = int(r.stdout.split()[1])
     with pytest.raises(ProcessLookupError):  # ended and reaped, not left running
         os.kill(pid, 0)
