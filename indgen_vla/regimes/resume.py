@@ -32,12 +32,14 @@ def out_state(
     if not out.is_dir():
         raise ConfigError(f"{command}: --out {out} is a file; choose a directory")
     names = set(os.listdir(out))
+    if not names:  # made empty beforehand (mkdir -p): as good as absent
+        return "fresh"
     if done_file in names:
         return "finished"
     if (out / run_file).is_file():
         return "unfinished"
     # killed before its first state was written: nothing to keep (a run whose state lives elsewhere keeps it)
-    if names <= {RESUME_DIR} and run_file.startswith(f"{RESUME_DIR}/"):
+    if names == {RESUME_DIR} and run_file.startswith(f"{RESUME_DIR}/"):
         shutil.rmtree(out / RESUME_DIR, ignore_errors=True)
         return "fresh"
     raise ConfigError(

@@ -22,6 +22,7 @@ def test_out_states(tmp_path):
     assert out_state(out, "done.json", "train") == "fresh"
     out.mkdir()
     assert out_state(out, "done.json", "train") == "fresh"
+    assert out_state(out, "done.json", "mimicgen", run_file="meta/run.json") == "fresh"  # empty: as if absent
     (out / "resume").mkdir()  # killed before its run.json: nothing to keep
     assert out_state(out, "done.json", "train") == "fresh" and not (out / "resume").exists()
     # the same with its state elsewhere (mimicgen's meta/indgen_mimicgen.json): refused, kept
