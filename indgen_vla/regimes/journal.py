@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import pickle
 import shutil
 from collections.abc import Callable, Iterator
@@ -22,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.records import atomic_write_json
+from indgen_vla.records import atomic_write_bytes, atomic_write_json
 
 # per-episode sidecar beside lerobot's own metadata: episode seed and per-frame object poses (MimicGen's source)
 EPISODES_SIDECAR = "meta/indgen_episodes.jsonl"
@@ -122,10 +121,7 @@ class JournaledDataset:
     def add(self, payload: Any) -> None:
         """Stage ``payload`` (a kill after this keeps it), save it as the next episode, checkpoint when due."""
         path = self.journal / f"ep-{self.episodes:06d}.pkl"
-        tmp = path.with_name(path.name + ".tmp")
-        with tmp.open("wb") as f:
-            pickle.dump(payload, f, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
+        atomic_write_bytes(path, pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL))
         self._save(payload)
 
     def complete(self, extra: dict) -> None:
@@ -210,14 +206,14 @@ class JournaledDataset:
                               "version of indgen); choose a new directory")  # fmt: skip
         ckpt = done[-1]
         manifest = json.loads((ckpt / "manifest.json").read_text())
-        keep = manifest["files"]
-        for rel, size in self._lerobot_files().items():
+        keep, files = manifest["files"], self._lerobot_files()
+        for rel, size in files.items():
             if rel in MUTABLE or rel not in keep:
                 (self.out / rel).unlink()
             elif size != keep[rel]:
                 raise ConfigError(f"--out {self.out}: {rel} changed since the last checkpoint (something other "
                                   "than indgen wrote into the dataset); choose a new directory")  # fmt: skip
-        missing = sorted(set(keep) - set(self._lerobot_files()))
+        missing = sorted(set(keep) - set(files))  # what was deleted above was not in keep
         if missing:
             raise ConfigError(
                 f"--out {self.out}: {missing[0]} is missing (deleted by hand?); choose a new directory"
@@ -235,7 +231,7 @@ class JournaledDataset:
 
     def _staged(self) -> list[Path]:
         """The episodes staged since the checkpoint, in order (a partly written one dropped)."""
-        for tmp in self.journal.glob("ep-*.pkl.tmp"):
+        for tmp in self.journal.glob(".ep-*.pkl.*"):  # atomic_write_bytes's temp file of a killed write
             tmp.unlink()
         staged = sorted(self.journal.glob("ep-*.pkl"))
         first = self.episodes

@@ -95,7 +95,7 @@ def test_a_dataset_killed_mid_episode_resumes_into_the_uninterrupted_files(whole
         assert json.loads((killed / "meta/info.json").read_text())["total_episodes"] == 4
     else:
         assert any((killed / "images").rglob("*.png"))  # lerobot's staged frames of the unsaved episode
-    (killed / JOURNAL / "ep-000004.pkl.tmp").write_bytes(b"half")  # a staging cut short: ignored
+    (killed / JOURNAL / ".ep-000004.pkl.k1ll3d").write_bytes(b"half")  # a staging cut short: ignored
 
     resumed = record(killed, range(4, 5))
     assert resumed.episodes == 5

@@ -248,7 +248,7 @@ def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tm
         generate(MimicGenConfig(source=demos, out=out, **RUN), stop)
     assert json.loads((out / RECORD).read_text())["complete"] is False and len(read_episode_sidecar(out)) == 1
     assert sorted(p.name for p in (out / JOURNAL).iterdir()) == ["checkpoint-000000", "ep-000000.pkl"]
-    (out / JOURNAL / "ep-000001.pkl.tmp").write_bytes(b"torn")
+    (out / JOURNAL / ".ep-000001.pkl.k1ll3d").write_bytes(b"torn")
     generate(MimicGenConfig(source=demos, out=out, **RUN), say=said.append)
     assert said[0] == f"mimicgen: resuming {out}: 1 episodes already saved"
     _assert_same_dataset(_dataset(generated), _dataset(out))
