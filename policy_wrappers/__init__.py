@@ -1,4 +1,4 @@
-"""Policy wrappers: one adapter per family behind the tiny ``Policy`` protocol (``indgen_vla.interface``).
+"""Policy wrappers: one adapter per family behind the tiny ``Policy`` protocol (``indgen_vla.core.protocol.interface``).
 
 ``load_policy("openpi:ws://HOST:PORT")`` is the entry point; family modules (and torch/lerobot) load lazily.
 """

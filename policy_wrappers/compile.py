@@ -19,10 +19,13 @@ import os
 import sys
 from pathlib import Path
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES
 
-MODES, CUDA_ONLY = COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES  # shared with --compile (indgen_vla/interface.py)
+MODES, CUDA_ONLY = (
+    COMPILE_MODES,
+    CUDA_GRAPH_COMPILE_MODES,
+)  # shared with --compile (indgen_vla/core/protocol/interface.py)
 CACHE_ENV = "TORCHINDUCTOR_CACHE_DIR"
 
 

@@ -27,8 +27,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import (
+from indgen_vla.core.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
+from indgen_vla.core.protocol.interface import (
     TABLETOP,
     EnvSpec,
     Observation,

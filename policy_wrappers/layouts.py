@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import EnvSpec
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import EnvSpec
 
 Parts = tuple[tuple[str, int], ...]
 

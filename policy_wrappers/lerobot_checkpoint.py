@@ -11,9 +11,9 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from indgen_vla.errors import ConfigError, PolicyError
-from indgen_vla.interface import PRECISIONS, TABLETOP, EnvSpec, ScenePreview
-from indgen_vla.training_support import TrainedCell, cells_from_json
+from indgen_vla.core.errors import ConfigError, PolicyError
+from indgen_vla.core.protocol.interface import PRECISIONS, TABLETOP, EnvSpec, ScenePreview
+from indgen_vla.core.protocol.training_support import TrainedCell, cells_from_json
 from policy_wrappers.layouts import layout_for
 
 IMAGE_PREFIX = "observation.images."

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, PolicyError
-from indgen_vla.interface import (
+from indgen_vla.core.errors import ConfigError, PolicyError
+from indgen_vla.core.protocol.interface import (
     ACTION_DIM,
     OBJECT_DIM,
     QUERY_KEY,
@@ -33,7 +33,7 @@ from indgen_vla.interface import (
     ScenePreview,
     validate_chunk,
 )
-from indgen_vla.seeding import episode_seed
+from indgen_vla.core.protocol.seeding import episode_seed
 from policy_wrappers import lerobot_checkpoint
 from policy_wrappers.layouts import layout_for
 from policy_wrappers.lerobot_checkpoint import (

@@ -42,7 +42,7 @@ class ProprioAsEnvStateStep(ObservationProcessorStep):
 @dataclass
 class ObjectPosesStep(ObservationProcessorStep):
     """Declares that ``observation.environment_state`` is indgen's object observation (pick and target poses,
-    ``indgen_vla.interface.OBJECT_NAMES``), so the wrapper hands the policy ``Observation.objects`` there.
+    ``indgen_vla.core.protocol.interface.OBJECT_NAMES``), so the wrapper hands the policy ``Observation.objects`` there.
 
     It changes nothing: the wrapper fills the input; the step only marks the checkpoint as a low-dim policy
     trained on those poses (any other environment state is refused).

@@ -17,8 +17,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from indgen_vla.errors import IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import QUERY_KEY, TABLETOP, EnvSpec, Observation, PolicySpec, validate_chunk
+from indgen_vla.core.errors import IndgenError, PolicyConnectionError, PolicyError
+from indgen_vla.core.protocol.interface import (
+    QUERY_KEY,
+    TABLETOP,
+    EnvSpec,
+    Observation,
+    PolicySpec,
+    validate_chunk,
+)
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.layouts import Layout, layout_for
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
+from indgen_vla.core.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
+from indgen_vla.core.protocol.interface import ACTION_DIM, Observation, PolicySpec, validate_chunk
 from policy_wrappers.image_tools import GRIPPER_MODES
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
 from policy_wrappers.transforms import LIBERO_OFT, LIBERO_OPENVLA, CenterCrop, Conventions

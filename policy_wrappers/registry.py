@@ -11,12 +11,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qsl
 
-from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
-from indgen_vla.redact import redact
-from indgen_vla.registry import Registry
+from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
+from indgen_vla.core.registry import Registry
+from indgen_vla.core.runs.redact import redact
 
 if TYPE_CHECKING:
-    from indgen_vla.interface import EnvSpec, ScenePreview
+    from indgen_vla.core.protocol.interface import EnvSpec, ScenePreview
 
 FAMILIES: Registry = Registry("policy family")
 FAMILIES.register(
@@ -62,7 +62,7 @@ def register_standin(name: str, target: str, description: str) -> None:
     """Register ``standin:NAME`` as the class at ``"module:attr"`` (built with no arguments, imported on use).
 
     The application layer registers stand-ins that live elsewhere (the scenes' privileged oracle:
-    ``indgen_vla.engine``), so this package never refers to them. Registering the same again is a no-op.
+    ``indgen_vla.app.engine``), so this package never refers to them. Registering the same again is a no-op.
     """
     STANDINS.register(name, target, description)
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 from urllib.parse import urlsplit
 
-from indgen_vla.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
-from indgen_vla.interface import PolicySpec
+from indgen_vla.core.errors import ConfigError, IndgenError, PolicyConnectionError, PolicyError
+from indgen_vla.core.protocol.interface import PolicySpec
 from policy_wrappers.image_tools import GRIPPER_MODES
 from policy_wrappers.transforms import MIN_IMAGE_SIZE, Conventions
 

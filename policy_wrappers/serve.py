@@ -19,8 +19,8 @@ import traceback
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import QUERY_KEY, Observation
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import QUERY_KEY, Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180
 from policy_wrappers.openpi import HISTORY_PREFIX, INDGEN_SERVER, LIBERO_KEYS, QUERY_WIRE

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from policy_wrappers.openpi import INDGEN_SERVER, OpenpiConfig, OpenpiPolicy
 from policy_wrappers.remote import REMOTE_OPTIONS
 from policy_wrappers.transforms import LIBERO_RYNNVLA, LIBERO_UNIVLA, Conventions

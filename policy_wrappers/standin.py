@@ -8,8 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from indgen_vla.errors import PolicyError, UnknownNameError
-from indgen_vla.interface import ACTION_DIM, NOOP_ACTION, Observation, PolicySpec, validate_chunk
+from indgen_vla.core.errors import PolicyError, UnknownNameError
+from indgen_vla.core.protocol.interface import (
+    ACTION_DIM,
+    NOOP_ACTION,
+    Observation,
+    PolicySpec,
+    validate_chunk,
+)
 
 GRIPPER = 6  # the gripper's index in the tabletop 7-d action and in RoboCasa's 12-d (convert_action order)
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from policy_wrappers.image_tools import (
     GRIPPER_MODES,
     center_crop_tf,

@@ -11,8 +11,8 @@ import logging
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from indgen_vla.interface import CAMERAS
-from indgen_vla.progression import AxisSpec
+from indgen_vla.core.protocol.interface import CAMERAS
+from indgen_vla.core.protocol.progression import AxisSpec
 from scenes import catalog, libero, robocasa  # noqa: F401  (registers the built-ins, the LIBERO suites, RoboCasa365)
 from scenes.axes import get_axis as _get_axis
 from scenes.axes import get_successor

@@ -3,7 +3,7 @@
 MuJoCo (≥ 3.2) keeps the meshes and textures it decodes while compiling a model in a process-wide cache, so a
 process's second scene build compiles in a fraction of its first (here 0.13-0.2 CPU-s against ≈ 1.1). Every
 worker used to pay that first, cold compile. When the engine starts the fork server it names the first cell its
-workers will build (``indgen_vla.plan.WARM_CELL_ENV``: scene and task, JSON); importing this module in the fork server builds and resets
+workers will build (``indgen_vla.core.protocol.plan.WARM_CELL_ENV``: scene and task, JSON); importing this module in the fork server builds and resets
 that task's level 0 without cameras, so every worker forked from it inherits the decoded assets (copy on write;
 pick_place: ≈ 90 MB). Without the variable, e.g. anywhere but the fork server, importing it does nothing.
 """
@@ -14,7 +14,7 @@ import json
 import os
 import warnings
 
-from indgen_vla.plan import WARM_CELL_ENV
+from indgen_vla.core.protocol.plan import WARM_CELL_ENV
 
 
 def warm(scene: str, task: str) -> None:

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.progression import AxisSpec, apply_level, split_held
+from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.protocol.progression import AxisSpec, apply_level, split_held
 from scenes.spec import SceneSpec
 
 # name -> (description, field, step, unit, signed, max_level)
@@ -338,7 +338,7 @@ def successor_steps(successor: Successor) -> dict[str, float]:
 
 
 def presets_dir() -> Path:
-    from indgen_vla.resources import config_dir
+    from indgen_vla.core.resources import config_dir
 
     return config_dir("axes")
 
@@ -394,7 +394,7 @@ def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[
     spec at every level (jitter included), must leave the easier levels' support on its own. A held axis
     checks its held axis's ladder from T0, then its own ladder from the held level.
     """
-    from indgen_vla.progression import check_strictly_harder
+    from indgen_vla.core.protocol.progression import check_strictly_harder
 
     axis = successor.axis
     if isinstance(successor, Held):

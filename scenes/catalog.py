@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, ClassVar
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from scenes.axes import axis_components, base_axis_names, get_successor
 from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
 from scenes.registry import Scene, register_scene, registered_scenes

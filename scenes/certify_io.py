@@ -15,7 +15,7 @@ import hashlib
 import os
 from pathlib import Path
 
-from indgen_vla.errors import RunDirError
+from indgen_vla.core.errors import RunDirError
 from scenes.certify_progress import CertifyDisplay
 from scenes.certify_run import (
     asset_stamp,
@@ -32,13 +32,13 @@ from scenes.registry import get_scene, registered_scenes
 
 
 def certification_root(scene: str | None = None) -> Path:
-    """$INDGEN_CERT_DIR, else the committed certificates (``indgen_vla.resources.certification_dir``) for the built-in
+    """$INDGEN_CERT_DIR, else the committed certificates (``indgen_vla.core.resources.certification_dir``) for the built-in
     scenes, else a cache folder per asset tree."""
     env = os.environ.get("INDGEN_CERT_DIR")
     if env:
         return Path(env)
     if scene is None or get_scene(scene).committed_certificates:
-        from indgen_vla.resources import certification_dir
+        from indgen_vla.core.resources import certification_dir
 
         return certification_dir()
     assets = get_scene(scene).asset_tree()

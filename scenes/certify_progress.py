@@ -1,13 +1,13 @@
 """What ``indgen certify`` shows while the oracle runs, on stderr (stdout keeps the tables).
 
-On a terminal: ``evaluate``'s live display (``indgen_vla.live``), one row per level with the oracle's successes so
+On a terminal: ``evaluate``'s live display (``indgen_vla.core.reporting.live``), one row per level with the oracle's successes so
 far and its verdict once decided, and a total row with the ETA. Piped or logged (rich would print its rows only at
 the end): a line when a task starts and one per finished level, so a log shows progress as it happens.
 """
 
 from __future__ import annotations
 
-from indgen_vla.live import level_info, level_label, progress_columns
+from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from scenes.certify_run import level_line
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}

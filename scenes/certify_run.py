@@ -19,10 +19,10 @@ import re
 import time
 from pathlib import Path
 
-from indgen_vla.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
-from indgen_vla.metrics import clopper_pearson_ci
-from indgen_vla.progression import parse_levels
-from indgen_vla.seeding import episode_seed
+from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
+from indgen_vla.core.protocol.progression import parse_levels
+from indgen_vla.core.protocol.seeding import episode_seed
+from indgen_vla.core.stats.metrics import clopper_pearson_ci
 from scenes.privileged import with_privileged
 
 THRESHOLD = 0.95
@@ -181,7 +181,7 @@ def level_line(scene: str, task: str, axis: str, row: dict) -> str:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON so that ``path`` is always either the old or the new complete file (its folder is made)."""
-    from indgen_vla.records import atomic_write_json
+    from indgen_vla.core.runs.records import atomic_write_json
 
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(path, data)

@@ -12,8 +12,8 @@ from collections.abc import Sequence
 import gymnasium as gym
 import numpy as np
 
-from indgen_vla.errors import ConfigError, SceneError
-from indgen_vla.interface import CAMERAS, STATE_DIM, TABLETOP, Observation
+from indgen_vla.core.errors import ConfigError, SceneError
+from indgen_vla.core.protocol.interface import CAMERAS, STATE_DIM, TABLETOP, Observation
 from scenes.axes import Successor, axis_param, check_progression, spec_at_level
 from scenes.failure import FailureTrace
 from scenes.privileged import PrivilegedState, with_privileged

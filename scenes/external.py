@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from indgen_vla.errors import SceneError
-from indgen_vla.interface import Observation
+from indgen_vla.core.errors import SceneError
+from indgen_vla.core.protocol.interface import Observation
 from scenes.env import BaseSceneEnv
 from scenes.runtime import ExternalRuntime, WorkerDied, WorkerProcess
 

@@ -16,7 +16,7 @@ as far as the simulator state can tell them apart:
 | ``unknown`` | the scene cannot tell (no contact signals for this task, e.g. RoboCasa's fixture tasks) |
 | ``error`` | the episode crashed (policy, server or simulator); set by the engine, not by the trace |
 
-The same trace gives the ordinal **progress** score (``progress``; ``indgen_vla.progress.STAGES``): the highest
+The same trace gives the ordinal **progress** score (``progress``; ``indgen_vla.core.reporting.partial_credit.STAGES``): the highest
 stage whose predicate held at some control step, with the same predicates at every level of every axis:
 
 | score | stage | predicate (privileged state, per control step) |
@@ -39,7 +39,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from indgen_vla.interface import FAILURE_MODES
+from indgen_vla.core.protocol.interface import FAILURE_MODES
 
 __all__ = ["FAILURE_MODES", "GRASP_STEPS", "LIFT_M", "FailureTrace"]
 LIFT_M = 0.02  # the object's bottom must rise this far above its start for a grasp to count as a lift

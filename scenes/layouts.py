@@ -31,7 +31,7 @@ def _grasp_frac(kind: str) -> float:
 def _distractors(spec: SceneSpec) -> list[tuple[object, tuple[float, float, float]]]:
     slots = get_scene(spec.scene).distractor_slots
     if spec.distractors > len(slots):
-        from indgen_vla.errors import InfeasibleLevelError
+        from indgen_vla.core.errors import InfeasibleLevelError
 
         raise InfeasibleLevelError(
             f"scene {spec.scene} has {len(slots)} distractor slots; level asks for {spec.distractors}"
@@ -150,7 +150,7 @@ def stack_layout(spec: SceneSpec) -> Layout:
 def cabinet_layout(spec: SceneSpec) -> Layout:
     """RoboCasa style: an object in a cabinet compartment (with clutter) to be put on the table."""
     if spec.clutter > len(CLUTTER_SLOTS):
-        from indgen_vla.errors import InfeasibleLevelError
+        from indgen_vla.core.errors import InfeasibleLevelError
 
         raise InfeasibleLevelError(
             f"the cabinet holds {len(CLUTTER_SLOTS)} clutter objects; asked for {spec.clutter}"

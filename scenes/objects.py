@@ -15,7 +15,7 @@ from pathlib import Path
 import robosuite
 from robosuite.models.objects import BoxObject, CompositeObject, CylinderObject, MujocoXMLObject
 
-from indgen_vla.errors import SceneError
+from indgen_vla.core.errors import SceneError
 from scenes.spec import BLOCK_COLOURS, INCH
 
 _ASSETS = Path(robosuite.__file__).resolve().parent / "models" / "assets" / "objects"

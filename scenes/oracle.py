@@ -12,8 +12,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from indgen_vla.errors import PolicyError
-from indgen_vla.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
+from indgen_vla.core.errors import PolicyError
+from indgen_vla.core.protocol.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
 from scenes.privileged import PrivilegedState, privileged_of
 
 # Gripper pointing straight down, fingers closing along world y (the Panda's home orientation, untilted).

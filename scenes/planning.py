@@ -1,4 +1,4 @@
-"""Resolve what an evaluation asks of the scene layer, once: the scene side of ``indgen_vla.plan``.
+"""Resolve what an evaluation asks of the scene layer, once: the scene side of ``indgen_vla.core.protocol.plan``.
 
 ``resolve_scene_plan`` is the one call the engine makes into ``scenes`` for a run. It checks the scene, tasks,
 axes, levels and condition 2 with the registry's one-line errors, computes every level's axis parameter, looks up
@@ -15,8 +15,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from indgen_vla.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
-from indgen_vla.progression import parse_levels
+from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
+from indgen_vla.core.protocol.progression import parse_levels
 from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
 from scenes.registry import get_scene
 
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 class SceneLevels:
     """Builds the planned levels of one scene family: its successors resolved once, picklable for workers.
 
-    Implements ``indgen_vla.plan.LevelBuilder``.
+    Implements ``indgen_vla.core.protocol.plan.LevelBuilder``.
     """
 
     scene: str
@@ -43,7 +43,7 @@ class SceneLevels:
 
     @property
     def env_spec(self):
-        """The family's observation/action contract (``indgen_vla.interface.EnvSpec``): cameras, state, action."""
+        """The family's observation/action contract (``indgen_vla.core.protocol.interface.EnvSpec``): cameras, state, action."""
         return get_scene(self.scene).env_spec
 
     @property

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from indgen_vla.interface import OBJECT_DIM
+from indgen_vla.core.protocol.interface import OBJECT_DIM
 from scenes.privileged import PrivilegedState
 
 

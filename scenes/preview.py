@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from indgen_vla.errors import ConfigError, RunDirError
-from indgen_vla.figures import contact_sheet, unit_name
-from indgen_vla.plan import ScenePlan
-from indgen_vla.progression import expand_axes
-from indgen_vla.records import atomic_savefig
-from indgen_vla.seeding import evaluation_seed
+from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.protocol.plan import ScenePlan
+from indgen_vla.core.protocol.progression import expand_axes
+from indgen_vla.core.protocol.seeding import evaluation_seed
+from indgen_vla.core.reporting.figures import contact_sheet, unit_name
+from indgen_vla.core.runs.records import atomic_savefig
 from scenes.axes import get_path, shifts, spec_at_level
 from scenes.env import check_env_args
 from scenes.registry import get_scene

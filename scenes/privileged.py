@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from indgen_vla.errors import PolicyError, SceneError
-from indgen_vla.interface import Observation
+from indgen_vla.core.errors import PolicyError, SceneError
+from indgen_vla.core.protocol.interface import Observation
 
 PRIVILEGED_KEY = "privileged"  # the Observation.extras key the engine fills for privileged policies
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.interface import TABLETOP, EnvSpec
-from indgen_vla.progression import split_held
+from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.protocol.interface import TABLETOP, EnvSpec
+from indgen_vla.core.protocol.progression import split_held
 from scenes.axes import axis_components, base_axis_names
 
 if TYPE_CHECKING:
@@ -45,7 +45,7 @@ class Scene:
         committed_certificates: True when its oracle certificates ship with the package (``certification_dir``);
             False when they are made per machine (e.g. per LIBERO asset tree).
         certified_compositions: compositions certified beside the single axes by ``certify_all``.
-        env_spec: the family's observation/action contract (``indgen_vla.interface.EnvSpec``; tabletop: 8-d state,
+        env_spec: the family's observation/action contract (``indgen_vla.core.protocol.interface.EnvSpec``; tabletop: 8-d state,
             7-d action, cameras agentview/wrist).
         runtime: None when the simulator runs in our venv; else a ``scenes.runtime.ExternalRuntime`` naming the
             family's own interpreter and worker backend (``ExternalSceneEnv`` drives it over a pipe).
@@ -131,7 +131,7 @@ class Scene:
     def level_identity(self, task: str, successor: Successor, level: int) -> Any:
         """What ``make_env`` builds for (task, level) along ``successor``, as plain data without the axis's name:
         two axes whose level-0 identities are equal build one environment, so ``evaluate`` runs that T0 once
-        (``indgen_vla.plan.shared_t0``). None: the family cannot tell, and nothing is shared. A family whose env
+        (``indgen_vla.core.protocol.plan.shared_t0``). None: the family cannot tell, and nothing is shared. A family whose env
         reads the successor only through the level's spec says so with ``env_from_spec``."""
         if not self.env_from_spec:
             return None

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.errors import EpisodeUnavailableError, SceneError
+from indgen_vla.core.errors import EpisodeUnavailableError, SceneError
 
 WORKER = Path(__file__).with_name("external_worker.py")
 

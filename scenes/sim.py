@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import scenes.mujoco_geom as geom
-from indgen_vla.errors import SceneError
+from indgen_vla.core.errors import SceneError
 from scenes.privileged import NO_FACTS, GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # robosuite's macro-file warning: dropped by ``scenes`` (__init__)

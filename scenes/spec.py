@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 
 INCH = 0.0254  # metres per inch (the stack axis is specified in inches, as in the paper's real robot)
 

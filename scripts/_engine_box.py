@@ -52,7 +52,7 @@ class CpuMeter:
 def runner_config(scene: str, cameras, hw, max_steps: int, history_steps: int = 0):
     """The RunnerConfig of the GPU-era parts below (one place to adapt when RunnerConfig changes); a policy that
     reads earlier steps' frames (``PolicySpec.history_steps``) gets them rendered, as ``evaluate`` does."""
-    from indgen_vla.engine.rollout import RunnerConfig
+    from indgen_vla.app.engine.rollout import RunnerConfig
     from scenes.planning import scene_levels
 
     return RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
@@ -63,7 +63,7 @@ def level0_jobs(scene: str, episodes: int) -> tuple[str, list]:
     """(task, jobs): ``episodes`` planned episodes of the scene's first task at pick_y level 0, the cell every part
     of the benchmark runs (seeds as ``evaluate`` plans them)."""
     import scenes
-    from indgen_vla.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
     task = scenes.tasks(scene)[0]
     cfg = EvalConfig(policy="bench", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
@@ -101,7 +101,7 @@ class GpuBusy:
 def _random_obs(spec, n: int, seed: int = 0):
     import numpy as np
 
-    from indgen_vla.interface import Observation
+    from indgen_vla.core.protocol.interface import Observation
 
     h, w = spec.image_size or (128, 128)
     rng = np.random.default_rng(seed)
@@ -234,8 +234,8 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     every round to the worker count): ``ceiling_steps_per_s`` = W x replan / its ``act``, what the engine would
     reach if the model were all it waited for, and ``share_of_model_alone`` = the net rate over it (issue 28:
     >= 0.8 when the model is the bottleneck)."""
-    from indgen_vla.engine.local import LANES, run_local
-    from indgen_vla.engine.rollout import RunMeta
+    from indgen_vla.app.engine.local import LANES, run_local
+    from indgen_vla.app.engine.rollout import RunMeta
     from policy_wrappers.registry import load_policy
 
     task, jobs = level0_jobs(scene, episodes)

@@ -31,9 +31,9 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
     import pstats
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta
-    from indgen_vla.records import RunDir
+    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.rollout import RunMeta
+    from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.registry import load_policy
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
@@ -134,8 +134,8 @@ def profile_worker(scene: str, episodes: int, max_steps: int, size: int, replan:
 
     import numpy as np
 
-    from indgen_vla.engine.local import _dumps
-    from indgen_vla.engine.rollout import EnvRunner, action_dim
+    from indgen_vla.app.engine.local import _dumps
+    from indgen_vla.app.engine.rollout import EnvRunner, action_dim
 
     task, jobs = level0_jobs(scene, episodes)
     rc = runner_config(scene, cameras, (size, size), max_steps)

@@ -6,7 +6,7 @@ Usage: .venv/bin/python scripts/bench_adaptive.py [--replicates 2000] [--alpha 0
 Each replicate draws a success curve over levels -3..3 (per direction S(k) = top·σ(s(c − |k|))/σ(s·c), so
 S(0) = top in both directions; top ~ U(0.85, 0.98), s ~ U(1.5, 4), c ~ U(0, 4) per direction), then 50
 Bernoulli outcomes per level (no simulator). The fixed design uses all 50 per level; the adaptive designs
-(indgen_vla.sequential.plan_next, modes kstar and curve) use prefixes of the same outcomes, so the comparison
+(indgen_vla.core.stats.sprt.plan_next, modes kstar and curve) use prefixes of the same outcomes, so the comparison
 is paired. True k* = first level outward whose TRUE rate is below γ. "easy" curves have no true rate inside
 the indifference zone [γ − δ, γ + δ] at levels 0..k* of either direction; "hard" curves are unrestricted.
 Per-level error rates of the rule are checked by Monte Carlo at S = γ ± δ against the exact OC.
@@ -30,8 +30,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from indgen_vla.metrics import break_levels, wilson_ci  # noqa: E402
-from indgen_vla.sequential import SequentialRule, level_order, operating_characteristic, plan_next  # noqa: E402
+from indgen_vla.core.stats.metrics import break_levels, wilson_ci  # noqa: E402
+from indgen_vla.core.stats.sprt import SequentialRule, level_order, operating_characteristic, plan_next  # noqa: E402
 
 LEVELS = list(range(-3, 4))
 FIXED_N = 50

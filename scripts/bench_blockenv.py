@@ -15,7 +15,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from indgen_vla.blockenv.env import BlockEnv, BlockEnvConfig, oracle_actions  # noqa: E402
+from indgen_vla.app.blockenv.env import BlockEnv, BlockEnvConfig, oracle_actions  # noqa: E402
 
 
 def _rate(env: BlockEnv, batch: int, level: int, seconds: float, policy) -> float:

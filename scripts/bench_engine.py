@@ -58,8 +58,8 @@ CPU: dict[str, tuple[float, float]] = {}  # run label -> CPU seconds (main proce
 
 
 def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False) -> float:
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
 
@@ -96,8 +96,8 @@ def pipeline_bench(
     import numpy as np
 
     import scenes
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
@@ -169,7 +169,7 @@ def batched_gain(batch: int, reps: int) -> float:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.fixtures
     import numpy as np
 
-    from indgen_vla.interface import Observation
+    from indgen_vla.core.protocol.interface import Observation
     from policy_wrappers.registry import load_policy
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
@@ -199,8 +199,8 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
     """A tiny LeRobot ACT (chunk 10, two cameras) executing whole chunks, 1 worker: rendering only the observation
     each chunk ends on (``lazy_render``, the default) vs rendering every step; records must be equal."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from indgen_vla.engine.local import run_local
-    from indgen_vla.engine.rollout import RunMeta, RunnerConfig
+    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint

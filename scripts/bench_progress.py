@@ -32,8 +32,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 from scipy.stats import binomtest, norm  # noqa: E402
 
-from indgen_vla.progress import signed_rank_exact  # noqa: E402
-from indgen_vla.progress_sequential import PairedSequentialRule  # noqa: E402
+from indgen_vla.core.reporting.partial_credit import signed_rank_exact  # noqa: E402
+from indgen_vla.core.stats.paired_sequential import PairedSequentialRule  # noqa: E402
 
 ALPHA = 0.05
 CAP = 400

@@ -62,8 +62,8 @@ def eval_args(tasks: int, out: str, adaptive: str | None = None, episodes: int =
 
 
 def _config(tasks: int, out: str, adaptive: str | None = None, episodes: int = EPISODES):
-    from indgen_vla.cli import build_parser
-    from indgen_vla.engine.config import config_from_args
+    from indgen_vla.app.cli import build_parser
+    from indgen_vla.app.engine.config import config_from_args
 
     return config_from_args(build_parser().parse_args(eval_args(tasks, out, adaptive, episodes)))
 
@@ -91,7 +91,7 @@ def patch_tasks(tasks: int) -> None:
 def synthetic_records(jobs, meta: dict, shift: float, world: int = 0, error_rate: float = ERROR_RATE):
     """EpisodeRecords for ``jobs``: the outcome model of the module docstring (vectorised; ``shift`` moves run
     B's curves on the logit scale; ``world`` fixes the curves and the common random numbers)."""
-    from indgen_vla.records import EpisodeRecord
+    from indgen_vla.core.runs.records import EpisodeRecord
 
     tasks = sorted({j.task for j in jobs})
     axes = sorted({j.axis for j in jobs})
@@ -149,8 +149,8 @@ def build(
 ) -> dict:
     """Write a complete run directory (every planned episode; with ``adaptive``, what its rule runs); with
     ``error_rate`` 0 every episode is ok, so a resume finds nothing to run."""
-    from indgen_vla.engine.run import _fingerprint, _runner_config, build_manifest, build_plan
-    from indgen_vla.records import RunDir
+    from indgen_vla.app.engine.run import _fingerprint, _runner_config, build_manifest, build_plan
+    from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.registry import load_policy
 
     patch_tasks(tasks)
@@ -172,7 +172,7 @@ def build(
         run.rewrite(synthetic_records(plan.jobs, meta, shift, error_rate=error_rate))
         timing["rows"] = len(plan.jobs)
         return timing
-    from indgen_vla.engine.adaptive import run_adaptive
+    from indgen_vla.app.engine.adaptive import run_adaptive
 
     def read():
         t0 = time.perf_counter()
@@ -180,7 +180,7 @@ def build(
         timing["read_s"] += time.perf_counter() - t0
         return e
 
-    from indgen_vla.engine.share import copies, taken_keys
+    from indgen_vla.app.engine.share import copies, taken_keys
 
     taken = taken_keys(plan, run)
 
@@ -203,9 +203,9 @@ def build(
 
 def decide_once(tasks: int, run_dir: str) -> float:
     """Seconds of one ``next_round`` (the adaptive decision over every ladder) on a finished fixed-design run."""
-    from indgen_vla.engine.adaptive import next_round
-    from indgen_vla.engine.run import build_plan
-    from indgen_vla.records import RunDir
+    from indgen_vla.app.engine.adaptive import next_round
+    from indgen_vla.app.engine.run import build_plan
+    from indgen_vla.core.runs.records import RunDir
 
     patch_tasks(tasks)
     cfg = _config(tasks, run_dir, "kstar")
@@ -228,7 +228,7 @@ def timed(cmd: list[str], cwd: Path) -> dict:
 
 
 def bench(sizes: list[int], root: Path) -> list[dict]:
-    py, me, cli = sys.executable, str(Path(__file__).resolve()), [sys.executable, "-m", "indgen_vla.cli"]
+    py, me, cli = sys.executable, str(Path(__file__).resolve()), [sys.executable, "-m", "indgen_vla.app.cli"]
     rows = []
     for t in sizes:
         d = root / f"t{t}"
@@ -285,7 +285,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     if a.cmd == "resume":
         patch_tasks(a.tasks)
-        from indgen_vla.cli import main as cli_main
+        from indgen_vla.app.cli import main as cli_main
 
         raise SystemExit(cli_main(eval_args(a.tasks, a.out, episodes=a.episodes)))
     sizes = [int(x) for x in a.tasks.split(",")]

@@ -35,28 +35,28 @@ def shipped(root: Path) -> str:
 
 # (part, module, attribute): attribute is "func" or "Class.method"; wrapped in the child before the CLI runs
 PARTS = (
-    ("plan", "indgen_vla.engine.run", "build_plan"),
+    ("plan", "indgen_vla.app.engine.run", "build_plan"),
     ("policy_load", "policy_wrappers.registry", "load_policy"),
-    ("manifest", "indgen_vla.engine.run", "build_manifest"),
-    ("run_dir_create", "indgen_vla.records", "RunDir.create_or_resume"),
-    ("fingerprint", "indgen_vla.engine.run", "_fingerprint"),
-    ("forkserver", "indgen_vla.engine.local", "_context"),
+    ("manifest", "indgen_vla.app.engine.run", "build_manifest"),
+    ("run_dir_create", "indgen_vla.core.runs.records", "RunDir.create_or_resume"),
+    ("fingerprint", "indgen_vla.app.engine.run", "_fingerprint"),
+    ("forkserver", "indgen_vla.app.engine.local", "_context"),
     # in this process only (1 worker and no preview); a worker's build is not timed
-    ("scene_build", "indgen_vla.engine.rollout", "EnvRunner._env_for"),
+    ("scene_build", "indgen_vla.app.engine.rollout", "EnvRunner._env_for"),
     # waiting for the workers started during the policy load
-    ("early_wait", "indgen_vla.engine.local", "EarlyWorkers.take"),
-    ("scene_reset", "indgen_vla.engine.rollout", "EnvRunner.reset"),
-    ("steps", "indgen_vla.engine.rollout", "EnvRunner.execute"),
-    ("act", "indgen_vla.engine.scheduler", "act"),  # the coordinator's call (batching.act, bound there)
+    ("early_wait", "indgen_vla.app.engine.local", "EarlyWorkers.take"),
+    ("scene_reset", "indgen_vla.app.engine.rollout", "EnvRunner.reset"),
+    ("steps", "indgen_vla.app.engine.rollout", "EnvRunner.execute"),
+    ("act", "indgen_vla.app.engine.scheduler", "act"),  # the coordinator's call (batching.act, bound there)
     (
         "act",
-        "indgen_vla.engine.local",
+        "indgen_vla.app.engine.local",
         "_act",
     ),  # the same before the scheduler split (--compare with older checkouts)
-    ("records", "indgen_vla.records", "RunDir.append"),
-    ("rollout_other", "indgen_vla.engine.local", "run_local"),
-    ("report", "indgen_vla.report", "write_run_report"),
-    ("tables", "indgen_vla.report", "print_tables"),
+    ("records", "indgen_vla.core.runs.records", "RunDir.append"),
+    ("rollout_other", "indgen_vla.app.engine.local", "run_local"),
+    ("report", "indgen_vla.core.reporting.report", "write_run_report"),
+    ("tables", "indgen_vla.core.reporting.report", "print_tables"),
 )
 
 CHILD = r"""
@@ -83,9 +83,9 @@ def wrap(name, fn):
     return timed
 
 t = time.perf_counter()
-import indgen_vla.cli as cli
-import indgen_vla.engine  # what cli._resolve imports first
-import indgen_vla.engine.cli
+import indgen_vla.app.cli as cli
+import indgen_vla.app.engine  # what cli._resolve imports first
+import indgen_vla.app.engine.cli
 parts["cli_import"] = time.perf_counter() - t
 for name, module, attr in json.loads(os.environ["BENCH_PARTS"]):
     try:

@@ -25,7 +25,7 @@ import numpy as np
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from indgen_vla.interface import Observation  # noqa: E402
+from indgen_vla.core.protocol.interface import Observation  # noqa: E402
 from policy_wrappers import msgpack_numpy  # noqa: E402
 
 

@@ -15,9 +15,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from indgen_vla.blockenv.ablate import replace_section
-from indgen_vla.blockenv.reproduce import PAPER, render_markdown
-from indgen_vla.errors import ConfigError
+from indgen_vla.app.blockenv.ablate import replace_section
+from indgen_vla.app.blockenv.reproduce import PAPER, render_markdown
+from indgen_vla.core.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parent.parent
 BEGIN, END = "<!-- table1-compare -->", "<!-- table1-compare:end -->"

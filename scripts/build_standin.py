@@ -4,7 +4,7 @@
 
 1. ``record_demos`` (the same code as ``indgen demos``): noisy scripted-oracle T0 episodes of pick_place,
    state-only (no cameras rendered: the policy reads none), deterministic seed.
-2. ``train_policy``: a small state-only lerobot ACT (see indgen_vla/regimes/train.py).
+2. ``train_policy``: a small state-only lerobot ACT (see indgen_vla/app/regimes/train.py).
 3. ``indgen evaluate --policy lerobot:<dir> --scene pick_place --axis pick_y --levels 0:0`` for T0 success,
    then ``--levels -3:3`` with fewer episodes per level to show where it breaks.
 4. README.md model card with the measured numbers; the checkpoint replaces ``--out`` only when complete.
@@ -122,7 +122,7 @@ build machine (2 shared CPU cores), demos + training + the evaluations below.
 ## Training
 - {cfg["steps"]} steps, batch {cfg["batch_size"]}, AdamW lr {cfg["lr"]:g} (cosine to 10 %), weight decay
   {cfg["weight_decay"]:g}, seed {cfg["seed"]}; {info["train_s"] / 60:.1f} min on 2 CPU cores
-  (`indgen_vla.regimes.train.train_policy`). L1 loss (normalised units) every {info["loss_every"]} steps:
+  (`indgen_vla.app.regimes.train.train_policy`). L1 loss (normalised units) every {info["loss_every"]} steps:
   {", ".join(f"{x:.3f}" for x in info["losses"])}.
 
 ## Measured success (indgen evaluate, default seeds, Wilson 95 % CI)
@@ -162,8 +162,8 @@ def main() -> int:
     if a.quick:
         a.n_demos, a.steps, a.t0_episodes, a.sweep_episodes = 3, 50, 2, 1
         a.work = a.work or tempfile.mkdtemp(prefix="build_standin_quick_")
-    from indgen_vla.regimes.demos import HumanNoise, record_demos
-    from indgen_vla.regimes.train import TrainConfig, train_policy
+    from indgen_vla.app.regimes.demos import HumanNoise, record_demos
+    from indgen_vla.app.regimes.train import TrainConfig, train_policy
 
     regime, name = ("h+mg", "act_pick_place_hmg") if a.mimicgen else ("h-only", "act_pick_place_human")
     start = time.perf_counter()
@@ -180,7 +180,7 @@ def main() -> int:
     )
     datasets = [demos]
     if a.mimicgen:
-        from indgen_vla.regimes.mimicgen import MimicGenConfig, generate
+        from indgen_vla.app.regimes.mimicgen import MimicGenConfig, generate
 
         log(f"generating {a.mimicgen} MimicGen T0 episodes from the demos into {mg}")
         gen = generate(MimicGenConfig(source=demos, out=mg, n=a.mimicgen, seed=a.demo_seed, guarantee=True))

@@ -19,7 +19,7 @@ import time
 def measure(task: str, seeds: list[int]) -> dict:
     """Each seed's range, and per level the episode's offset and window, or why the kitchen holds no level."""
     import scenes
-    from indgen_vla.errors import EpisodeUnavailableError
+    from indgen_vla.core.errors import EpisodeUnavailableError
     from scenes.robocasa.pick_window import PICK_KEY
 
     rows: dict[int, dict] = {s: {"levels": {}} for s in seeds}

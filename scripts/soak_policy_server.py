@@ -286,7 +286,7 @@ SERVERS = {"openpi": OpenpiServer, "openvla": OpenVLAServer, "groot": GrootServe
 
 def evaluate_cli(spec: str, out: Path, episodes: int, max_steps: int, workers: int) -> int:
     """One ``indgen evaluate`` invocation in this process (the real CLI entry point and exit code)."""
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     return main(["evaluate", "--policy", spec, "--scene", "pick_place", "--axis", "pick_y", "--levels", "0:1",
                  "--episodes", str(episodes), "--max-steps", str(max_steps), "--workers", str(workers),

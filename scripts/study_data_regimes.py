@@ -58,7 +58,7 @@ class StudyClock:
         self.save()
 
     def save(self) -> None:
-        from indgen_vla.records import atomic_write_json
+        from indgen_vla.core.runs.records import atomic_write_json
 
         self.data["invocations"][-1]["s"] = round(time.perf_counter() - self.t0, 1)
         atomic_write_json(self.path, self.data)
@@ -80,8 +80,8 @@ class StudyClock:
 
 def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
     """The human demos and the MimicGen episodes made from them, once for every checkpoint."""
-    from indgen_vla.regimes.demos import record_demos
-    from indgen_vla.regimes.mimicgen import STATS_FILE, MimicGenConfig, generate
+    from indgen_vla.app.regimes.demos import record_demos
+    from indgen_vla.app.regimes.mimicgen import STATS_FILE, MimicGenConfig, generate
 
     demos, mg = work / "data" / "human", work / "data" / "mimicgen"
     if not (demos / ".done").is_file():
@@ -99,7 +99,7 @@ def train(
     work: Path, data: dict[str, list[Path]], seeds: list[int], steps: int
 ) -> dict[tuple[str, int], Path]:
     """One object-observing ACT per (regime, training seed), same budget; finished ones are kept."""
-    from indgen_vla.regimes.train import INFO_FILE, TrainConfig, train_policy
+    from indgen_vla.app.regimes.train import INFO_FILE, TrainConfig, train_policy
 
     ckpts = {}
     for regime in REGIMES:

@@ -1,7 +1,7 @@
 """The test session's defaults. What ``make test`` exports, for a bare ``pytest`` too: MuJoCo renders through EGL,
 the Hub stays offline, and one OpenMP/BLAS thread per process (set before any test imports torch): two xdist workers
 on two cores each running torch's machine-sized pool oversubscribe the cores, and OpenMP's spinning threads then made
-tests/blockenv/test_blockenv.py 115 s instead of 15 s on a loaded 2-core VM (the engine's workers do the same,
+tests/indgen_vla/app/blockenv/test_blockenv.py 115 s instead of 15 s on a loaded 2-core VM (the engine's workers do the same,
 engine.local.WORKER_THREAD_ENV)."""
 
 import os

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
-from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.core.errors import ConfigError, SceneError
 from scenes.axes import axis_components
 from scenes.predicates import BddlGoal
 from scenes.registry import Scene, get_scene, register_scene

@@ -12,7 +12,7 @@ import importlib.util
 import os
 from pathlib import Path
 
-from indgen_vla.errors import SceneError
+from indgen_vla.core.errors import SceneError
 
 ASSETS_ENV = "INDGEN_LIBERO_ASSETS"  # preferred; LIBERO_ASSETS is accepted too
 HUB_REPO = "lerobot/libero-assets"  # what hf-libero's own downloader fetches (repo_type=dataset)

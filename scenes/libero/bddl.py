@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
-from indgen_vla.errors import SceneError
+from indgen_vla.core.errors import SceneError
 from scenes.libero.assets import libero_root
 
 _REGION = re.compile(r"\(\s*([A-Za-z0-9_]+)\s*\(:target\s+([A-Za-z0-9_]+)\)\s*\(:ranges\s*\(\s*\(([^()]*)\)")

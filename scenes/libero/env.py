@@ -18,9 +18,9 @@ from typing import Protocol
 import numpy as np
 
 import scenes.mujoco_geom as geom
-from indgen_vla.errors import SceneError
-from indgen_vla.interface import Observation
-from indgen_vla.progression import check_strictly_harder
+from indgen_vla.core.errors import SceneError
+from indgen_vla.core.protocol.interface import Observation
+from indgen_vla.core.protocol.progression import check_strictly_harder
 from scenes.axes import Successor, axis_param, shifts, spec_at_level
 from scenes.env import BaseSceneEnv
 from scenes.libero.assets import config_dir, find_assets, import_libero

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import EnvSpec
-from indgen_vla.levels import BLACK_BOX  # appendix B: T0 is empirical here
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import EnvSpec
+from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
@@ -168,7 +168,7 @@ def check_pick_region(task: str, successor: Successor) -> None:
     """Every level of the axis's range (as condition 2, whatever --levels runs) keeps its pick window (2 x
     ``PICK_JITTER`` wide, T0's at the region's low-x end) inside the task's declared region: one line naming the
     fix. A kitchen that clips the region is the worker's to judge, per episode (``pick_window.level_offset``)."""
-    from indgen_vla.progression import ProgressionError
+    from indgen_vla.core.protocol.progression import ProgressionError
 
     part = pick_part(successor)
     if part is None:

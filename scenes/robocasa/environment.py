@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from indgen_vla.errors import ConfigError, SceneError
+from indgen_vla.core.errors import ConfigError, SceneError
 
 PYTHON_ENV = "INDGEN_ROBOCASA_PYTHON"  # an interpreter of a ready RoboCasa venv
 VENV_ENV = "INDGEN_ROBOCASA_VENV"  # where ``indgen setup robocasa`` makes it

@@ -20,8 +20,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from indgen_vla.errors import PolicyError
-from indgen_vla.interface import ROT_SCALE, Observation
+from indgen_vla.core.errors import PolicyError
+from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from indgen_vla.errors import IndgenError, SceneError
+from indgen_vla.core.errors import IndgenError, SceneError
 
 GENERATOR = Path(__file__).with_name("placeholder_tree.py")
 

@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this repository, for the protocol
 
-from indgen_vla.interface import Observation, PolicySpec  # noqa: E402
+from indgen_vla.core.protocol.interface import Observation, PolicySpec  # noqa: E402
 from policy_wrappers.openpi import HISTORY_PREFIX  # noqa: E402
 from policy_wrappers.serve import PolicyServer  # noqa: E402
 

@@ -13,7 +13,7 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
 sys.path.insert(0, os.path.dirname(__file__))  # the loopback helpers (tests run with --import-mode=importlib)
 
-from indgen_vla.interface import Observation  # noqa: E402
+from indgen_vla.core.protocol.interface import Observation  # noqa: E402
 from tests.fixtures.tiny_policies import build_tiny_checkpoint  # noqa: E402,F401
 
 

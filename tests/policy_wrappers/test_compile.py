@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from policy_wrappers import compile as pcompile
 from policy_wrappers.registry import load_policy
 
@@ -82,7 +82,7 @@ def test_compile_cache_defaults_to_indgens_dir_in_a_fresh_process(tiny_act, tmp_
     $XDG_CACHE_HOME), not torch's /tmp default, although loading the policy imports torch._inductor, which writes
     that default into $TORCHINDUCTOR_CACHE_DIR. A fresh interpreter, so the load is what imports inductor."""
     code = (
-        "import numpy as np; from indgen_vla.interface import Observation; "
+        "import numpy as np; from indgen_vla.core.protocol.interface import Observation; "
         "from policy_wrappers.registry import load_policy; "
         f"p = load_policy('lerobot:{tiny_act}', compile='default'); "
         "o = Observation({c: np.zeros((32, 32, 3), np.uint8) for c in p.spec.cameras}, np.zeros(8, np.float32), "

@@ -10,7 +10,7 @@ import msgpack
 import numpy as np
 import pytest
 
-from indgen_vla.errors import PolicyError
+from indgen_vla.core.errors import PolicyError
 from policy_wrappers.image_tools import flip_180
 from policy_wrappers.registry import load_policy
 

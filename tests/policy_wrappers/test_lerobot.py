@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError, PolicyError
+from indgen_vla.core.errors import ConfigError, PolicyError
 from policy_wrappers.registry import load_policy
 
 pytest.importorskip("lerobot")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from indgen_vla.interface import ScenePreview
+from indgen_vla.core.protocol.interface import ScenePreview
 from policy_wrappers.registry import load_policy, preview_policy
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from loopback import WebsocketServer
 
-from indgen_vla.errors import PolicyError
+from indgen_vla.core.errors import PolicyError
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import resize_with_pad
 from policy_wrappers.registry import load_policy

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from numpy.lib.format import descr_to_dtype, dtype_to_descr
 
-from indgen_vla.errors import ConfigError, PolicyError
+from indgen_vla.core.errors import ConfigError, PolicyError
 from policy_wrappers.image_tools import center_crop_tf, flip_180, resize_jpeg_lanczos
 from policy_wrappers.registry import load_policy
 

@@ -10,9 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-import indgen_vla.engine  # noqa: F401  (the application registers standin:oracle)
-from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
-from indgen_vla.interface import Policy, validate_chunk
+import indgen_vla.app.engine  # noqa: F401  (the application registers standin:oracle)
+from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
+from indgen_vla.core.protocol.interface import Policy, validate_chunk
 from policy_wrappers.registry import load_policy, parse_spec, policies_main
 
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import TABLETOP, Observation
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import TABLETOP, Observation
 
 CAMS = ("robot0_agentview_left", "robot0_agentview_right", "robot0_eye_in_hand")
 
@@ -174,7 +174,7 @@ def test_a_lerobot_robocasa_checkpoint_gets_lerobots_state_and_returns_our_actio
 
 
 def test_a_lerobot_robocasa_checkpoint_is_refused_on_the_tabletop(tiny_robocasa_act):
-    from indgen_vla.errors import PolicyError
+    from indgen_vla.core.errors import PolicyError
     from policy_wrappers.registry import load_policy
 
     with pytest.raises((PolicyError, ConfigError), match="don't know which camera|shape \\(12,\\)"):
@@ -259,7 +259,7 @@ def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
 def test_groot_on_robocasa_refuses_n15_and_a_server_wanting_other_state():
     from test_groot import GrootServer
 
-    from indgen_vla.errors import PolicyError
+    from indgen_vla.core.errors import PolicyError
     from policy_wrappers.registry import load_policy
 
     with pytest.raises(ConfigError, match="only GR00T N1.6's RoboCasa evaluation"):

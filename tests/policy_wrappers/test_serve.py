@@ -8,8 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError, PolicyError
-from indgen_vla.interface import Observation
+from indgen_vla.core.errors import ConfigError, PolicyError
+from indgen_vla.core.protocol.interface import Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180, resize_with_pad
 from policy_wrappers.registry import load_policy
@@ -140,7 +140,16 @@ def test_indgen_serve_cli_end_to_end(obs_factory):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "standin:random", "--port", str(port)],
+        [
+            sys.executable,
+            "-m",
+            "indgen_vla.app.cli",
+            "serve",
+            "--policy",
+            "standin:random",
+            "--port",
+            str(port),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -174,7 +183,7 @@ def test_indgen_serve_cli_bad_spec_is_one_line():
     import sys
 
     out = subprocess.run(
-        [sys.executable, "-m", "indgen_vla.cli", "serve", "--policy", "lerobot:"],
+        [sys.executable, "-m", "indgen_vla.app.cli", "serve", "--policy", "lerobot:"],
         capture_output=True,
         text=True,
         timeout=60,
@@ -220,7 +229,7 @@ def test_a_served_flow_policy_draws_each_querys_own_noise(tmp_path, obs_factory)
     )
     import dataclasses
 
-    from indgen_vla.interface import QUERY_KEY
+    from indgen_vla.core.protocol.interface import QUERY_KEY
     from tests.fixtures.tiny_policies import build_tiny_smolvla, build_tiny_vlm_dir
 
     spec = f"lerobot:{build_tiny_smolvla(tmp_path / 'smolvla', build_tiny_vlm_dir(tmp_path / 'vlm'))}"

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError, PolicyError, UnknownNameError
+from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
 from policy_wrappers.registry import load_policy
 from policy_wrappers.serve import PolicyServer
 
@@ -111,9 +111,9 @@ def test_rynnvla_gets_the_step_before_each_query_from_the_engine():
     ``his_img[-1:]``: the frames of the env step just before the query, none at the first. The ``rynnvla:`` client
     declares ``history_steps=1``, the engine renders that step, the request carries it (flipped like the current
     frames) and the server hands it to the model: not the previous query's frames, 5 steps earlier."""
-    from indgen_vla.engine.rollout import EnvRunner, RunnerConfig
-    from indgen_vla.interface import validate_chunk
-    from indgen_vla.plan import EpisodeJob
+    from indgen_vla.app.engine.rollout import EnvRunner, RunnerConfig
+    from indgen_vla.core.protocol.interface import validate_chunk
+    from indgen_vla.core.protocol.plan import EpisodeJob
     from scenes.planning import scene_levels
 
     calls, sent = [], []
@@ -141,7 +141,9 @@ def test_rynnvla_gets_the_step_before_each_query_from_the_engine():
             policy.close()
     assert [len(h) for h, _ in calls] == [0, 1, 1] and [o.history for o in sent[:1]] == [()]
     for (his, his_wrist), obs, previous in zip(calls[1:], sent[1:], sent[:-1], strict=True):
-        (before,) = obs.history  # the engine's step t-1 (tests/indgen_vla/test_engine_history.py checks it)
+        (before,) = (
+            obs.history
+        )  # the engine's step t-1 (tests/indgen_vla/app/engine/test_engine_history.py checks it)
         assert np.array_equal(his[0], before["agentview"][::-1, ::-1])
         assert np.array_equal(his_wrist[0], before["wrist"][::-1, ::-1])
         # not the previous query's frames (what the server used before)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError
-from indgen_vla.interface import PolicySpec, declared_reads
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import PolicySpec, declared_reads
 from policy_wrappers.registry import load_policy
 
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import policy_wrappers
-from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.registry import Registry
+from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.registry import Registry
 from policy_wrappers import registry
 from policy_wrappers.image_tools import (
     center_crop_tf,

@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from indgen_vla.plan import WARM_CELL_ENV
+from indgen_vla.core.protocol.plan import WARM_CELL_ENV
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -21,7 +21,7 @@ import importlib, json, os, sys
 import mujoco
 from scenes.registry import get_scene
 
-for m in ("indgen_vla.engine.local", *get_scene("pick_place").preload):
+for m in ("indgen_vla.app.engine.local", *get_scene("pick_place").preload):
     importlib.import_module(m)
 size = lambda: mujoco.mj_getCacheSize(mujoco.mj_getCache())
 r, w = os.pipe()

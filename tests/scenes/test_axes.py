@@ -9,8 +9,13 @@ import sys
 import pytest
 
 import scenes
-from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.progression import ProgressionError, check_semantics_preserved, check_single_axis, spec_diff
+from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.protocol.progression import (
+    ProgressionError,
+    check_semantics_preserved,
+    check_single_axis,
+    spec_diff,
+)
 from scenes.axes import (
     Composite,
     Held,

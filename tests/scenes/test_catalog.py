@@ -13,8 +13,8 @@ import sys
 import pytest
 
 import scenes
-from indgen_vla.cli import main
-from indgen_vla.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
+from indgen_vla.app.cli import main
+from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
 from scenes import registry
 from scenes.catalog import PickPlace, builtin_scenes
 from scenes.registry import Scene, get_scene, register_scene, registered_scenes
@@ -36,7 +36,7 @@ def test_scenes_json(capsys):
 def _listing(tmp_path, *argv: str) -> tuple[list, list]:
     """Run the listing in a fresh interpreter without LIBERO's assets; return its rows and heavy modules loaded."""
     code = (
-        "import json, sys; from indgen_vla.cli import main; main(sys.argv[1:]); heavy = ('torch', 'robosuite', "
+        "import json, sys; from indgen_vla.app.cli import main; main(sys.argv[1:]); heavy = ('torch', 'robosuite', "
         "'mujoco', 'lerobot', 'libero'); print(json.dumps(sorted(m for m in heavy if m in sys.modules)), file=sys.stderr)"
     )
     env = {**os.environ, "INDGEN_LIBERO_ASSETS": str(tmp_path), "INDGEN_CACHE": str(tmp_path / "cache")}
@@ -80,7 +80,7 @@ def test_libero_spatial_listed_with_scale_and_distractor_only(tmp_path):
         [
             sys.executable,
             "-m",
-            "indgen_vla.cli",
+            "indgen_vla.app.cli",
             "certify",
             "--scene",
             "libero_spatial",
@@ -138,7 +138,7 @@ def test_piped_tables_are_not_cut_to_80_columns():
     import sys
 
     env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
-    out = subprocess.run([sys.executable, "-m", "indgen_vla.cli", "scenes"], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-m", "indgen_vla.app.cli", "scenes"], capture_output=True, text=True,
                          env=env, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert "…" not in out.stdout and "libero_object" in out.stdout

@@ -10,8 +10,8 @@ import pytest
 from scipy.stats import beta
 
 import scenes
-from indgen_vla.errors import ConfigError, UnknownNameError
-from indgen_vla.progression import ProgressionError
+from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.protocol.progression import ProgressionError
 from scenes.catalog import builtin_scenes
 from scenes.certify import (
     Rule,
@@ -261,7 +261,7 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level no seed holds is one line."""
     import scenes.oracle
-    from indgen_vla.errors import EpisodeUnavailableError, SceneError
+    from indgen_vla.core.errors import EpisodeUnavailableError, SceneError
     from scenes import certify_run
 
     class Env:

@@ -8,7 +8,7 @@ import io
 
 import pytest
 
-from indgen_vla.cli import main
+from indgen_vla.app.cli import main
 from scenes.certify import certify
 
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import scenes
-from indgen_vla.errors import ConfigError, SceneError
-from indgen_vla.interface import Observation
-from indgen_vla.progression import check_semantics_preserved, check_single_axis
+from indgen_vla.core.errors import ConfigError, SceneError
+from indgen_vla.core.protocol.interface import Observation
+from indgen_vla.core.protocol.progression import check_semantics_preserved, check_single_axis
 from scenes.catalog import builtin_scenes
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import scenes
-from indgen_vla.errors import SceneError
+from indgen_vla.core.errors import SceneError
 from scenes.catalog import builtin_scenes
 from scenes.oracle import OraclePolicy
 from scenes.privileged import with_privileged

@@ -13,7 +13,7 @@ import pytest
 pytest.importorskip("libero")
 
 import scenes  # noqa: E402
-from indgen_vla.errors import SceneError  # noqa: E402
+from indgen_vla.core.errors import SceneError  # noqa: E402
 from scenes.libero.bddl import add_fixtures, load_task, parse_regions, shift_region  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
@@ -22,8 +22,18 @@ SCENE = "libero_object"
 
 
 def _evaluate(policy, args, env, timeout):
-    """Run ``indgen_vla.cli evaluate`` with ``policy`` and ``args`` on this scene; return the process."""
-    cmd = [sys.executable, "-m", "indgen_vla.cli", "evaluate", "--policy", policy, "--scene", SCENE, *args]
+    """Run ``indgen_vla.app.cli evaluate`` with ``policy`` and ``args`` on this scene; return the process."""
+    cmd = [
+        sys.executable,
+        "-m",
+        "indgen_vla.app.cli",
+        "evaluate",
+        "--policy",
+        policy,
+        "--scene",
+        SCENE,
+        *args,
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
 
 
@@ -135,7 +145,7 @@ def test_level0_matches_lerobot_libero_env(mini):
     [("pick_y", 3), ("goal_y", -3), ("scale", 3), ("distractor", 4), ("pick_y+distractor", -3)],
 )
 def test_axes_build_step_and_change_one_thing(mini, axis, level):
-    from indgen_vla.progression import check_single_axis
+    from indgen_vla.core.protocol.progression import check_single_axis
 
     env, base = _env(axis, level, max_steps=2), _env(axis, 0)
     try:
@@ -208,7 +218,7 @@ def test_evaluate_cli_with_oracle(mini, tmp_path):
     out = tmp_path / "run"
     # one level: the extremes' feasibility is test_oracle_certifies_extreme_levels; this is the evaluate pipeline
     args = ["--axis", "scale", "--levels", "3", "--episodes", "1", "--out", str(out)]
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     # in-process: no interpreter start-up
     assert main(["evaluate", "--policy", "standin:oracle", "--scene", SCENE, *args]) == 0
@@ -348,8 +358,8 @@ def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path,
     policy's preview already says it will be refused, so no early worker builds a scene meanwhile (the refusal
     waited ~6 s for that build)."""
     pytest.importorskip("lerobot")
-    import indgen_vla.engine.local as local
-    from indgen_vla.cli import main
+    import indgen_vla.app.engine.local as local
+    from indgen_vla.app.cli import main
     from scenes.registry import get_scene
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 

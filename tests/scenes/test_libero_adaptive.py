@@ -10,9 +10,9 @@ import pytest
 
 pytest.importorskip("libero")
 
-from indgen_vla.engine.config import EvalConfig  # noqa: E402
-from indgen_vla.engine.run import evaluate  # noqa: E402
-from indgen_vla.sequential import SequentialRule  # noqa: E402
+from indgen_vla.app.engine.config import EvalConfig  # noqa: E402
+from indgen_vla.app.engine.run import evaluate  # noqa: E402
+from indgen_vla.core.stats.sprt import SequentialRule  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

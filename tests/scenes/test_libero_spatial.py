@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("libero")
 
 import scenes  # noqa: E402
-from indgen_vla.errors import UnknownNameError  # noqa: E402
+from indgen_vla.core.errors import UnknownNameError  # noqa: E402
 from scenes.libero.bddl import load_task  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
@@ -109,7 +109,7 @@ def test_level0_matches_lerobot_libero_env(mini):
     ],
 )
 def test_levels_build_and_change_one_thing(mini, axis, level, task):
-    from indgen_vla.progression import check_single_axis
+    from indgen_vla.core.protocol.progression import check_single_axis
 
     env, base = _env(axis, level, task=task, max_steps=2), _env(axis, 0, task=task)
     try:

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import scenes
-from indgen_vla.errors import ConfigError, PolicyError, RunDirError
-from indgen_vla.interface import Observation, Policy
+from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError
+from indgen_vla.core.protocol.interface import Observation, Policy
 from scenes.catalog import builtin_scenes
 from scenes.certify import certify, infeasible_levels, load_certification, run_oracle_episode
 from scenes.oracle import OraclePolicy
@@ -82,7 +82,7 @@ def test_oracle_is_deterministic_and_env_reset_does_not_leak_state():
 
 
 def test_certify_writes_rows_and_loads(tmp_path):
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     assert (
         main(
@@ -150,7 +150,7 @@ def test_infeasible_levels_and_corrupt_files(tmp_path):
 def test_write_mp4(tmp_path):
     import imageio.v2 as imageio
 
-    from indgen_vla.video import write_mp4
+    from indgen_vla.core.runs.video import write_mp4
 
     env = scenes.make_env("pick_place", cameras=(), max_steps=4)
     try:

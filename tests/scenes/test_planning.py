@@ -6,7 +6,7 @@ import sys
 import pytest
 
 import scenes
-from indgen_vla.plan import CERTIFIED, FAILED, UNCERTIFIED
+from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED
 from scenes.planning import resolve_scene_plan, scene_levels
 
 
@@ -59,8 +59,8 @@ def test_scene_levels_needs_no_plan_and_refuses_an_unknown_axis_in_one_line():
 def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
     """Follow cfg from evaluate: the engine calls one module-level function of scenes (the resolution);
     everything else it does with scenes is a method of an object the plan handed it (builder, env)."""
-    from indgen_vla.engine.config import EvalConfig
-    from indgen_vla.engine.run import evaluate
+    from indgen_vla.app.engine.config import EvalConfig
+    from indgen_vla.app.engine.run import evaluate
 
     cfg = EvalConfig(policy="standin:random", scene="pick_place", axes=("pick_y", "scale"), levels="0",
                      episodes=1, max_steps=1, workers=1, out=str(tmp_path / "run"))  # fmt: skip
@@ -94,7 +94,7 @@ def test_the_fork_servers_preload_is_quiet():
 
     from scenes.registry import get_scene
 
-    mods = ("indgen_vla.engine.local", *get_scene("pick_place").preload)
+    mods = ("indgen_vla.app.engine.local", *get_scene("pick_place").preload)
     code = f"import importlib\nfor m in {mods!r}:\n    importlib.import_module(m)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
@@ -114,8 +114,8 @@ def test_level_0_keys_come_from_the_levels_spec_not_the_axis_name():
 
 
 def test_robocasa_pick_x_level_0_is_a_window_so_it_shares_nothing():
-    from indgen_vla.plan import Cell, ScenePlan, shared_t0
-    from indgen_vla.progression import AxisSpec
+    from indgen_vla.core.protocol.plan import Cell, ScenePlan, shared_t0
+    from indgen_vla.core.protocol.progression import AxisSpec
     from scenes.planning import env_key
 
     sc, task = scenes.get_scene("robocasa"), "PickPlaceCabinetToCounter"  # on both axes' task lists

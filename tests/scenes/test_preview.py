@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from indgen_vla.cli import main
-from indgen_vla.errors import ConfigError
+from indgen_vla.app.cli import main
+from indgen_vla.core.errors import ConfigError
 from scenes.planning import resolve_scene_plan
 from scenes.preview import PreviewRequest, level_caption, render_level, write_preview
 

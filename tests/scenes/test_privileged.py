@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from indgen_vla.errors import PolicyError, SceneError
-from indgen_vla.interface import Observation
+from indgen_vla.core.errors import PolicyError, SceneError
+from indgen_vla.core.protocol.interface import Observation
 from scenes.privileged import (
     PRIVILEGED_KEY,
     GoalState,

@@ -13,8 +13,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from indgen_vla.cli import main
-from indgen_vla.records import COLUMNS, RunDir
+from indgen_vla.app.cli import main
+from indgen_vla.core.runs.records import COLUMNS, RunDir
 
 ROOT = Path(__file__).resolve().parents[2]
 

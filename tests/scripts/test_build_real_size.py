@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from indgen_vla.interface import Observation, act_padded
+from indgen_vla.core.protocol.interface import Observation, act_padded
 
 _spec = importlib.util.spec_from_file_location(
     "build_real_size", Path(__file__).resolve().parents[2] / "scripts" / "build_real_size.py"
@@ -130,7 +130,7 @@ def test_flow_noise_is_drawn_per_query_not_per_batch(tmp_path):
     )
     import dataclasses
 
-    from indgen_vla.interface import QUERY_KEY
+    from indgen_vla.core.protocol.interface import QUERY_KEY
     from policy_wrappers.registry import load_policy
 
     policy = load_policy(build.build_smolvla(tmp_path / "smolvla", reduced=True))

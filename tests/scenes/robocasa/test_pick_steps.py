@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 # hand-computed: RoboCasa 1.0.1's pick region (m) / 5
@@ -70,7 +70,7 @@ def test_the_worker_gets_what_its_pick_window_needs():
      ("PickPlaceCounterToCabinet", 0.12, True), ("PickPlaceCabinetToCounter", 0.12, False)],  # 0.52 > 0.50
 )  # fmt: skip
 def test_a_step_whose_top_level_leaves_the_region_is_refused(task, step, fits):
-    from indgen_vla.progression import ProgressionError
+    from indgen_vla.core.protocol.progression import ProgressionError
     from scenes.registry import get_scene
 
     sc = get_scene("robocasa")
@@ -116,7 +116,7 @@ def test_pick_regions_are_the_pinned_robocasas_own():
 def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
     """--task all on pick_x: every level's parameter is the task's own offset in metres, the plan carries each
     task's step (resume matches it) and the manifest's environment names them; --step is one step for all."""
-    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.app.engine.config import EvalConfig
     from scenes.planning import resolve_scene_plan
 
     plan = resolve_scene_plan("robocasa", "all", ["pick_x"], "0:4")
@@ -142,7 +142,7 @@ def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
 
 @needs_venv
 def test_a_step_that_leaves_a_region_exits_2_before_any_episode(placeholders, tmp_path, capsys):
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     out = tmp_path / "run"
     code = main(["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "all", "--axis", "pick_x",
@@ -204,7 +204,7 @@ def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(pl
     retried, and the run exits 3 (finished with error episodes)."""
     import pandas as pd
 
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     args = ["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "PickPlaceCounterToBlender",
             "--axis", "pick_x", "--levels", "0:1", "--episodes", "3", "--max-steps", "2"]  # fmt: skip

@@ -103,7 +103,7 @@ def test_robocasa_reads_the_regions_the_lid_anchor_and_the_button(placeholders):
 
 def test_a_placeholder_tree_of_an_older_generator_is_refused_in_one_line(tmp_path, monkeypatch):
     """Its sink and blender were solid boxes: bumping ``placeholder_tree.VERSION`` makes it rewritten, never used."""
-    from indgen_vla.errors import SceneError
+    from indgen_vla.core.errors import SceneError
     from scenes.robocasa.environment import PLACEHOLDER_MARKER, find_assets
     from scenes.robocasa.placeholder_tree import VERSION
 

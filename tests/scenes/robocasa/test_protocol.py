@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 PRESETS = {"robocasa_pick": "pick_x", "robocasa_fixture": "fixture_x", "robocasa_horizon": "base_y",
@@ -18,8 +18,8 @@ PRESETS = {"robocasa_pick": "pick_x", "robocasa_fixture": "fixture_x", "robocasa
 def test_each_paper_preset_runs_its_axis_on_appendix_bs_task_list(name):
     """--task all on the preset's one axis is that axis's list in AXIS_TASKS (appendix B), and its levels are the
     family's whole range of the axis (pick_x: 0..4, region / 5)."""
-    from indgen_vla.engine.config import load_config_preset
-    from indgen_vla.progression import parse_levels
+    from indgen_vla.app.engine.config import load_config_preset
+    from indgen_vla.core.protocol.progression import parse_levels
     from scenes.axes import resolve_alias
     from scenes.registry import get_scene
     from scenes.robocasa import AXIS_TASKS
@@ -53,7 +53,7 @@ def test_task_all_is_the_axis_list_and_a_task_off_the_list_is_refused():
 
 @needs_venv
 def test_the_horizon_preset_resolves_to_appendix_bs_six_tasks(placeholders):
-    from indgen_vla.engine.config import load_config_preset
+    from indgen_vla.app.engine.config import load_config_preset
     from scenes.planning import resolve_scene_plan
     from scenes.robocasa import AXIS_TASKS
 
@@ -275,8 +275,8 @@ def test_kitchen_sets_and_exclusions_are_robocasas_own():
 
 
 def test_robocasa_runs_in_the_black_box_regime():
-    """The family's protocol names the regime the report reads (indgen_vla.levels.run_regime)."""
-    from indgen_vla.levels import BLACK_BOX, run_regime
+    """The family's protocol names the regime the report reads (indgen_vla.core.reporting.levels.run_regime)."""
+    from indgen_vla.core.reporting.levels import BLACK_BOX, run_regime
     from scenes.robocasa import BLACK_BOX as FAMILY
 
     assert FAMILY == BLACK_BOX

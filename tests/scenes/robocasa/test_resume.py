@@ -24,13 +24,13 @@ def _outcomes(run):
 
 
 def _cli(out):
-    return [sys.executable, "-m", "indgen_vla.cli", *ARGS, "--out", str(out)]
+    return [sys.executable, "-m", "indgen_vla.app.cli", *ARGS, "--out", str(out)]
 
 
 @pytest.mark.slow  # 40 s (two RoboCasa runs and a kill); the default suite keeps test_engine's resume after SIGKILL
 @needs_venv
 def test_a_killed_robocasa_run_resumes_to_the_uninterrupted_episodes(placeholders, tmp_path):
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     ref = tmp_path / "ref"
     assert main([*ARGS, "--out", str(ref)]) == 0  # the uninterrupted run, in this process

@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from indgen_vla.errors import ConfigError
+from indgen_vla.core.errors import ConfigError
 
 
 def _python():
@@ -175,7 +175,7 @@ def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placehol
     Level 1 draws T0 itself in a fresh worker (no cached T0): the kitchen's range, so the offset, is the seed's.
     A user's --step whose level 4 leaves that range makes the episode unavailable, in one line, not a moved level."""
     import scenes
-    from indgen_vla.errors import EpisodeUnavailableError
+    from indgen_vla.core.errors import EpisodeUnavailableError
     from scenes.external import close_idle_workers
     from scenes.robocasa.pick_window import PICK_KEY
 
@@ -296,7 +296,7 @@ def test_a_worker_that_dies_mid_episode_is_an_episode_error_then_restarts(placeh
 def _policy(**kw):
     from types import SimpleNamespace
 
-    from indgen_vla.interface import PolicySpec
+    from indgen_vla.core.protocol.interface import PolicySpec
 
     closed = []
     spec = PolicySpec("standin", kw.pop("name", "test:p"), **kw)
@@ -312,7 +312,7 @@ def _plan(placeholder: bool):
 
 
 def test_policy_spec_takes_the_scene_families_camera_names():
-    from indgen_vla.interface import TABLETOP, PolicySpec
+    from indgen_vla.core.protocol.interface import TABLETOP, PolicySpec
     from scenes.robocasa import PANDA_OMRON
 
     spec = PolicySpec("lerobot", "lerobot:x", cameras=PANDA_OMRON.cameras, action_dim=12)
@@ -326,8 +326,8 @@ def test_policy_spec_takes_the_scene_families_camera_names():
 
 
 def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_path):
-    from indgen_vla.engine.config import EvalConfig
-    from indgen_vla.engine.run import check_policy_contract
+    from indgen_vla.app.engine.config import EvalConfig
+    from indgen_vla.app.engine.run import check_policy_contract
 
     cfg = EvalConfig(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path))
     seven = _policy(action_dim=7, cameras=())
@@ -355,8 +355,8 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
 
     import pandas as pd
 
-    from indgen_vla.engine.config import EvalConfig
-    from indgen_vla.engine.run import evaluate
+    from indgen_vla.app.engine.config import EvalConfig
+    from indgen_vla.app.engine.run import evaluate
 
     cfg = EvalConfig(policy="standin:random", scene="robocasa", task="PickPlaceCounterToCabinet", axes=("base_y",),
                      levels="0:1", episodes=1, workers=1, max_steps=4, out=str(tmp_path / "run"))  # fmt: skip
@@ -426,7 +426,7 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
 def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int) -> list[bool]:
     """The certification's own episodes (``certify_run.run_oracle_episode`` with ``episode_seed``)."""
     import scenes
-    from indgen_vla.seeding import episode_seed
+    from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.certify_run import run_oracle_episode
     from scenes.oracle import oracle_for
 

@@ -22,7 +22,7 @@ def test_a_tiny_lerobot_robocasa_policy_evaluates_on_placeholders(placeholders, 
     pytest.importorskip("lerobot")
     import pandas as pd
 
-    from indgen_vla.cli import main
+    from indgen_vla.app.cli import main
 
     ckpt = build_tiny_checkpoint("act", tmp_path / "ckpt", cameras=CAMS, size=16, state_dim=16, action_dim=12)
     out = tmp_path / "run"

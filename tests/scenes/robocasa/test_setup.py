@@ -13,7 +13,7 @@ from tests.fixtures.kill import processes, stop_midway
 def test_a_stopped_setup_leaves_no_installer_running(tmp_path):
     """SIGTERM while ``python -m venv`` runs ensurepip (no network needed yet); its children used to go on
     installing into the folder that the re-run removes."""
-    from indgen_vla.errors import ConfigError
+    from indgen_vla.core.errors import ConfigError
     from scenes.robocasa.environment import find_python312
 
     try:

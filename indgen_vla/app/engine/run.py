@@ -1,0 +1,442 @@
+"""The run logic of ``indgen evaluate`` as a library: resolve the plan, check feasibility, write the manifest,
+run every remaining episode resumably, then write the report. The CLI (``engine/cli.py``) only parses and prints."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import subprocess
+import sys
+import uuid
+from collections import defaultdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.share import (
+    copies,
+    fill_copies,
+    record_sharing,
+    sharing_entry,
+    taken_keys,
+    with_sharing,
+)
+from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
+from indgen_vla.core.protocol.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
+from indgen_vla.core.protocol.training_support import cells_to_json
+from indgen_vla.core.runs.records import RunDir
+
+if TYPE_CHECKING:
+    from indgen_vla.app.engine.local import EarlyWorkers
+    from indgen_vla.app.engine.rollout import RunnerConfig
+
+VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
+
+
+def package_versions() -> dict[str, str]:
+    """Installed versions of the packages that can change the numbers, recorded in the manifest."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for name in VERSIONED:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            pass
+    return out
+
+
+def git_sha() -> str:
+    """The toolkit's commit, so a run names the code that made it ("" outside a git checkout)."""
+    try:
+        here = Path(__file__).resolve().parent
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5)
+        return r.stdout.strip() if r.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def build_plan(cfg: EvalConfig) -> EvalPlan:
+    """Resolve ``cfg`` once: the scene layer's answer (tasks, successors, parameters, certificates) plus every
+    planned episode. The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
+    from scenes.planning import resolve_scene_plan
+
+    sp = resolve_scene_plan(cfg.scene, cfg.task, cfg.axes, cfg.levels, cfg.step, cfg.axes_preset)
+    jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), cfg.episodes, cfg.seed, cfg.video,
+                     cfg.video_per_level)  # fmt: skip
+    return with_sharing(cfg, EvalPlan(sp, jobs))
+
+
+def _levels_text(levels: list[int]) -> str:
+    return ", ".join(f"{k:+d}" if k else "0" for k in levels)
+
+
+def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
+    """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
+    line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
+    warnings = []
+    for name, spec in plan.axes.items():
+        want = list(plan.levels[name])
+        failed: dict[str, list[int]] = {}
+        missing: dict[str, list[int]] = {}
+        for task in plan.tasks:
+            cells = [plan.scene_plan.cell(task, name, k) for k in want]
+            bad = sorted(c.level for c in cells if c.certificate == FAILED)
+            short = [c.level for c in cells if c.certificate == UNCERTIFIED]
+            if bad:
+                failed[task] = bad
+            if short:
+                missing[task] = short
+        if failed and not cfg.allow_infeasible:
+            where = "; ".join(f"task {t}: levels {_levels_text(b)}" for t, b in failed.items())
+            raise InfeasibleLevelError(
+                f"{cfg.scene}/{name}: the oracle failed its certification at {where}; drop them from --levels "
+                "or pass --allow-infeasible"
+            )
+        if failed:
+            where = "; ".join(f"task {t}: {_levels_text(b)}" for t, b in failed.items())
+            warnings.append(f"evaluating levels of {name} the oracle failed (--allow-infeasible): {where}")
+        if missing:
+            if all(v == want for v in missing.values()) and len(missing) == len(plan.tasks):
+                where = f"all requested levels of {'every task' if len(plan.tasks) > 1 else 'task ' + plan.tasks[0]}"
+            else:
+                where = "; ".join(f"task {t}: levels {_levels_text(v)}" for t, v in missing.items())
+            own = name in plan.scene_plan.task_steps  # a family's step per task (RoboCasa365's pick_x)
+            step = "each task's own step" if own else f"step {spec.step:g} {spec.unit}"
+            warnings.append(
+                f"axis {name} ({step}) is uncertified at {where} (no oracle certificate "
+                f"with enough evidence); run 'indgen certify --scene {cfg.scene} --axis {name} --task "
+                f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}{f' --step {cfg.step:g}' if cfg.step else ''}"
+                f"{f' --axes-preset {cfg.axes_preset}' if cfg.axes_preset else ''}'"
+            )
+    return warnings
+
+
+def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
+    """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
+    certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
+    return {
+        "run_id": run_id,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "policy": cfg.policy,
+        "data_regime": cfg.data_regime,
+        "scene": cfg.scene,
+        "seed": cfg.seed,
+        "plan": cfg.plan_dict(
+            list(plan.tasks),
+            {a: list(v) for a, v in plan.levels.items()},
+            cfg.max_steps,
+            plan.scene_plan.task_steps,
+        ),
+        "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
+        "resolved": plan.record(),
+        "t0_sharing": sharing_entry(cfg, plan),
+        "config": dataclasses.asdict(cfg),
+        "versions": package_versions(),
+        "git_sha": git_sha(),
+        "command": " ".join(["indgen", *sys.argv[1:]]) if sys.argv and "indgen" in sys.argv[0] else "",
+        **(
+            {
+                "measurement": "not a measurement (--smoke: a smoke run, e.g. an image policy on placeholder assets)"
+            }
+            if cfg.smoke
+            else {}
+        ),  # fmt: skip
+    }
+
+
+def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
+    """An image policy on placeholder assets without ``--smoke``: its cameras would see boxes."""
+    return bool(cameras) and getattr(plan.builder, "placeholder_assets", False) and not cfg.smoke
+
+
+def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
+    """Before any episode: the policy's cameras and action size must be the scene family's (``EnvSpec``), and an
+    image policy runs on placeholder assets only with ``--smoke`` (its cameras would see boxes). One line each."""
+    spec = policy.spec
+    env_spec = getattr(plan.builder, "env_spec", None)
+    try:
+        if env_spec is not None:
+            env_spec.check_policy(spec, cfg.scene)
+        if _refused_on_placeholders(cfg, plan, spec.cameras):
+            raise ConfigError(
+                f"scene {cfg.scene} runs on placeholder assets (boxes, flat textures): an image policy's success "
+                f"there is not a measurement; point the scene at its real assets, or pass --smoke to run "
+                f"{spec.name} anyway (the manifest records 'not a measurement')"
+            )
+    except ConfigError:
+        policy.close()
+        raise
+
+
+def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
+    """Run (or resume) an evaluation and write its report; returns the run directory."""
+    from rich.console import Console
+
+    from indgen_vla.core.reporting.report import write_run_report
+
+    console = Console(stderr=True, quiet=quiet)
+    plan = build_plan(cfg)
+    for w in check_feasible(cfg, plan):
+        console.print(f"[yellow]warning:[/] {w}")
+    out = Path(cfg.out)
+    existing = RunDir(out)
+    run_id = (
+        existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
+    ) or uuid.uuid4().hex[:12]
+
+    # what the policy's family is told besides its spec: the scene family's contract, precision/compile options
+    env_spec, options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
+
+    def make_policy():
+        from policy_wrappers.registry import load_policy
+
+        return load_policy(
+            cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene,
+            env_spec=env_spec, **options,
+        )  # fmt: skip
+
+    def prestart(jobs: list) -> EarlyWorkers | None:
+        """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
+        simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
+        their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
+        if cfg.backend != "local" or not jobs:
+            return None
+        from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
+        from policy_wrappers.registry import preview_policy
+
+        n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
+        view = preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec, **options)
+        if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
+            return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
+        if view is not None:
+            return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
+        if n:
+            start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
+        return None
+
+    probe, early = None, None
+    try:
+        # a new run: refuse a policy that does not fit before writing anything
+        if not (out / "manifest.json").exists():
+            early = prestart(_first_round(cfg, plan))
+            probe = make_policy()
+            check_policy_contract(cfg, plan, probe)
+        run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
+        record_sharing(run, sharing_entry(cfg, plan))
+        fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
+        if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
+            from indgen_vla.app.engine.adaptive import next_round
+
+            todo = next_round(plan, run.episodes(), cfg)
+        else:
+            done = run.done_keys()
+            todo = [j for j in plan.rollouts() if j.key not in done]
+        if todo:
+            if probe is None:
+                early = prestart(todo)
+                probe = make_policy()
+                check_policy_contract(cfg, plan, probe)
+            _run_todo(cfg, plan, run, run_id, todo, make_policy, probe, early, console)
+        elif probe is not None:
+            probe.close()
+    finally:
+        if early is not None:  # workers nobody took: a refused policy, an interrupted load
+            early.close()
+    if not todo and not quiet:
+        done_text = (
+            "the decisions of every level the adaptive rule needs are"
+            if cfg.adaptive
+            else f"all {len(plan.jobs)} planned episodes are"
+        )
+        console.print(f"{done_text} already in {out}; writing the report")
+    write_run_report(run, cfg.gamma)
+    return out
+
+
+def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
+    """The jobs a new run starts with: the whole plan, or the adaptive rule's first round (its workers prepare
+    the scenes of those, not of levels the rule may never reach)."""
+    if not cfg.adaptive:
+        return plan.rollouts()
+    from indgen_vla.app.engine.adaptive import next_round
+    from indgen_vla.core.runs.records import episodes_frame
+
+    return next_round(plan, episodes_frame([]), cfg)
+
+
+def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
+    """How the workers build scenes for a policy that asks for ``view`` (its ``PolicySpec``, or the
+    ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
+    from indgen_vla.app.engine.rollout import RunnerConfig
+
+    side = cfg.image_size or (view.image_size[0] if view.image_size else 128)
+    return RunnerConfig(
+        levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.max_steps,
+        privileged=view.privileged, warmup_steps=cfg.warmup_steps, objects=view.observes_objects,
+        video_dir=str(Path(cfg.out) / "videos") if cfg.video else None, history_steps=view.history_steps,
+    )  # fmt: skip
+
+
+def _run_todo(
+    cfg: EvalConfig, plan: EvalPlan, run: RunDir, run_id: str, todo: list, make_policy, probe, early, console
+):
+    """Run the episodes still to do with the loaded ``probe``, after fixing (or checking, on a resume) the
+    run's protocol fingerprint; ``early``: the workers started while it loaded, if any."""
+    from indgen_vla.app.engine.rollout import RunMeta
+
+    spec = probe.spec
+    replan = cfg.replan_steps or spec.replan_steps
+    if replan > spec.chunk_size:
+        raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
+    runner_cfg = _runner_config(cfg, plan, spec)
+    manifest = run.manifest
+    resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
+    fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
+    if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
+        # and the levels its training data covered, where the policy declares them (report marks them "trained")
+        trained = {"training_levels": cells_to_json(spec.training)} if spec.training else {}
+        run.update_manifest(fingerprint=fingerprint, reads_observations=spec.reads_observations, **trained)
+    else:  # a resume: the episodes still to run must be made under the protocol of those on disk
+        for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
+            console.print(f"[yellow]warning:[/] {line}")
+        if "reads_observations" not in manifest:  # a run started before policies declared it: the same policy
+            run.update_manifest(reads_observations=spec.reads_observations)
+        # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
+        if not cfg.adaptive:
+            left = len(plan.jobs) - len(run.done_keys() & {j.key for j in plan.jobs})
+            why = f" ({len(todo)} rollouts: level 0 runs once for the axes sharing it)"
+            shared = "" if left == len(todo) else why
+            console.print(f"resuming {run.path}: {len(plan.jobs) - left} of {len(plan.jobs)} planned episodes "
+                          f"already recorded; running the other {left}{shared}", soft_wrap=True)  # fmt: skip
+    meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
+    try:
+        _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
+    except ServerUnreachableError as e:
+        raise ServerUnreachableError(f"{e} (run directory {run.path})") from None
+
+
+def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> list[str]:
+    """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
+    its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
+    go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
+    from indgen_vla.core.protocol.fingerprint import ProtocolMismatchError, differences, show_difference
+
+    bad = [d for d in differences(run.manifest["fingerprint"], now) if d[3]]
+    if not bad:
+        return []
+    field, was, is_now, _ = bad[0]
+    if not allow:
+        more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
+        was_text, now_text = show_difference(field, was, is_now, width=60)
+        raise ProtocolMismatchError(
+            f"{run.path} was started under another protocol: {field} was {was_text}, now {now_text}{more}; "
+            "resume it where it was started, use a new --out, or pass --allow-protocol-mismatch (the manifest then "
+            "records the change)"
+        )
+    changes = [{"field": f, "was": a, "now": b} for f, a, b, _ in bad]
+    run.update_manifest(protocol_changes=[*run.manifest.get("protocol_changes", []), *changes])
+    lines = []
+    for f, a, b, _ in bad:
+        was_text, now_text = show_difference(f, a, b)
+        lines.append(f"resumed under another protocol: {f} was {was_text}, now {now_text}")
+    return lines
+
+
+def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
+    """The run's protocol fingerprint (``indgen_vla.core.protocol.fingerprint``); the render backend is probed only when a
+    camera is read."""
+    from indgen_vla.core.protocol.fingerprint import build_fingerprint, policy_conventions
+
+    cams = tuple(runner_cfg.cameras)
+    return build_fingerprint(
+        resolved, package_versions(), max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps, cameras=cams,
+        image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
+        policy=policy_conventions(policy.spec, policy),
+    )  # fmt: skip
+
+
+def _run_with_progress(
+    cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early=None
+):
+    """Run the remaining episodes under a live display: one row per (axis, level) with its success so
+    far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
+    from rich.progress import Progress
+
+    from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
+
+    planned: dict[tuple[str, int], int] = defaultdict(int)
+    for j in plan.jobs:
+        planned[(j.axis, j.level)] += 1
+    stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
+    for r in run.episodes().itertuples():  # earlier error rows are re-run now: only ok rows count as done
+        if r.status == "ok":
+            stats[(r.axis, int(r.level))][0] += int(r.success)
+            stats[(r.axis, int(r.level))][1] += 1
+    rollouts = {j.key for j in plan.rollouts()}  # the total and its ETA count rollouts, not shared copies
+    taken = taken_keys(plan, run)
+    with Progress(*progress_columns(), console=console, transient=False) as progress:
+        done = len(run.done_keys() & rollouts)  # what finished: an adaptive run skips planned episodes
+        label = "all episodes" if len(rollouts) == len(plan.jobs) else "rollouts (T0 shared)"
+        total = progress.add_task(label, total=len(rollouts), completed=done, info="")
+        rows = {}
+        for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
+            s = stats[key]
+            rows[key] = progress.add_task(level_label(*key), total=planned[key], completed=s[1] + s[2],
+                                          info=level_info(*s))  # fmt: skip
+
+        def on_record(rec) -> None:
+            # one append: the copies are journalled with their rollout
+            recs = [rec, *copies(plan, rec, taken)]
+            run.append(recs)
+            for r in recs:
+                s = stats[(r.axis, r.level)]
+                if r.status == "ok":
+                    s[0] += int(r.success)
+                    s[1] += 1
+                else:
+                    s[2] += 1
+                progress.update(rows[(r.axis, r.level)], advance=1, info=level_info(*s))
+            progress.update(total, advance=1)
+
+        made, handed = [probe], [0]
+
+        def policy_factory():  # hand out the loaded policies again in every round; load more only when needed
+            if handed[0] == len(made):
+                made.append(make_policy())
+            handed[0] += 1
+            return made[handed[0] - 1]
+
+        kept: list = []  # the local backend's workers between adaptive rounds, with the scenes they hold
+
+        def run_jobs(batch: list) -> None:
+            handed[0] = 0
+            if cfg.backend == "ray":
+                from indgen_vla.app.engine.ray_backend import run_ray
+
+                run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
+            else:
+                from indgen_vla.app.engine.local import run_local
+
+                # the first round gets the workers started while the policy loaded, a later one the last round's
+                nonlocal early
+                workers = early.take(runner_cfg) if early is not None else list(kept)
+                early = None
+                kept.clear()
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
+                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
+                          close_policies=False, pipeline=cfg.pipeline, early=workers, keep=kept)  # fmt: skip
+
+        try:
+            if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
+                from indgen_vla.app.engine.adaptive import run_adaptive
+
+                run_adaptive(plan, run.episodes, run_jobs, cfg)
+            else:
+                run_jobs(todo)
+        finally:
+            run.flush()  # the rows a long run's append deferred (records.FLUSH_SHARE)
+            for w in kept:
+                w.close()
+            for p in made:  # the ray backend loads its own policies in its actors
+                p.close()

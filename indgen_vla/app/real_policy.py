@@ -1,0 +1,59 @@
+"""``indgen real`` entry point: joins the real-robot protocol manager (``indgen_vla.app.real``, which imports no policy
+code) to the policy registry, for ``indgen real record RUN --check-policy SPEC``.
+
+The policy itself runs in the user's stack (their robot loop is the server's client); what our client does is
+check that the server answers (the family's handshake: openpi's metadata frame, GR00T's ``ping``, a TCP connect
+to an OpenVLA deploy server) once when the session starts and again when each episode starts, then send the
+episode's reset where the protocol has one (GR00T N1.6's ``reset`` endpoint; openpi and OpenVLA servers keep no
+episode state). A server that does not answer stops the episode from starting, with one line saying why.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+from indgen_vla.app.real.trigger import EpisodeContext, TriggerError
+from indgen_vla.core.errors import PolicyError
+
+
+class PolicyCheck:
+    """The ``--check-policy`` trigger: the policy ``spec`` loads (and so answers) now, and before each episode."""
+
+    name = "policy"
+
+    def __init__(self, spec: str):
+        from policy_wrappers.registry import load_policy
+
+        self.spec = spec
+        self.policy = load_policy(spec)  # a remote family connects and shakes hands here: fails in one line
+
+    def describe(self, ctx: EpisodeContext) -> str:
+        return f"  policy : {self.spec} (checked and reset with seed {ctx.seed} when the episode starts)"
+
+    def start(self, ctx: EpisodeContext, write: Callable[[str], None]) -> dict:
+        t0 = time.monotonic()
+        try:
+            ping = getattr(self.policy, "ping", None)  # remote clients; an in-process policy is always there
+            if ping is not None:
+                ping()
+            self.policy.reset(ctx.instruction, ctx.seed)
+        except PolicyError as e:
+            raise TriggerError(f"policy check failed, the episode was not started: {e}") from None
+        return {
+            "spec": self.spec,
+            "answered": True,
+            "reset": True,
+            "seconds": round(time.monotonic() - t0, 3),
+        }
+
+    def close(self) -> None:
+        self.policy.close()
+
+
+def real_main(args: argparse.Namespace) -> int:
+    """``indgen real ...`` with the policy registry available to ``record --check-policy``."""
+    from indgen_vla.app.real.cli import real_main as protocol_main
+
+    return protocol_main(args, policy_check=PolicyCheck)

@@ -1,0 +1,1 @@
+"""Comparisons between runs, axes and groups of runs: paired exact tests with Holm."""

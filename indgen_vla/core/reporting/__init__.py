@@ -1,0 +1,1 @@
+"""summary.json, report.md and figures from run directories, and the black-box regime."""

@@ -1,0 +1,1 @@
+"""Run directories on disk: manifest, episodes.parquet, shards, videos, redaction of secrets."""

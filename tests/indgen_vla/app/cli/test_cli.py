@@ -1,0 +1,258 @@
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from indgen_vla.app.cli import HANDLERS, build_parser, main
+
+
+def test_import_is_light():
+    code = (
+        "import sys, indgen_vla, indgen_vla.app.cli, indgen_vla.core.stats.metrics, indgen_vla.core.runs.records, indgen_vla.core.reporting.report; "
+        "print(sorted(m for m in ('torch', 'robosuite', 'lerobot', 'mujoco') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_help_lists_every_design_subcommand(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    for cmd in ("evaluate", "certify", "report", "compare", "serve", "scenes", "axes", "policies",
+                "blockenv", "demos", "mimicgen"):  # fmt: skip
+        assert cmd in out
+    assert set(HANDLERS) <= set(build_parser()._subparsers._group_actions[0].choices)
+
+
+def test_typo_suggests(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["evalute"])
+    assert e.value.code == 2
+    assert "did you mean 'evaluate'?" in capsys.readouterr().err
+
+
+def test_console_script_runs():
+    exe = subprocess.run(
+        [sys.executable, "-m", "indgen_vla.app.cli", "--version"], capture_output=True, text=True
+    )
+    assert exe.returncode == 0 and "indgen-vla" in exe.stdout
+
+
+def test_negative_level_ranges_parse():
+    ns = build_parser().parse_args(["evaluate", "--levels", "-3:3", "--axis", "pick_y"])
+    assert ns.levels == "-3:3"
+    assert build_parser().parse_args(["evaluate", "--levels", "-2,0,2"]).levels == "-2,0,2"
+    assert build_parser().parse_args(["evaluate", "--levels", "-1"]).levels == "-1"
+
+
+def test_passthrough_and_unknown_flags(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["report", "x", "--bogus"])
+    assert e.value.code == 2 and "unrecognized arguments: --bogus" in capsys.readouterr().err
+
+
+def test_paper_presets_run_the_suite_they_are_named_after():
+    """A preset named after a LIBERO suite runs that suite; every other one starts with the scene it runs (the
+    stand-ins on a built-in scene for a benchmark the preset names end in ``_style``; robocasa_* run RoboCasa)."""
+    import scenes
+    from indgen_vla.app.engine.config import PRESET_DIR, load_config_preset
+    from scenes.axes import resolve_alias
+
+    presets = {p.stem: load_config_preset(str(p)) for p in sorted(PRESET_DIR.glob("*.yaml"))}
+    assert {"libero_object", "pick_place_libero_object_style"} <= set(presets)
+    suites = [s for s in scenes.scene_names() if s.startswith("libero_")]
+    for name, d in presets.items():
+        scene = d["scene"]
+        suite = next((s for s in suites if name.startswith(s)), None)
+        assert scene == (suite or scene) and name.startswith(scene), name
+        if suite is None and any(
+            w in name and not scene.startswith(w) for w in ("libero", "robocasa", "real_robot")
+        ):
+            assert name.endswith("_style") or "distractor" in name, name
+        for axis in d["axes"]:
+            assert set(map(resolve_alias, axis.split("+"))) <= set(scenes.axes_for(scene)), (name, axis)
+    assert presets["libero_object"]["task"] == "all" and presets["libero_object"]["axes"] == [
+        "pick_y",
+        "goal_y",
+        "scale",
+    ]
+
+
+def test_reference_subcommand_documents_every_option(capsys):
+    with pytest.raises(SystemExit):
+        main(["reference", "--help"])
+    out = capsys.readouterr().out
+    for opt in ("RUN_DIR", "--axis", "--task", "--out"):
+        assert opt in out
+    assert "held-out" in out.replace("\n", " ") or "held out" in out
+
+
+def test_demos_help_says_levels_is_required_with_axis(capsys):
+    """demos refuses --axis without --levels, so its help must not promise evaluate's default (the axis range)."""
+    with pytest.raises(SystemExit):
+        main(["demos", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "(required with --axis)" in out and "default: the axis range" not in out
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["real", "plan", "--setup", "stack", "--out", "r"], "required: --policy"),
+        (["real", "plann"], "did you mean 'plan'?"),
+        (["blockenv", "sample"], "required: --level"),
+        (["mimicgen", "--n", "1"], "required: --source, --out"),
+        (["train", "--out", "x"], "required: datasets"),
+    ],
+)
+def test_passthrough_subcommands_refuse_bad_arguments_in_one_line(argv, says, capsys):
+    """Their own parsers are indgen's: one error line (no usage block), exit 2, a "did you mean" on a typo."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and says in err and err.count("\n") == 1 and "usage:" not in err
+
+
+def test_report_help_names_where_the_overlay_goes(capsys):
+    with pytest.raises(SystemExit):
+        main(["report", "--help"])
+    assert "(default: FIRST_RUN/overlay)" in " ".join(capsys.readouterr().out.split())
+
+
+class _Captured(Exception):
+    """Carries the parser a passthrough handler built, instead of letting it parse."""
+
+    def __init__(self, parser):
+        self.parser = parser
+
+
+def _parsers_without_help(parser, where: str) -> list[str]:
+    import argparse
+
+    out = []
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            for name, sub in a.choices.items():
+                out += _parsers_without_help(sub, f"{where} {name}")
+        elif not isinstance(a, argparse._HelpAction) and not a.help:
+            out.append(f"{where} {'/'.join(a.option_strings) or a.dest}")
+    return out
+
+
+@pytest.mark.parametrize("command", ["demos", "mimicgen", "train", "blockenv"])
+def test_every_passthrough_option_has_a_help_line(command, monkeypatch):
+    """The subcommands that parse their own arguments document every option too."""
+    import argparse
+
+    def capture(self, args=None, namespace=None):
+        raise _Captured(self)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    with pytest.raises(_Captured) as e:
+        main([command])
+    assert _parsers_without_help(e.value.parser, f"indgen {command}") == []
+
+
+def test_every_option_has_a_help_line():
+    assert _parsers_without_help(build_parser(), "indgen") == []
+
+
+def test_presets_resolve_by_name_from_the_top_level_configs():
+    """In a checkout the presets are the top-level configs/ (a wheel carries them as indgen_vla/configs/,
+    tests/indgen_vla/core/test_resources.py): a bare preset name works from any working directory."""
+    import indgen_vla
+    from indgen_vla.app.engine.config import PRESET_DIR, load_config_preset
+    from indgen_vla.core.resources import config_dir
+    from scenes.axes import load_preset, preset_names
+
+    configs = Path(indgen_vla.__file__).parents[1] / "configs"
+    assert PRESET_DIR == config_dir("paper") == configs / "paper"
+    assert load_config_preset("libero_object")["scene"] == "libero_object"
+    assert {"paper", "quick"} <= set(preset_names()) and config_dir("axes") == configs / "axes"
+    assert load_preset("quick")["pick_y"] == {"max_level": 1}
+    with pytest.raises(ValueError, match="unknown config kind"):
+        config_dir("nope")
+
+
+def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
+    """evaluate and certify share one rule for tasks and axes: the same one-line errors."""
+    from indgen_vla.app.engine.config import EvalConfig
+    from indgen_vla.app.engine.run import build_plan
+    from indgen_vla.core.errors import UnknownNameError
+
+    def cfg(**kw):
+        base = dict(policy="standin:oracle", scene="stack", axes=("stack",), out=str(tmp_path), levels="0:1")
+        return EvalConfig(**{**base, **kw})
+
+    plan = build_plan(cfg(task="all"))
+    assert len(plan.tasks) > 1 and plan.levels == {"stack": (0, 1)}
+    assert build_plan(cfg()).tasks == plan.tasks[:1]
+    with pytest.raises(UnknownNameError, match=r"unknown task of scene stack 'nope'.*all"):
+        build_plan(cfg(task="nope"))
+    with pytest.raises(UnknownNameError, match=r"unknown axis of scene cabinet_pick 'pick_y'"):
+        build_plan(cfg(scene="cabinet_pick", axes=("pick_y",)))
+
+
+def test_device_precision_and_compile_are_checked_and_recorded():
+    from indgen_vla.app.engine.config import EvalConfig
+    from indgen_vla.core.errors import ConfigError
+
+    base = dict(policy="standin:random", scene="pick_place", axes=("pick_y",), out="x")
+    cfg = EvalConfig(**base, device="cuda:1", precision="bf16")
+    assert (cfg.device, cfg.precision) == ("cuda:1", "bf16")  # manifest "config" is dataclasses.asdict(cfg)
+    with pytest.raises(ConfigError, match="--device"):
+        EvalConfig(**base, device="gpu")
+    with pytest.raises(ConfigError, match="--precision"):
+        EvalConfig(**base, precision="fp16")
+    cfg = EvalConfig(**base, device="cuda", precision="bf16", compile="reduce-overhead")
+    assert dataclasses.asdict(cfg)["compile"] == "reduce-overhead"  # recorded in the manifest like precision
+    assert cfg.policy_options() == {"precision": "bf16", "compile": "reduce-overhead"}
+    assert EvalConfig(**base).policy_options() == {}  # families without these options still load
+    with pytest.raises(
+        ConfigError, match="--compile reduce-overhead captures CUDA graphs and needs --device cuda"
+    ):
+        EvalConfig(**base, compile="reduce-overhead")  # CPU: refused, never rewritten to another mode
+    with pytest.raises(ConfigError, match="--compile must be one of"):
+        EvalConfig(**base, compile="fast")
+
+
+def test_workers_get_one_egl_device_each_round_robin(monkeypatch):
+    from indgen_vla.app.engine.local import egl_devices
+
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "0,3")
+    assert egl_devices() == 2
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "-1")
+    assert egl_devices() == 0
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["evaluate"], "finished episodes are saved; re-run the same command to resume"),
+        (["certify"], "levels finished so far are saved"),
+        (["blockenv", "reproduce", "--resume"], "jobs are saved; re-run the same command to resume"),
+        (["blockenv", "train"], "'indgen blockenv train' keeps no partial output; re-run it to start over"),
+        (["blockenv", "ablate"], "each finished ablation is saved in the results JSON"),
+        (["demos"], "finished episodes are saved; re-run the same command to resume"),
+        (["train"], "last saved training state is kept; re-run the same command to resume"),
+        (["mimicgen"], "every finished attempt is saved; re-run the same command to resume"),
+    ],
+)
+def test_ctrl_c_promises_a_resume_only_where_there_is_one(argv, says, monkeypatch, capsys):
+    """Ctrl-C exits 130 with one line; `blockenv train` keeps nothing, so its line must not say "finished episodes
+    are saved; re-run to resume" (a re-run starts from scratch)."""
+    import indgen_vla.app.cli as cli
+
+    def interrupt(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_resolve", lambda command: interrupt)
+    extra = {"evaluate": ["--policy", "standin:oracle", "--scene", "pick_place", "--axis", "pick_y", "--out", "x"],
+             "certify": ["--scene", "pick_place", "--axis", "pick_y"]}.get(argv[0], [])  # fmt: skip
+    assert main(argv + extra) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("interrupted:") and says in err[0]

@@ -1,0 +1,97 @@
+"""Verdict sentences and the episodes a level still needs, against hand-computed values."""
+
+import pytest
+
+from indgen_vla.core.reporting.levels import (
+    axis_verdicts,
+    direction_verdict,
+    episodes_to_decide,
+    kstar_status_of,
+    verdict_line,
+)
+from indgen_vla.core.stats.metrics import success_rate
+
+
+def row(level, successes, n, decision, planned=None, insufficient=False, **extra):
+    r = success_rate(successes, n)
+    return {"level": level, "successes": successes, "n": n, "rate": r.rate, "ci_low": r.ci_low,
+            "ci_high": r.ci_high, "decision": decision, "planned": planned, "insufficient": insufficient, **extra}  # fmt: skip
+
+
+def test_episodes_to_decide_matches_the_wilson_bound_by_hand():
+    # 0/N: Wilson's upper bound is z^2 / (N + z^2) < 0.2  <=>  N > 4 z^2 = 15.37, so N = 16: 6 more after 10
+    assert episodes_to_decide(0, 10, 0.2) == 6
+    # 1/10 held at 10 %: the first total whose upper bound falls below 0.2 is 54 (upper(5/54) = 0.199)
+    assert episodes_to_decide(1, 10, 0.2) == 44
+    assert success_rate(5, 54).ci_high < 0.2 <= success_rate(5, 53).ci_high
+    assert episodes_to_decide(19, 100, 0.2) is None  # 19 % is too close to γ for any feasible run
+
+
+def test_a_significant_break_and_an_open_one_read_differently():
+    rows = [row(0, 10, 10, "intact"), row(1, 0, 10, "broken")]
+    assert (
+        direction_verdict(rows, 1, 0.2)
+        == "breaks at +1 (0 %, n = 10, 95 % CI [0, 28]), significantly below γ = 0.2"
+    )
+    rows = [row(0, 10, 10, "intact"), row(1, 1, 10, "undetermined")]
+    assert direction_verdict(rows, 1, 0.2) == (
+        "first level below γ: +1 (10 %, n = 10, 95 % CI [2, 40]); not yet significant: about 44 more episodes at +1 "
+        "would decide it if the rate holds"
+    )
+
+
+def test_no_break_and_a_hole_before_the_break():
+    rows = [row(0, 10, 10, "intact"), row(-1, 5, 10, "undetermined")]
+    assert (
+        direction_verdict(rows, None, 0.2)
+        == "no level below γ = 0.2 through -1 (-1 not yet significantly above it)"
+    )
+    assert (
+        direction_verdict(rows[:1], None, 0.2)
+        == "no break through 0: every level is significantly at or above γ = 0.2"
+    )
+    hole = [row(0, 10, 10, "intact"), row(1, 0, 1, "undetermined", planned=10, insufficient=True)]
+    assert direction_verdict(hole, "undetermined", 0.2) == (
+        "undetermined: level +1 has too little data (n = 1 of 10); finish it (re-run the same evaluate command: "
+        "it runs what is missing and retries errors)"
+    )
+    smoke = [
+        row(0, 2, 2, "undetermined", planned=2, insufficient=True)
+    ]  # --episodes 2: done, yet below the floor
+    assert direction_verdict(smoke, "undetermined", 0.2) == (
+        "undetermined: level 0 has too little data (n = 2 of 2); every planned episode ran, and under 5 never "
+        "give a k*: run --episodes 5 or more"
+    )
+
+
+def test_an_adaptive_level_names_the_rules_next_look():
+    rows = [row(0, 1, 10, "undetermined", planned=15, sequential={"verdict": "continue"})]
+    assert direction_verdict(rows, 0, 0.2).endswith("not yet decided: the rule looks again at 15 episodes")
+
+
+@pytest.mark.parametrize("signed", [True, False])
+def test_axis_verdicts_split_the_directions_of_a_signed_axis(signed):
+    rows = [row(-1, 0, 10, "broken"), row(0, 10, 10, "intact"), row(1, 10, 10, "intact")]
+    rows = rows if signed else rows[1:]
+    v = axis_verdicts(rows, {"pos": None, "neg": -1} if signed else {"pos": None}, 0.2, signed)
+    assert v["pos"].startswith("no break through +1")
+    if signed:
+        assert v["neg"].startswith("breaks at -1") and verdict_line(v, True).startswith("+: no break")
+        assert "; −: breaks at -1" in verdict_line(v, True)
+    else:
+        assert set(v) == {"pos"} and verdict_line(v, False) == v["pos"]
+
+
+def test_a_signed_axis_run_on_one_side_says_the_other_was_not_evaluated():
+    """pick_y at --levels 0:1: the − direction is level 0 alone, not a break at 0 (it read "first level below γ: 0")."""
+    rows = [row(0, 0, 10, "broken"), row(1, 0, 10, "broken")]
+    v = axis_verdicts(rows, {"pos": 0, "neg": 0}, 0.2, True)
+    assert (
+        v["pos"].startswith("breaks at 0")
+        and v["neg"] == "not evaluated (no level on this side of 0 was run)"
+    )
+    status = kstar_status_of(
+        rows, True
+    )  # the k* status row agrees (it said "−: no break through 0, determined")
+    assert status["neg"]["text"] == v["neg"] and not status["neg"]["determined"]
+    assert status["pos"]["text"] == "k* = 0, determined"
