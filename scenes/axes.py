@@ -1,6 +1,6 @@
 """Inductive axes of the built-in scenes: atomic successors over ``SceneSpec`` and their compositions.
 
-Each axis owns one spec field and a step (the paper's defaults, DESIGN.md's table). A successor is a
+Each axis owns one spec field and a step (the paper's defaults, docs/contracts.md's table). A successor is a
 small frozen object: calling it returns a new spec with that field moved one step, nothing else.
 Compositions such as ``pick_y+distractor`` apply every component once per level (one-sided
 components always step forwards, so level -k of ``pick_y+distractor`` has k distractors). A held axis

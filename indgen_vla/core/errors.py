@@ -37,7 +37,7 @@ class PolicyError(IndgenError):
     """A policy that cannot be loaded, reached, or returned a malformed action."""
 
 
-# Exit codes of ``indgen evaluate`` (README "Exit codes"): 0 every planned episode ok, 2 bad input,
+# Exit codes of ``indgen evaluate`` (docs/cli.md "Exit codes"): 0 every planned episode ok, 2 bad input,
 # EXIT_EPISODE_ERRORS the run finished but some episodes ended ``error``, EXIT_STOPPED the run stopped early
 # (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130).
 EXIT_EPISODE_ERRORS = 3

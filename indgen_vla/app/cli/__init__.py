@@ -404,7 +404,7 @@ def _resolve(command: str):
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``indgen`` console script. Exit codes (README "Exit codes"): 0 success, 1 an
+    """Entry point of the ``indgen`` console script. Exit codes (docs/cli.md "Exit codes"): 0 success, 1 an
     unexpected crash, 2 bad input (``IndgenError``), 3 ``evaluate`` finished with ``error`` episodes, 4 it
     stopped early because the policy server stayed unreachable, 130 Ctrl-C, 143 SIGTERM."""
     try:

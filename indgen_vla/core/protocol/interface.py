@@ -1,4 +1,4 @@
-"""The one observation/action interface every policy and scene shares (DESIGN.md)."""
+"""The one observation/action interface every policy and scene shares (docs/contracts.md)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ FAILURE_MODES = (
 
 @dataclass(frozen=True)
 class EnvSpec:
-    """A scene family's observation/action contract: its camera names and state/action sizes (DESIGN.md).
+    """A scene family's observation/action contract: its camera names and state/action sizes (docs/contracts.md).
 
     The tabletop families (built-in, LIBERO) share ``TABLETOP``; a family with another robot declares its own
     (RoboCasa365's PandaOmron: three cameras, 16-d state, 12-d action) and names the layout in ``layout``.

@@ -237,7 +237,7 @@ def check_strictly_harder(
 
     ``supports`` maps each level to the closed interval its axis parameter can take (lo == hi for a
     deterministic parameter). Signed axes are checked per direction: level -2 is compared to 0 and -1.
-    With ``strict`` (DESIGN.md) level k's support must be disjoint from the union of the easier ones;
+    With ``strict`` (condition 2, docs/contracts.md) level k's support must be disjoint from the union of the easier ones;
     otherwise (the paper's wording) it must merely contain values outside that union.
     """
     for k in sorted(

@@ -1,4 +1,4 @@
-"""Run directories: the manifest, append-safe ``episodes.parquet`` and the resume API (DESIGN.md)."""
+"""Run directories: the manifest, append-safe ``episodes.parquet`` and the resume API (docs/contracts.md)."""
 
 from __future__ import annotations
 
@@ -401,7 +401,7 @@ class RunDir:
         self._flush_cost = self._flushed_at - t0
 
     def episodes(self):
-        """All recorded episodes as a pandas DataFrame with the DESIGN.md columns."""
+        """All recorded episodes as a pandas DataFrame with the columns of docs/contracts.md."""
         df = self._stored_frame()
         return episodes_frame(list(self._load().values())) if df is None else _typed(df)
 
@@ -433,6 +433,6 @@ def episodes_frame(rows: list[dict]):
 
 
 def _typed(df):
-    """The DESIGN.md dtypes of the episode columns."""
+    """The dtypes of the episode columns."""
     return df.astype({"level": "int64", "episode": "int64", "seed": "int64", "steps": "int64",
                       "success": "bool", "progress": "Int8"})  # fmt: skip

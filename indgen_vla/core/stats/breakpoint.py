@@ -305,7 +305,7 @@ def break_point(
     seed: int = 0,
     cluster_names: Sequence[str] = (),
 ) -> dict:
-    """Continuous break point per direction in the DESIGN.md shape {"pos": {param, level, ci, ...}, "neg": ...}.
+    """Continuous break point per direction in the docs/contracts.md shape {"pos": {param, level, ci, ...}, "neg": ...}.
 
     `cells` carry each level's counts per cluster (cluster () = one pool of episodes; (task,) or
     (seed, task) for a multi-stage bootstrap; `cluster_names` labels those keys in "resampled").

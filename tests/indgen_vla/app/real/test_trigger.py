@@ -236,7 +236,7 @@ def test_check_policy_cli_refuses_an_unreachable_server_before_the_session(tmp_p
         ["real", "record", str(run), "--check-policy", f"openpi:ws://127.0.0.1:{port}?connect_timeout=2"]
     )
     err = capsys.readouterr().err.strip()
-    assert rc == 4 and "\n" not in err  # exit 4: the policy server is unreachable (README "Exit codes")
+    assert rc == 4 and "\n" not in err  # exit 4: the policy server is unreachable (docs/cli.md "Exit codes")
     assert err.endswith(f"connection refused at ws://127.0.0.1:{port}; is the openpi server running?")
     assert not (run / "journal.jsonl").exists()
 
