@@ -1,6 +1,37 @@
 """indgen-vla: measure inductive generalization of robot manipulation policies.
 
-Importing this package is cheap: torch, robosuite and lerobot load only inside the modules that need them.
+The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md). Importing this package is
+cheap: each name loads its module on first use, and torch, robosuite and lerobot load only inside what needs them.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
 __version__ = "0.1.0"
+
+# public name -> "module:attribute", imported on first access (PEP 562)
+_LAZY = {
+    "evaluate": "indgen_vla.app.api:evaluate",
+    "report": "indgen_vla.app.api:report",
+    "Run": "indgen_vla.core.runs.result:Run",
+    "KStar": "indgen_vla.core.runs.result:KStar",
+    "EvalConfig": "indgen_vla.app.engine.config:EvalConfig",
+    "IndgenError": "indgen_vla.core.errors:IndgenError",
+    "ConfigError": "indgen_vla.core.errors:ConfigError",
+}
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module 'indgen_vla' has no attribute {name!r}")
+    module, _, attr = _LAZY[name].partition(":")
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

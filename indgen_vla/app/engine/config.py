@@ -196,19 +196,41 @@ def load_config_preset(path: str) -> dict[str, Any]:
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
     """Merge a YAML preset (if any) with the flags; flags given on the command line win."""
-    values: dict[str, Any] = load_config_preset(args.config) if getattr(args, "config", None) else {}
+    return config_from_values(vars(args), getattr(args, "config", None))
+
+
+def config_from_values(
+    given: Mapping[str, Any], config: str | None = None, *, strict: bool = False
+) -> EvalConfig:
+    """The one road from option values (parsed flags, or the Python API's keyword arguments, named like the flags)
+    and an optional preset to an ``EvalConfig``: a preset is read first, then every value that is set wins.
+    ``strict`` refuses names that are no option (the API's keywords; argparse has already refused bad flags)."""
+    values: dict[str, Any] = load_config_preset(config) if config else {}
     flag_map = {"axis": "axes"}
-    for key, value in vars(args).items():
+    if strict:
+        unknown = sorted(k for k in given if flag_map.get(k, k) not in FLAG_FIELDS)
+        if unknown:
+            import difflib
+
+            names = sorted(FLAG_FIELDS - {"axes"} | {"axis"})
+            hints = [f"{u} (did you mean {m[0]}?)" if (m := difflib.get_close_matches(u, names, 1)) else u
+                     for u in unknown]  # fmt: skip
+            raise ConfigError(f"unknown option(s) {', '.join(hints)}; the options are evaluate's flags: "
+                              "see 'indgen evaluate --help'")  # fmt: skip
+    for key, value in given.items():
         name = flag_map.get(key, key)
         if name in FLAG_FIELDS and value is not None and (value is not False or name in EXPLICIT_FALSE):
             values[name] = value
     axes = values.get("axes")
     if isinstance(axes, str):
         values["axes"] = expand_axes([a.strip() for a in axes.split(",") if a.strip()])
-    elif isinstance(axes, list):
+    elif isinstance(axes, list | tuple):
         values["axes"] = expand_axes([str(a) for a in axes])  # A@B=i:j: one held axis per level of B
-    if isinstance(values.get("levels"), list):
-        values["levels"] = ",".join(str(x) for x in values["levels"])
+    levels = values.get("levels")
+    if isinstance(levels, list | tuple | range):
+        values["levels"] = ",".join(str(x) for x in levels)
+    if isinstance(values.get("out"), os.PathLike):
+        values["out"] = os.fspath(values["out"])
     values.setdefault("workers", os.cpu_count() or 1)
     for name in ("policy", "scene", "out"):
         values.setdefault(name, "")

@@ -1,0 +1,76 @@
+"""The public Python API (``indgen_vla.evaluate``, ``report``, ...): the CLI's commands for notebooks and training
+scripts, with keyword arguments named like the flags and typed results instead of exit codes."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.runs.result import Run
+
+PathLike = str | os.PathLike[str]
+
+
+def evaluate(*, policy: str, out: PathLike, config: Any = None, quiet: bool = False, **options: Any) -> Run:
+    """Run (or resume) an evaluation and return its run directory, exactly as ``indgen evaluate`` writes it.
+
+    Keyword arguments are ``indgen evaluate``'s flags with ``_`` for ``-`` (``scene``, ``task``, ``axis``,
+    ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists.
+    ``config`` is a preset name or YAML path (``--config``) whose values the keywords override, or an
+    ``EvalConfig``. ``quiet`` hides the live progress display.
+    """
+    from indgen_vla.app.engine.config import EvalConfig, config_from_values
+    from indgen_vla.app.engine.run import evaluate as run_evaluation
+
+    given = {**options, "policy": policy, "out": out}
+    if isinstance(config, EvalConfig):
+        cfg = config_from_values({**_config_values(config), **given}, strict=True)
+    elif config is None or isinstance(config, str | os.PathLike):
+        cfg = config_from_values(given, os.fspath(config) if config is not None else None, strict=True)
+    else:
+        raise ConfigError(
+            f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
+        )
+    return Run(run_evaluation(cfg, quiet=quiet))
+
+
+def _config_values(cfg: Any) -> dict[str, Any]:
+    """An ``EvalConfig``'s fields as option values (``axes`` under its flag name ``axis``)."""
+    values = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
+    values["axis"] = list(values.pop("axes"))
+    return values
+
+
+def report(
+    runs: PathLike | Run | Iterable[PathLike | Run],
+    *,
+    gamma: float = 0.2,
+    ci: str = "wilson",
+    margin: float | None = None,
+) -> list[Run]:
+    """Write summary.json, report.md and plots for each run directory again (as ``indgen report`` does for each)
+    and return them; ``gamma``, ``ci`` (wilson | clopper-pearson) and ``margin`` as the flags."""
+    from indgen_vla.core.errors import RunDirError
+    from indgen_vla.core.reporting.report import write_run_report
+    from indgen_vla.core.runs.records import RunDir
+    from indgen_vla.core.stats.contrasts import check_margin
+
+    if not 0 < gamma <= 1:
+        raise ConfigError(f"gamma must be in (0, 1], got {gamma}")
+    check_margin(margin)
+    paths = [runs] if isinstance(runs, str | os.PathLike | Run) else list(runs)
+    done = []
+    for p in paths:
+        run = RunDir.open(Path(os.fspath(p.path if isinstance(p, Run) else p)))
+        episodes = run.episodes()
+        if len(episodes) == 0:
+            raise RunDirError(
+                f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
+            )
+        write_run_report(run, gamma, ci, episodes, margin)
+        done.append(Run(run.path))
+    return done
