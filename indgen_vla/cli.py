@@ -37,6 +37,7 @@ HANDLERS: dict[str, str] = {
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.regimes.train:train_main",
     "real": "indgen_vla.real_policy:real_main",
+    "budget": "indgen_vla.engine.budget:main",
 }
 
 
@@ -79,6 +80,11 @@ def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default
 
 def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
+    add_evaluate_options(p)
+
+
+def add_evaluate_options(p: argparse.ArgumentParser) -> None:
+    """evaluate's protocol options (``indgen budget`` takes the same protocol, flags or --config)."""
     p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
     p.add_argument("--scene", help="scene name (see 'indgen scenes')")
     p.add_argument(
@@ -184,6 +190,10 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         default=None,
         help="shipped preset name (configs/paper) or YAML path; flags override it",
     )
+    p.add_argument(
+        "--preregistered", default=None, metavar="LOCK",
+        help="a plan.lock written by 'indgen budget --write': refuse to run anything that deviates from it",
+    )  # fmt: skip
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
 
 
@@ -377,6 +387,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compare(sp)
     _add_reference(sp)
     _add_serve(sp)
+    from indgen_vla.engine.budget import add_parser as add_budget
+
+    add_budget(sp, add_evaluate_options)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
     _add_simple(sp, "policies", "list policy spec families and stand-ins")
