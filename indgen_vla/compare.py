@@ -26,6 +26,7 @@ from indgen_vla.metrics import (
     success_rate,
 )
 from indgen_vla.pairing import pair_episodes
+from indgen_vla.plan_lock import run_status
 from indgen_vla.progress import compare_progress, plot_progress, render_compare
 from indgen_vla.records import RunDir, write_result
 from indgen_vla.report import _safe, run_label
@@ -390,6 +391,9 @@ def compare_main(args: argparse.Namespace) -> int:
         ax["tasks"] = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
         ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
+    for run, e in ((ra, ea), (rb, eb)):  # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
+        if line := run_status(run.manifest, len(e), gamma=args.gamma, alpha=args.alpha):
+            print(f"{run.path}: {line}")
     out = Path(args.out) if args.out else ra.path / "compare"
     plots = [(axis, axis, [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]) for axis in result["axes"]]
     _write(out, result, plots, args.gamma)

@@ -119,3 +119,18 @@ def status_line(manifest: Mapping[str, Any], deviations: list[str] | None) -> st
     if not deviations:
         return f"pre-registered: yes ({short})"
     return f"pre-registered ({short}), with {len(deviations)} deviation(s): " + "; ".join(deviations)
+
+
+def run_status(manifest: Mapping[str, Any], recorded: int, **analysis: Any) -> str | None:
+    """``report``/``compare``'s line for one run: "pre-registered: yes (hash)", its deviations (the run's, and
+    the analysis asked now against the locked one), or None for a run made without a lock."""
+    plan = manifest.get("plan", {})
+    planned = (
+        len(plan.get("tasks", []))
+        * sum(len(v) for v in plan.get("levels", {}).values())
+        * int(plan.get("episodes", 0))
+    )
+    found = run_deviations(manifest, planned, recorded)
+    if found is None:
+        return None
+    return status_line(manifest, found + analysis_deviations(manifest["preregistered"]["lock"], **analysis))

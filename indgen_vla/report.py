@@ -15,6 +15,7 @@ from indgen_vla.figures import AXES_PLOT, axis_order, axis_specs, overview_lines
 from indgen_vla.grid import grid_lines, plot_grids
 from indgen_vla.levels import fmt_condition2, verdict_line
 from indgen_vla.metrics import DEFAULT_GAMMA, MIN_N, UNDETERMINED, pooled_text
+from indgen_vla.plan_lock import run_status
 from indgen_vla.progress import plot_progress, render_levels
 from indgen_vla.records import REPORT, SECTIONS, SUMMARY, RunDir, atomic_write_json, atomic_write_text
 from indgen_vla.summary import summarize
@@ -308,6 +309,9 @@ def report_main(args: argparse.Namespace) -> int:
             )
         results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes, margin)))
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
+        # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
+        if line := run_status(run.manifest, len(episodes), gamma=args.gamma, ci=args.ci):
+            print(f"{run.path}: {line}")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
         if len(set(labels)) < len(labels):  # disambiguate identical labels by folder name
