@@ -13,7 +13,9 @@ from indgen_vla.sequential import make_rule, operating_characteristic
 def test_one_level_costs_what_the_exact_operating_characteristic_says(p):
     """One level, the default rule: the simulated mean episodes equal the exact OC's E[N] within 4 standard errors."""
     rule = make_rule("curve", 0.2, 0.1, 0.025, 5, 50)
-    cost = simulate_protocol(rule, "curve", 1, {"a": [0]}, Curve(rates={"a": {0: p}}), {}, 50, replicates=600, seed=3)
+    cost = simulate_protocol(
+        rule, "curve", 1, {"a": [0]}, Curve(rates={"a": {0: p}}), {}, 50, replicates=600, seed=3
+    )
     t = np.asarray(cost.totals)
     exact = operating_characteristic(rule, p).expected_episodes
     assert abs(t.mean() - exact) < 4 * t.std() / np.sqrt(600)  # 600 simulated tasks behind the draws
@@ -26,7 +28,9 @@ def test_deterministic_ladders_cost_what_the_rule_says_by_hand():
     rounds (kstar walks 0, then 1, then 2). until-failure with 10 a level: 30, in 3 rounds."""
     rng = np.random.default_rng(0)
     rates = {"a": {0: 1.0, 1: 1.0, 2: 0.0}}
-    kstar = simulate_task(make_rule("kstar", 0.2, 0.1, 0.025, 5, 50), "kstar", {"a": [0, 1, 2]}, rates, {}, rng)
+    kstar = simulate_task(
+        make_rule("kstar", 0.2, 0.1, 0.025, 5, 50), "kstar", {"a": [0, 1, 2]}, rates, {}, rng
+    )
     assert kstar.per_round == (5, 5, 5, 5, 5) and kstar.episodes == 25
     walk = simulate_task(make_rule("until-failure", 0.2, 0.1, 0.025, 5, 10), "until-failure", {"a": [0, 1, 2]},
                          rates, {}, rng)  # fmt: skip

@@ -33,7 +33,9 @@ def test_deviations_name_the_field():
     assert protocol_deviations(lock, PLAN, "abc", FP) == []
     found = protocol_deviations(lock, {**PLAN, "episodes": 3}, "abd", {**FP, "simulator": {"mujoco": "3.9"}})
     assert found[0] == "episodes is 3, locked 5"
-    assert any("planned episodes" in f for f in found) and any("fingerprint.simulator.mujoco" in f for f in found)
+    assert any("planned episodes" in f for f in found) and any(
+        "fingerprint.simulator.mujoco" in f for f in found
+    )
     assert analysis_deviations(lock, gamma=0.3, ci="wilson") == ["gamma is 0.3, locked 0.2"]
 
 

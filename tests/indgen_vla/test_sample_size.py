@@ -5,6 +5,7 @@ import math
 
 import pytest
 
+from indgen_vla.breakpoint import verdict_from_ci
 from indgen_vla.errors import ConfigError
 from indgen_vla.metrics import CI_METHODS, mcnemar_exact, wilson_ci
 from indgen_vla.sample_size import (
@@ -14,7 +15,6 @@ from indgen_vla.sample_size import (
     pairs_for_power,
     verdict_counts,
 )
-from indgen_vla.breakpoint import verdict_from_ci
 
 
 def test_four_episodes_decide_095_against_005_at_gamma_half_by_hand():
