@@ -364,7 +364,14 @@ def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argpar
     return p
 
 
-PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments
+PASSTHROUGH = {
+    "blockenv",
+    "demos",
+    "mimicgen",
+    "train",
+    "real",
+    "budget",
+}  # subcommands that parse their own arguments
 
 
 def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
@@ -387,9 +394,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compare(sp)
     _add_reference(sp)
     _add_serve(sp)
-    from indgen_vla.engine.budget import add_parser as add_budget
-
-    add_budget(sp, add_evaluate_options)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
     _add_simple(sp, "policies", "list policy spec families and stand-ins")
@@ -407,6 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
+    _add_passthrough(
+        sp, "budget", "before a run: episodes, adaptive cost, wall time and GPU-hours; --write a plan.lock"
+    )
     return parser
 
 

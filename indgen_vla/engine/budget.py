@@ -274,9 +274,10 @@ def _write_lock(req: BudgetRequest, plan, out: dict) -> dict:
     budget = {"rollouts_planned": out["protocol"]["rollouts_planned"],
               "episodes_adaptive_expected": (out.get("episodes_adaptive") or {}).get("expected"),
               "wall_s": {w: v["wall_s"] for w, v in out["workers"].items()}}  # fmt: skip
-    lock = make_lock(
-        manifest_plan(cfg, plan), plan.jobs_hash(), pre_policy_fingerprint(cfg, plan), analysis, budget
-    )
+    from indgen_vla.engine.run import package_versions
+
+    fingerprint = pre_policy_fingerprint(cfg, plan, package_versions())
+    lock = make_lock(manifest_plan(cfg, plan), plan.jobs_hash(), fingerprint, analysis, budget)
     path = Path(req.write)
     if path.parent and not path.parent.exists():
         raise ConfigError(f"--write {path}: folder {path.parent} does not exist")
@@ -333,7 +334,14 @@ def render(out: dict) -> list[str]:
 
 
 def main(args: argparse.Namespace) -> int:
-    """CLI handler of ``indgen budget``: prints the budget (``--json``: the dict) and exits 0; bad input exits 2."""
+    """CLI handler of ``indgen budget``: prints the budget (``--json``: the dict) and exits 0; bad input exits 2.
+    Called with the passthrough arguments (``args.rest``) it parses them with evaluate's protocol options."""
+    if hasattr(args, "rest"):
+        from indgen_vla.cli import IndgenParser, add_evaluate_options
+
+        root = IndgenParser(prog="indgen")
+        parser = add_parser(root.add_subparsers(parser_class=IndgenParser), add_evaluate_options)
+        args = parser.parse_args(args.rest)
     out = plan_budget(request_from_args(args))
     print(json.dumps(out, indent=2, default=str) if args.json else "\n".join(render(out)))
     return 0

@@ -9,13 +9,13 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.plan import EvalPlan
 
 
-def pre_policy_fingerprint(cfg, plan: EvalPlan) -> dict[str, Any]:
-    """The fingerprint fields that change outcomes and are known before the policy loads (``plan_lock``)."""
-    from indgen_vla.engine.run import package_versions
+def pre_policy_fingerprint(cfg, plan: EvalPlan, versions: dict[str, str]) -> dict[str, Any]:
+    """The fingerprint fields that change outcomes and are known before the policy loads (``plan_lock``);
+    ``versions``: ``engine.run.package_versions()``."""
     from indgen_vla.fingerprint import build_fingerprint
     from indgen_vla.plan_lock import LOCKED_FINGERPRINT
 
-    fp = build_fingerprint(plan.record(), package_versions(), max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps,
+    fp = build_fingerprint(plan.record(), versions, max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps,
                            cameras=(), image_size=(0, 0), render_backend="", policy={})  # fmt: skip
     return {k: fp[k] for k in LOCKED_FINGERPRINT}
 
@@ -26,14 +26,13 @@ def manifest_plan(cfg, plan: EvalPlan) -> dict[str, Any]:
                          plan.scene_plan.task_steps)  # fmt: skip
 
 
-def check_preregistered(cfg, plan: EvalPlan) -> dict[str, Any]:
+def check_preregistered(cfg, plan: EvalPlan, versions: dict[str, str]) -> dict[str, Any]:
     """The manifest's ``preregistered`` entry ({path, hash, lock}); a deviation raises one line naming it."""
     from indgen_vla.plan_lock import protocol_deviations, read_lock
 
     lock = read_lock(cfg.preregistered)
-    bad = protocol_deviations(
-        lock, manifest_plan(cfg, plan), plan.jobs_hash(), pre_policy_fingerprint(cfg, plan)
-    )
+    fingerprint = pre_policy_fingerprint(cfg, plan, versions)
+    bad = protocol_deviations(lock, manifest_plan(cfg, plan), plan.jobs_hash(), fingerprint)
     if bad:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
         raise ConfigError(f"--preregistered {cfg.preregistered}: {bad[0]}{more}; run the locked protocol, or write "

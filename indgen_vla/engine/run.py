@@ -182,7 +182,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     if cfg.preregistered:  # before anything loads or is written: the lock refuses a deviation in one line
         from indgen_vla.engine.preregister import check_preregistered
 
-        preregistered = check_preregistered(cfg, plan)
+        preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
     out = Path(cfg.out)
