@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 from indgen_vla.errors import ConfigError
 
 EXIT_S = 1.0  # the process's exit after evaluate returns (tables printed, gc.freeze: docs/benchmarks.md "Start-up")
-# the interval around the expected wall time: this 2-core VM's speed moved 2x with its neighbours' load and boxes of
-# one kind differ 10-20 % (docs/benchmarks.md); widened, never tuned, when the projection-vs-reality test misses
+# the interval around the expected wall time: boxes of one kind differ 10-20 % and this 2-core VM's speed moved 2x
+# with its neighbours' load (docs/benchmarks.md); on a box busier than its cores during the smoke it widens by
+# sqrt(load / cores) more (docs/budget.md). Widened, never tuned, when the projection-vs-reality test misses
 LOW, HIGH = 0.6, 1.8
 
 
@@ -37,6 +38,9 @@ class Costs:
         1.0  # CPU demand / cores during the smoke (>= 1 means its c already includes sharing)
     )
     on_cpu_policy: bool = True  # the policy's forward competes with the workers for cores
+    box_load: float = (
+        1.0  # the smoke box's 1-minute load average over its cores (others' jobs included), >= 1
+    )
     notes: tuple[str, ...] = field(default_factory=tuple)
 
     def __post_init__(self):
@@ -115,7 +119,8 @@ def from_timing(timing: Mapping, steps_per_episode: float) -> Costs:
     return Costs(sim_s_per_step=timing["sim_s"] / timing["steps"], reset_s=reset, build_s=build_s, act_s=act,
                  batched=bool(timing.get("batched")), coord_s_per_reply=coord, fixed_s=fixed,
                  steps_per_episode=float(steps_per_episode), cores=cores, measured_load=max(1.0, demand / cores),
-                 on_cpu_policy=timing.get("device", "cpu") == "cpu")  # fmt: skip
+                 on_cpu_policy=timing.get("device", "cpu") == "cpu",
+                 box_load=max(1.0, float(timing.get("load_avg_1m") or 0) / cores))  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -182,6 +187,6 @@ def project(costs: Costs, workers: int, replan: int, cells: int, rounds: Sequenc
     bound = max(parts, key=parts.get)
     if bound == "simulators" and slowdown(costs, workers) * costs.measured_load > 1:
         bound = f"simulators ({workers} workers share {costs.cores} cores)"
-    width = sum(parts.values())
-    return Projection(workers, LOW * low, expected, HIGH * high, bound, parts,
+    width, shared = sum(parts.values()), math.sqrt(costs.box_load)
+    return Projection(workers, LOW * low / shared, expected, HIGH * high * shared, bound, parts,
                       workers * replan / width if width else float("inf"), note)  # fmt: skip

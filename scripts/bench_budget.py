@@ -55,11 +55,16 @@ def main() -> None:
         for w in a.workers.split(","):
             load = os.getloadavg()[0]
             measured, _ = _indgen("evaluate", *target, "--workers", w, "--out", str(Path(tmp) / f"w{w}"))
+            timing = json.loads((Path(tmp) / f"w{w}" / "manifest.json").read_text())["timing"]
             p = projected[w]
             print(json.dumps({"workers": int(w), "projected_s": p["wall_s"], "bound": p["bound"],
                               "measured_s": round(measured, 2), "error": round(measured / p["wall_s"]["expected"] - 1, 3),
                               "inside": p["wall_s"]["low"] <= measured <= p["wall_s"]["high"], "load_1m": load,
-                              "budget_s": round(budget_s, 2)}), flush=True)  # fmt: skip
+                              "budget_s": round(budget_s, 2), "run_timing": timing}), flush=True)  # fmt: skip
+        print(
+            json.dumps({"smoke_timing": json.loads((smoke / "manifest.json").read_text())["timing"]}),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -169,7 +169,11 @@ def _costs(req: BudgetRequest, plan, horizon: int):
             notes.append(
                 f"the smoke's {key} is {run.manifest.get(key)}, this protocol's {getattr(req.cfg, key)}"
             )
-    return from_timing(timing, steps), timing.get("replan_steps"), notes
+    costs = from_timing(timing, steps)
+    if costs.box_load > 1.5:
+        notes.append(f"the smoke ran with load {timing.get('load_avg_1m')} on {costs.cores} cores (other jobs): the "
+                     f"interval is {costs.box_load ** 0.5:.1f}x wider; smoke an idle box for a firmer one")  # fmt: skip
+    return costs, timing.get("replan_steps"), notes
 
 
 def plan_budget(req: BudgetRequest) -> dict[str, Any]:

@@ -56,3 +56,11 @@ def test_bad_timing_is_refused_in_one_line():
         from_timing({"steps": 1}, 10)
     with pytest.raises(ConfigError, match="no finished episode"):
         from_timing({**TIMING, "steps": 0}, 10)
+
+
+def test_a_smoke_on_a_busy_box_widens_the_interval():
+    """Load 8 on 2 cores: the smoke saw a quarter of the box, the run may see more or less: √4 = 2× wider."""
+    calm, busy = from_timing(TIMING, 100), from_timing({**TIMING, "load_avg_1m": 8.0}, 100)
+    a, b = project(calm, 1, 1, 2, [4]), project(busy, 1, 1, 2, [4])
+    assert b.expected == pytest.approx(a.expected)
+    assert (b.low, b.high) == (pytest.approx(a.low / 2), pytest.approx(a.high * 2))
