@@ -243,6 +243,11 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
             pr = project(costs, w, replan, cells, rounds[1], rounds[0], rounds[2])
             out["workers"][str(w)] = pr.as_dict(gpus)
         out["gpus"] = gpus
+    if cfg.preregistered:  # budget a locked protocol: the same check evaluate makes, one line on a deviation
+        from indgen_vla.engine.preregister import check_preregistered
+        from indgen_vla.engine.run import package_versions
+
+        out["preregistered"] = check_preregistered(cfg, plan, package_versions())["hash"]
     if req.write:
         out["lock"] = _write_lock(req, plan, out)
     return out

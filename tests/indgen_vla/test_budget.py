@@ -91,3 +91,27 @@ def test_the_projected_wall_time_holds_on_this_machine(smoke, tmp_path):
     measured, run = _cli("evaluate", *bigger, "--workers", "1", "--out", str(tmp_path / "big"))
     assert run.returncode == 0, run.stderr[-2000:]
     assert wall["low"] <= measured <= wall["high"], f"measured {measured:.1f} s, projected {wall}"
+
+
+def test_a_pilot_run_is_the_curve_and_must_cover_every_level(smoke, capsys):
+    """The smoke ran level 0 only: as a pilot it sizes a level-0 protocol, and names the level it lacks otherwise."""
+    argv = [
+        "budget",
+        *SMALL,
+        "--episodes",
+        "10",
+        "--adaptive",
+        "curve",
+        "--pilot",
+        str(smoke),
+        "--replicates",
+        "20",
+    ]
+    assert main([*argv, "--levels", "0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["episodes_adaptive"]["curve"] == f"pilot {smoke}" and out["episodes_adaptive"]["p95"] <= 10
+    assert main([*argv, "--levels", "0:1"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: --pilot {smoke} has no finished episode of pick_y level 1: pilot every level of the protocol, "
+        "or use --assume"
+    )
