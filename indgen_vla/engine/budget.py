@@ -308,8 +308,9 @@ def render(out: dict) -> list[str]:
     lines.append(
         f"fixed design: {f['per_level'] or 'more than 5000'} episodes a level decide each level at γ = "
         f"{f['gamma']:g} ± δ = {f['delta']:g} with error ≤ {f['alpha']:g} ({f['ci']}; {f['protocol']} rollouts for "
-        f"the protocol); at {at['episodes']} a level a level at {f['gamma'] + f['delta']:g} is missed as intact with "
-        f"chance {at['miss_intact']:.1%}, one at {f['gamma'] - f['delta']:g} as broken {at['miss_broken']:.1%}"
+        f"the protocol); with this protocol's {at['episodes']} a level, a level at S = {f['gamma'] + f['delta']:g} is "
+        f"not called intact with chance {at['miss_intact']:.1%}, one at {f['gamma'] - f['delta']:g} not called broken "
+        f"{at['miss_broken']:.1%}"
     )
     pw = out["power"]
     lines.append(
@@ -323,7 +324,7 @@ def render(out: dict) -> list[str]:
         lines.append(
             f"adaptive {ad['mode']}{how}: expected {ad['expected']:.0f} rollouts (5-95 %: {ad['p5']:.0f}-"
             f"{ad['p95']:.0f}; {ad['share_of_fixed']:.0%} of {p['rollouts_planned']}), {ad['rounds_expected']:.1f} "
-            f"rounds; {ad['replicates']} simulated protocols, curve {ad['curve']}"
+            f"rounds; {ad['replicates']} protocols drawn from simulated tasks, curve {ad['curve']}"
         )
     for w, v in out["workers"].items():
         ws, gh = v["wall_s"], v["gpu_hours"]
