@@ -37,6 +37,7 @@ HANDLERS: dict[str, str] = {
     "mimicgen": "indgen_vla.app.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.app.regimes.train:train_main",
     "real": "indgen_vla.app.real_policy:real_main",
+    "budget": "indgen_vla.app.engine.budget:main",
 }
 
 
@@ -79,6 +80,11 @@ def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default
 
 def _add_evaluate(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
+    add_evaluate_options(p)
+
+
+def add_evaluate_options(p: argparse.ArgumentParser) -> None:
+    """evaluate's protocol options (``indgen budget`` takes the same protocol, flags or --config)."""
     p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
     p.add_argument("--scene", help="scene name (see 'indgen scenes')")
     p.add_argument(
@@ -184,6 +190,10 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         default=None,
         help="shipped preset name (configs/paper) or YAML path; flags override it",
     )
+    p.add_argument(
+        "--preregistered", default=None, metavar="LOCK",
+        help="a plan.lock written by 'indgen budget --write': refuse to run anything that deviates from it",
+    )  # fmt: skip
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
 
 
@@ -354,7 +364,14 @@ def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argpar
     return p
 
 
-PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments
+PASSTHROUGH = {
+    "blockenv",
+    "demos",
+    "mimicgen",
+    "train",
+    "real",
+    "budget",
+}  # subcommands that parse their own arguments
 
 
 def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
@@ -394,6 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
+    _add_passthrough(
+        sp, "budget", "before a run: episodes, adaptive cost, wall time and GPU-hours; --write a plan.lock"
+    )
     return parser
 
 

@@ -66,6 +66,7 @@ class EvalConfig:
     round_size: int = 5  # episodes between two looks of the sequential rule
     # run level 0 once per task for the axes whose level 0 is one environment (plan.shared_t0, engine/share.py)
     share_t0: bool = True
+    preregistered: str | None = None  # a plan.lock (indgen budget --write): refuse any deviation from it
 
     def __post_init__(self) -> None:
         if not self.policy:

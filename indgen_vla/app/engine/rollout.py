@@ -59,6 +59,11 @@ class Transition:
     progress: int | None = None  # scenes.failure progress score 0..5, set when the episode ends (None: none)
     param: float | None = None  # the episode's own axis parameter (``env.episode_param``; None: the plan's)
     final: bool = False  # an error its seed decides (EpisodeUnavailableError): recorded once, not retried
+    # the worker's own seconds, set when the episode ends (engine/timing.py: indgen budget reads them back)
+    sim_s: float = 0.0  # executing chunk slices: physics and the renders read
+    reset_s: float = 0.0  # its reset, a scene build included
+    build_s: float = 0.0
+    builds: int = 0
 
 
 @dataclass(frozen=True)
@@ -87,17 +92,20 @@ class EnvRunner:
         self._can_skip_render = False
         # prepare(): (the job, its reset's transition, the reset's seconds)
         self._prepared: tuple[EpisodeJob, Transition, float] | None = None
+        self._clock = [0.0, 0.0, 0.0, 0]  # this episode's seconds: stepping, reset, build; builds
 
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)
         if key != self._env_key:
             self.close()
+            t = time.perf_counter()
             self._env = self.cfg.levels.make_env(
                 job.task, job.axis, job.level, cameras=tuple(self.cfg.cameras), image_size=self.cfg.image_size,
                 max_steps=self.cfg.max_steps,
             )  # fmt: skip
             self._env_key = key
             self._can_skip_render = _takes_observe(self._env)
+            self._clock[2:] = [time.perf_counter() - t, 1]
         return self._env
 
     def prepare(self, job: EpisodeJob) -> None:
@@ -135,6 +143,7 @@ class EnvRunner:
             return prepared[1]
         self._t0 = time.perf_counter()
         self._job, self._steps, self._frames = job, 0, []
+        self._clock = [0.0, 0.0, 0.0, 0]
         try:
             env = self._env_for(job)
             obs, _ = env.reset(seed=job.seed, options={"episode": job.episode})  # LIBERO: fixed init state
@@ -148,6 +157,7 @@ class EnvRunner:
             self._recent.clear()
             self._recent.append(obs.images)
             self._record_frame()
+            self._clock[1] = time.perf_counter() - self._t0
             return Transition(job.key, self._observe(obs))
         except EpisodeUnavailableError as e:  # the seed rules this level out: the env stays, no retry
             return Transition(job.key, None, done=True, error=_describe(e), final=True)
@@ -159,6 +169,7 @@ class EnvRunner:
         """Execute a (n, 7) slice of a chunk; stop early on success or the step limit."""
         job = self._job
         assert job is not None, "execute() before reset()"
+        started = time.perf_counter()
         try:
             env = self._env
             obs, done, success = None, False, False
@@ -187,6 +198,9 @@ class EnvRunner:
             t.param = getattr(env, "episode_param", None)
             t.video = self._write_video(job, success)
             t.wall_s = time.perf_counter() - self._t0
+        self._clock[0] += time.perf_counter() - started
+        if done:
+            t.sim_s, t.reset_s, t.build_s, t.builds = self._clock
         return t
 
     def _write_video(self, job: EpisodeJob, success: bool) -> str:

@@ -173,10 +173,16 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     """Run (or resume) an evaluation and write its report; returns the run directory."""
     from rich.console import Console
 
+    from indgen_vla.app.engine import timing
     from indgen_vla.core.reporting.report import write_run_report
 
+    clock = timing.start_session()
     console = Console(stderr=True, quiet=quiet)
     plan = build_plan(cfg)
+    if cfg.preregistered:  # before anything loads or is written: the lock refuses a deviation in one line
+        from indgen_vla.app.engine.preregister import check_preregistered
+
+        preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
     out = Path(cfg.out)
@@ -224,6 +230,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
         record_sharing(run, sharing_entry(cfg, plan))
+        if cfg.preregistered:
+            run.update_manifest(preregistered=preregistered)
         fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
         if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
             from indgen_vla.app.engine.adaptive import next_round
@@ -251,6 +259,14 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         )
         console.print(f"{done_text} already in {out}; writing the report")
     write_run_report(run, cfg.gamma)
+    if clock.episodes:  # what this session's clocks saw (indgen budget --timing reads it back)
+        from indgen_vla.app.engine.local import worker_processes
+
+        spec = probe.spec if probe is not None else None
+        run.update_manifest(timing=clock.record(
+            workers=cfg.workers, processes=worker_processes(len(todo), cfg.workers, cfg.pipeline),
+            pipeline=cfg.pipeline, batched=spec.batched if spec else None, device=cfg.device, backend=cfg.backend,
+            replan=(cfg.replan_steps or spec.replan_steps) if spec else cfg.replan_steps))  # fmt: skip
     return out
 
 
@@ -363,6 +379,7 @@ def _run_with_progress(
     far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
     from rich.progress import Progress
 
+    from indgen_vla.app.engine import timing
     from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
@@ -411,6 +428,7 @@ def _run_with_progress(
 
         def run_jobs(batch: list) -> None:
             handed[0] = 0
+            timing.CLOCK.rollout(started=True)
             if cfg.backend == "ray":
                 from indgen_vla.app.engine.ray_backend import run_ray
 
@@ -434,6 +452,7 @@ def _run_with_progress(
                 run_adaptive(plan, run.episodes, run_jobs, cfg)
             else:
                 run_jobs(todo)
+            timing.CLOCK.rollout(started=False)
         finally:
             run.flush()  # the rows a long run's append deferred (records.FLUSH_SHARE)
             for w in kept:

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+from indgen_vla.app.engine import timing
 from indgen_vla.app.engine.batching import Gather, Ready, act
 from indgen_vla.app.engine.reconnect import Outage
 from indgen_vla.app.engine.rollout import RunMeta, Transition, _describe, make_record
@@ -170,6 +171,7 @@ class Slots:
         if t.error:
             self.fail(i, t.error, t)
         elif t.done:
+            timing.CLOCK.note_episode(t)
             self.on_record(make_record(self.meta, self.active[i].job, t))
             self.start(i)
         else:
@@ -219,6 +221,7 @@ def coordinate(slots: Slots, policies: Policies, lanes: int) -> None:
     n, pool = slots.n, slots.pool
     ready_now = Ready(pool)
     gather = Gather() if policies.spec.batched and n > 1 else None
+    clock = timing.CLOCK
     try:
         while slots.active:
             now = time.monotonic()
@@ -231,6 +234,7 @@ def coordinate(slots: Slots, policies: Policies, lanes: int) -> None:
                     time.sleep(timeout or 0.0)
                     continue
                 ready = ready_now.wait(busy_workers, timeout)
+                clock.wait_s += time.monotonic() - now
             if gather and lanes == 1 and ready and len(ready) < len(busy_workers):
                 ready = ready_now.gather(busy_workers, ready, gather.window())
             waiting = _collect(slots, ready)
@@ -240,10 +244,14 @@ def coordinate(slots: Slots, policies: Policies, lanes: int) -> None:
                 t_act = time.monotonic()
                 results = act(policies.items, policies.spec, group, slots.meta.policy, policies.threads,
                               pad_to=n, dim=slots.limits.action_dim)  # fmt: skip
+                spent = time.monotonic() - t_act
+                clock.note_act(len(group), spent)
                 if gather:
-                    gather.observe(time.monotonic() - t_act)
+                    gather.observe(spent)
                 for i, result in results:
                     slots.acted(i, result)
+            clock.rounds, clock.replies = clock.rounds + 1, clock.replies + len(ready)
+            clock.loop_s += time.monotonic() - now
     finally:
         ready_now.close()
 

@@ -13,6 +13,7 @@ from typing import Any
 from indgen_vla.core.comparison.two_groups import groups_main
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
+from indgen_vla.core.protocol.plan_lock import run_status
 from indgen_vla.core.reporting.caveats import compare_caveats, rate_text
 from indgen_vla.core.reporting.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.core.reporting.figures import plot_axis
@@ -392,6 +393,9 @@ def compare_main(args: argparse.Namespace) -> int:
         ax["tasks"] = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
         ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
     result["verdict"] = verdict(result, la, lb, args.alpha)
+    for run, e in ((ra, ea), (rb, eb)):  # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
+        if line := run_status(run.manifest, len(e), gamma=args.gamma, alpha=args.alpha):
+            print(f"{run.path}: {line}")
     out = Path(args.out) if args.out else ra.path / "compare"
     plots = [(axis, axis, [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]) for axis in result["axes"]]
     _write(out, result, plots, args.gamma)

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.protocol.plan_lock import run_status
 from indgen_vla.core.protocol.training_support import TRAINED_NOTE, trained_text
 from indgen_vla.core.reporting.caveats import report_caveats
 from indgen_vla.core.reporting.failures import plot_failures, render_breakdown
@@ -322,6 +323,9 @@ def report_main(args: argparse.Namespace) -> int:
             )
         results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes, margin)))
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
+        # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
+        if line := run_status(run.manifest, len(episodes), gamma=args.gamma, ci=args.ci):
+            print(f"{run.path}: {line}")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
         if len(set(labels)) < len(labels):  # disambiguate identical labels by folder name

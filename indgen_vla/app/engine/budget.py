@@ -1,0 +1,357 @@
+"""``indgen budget``: size a protocol before it runs. It takes the protocol exactly as ``evaluate`` does (flags or
+--config), resolves its plan (no scene is built) and answers: episodes per level for the fixed design and the power
+to see a drop from T0; the expected and 95th-percentile episodes of the adaptive rule under an assumed or piloted
+success curve; the whole command's wall time and GPU-hours per worker count from a smoke run's clocks; and, with
+--write, a plan.lock that ``evaluate --preregistered`` enforces (docs/budget.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from indgen_vla.core.errors import ConfigError
+
+POWER = 0.8  # the power the pairs are sized for
+DEFAULT_DROP = 0.2
+DEFAULT_STARTUP_S = (
+    10.0  # --steps-per-s without a smoke: start-up, report and exit assumed (docs/benchmarks.md)
+)
+
+
+def add_parser(subparsers, protocol_options: Callable[[argparse.ArgumentParser], None] | None = None):
+    """``indgen budget``'s parser: evaluate's protocol options (``protocol_options``, the function that defines
+    them for evaluate) and the budget's own, which replace evaluate's --workers (a list here)."""
+    p = subparsers.add_parser(
+        "budget", conflict_handler="resolve",
+        help="before a run: episodes, adaptive cost, wall time and GPU-hours from a smoke run; --write a plan.lock",
+        description="Size the protocol an 'indgen evaluate' command would run (same flags or --config), without "
+        "building a scene: episodes per level, power against T0, the adaptive rule's expected episodes, the whole "
+        "command's wall time per worker count, and a pre-registered plan.lock.",
+    )  # fmt: skip
+    if protocol_options is not None:
+        protocol_options(p)
+    p.add_argument("--workers", default=None, metavar="W[,W...]",
+                   help="worker counts to project, e.g. 8,16 (default: the number of cores)")  # fmt: skip
+    p.add_argument("--timing", default=None, metavar="RUN",
+                   help="a smoke run's directory made on the target box: its manifest's timing and its episodes")  # fmt: skip
+    p.add_argument("--steps-per-s", type=float, default=None,
+                   help="without a smoke run: control steps per second of one worker, policy included")  # fmt: skip
+    p.add_argument("--startup-s", type=float, default=None,
+                   help=f"with --steps-per-s: start-up, report and exit seconds (default {DEFAULT_STARTUP_S:g})")  # fmt: skip
+    p.add_argument("--assume", default=None, metavar="S0,S1,...",
+                   help="assumed success rate per |level| 0, 1, 2, ... (every axis and task), e.g. 0.95,0.9,0.5,0.1")  # fmt: skip
+    p.add_argument("--pilot", default=None, metavar="RUN",
+                   help="a pilot run of the protocol: its per-level counts, with their uncertainty, as the curve")  # fmt: skip
+    p.add_argument("--drop", type=float, default=DEFAULT_DROP,
+                   help=f"the drop from T0 the paired test should see (default {DEFAULT_DROP:g})")  # fmt: skip
+    p.add_argument("--ci", choices=["wilson", "clopper-pearson"], default="wilson",
+                   help="the per-level interval report will use (default wilson)")  # fmt: skip
+    p.add_argument("--replicates", type=int, default=120,
+                   help="simulated tasks per curve draw for the adaptive rule (default 120)")  # fmt: skip
+    p.add_argument("--gpus", type=int, default=None,
+                   help="GPUs the run holds, for GPU-hours (default 1 with --device cuda, else 0)")  # fmt: skip
+    p.add_argument(
+        "--write", default=None, metavar="LOCK", help="write the pre-registered design to this file"
+    )
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    return p
+
+
+@dataclass(frozen=True)
+class BudgetRequest:
+    """What ``indgen budget`` was asked (the protocol is an ``EvalConfig``)."""
+
+    cfg: Any  # engine.config.EvalConfig
+    workers: tuple[int, ...]
+    timing: str | None = None
+    steps_per_s: float | None = None
+    startup_s: float | None = None
+    assume: tuple[float, ...] | None = None
+    pilot: str | None = None
+    drop: float = DEFAULT_DROP
+    ci: str = "wilson"
+    replicates: int = 120
+    gpus: int | None = None
+    write: str | None = None
+
+    def __post_init__(self):
+        if not self.workers or any(w < 1 for w in self.workers):
+            raise ConfigError(f"--workers must be positive counts, e.g. 8,16; got {self.workers}")
+        if self.timing and self.steps_per_s is not None:
+            raise ConfigError("give --timing RUN or --steps-per-s, not both")
+        if self.steps_per_s is not None and not self.steps_per_s > 0:
+            raise ConfigError(f"--steps-per-s must be > 0, got {self.steps_per_s}")
+        if self.assume is not None and self.pilot:
+            raise ConfigError("give --assume or --pilot RUN, not both")
+        if not 0 < self.drop < 1:
+            raise ConfigError(f"--drop must be in (0, 1), got {self.drop}")
+        if self.replicates < 1:
+            raise ConfigError(f"--replicates must be >= 1, got {self.replicates}")
+        if self.gpus is not None and self.gpus < 0:
+            raise ConfigError(f"--gpus must be >= 0, got {self.gpus}")
+
+
+def _parse_list(text: str, kind, flag: str) -> tuple:
+    try:
+        return tuple(kind(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise ConfigError(
+            f"{flag} takes a comma list, e.g. {'8,16' if kind is int else '0.95,0.9,0.5'}; got {text!r}"
+        ) from None
+
+
+def request_from_args(args: argparse.Namespace) -> BudgetRequest:
+    """The request from the parsed flags; the protocol resolved as evaluate resolves it (``config_from_args``)."""
+    import os
+
+    from indgen_vla.app.engine.config import config_from_args
+
+    ns = argparse.Namespace(**vars(args))
+    workers = _parse_list(args.workers, int, "--workers") if args.workers else (os.cpu_count() or 1,)
+    ns.workers, ns.out = workers[0], getattr(args, "out", None) or "(budget)"
+    assume = _parse_list(args.assume, float, "--assume") if args.assume else None
+    return BudgetRequest(cfg=config_from_args(ns), workers=workers, timing=args.timing, steps_per_s=args.steps_per_s,
+                         startup_s=args.startup_s, assume=assume, pilot=args.pilot, drop=args.drop, ci=args.ci,
+                         replicates=args.replicates, gpus=args.gpus, write=args.write)  # fmt: skip
+
+
+def _pilot_curve(path: str, levels: dict[str, list[int]]):
+    from indgen_vla.core.runs.records import RunDir
+    from indgen_vla.core.stats.adaptive_cost import Curve
+
+    df = RunDir.open(path).episodes()
+    df = df[df["status"] == "ok"]
+    counts: dict[str, dict[int, tuple[int, int]]] = {}
+    for axis, want in levels.items():
+        for k in want:
+            rows = df[(df["axis"] == axis) & (df["level"] == k)]
+            if not len(rows):
+                raise ConfigError(f"--pilot {path} has no finished episode of {axis} level {k}: pilot every level "
+                                  "of the protocol, or use --assume")  # fmt: skip
+            counts.setdefault(axis, {})[k] = (int(rows["success"].sum()), len(rows))
+    return Curve(counts=counts)
+
+
+def _costs(req: BudgetRequest, plan, horizon: int):
+    """The per-unit costs (``wall_time.Costs``), the smoke's replan steps, and notes on what was assumed."""
+    from indgen_vla.app.engine.wall_time import Costs, from_timing
+    from indgen_vla.core.runs.records import RunDir
+
+    if req.steps_per_s is not None:
+        fixed = DEFAULT_STARTUP_S if req.startup_s is None else req.startup_s
+        return Costs(sim_s_per_step=1 / req.steps_per_s, reset_s=0.0, build_s=0.0, act_s={}, batched=True,
+                     coord_s_per_reply=0.0, fixed_s=fixed, steps_per_episode=float(horizon), cores=10**6,
+                     on_cpu_policy=False), None, [f"--steps-per-s {req.steps_per_s:g}: every episode runs its "
+                     f"{horizon} steps, start-up {fixed:g} s; no act latency known, so no bound is named"]  # fmt: skip
+    if not req.timing:
+        return None, None, ["no --timing RUN or --steps-per-s: no wall time projected"]
+    run = RunDir.open(req.timing)
+    timing = run.manifest.get("timing")
+    if not timing:
+        raise ConfigError(f"--timing {req.timing}: its manifest has no timing; make the smoke run with this version "
+                          "of indgen evaluate (local backend)")  # fmt: skip
+    eps = run.episodes()
+    ok = eps[(eps["status"] == "ok") & (eps["shared_from"] == "")]
+    steps = float(ok["steps"].mean()) if len(ok) else float(horizon)
+    notes = []
+    smoke_h = (run.manifest.get("fingerprint") or {}).get("horizon")
+    if smoke_h and smoke_h != horizon:
+        steps *= horizon / smoke_h
+        notes.append(
+            f"the smoke ran {smoke_h}-step episodes, this protocol {horizon}: its steps per episode scaled"
+        )
+    for key in ("scene", "policy"):
+        if run.manifest.get(key) != getattr(req.cfg, key):
+            notes.append(
+                f"the smoke's {key} is {run.manifest.get(key)}, this protocol's {getattr(req.cfg, key)}"
+            )
+    costs = from_timing(timing, steps)
+    if costs.box_load > 1.5:
+        notes.append(f"the smoke ran with load {timing.get('load_avg_1m')} on {costs.cores} cores (other jobs): the "
+                     f"interval is {costs.box_load ** 0.5:.1f}x wider; smoke an idle box for a firmer one")  # fmt: skip
+    return costs, timing.get("replan_steps"), notes
+
+
+def plan_budget(req: BudgetRequest) -> dict[str, Any]:
+    """The budget of ``req``'s protocol as ``indgen budget --json`` prints it (writes the lock when asked)."""
+    from indgen_vla.app.engine.run import build_plan
+    from indgen_vla.core.stats.adaptive_cost import assumed_curve, simulate_protocol
+    from indgen_vla.core.stats.contrasts import ALPHA
+    from indgen_vla.core.stats.sample_size import decided_rates, fixed_design, paired_power, pairs_for_power
+    from indgen_vla.core.stats.sprt import make_rule
+
+    cfg = req.cfg
+    plan = build_plan(cfg)
+    levels = {a: list(v) for a, v in plan.levels.items()}
+    rollouts = plan.rollouts()
+    cells = len({(j.task, j.axis, j.level) for j in rollouts})
+    horizon = int(cfg.max_steps or plan.record()["environment"].get("protocol", {}).get("max_steps") or 0)
+    out: dict[str, Any] = {"protocol": {
+        "scene": cfg.scene, "policy": cfg.policy, "tasks": len(plan.tasks), "axes": list(plan.axes), "levels": levels,
+        "episodes_per_level": cfg.episodes, "rollouts_planned": len(rollouts), "cells": cells, "horizon": horizon,
+        "adaptive": cfg.adaptive}}  # fmt: skip
+    delta, alpha = cfg.adaptive_delta, cfg.adaptive_alpha
+    fixed = fixed_design(cfg.gamma, delta, alpha, req.ci)
+    miss = decided_rates(cfg.episodes, cfg.gamma, delta, req.ci)
+    out["episodes_fixed"] = {**fixed.as_dict(), "protocol": fixed.episodes * cells if fixed.episodes else None,
+                             "at_episodes": {"episodes": cfg.episodes, "miss_intact": miss[0], "miss_broken": miss[1]}}  # fmt: skip
+    curve = None
+    if req.assume is not None:
+        curve = assumed_curve(req.assume, list(plan.axes), levels)
+    elif req.pilot:
+        curve = _pilot_curve(req.pilot, levels)
+    p0 = req.assume[0] if req.assume else (_pooled_t0(curve) if curve else 0.9)
+    tested = max(1, max(len([k for k in v if k]) for v in levels.values()))
+    a_level = ALPHA / tested
+    out["power"] = {"t0_rate": p0, "drop": req.drop, "alpha": ALPHA, "alpha_per_level": a_level,
+                    "test": f"exact McNemar, paired on seeds, at α/{tested} (Holm's first step over {tested} levels)",
+                    **{m: {"at_episodes": paired_power(p0, max(0.0, p0 - req.drop), cfg.episodes, a_level, m),
+                           "pairs_for_80": pairs_for_power(p0, max(0.0, p0 - req.drop), a_level, POWER, m)}
+                       for m in ("independent", "nested")}}  # fmt: skip
+    if not cfg.adaptive and not curve:
+        out["episodes_adaptive"] = None
+    elif curve is None:
+        raise ConfigError("--adaptive needs a success curve to size: --assume 0.95,0.9,0.5,0.1 (per |level|) or "
+                          "--pilot RUN")  # fmt: skip
+    else:
+        mode = cfg.adaptive or "kstar"
+        rule = cfg.sequential_rule() if cfg.adaptive else make_rule("kstar", cfg.gamma, delta, alpha, cfg.round_size,
+                                                                     cfg.episodes)  # fmt: skip
+        first = plan.tasks[0]
+        owners = {a: plan.shared.get((first, a), a) for a in plan.axes}
+        cost = simulate_protocol(
+            rule, mode, len(plan.tasks), levels, curve, owners, len(rollouts), req.replicates
+        )
+        out["episodes_adaptive"] = {**cost.summary(), "mode": mode, "as_configured": bool(cfg.adaptive),
+                                    "curve": "pilot " + req.pilot if req.pilot else f"assumed {list(req.assume)}"}  # fmt: skip
+    costs, smoke_replan, notes = _costs(req, plan, horizon)
+    out["notes"] = notes
+    out["workers"] = {}
+    if costs is not None:
+        from indgen_vla.app.engine.wall_time import project
+
+        replan = cfg.replan_steps or smoke_replan or 1
+        rounds = [[len(rollouts)]] * 3
+        if cfg.adaptive:
+            rounds = _percentile_rounds(cost)
+        gpus = req.gpus if req.gpus is not None else (1 if cfg.device.startswith("cuda") else 0)
+        for w in req.workers:
+            pr = project(costs, w, replan, cells, rounds[1], rounds[0], rounds[2])
+            out["workers"][str(w)] = pr.as_dict(gpus)
+        out["gpus"] = gpus
+    if cfg.preregistered:  # budget a locked protocol: the same check evaluate makes, one line on a deviation
+        from indgen_vla.app.engine.preregister import check_preregistered
+        from indgen_vla.app.engine.run import package_versions
+
+        out["preregistered"] = check_preregistered(cfg, plan, package_versions())["hash"]
+    if req.write:
+        out["lock"] = _write_lock(req, plan, out)
+    return out
+
+
+def _pooled_t0(curve) -> float:
+    rates = [by[0] for by in (curve.rates or {}).values() if 0 in by]
+    counts = [by[0] for by in (curve.counts or {}).values() if 0 in by]
+    if rates:
+        return sum(rates) / len(rates)
+    s, n = sum(c[0] for c in counts), sum(c[1] for c in counts)
+    return s / n if n else 0.9
+
+
+def _percentile_rounds(cost) -> list[list[int]]:
+    """The simulated protocols at the 5th percentile, the mean and the 95th percentile of total rollouts."""
+    import numpy as np
+
+    totals = np.asarray(cost.totals)
+    picks = [float(np.percentile(totals, 5)), float(totals.mean()), float(np.percentile(totals, 95))]
+    return [list(cost.rounds[int(np.argmin(np.abs(totals - t)))]) for t in picks]
+
+
+def _write_lock(req: BudgetRequest, plan, out: dict) -> dict:
+    from indgen_vla.app.engine.preregister import manifest_plan, pre_policy_fingerprint
+    from indgen_vla.core.protocol.plan_lock import make_lock
+    from indgen_vla.core.runs.records import atomic_write_json
+    from indgen_vla.core.stats.contrasts import ALPHA
+
+    cfg = req.cfg
+    analysis = {"gamma": cfg.gamma, "ci": req.ci, "alpha": ALPHA, "test": "exact McNemar vs T0, Holm over levels",
+                "delta": cfg.adaptive_delta, "error_rate": cfg.adaptive_alpha}  # fmt: skip
+    budget = {"rollouts_planned": out["protocol"]["rollouts_planned"],
+              "episodes_adaptive_expected": (out.get("episodes_adaptive") or {}).get("expected"),
+              "wall_s": {w: v["wall_s"] for w, v in out["workers"].items()}}  # fmt: skip
+    from indgen_vla.app.engine.run import package_versions
+
+    fingerprint = pre_policy_fingerprint(cfg, plan, package_versions())
+    lock = make_lock(manifest_plan(cfg, plan), plan.jobs_hash(), fingerprint, analysis, budget)
+    path = Path(req.write)
+    if path.parent and not path.parent.exists():
+        raise ConfigError(f"--write {path}: folder {path.parent} does not exist")
+    atomic_write_json(path, lock)
+    return {"path": str(path), "hash": lock["hash"]}
+
+
+def _fmt_s(s: float) -> str:
+    return f"{s / 3600:.2f} h" if s >= 5400 else f"{s / 60:.1f} min" if s >= 120 else f"{s:.0f} s"
+
+
+def render(out: dict) -> list[str]:
+    """The terminal text of a budget."""
+    p, f = out["protocol"], out["episodes_fixed"]
+    lines = [f"protocol: {p['scene']}, {p['tasks']} task(s) × {len(p['axes'])} axes ({', '.join(p['axes'])}), "
+             f"{p['cells']} level cells rolled out, {p['episodes_per_level']} episodes a level "
+             f"({p['rollouts_planned']} rollouts; adaptive: {p['adaptive'] or 'off'}); policy {p['policy']}"]  # fmt: skip
+    at = f["at_episodes"]
+    lines.append(
+        f"fixed design: {f['per_level'] or 'more than 5000'} episodes a level decide each level at γ = "
+        f"{f['gamma']:g} ± δ = {f['delta']:g} with error ≤ {f['alpha']:g} ({f['ci']}; {f['protocol']} rollouts for "
+        f"the protocol); with this protocol's {at['episodes']} a level, a level at S = {f['gamma'] + f['delta']:g} is "
+        f"not called intact with chance {at['miss_intact']:.1%}, one at {f['gamma'] - f['delta']:g} not called broken "
+        f"{at['miss_broken']:.1%}"
+    )
+    pw = out["power"]
+    lines.append(
+        f"power vs T0 ({pw['test']}): a drop of {pw['drop']:g} from T0 = {pw['t0_rate']:g} with {at['episodes']} "
+        f"pairs: {pw['independent']['at_episodes']:.0%} (independent outcomes) to {pw['nested']['at_episodes']:.0%} "
+        f"(nested); {POWER:.0%} power needs {pw['independent']['pairs_for_80']} / {pw['nested']['pairs_for_80']} pairs"
+    )
+    ad = out.get("episodes_adaptive")
+    if ad:
+        how = "" if ad["as_configured"] else " (if run with --adaptive kstar)"
+        lines.append(
+            f"adaptive {ad['mode']}{how}: expected {ad['expected']:.0f} rollouts (5-95 %: {ad['p5']:.0f}-"
+            f"{ad['p95']:.0f}; {ad['share_of_fixed']:.0%} of {p['rollouts_planned']}), {ad['rounds_expected']:.1f} "
+            f"rounds; {ad['replicates']} protocols drawn from simulated tasks, curve {ad['curve']}"
+        )
+    for w, v in out["workers"].items():
+        ws, gh = v["wall_s"], v["gpu_hours"]
+        gpu = (
+            f", GPU-hours {gh['low']:.2f}-{gh['high']:.2f} (expected {gh['expected']:.2f})"
+            if out.get("gpus")
+            else ""
+        )
+        lines.append(f"--workers {w}: wall {_fmt_s(ws['expected'])} (interval {_fmt_s(ws['low'])}-"
+                     f"{_fmt_s(ws['high'])}, the whole evaluate command){gpu}; bound: {v['bound']}; "
+                     f"{v['steps_per_s']:.0f} steps/s in rounds; act {v['act']}")  # fmt: skip
+    lines += [f"note: {n}" for n in out.get("notes", [])]
+    if out.get("lock"):
+        lines.append(f"wrote {out['lock']['path']} (hash {out['lock']['hash'][:12]}): run it with "
+                     f"indgen evaluate ... --preregistered {out['lock']['path']}")  # fmt: skip
+    return lines
+
+
+def main(args: argparse.Namespace) -> int:
+    """CLI handler of ``indgen budget``: prints the budget (``--json``: the dict) and exits 0; bad input exits 2.
+    Called with the passthrough arguments (``args.rest``) it parses them with evaluate's protocol options."""
+    if hasattr(args, "rest"):
+        from indgen_vla.app.cli import IndgenParser, add_evaluate_options
+
+        root = IndgenParser(prog="indgen")
+        parser = add_parser(root.add_subparsers(parser_class=IndgenParser), add_evaluate_options)
+        args = parser.parse_args(args.rest)
+    out = plan_budget(request_from_args(args))
+    print(json.dumps(out, indent=2, default=str) if args.json else "\n".join(render(out)))
+    return 0
