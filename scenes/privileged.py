@@ -69,6 +69,9 @@ class Targets:
     clear_z: float  # highest obstacle between the pick object and the place point
     grasp_z: float  # grip-site height for the grasp
     floor_z: float | None = None  # the receptacle's inner floor (scenes with a receptacle)
+    grasp_xy: np.ndarray | None = (
+        None  # world xy to grasp at, where not the object's centre (LIBERO's neighbours)
+    )
 
     def __post_init__(self) -> None:
         _check_shape("target.place_xy", self.place_xy, (2,))

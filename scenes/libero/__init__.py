@@ -64,6 +64,9 @@ class LiberoSuite(Scene):
     success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
     committed_certificates = False  # certificates depend on the user's LIBERO asset tree
     fixed_initial_states = "LIBERO's 50 fixed initial states (episode % 50)"
+    oracle = (
+        "scenes.libero.oracle:LiberoOracle"  # grasps clear of neighbours, stops waiting at the arm's reach
+    )
     # LiberoSceneEnv's BDDL and placement read the level's spec (its successor only checks condition 2)
     env_from_spec = True
 

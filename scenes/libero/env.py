@@ -32,6 +32,7 @@ from scenes.sim import CAMERA_NAMES
 NUM_STEPS_WAIT = 10  # lerobot's LiberoEnv settles the scene with this many no-op steps after each reset
 DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
 DISTRACTOR_PREFIX = "indgen_distractor_"
+BUILD_TRIES = 20  # seeded tries of LIBERO's build-time placement (a moved region can make one fail)
 
 
 @dataclass(frozen=True)
@@ -144,13 +145,30 @@ class LiberoSceneEnv(BaseSceneEnv):
                 camera_widths=[],
             )
             cls = ControlEnv
+        from robosuite.utils.errors import RandomizationError
+
         problem = get_problem_info(str(self.bddl_file))["problem_name"]
-        try:
+
+        def construct():
             if self.spec.pick.scale == 1.0 and not self.spec.distractors:
                 return cls(**kwargs)
             sub = level_problem(TASK_MAPPING[problem], self.info.pick, self.spec.pick.scale, self.distractors)
             with problem_class(problem, sub):
                 return cls(**kwargs)
+
+        try:
+            # the build's own placement (LIBERO's sampler, numpy's global generator) is overwritten by the fixed
+            # initial state at every reset; a moved region can make it fail at random: retry it, seeded
+            for attempt in range(BUILD_TRIES):
+                np.random.seed(attempt)
+                try:
+                    return construct()
+                except RandomizationError:
+                    continue
+            raise SceneError(
+                f"{self.scene}/{self.task} level {self.level}: LIBERO could not place the objects in the moved "
+                f"regions ({BUILD_TRIES} tries); use a smaller level"
+            )
         except SceneError:
             raise
         except Exception as e:  # robosuite/LIBERO raise bare assertions, mujoco errors, missing files
@@ -186,6 +204,20 @@ class LiberoSceneEnv(BaseSceneEnv):
         fixtures = self._env.env.fixtures_dict
         self._other_geoms = [geoms(i) for i in objs if i not in (self.info.pick, self.info.goal)]
         self._other_geoms += [geoms(i, fixtures) for i in fixtures]
+        # what the open gripper may land on when it comes down to grasp: every other object, the basket too
+        self._neighbour_geoms = [geoms(i) for i in objs if i != self.info.pick]
+        hand = sim.model.body_name2id(self._env.robots[0].gripper.root_body)
+
+        def under_hand(b: int) -> bool:
+            while b > 0 and b != hand:
+                b = int(m.body_parentid[b])
+            return b == hand
+
+        self._gripper_geoms = [
+            g
+            for g in range(m.ngeom)
+            if under_hand(int(m.geom_bodyid[g])) and (m.geom_contype[g] or m.geom_conaffinity[g])
+        ]
         self._finger_mask = geom.geom_mask(m, geom.named_geoms(m, self._env.robots[0].gripper.contact_geoms))
         self._pick_mask = geom.geom_mask(m, self._pick_geoms)
         site = f"{self.info.goal}_contain_region"
@@ -237,6 +269,7 @@ class LiberoSceneEnv(BaseSceneEnv):
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False
+        self._grasp_offset: np.ndarray | None = None  # computed at the first privileged state of the episode
         return self._observation(), {
             "success": False,
             "step": 0,
@@ -281,6 +314,26 @@ class LiberoSceneEnv(BaseSceneEnv):
 
     def _lowest(self, geoms: np.ndarray) -> float:
         return float(self._extent(geoms)[0][2])
+
+    def _clear_grasp(
+        self, pick_pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, grasp_z: float
+    ) -> np.ndarray:
+        """The episode's grasp offset from the object's centre (``scenes.libero.grasp_clearance``), from the scene
+        as it stands at the first privileged state (the object at rest, the gripper open above it)."""
+        if getattr(self, "_grasp_offset", None) is None:
+            from scenes.libero.grasp_clearance import grasp_offset
+
+            m, d = self._env.sim.model._model, self._env.sim.data._data
+            eef = geom.grip_site(d, self._env.robots[0])[0]
+            boxes = [geom.world_aabb(m, d, [g]) for g in self._gripper_geoms]
+            grip_lo = np.array([b[0] for b in boxes]) - eef
+            grip_hi = np.array([b[1] for b in boxes]) - eef
+            obs = [self._extent(g) for g in self._neighbour_geoms if len(g)]
+            obs_lo = np.array([b[0] for b in obs]).reshape(-1, 3)
+            obs_hi = np.array([b[1] for b in obs]).reshape(-1, 3)
+            centre = np.array([pick_pos[0], pick_pos[1], grasp_z])
+            self._grasp_offset = grasp_offset(grip_lo, grip_hi, obs_lo, obs_hi, centre, (hi[:2] - lo[:2]) / 2)
+        return self._grasp_offset
 
     def _corridor_top(self, start: np.ndarray, end: np.ndarray, margin: float) -> float:
         """Highest top of the other objects and fixtures whose footprint (+ margin) meets the segment start→end."""
@@ -434,6 +487,8 @@ class LiberoSceneEnv(BaseSceneEnv):
                 clear_z=clear,
                 grasp_z=geom.grasp_height(bottom, top, 0.5),
                 floor_z=floor,
+                grasp_xy=pick_pos[:2]
+                + self._clear_grasp(pick_pos, lo, hi, geom.grasp_height(bottom, top, 0.5)),
             ),
             bddl_success=bool(self._env.check_success()),
         )

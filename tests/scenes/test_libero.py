@@ -229,10 +229,19 @@ def test_evaluate_cli_with_oracle(mini, tmp_path):
     assert set(eps["failure"]) == {"none"}
 
 
+def _real_tree() -> bool:
+    """LIBERO's real assets: named by $INDGEN_LIBERO_ASSETS/$LIBERO_ASSETS, or where 'indgen setup libero' puts them."""
+    from scenes.libero.setup import default_dest
+
+    return (
+        bool(os.environ.get("INDGEN_LIBERO_ASSETS") or os.environ.get("LIBERO_ASSETS"))
+        or default_dest().is_dir()
+    )
+
+
 @pytest.mark.real_assets
 @pytest.mark.skipif(
-    not (os.environ.get("INDGEN_LIBERO_ASSETS") or os.environ.get("LIBERO_ASSETS")),
-    reason="set INDGEN_LIBERO_ASSETS to LIBERO's real asset folder",
+    not _real_tree(), reason="run 'make libero' (or set INDGEN_LIBERO_ASSETS to LIBERO's assets)"
 )
 def test_real_assets_level0_and_oracle():
     """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""

