@@ -14,7 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 
-from indgen_vla import __version__
+from indgen_vla import __version__, gate_cli
 from indgen_vla.errors import EXIT_SIGTERM, IndgenError, Terminated
 from indgen_vla.interrupts import interrupted_message, sigterm_raises
 
@@ -37,6 +37,7 @@ HANDLERS: dict[str, str] = {
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.regimes.train:train_main",
     "real": "indgen_vla.real_policy:real_main",
+    "gate": "indgen_vla.gate_cli:main",
 }
 
 
@@ -376,6 +377,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_merge(sp)
     _add_compare(sp)
     _add_reference(sp)
+    gate_cli.add_parser(sp)
     _add_serve(sp)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")
