@@ -15,6 +15,7 @@ import sys
 from collections.abc import Sequence
 
 from indgen_vla import __version__, gate_cli
+from indgen_vla.engine import series_cli
 from indgen_vla.errors import EXIT_SIGTERM, IndgenError, Terminated
 from indgen_vla.interrupts import interrupted_message, sigterm_raises
 
@@ -38,6 +39,7 @@ HANDLERS: dict[str, str] = {
     "train": "indgen_vla.regimes.train:train_main",
     "real": "indgen_vla.real_policy:real_main",
     "gate": "indgen_vla.gate_cli:main",
+    "series": "indgen_vla.engine.series_cli:main",
 }
 
 
@@ -186,6 +188,15 @@ def _add_evaluate(sp: argparse._SubParsersAction) -> None:
         help="shipped preset name (configs/paper) or YAML path; flags override it",
     )
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
+    add_log_options(p)
+
+
+def add_log_options(p: argparse.ArgumentParser) -> None:
+    """--log and --log-project: a finished run's numbers into an experiment tracker (indgen_vla.engine.trackers)."""
+    p.add_argument("--log", choices=["trackio", "wandb"], default=None,
+                   help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to this "
+                   "tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip
+    p.add_argument("--log-project", default="indgen", help="the tracker's project name (default indgen)")
 
 
 def _add_certify(sp: argparse._SubParsersAction) -> None:
@@ -378,6 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compare(sp)
     _add_reference(sp)
     gate_cli.add_parser(sp)
+    series_cli.add_parser(sp)
     _add_serve(sp)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")

@@ -50,7 +50,7 @@ def same_run(a, b) -> None:
     assert not [d for d in differences(fa, fb) if d[3]]  # pairable: compare and gate accept the two runs
 
 
-@pytest.mark.parametrize("kind", ["shipped", "tiny_images"])
+@pytest.mark.parametrize("kind", [pytest.param("shipped", marks=pytest.mark.slow), "tiny_images"])
 def test_lerobot_object_runs_the_episodes_of_its_checkpoint(tmp_path, kind):
     """The shipped state-only ACT (the episodes run long enough for the policy to act), and a tiny image ACT
     (LIBERO camera names: flipped renders of both cameras)."""
