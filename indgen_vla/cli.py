@@ -14,8 +14,7 @@ import re
 import sys
 from collections.abc import Sequence
 
-from indgen_vla import __version__, gate_cli
-from indgen_vla.engine import series_cli
+from indgen_vla import __version__, gate_cli, series_cli
 from indgen_vla.errors import EXIT_SIGTERM, IndgenError, Terminated
 from indgen_vla.interrupts import interrupted_message, sigterm_raises
 
@@ -39,7 +38,7 @@ HANDLERS: dict[str, str] = {
     "train": "indgen_vla.regimes.train:train_main",
     "real": "indgen_vla.real_policy:real_main",
     "gate": "indgen_vla.gate_cli:main",
-    "series": "indgen_vla.engine.series_cli:main",
+    "series": "indgen_vla.engine.series:series_main",
 }
 
 
