@@ -114,3 +114,25 @@ def test_a_missing_tracker_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "trackio", None)  # as if not installed
     with pytest.raises(ConfigError, match=r"--log trackio needs the trackio package; pip install"):
         trackers.log_runs("trackio", [(None, a_run(tmp_path))])
+
+
+@pytest.mark.slow  # a real evaluate in a subprocess
+def test_evaluate_log_trackio_end_to_end(tmp_path):
+    pytest.importorskip("trackio")
+    out = tmp_path / "run"
+    code = f"""
+from indgen_vla.cli import main
+rc = main(["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
+           "--episodes", "5", "--max-steps", "5", "--workers", "1", "--out", {str(out)!r}, "--log", "trackio",
+           "--log-project", "e2e"])
+print("RC", rc)
+"""
+    assert "RC 0" in run_logged(tmp_path, "trackio", code)
+    import sqlite3
+
+    con = sqlite3.connect(tmp_path / "trackio" / "e2e.db")
+    ((metrics,),) = con.execute("SELECT metrics FROM metrics").fetchall()
+    m = json.loads(metrics)
+    assert m["pick_y/L0/n"] == 5 and m["pick_y/L0/success"] == 0.0
+    config = json.loads(con.execute("SELECT config FROM configs").fetchone()[0])
+    assert config["fingerprint"]["scene"] == "pick_place" and len(config["fingerprint_digest"]) == 12
