@@ -65,13 +65,17 @@ def find_checkpoints(roots: Sequence[str | Path], *, must_exist: bool = True) ->
                               "pretrained_model) or checkpoint directories")  # fmt: skip
     if len(roots) == 1 and (roots[0] / "checkpoints").is_dir():
         found = []
+        last = (
+            roots[0] / "checkpoints" / "last"
+        )  # LeRobot points it at a checkpoint once that one is complete
+        newest = int(last.resolve().name) if last.is_symlink() and last.resolve().name.isdigit() else None
         for d in sorted((roots[0] / "checkpoints").iterdir()):
             if d.is_symlink() or not d.is_dir() or not d.name.isdigit():
                 continue
+            if newest is not None and int(d.name) > newest:
+                continue  # still being written: the next poll takes it
             m = _model_dir(d)
-            if (
-                m is not None
-            ):  # a checkpoint still being written has no config.json yet: the next poll takes it
+            if m is not None and (m / "model.safetensors").is_file():
                 found.append(Checkpoint(int(d.name), m))
         if not found and must_exist:
             raise ConfigError(f"{roots[0]}/checkpoints holds no <step>/pretrained_model with a config.json yet; "

@@ -71,12 +71,20 @@ def test_series_report_trend_and_kstar_from_runs(tmp_path):
 
 def test_checkpoint_discovery(tmp_path):
     root = tmp_path / "out"
-    (root / "checkpoints" / "000500" / "pretrained_model").mkdir(
-        parents=True
-    )  # being written: no config.json yet
+    being_written = root / "checkpoints" / "000500" / "pretrained_model"  # no config.json yet
+    being_written.mkdir(parents=True)
     with pytest.raises(Exception, match="no <step>/pretrained_model with a config.json yet"):
         find_checkpoints([root])
     assert find_checkpoints([root], must_exist=False) == []
+    shutil.rmtree(being_written.parent)
+    lerobot_output(root, [100])  # complete: 'last' points at it
+    shutil.copytree(
+        SHIPPED, root / "checkpoints" / "000200" / "pretrained_model"
+    )  # written, 'last' not moved yet
+    assert [c.step for c in find_checkpoints([root])] == [100]
+    (root / "checkpoints" / "last").unlink()
+    (root / "checkpoints" / "last").symlink_to("000200")
+    assert [c.step for c in find_checkpoints([root])] == [100, 200]
     a, b = tmp_path / "step_20", tmp_path / "step_3"
     for d in (a, b):
         d.mkdir()
@@ -84,3 +92,28 @@ def test_checkpoint_discovery(tmp_path):
     assert [(c.step, c.path) for c in find_checkpoints([a, b])] == [(3, b), (20, a)]
     with pytest.raises(Exception, match="no such directory"):
         find_checkpoints([tmp_path / "nope"])
+
+
+@pytest.mark.slow  # one real evaluate
+def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
+    """--follow on a training output without a checkpoint yet: the one written while it polls is evaluated, then it
+    stops after --idle-stop seconds without another."""
+    import threading
+
+    from indgen_vla.engine.config import EvalConfig
+    from indgen_vla.engine.series import run_series
+
+    pytest.importorskip("lerobot")
+    root = tmp_path / "train"
+    (root / "checkpoints").mkdir(parents=True)
+    timer = threading.Timer(0.5, lambda: lerobot_output(root, [300]))
+    timer.start()
+    base = EvalConfig(policy="series", scene="pick_place", axes=("pick_y",), levels="0", episodes=1, max_steps=5,
+                      workers=1, out="_")  # fmt: skip
+    said = []
+    entries = run_series(
+        base, [root], tmp_path / "s", follow=True, poll_s=0.2, idle_stop_s=1.0, say=said.append
+    )
+    timer.join()
+    assert [s for s, _ in entries] == [300] and said[-1].startswith("series: step 300: evaluating")
+    assert (tmp_path / "s" / "runs" / "000000300" / "summary.json").exists()
