@@ -195,6 +195,13 @@ class LeRobotPolicy:
                 f"{path!r} ({type(e).__name__}: {str(e)[:200]}); checkpoints saved before lerobot 0.4 "
                 "need lerobot's migrate_policy_normalization first"
             ) from None
+        self._adopt(cfg, policy, pre, post, lambda step: has_step(path, rev, step))
+
+    def _adopt(self, cfg, policy, pre, post, saved_step) -> None:
+        """Take a loaded policy and its processors, after checking its features against the scene family's;
+        ``saved_step(name)``: whether the preprocessor holds the step registered as (or with class path) ``name``."""
+        import torch
+
         self.cfg, self.policy, self.pre, self.post, self._torch = cfg, policy, pre, post, torch
         action = cfg.action_feature
         env = self.config.env_spec
@@ -213,17 +220,13 @@ class LeRobotPolicy:
                 f"policy {self._name}: checkpoint expects observation.state of shape {tuple(state.shape)}; "
                 f"ours is ({self._state_dim},) = {what}"
             )
-        self._objects = cfg.env_state_feature is not None and has_step(path, rev, OBJECT_STEP_CLASS)
+        self._objects = cfg.env_state_feature is not None and saved_step(OBJECT_STEP_CLASS)
         if self._objects and tuple(cfg.env_state_feature.shape) != (OBJECT_DIM,):
             raise PolicyError(
                 f"policy {self._name}: checkpoint marks observation.environment_state as object poses but "
                 f"its shape is {tuple(cfg.env_state_feature.shape)}, not ({OBJECT_DIM},); retrain it"
             )
-        if (
-            cfg.env_state_feature is not None
-            and not self._objects
-            and not has_step(path, rev, PROPRIO_STEP_CLASS)
-        ):
+        if cfg.env_state_feature is not None and not self._objects and not saved_step(PROPRIO_STEP_CLASS):
             raise PolicyError(
                 f"policy {self._name}: checkpoint reads observation.environment_state (privileged "
                 "simulator state), which learned policies never get here"

@@ -15,8 +15,12 @@ from indgen_vla.core.runs.result import Run
 PathLike = str | os.PathLike[str]
 
 
-def evaluate(*, policy: str, out: PathLike, config: Any = None, quiet: bool = False, **options: Any) -> Run:
+def evaluate(*, policy: Any, out: PathLike, config: Any = None, quiet: bool = False, **options: Any) -> Run:
     """Run (or resume) an evaluation and return its run directory, exactly as ``indgen evaluate`` writes it.
+
+    ``policy`` is a spec string (``--policy``), or a policy already in memory: a LeRobot
+    ``(policy, preprocessor, postprocessor)`` or any ``Policy`` (a training loop evaluates its current weights
+    without saving them; local backend only; the run records it as ``object:<class>``).
 
     Keyword arguments are ``indgen evaluate``'s flags with ``_`` for ``-`` (``scene``, ``task``, ``axis``,
     ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists.
@@ -26,6 +30,11 @@ def evaluate(*, policy: str, out: PathLike, config: Any = None, quiet: bool = Fa
     from indgen_vla.app.engine.config import EvalConfig, config_from_values
     from indgen_vla.app.engine.run import evaluate as run_evaluation
 
+    obj = None if isinstance(policy, str) else policy
+    if obj is not None:
+        from policy_wrappers.objects import describe
+
+        policy = describe(obj)
     given = {**options, "policy": policy, "out": out}
     if isinstance(config, EvalConfig):
         cfg = config_from_values({**_config_values(config), **given}, strict=True)
@@ -35,7 +44,7 @@ def evaluate(*, policy: str, out: PathLike, config: Any = None, quiet: bool = Fa
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
-    return Run(run_evaluation(cfg, quiet=quiet))
+    return Run(run_evaluation(cfg, quiet=quiet, policy=obj))
 
 
 def _config_values(cfg: Any) -> dict[str, Any]:

@@ -15,6 +15,8 @@ import sys
 from collections.abc import Sequence
 
 from indgen_vla import __version__
+from indgen_vla.app.cli import gate as gate_cli
+from indgen_vla.app.cli import series as series_cli
 from indgen_vla.app.interrupts import interrupted_message, sigterm_raises
 from indgen_vla.core.errors import EXIT_SIGTERM, IndgenError, Terminated
 
@@ -38,6 +40,8 @@ HANDLERS: dict[str, str] = {
     "train": "indgen_vla.app.regimes.train:train_main",
     "real": "indgen_vla.app.real_policy:real_main",
     "budget": "indgen_vla.app.engine.budget:main",
+    "gate": "indgen_vla.app.cli.gate:main",
+    "series": "indgen_vla.app.engine.series:series_main",
 }
 
 
@@ -195,6 +199,15 @@ def add_evaluate_options(p: argparse.ArgumentParser) -> None:
         help="a plan.lock written by 'indgen budget --write': refuse to run anything that deviates from it",
     )  # fmt: skip
     p.add_argument("--out", help="run directory (re-run the same command to resume)")
+    add_log_options(p)
+
+
+def add_log_options(p: argparse.ArgumentParser) -> None:
+    """--log and --log-project: a finished run's numbers into an experiment tracker (indgen_vla.app.engine.trackers)."""
+    p.add_argument("--log", choices=["trackio", "wandb"], default=None,
+                   help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to this "
+                   "tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip
+    p.add_argument("--log-project", default="indgen", help="the tracker's project name (default indgen)")
 
 
 def _add_certify(sp: argparse._SubParsersAction) -> None:
@@ -393,6 +406,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_merge(sp)
     _add_compare(sp)
     _add_reference(sp)
+    gate_cli.add_parser(sp)
+    series_cli.add_parser(sp)
     _add_serve(sp)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
     _add_simple(sp, "axes", "list registered axes with step, level range and description")

@@ -21,6 +21,10 @@ def evaluate_main(args: argparse.Namespace) -> int:
     from indgen_vla.core.reporting.report import print_tables, run_label
 
     run = RunDir.open(out)
+    if getattr(args, "log", None):
+        from indgen_vla.app.engine.trackers import log_runs
+
+        log_runs(args.log, [(None, out)], project=args.log_project, name=out.name)
     print_tables([(run_label(run), json.loads((out / SUMMARY).read_text()))])
     print(f"report: {out / 'report.md'}\nplots:  {out / 'plots'}/\nepisodes: {out / 'episodes.parquet'}")
     errors = run.episodes().query("status == 'error'")["error"]

@@ -169,14 +169,20 @@ def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
         raise
 
 
-def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
-    """Run (or resume) an evaluation and write its report; returns the run directory."""
+def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = None) -> Path:
+    """Run (or resume) an evaluation and write its report; returns the run directory.
+
+    ``policy``: a policy already in memory, run instead of loading ``cfg.policy`` (then only the run's label):
+    ``(policy, preprocessor, postprocessor)`` of LeRobot or any ``indgen_vla.core.protocol.interface.Policy``
+    (``policy_wrappers.objects``; the local backend only)."""
     from rich.console import Console
 
     from indgen_vla.app.engine import timing
     from indgen_vla.core.reporting.report import write_run_report
 
     clock = timing.start_session()
+    if policy is not None:
+        check_object_run(cfg)
     console = Console(stderr=True, quiet=quiet)
     plan = build_plan(cfg)
     if cfg.preregistered:  # before anything loads or is written: the lock refuses a deviation in one line
@@ -195,6 +201,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
     env_spec, options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
 
     def make_policy():
+        if policy is not None:
+            return adopt_object(policy, cfg, env_spec)
         from policy_wrappers.registry import load_policy
 
         return load_policy(
@@ -212,7 +220,8 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
         from policy_wrappers.registry import preview_policy
 
         n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
-        view = preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec, **options)
+        view = None if policy is not None else preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec,
+                                                               **options)  # fmt: skip
         if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
             return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
         if view is not None:
@@ -268,6 +277,30 @@ def evaluate(cfg: EvalConfig, quiet: bool = False) -> Path:
             pipeline=cfg.pipeline, batched=spec.batched if spec else None, device=cfg.device, backend=cfg.backend,
             replan=(cfg.replan_steps or spec.replan_steps) if spec else cfg.replan_steps))  # fmt: skip
     return out
+
+
+def check_object_run(cfg: EvalConfig) -> None:
+    """What a run of a policy object in memory cannot do, refused in one line before anything starts."""
+    if cfg.backend != "local":
+        raise ConfigError(f"a policy object in memory runs on the local backend only (--backend {cfg.backend} "
+                          "would ship it to other processes); save it (save_pretrained) and pass lerobot:DIR")  # fmt: skip
+    if cfg.compile != "off":
+        raise ConfigError("compile is for policies loaded from a spec; a policy object in memory runs uncompiled "
+                          "(compile it yourself before passing it)")  # fmt: skip
+
+
+def adopt_object(obj: object, cfg: EvalConfig, env_spec):
+    """The engine's policy for an object in memory (``policy_wrappers.objects.adopt``); one per run: a policy
+    with per-episode state serves one environment, so it refuses more than one worker."""
+    from policy_wrappers.objects import adopt
+
+    p = adopt(obj, name=cfg.policy, device=cfg.device, env_spec=env_spec, precision=cfg.precision,
+              replan_steps=cfg.replan_steps)  # fmt: skip
+    if not p.spec.batched and (cfg.workers > 1 or cfg.pipeline):
+        p.close()
+        raise ConfigError(f"policy object {cfg.policy} keeps per-episode state (not batched), so one instance "
+                          "serves one environment: run it with workers=1 and no pipeline")  # fmt: skip
+    return p
 
 
 def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:

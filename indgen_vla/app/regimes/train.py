@@ -21,6 +21,7 @@ from typing import Any
 
 from indgen_vla.app.regimes.demos import ENV_STATE, read_episode_sidecar
 from indgen_vla.app.regimes.resume import RESUME_DIR, RUN_FILE, check_same_run, out_state, start_run
+from indgen_vla.app.regimes.train_eval import add_eval_options, eval_hook
 from indgen_vla.app.regimes.train_state import CLI_FLAGS, LossLog, run_identity
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import OBJECT_DIM
@@ -277,12 +278,14 @@ def _seed_all(seed: int) -> None:
 def train_policy(
     dataset_dirs: Sequence[Path | str], out_dir: Path | str, config: TrainConfig | None = None, *,
     repo_id: str = DEFAULT_REPO_ID, data_regime: str = "", progress: Callable[[int, float], None] | None = None,
-    say: Callable[[str], None] | None = None, **overrides,
+    say: Callable[[str], None] | None = None, after_step: Callable[[int, Any], None] | None = None, **overrides,
 ) -> Path:  # fmt: skip
     """Train a lerobot policy on ``dataset_dirs`` and save it (weights + processors) to ``out_dir``.
 
     An unfinished ``out_dir`` made with the same arguments is resumed from its last saved state (``say`` is told
     from which step); a finished one is returned unchanged; other arguments are refused in one line.
+    ``after_step(step, model)``: called after every update with the model (``policy``, ``pre``, ``post``) in train
+    mode, to evaluate it in memory (``indgen train --eval-every``); it must hand the model back as it found it.
     """
     import dataclasses
 
@@ -305,7 +308,7 @@ def train_policy(
     _seed_all(cfg.seed)
     model = _build(cfg, dirs, repo_id)
     root = start_run(out, run)
-    log, train_s = _fit(cfg, model, root, progress, say)
+    log, train_s = _fit(cfg, model, root, progress, say, after_step)
     model.policy.eval()
     for obj in (model.policy, model.pre, model.post):
         obj.save_pretrained(str(out))
@@ -366,7 +369,9 @@ def _build(cfg: TrainConfig, dirs: list[Path], repo_id: str) -> _Model:
     return _Model(policy, pre, post, datasets, samples)
 
 
-def _fit(cfg: TrainConfig, model: _Model, root: Path, progress, say) -> tuple[LossLog, float]:
+def _fit(
+    cfg: TrainConfig, model: _Model, root: Path, progress, say, after_step=None
+) -> tuple[LossLog, float]:
     """AdamW with warm-up and cosine decay from the last saved state in ``root`` (or step 0) to ``cfg.steps``,
     saving the state every ``cfg.every`` steps and after the last; (loss log, training seconds over sessions)."""
     import torch
@@ -406,6 +411,8 @@ def _fit(cfg: TrainConfig, model: _Model, root: Path, progress, say) -> tuple[Lo
         if step % cfg.every == 0 or step == cfg.steps:
             log.train_s = before + time.perf_counter() - t0
             save_train_state(root, step, cfg.steps, policy, optimizer, scheduler, log)
+        if after_step is not None:
+            after_step(step, model)
     return log, before + time.perf_counter() - t0
 
 
@@ -440,14 +447,17 @@ def train_main(args: argparse.Namespace) -> int:
     p.add_argument("--repo-id", default=DEFAULT_REPO_ID, help="repo id stored in the checkpoint config")
     p.add_argument("--save-every", type=int, default=None,
                    help="steps between resumable states in OUT/resume (default: every 10%% of --steps)")  # fmt: skip
+    add_eval_options(p)
     a = p.parse_args(getattr(args, "rest", args))
     cameras = tuple(c for c in a.cameras.split(",") if c)
     cfg = TrainConfig(policy=a.policy, steps=a.steps, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
                       cameras=cameras, objects=a.objects, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps,
                       save_every=a.save_every)  # fmt: skip
     done = (Path(a.out) / INFO_FILE).is_file()
+    hook = eval_hook(a, Path(a.out))
     out = train_policy(a.datasets, a.out, cfg, repo_id=a.repo_id, data_regime=a.data_regime, say=print,
-                       progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True))  # fmt: skip
+                       progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True),
+                       after_step=hook)  # fmt: skip
     if done:
         return 0
     info = json.loads((out / INFO_FILE).read_text())

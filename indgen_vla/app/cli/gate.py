@@ -1,0 +1,77 @@
+"""``indgen gate BASELINE CANDIDATE``: the regression gate's argparse parser and handler (``indgen_vla.core.comparison.gate``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+DEFAULT_MARGIN = (
+    0.10  # indgen_vla.core.comparison.gate.DEFAULT_MARGIN (not imported here: `indgen --help` stays light)
+)
+
+
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """Register ``indgen gate`` (a help line per option)."""
+    p = sp.add_parser(
+        "gate",
+        help="regression gate for CI: is CANDIDATE no worse than BASELINE within --margin at every level "
+        "(exit 0), worse somewhere (1), or undecided (5)",
+        description="Compare two runs of one protocol level by level (exact McNemar on episode pairs when seeds and "
+        "plan match, else Boschloo; Holm over every level and axis tested). Exit 0: the candidate is shown "
+        "non-inferior within the margin at every level; 1: significantly worse at a level; 5: neither (the output "
+        "says how many more episodes per level would decide it); 2: bad input.",
+    )
+    p.add_argument(
+        "baseline", metavar="BASELINE", help="run directory of the reference (e.g. the stored main run)"
+    )
+    p.add_argument("candidate", metavar="CANDIDATE", help="run directory of the run under test")
+    p.add_argument(
+        "--margin", type=float, default=DEFAULT_MARGIN, metavar="M",
+        help=f"largest drop in success per level that still passes, as a rate (default {DEFAULT_MARGIN}: 10 points)",
+    )  # fmt: skip
+    p.add_argument("--alpha", type=float, default=0.05, help="error rate of each verdict (default 0.05)")
+    p.add_argument(
+        "--test",
+        choices=["auto", "mcnemar", "boschloo", "barnard"],
+        default="auto",
+        help="auto: exact McNemar when the runs are paired (same seeds and plan), else Boschloo (default auto)",
+    )
+    p.add_argument(
+        "--gamma", type=float, default=0.2, help="break threshold of the runs' summaries (default 0.2)"
+    )
+    p.add_argument(
+        "--allow-protocol-mismatch",
+        action="store_true",
+        help="gate runs whose protocol fingerprints differ in a field that changes outcomes (the output lists it)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print the result as JSON instead of one line per verdict"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """CLI handler: print the verdicts (or JSON) and return the gate's exit code."""
+    from indgen_vla.core.comparison.gate import GateConfig, gate
+
+    cfg = GateConfig(
+        baseline=args.baseline, candidate=args.candidate, margin=args.margin, alpha=args.alpha, gamma=args.gamma,
+        test=args.test, allow_protocol_mismatch=args.allow_protocol_mismatch,
+    )  # fmt: skip
+    res = gate(cfg)
+    if args.json:
+        print(json.dumps(_plain({k: v for k, v in res.items() if k != "lines"}), indent=2))
+    else:
+        print("\n".join(res["lines"]))
+    return int(res["exit_code"])
+
+
+def _plain(x):
+    """NaN (a level without a test) as JSON null, so strict parsers read the output."""
+    if isinstance(x, float) and math.isnan(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    return x

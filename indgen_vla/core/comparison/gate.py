@@ -1,0 +1,277 @@
+"""A regression gate between two runs of one protocol (``indgen gate``): per level, is the candidate shown no worse
+than the baseline within a margin M, shown worse, or neither yet, and how many more episodes would settle it.
+
+The tests are ``indgen compare``'s (``compare.compare_summaries``): exact McNemar on the episode pairs when the runs
+share seeds and plan, Boschloo otherwise, here Holm-corrected over every (axis, level) tested at once. A level is
+**non-inferior** when the lower end of the (1 − 2α) interval of Δ = candidate − baseline (Newcombe's paired interval,
+or the MOVER combination of Wilson intervals for unpaired runs) lies above −M: a one-sided test at α per level, and
+"non-inferior everywhere" is an intersection–union test, so it needs no multiplicity correction. A level is **worse**
+when the Holm-corrected test shows a difference (p_holm < α), the candidate is the lower one, and non-inferiority is
+not shown. Anything else is **undecided**; a level below the data floor in either run is undecided untested.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from indgen_vla.core.comparison.two_runs import compare_summaries, tasks_text
+from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.protocol.fingerprint import check_comparable
+from indgen_vla.core.reporting.caveats import blind_caveat, rate_text
+from indgen_vla.core.reporting.levels import usable_levels
+from indgen_vla.core.reporting.report import run_label
+from indgen_vla.core.reporting.summary import summarize
+from indgen_vla.core.runs.records import RunDir
+from indgen_vla.core.stats.contrasts import check_margin, paired_difference_ci, pp
+from indgen_vla.core.stats.metrics import MIN_N, difference_ci, holm, mcnemar_exact, wilson_ci
+
+# exit codes of `indgen gate` (2: bad input, as everywhere)
+EXIT_PASS, EXIT_WORSE, EXIT_UNDERPOWERED = 0, 1, 5
+DEFAULT_MARGIN = 0.10
+MAX_MORE = 5000  # projections beyond this many extra episodes per level are reported as "not decidable"
+NON_INFERIOR, WORSE, UNDECIDED = "non-inferior", "worse", "undecided"
+
+
+@dataclass(frozen=True)
+class GateConfig:
+    """What ``indgen gate`` compares and at which margin and error rate."""
+
+    baseline: str
+    candidate: str
+    margin: float = DEFAULT_MARGIN
+    alpha: float = 0.05
+    gamma: float = 0.2
+    test: str = "auto"
+    allow_protocol_mismatch: bool = False
+    labels: tuple[str, str] | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        if self.margin is None:
+            raise ConfigError("--margin is required: the largest drop in success you accept, e.g. 0.1")
+        check_margin(self.margin)
+        if not 0 < self.alpha < 0.5:
+            raise ConfigError(f"--alpha must be in (0, 0.5), got {self.alpha}")
+        if not 0 < self.gamma <= 1:
+            raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
+
+
+def _plan_levels(run: RunDir, summary: dict) -> dict[str, list[int]]:
+    """Each axis's planned levels (the manifest's plan, else what the summary holds)."""
+    levels = (run.manifest.get("plan") or {}).get("levels")
+    if isinstance(levels, dict):
+        return {a: sorted(int(k) for k in v) for a, v in levels.items()}
+    return {a: sorted(r["level"] for r in ax["levels"]) for a, ax in summary["axes"].items()}
+
+
+def _check_same_protocol(ra: RunDir, rb: RunDir, la: dict, lb: dict) -> None:
+    """Refuse, in one line, runs whose axes or levels differ: a gate compares one protocol run twice."""
+    if set(la) != set(lb):
+        raise RunDirError(f"{ra.path} runs axes {sorted(la)} but {rb.path} runs {sorted(lb)}; gate two runs of "
+                          "the same evaluate command (same --axis, --levels, --task)")  # fmt: skip
+    for axis in sorted(la):
+        if la[axis] != lb[axis]:
+            raise RunDirError(f"axis {axis}: {ra.path} planned levels {la[axis]} but {rb.path} planned {lb[axis]}; "
+                              "gate two runs of the same evaluate command")  # fmt: skip
+    ta, tb = ((r.manifest.get("plan") or {}).get("tasks") for r in (ra, rb))
+    if ta and tb and sorted(ta) != sorted(tb):
+        raise RunDirError(f"{ra.path} pools tasks {sorted(ta)} but {rb.path} pools {sorted(tb)}; gate two runs of "
+                          "the same evaluate command (same --task)")  # fmt: skip
+
+
+def _cells(r: dict) -> tuple[int, int, int, int]:
+    """(both, baseline only, candidate only, neither) of a paired row (``metrics.compare_paired_levels``)."""
+    both = r["successes_a"] - r["a_only"]
+    return both, r["a_only"], r["b_only"], r["pairs"] - both - r["a_only"] - r["b_only"]
+
+
+def _unpaired_ci(sa: int, na: int, sb: int, nb: int, conf: float) -> tuple[float, float]:
+    """Interval of Δ = B − A for independent runs: the MOVER combination of the Wilson intervals."""
+    if not (na and nb):
+        return math.nan, math.nan
+    (la, ua), (lb, ub) = wilson_ci(sa, na, conf), wilson_ci(sb, nb, conf)
+    return difference_ci((sb / nb, lb, ub), (sa / na, la, ua))
+
+
+def _shown(paired: bool, r: dict, margin: float, alpha: float) -> tuple[float, list[float], bool]:
+    """Δ, its (1 − 2α) interval and whether non-inferiority within ``margin`` is shown (lower end above −margin)."""
+    conf = 1 - 2 * alpha
+    if paired:
+        both, a_only, b_only, neither = _cells(r)
+        ci = paired_difference_ci(both, a_only, b_only, neither, conf) if r["pairs"] else (math.nan, math.nan)
+        delta = (b_only - a_only) / r["pairs"] if r["pairs"] else math.nan
+    else:
+        ci = _unpaired_ci(r["successes_a"], r["n_a"], r["successes_b"], r["n_b"], conf)
+        delta = r["rate_b"] - r["rate_a"] if r["n_a"] and r["n_b"] else math.nan
+    return delta, list(ci), not math.isnan(ci[0]) and ci[0] > -margin
+
+
+def _project_paired(r: dict, margin: float, alpha: float, family: int) -> tuple[int, str] | None:
+    """Fewest extra episode pairs after which the observed pair frequencies, kept, decide the level: (extra, verdict);
+    None when nothing decides it within ``MAX_MORE`` (or no pair was observed). Worse is projected with the exact
+    McNemar test at α / family (Bonferroni: Holm's first step)."""
+    n = r["pairs"]
+    if not n:
+        return None
+    both, a_only, b_only, _ = _cells(r)
+    for total in range(max(n + 1, MIN_N), n + MAX_MORE + 1):
+        scale = total / n
+        c = (round(both * scale), round(a_only * scale), round(b_only * scale))
+        if sum(c) > total:
+            continue
+        cell = (*c, total - sum(c))
+        if paired_difference_ci(*cell, 1 - 2 * alpha)[0] > -margin:
+            return total - n, NON_INFERIOR
+        if c[2] < c[1] and mcnemar_exact(c[1], c[2]) * family < alpha:
+            return total - n, WORSE
+    return None
+
+
+def _project_unpaired(r: dict, margin: float, alpha: float, family: int) -> tuple[int, str] | None:
+    """As ``_project_paired`` for unpaired runs, the same number of extra episodes in each; worse is projected with
+    the interval at 1 − α / family (the exact Boschloo test is too slow to search with; an approximation)."""
+    na, nb = r["n_a"], r["n_b"]
+    if not (na and nb):
+        return None
+    pa, pb = r["successes_a"] / na, r["successes_b"] / nb
+    for extra in range(max(1, MIN_N - min(na, nb)), MAX_MORE + 1):
+        ta, tb = na + extra, nb + extra
+        sa, sb = round(pa * ta), round(pb * tb)
+        if _unpaired_ci(sa, ta, sb, tb, 1 - 2 * alpha)[0] > -margin:
+            return extra, NON_INFERIOR
+        if _unpaired_ci(sa, ta, sb, tb, 1 - alpha / family)[1] < 0:
+            return extra, WORSE
+    return None
+
+
+def _level_row(axis: str, r: dict, paired: bool, tested: bool, cfg: GateConfig) -> dict[str, Any]:
+    delta, ci, shown = _shown(paired, r, cfg.margin, cfg.alpha)
+    row = {
+        "axis": axis, "level": r["level"], "tested": tested, "n_baseline": r["n_a"], "n_candidate": r["n_b"],
+        "successes_baseline": r["successes_a"], "successes_candidate": r["successes_b"], "delta": delta,
+        "delta_ci": ci, "non_inferior": tested and shown, "p": r["p_value"] if tested else math.nan,
+        "p_holm": math.nan,
+    }  # fmt: skip
+    if paired:
+        row.update(pairs=r["pairs"], discordant=[r["a_only"], r["b_only"]])
+    return row
+
+
+def _decide(row: dict, alpha: float) -> str:
+    if row["non_inferior"]:
+        return NON_INFERIOR
+    if row["tested"] and row["p_holm"] < alpha and row["delta"] < 0:
+        return WORSE
+    return UNDECIDED
+
+
+def gate(cfg: GateConfig) -> dict[str, Any]:
+    """The gate's result (``gate.json``): one row per (axis, level) with its verdict, the overall ``verdict`` and
+    ``exit_code`` (0 pass, 1 worse somewhere, 5 underpowered) and ``lines`` to print; bad input raises."""
+    ra, rb = RunDir.open(cfg.baseline), RunDir.open(cfg.candidate)
+    ea, eb = ra.episodes(), rb.episodes()
+    sa, sb = summarize(ea, ra.manifest, cfg.gamma), summarize(eb, rb.manifest, cfg.gamma)
+    _check_same_protocol(ra, rb, _plan_levels(ra, sa), _plan_levels(rb, sb))
+    la, lb = cfg.labels or (run_label(ra), run_label(rb))
+    if la == lb:
+        la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
+    protocol = check_comparable([(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
+                                cfg.allow_protocol_mismatch, "gated against each other")  # fmt: skip
+    result = compare_summaries(sa, sb, cfg.test, cfg.gamma, episodes=(ea, eb))
+    paired = result["paired"]
+    rows: list[dict] = []
+    for axis, ax in result["axes"].items():
+        usable = usable_levels(sa["axes"][axis]["levels"]) & usable_levels(sb["axes"][axis]["levels"])
+        tasks = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
+        for r in ax["levels"]:
+            rows.append({**_level_row(axis, r, paired, r["level"] in usable, cfg), "tasks": tasks})
+    if not rows:
+        raise RunDirError(
+            f"{ra.path} and {rb.path} share no level to gate; run the same evaluate command twice"
+        )
+    tested = [r for r in rows if r["tested"]]
+    for r, p in zip(tested, holm([r["p"] for r in tested]), strict=True):
+        r["p_holm"] = p
+    project = _project_paired if paired else _project_unpaired
+    for r in rows:
+        r["verdict"] = _decide(r, cfg.alpha)
+        if r["verdict"] == UNDECIDED:
+            src = next(x for x in result["axes"][r["axis"]]["levels"] if x["level"] == r["level"])
+            got = project(src, cfg.margin, cfg.alpha, len(rows))
+            r["more_episodes"], r["projected"] = got if got else (None, None)
+    worse = [r for r in rows if r["verdict"] == WORSE]
+    undecided = [r for r in rows if r["verdict"] == UNDECIDED]
+    code = EXIT_WORSE if worse else EXIT_UNDERPOWERED if undecided else EXIT_PASS
+    out = {
+        "baseline": str(ra.path), "candidate": str(rb.path), "label_baseline": la, "label_candidate": lb,
+        "margin": cfg.margin, "alpha": cfg.alpha, "paired": paired, "test": result["test"],
+        "unpaired_reason": result.get("unpaired_reason"), "holm_over": len(tested), "protocol": protocol,
+        "levels": rows, "exit_code": code,
+        "verdict": {EXIT_PASS: "pass", EXIT_WORSE: "worse", EXIT_UNDERPOWERED: "underpowered"}[code],
+    }  # fmt: skip
+    reads = result.get("reads_observations") or {}
+    out["caveats"] = [blind_caveat(f"{label} ({side})", True)
+                      for key, label, side in (("a", la, "baseline"), ("b", lb, "candidate")) if reads.get(key) is False]  # fmt: skip
+    more = [r["more_episodes"] for r in undecided]
+    out["more_episodes"] = None if not undecided or None in more else max(more)
+    out["lines"] = [
+        *out["caveats"],
+        *(f"protocol: {x}" for x in protocol),
+        *(level_line(r, out) for r in rows),
+        summary_line(out),
+    ]
+    return out
+
+
+def _k(level: int) -> str:
+    return f"L{level:+d}".replace("-", "−") if level else "L0"
+
+
+def basis_text(res: dict) -> str:
+    """Which test decided the levels, paired or not, and the Holm family."""
+    kind = "paired exact McNemar" if res["paired"] else f"unpaired {res['test'].capitalize()}"
+    why = f" ({res['unpaired_reason']})" if res.get("unpaired_reason") else ""
+    return f"{kind}{why}, Holm over {res['holm_over']} level(s) tested"
+
+
+def level_line(r: dict, res: dict) -> str:
+    """One verdict: "pick_y L+1: non-inferior — baseline 20/20 = 100% [84, 100] vs candidate ...; Δ ... (paired)"."""
+    conf = round(100 * (1 - 2 * res["alpha"]))
+    sides = (f"baseline {rate_text(r['successes_baseline'], r['n_baseline'])} vs candidate "
+             f"{rate_text(r['successes_candidate'], r['n_candidate'])} ({r['tasks']})")  # fmt: skip
+    lo, hi = r["delta_ci"]
+    pair = (
+        f"paired n={r['pairs']}, discordant {r['discordant'][0]}/{r['discordant'][1]}"
+        if "pairs" in r
+        else "unpaired"
+    )
+    stats = f"Δ {pp(r['delta'])} pp, {conf}% CI [{pp(lo)}, {pp(hi)}] ({pair}"
+    stats += f", p={r['p']:.2g}, Holm p={r['p_holm']:.2g})" if r["tested"] else ")"
+    head = f"{r['axis']} {_k(r['level'])}: {r['verdict']}"
+    if r["verdict"] == NON_INFERIOR:
+        return f"{head} within {100 * res['margin']:.0f} pp — {sides}; {stats}"
+    if r["verdict"] == WORSE:
+        return f"{head} — {sides}; {stats}"
+    why = "below the data floor in a run" if not r["tested"] else "neither shown"
+    more = (f"about {r['more_episodes']} more episode(s) in each run would show it {r['projected']} at the observed "
+            "rates" if r.get("more_episodes") is not None else
+            f"not decidable within {MAX_MORE} more episodes at the observed rates")  # fmt: skip
+    return f"{head} ({why}; {more}) — {sides}; {stats}"
+
+
+def summary_line(res: dict) -> str:
+    """The gate's last line: its verdict, its exit code and what it rests on."""
+    rows, m = res["levels"], f"{100 * res['margin']:.0f} pp"
+    head = f"gate {res['label_candidate']} (candidate) vs {res['label_baseline']} (baseline), margin {m}"
+    basis = f"{basis_text(res)}; non-inferiority: one-sided α = {res['alpha']:g} per level"
+    if res["exit_code"] == EXIT_PASS:
+        return f"PASS (exit 0): {head}: non-inferior at all {len(rows)} level(s) ({basis})"
+    if res["exit_code"] == EXIT_WORSE:
+        bad = ", ".join(f"{r['axis']} {_k(r['level'])}" for r in rows if r["verdict"] == WORSE)
+        return f"WORSE (exit 1): {head}: significantly worse at {bad} ({basis})"
+    n = sum(r["verdict"] == UNDECIDED for r in rows)
+    more = (f"about {res['more_episodes']} more episodes per level in each run would decide every one at the "
+            "observed rates" if res["more_episodes"] is not None else
+            f"at least one is not decidable within {MAX_MORE} more episodes per level at the observed rates")  # fmt: skip
+    return f"UNDERPOWERED (exit 5): {head}: {n} of {len(rows)} level(s) undecided; {more} ({basis})"

@@ -1,0 +1,138 @@
+"""``--log trackio`` / ``--log wandb``: a run's numbers reach a local tracker, offline, with no connection leaving the
+machine (each run in a subprocess whose sockets refuse any address but loopback and local sockets)."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from indgen_vla.core.runs.video import write_mp4
+from tests.indgen_vla.core.reporting.test_report import make_run
+
+ROOT = Path(__file__).resolve().parents[4]
+GUARD = textwrap.dedent("""
+    import socket, sys
+    tried = []
+    real = socket.socket.connect
+    def connect(self, address):
+        host = address[0] if isinstance(address, tuple) else None
+        if host is not None and host not in ("127.0.0.1", "::1", "localhost"):
+            tried.append(address)
+            raise OSError("network refused by the test")
+        return real(self, address)
+    socket.socket.connect = connect
+    import atexit
+    atexit.register(lambda: print("NETWORK_TRIED", tried))
+""")
+
+
+def run_logged(tmp_path, kind: str, code: str) -> str:
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "TRACKIO_DIR": str(tmp_path / "trackio"), "WANDB_MODE": "offline",
+           "WANDB_DIR": str(tmp_path / "wandb"), "WANDB_SILENT": "true", "HF_HUB_OFFLINE": "1",
+           "GRADIO_ANALYTICS_ENABLED": "False", "WANDB_DISABLE_GIT": "true"}  # fmt: skip
+    r = subprocess.run([sys.executable, "-c", GUARD + code], env=env, capture_output=True, text=True, timeout=240,
+                       cwd=tmp_path)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "NETWORK_TRIED []" in r.stdout, r.stdout[-2000:]
+    return r.stdout
+
+
+def a_run(tmp_path):
+    run = make_run(tmp_path / "run", {0: (9, 10), 1: (1, 10)}, regime="h-only")
+    frames = [np.full((32, 32, 3), i * 20, np.uint8) for i in range(8)]
+    write_mp4(frames, run.path / "videos" / "pick_y_L0" / "ep0_success.mp4")
+    return run.path
+
+
+def test_trackio_writes_a_local_project(tmp_path):
+    pytest.importorskip("trackio")
+    run = a_run(tmp_path)
+    code = f"""
+from indgen_vla.app.engine.trackers import log_runs
+print("LOGGED", log_runs("trackio", [(1000, {str(run)!r})], project="indgen-test", name="series"))
+"""
+    out = run_logged(tmp_path, "trackio", code)
+    assert "LOGGED [1000]" in out
+    db = list((tmp_path / "trackio").glob("*.db"))
+    assert [p.stem for p in db] == ["indgen-test"]
+    import sqlite3
+
+    con = sqlite3.connect(db[0])
+    rows = con.execute("SELECT step, metrics FROM metrics").fetchall()
+    ((step, metrics),) = rows
+    metrics = json.loads(metrics)
+    assert step == 1000 and metrics["pick_y/L0/success"] == 0.9 and metrics["pick_y/L0/n"] == 10
+    assert metrics["pick_y/L1/ci_high"] == pytest.approx(0.4042, abs=1e-3)  # Wilson 1/10
+    assert metrics["pick_y/kstar_pos"] == 1
+    assert (
+        "pick_y/verdict" in metrics and "levels" in metrics and any(k.startswith("video/") for k in metrics)
+    )
+    config = json.loads(con.execute("SELECT config FROM configs").fetchone()[0])
+    assert config["policy"] == "standin:noop"
+
+
+def test_wandb_offline_writes_a_local_run(tmp_path):
+    pytest.importorskip("wandb")
+    run = a_run(tmp_path)
+    code = f"""
+from indgen_vla.app.engine.trackers import log_runs
+print("LOGGED", log_runs("wandb", [(None, {str(run)!r})], project="indgen-test", name="one",
+                         directory={str(tmp_path / "wandb")!r}))
+"""
+    out = run_logged(tmp_path, "wandb", code)
+    assert "LOGGED [0]" in out
+    (log,) = (tmp_path / "wandb").rglob(
+        "offline-run-*/run-*.wandb"
+    )  # the offline run, for `wandb sync` later
+    raw = log.read_bytes()
+    for key in (
+        b"pick_y/L0/success",
+        b"pick_y/L1/ci_high",
+        b"pick_y/kstar_pos",
+        b"pick_y/verdict",
+        b"fingerprint",
+    ):
+        assert key in raw
+    (table,) = log.parent.rglob("levels_*.table.json")
+    t = json.loads(table.read_text())
+    assert t["columns"][:5] == ["axis", "level", "n", "successes", "rate"]
+    assert t["data"][1][:5] == ["pick_y", 1, 10, 1, 0.1] and t["data"][1][6] == pytest.approx(
+        0.4042, abs=1e-3
+    )
+    assert list(log.parent.rglob("*.mp4"))
+
+
+def test_a_missing_tracker_is_one_line(tmp_path, monkeypatch):
+    from indgen_vla.app.engine import trackers
+    from indgen_vla.core.errors import ConfigError
+
+    monkeypatch.setitem(sys.modules, "trackio", None)  # as if not installed
+    with pytest.raises(ConfigError, match=r"--log trackio needs the trackio package; pip install"):
+        trackers.log_runs("trackio", [(None, a_run(tmp_path))])
+
+
+@pytest.mark.slow  # a real evaluate in a subprocess
+def test_evaluate_log_trackio_end_to_end(tmp_path):
+    pytest.importorskip("trackio")
+    out = tmp_path / "run"
+    code = f"""
+from indgen_vla.app.cli import main
+rc = main(["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
+           "--episodes", "5", "--max-steps", "5", "--workers", "1", "--out", {str(out)!r}, "--log", "trackio",
+           "--log-project", "e2e"])
+print("RC", rc)
+"""
+    assert "RC 0" in run_logged(tmp_path, "trackio", code)
+    import sqlite3
+
+    con = sqlite3.connect(tmp_path / "trackio" / "e2e.db")
+    ((metrics,),) = con.execute("SELECT metrics FROM metrics").fetchall()
+    m = json.loads(metrics)
+    assert m["pick_y/L0/n"] == 5 and m["pick_y/L0/success"] == 0.0
+    config = json.loads(con.execute("SELECT config FROM configs").fetchone()[0])
+    assert config["fingerprint"]["scene"] == "pick_place" and len(config["fingerprint_digest"]) == 12
