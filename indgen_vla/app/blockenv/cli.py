@@ -22,7 +22,7 @@ def _levels(text: str) -> list[int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from indgen_vla.app.cli import IndgenParser  # one-line errors, as every indgen command
+    from indgen_vla.app.cli.options import IndgenParser  # one-line errors, as every indgen command
 
     p = IndgenParser(prog="indgen blockenv", description="the paper's toy inductive benchmark")
     sp = p.add_subparsers(dest="cmd", required=True)
@@ -232,8 +232,8 @@ def _ablate(a) -> int:
     return 0
 
 
-def blockenv_main(args: argparse.Namespace) -> int:
-    """CLI handler: parses ``args.rest`` with the blockenv sub-parser."""
-    a = build_parser().parse_args(args.rest)
+def run(argv: list[str]) -> int:
+    """``indgen blockenv ARGV...`` (``indgen_vla.app.cli.blockenv``): parse with the blockenv sub-parsers, run one."""
+    a = build_parser().parse_args(argv)
     handlers = {"sample": _sample, "train": _train, "eval": _eval, "reproduce": _reproduce, "ablate": _ablate}
     return handlers[a.cmd](a)

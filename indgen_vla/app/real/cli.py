@@ -12,7 +12,7 @@ from indgen_vla.core.errors import ConfigError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from indgen_vla.app.cli import IndgenParser  # one-line errors, as every indgen command
+    from indgen_vla.app.cli.options import IndgenParser  # one-line errors, as every indgen command
 
     p = IndgenParser(
         prog="indgen real",
@@ -88,13 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def real_main(args: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
-    """Entry point of ``indgen real`` (its arguments are parsed here: a passthrough subcommand).
+def run(argv: list[str], policy_check: Callable[[str], Trigger] | None = None) -> int:
+    """``indgen real ARGV...`` (``indgen_vla.app.cli.real``; a passthrough subcommand, parsed here).
 
-    ``policy_check`` builds the ``--check-policy`` trigger; the application layer passes it
-    (``indgen_vla.app.real_policy``), since this package never imports the policy registry.
+    ``policy_check`` builds the ``--check-policy`` trigger; the CLI passes ``indgen_vla.app.real_policy.PolicyCheck``,
+    since this package never imports the policy registry.
     """
-    ns = build_parser().parse_args(args.rest)
+    ns = build_parser().parse_args(argv)
     if ns.cmd == "record":
         return _record(ns, policy_check)
     return {"plan": _plan, "status": _status}[ns.cmd](ns)
