@@ -1,4 +1,4 @@
-"""``indgen certify``: its parser; the handler certifies each task (``scenes.certify_run.certify``) with the
+"""``indgen certify``: its parser; the handler certifies each task (``indgen_vla.app.certify.run.certify``) with the
 live display and prints each certificate's table and verdicts."""
 
 from __future__ import annotations
@@ -33,10 +33,10 @@ def main(args: argparse.Namespace) -> int:
     """Write certify.json per task (resuming what is there); exit 1 if a level failed."""
     from pathlib import Path
 
+    from indgen_vla.app.certify.display import CertifyDisplay, print_table
+    from indgen_vla.app.certify.run import certify
     from indgen_vla.core.errors import RunDirError
-    from scenes.certify_io import cert_path, print_table
-    from scenes.certify_progress import CertifyDisplay
-    from scenes.certify_run import certified_levels, certify, infeasible_levels
+    from scenes.certificates import cert_path, certified_levels, infeasible_levels
     from scenes.oracle import oracle_scripts
     from scenes.registry import get_scene
 
@@ -78,7 +78,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _needed(cert: dict) -> int:
-    from scenes.certify_run import episodes_needed
+    from scenes.certificates import episodes_needed
 
     rule = cert.get("rule", {})
     return episodes_needed(cert["threshold"], rule.get("confidence", 0.95))

@@ -1,4 +1,4 @@
-"""``indgen preview``: its parser; the handler renders the contact sheet (``scenes.preview.write_preview``)."""
+"""``indgen preview``: its parser; the handler renders the contact sheet (``indgen_vla.app.preview.write_preview``)."""
 
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ def main(args: argparse.Namespace) -> int:
     """``indgen preview --scene S [--task T] --axis A[,B] [--levels] [--camera] [--size] [--episode] --out F``."""
     from pathlib import Path
 
+    from indgen_vla.app.preview import PreviewRequest, write_preview
     from indgen_vla.core.protocol.progression import expand_axes
-    from scenes.preview import PreviewRequest, write_preview
 
     req = PreviewRequest(
         scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),

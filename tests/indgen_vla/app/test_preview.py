@@ -8,9 +8,9 @@ import pytest
 from PIL import Image
 
 from indgen_vla.app.cli import main
+from indgen_vla.app.preview import PreviewRequest, level_caption, render_level, write_preview
 from indgen_vla.core.errors import ConfigError
 from scenes.planning import resolve_scene_plan
-from scenes.preview import PreviewRequest, level_caption, render_level, write_preview
 
 
 def test_tiles_follow_the_level_and_repeat_exactly(tmp_path):
