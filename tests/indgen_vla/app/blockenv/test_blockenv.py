@@ -82,7 +82,7 @@ def test_level_that_does_not_fit_is_refused():
 
 
 def _run(rest):
-    from indgen_vla.app.blockenv.cli import run
+    from indgen_vla.app.cli.blockenv import run
 
     return run(rest)
 
