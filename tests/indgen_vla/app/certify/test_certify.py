@@ -27,6 +27,7 @@ from scenes.certificates import (
     lower_bound,
     write_json_atomic,
 )
+from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 
 @pytest.mark.parametrize("x,n", [(59, 59), (58, 58), (20, 20), (57, 59), (10, 30), (1, 1), (0, 5), (95, 100)])
@@ -206,7 +207,7 @@ def test_json_is_written_atomically(tmp_path):
     assert json.loads(p.read_text()) == {"x": 2} and [q.name for q in p.parent.iterdir()] == ["certify.json"]
 
 
-def test_libero_certificates_are_cached_per_asset_tree(mini):
+def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
     import hashlib
 
     from scenes.certificates import certification_root
