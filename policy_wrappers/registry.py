@@ -5,7 +5,6 @@ Importing this module is cheap: each family's module (and torch/lerobot) loads o
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -270,19 +269,3 @@ def catalog() -> dict[str, list[dict[str, str]]]:
     families = [{"name": e.name, "description": e.description, "example": EXAMPLES[e.name]} for e in FAMILIES]
     standins = [{"name": f"standin:{e.name}", "description": e.description} for e in STANDINS]
     return {"families": families, "standins": standins}
-
-
-def policies_main(args) -> int:
-    """``indgen policies [--json]``: list spec families and stand-ins."""
-    data = catalog()
-    if getattr(args, "json", False):
-        print(json.dumps(data, indent=2))
-        return 0
-    print("Policy spec families (--policy FAMILY:TARGET[?key=value&...]):")
-    for row in data["families"]:
-        print(f"  {row['name'] + ':':<13} {row['description']}")
-        print(f"  {'':<13} e.g. {row['example']}")
-    print("Stand-ins:")
-    for row in data["standins"]:
-        print(f"  {row['name']:<16} {row['description']}")
-    return 0

@@ -199,30 +199,32 @@ class PolicyServer:
             getattr(self, "_thread", None) and self._thread.join(timeout=5)
 
 
-def serve_main(args) -> int:
-    """``indgen serve --policy SPEC [--host 127.0.0.1] [--port 8000] [--api-key KEY] [--trust-remote-code]``."""
+def serve(
+    policy: str, *, host: str = "127.0.0.1", port: int = 8000, api_key: str | None = None,
+    trust_remote_code: bool = False, on_listening=None,
+) -> None:  # fmt: skip
+    """``indgen serve``: load the policy spec and serve it until Ctrl-C; ``on_listening(spec_name, port)`` hears
+    when the port is bound."""
     from policy_wrappers.registry import load_policy
 
-    if not 0 <= int(args.port) <= 65535:
-        raise ConfigError(f"--port must be in 0..65535, got {args.port}")
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
-    policy = load_policy(args.policy, trust_remote_code=bool(getattr(args, "trust_remote_code", False)))
-    server = PolicyServer(policy, host=args.host, port=int(args.port), api_key=getattr(args, "api_key", None))
-    if args.host not in ("127.0.0.1", "localhost", "::1") and not server.api_key:
+    if not 0 <= int(port) <= 65535:
+        raise ConfigError(f"--port must be in 0..65535, got {port}")
+    loaded = load_policy(policy, trust_remote_code=bool(trust_remote_code))
+    server = PolicyServer(loaded, host=host, port=int(port), api_key=api_key)
+    if host not in ("127.0.0.1", "localhost", "::1") and not server.api_key:
         log.warning(
-            "serving on %s without --api-key: anyone who can reach this port can drive the policy", args.host
+            "serving on %s without --api-key: anyone who can reach this port can drive the policy", host
         )
 
-    def listening(port: int) -> None:
-        print(f"serving {policy.spec.name} on ws://{args.host}:{port} (health: http://{args.host}:{port}/healthz)",
-              flush=True)  # fmt: skip
+    def listening(bound: int) -> None:
+        if on_listening is not None:
+            on_listening(loaded.spec.name, bound)
 
     try:
         asyncio.run(server.run(on_listening=listening))
     except KeyboardInterrupt:
         pass
     except OSError as e:
-        raise ConfigError(f"cannot listen on {args.host}:{args.port}: {e.strerror or e}") from None
+        raise ConfigError(f"cannot listen on {host}:{port}: {e.strerror or e}") from None
     finally:
-        policy.close()
-    return 0
+        loaded.close()

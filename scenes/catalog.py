@@ -5,7 +5,6 @@ Each family is one registered ``Scene`` subclass; ``scenes.layouts`` holds its s
 
 from __future__ import annotations
 
-import json
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError
@@ -200,7 +199,8 @@ def scene_rows() -> list[dict]:
     return [s.row() for s in registered_scenes()]
 
 
-def _axis_rows() -> list[dict]:
+def axis_rows() -> list[dict]:
+    """Every base axis and two examples of compositions: step, unit, levels, field, description, scenes."""
     scenes = scene_rows()
     rows = []
     for name in base_axis_names() + ["pick_y+distractor", "pick_y@distractor=2"]:
@@ -218,47 +218,3 @@ def _axis_rows() -> list[dict]:
             }
         )
     return rows
-
-
-def scenes_main(args) -> int:
-    """``indgen scenes``: every scene with its tasks, axes, episode length and what it needs beyond the venv."""
-    rows = scene_rows()
-    if getattr(args, "json", False):
-        print(json.dumps(rows, indent=2))
-        return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title="scenes")
-    for col in ("scene", "tasks", "axes", "max steps", "description"):
-        table.add_column(col)
-    for r in rows:
-        desc = r["description"] + (f"; needs {r['needs']}" if r["needs"] else "")
-        table.add_row(
-            r["name"], ", ".join(r["tasks"]) or "-", ", ".join(r["axes"]), str(r["max_steps"]), desc
-        )
-    Console().print(table)
-    return 0
-
-
-def axes_main(args) -> int:
-    """``indgen axes``: every axis with its step, level range, description and supporting scenes."""
-    rows = _axis_rows()
-    if getattr(args, "json", False):
-        print(json.dumps(rows, indent=2))
-        return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(
-        title="axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one "
-        "at a level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)"
-    )
-    for col in ("axis", "step", "levels", "scenes", "description"):
-        table.add_column(col)
-    for r in rows:
-        table.add_row(
-            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["scenes"]), r["description"]
-        )
-    Console().print(table)
-    return 0

@@ -138,8 +138,7 @@ def resolve_scene_plan(
         step: ``--step``, overriding a single axis's step.
         preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
     """
-    from scenes.certify_io import find_certification
-    from scenes.certify_run import certified_levels, infeasible_levels, level_status
+    from scenes.certificates import certified_levels, find_certification, infeasible_levels, level_status
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them

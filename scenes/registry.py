@@ -44,7 +44,8 @@ class Scene:
         success_predicate: the one frozen predicate that judges every level of every axis.
         committed_certificates: True when its oracle certificates ship with the package (``certification_dir``);
             False when they are made per machine (e.g. per LIBERO asset tree).
-        certified_compositions: compositions certified beside the single axes by ``certify_all``.
+        certified_compositions: compositions certified beside the single axes by ``certify_all``
+            (``indgen_vla.app.certify.suite``).
         env_spec: the family's observation/action contract (``indgen_vla.core.protocol.interface.EnvSpec``; tabletop: 8-d state,
             7-d action, cameras agentview/wrist).
         runtime: None when the simulator runs in our venv; else a ``scenes.runtime.ExternalRuntime`` naming the

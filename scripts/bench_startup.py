@@ -85,7 +85,7 @@ def wrap(name, fn):
 t = time.perf_counter()
 import indgen_vla.app.cli as cli
 import indgen_vla.app.engine  # what cli._resolve imports first
-import indgen_vla.app.engine.cli
+import indgen_vla.app.cli.evaluate
 parts["cli_import"] = time.perf_counter() - t
 for name, module, attr in json.loads(os.environ["BENCH_PARTS"]):
     try:

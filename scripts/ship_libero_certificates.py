@@ -17,8 +17,8 @@ from pathlib import Path
 
 
 def main(argv=None) -> int:
+    from indgen_vla.app.certify.suite import write_summary
     from indgen_vla.core.resources import certification_dir
-    from scenes.certify_io import write_summary
     from scenes.libero.setup import COMPLETE_TREE, FILES
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -34,8 +34,7 @@ def feasibility(results: dict, axes: list[str]) -> str:
     import json
     from pathlib import Path
 
-    from scenes.certify import certified_levels
-    from scenes.certify_io import find_certification
+    from scenes.certificates import certified_levels, find_certification
 
     parts = []
     for axis in axes:

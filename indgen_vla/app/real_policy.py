@@ -1,5 +1,6 @@
-"""``indgen real`` entry point: joins the real-robot protocol manager (``indgen_vla.app.real``, which imports no policy
-code) to the policy registry, for ``indgen real record RUN --check-policy SPEC``.
+"""The ``--check-policy`` trigger of ``indgen real record``: joins the real-robot protocol manager
+(``indgen_vla.app.real``, which imports no policy code) to the policy registry, for
+``indgen real record RUN --check-policy SPEC`` (``indgen_vla.app.cli.real`` hands it over).
 
 The policy itself runs in the user's stack (their robot loop is the server's client); what our client does is
 check that the server answers (the family's handshake: openpi's metadata frame, GR00T's ``ping``, a TCP connect
@@ -10,7 +11,6 @@ episode state). A server that does not answer stops the episode from starting, w
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable
 
@@ -50,10 +50,3 @@ class PolicyCheck:
 
     def close(self) -> None:
         self.policy.close()
-
-
-def real_main(args: argparse.Namespace) -> int:
-    """``indgen real ...`` with the policy registry available to ``record --check-policy``."""
-    from indgen_vla.app.real.cli import real_main as protocol_main
-
-    return protocol_main(args, policy_check=PolicyCheck)

@@ -13,7 +13,7 @@ import pytest
 import indgen_vla.app.engine  # noqa: F401  (the application registers standin:oracle)
 from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
 from indgen_vla.core.protocol.interface import Policy, validate_chunk
-from policy_wrappers.registry import load_policy, parse_spec, policies_main
+from policy_wrappers.registry import load_policy, parse_spec
 
 
 def test_parse_spec_splits_family_target_options():
@@ -82,12 +82,14 @@ def test_oracle_is_lazy(monkeypatch):
 
 
 def test_policies_main_json(capsys):
-    assert policies_main(SimpleNamespace(json=True)) == 0
+    from indgen_vla.app.cli.catalog import main
+
+    assert main(SimpleNamespace(command="policies", json=True)) == 0
     data = json.loads(capsys.readouterr().out)
     families = {"lerobot", "openpi", "openvla-oft", "groot", "univla", "rynnvla", "standin"}
     assert {f["name"] for f in data["families"]} == families
     assert {"standin:oracle", "standin:random", "standin:noop"} <= {s["name"] for s in data["standins"]}
-    assert policies_main(SimpleNamespace(json=False)) == 0
+    assert main(SimpleNamespace(command="policies", json=False)) == 0
     assert "openpi:" in capsys.readouterr().out
 
 

@@ -13,7 +13,7 @@ from indgen_vla.core.protocol.interface import Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180, resize_with_pad
 from policy_wrappers.registry import load_policy
-from policy_wrappers.serve import PolicyServer, serve_main
+from policy_wrappers.serve import PolicyServer, serve
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -109,22 +109,28 @@ def test_serving_a_lerobot_checkpoint(tiny_act, obs_factory):
         server.stop()
 
 
-def test_serve_main_rejects_bad_port_and_spec():
+def test_serve_rejects_bad_port_and_spec():
     with pytest.raises(ConfigError, match="--port"):
-        serve_main(SimpleNamespace(policy="standin:noop", host="127.0.0.1", port=70000, api_key=None))
+        serve("standin:noop", host="127.0.0.1", port=70000)
     with pytest.raises(ConfigError, match="did you mean"):
-        serve_main(SimpleNamespace(policy="standin:nop", host="127.0.0.1", port=0, api_key=None))
+        serve("standin:nop", host="127.0.0.1", port=0)
 
 
 def test_a_busy_port_is_one_error_and_never_announced_as_serving(capsys):
     import socket
+
+    from indgen_vla.app.cli.serve import main as serve_main
 
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
         with pytest.raises(ConfigError, match=f"cannot listen on 127.0.0.1:{port}"):
-            serve_main(SimpleNamespace(policy="standin:noop", host="127.0.0.1", port=port, api_key=None))
+            serve_main(
+                SimpleNamespace(
+                    policy="standin:noop", host="127.0.0.1", port=port, api_key=None, trust_remote_code=False
+                )
+            )
     assert "serving" not in capsys.readouterr().out
 
 

@@ -205,7 +205,7 @@ def test_episode_index_fixes_the_initial_state(mini):
 
 
 def test_oracle_certifies_extreme_levels(mini):
-    from scenes.certify import certify
+    from indgen_vla.app.certify.run import certify
 
     cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=1)
     assert [r["successes"] == r["n"] for r in cert["levels"]] == [True, True, True], cert  # no failure
@@ -245,7 +245,7 @@ def _real_tree() -> bool:
 )
 def test_real_assets_level0_and_oracle():
     """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""
-    from scenes.certify import certify
+    from indgen_vla.app.certify.run import certify
 
     env = _env(cameras=("agentview", "wrist"), image_size=(128, 128))
     try:

@@ -39,8 +39,8 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
     """cream_cheese ``pick_y`` -2, episode 1: the box lies 5 mm from the tomato-sauce can, and the open hand came
     down on the can's top and closed above the box (no_contact) before the grasp point moved off centre."""
     import scenes
+    from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.certify_run import run_oracle_episode
     from scenes.oracle import oracle_for
 
     env = scenes.make_env(SCENE, task="cream_cheese", axis="pick_y", level=-2, cameras=("agentview",),
@@ -61,15 +61,14 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
 def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
     """On the complete tree ``evaluate``'s lookup finds the shipped certificate; on another tree (the miniature)
     it finds none and says so once."""
-    from scenes.certify_io import find_certification
-    from scenes.certify_run import certified_levels
+    from scenes.certificates import certified_levels, find_certification
 
     os.environ["INDGEN_LIBERO_ASSETS"] = str(real)
     try:
         cert = find_certification(SCENE, "alphabet_soup", "goal_y")
         assert cert is not None and certified_levels(cert) == [-3, -2, -1, 0, 1, 2, 3]
         os.environ["INDGEN_LIBERO_ASSETS"] = str(mini)
-        from scenes import certify_shipped
+        from scenes import certificates as certify_shipped
 
         certify_shipped._SAID.discard(SCENE)
         assert find_certification(SCENE, "alphabet_soup", "goal_y") is None
@@ -83,7 +82,7 @@ def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
 @pytest.mark.parametrize("axis", ["pick_y", "goal_y", "scale"])
 def test_every_level_of_one_task(real, axis, tmp_path):
     """The sweep's shape on one task: every level of an axis, two episodes each."""
-    from scenes.certify import certify
+    from indgen_vla.app.certify.run import certify
 
     cert = certify(SCENE, axis, task="ketchup", episodes=2, out=tmp_path / "c.json")
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
@@ -91,8 +90,8 @@ def test_every_level_of_one_task(real, axis, tmp_path):
 
 def test_partial_levels_resume_with_the_same_episodes(tmp_path):
     """A level a killed run left half done resumes from its finished episodes (same seeds, same outcomes)."""
-    from scenes.certify_partial import EpisodeLog
-    from scenes.certify_run import Rule, certify_level
+    from indgen_vla.app.certify.partial import EpisodeLog
+    from indgen_vla.app.certify.run import Rule, certify_level
 
     part = tmp_path / "certify.partial.L0.jsonl"
     args = ("stack", "orange_on_blue", "stack", 0, None, None, 0, None)

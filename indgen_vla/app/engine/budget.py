@@ -7,8 +7,6 @@ success curve; the whole command's wall time and GPU-hours per worker count from
 from __future__ import annotations
 
 import argparse
-import json
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,45 +18,6 @@ DEFAULT_DROP = 0.2
 DEFAULT_STARTUP_S = (
     10.0  # --steps-per-s without a smoke: start-up, report and exit assumed (docs/benchmarks.md)
 )
-
-
-def add_parser(subparsers, protocol_options: Callable[[argparse.ArgumentParser], None] | None = None):
-    """``indgen budget``'s parser: evaluate's protocol options (``protocol_options``, the function that defines
-    them for evaluate) and the budget's own, which replace evaluate's --workers (a list here)."""
-    p = subparsers.add_parser(
-        "budget", conflict_handler="resolve",
-        help="before a run: episodes, adaptive cost, wall time and GPU-hours from a smoke run; --write a plan.lock",
-        description="Size the protocol an 'indgen evaluate' command would run (same flags or --config), without "
-        "building a scene: episodes per level, power against T0, the adaptive rule's expected episodes, the whole "
-        "command's wall time per worker count, and a pre-registered plan.lock.",
-    )  # fmt: skip
-    if protocol_options is not None:
-        protocol_options(p)
-    p.add_argument("--workers", default=None, metavar="W[,W...]",
-                   help="worker counts to project, e.g. 8,16 (default: the number of cores)")  # fmt: skip
-    p.add_argument("--timing", default=None, metavar="RUN",
-                   help="a smoke run's directory made on the target box: its manifest's timing and its episodes")  # fmt: skip
-    p.add_argument("--steps-per-s", type=float, default=None,
-                   help="without a smoke run: control steps per second of one worker, policy included")  # fmt: skip
-    p.add_argument("--startup-s", type=float, default=None,
-                   help=f"with --steps-per-s: start-up, report and exit seconds (default {DEFAULT_STARTUP_S:g})")  # fmt: skip
-    p.add_argument("--assume", default=None, metavar="S0,S1,...",
-                   help="assumed success rate per |level| 0, 1, 2, ... (every axis and task), e.g. 0.95,0.9,0.5,0.1")  # fmt: skip
-    p.add_argument("--pilot", default=None, metavar="RUN",
-                   help="a pilot run of the protocol: its per-level counts, with their uncertainty, as the curve")  # fmt: skip
-    p.add_argument("--drop", type=float, default=DEFAULT_DROP,
-                   help=f"the drop from T0 the paired test should see (default {DEFAULT_DROP:g})")  # fmt: skip
-    p.add_argument("--ci", choices=["wilson", "clopper-pearson"], default="wilson",
-                   help="the per-level interval report will use (default wilson)")  # fmt: skip
-    p.add_argument("--replicates", type=int, default=120,
-                   help="simulated tasks per curve draw for the adaptive rule (default 120)")  # fmt: skip
-    p.add_argument("--gpus", type=int, default=None,
-                   help="GPUs the run holds, for GPU-hours (default 1 with --device cuda, else 0)")  # fmt: skip
-    p.add_argument(
-        "--write", default=None, metavar="LOCK", help="write the pre-registered design to this file"
-    )
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    return p
 
 
 @dataclass(frozen=True)
@@ -341,17 +300,3 @@ def render(out: dict) -> list[str]:
         lines.append(f"wrote {out['lock']['path']} (hash {out['lock']['hash'][:12]}): run it with "
                      f"indgen evaluate ... --preregistered {out['lock']['path']}")  # fmt: skip
     return lines
-
-
-def main(args: argparse.Namespace) -> int:
-    """CLI handler of ``indgen budget``: prints the budget (``--json``: the dict) and exits 0; bad input exits 2.
-    Called with the passthrough arguments (``args.rest``) it parses them with evaluate's protocol options."""
-    if hasattr(args, "rest"):
-        from indgen_vla.app.cli import IndgenParser, add_evaluate_options
-
-        root = IndgenParser(prog="indgen")
-        parser = add_parser(root.add_subparsers(parser_class=IndgenParser), add_evaluate_options)
-        args = parser.parse_args(args.rest)
-    out = plan_budget(request_from_args(args))
-    print(json.dumps(out, indent=2, default=str) if args.json else "\n".join(render(out)))
-    return 0

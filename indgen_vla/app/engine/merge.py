@@ -9,7 +9,6 @@ is written whole under a temporary name and renamed into place (the shards are o
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import glob
 import json
@@ -22,7 +21,7 @@ from typing import Any
 
 from indgen_vla.app.engine.config import FLAG_FIELDS, EvalConfig
 from indgen_vla.core.errors import IndgenError, RunDirError
-from indgen_vla.core.runs.records import EPISODES, MANIFEST, REPORT, EpisodeRecord, RunDir, atomic_write_json
+from indgen_vla.core.runs.records import MANIFEST, EpisodeRecord, RunDir, atomic_write_json
 from indgen_vla.core.runs.shards import (
     Shard,
     check_protocol,
@@ -244,16 +243,3 @@ def _lines(
         return [*lines, f"{what}; to run them: {merged['resume']}"]
     return [*lines, f"{what}, and no single evaluate command resumes this merge ({merged['resume_note']}): finish the "
                     "shards and merge them again"]  # fmt: skip
-
-
-def merge_main(args: argparse.Namespace) -> int:
-    """CLI: ``indgen merge RUN... --out DIR``."""
-    from indgen_vla.core.reporting.report import print_tables, run_label
-
-    command = " ".join(["indgen", "merge", *map(shlex.quote, args.runs), "--out", shlex.quote(args.out)])
-    run, summary, lines = merge(args.runs, args.out, command)
-    print_tables([(run_label(run), summary)])
-    for line in lines:
-        print(line)
-    print(f"report: {run.path / REPORT}\nplots:  {run.path / 'plots'}/\nepisodes: {run.path / EPISODES}")
-    return 0

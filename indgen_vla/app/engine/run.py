@@ -1,5 +1,5 @@
 """The run logic of ``indgen evaluate`` as a library: resolve the plan, check feasibility, write the manifest,
-run every remaining episode resumably, then write the report. The CLI (``engine/cli.py``) only parses and prints."""
+run every remaining episode resumably, then write the report. The CLI (``indgen_vla/app/cli/evaluate.py``) only parses and prints."""
 
 from __future__ import annotations
 

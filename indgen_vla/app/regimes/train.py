@@ -9,7 +9,6 @@ loads exactly like a Hub checkpoint. Until the run completes it also holds ``res
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import shutil
@@ -21,15 +20,12 @@ from typing import Any
 
 from indgen_vla.app.regimes.demos import ENV_STATE, read_episode_sidecar
 from indgen_vla.app.regimes.resume import RESUME_DIR, RUN_FILE, check_same_run, out_state, start_run
-from indgen_vla.app.regimes.train_eval import add_eval_options, eval_hook
 from indgen_vla.app.regimes.train_state import CLI_FLAGS, LossLog, run_identity
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import OBJECT_DIM
 from indgen_vla.core.protocol.training_support import (
-    cells_from_json,
     cells_from_records,
     cells_to_json,
-    support_text,
 )
 from indgen_vla.core.runs.records import atomic_write_json
 
@@ -414,56 +410,3 @@ def _fit(
         if after_step is not None:
             after_step(step, model)
     return log, before + time.perf_counter() - t0
-
-
-def train_main(args: argparse.Namespace) -> int:
-    """CLI handler for ``indgen train`` (its own parser over the passthrough arguments)."""
-    from indgen_vla.app.cli import IndgenParser
-
-    p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
-    p.add_argument(
-        "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
-    )
-    p.add_argument("--out", required=True,
-                   help="checkpoint directory: new, or an unfinished one to resume with the same arguments")  # fmt: skip
-    p.add_argument("--policy", default="act", choices=POLICIES, help="lerobot policy type to train")
-    p.add_argument("--steps", type=int, default=TrainConfig.steps, help="optimiser updates")
-    p.add_argument("--batch-size", type=int, default=TrainConfig.batch_size, help="frames per update")
-    p.add_argument("--lr", type=float, default=TrainConfig.lr, help="learning rate")
-    p.add_argument("--seed", type=int, default=0, help="training seed (init and batch order)")
-    p.add_argument("--cameras", default="", help="comma-separated cameras to read; empty = state-only")
-    p.add_argument(
-        "--objects", action="store_true", help="also read the recorded object poses (low-dim; no cameras)"
-    )
-    p.add_argument(
-        "--chunk-size", type=int, default=TrainConfig.chunk_size, help="actions predicted per chunk"
-    )
-    p.add_argument(
-        "--n-action-steps", type=int, default=TrainConfig.n_action_steps, help="actions executed per chunk"
-    )
-    p.add_argument(
-        "--data-regime", default="", help="label stored with the checkpoint (e.g. human, human+mimicgen)"
-    )
-    p.add_argument("--repo-id", default=DEFAULT_REPO_ID, help="repo id stored in the checkpoint config")
-    p.add_argument("--save-every", type=int, default=None,
-                   help="steps between resumable states in OUT/resume (default: every 10%% of --steps)")  # fmt: skip
-    add_eval_options(p)
-    a = p.parse_args(getattr(args, "rest", args))
-    cameras = tuple(c for c in a.cameras.split(",") if c)
-    cfg = TrainConfig(policy=a.policy, steps=a.steps, batch_size=a.batch_size, lr=a.lr, seed=a.seed,
-                      cameras=cameras, objects=a.objects, chunk_size=a.chunk_size, n_action_steps=a.n_action_steps,
-                      save_every=a.save_every)  # fmt: skip
-    done = (Path(a.out) / INFO_FILE).is_file()
-    hook = eval_hook(a, Path(a.out))
-    out = train_policy(a.datasets, a.out, cfg, repo_id=a.repo_id, data_regime=a.data_regime, say=print,
-                       progress=lambda s, loss: print(f"  step {s}/{cfg.steps} loss {loss:.4f}", flush=True),
-                       after_step=hook)  # fmt: skip
-    if done:
-        return 0
-    info = json.loads((out / INFO_FILE).read_text())
-    print(f"trained {a.policy} for {cfg.steps} steps in {info['train_s']:.0f} s; checkpoint in {out}")
-    if info["levels"]:
-        print(
-            f"training levels (train_info.json, read by evaluate): {support_text(cells_from_json(info['levels']))}"
-        )
-    return 0

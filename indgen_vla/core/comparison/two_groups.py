@@ -11,6 +11,7 @@ test (TOST, ``--margin``) says whether "no difference" may be claimed.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 from indgen_vla.core.errors import RunDirError
@@ -230,18 +231,28 @@ def render_markdown(result: dict, label_a: str, label_b: str) -> str:
     return "\n".join(lines)
 
 
-def groups_main(args) -> int:
-    """``indgen compare --a RUN... --b RUN...``: compare.json, compare.md and overlay plots of the group means."""
-    from pathlib import Path
+def groups_dir(first_a: str | Path, out: str | Path | None = None) -> Path:
+    """Where ``compare --a RUN... --b RUN...`` writes: ``out``, else FIRST_A/compare_groups."""
+    return Path(out) if out else Path(first_a) / "compare_groups"
 
+
+def compare_run_groups(
+    runs_a: list[str | Path], runs_b: list[str | Path], *, gamma: float = 0.2, alpha: float = 0.05,
+    margin: float = 0.10, out: str | Path | None = None, label_a: str | None = None, label_b: str | None = None,
+    allow_protocol_mismatch: bool = False,
+) -> dict[str, Any]:  # fmt: skip
+    """``indgen compare --a RUN... --b RUN...``: the two groups' stratified tests and seed-level endpoints, written
+    to ``groups_dir`` as compare.json and compare.md; returns the result."""
+    from indgen_vla.core.comparison.two_runs import check_levels
     from indgen_vla.core.errors import ConfigError
     from indgen_vla.core.runs.records import RunDir, write_result
 
-    if not args.a or not args.b:
+    check_levels(gamma, alpha)
+    if not runs_a or not runs_b:
         raise ConfigError("give both groups: --a RUN... --b RUN... (one run per training seed each)")
-    if not 0 < args.margin < 1:
-        raise ConfigError(f"--margin must be in (0, 1), got {args.margin}")
-    runs_a, runs_b = [RunDir.open(p) for p in args.a], [RunDir.open(p) for p in args.b]
+    if not 0 < margin < 1:
+        raise ConfigError(f"--margin must be in (0, 1), got {margin}")
+    runs_a, runs_b = [RunDir.open(p) for p in runs_a], [RunDir.open(p) for p in runs_b]
     seen: dict = {}  # a run listed twice would count its episodes twice: evidence that is not there
     for r in runs_a + runs_b:
         keys = [k for k in (r.path.resolve(), r.manifest.get("run_id")) if k is not None]
@@ -253,10 +264,10 @@ def groups_main(args) -> int:
             )
         seen.update(dict.fromkeys(keys, r.path))
     protocol = check_comparable([(str(r.path), r.manifest.get("fingerprint")) for r in runs_a + runs_b],
-                                getattr(args, "allow_protocol_mismatch", False), "pooled or paired")  # fmt: skip
-    result = compare_groups([r.episodes() for r in runs_a], [r.episodes() for r in runs_b], args.gamma,
-                            args.margin, args.alpha)  # fmt: skip
-    la, lb = args.label_a or "A", args.label_b or "B"
+                                allow_protocol_mismatch, "pooled or paired")  # fmt: skip
+    result = compare_groups([r.episodes() for r in runs_a], [r.episodes() for r in runs_b], gamma,
+                            margin, alpha)  # fmt: skip
+    la, lb = label_a or "A", label_b or "B"
     result.update(
         label_a=la, label_b=lb, runs_a=[str(r.path) for r in runs_a], runs_b=[str(r.path) for r in runs_b]
     )
@@ -265,12 +276,8 @@ def groups_main(args) -> int:
         side: declared_reads(r.manifest.get("reads_observations") for r in runs)
         for side, runs in (("a", runs_a), ("b", runs_b))
     }
-    result["caveats"] = compare_caveats(result, args.alpha)  # again, now that the sides' policies are known
+    result["caveats"] = compare_caveats(result, alpha)  # again, now that the sides' policies are known
     result["verdicts"] = axis_verdicts(result, la, lb)
     result["verdict"] = " ".join(result["verdicts"].values())
-    out = Path(args.out) if args.out else runs_a[0].path / "compare_groups"
-    text = render_markdown(result, la, lb)
-    write_result(out, "compare", result, text)
-    print(text)
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}")
-    return 0
+    write_result(groups_dir(runs_a[0].path, out), "compare", result, render_markdown(result, la, lb))
+    return result

@@ -5,15 +5,12 @@ runs, paired on the plan's common seeds (``compare_axes``); ``--a/--b`` two grou
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.core.comparison.two_groups import groups_main
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
-from indgen_vla.core.protocol.plan_lock import run_status
 from indgen_vla.core.reporting.caveats import compare_caveats, rate_text
 from indgen_vla.core.reporting.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.core.reporting.figures import plot_axis
@@ -294,23 +291,42 @@ def _fmt_delta(r: dict) -> str:
     return f"{pp(r['delta'])} [{pp(lo)}, {pp(hi)}]"
 
 
-def axes_main(args: argparse.Namespace) -> int:
-    """``indgen compare RUN [RUN_B] --axes A:B``: compare.json, compare.md and overlay plots of the two axes."""
+def check_levels(gamma: float, alpha: float) -> None:
+    """γ in (0, 1] and α in (0, 1), or one line naming the flag."""
+    if not 0 < alpha < 1:
+        raise ConfigError(f"--alpha must be in (0, 1), got {alpha}")
+    if not 0 < gamma <= 1:
+        raise ConfigError(f"--gamma must be in (0, 1], got {gamma}")
+
+
+def axes_dir(run_a: str | Path, axes: str, out: str | Path | None = None) -> Path:
+    """Where ``compare --axes A:B`` writes: ``out``, else RUN_A/compare_A_vs_B."""
+    from indgen_vla.core.comparison.two_axes import parse_axes
+
+    axis_a, axis_b = parse_axes(axes)
+    return Path(out) if out else Path(run_a) / f"compare_{_safe(axis_a)}_vs_{_safe(axis_b)}"
+
+
+def compare_run_axes(
+    run_a: str | Path, run_b: str | Path | None = None, *, axes: str, gamma: float = 0.2, alpha: float = 0.05,
+    test: str = "auto", margin: float = 0.10, out: str | Path | None = None, label_a: str | None = None,
+    label_b: str | None = None, allow_protocol_mismatch: bool = False,
+) -> dict[str, Any]:  # fmt: skip
+    """``indgen compare RUN [RUN_B] --axes A:B``: axis A of ``run_a`` against axis B of ``run_b`` (default: the same
+    run), paired episode by episode; writes compare.json, compare.md and overlay plots to ``axes_dir``; returns the
+    result."""
     from indgen_vla.core.comparison.two_axes import as_one_axis, check_plans, compare_axes, parse_axes
     from indgen_vla.core.stats.contrasts import check_margin
 
-    if getattr(args, "a", None) or getattr(args, "b", None):
-        raise ConfigError(
-            "--axes compares axes of one run (RUN) or of two runs (RUN_A RUN_B), not groups (--a/--b)"
-        )
-    if args.test in ("boschloo", "barnard"):
-        raise ConfigError(f"--axes compares paired episodes (exact McNemar); drop --test {args.test}")
-    check_margin(args.margin)
-    axis_a, axis_b = parse_axes(args.axes)
-    if not args.run_a:
+    check_levels(gamma, alpha)
+    if test in ("boschloo", "barnard"):
+        raise ConfigError(f"--axes compares paired episodes (exact McNemar); drop --test {test}")
+    check_margin(margin)
+    axis_a, axis_b = parse_axes(axes)
+    if not run_a:
         raise ConfigError("--axes needs a run directory: indgen compare RUN --axes A_AXIS:B_AXIS")
-    ra = RunDir.open(args.run_a)
-    rb = RunDir.open(args.run_b) if args.run_b else ra
+    ra = RunDir.open(run_a)
+    rb = RunDir.open(run_b) if run_b else ra
     within = rb.path.resolve() == ra.path.resolve()
     if within and axis_a == axis_b:
         raise ConfigError(
@@ -319,84 +335,78 @@ def axes_main(args: argparse.Namespace) -> int:
     ea = ra.episodes()
     eb = ea if within else rb.episodes()
     check_plans(ra, rb, ea, eb, axis_a, axis_b)
-    la = args.label_a or (axis_a if within else f"{run_label(ra)}: {axis_a}")
-    lb = args.label_b or (axis_b if within else f"{run_label(rb)}: {axis_b}")
+    la = label_a or (axis_a if within else f"{run_label(ra)}: {axis_a}")
+    lb = label_b or (axis_b if within else f"{run_label(rb)}: {axis_b}")
     if la == lb:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
     protocol = [] if within else check_comparable(
         [(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
-        getattr(args, "allow_protocol_mismatch", False), "paired or compared")  # fmt: skip
-    sa = summarize(ea, ra.manifest, args.gamma)
-    sb = sa if within else summarize(eb, rb.manifest, args.gamma)
-    result = compare_axes(ea, eb, sa, sb, axis_a, axis_b, args.margin, args.alpha)
+        allow_protocol_mismatch, "paired or compared")  # fmt: skip
+    sa = summarize(ea, ra.manifest, gamma)
+    sb = sa if within else summarize(eb, rb.manifest, gamma)
+    result = compare_axes(ea, eb, sa, sb, axis_a, axis_b, margin, alpha)
     result["contrast"].update(run_a=str(ra.path), run_b=str(rb.path), within_run=within)
     result.update(label_a=la, label_b=lb, protocol=protocol, reads_observations=reads_observations(sa, sb))
     key, ax = next(iter(result["axes"].items()))
     usable = (usable_levels(sa["axes"][axis_a]["levels"]), usable_levels(sb["axes"][axis_b]["levels"]))
     ax["break_point_diff"] = break_point_diff(as_one_axis(ea, axis_a, key), as_one_axis(eb, axis_b, key), key,
-                                              args.gamma, usable)  # fmt: skip
+                                              gamma, usable)  # fmt: skip
     for d in ax["break_point_diff"].values():  # the axes' parameters are different quantities: levels only
         d["param"], d["ci"]["param"] = None, [None, None]
-    result["verdict"] = f"{verdict(result, la, lb, args.alpha)} {ax['equivalence']}"
-    out = Path(args.out) if args.out else ra.path / f"compare_{_safe(axis_a)}_vs_{_safe(axis_b)}"
-    _write(out, result, [(key, _safe(key), [(la, sa["axes"][axis_a]), (lb, sb["axes"][axis_b])])], args.gamma)
-    return 0
+    result["verdict"] = f"{verdict(result, la, lb, alpha)} {ax['equivalence']}"
+    dest = axes_dir(ra.path, axes, out)
+    _write(dest, result, [(key, _safe(key), [(la, sa["axes"][axis_a]), (lb, sb["axes"][axis_b])])], gamma)
+    return result
 
 
 def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: float) -> None:
-    """compare.json, compare.md and per compared axis (title, file stem, curves) its overlay plots; compare.md to
-    stdout."""
+    """compare.json, compare.md and per compared axis (title, file stem, curves) its overlay plots."""
     result["caveats"] = compare_caveats(result)  # human-readable: what the comparison cannot answer
-    text = render_markdown(result, result["label_a"], result["label_b"], result["verdict"])
-    write_result(out, "compare", result, text)
+    write_result(out, "compare", result, markdown(result))
     for axis, stem, curves in plots:
         plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png", "wilson", pairing_note(result))
         plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
-    print(text)
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
 
 
-def compare_main(args: argparse.Namespace) -> int:
-    """CLI handler for ``indgen compare``."""
-    if not 0 < args.alpha < 1:
-        raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}")
-    if not 0 < args.gamma <= 1:
-        raise ConfigError(f"--gamma must be in (0, 1], got {args.gamma}")
-    if getattr(args, "axes", None):
-        return axes_main(args)
-    if getattr(args, "a", None) or getattr(args, "b", None):
-        if args.run_a or args.run_b:
-            raise ConfigError("give either RUN_A RUN_B or --a RUN... --b RUN..., not both")
-        return groups_main(args)
-    if not (args.run_a and args.run_b):
-        raise ConfigError(
-            "compare needs two run directories (RUN_A RUN_B) or two groups (--a RUN... --b RUN...)"
-        )
-    ra, rb = RunDir.open(args.run_a), RunDir.open(args.run_b)
+def markdown(result: dict) -> str:
+    """compare.md of a two-run or two-axis comparison that ``compare_runs``/``compare_run_axes`` returned."""
+    return render_markdown(result, result["label_a"], result["label_b"], result["verdict"])
+
+
+def compare_dir(run_a: str | Path, out: str | Path | None = None) -> Path:
+    """Where ``compare RUN_A RUN_B`` writes: ``out``, else RUN_A/compare."""
+    return Path(out) if out else Path(run_a) / "compare"
+
+
+def compare_runs(
+    run_a: str | Path, run_b: str | Path, *, gamma: float = 0.2, alpha: float = 0.05, test: str = "auto",
+    out: str | Path | None = None, label_a: str | None = None, label_b: str | None = None,
+    allow_protocol_mismatch: bool = False,
+) -> dict[str, Any]:  # fmt: skip
+    """``indgen compare RUN_A RUN_B``: per-level exact tests of every shared axis, written to ``compare_dir`` as
+    compare.json, compare.md and overlay plots; returns the result."""
+    check_levels(gamma, alpha)
+    ra, rb = RunDir.open(run_a), RunDir.open(run_b)
     ea, eb = ra.episodes(), rb.episodes()  # built once: each call makes a new DataFrame of every row
-    sa = summarize(ea, ra.manifest, args.gamma)
-    sb = summarize(eb, rb.manifest, args.gamma)
+    sa = summarize(ea, ra.manifest, gamma)
+    sb = summarize(eb, rb.manifest, gamma)
     if not set(sa["axes"]) & set(sb["axes"]):
         raise RunDirError(f"{ra.path} and {rb.path} share no axis; compare runs evaluated on the same axis, or "
                           "contrast two axes with --axes A_AXIS:B_AXIS")  # fmt: skip
-    la, lb = getattr(args, "label_a", None) or run_label(ra), getattr(args, "label_b", None) or run_label(rb)
+    la, lb = label_a or run_label(ra), label_b or run_label(rb)
     if la == lb:
         la, lb = f"{la} ({ra.path.name})", f"{lb} ({rb.path.name})"
     protocol = check_comparable([(la, ra.manifest.get("fingerprint")), (lb, rb.manifest.get("fingerprint"))],
-                                getattr(args, "allow_protocol_mismatch", False), "paired or compared")  # fmt: skip
-    result = compare_summaries(sa, sb, args.test, args.gamma, episodes=(ea, eb))
+                                allow_protocol_mismatch, "paired or compared")  # fmt: skip
+    result = compare_summaries(sa, sb, test, gamma, episodes=(ea, eb))
     result["label_a"], result["label_b"] = la, lb
     result["protocol"] = protocol
     for axis, ax in result["axes"].items():
         usable = (usable_levels(sa["axes"][axis]["levels"]), usable_levels(sb["axes"][axis]["levels"]))
         ax["tasks"] = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
-        ax["break_point_diff"] = break_point_diff(ea, eb, axis, args.gamma, usable)
-    result["verdict"] = verdict(result, la, lb, args.alpha)
-    for run, e in ((ra, ea), (rb, eb)):  # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
-        if line := run_status(run.manifest, len(e), gamma=args.gamma, alpha=args.alpha):
-            print(f"{run.path}: {line}")
-    out = Path(args.out) if args.out else ra.path / "compare"
+        ax["break_point_diff"] = break_point_diff(ea, eb, axis, gamma, usable)
+    result["verdict"] = verdict(result, la, lb, alpha)
     plots = [(axis, axis, [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]) for axis in result["axes"]]
-    _write(out, result, plots, args.gamma)
-    return 0
+    _write(compare_dir(ra.path, out), result, plots, gamma)
+    return result

@@ -8,7 +8,6 @@ away from T0) is then tested on the odd-numbered episodes, which played no part 
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 from typing import Any
 
@@ -167,18 +166,21 @@ def render_markdown(res: dict) -> str:
     return "\n".join(lines)
 
 
-def reference_main(args: argparse.Namespace) -> int:
-    """CLI handler for ``indgen reference``."""
-    runs = [RunDir.open(p) for p in args.runs]
+def reference_dir(first_run: str | Path, out: str | Path | None = None) -> Path:
+    """Where reference.json/.md go: ``out``, else FIRST_RUN/reference."""
+    return Path(out) if out else Path(first_run) / "reference"
+
+
+def write_reference(
+    runs: list[str | Path], *, axis: str | None = None, task: str | None = None, level: int | None = None,
+    out: str | Path | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """``indgen reference``: T0 and the ordering test of the reference policies' runs, written to ``out`` (default
+    FIRST_RUN/reference) as reference.json and reference.md; return the result."""
+    runs = [RunDir.open(p) for p in runs]
     labels = [run_label(r) for r in runs]
     if len(set(labels)) < len(labels):
         labels = [f"{lbl} ({r.path.name})" for lbl, r in zip(labels, runs, strict=True)]
-    res = black_box_reference(
-        [r.episodes() for r in runs], labels, args.axis, args.task, getattr(args, "level", None)
-    )
-    out = Path(args.out) if args.out else runs[0].path / "reference"
-    text = render_markdown(res)
-    write_result(out, "reference", res, text)
-    print(text)
-    print(f"wrote {out / 'reference.json'}, {out / 'reference.md'}")
-    return 0
+    res = black_box_reference([r.episodes() for r in runs], labels, axis, task, level)
+    write_result(reference_dir(runs[0].path, out), "reference", res, render_markdown(res))
+    return res

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, RunDirError
-from indgen_vla.core.protocol.plan_lock import run_status
 from indgen_vla.core.protocol.training_support import TRAINED_NOTE, trained_text
 from indgen_vla.core.reporting.caveats import report_caveats
 from indgen_vla.core.reporting.failures import plot_failures, render_breakdown
@@ -308,12 +306,21 @@ def _safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
 
-def report_main(args: argparse.Namespace) -> int:
-    """CLI: ``indgen report RUN... [--gamma] [--ci] [--out]``."""
-    if not 0 < args.gamma <= 1:
-        raise ConfigError(f"--gamma must be in (0, 1], got {args.gamma}")
-    check_margin(margin := getattr(args, "margin", None))
-    runs = [RunDir.open(p) for p in args.runs]
+def overlay_dir(first_run: str | Path, out: str | Path | None = None) -> Path:
+    """Where several runs' overlay goes: ``out``, else FIRST_RUN/overlay."""
+    return Path(out) if out else Path(first_run) / "overlay"
+
+
+def write_reports(
+    runs: Sequence[str | Path], *, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", out: str | Path | None = None,
+    margin: float | None = None,
+) -> list[tuple[str, dict]]:  # fmt: skip
+    """``indgen report``: each run's summary.json, report.md and plots, and for several runs their overlay in ``out``
+    (default FIRST_RUN/overlay); return each run's (label, summary), labels told apart by folder name."""
+    if not 0 < gamma <= 1:
+        raise ConfigError(f"--gamma must be in (0, 1], got {gamma}")
+    check_margin(margin)
+    runs = [RunDir.open(p) for p in runs]
     results = []
     for run in runs:
         episodes = run.episodes()
@@ -321,16 +328,12 @@ def report_main(args: argparse.Namespace) -> int:
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes, margin)))
-        print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
-        # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
-        if line := run_status(run.manifest, len(episodes), gamma=args.gamma, ci=args.ci):
-            print(f"{run.path}: {line}")
+        results.append((run_label(run), write_run_report(run, gamma, ci, episodes, margin)))
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
         if len(set(labels)) < len(labels):  # disambiguate identical labels by folder name
             results = [(f"{lbl} ({r.path.name})", s) for (lbl, s), r in zip(results, runs, strict=True)]
-        out = Path(args.out) if args.out else runs[0].path / "overlay"
+        out = overlay_dir(runs[0].path, out)
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as e:
@@ -353,20 +356,16 @@ def report_main(args: argparse.Namespace) -> int:
             plot_axis(
                 curves,
                 axis,
-                args.gamma,
+                gamma,
                 out / "plots" / f"{_safe(axis)}.png",
                 results[0][1]["ci"],
                 "side by side, not compared (indgen compare tests the difference)",
             )
             plot_failures(curves, axis, out / "plots" / f"{_safe(axis)}_failures.png")
             plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
-        plot_axes(
-            results, args.gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs])
-        )
-        plot_grids(results, args.gamma, out / "plots")
-        print(f"overlay: {out / REPORT}, {out / 'plots'}/")
-    print_tables(results)
-    return 0
+        plot_axes(results, gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs]))
+        plot_grids(results, gamma, out / "plots")
+    return results
 
 
 def print_tables(results: list[tuple[str, dict]]) -> None:

@@ -177,8 +177,7 @@ def test_certificates_are_keyed_by_the_tasks_own_step(placeholders, tmp_path, mo
     0.12 m every task used before) lives beside it and is not that task's."""
     import json
 
-    from scenes.certify_io import cert_path, find_certification
-    from scenes.certify_run import asset_stamp
+    from scenes.certificates import asset_stamp, cert_path, find_certification
 
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
     task = "PickPlaceSinkToCounter"

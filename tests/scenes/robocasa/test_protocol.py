@@ -104,8 +104,8 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):
 def _oracle_until(env, seed: int, stop, limit: int) -> int:
     """Step the RoboCasa oracle from ``seed`` until ``stop(env)`` holds after a step (or ``limit`` steps): an
     episode cut short there, the way max_steps cuts one. Returns the steps taken."""
-    from scenes.certify_run import with_privileged
     from scenes.oracle import oracle_for
+    from scenes.privileged import with_privileged
 
     policy = oracle_for("robocasa")
     obs, _ = env.reset(seed=seed)

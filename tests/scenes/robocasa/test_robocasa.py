@@ -374,7 +374,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
     worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
     import scenes
-    from scenes.certify_run import run_oracle_episode
+    from indgen_vla.app.certify.run import run_oracle_episode
     from scenes.oracle import oracle_for
     from scenes.robocasa.oracle import RoboCasaOracle
 
@@ -397,7 +397,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
 @pytest.mark.slow
 def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
     import scenes
-    from scenes.certify_run import run_oracle_episode
+    from indgen_vla.app.certify.run import run_oracle_episode
     from scenes.oracle import oracle_for
 
     env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
@@ -411,7 +411,7 @@ def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
 def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
     """certify refuses (one line, before any episode) a task RoboCasa's oracle has no script for: its levels stay
     uncertified, which evaluate reports in one warning line (engine.run.check_feasible), instead of 'failed'."""
-    from scenes.certify_run import NoOracleError, certify
+    from indgen_vla.app.certify.run import NoOracleError, certify
     from scenes.oracle import oracle_scripts
 
     assert oracle_scripts("robocasa", "CloseStandMixerHead") and not oracle_scripts(
@@ -424,10 +424,10 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
 
 
 def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int) -> list[bool]:
-    """The certification's own episodes (``certify_run.run_oracle_episode`` with ``episode_seed``)."""
+    """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
     import scenes
+    from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.certify_run import run_oracle_episode
     from scenes.oracle import oracle_for
 
     env = scenes.make_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)

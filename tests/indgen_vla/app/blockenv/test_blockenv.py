@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import signal
 
@@ -83,9 +82,9 @@ def test_level_that_does_not_fit_is_refused():
 
 
 def _run(rest):
-    from indgen_vla.app.blockenv.cli import blockenv_main
+    from indgen_vla.app.cli.blockenv import run
 
-    return blockenv_main(argparse.Namespace(rest=rest))
+    return run(rest)
 
 
 def test_sample_cli_prints_json_grids(capsys):

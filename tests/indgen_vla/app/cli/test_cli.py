@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from indgen_vla.app.cli import HANDLERS, build_parser, main
+from indgen_vla.app.cli import HANDLERS, PARSERS, build_parser, main
 
 
 def test_import_is_light():
@@ -256,3 +256,34 @@ def test_ctrl_c_promises_a_resume_only_where_there_is_one(argv, says, monkeypatc
     assert main(argv + extra) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("interrupted:") and says in err[0]
+
+
+def test_every_command_is_one_cli_module_holding_its_parser_and_handler():
+    """Each subcommand's handler is ``main`` of a module under ``indgen_vla.app.cli`` that ``PARSERS`` builds
+    ``--help`` from, and each such module has ``add_parser`` and ``main``."""
+    import importlib
+
+    for command, target in HANDLERS.items():
+        module, _, func = target.partition(":")
+        assert module.startswith("indgen_vla.app.cli.") and func == "main", command
+        assert module in PARSERS, command
+    for module in PARSERS:
+        m = importlib.import_module(module)
+        assert callable(m.add_parser) and callable(m.main), module
+
+
+def test_no_library_package_parses_arguments():
+    """argparse lives in the application layer: the core, scenes/ and policy_wrappers/ hold no subcommand (the two
+    asset tools that still run as ``python -m`` excepted)."""
+    import ast
+
+    root = Path(__file__).resolve().parents[4]
+    tools = {"scenes/robocasa/placeholders.py"}
+    found = []
+    for top in ("indgen_vla/core", "scenes", "policy_wrappers"):
+        for path in sorted((root / top).rglob("*.py")):
+            names = {a.name for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.Import)
+                     for a in node.names}  # fmt: skip
+            if "argparse" in names and str(path.relative_to(root)) not in tools:
+                found.append(str(path.relative_to(root)))
+    assert found == []

@@ -11,7 +11,7 @@ from indgen_vla.app.cli import main
 from indgen_vla.app.engine.config import EvalConfig, config_from_args
 from indgen_vla.app.engine.run import build_plan, check_feasible, evaluate
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, UnknownNameError
-from scenes.certify import write_json_atomic
+from scenes.certificates import write_json_atomic
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

@@ -13,8 +13,8 @@ import time
 import pyarrow.parquet as pq
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.real.cli import status
 from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import read_journal, replay
 from tests.indgen_vla.app.real.pty_session import ROOT
 

@@ -174,3 +174,17 @@ def test_break_point_difference_uses_only_levels_above_the_data_floor():
     got = break_point_diff(ea, eb, "pick_y", 0.5, ({0, 1, 2}, {0, 1}))
     want = break_point_diff(ea, eb[eb["level"] != 2], "pick_y", 0.5)
     assert got == want and got != break_point_diff(ea, eb, "pick_y", 0.5)
+
+
+def test_compare_runs_returns_what_compare_json_holds_and_prints_nothing(tmp_path, capsys):
+    """The library call behind ``indgen compare RUN_A RUN_B``: the result comes back, compare.md is its rendering,
+    and nothing is printed (the CLI prints it)."""
+    from indgen_vla.core.comparison.two_runs import compare_runs, markdown
+
+    a = make_run(tmp_path / "a", {0: (19, 20), 1: (15, 20)}, regime="h-only")
+    b = make_run(tmp_path / "b", {0: (20, 20), 1: (4, 20)}, regime="h+mg")
+    result = compare_runs(a.path, b.path, gamma=0.2, alpha=0.05, test="boschloo", out=None, label_a="A",
+                          label_b="B", allow_protocol_mismatch=False)  # fmt: skip
+    assert result["verdict"] == json.loads((a.path / "compare" / "compare.json").read_text())["verdict"]
+    assert (a.path / "compare" / "compare.md").read_text() == markdown(result)
+    assert (result["label_a"], result["label_b"]) == ("A", "B") and capsys.readouterr().out == ""

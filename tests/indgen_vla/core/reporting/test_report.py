@@ -254,3 +254,19 @@ def test_a_declared_blind_policy_opens_report_terminal_and_compare_with_cannot_a
     assert "declares" not in cmp[4] and json.loads((out / "compare.json").read_text())[
         "reads_observations"
     ] == {"a": False, "b": None}
+
+
+def test_write_reports_returns_each_runs_summary_and_prints_nothing(tmp_path, capsys):
+    """The library call behind ``indgen report``: keyword arguments named like the flags, the (label, summary) of
+    every run back (labels told apart by folder), terminal output left to the CLI."""
+    from indgen_vla.core.reporting.report import write_reports
+
+    a = make_run(tmp_path / "a", {0: (10, 10), 1: (8, 10)})
+    b = make_run(tmp_path / "b", {0: (10, 10), 1: (1, 10)})  # same regime and policy: the same label
+    results = write_reports(
+        [a.path, b.path], gamma=0.3, ci="clopper-pearson", out=tmp_path / "o", margin=None
+    )
+    assert [label for label, _ in results] == ["h-only / standin:noop (a)", "h-only / standin:noop (b)"]
+    assert results[1][1] == json.loads((b.path / "summary.json").read_text())
+    assert results[1][1]["gamma"] == 0.3 and (tmp_path / "o" / "report.md").is_file()
+    assert capsys.readouterr().out == ""

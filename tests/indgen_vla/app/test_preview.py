@@ -8,9 +8,10 @@ import pytest
 from PIL import Image
 
 from indgen_vla.app.cli import main
+from indgen_vla.app.preview import PreviewRequest, level_caption, render_level, write_preview
 from indgen_vla.core.errors import ConfigError
 from scenes.planning import resolve_scene_plan
-from scenes.preview import PreviewRequest, level_caption, render_level, write_preview
+from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 
 def test_tiles_follow_the_level_and_repeat_exactly(tmp_path):
@@ -68,7 +69,7 @@ def test_request_is_checked_on_construction():
 
 
 @pytest.mark.slow
-def test_libero_miniature_levels_and_cli(mini, tmp_path, capsys):
+def test_libero_miniature_levels_and_cli(mini, tmp_path, capsys):  # noqa: F811
     """LIBERO on the miniature assets: the fixed initial state of the episode, the pick object moved per level."""
     out = tmp_path / "libero.png"
     assert main(["preview", "--scene", "libero_object", "--axis", "pick_y", "--levels", "-1,1", "--size", "64",

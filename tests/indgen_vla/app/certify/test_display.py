@@ -8,8 +8,8 @@ import io
 
 import pytest
 
+from indgen_vla.app.certify.run import certify
 from indgen_vla.app.cli import main
-from scenes.certify import certify
 
 
 def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, capsys):
@@ -27,7 +27,7 @@ def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, caps
 def test_on_a_terminal_each_level_is_a_live_row_and_reused_levels_say_so(tmp_path):
     from rich.console import Console
 
-    from scenes.certify_progress import CertifyDisplay
+    from indgen_vla.app.certify.display import CertifyDisplay
 
     def run(levels: str) -> str:
         buf = io.StringIO()

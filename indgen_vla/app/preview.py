@@ -8,7 +8,6 @@ checks and one-line errors, then the plan's builder), reset with episode ``--epi
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,7 +15,6 @@ import numpy as np
 
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.plan import ScenePlan
-from indgen_vla.core.protocol.progression import expand_axes
 from indgen_vla.core.protocol.seeding import evaluation_seed
 from indgen_vla.core.reporting.figures import contact_sheet, unit_name
 from indgen_vla.core.runs.records import atomic_savefig
@@ -156,15 +154,3 @@ def _check_writable(out: Path) -> None:
             pass
     except OSError as e:
         raise RunDirError(f"cannot write --out {out}: {e.strerror}; choose another path") from None
-
-
-def preview_main(args: argparse.Namespace) -> int:
-    """CLI: ``indgen preview --scene S [--task T] --axis A[,B] [--levels] [--camera] [--size] [--episode] --out F``."""
-    req = PreviewRequest(
-        scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),
-        task=args.task, levels=args.levels, step=args.step, preset=args.axes_preset, camera=args.camera,
-        size=args.size, episode=args.episode, seed=args.seed,
-    )  # fmt: skip
-    path, tiles = write_preview(req)
-    print(f"{path}: {len(tiles)} level(s) of {req.scene}, episode {req.episode}")
-    return 0

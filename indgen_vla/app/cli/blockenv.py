@@ -1,4 +1,6 @@
-"""``indgen blockenv sample|train|eval|reproduce`` — importing this module does not import torch."""
+"""``indgen blockenv sample|train|eval|reproduce|ablate``: a passthrough subcommand whose sub-parsers and handlers
+are here; the work is the BlockEnv study's (``indgen_vla.app.blockenv``). Importing this module does not import
+torch."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ import os
 import sys
 from pathlib import Path
 
+from indgen_vla.app.cli.options import IndgenParser, add_passthrough  # one-line errors, as every command
 from indgen_vla.core.errors import ConfigError
 
 
@@ -21,8 +24,17 @@ def _levels(text: str) -> list[int]:
         raise ConfigError(f"levels {text!r} must look like 0:5 or 0,1,2") from None
 
 
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """``indgen blockenv`` parses its own arguments (``main``)."""
+    add_passthrough(sp, "blockenv", "the toy BlockEnv benchmark: sample | train | eval | reproduce | ablate")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Parse ``args.rest`` with the blockenv sub-parsers and run the one named."""
+    return run(args.rest)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from indgen_vla.app.cli import IndgenParser  # one-line errors, as every indgen command
 
     p = IndgenParser(prog="indgen blockenv", description="the paper's toy inductive benchmark")
     sp = p.add_subparsers(dest="cmd", required=True)
@@ -232,8 +244,8 @@ def _ablate(a) -> int:
     return 0
 
 
-def blockenv_main(args: argparse.Namespace) -> int:
-    """CLI handler: parses ``args.rest`` with the blockenv sub-parser."""
-    a = build_parser().parse_args(args.rest)
+def run(argv: list[str]) -> int:
+    """``indgen blockenv ARGV...``: parse with the blockenv sub-parsers, run the one named."""
+    a = build_parser().parse_args(argv)
     handlers = {"sample": _sample, "train": _train, "eval": _eval, "reproduce": _reproduce, "ablate": _ablate}
     return handlers[a.cmd](a)

@@ -1,18 +1,36 @@
-"""``indgen real plan|record|status``: argument parsing and printing; the work is in plan/session/store."""
+"""``indgen real plan|record|status``: a passthrough subcommand whose sub-parsers and handlers are here; the work
+is the real-robot protocol's (``indgen_vla.app.real``: plan, session, store, status). ``record --check-policy`` gets
+the policy registry's trigger (``indgen_vla.app.real_policy``), since that package never imports a policy."""
 
 from __future__ import annotations
 
 import argparse
 import json
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from indgen_vla.app.real.setup import presets
-from indgen_vla.app.real.trigger import FIELDS, Trigger
+from indgen_vla.app.cli.options import IndgenParser, add_passthrough  # one-line errors, as every command
 from indgen_vla.core.errors import ConfigError
+
+if TYPE_CHECKING:
+    from indgen_vla.app.real.trigger import Trigger
+
+
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """``indgen real`` parses its own arguments (``main``)."""
+    add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Parse ``args.rest`` with the real-robot sub-parsers and run the one named, with ``--check-policy``."""
+    from indgen_vla.app.real_policy import PolicyCheck
+
+    return run(args.rest, policy_check=PolicyCheck)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from indgen_vla.app.cli import IndgenParser  # one-line errors, as every indgen command
+    from indgen_vla.app.real.setup import presets
+    from indgen_vla.app.real.trigger import FIELDS
 
     p = IndgenParser(
         prog="indgen real",
@@ -88,13 +106,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def real_main(args: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
-    """Entry point of ``indgen real`` (its arguments are parsed here: a passthrough subcommand).
-
-    ``policy_check`` builds the ``--check-policy`` trigger; the application layer passes it
-    (``indgen_vla.app.real_policy``), since this package never imports the policy registry.
-    """
-    ns = build_parser().parse_args(args.rest)
+def run(argv: list[str], policy_check: Callable[[str], Trigger] | None = None) -> int:
+    """``indgen real ARGV...``; ``policy_check`` builds the ``--check-policy`` trigger (``main`` passes
+    ``indgen_vla.app.real_policy.PolicyCheck``)."""
+    ns = build_parser().parse_args(argv)
     if ns.cmd == "record":
         return _record(ns, policy_check)
     return {"plan": _plan, "status": _status}[ns.cmd](ns)
@@ -169,41 +184,13 @@ def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | Non
     return 0
 
 
-def status(rr) -> dict:
-    """Per-level counts, Wilson CIs, voids and decisions, and the queue (the ``--json`` of ``real status``)."""
-    from indgen_vla.app.real.session import Recorder
-    from indgen_vla.core.stats.metrics import success_rate
-
-    rec = Recorder(rr)
-    state = rec.state()
-    seq = rr.sequential(state)
-    queue = rr.queue(state)
-    levels = []
-    for k in rr.levels:
-        outs = [e.kind == "success" for (lv, _), e in state.counted.items() if lv == k]
-        r = success_rate(sum(outs), len(outs))
-        d = seq.decisions.get(k) if seq else None
-        levels.append({"level": k, "param": rr.params[k], "unit": rr.axis.unit, "n": r.n, "successes": r.successes,
-                       "rate": r.rate if r.n else None, "ci_low": r.ci_low, "ci_high": r.ci_high,
-                       "voids": sum(len(v) for (lv, _), v in state.voids.items() if lv == k),
-                       "decision": d.verdict if d else (rr.not_run(seq, k) if seq else None)})  # fmt: skip
-    nxt = None
-    if queue:
-        k, i = queue[0]
-        nxt = {"level": k, "episode": i, "param": rr.params[k], "setup": rr.axis.level(k).setup,
-               "placement": rr.setup.placement(i), "instruction": rr.setup.instruction}  # fmt: skip
-    return {"run": str(rr.run.path), "task": rr.task, "axis": rr.axis.name, "ci": "wilson 95%", "levels": levels,
-            "queued": len(queue), "next": nxt, "complete": not queue,
-            "stopping": rr.mode, "kstar": seq.kstar.get("pos", {}).get("text") if seq else None,
-            "caveats": rr.caveats()}  # fmt: skip
-
-
 # the sequential rule's verdict for a level it has not settled yet, as ``real status`` prints it (``--json``: raw)
 _DECISION_TEXT = {"continue": "deciding (more episodes needed)"}
 
 
 def _status(ns: argparse.Namespace) -> int:
     from indgen_vla.app.real.plan import RealRun
+    from indgen_vla.app.real.status import status
 
     s = status(RealRun.open(ns.run))
     if ns.json:

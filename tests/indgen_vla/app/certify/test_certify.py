@@ -10,20 +10,24 @@ import pytest
 from scipy.stats import beta
 
 import scenes
+from indgen_vla.app.certify.run import certify
+from indgen_vla.app.certify.suite import default_jobs, write_summary
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.progression import ProgressionError
 from scenes.catalog import builtin_scenes
-from scenes.certify import (
+from scenes.certificates import (
     Rule,
-    certify,
+    axis_dirname,
+    cert_path,
     episodes_needed,
+    find_certification,
     infeasible_levels,
     level_status,
     load_certification,
     lower_bound,
     write_json_atomic,
 )
-from scenes.certify_io import axis_dirname, cert_path, default_jobs, find_certification, write_summary
+from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 
 @pytest.mark.parametrize("x,n", [(59, 59), (58, 58), (20, 20), (57, 59), (10, 30), (1, 1), (0, 5), (95, 100)])
@@ -203,10 +207,10 @@ def test_json_is_written_atomically(tmp_path):
     assert json.loads(p.read_text()) == {"x": 2} and [q.name for q in p.parent.iterdir()] == ["certify.json"]
 
 
-def test_libero_certificates_are_cached_per_asset_tree(mini):
+def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
     import hashlib
 
-    from scenes.certify_io import certification_root
+    from scenes.certificates import certification_root
 
     cache = os.environ["INDGEN_CACHE"]
     tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
@@ -232,7 +236,7 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     """LIBERO's and RoboCasa365's certificates are cached per asset tree path: a tree updated at the same path (here
     one file rewritten, same size) must not keep the old tree's certificate, nor must one made before certificates
     recorded their tree. Played on ``stack`` given an asset tree (5 control steps: one failed episode, cheap)."""
-    from scenes.certify_run import tree_stamp
+    from scenes.certificates import tree_stamp
     from scenes.registry import get_scene
 
     tree = tmp_path / "assets"
@@ -261,8 +265,8 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level no seed holds is one line."""
     import scenes.oracle
+    from indgen_vla.app.certify import run as certify_run
     from indgen_vla.core.errors import EpisodeUnavailableError, SceneError
-    from scenes import certify_run
 
     class Env:
         axis_param, calls, out = 0.0, [], {1}

@@ -11,84 +11,27 @@ k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
 from __future__ import annotations
 
 import dataclasses
-import functools
-import hashlib
 import json
-import os
-import re
 import time
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
 from indgen_vla.core.protocol.progression import parse_levels
 from indgen_vla.core.protocol.seeding import episode_seed
-from indgen_vla.core.stats.metrics import clopper_pearson_ci
+from scenes.certificates import (
+    THRESHOLD,
+    Rule,
+    asset_stamp,
+    load_certification,
+    lower_bound,
+    same_assets,
+    write_json_atomic,
+)
 from scenes.privileged import with_privileged
-
-THRESHOLD = 0.95
-CONFIDENCE = 0.95
-FEASIBLE_RATE = THRESHOLD  # the old name, kept for readers
-RULE_NAME = "clopper-pearson-sequential"
 
 
 class NoOracleError(ConfigError):
     """The scene's oracle has no script for the task: its levels cannot be certified, only reported uncertified."""
-
-
-def lower_bound(successes: int, n: int, confidence: float = CONFIDENCE) -> float:
-    """One-sided lower confidence bound: the two-sided interval at 2*conf-1 has the same lower end."""
-    return 0.0 if n == 0 else clopper_pearson_ci(successes, n, conf=2 * confidence - 1)[0]
-
-
-def episodes_needed(threshold: float = THRESHOLD, confidence: float = CONFIDENCE) -> int:
-    """The smallest n at which n/n successes certify (59 for 0.95 at 95 %)."""
-    n = 1
-    while lower_bound(n, n, confidence) < threshold:
-        n += 1
-    return n
-
-
-@dataclasses.dataclass(frozen=True)
-class Rule:
-    """The certification rule: run up to ``n_max`` episodes, certify when the CP lower bound >= threshold."""
-
-    threshold: float = THRESHOLD
-    confidence: float = CONFIDENCE
-    n_max: int = 0  # 0: the smallest n that can certify
-
-    def __post_init__(self) -> None:
-        if not 0 < self.threshold < 1:
-            raise ConfigError(f"--threshold must be in (0, 1), got {self.threshold}")
-        if not 0.5 < self.confidence < 1:
-            raise ConfigError(f"the confidence must be in (0.5, 1), got {self.confidence}")
-        if self.n_max < 0:
-            raise ConfigError(f"--episodes must be >= 1, got {self.n_max}")
-        if self.n_max == 0:
-            object.__setattr__(self, "n_max", episodes_needed(self.threshold, self.confidence))
-
-    def as_dict(self) -> dict:
-        return {
-            "name": RULE_NAME,
-            "threshold": self.threshold,
-            "confidence": self.confidence,
-            "n_max": self.n_max,
-        }
-
-    def reachable(self, successes: int, n: int) -> bool:
-        """Could the level still certify if every remaining episode up to n_max succeeded?"""
-        return lower_bound(successes + self.n_max - n, self.n_max, self.confidence) >= self.threshold
-
-    def stop(self, successes: int, n: int) -> bool:
-        """Stop at n_max, or early once a failure has made certification unreachable."""
-        return n >= self.n_max or (successes < n and not self.reachable(successes, n))
-
-    def status(self, successes: int, n: int) -> str:
-        """certified | failed (the oracle failed and the bound cannot be reached) | insufficient evidence."""
-        if n >= self.n_max and lower_bound(successes, n, self.confidence) >= self.threshold:
-            return "certified"
-        if successes < n and not self.reachable(successes, n):
-            return "failed"
-        return "insufficient"
 
 
 def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tuple[bool, int]:
@@ -128,9 +71,9 @@ def certify_level(
     """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility);
     ``on_episode(level, successes, n)`` hears of each finished episode. A seed whose initial state cannot hold the
     level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x) is skipped and counted. With
-    ``partial`` (``scenes.certify_partial``) the episodes a killed run finished under the same ``key`` are reused."""
+    ``partial`` (``indgen_vla.app.certify.partial``) the episodes a killed run finished under the same ``key`` are reused."""
     import scenes
-    from scenes.certify_partial import EpisodeLog
+    from indgen_vla.app.certify.partial import EpisodeLog
     from scenes.oracle import oracle_for
 
     t0 = time.time()
@@ -182,60 +125,6 @@ def level_line(scene: str, task: str, axis: str, row: dict) -> str:
             f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
 
 
-def write_json_atomic(path: Path, data: dict) -> None:
-    """Write JSON so that ``path`` is always either the old or the new complete file (its folder is made)."""
-    from indgen_vla.core.runs.records import atomic_write_json
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(path, data)
-
-
-# RoboCasa's MJCFObject writes <time>_<pid>.xml beside each object model while it builds and then deletes it
-# (robocasa/models/objects/objects.py): a run going on, or one killed meanwhile, is no change of the assets
-_TRANSIENT = re.compile(r"\d+_\d+_\d+\.xml")
-
-
-@functools.cache
-def tree_stamp(root: str) -> tuple[str, int]:
-    """SHA-256 over every file's relative path, size and mtime under ``root``, and the number of files: a file
-    replaced or edited in place changes it. Stat only (about 1 s for 32k files); hashing the contents would read RoboCasa's
-    gigabytes of meshes on every lookup. Computed once per process."""
-    h, n = hashlib.sha256(), 0
-    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
-        dirnames.sort()
-        for name in sorted(filenames):
-            if _TRANSIENT.fullmatch(name):
-                continue
-            path = os.path.join(dirpath, name)
-            st = os.stat(path)
-            h.update(f"{os.path.relpath(path, root)}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
-            n += 1
-    return h.hexdigest(), n
-
-
-def asset_stamp(scene: str) -> dict | None:
-    """What a per-machine certificate records of the asset tree it was made on (``Scene.asset_tree``): its root
-    and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
-    from scenes.registry import get_scene
-
-    tree = get_scene(scene).asset_tree()
-    if tree is None:
-        return None
-    from scenes.libero.assets import tree_identity
-
-    root = str(Path(tree).resolve())
-    digest, files = tree_stamp(root)
-    # paths and sizes only: equal on every machine that installed the same tree (shipped LIBERO certificates)
-    return {"root": root, "files": files, "stat_sha256": digest, "listing_sha256": tree_identity(Path(root))}
-
-
-def same_assets(cert: dict, stamp: dict | None) -> bool:
-    """Was ``cert`` made on the asset files ``stamp`` describes? (A certificate without a stamp, made before they
-    were recorded, matches only a scene without an asset tree.)"""
-    made = cert.get("assets") or {}
-    return stamp is None or made.get("stat_sha256") == stamp["stat_sha256"]
-
-
 def _key(cert: dict) -> tuple:
     """What must match for a stored level to be reused: component steps, seed, rule and episode length."""
     return (
@@ -264,7 +153,7 @@ class Pending:
         cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
         if self.path is not None:
             write_json_atomic(self.path, cert)
-            from scenes.certify_partial import partial_path
+            from indgen_vla.app.certify.partial import partial_path
 
             partial_path(self.path, int(row["level"])).unlink(missing_ok=True)
         if self.watch is not None:
@@ -298,7 +187,7 @@ def certify(
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
     levels already certified there under the same steps/seed/rule, and the finished episodes of a level a killed
     run left half done, and write after every level. ``log`` gets a line per event; ``watch``
-    (``scenes.certify_progress.CertifyDisplay``), when given, hears of the levels about to run, each episode and
+    (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to run, each episode and
     each finished level instead of the per-level lines."""
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
@@ -319,8 +208,8 @@ def prepare(
 ) -> Pending:  # fmt: skip
     """Check the request, read what ``out`` already holds, and list the level jobs still to run."""
     import scenes
+    from indgen_vla.app.certify.partial import partial_path
     from scenes.axes import successor_steps
-    from scenes.certify_partial import partial_path
     from scenes.registry import get_scene
 
     sc = get_scene(scene)
@@ -417,53 +306,3 @@ def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:
                     drain()
             drain()
             merge(row)
-
-
-def load_certification(path: str | Path) -> dict:
-    """Read a certify.json (or the directory holding one) and check its shape."""
-    p = Path(path)
-    if p.is_dir():
-        p = p / "certify.json"
-    if not p.is_file():
-        raise RunDirError(f"no certification at {p}; run 'indgen certify --scene S --axis A' first")
-    try:
-        cert = json.loads(p.read_text())
-    except json.JSONDecodeError as e:
-        raise RunDirError(
-            f"{p} is not valid JSON ({e.msg} at line {e.lineno}); re-run 'indgen certify'"
-        ) from None
-    if (
-        not isinstance(cert, dict)
-        or not {"scene", "axis", "levels"} <= cert.keys()
-        or not isinstance(cert["levels"], list)
-    ):
-        raise RunDirError(f"{p} is not a certification (needs scene, axis, levels); re-run 'indgen certify'")
-    for row in cert["levels"]:
-        if not isinstance(row, dict) or not {"level", "n", "successes", "rate", "feasible"} <= row.keys():
-            raise RunDirError(
-                f"{p}: a level row lacks level/n/successes/rate/feasible; re-run 'indgen certify'"
-            )
-    return cert
-
-
-def level_status(row: dict) -> str:
-    """A row's verdict; rows written before the statistical rule count as failed/insufficient evidence."""
-    if "status" in row:
-        return str(row["status"])
-    return "insufficient" if row["feasible"] else "failed"
-
-
-def infeasible_levels(cert: dict) -> list[int]:
-    """Levels where the oracle failed so that the rule can no longer certify them."""
-    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "failed")
-
-
-def certified_levels(cert: dict) -> list[int]:
-    return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "certified")
-
-
-__all__ = [
-    "Rule", "Pending", "prepare", "lower_bound", "episodes_needed", "certify", "certify_level", "load_certification", "level_status",
-    "infeasible_levels", "certified_levels", "write_json_atomic", "run_oracle_episode", "level_line",
-    "tree_stamp", "asset_stamp", "same_assets",
-]  # fmt: skip

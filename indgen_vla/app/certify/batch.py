@@ -2,8 +2,8 @@
 
 ``indgen certify --task all`` certifies one task after another, each with at most one process per level; a
 protocol of 10 tasks x 3 axes x 7 levels keeps 16 cores busy only when all 210 level jobs share one pool. Each
-finished level is merged into its own certify.json at once (``certify_run.Pending``), so a killed batch resumes
-like ``certify`` does, mid-level included (``scenes.certify_partial``).
+finished level is merged into its own certify.json at once (``indgen_vla.app.certify.run.Pending``), so a killed batch resumes
+like ``certify`` does, mid-level included (``indgen_vla.app.certify.partial``).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from indgen_vla.core.errors import ConfigError
 
 
 def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
-    from scenes.certify_run import _certify_job
+    from indgen_vla.app.certify.run import _certify_job
 
     index, args = item
     return index, _certify_job(args)
@@ -27,12 +27,13 @@ def certify_many(
     deadline_s: float | None = None, log=print,
 ) -> list[dict]:  # fmt: skip
     """Certify (or resume) ``levels`` of every (task, axis) in ``pairs`` under ``root`` (default: where evaluate
-    looks, ``certify_io.cert_path``); with ``deadline_s`` no new level starts after that many seconds (those
+    looks, ``scenes.certificates.cert_path``); with ``deadline_s`` no new level starts after that many seconds (those
     running finish), so a time-boxed chunk ends with whole levels. Returns the certificates as they stand."""
     import multiprocessing as mp
 
-    from scenes.certify_io import cert_path, write_summary
-    from scenes.certify_run import level_line, prepare
+    from indgen_vla.app.certify.run import level_line, prepare
+    from indgen_vla.app.certify.suite import write_summary
+    from scenes.certificates import cert_path
 
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")

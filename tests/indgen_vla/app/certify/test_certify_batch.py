@@ -7,8 +7,8 @@ import json
 
 
 def test_a_chunk_cut_by_its_deadline_is_resumed_by_the_next(tmp_path):
-    from scenes.certify_batch import certify_many
-    from scenes.certify_io import cert_path
+    from indgen_vla.app.certify.batch import certify_many
+    from scenes.certificates import cert_path
 
     pairs = [("orange_on_blue", "stack")]
     lines: list[str] = []

@@ -1,4 +1,5 @@
-"""What ``indgen certify`` shows while the oracle runs, on stderr (stdout keeps the tables).
+"""What ``indgen certify`` shows: the progress while the oracle runs, on stderr, and each certificate's table on
+stdout (``print_table``).
 
 On a terminal: ``evaluate``'s live display (``indgen_vla.core.reporting.live``), one row per level with the oracle's successes so
 far and its verdict once decided, and a total row with the ETA. Piped or logged (rich would print its rows only at
@@ -7,8 +8,9 @@ the end): a line when a task starts and one per finished level, so a log shows p
 
 from __future__ import annotations
 
+from indgen_vla.app.certify.run import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
-from scenes.certify_run import level_line
+from scenes.certificates import level_status
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
 
@@ -87,3 +89,25 @@ class CertifyDisplay:
         self._planned -= self._n_max - n  # the rule stopped the level early: those episodes never run
         self._progress.update(self._total, total=self._planned, advance=n - self._seen[k])
         self._seen[k] = n
+
+
+def print_table(cert: dict) -> None:
+    """A certificate's levels: successes, rate, lower bound and verdict."""
+    from rich.console import Console
+    from rich.table import Table
+
+    rule = cert.get("rule", {})
+    table = Table(
+        title=f"certification: {cert['scene']}/{cert['task']}, axis {cert['axis']} (step {cert['step']:g} {cert['unit']})",
+        caption=f"privileged oracle; certified when the one-sided {rule.get('confidence', 0.95):.0%} Clopper-Pearson "
+        f"lower bound >= {cert['threshold']:.0%} (at most {cert.get('episodes')} episodes per level)",
+    )
+    for col in ("level", "param", "successes/n", "rate", "CP lower", "status"):
+        table.add_column(col, justify="right")
+    for r in cert["levels"]:
+        st = level_status(r)
+        table.add_row(
+            str(r["level"]), f"{r['param']:g}", f"{r['successes']}/{r['n']}", f"{r['rate']:.0%}",
+            f"{r.get('lower_bound', float('nan')):.3f}", st if st != "failed" else "[red]failed[/red]",
+        )  # fmt: skip
+    Console().print(table)

@@ -1,0 +1,89 @@
+"""``indgen scenes``, ``indgen axes`` and ``indgen policies``: what is registered (``scenes.catalog.scene_rows``,
+``axis_rows``; ``policy_wrappers.registry.catalog``), as tables or ``--json``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """The three listing subcommands, each with ``--json``."""
+    for name, help_ in (
+        ("scenes", "list registered scenes and their tasks"),
+        ("axes", "list registered axes with step, level range and description"),
+        ("policies", "list policy spec families and stand-ins"),
+    ):
+        p = sp.add_parser(name, help=help_)
+        p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def main(args: argparse.Namespace) -> int:
+    """Print the listing ``args.command`` names."""
+    return {"scenes": scenes_table, "axes": axes_table, "policies": policies_text}[args.command](args.json)
+
+
+def scenes_table(as_json: bool) -> int:
+    """Every scene with its tasks, axes, episode length and what it needs beyond the venv."""
+    from scenes.catalog import scene_rows
+
+    rows = scene_rows()
+    if as_json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="scenes")
+    for col in ("scene", "tasks", "axes", "max steps", "description"):
+        table.add_column(col)
+    for r in rows:
+        desc = r["description"] + (f"; needs {r['needs']}" if r["needs"] else "")
+        table.add_row(
+            r["name"], ", ".join(r["tasks"]) or "-", ", ".join(r["axes"]), str(r["max_steps"]), desc
+        )
+    Console().print(table)
+    return 0
+
+
+def axes_table(as_json: bool) -> int:
+    """Every axis with its step, level range, description and supporting scenes."""
+    from scenes.catalog import axis_rows
+
+    rows = axis_rows()
+    if as_json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title="axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one "
+        "at a level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)"
+    )
+    for col in ("axis", "step", "levels", "scenes", "description"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(
+            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["scenes"]), r["description"]
+        )
+    Console().print(table)
+    return 0
+
+
+def policies_text(as_json: bool) -> int:
+    """Spec families and stand-ins."""
+    from policy_wrappers.registry import catalog
+
+    data = catalog()
+    if as_json:
+        print(json.dumps(data, indent=2))
+        return 0
+    print("Policy spec families (--policy FAMILY:TARGET[?key=value&...]):")
+    for row in data["families"]:
+        print(f"  {row['name'] + ':':<13} {row['description']}")
+        print(f"  {'':<13} e.g. {row['example']}")
+    print("Stand-ins:")
+    for row in data["standins"]:
+        print(f"  {row['name']:<16} {row['description']}")
+    return 0

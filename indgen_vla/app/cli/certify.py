@@ -1,0 +1,84 @@
+"""``indgen certify``: its parser; the handler certifies each task (``indgen_vla.app.certify.run.certify``) with the
+live display and prints each certificate's table and verdicts."""
+
+from __future__ import annotations
+
+import argparse
+
+from indgen_vla.app.cli.options import add_level_options
+
+
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """The certify subcommand: scene, task, axis, levels, the rule's episodes and threshold, seed, workers, folder."""
+    p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
+    p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
+    p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
+    p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
+    add_level_options(p)
+    p.add_argument(
+        "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
+    )
+    p.add_argument(
+        "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
+    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
+    p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
+    p.add_argument(
+        "--out", default=None, help="folder for certify.json (default: where evaluate looks; resumes there)"
+    )
+
+
+def main(args: argparse.Namespace) -> int:
+    """Write certify.json per task (resuming what is there); exit 1 if a level failed."""
+    from pathlib import Path
+
+    from indgen_vla.app.certify.display import CertifyDisplay, print_table
+    from indgen_vla.app.certify.run import certify
+    from indgen_vla.core.errors import RunDirError
+    from scenes.certificates import cert_path, certified_levels, infeasible_levels
+    from scenes.oracle import oracle_scripts
+    from scenes.registry import get_scene
+
+    tasks = get_scene(args.scene).select_tasks(args.task, (args.axis,))
+    preset = args.axes_preset
+    failed = False
+    for task in tasks:
+        if args.out is None:
+            path = cert_path(args.scene, task, args.axis, args.step, preset)
+        else:
+            path = Path(args.out) / (task if len(tasks) > 1 else "") / "certify.json"
+        if len(tasks) > 1 and not oracle_scripts(args.scene, task):
+            print(
+                f"{args.scene}/{task}/{args.axis}: uncertified (standin:oracle has no script for this task)"
+            )
+            continue
+        try:
+            with CertifyDisplay(args.scene, get_scene(args.scene).resolve_task(task), args.axis) as display:
+                cert = certify(
+                    args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
+                    seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
+                    threshold=args.threshold or 0.95, preset=preset, out=path,
+                    log=display.log, watch=display,
+                )  # fmt: skip
+        except OSError as e:
+            raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
+        print_table(cert)
+        print(f"certificate: {path}")
+        bad = infeasible_levels(cert)
+        if bad:
+            print(f"{cert['scene']}/{cert['task']}/{cert['axis']}: levels {bad} failed (the oracle failed; the "
+                  f"bound cannot reach {cert['threshold']:.0%})")  # fmt: skip
+            failed = True
+        short = sorted({int(r["level"]) for r in cert["levels"]} - set(bad) - set(certified_levels(cert)))
+        if short:
+            print(f"{cert['scene']}/{cert['task']}/{cert['axis']}: levels {short} lack evidence "
+                  f"({cert['episodes']} episodes cannot certify; the rule needs {_needed(cert)})")  # fmt: skip
+    return 1 if failed else 0
+
+
+def _needed(cert: dict) -> int:
+    from scenes.certificates import episodes_needed
+
+    rule = cert.get("rule", {})
+    return episodes_needed(cert["threshold"], rule.get("confidence", 0.95))
