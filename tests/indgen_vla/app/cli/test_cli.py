@@ -143,7 +143,7 @@ def _parsers_without_help(parser, where: str) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("command", ["demos", "mimicgen", "train", "blockenv", "budget"])
+@pytest.mark.parametrize("command", ["demos", "mimicgen", "train", "blockenv"])
 def test_every_passthrough_option_has_a_help_line(command, monkeypatch):
     """The subcommands that parse their own arguments document every option too."""
     import argparse
