@@ -15,6 +15,8 @@ __version__ = "0.1.0"
 _LAZY = {
     "evaluate": "indgen_vla.app.api:evaluate",
     "report": "indgen_vla.app.api:report",
+    "compare": "indgen_vla.app.api:compare",
+    "certify": "indgen_vla.app.api:certify",
     "Run": "indgen_vla.core.runs.result:Run",
     "KStar": "indgen_vla.core.runs.result:KStar",
     "EvalConfig": "indgen_vla.app.engine.config:EvalConfig",

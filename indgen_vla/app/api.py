@@ -83,3 +83,54 @@ def report(
         write_run_report(run, gamma, ci, episodes, margin)
         done.append(Run(run.path))
     return done
+
+
+def compare(
+    run_a: PathLike | Run,
+    run_b: PathLike | Run,
+    *,
+    gamma: float = 0.2,
+    alpha: float = 0.05,
+    test: str = "auto",
+    out: PathLike | None = None,
+    label_a: str | None = None,
+    label_b: str | None = None,
+    allow_protocol_mismatch: bool = False,
+) -> dict[str, Any]:
+    """``indgen compare RUN_A RUN_B``: per-level exact tests (paired where the seeds match) with Holm, written to
+    compare.json/compare.md (default RUN_A/compare); returns compare.json's content."""
+    from indgen_vla.core.comparison.two_runs import compare_runs
+
+    a, b = (Path(os.fspath(r.path if isinstance(r, Run) else r)) for r in (run_a, run_b))
+    return compare_runs(a, b, gamma=gamma, alpha=alpha, test=test, out=out, label_a=label_a, label_b=label_b,
+                        allow_protocol_mismatch=allow_protocol_mismatch)  # fmt: skip
+
+
+def certify(
+    *,
+    scene: str,
+    axis: str,
+    task: str | None = None,
+    levels: str | list[int] | None = None,
+    step: float | None = None,
+    episodes: int | None = None,
+    seed: int = 0,
+    max_steps: int | None = None,
+    workers: int = 1,
+    threshold: float = 0.95,
+    axes_preset: str | None = None,
+    out: PathLike | None = None,
+) -> dict[str, Any]:
+    """``indgen certify`` for one task (default: the scene's first): the privileged oracle on each level until the
+    59/59 rule decides it, written where ``evaluate`` looks (or to ``out``/certify.json) and resumed from there;
+    returns the certificate (per level: n, successes, lower bound, status certified | failed | insufficient)."""
+    from indgen_vla.app.certify.run import certify as run_certify
+    from scenes.certificates import cert_path
+
+    path = (
+        Path(os.fspath(out)) / "certify.json"
+        if out is not None
+        else cert_path(scene, task, axis, step, axes_preset)
+    )
+    return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                       max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path)  # fmt: skip

@@ -31,7 +31,8 @@ def _example() -> str:
 
 def test_import_is_cheap_and_names_load_lazily():
     code = (
-        "import sys, indgen_vla; indgen_vla.evaluate; indgen_vla.core.reporting.report; indgen_vla.Run; indgen_vla.KStar; "
+        "import sys, indgen_vla; indgen_vla.evaluate; indgen_vla.report; indgen_vla.compare; indgen_vla.certify; "
+        "indgen_vla.Run; indgen_vla.KStar; "
         "print(sorted(m for m in ('torch', 'robosuite', 'lerobot', 'mujoco', 'scenes') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -74,7 +75,18 @@ def test_docs_example_runs_and_matches_the_cli(tmp_path, monkeypatch, capsys):
     again = indgen_vla.evaluate(policy="standin:oracle", scene="pick_place", axis=["pick_y"], levels=[0, 1],
                                 episodes=2, out=tmp_path / "cli", workers=1, quiet=True)  # fmt: skip
     assert again.path == tmp_path / "cli" and _digest(again.path) == _digest(run.path)
-    assert [r.path for r in indgen_vla.core.reporting.report(again)] == [again.path]
+    assert [r.path for r in indgen_vla.report(again)] == [again.path]
+    result = indgen_vla.compare(run, again, out=tmp_path / "cmp")
+    assert set(result["axes"]) == {"pick_y"} and (tmp_path / "cmp" / "compare.md").is_file()
+
+
+def test_certify_writes_and_resumes_a_certificate(tmp_path):
+    cert = indgen_vla.certify(scene="pick_place", axis="pick_y", levels=[0], episodes=1, out=tmp_path)
+    assert [(r["level"], r["n"]) for r in cert["levels"]] == [(0, 1)] and (
+        tmp_path / "certify.json"
+    ).is_file()
+    again = indgen_vla.certify(scene="pick_place", axis="pick_y", levels=[0], episodes=1, out=tmp_path)
+    assert again["levels"] == cert["levels"]  # reused, not rerun
 
 
 def test_bad_keywords_and_results_are_one_clear_line(tmp_path):
