@@ -37,6 +37,7 @@ HANDLERS: dict[str, str] = {
     "mimicgen": "indgen_vla.regimes.mimicgen:mimicgen_main",
     "train": "indgen_vla.regimes.train:train_main",
     "real": "indgen_vla.real_policy:real_main",
+    "view": "indgen_vla.view:main",
 }
 
 
@@ -394,6 +395,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
     _add_passthrough(sp, "real", "real-robot protocol with an operator: plan | record | status")
+    from indgen_vla.view import add_parser as add_view
+
+    add_view(sp)
     return parser
 
 

@@ -350,8 +350,13 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
         plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png", "wilson", pairing_note(result))
         plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
+    from indgen_vla.html_page import markdown_page  # report.html: the verdict and its pairing first
+
+    markdown_page(out, f"Comparison: {result['label_a']} vs {result['label_b']}", text,
+                  [result["verdict"], f"Test: {pairing_note(result)}", *(f"`{a}`: {x['tasks']}" for a, x in result["axes"]
+                   .items() if x.get("tasks")), *result["caveats"]], out / "plots")  # fmt: skip
     print(text)
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'plots'}/")
+    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}, {out / 'plots'}/")
 
 
 def compare_main(args: argparse.Namespace) -> int:

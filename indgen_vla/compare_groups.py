@@ -271,6 +271,11 @@ def groups_main(args) -> int:
     out = Path(args.out) if args.out else runs_a[0].path / "compare_groups"
     text = render_markdown(result, la, lb)
     write_result(out, "compare", result, text)
+    from indgen_vla.html_page import markdown_page  # report.html: the verdicts first
+
+    markdown_page(
+        out, f"Group comparison: {la} vs {lb}", text, [*result["verdicts"].values(), *result["caveats"]]
+    )
     print(text)
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}")
+    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}")
     return 0

@@ -286,6 +286,10 @@ def write_run_report(
         plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
     plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
     plot_grids([(label, summary)], gamma, run.path / "plots")
+    from indgen_vla.html_report import write_run_html  # report.html beside report.md, plots inlined
+
+    write_run_html(run.path, run.manifest, summary, episodes if episodes is not None else run.episodes(),
+                   "\n".join([text, *extra]), label, order)  # fmt: skip
     return summary
 
 
@@ -307,7 +311,7 @@ def report_main(args: argparse.Namespace) -> int:
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
         results.append((run_label(run), write_run_report(run, args.gamma, args.ci, episodes, margin)))
-        print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
+        print(f"{run.path}: wrote {SUMMARY}, {REPORT}, report.html, plots/")
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
         if len(set(labels)) < len(labels):  # disambiguate identical labels by folder name
@@ -346,7 +350,10 @@ def report_main(args: argparse.Namespace) -> int:
             results, args.gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs])
         )
         plot_grids(results, args.gamma, out / "plots")
-        print(f"overlay: {out / REPORT}, {out / 'plots'}/")
+        from indgen_vla.html_report import write_overlay_html
+
+        write_overlay_html(out, results, text, order)
+        print(f"overlay: {out / REPORT}, {out / 'report.html'}, {out / 'plots'}/")
     print_tables(results)
     return 0
 
