@@ -116,10 +116,15 @@ def run_row(run: Path, root: Path, now: float) -> IndexRow:
     live = status == "running" or not (run / HTML_REPORT).exists()
     href = f"/live/{rel}" if live else f"/{rel}/{HTML_REPORT}".replace("/./", "/")
     of = f" of {planned}" + (" max (adaptive)" if adaptive else "") if planned else ""
-    return IndexRow(run=rel, kind="run", policy=str(m.get("policy", "")), scene=str(m.get("scene", "")),
+    regime = f" ({m['data_regime']})" if m.get("data_regime") else ""
+    return IndexRow(run=rel, kind="run", policy=f"{m.get('policy', '')}{regime}", scene=str(m.get("scene", "")),
                     axes=", ".join(plan.get("axes") or []), tasks=", ".join(plan.get("tasks") or []),
                     kstar=kstar_cell(s), n=f"{n}{of}", status=status, date=str(m.get("created", "")),
                     href=href)  # fmt: skip
+
+
+def _clip(text: str, limit: int = 240) -> str:
+    return text if len(text) <= limit else text[:limit].rsplit(" ", 1)[0] + " … (open it for the rest)"
 
 
 def comparison_row(folder: Path, root: Path) -> IndexRow:
@@ -129,7 +134,7 @@ def comparison_row(folder: Path, root: Path) -> IndexRow:
     date = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(_mtime(folder / HTML_REPORT, folder / "report.md")))
     pair = " vs ".join(x for x in (c.get("label_a"), c.get("label_b")) if x)
     return IndexRow(run=rel, kind="comparison", policy=pair, scene="", axes=", ".join(c.get("axes") or []),
-                    tasks="", kstar="", n="", status=str(c.get("verdict", ""))[:160], date=date,
+                    tasks="", kstar="", n="", status=_clip(str(c.get("verdict", ""))), date=date,
                     href=f"/{rel}/{HTML_REPORT}")  # fmt: skip
 
 

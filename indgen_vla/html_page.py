@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +31,7 @@ nav a{margin-right:14px;color:var(--acc);text-decoration:none;font-size:13px}
 main{padding:8px 24px 40px;max-width:1400px}
 section{margin:18px 0 26px}
 section>h2{font-size:17px;border-bottom:2px solid var(--line);padding-bottom:4px}
-h3{font-size:15px;margin:16px 0 6px}
+h3{font-size:15px;margin:16px 0 6px}h4{font-size:14px;margin:14px 0 6px}
 table{border-collapse:collapse;margin:8px 0;font-size:13px}
 th,td{border:1px solid var(--line);padding:3px 8px;text-align:left;vertical-align:top}
 th{background:var(--soft)}
@@ -107,7 +108,10 @@ def markdown_html(text: str) -> str:
     """Markdown (headings, tables, lists, emphasis, code) as HTML; raw HTML in the text is shown, not run."""
     from markdown_it import MarkdownIt
 
-    return MarkdownIt("commonmark", {"html": False}).enable("table").render(text)
+    out = MarkdownIt("commonmark", {"html": False}).enable("table").render(text)
+    return re.sub(
+        r"<(/?)h([12])>", lambda m: f"<{m.group(1)}h{int(m.group(2)) + 2}>", out
+    )  # under the page's h2
 
 
 def image_html(path: Path, caption: str = "") -> str:
@@ -176,6 +180,7 @@ def render_page(
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">{refresh}'
         f'<meta name="viewport" content="width=device-width, initial-scale=1"><title>{esc(title)}</title>'
+        '<link rel="icon" href="data:,">'  # no favicon request: a served page makes none that fails
         f"<style>{CSS}</style></head><body><header><h1>{esc(title)}</h1>{sub}</header><nav>{nav}</nav>"
         f"<main>{body}</main><script>{JS}</script></body></html>\n"
     )
