@@ -354,7 +354,9 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
 
     pools = [f"Tasks pooled (`{a}`): {x['tasks']}" for a, x in result["axes"].items() if x.get("tasks")]
     verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools, *result["caveats"]]
-    markdown_page(out, f"Comparison: {result['label_a']} vs {result['label_b']}", text, verdicts, out / "plots")
+    markdown_page(
+        out, f"Comparison: {result['label_a']} vs {result['label_b']}", text, verdicts, out / "plots"
+    )
     print(text)
     print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}, {out / 'plots'}/")
 
