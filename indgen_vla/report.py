@@ -273,7 +273,8 @@ def write_run_report(
 ) -> dict:
     """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
     (``episodes``: ``run.episodes()`` when the caller has it already)."""
-    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci, margin)
+    episodes = run.episodes() if episodes is None else episodes
+    summary = summarize(episodes, run.manifest, gamma, ci, margin)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
@@ -288,8 +289,7 @@ def write_run_report(
     plot_grids([(label, summary)], gamma, run.path / "plots")
     from indgen_vla.html_report import write_run_html  # report.html beside report.md, plots inlined
 
-    write_run_html(run.path, run.manifest, summary, episodes if episodes is not None else run.episodes(),
-                   "\n".join([text, *extra]), label, order)  # fmt: skip
+    write_run_html(run.path, run.manifest, summary, episodes, "\n".join([text, *extra]), label, order)
     return summary
 
 
