@@ -58,8 +58,7 @@ table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
 # every word, and a word "column=value" keeps rows whose cell in that column equals value
 JS = """
 (function(){
-function key(td){var v=td.getAttribute('data-v');v=v===null?td.textContent.trim():v;
- var f=parseFloat(v);return (v!==''&&isFinite(v))?[0,f]:[1,v.toLowerCase()];}
+function key(td){var v=td.textContent.trim(),f=parseFloat(v);return (v!==''&&isFinite(v))?[0,f]:[1,v.toLowerCase()];}
 function cmp(a,b){if(a[0]!==b[0])return a[0]-b[0];return a[1]<b[1]?-1:a[1]>b[1]?1:0;}
 document.querySelectorAll('table.sortable').forEach(function(t){
  var heads=t.tHead.rows[0].cells,body=t.tBodies[0];
@@ -133,6 +132,15 @@ def video_html(relative: str, caption: str) -> str:
     )
 
 
+def _cell(v: object) -> str:
+    """A table cell's text: floats to 6 significant digits, numbers and booleans as is, text escaped."""
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v) if isinstance(v, int) else esc(v)  # bool is an int
+
+
 def table_html(
     table_id: str,
     columns: Sequence[str],
@@ -142,19 +150,17 @@ def table_html(
     filterable: bool = True,
 ) -> str:
     """A sortable (and with ``filterable`` filterable) table; ``links`` maps a column to the row key holding its
-    href (a relative path). A cell's sort key is its raw value, so numbers sort as numbers."""
+    href (a relative path). Cells that read as numbers sort as numbers."""
     links = links or {}
     head = "".join(f"<th>{esc(c)}</th>" for c in columns)
     body = []
     for row in rows:
         cells = []
         for c in columns:
-            v = row.get(c)
-            raw = "" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))
-            text = esc(raw)
+            text = _cell(row.get(c))
             if c in links and row.get(links[c]):
                 text = f'<a href="{esc(row[links[c]])}">{text}</a>'
-            cells.append(f'<td data-v="{esc(raw)}">{text}</td>')
+            cells.append(f"<td>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     bar = ""
     if filterable:

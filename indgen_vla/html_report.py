@@ -165,8 +165,11 @@ def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: 
 
 def episode_rows(episodes) -> list[dict[str, Any]]:
     """The episodes table's rows (``RunDir.episodes()`` as plain dicts; missing progress shown empty)."""
-    rows = episodes.astype(object).where(episodes.notna(), None).to_dict("records") if len(episodes) else []
-    return [{c: r.get(c) for c in EPISODE_COLUMNS} for r in rows]
+    columns = []
+    for c in EPISODE_COLUMNS:
+        values, missing = episodes[c].tolist(), episodes[c].isna().tolist()  # column-wise: 10,000s of rows
+        columns.append([None if m else v for v, m in zip(values, missing, strict=True)])
+    return [dict(zip(EPISODE_COLUMNS, row, strict=True)) for row in zip(*columns, strict=True)]
 
 
 def episodes_section(rows: Sequence[Mapping[str, Any]]) -> Section:
