@@ -16,6 +16,7 @@ from indgen_vla.records import EPISODES, JOURNAL, MANIFEST, SUMMARY
 LIVE_S = 120.0  # a run whose episodes changed this recently counts as running
 REFRESH_S = 10  # the index and a live run's page reload this often while a run is running
 SKIP = {"videos", "plots", "preview", "report.d", ".git", "__pycache__", "node_modules"}
+KINDS = ("run", "comparison", "overlay")  # a run dir; compare's --out; report RUN RUN...'s overlay
 COLUMNS = ("run", "kind", "policy", "scene", "axes", "tasks", "k* per axis", "n", "status", "date")
 
 
@@ -36,8 +37,8 @@ class IndexRow:
     href: str
 
     def __post_init__(self) -> None:
-        if self.kind not in ("run", "comparison"):
-            raise ValueError(f"index row kind must be 'run' or 'comparison', got {self.kind!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"index row kind must be one of {KINDS}, got {self.kind!r}")
 
     def cells(self) -> dict[str, str]:
         return dict(zip(COLUMNS, (self.run, self.kind, self.policy, self.scene, self.axes, self.tasks, self.kstar,
@@ -119,8 +120,19 @@ def run_row(run: Path, root: Path, now: float) -> IndexRow:
     regime = f" ({m['data_regime']})" if m.get("data_regime") else ""
     return IndexRow(run=rel, kind="run", policy=f"{m.get('policy', '')}{regime}", scene=str(m.get("scene", "")),
                     axes=", ".join(plan.get("axes") or []), tasks=", ".join(plan.get("tasks") or []),
-                    kstar=kstar_cell(s), n=f"{n}{of}", status=status, date=str(m.get("created", "")),
+                    kstar=kstar_cell(s), n=f"{n}{of}", status=status, date=_utc(m.get("created")),
                     href=href)  # fmt: skip
+
+
+def _utc(created: object) -> str:
+    """A manifest's ISO time as the index shows every date, e.g. "2026-11-28 04:51 UTC" ("" when unknown)."""
+    import datetime as dt
+
+    try:
+        t = dt.datetime.fromisoformat(str(created))
+    except ValueError:
+        return str(created or "")
+    return (t.astimezone(dt.UTC) if t.tzinfo else t).strftime("%Y-%m-%d %H:%M UTC")
 
 
 def _clip(text: str, limit: int = 240) -> str:
@@ -131,9 +143,11 @@ def comparison_row(folder: Path, root: Path) -> IndexRow:
     """The index row of a comparison or overlay folder (compare.json or report.md without a manifest)."""
     c = _read_json(folder / "compare.json")
     rel = folder.relative_to(root).as_posix()
-    date = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(_mtime(folder / HTML_REPORT, folder / "report.md")))
+    date = time.strftime(
+        "%Y-%m-%d %H:%M UTC", time.gmtime(_mtime(folder / HTML_REPORT, folder / "report.md"))
+    )
     pair = " vs ".join(x for x in (c.get("label_a"), c.get("label_b")) if x)
-    return IndexRow(run=rel, kind="comparison", policy=pair, scene="", axes=", ".join(c.get("axes") or []),
+    return IndexRow(run=rel, kind="comparison" if c else "overlay", policy=pair, scene="", axes=", ".join(c.get("axes") or []),
                     tasks="", kstar="", n="", status=_clip(str(c.get("verdict", ""))), date=date,
                     href=f"/{rel}/{HTML_REPORT}")  # fmt: skip
 

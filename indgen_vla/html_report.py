@@ -174,8 +174,8 @@ def episode_rows(episodes) -> list[dict[str, Any]]:
 
 def episodes_section(rows: Sequence[Mapping[str, Any]]) -> Section:
     """Every episode of the run, one table row each, sortable and filterable; a video cell links its file."""
-    table = table_html("episodes", EPISODE_COLUMNS, [{**r, "_href": r.get("video") or ""} for r in rows],
-                       links={"video": "_href"})  # fmt: skip
+    shown = [{**r, "_href": r.get("video") or "", "video": "video" if r.get("video") else ""} for r in rows]
+    table = table_html("episodes", EPISODE_COLUMNS, shown, links={"video": "_href"})
     return Section("episodes", f"Episodes ({len(rows)})", table)
 
 

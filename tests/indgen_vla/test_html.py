@@ -139,6 +139,7 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
     rows = {r.run: r for r in find_rows(tmp_path / "runs")}
     assert set(rows) == {"done", "deep/live"} and rows["deep/live"].status == "running"
     assert rows["deep/live"].n == "3 of 10" and rows["done"].kstar == "pick_y +— −—"
+    assert rows["done"].date == "2026-01-01 00:00 UTC" and rows["done"].kind == "run"
     later = {r.run: r for r in find_rows(tmp_path / "runs", now=__import__("time").time() + LIVE_S + 1)}
     assert later["deep/live"].status.startswith("stopped") and later["done"].status == "finished"
 
