@@ -52,7 +52,7 @@ table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
 .scroll{max-height:640px;overflow:auto;display:inline-block;max-width:100%}
 .scroll table{margin:0}.scroll th{position:sticky;top:0}
-#runs td{white-space:nowrap}#runs td:nth-child(9){white-space:normal;min-width:260px}
+#runs td:nth-child(2),#runs td:nth-child(8),#runs td:nth-child(10){white-space:nowrap}
 """
 
 # sortable, filterable tables: click a header to sort (numbers as numbers); the box keeps rows whose text holds
