@@ -353,10 +353,9 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
     from indgen_vla.html_page import markdown_page  # report.html: the verdict and its pairing first
 
     pools = [f"Tasks pooled (`{a}`): {x['tasks']}" for a, x in result["axes"].items() if x.get("tasks")]
-    verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools, *result["caveats"]]
-    markdown_page(
-        out, f"Comparison: {result['label_a']} vs {result['label_b']}", text, verdicts, out / "plots"
-    )
+    verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools]
+    title = f"Comparison: {result['label_a']} vs {result['label_b']}"
+    markdown_page(out, title, text, verdicts, out / "plots", caveats=result["caveats"])
     print(text)
     print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}, {out / 'plots'}/")
 

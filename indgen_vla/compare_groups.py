@@ -274,7 +274,11 @@ def groups_main(args) -> int:
     from indgen_vla.html_page import markdown_page  # report.html: the verdicts first
 
     markdown_page(
-        out, f"Group comparison: {la} vs {lb}", text, [*result["verdicts"].values(), *result["caveats"]]
+        out,
+        f"Group comparison: {la} vs {lb}",
+        text,
+        [*result["verdicts"].values()],
+        caveats=result["caveats"],
     )
     print(text)
     print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}")

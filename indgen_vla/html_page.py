@@ -200,12 +200,14 @@ def write_page(path: Path, title: str, sections: Sequence[Section], subtitle: st
 
 
 def markdown_page(out_dir: Path, title: str, markdown: str, verdicts: Sequence[str] = (), plots: Path | None = None,
-                  extra: Sequence[Section] = ()) -> Path:  # fmt: skip
-    """``out_dir/report.html`` from a Markdown report: its verdict lines first, the plots under ``plots`` (every
-    PNG, inlined), ``extra`` sections, then the Markdown itself. The hook for series and gate pages."""
+                  extra: Sequence[Section] = (), caveats: Sequence[str] = ()) -> Path:  # fmt: skip
+    """``out_dir/report.html`` from a Markdown report: its caveats (what it cannot answer) and verdict lines first,
+    the plots under ``plots`` (every PNG, inlined), ``extra`` sections, then the Markdown itself. The hook for series
+    and gate pages."""
     sections = []
-    if verdicts:
-        body = "".join(f'<div class="verdict">{markdown_html(v)}</div>' for v in verdicts)
+    if verdicts or caveats:
+        body = "".join(f'<div class="caveat">{markdown_html(c)}</div>' for c in caveats)
+        body += "".join(f'<div class="verdict">{markdown_html(v)}</div>' for v in verdicts)
         sections.append(Section("verdicts", "Verdicts", body))
     if plots is not None and Path(plots).is_dir():
         figs = "".join(image_html(p, p.stem) for p in sorted(Path(plots).glob("*.png")))

@@ -113,6 +113,10 @@ def test_overlay_and_compare_pages_carry_their_verdicts(tmp_path):
     result = json.loads((tmp_path / "cmp" / "compare.json").read_text())
     assert Page(text).sections == ["verdicts", "plots", "report"]
     assert result["verdict"].split(":")[0] in text and "paired episode by episode" in text
+    verdicts = text[text.index('id="verdicts"') : text.index('id="plots"')]
+    assert (
+        verdicts.count('class="caveat"') == len(result["caveats"]) >= 1
+    )  # too few pairs: said first, in red
 
 
 def test_the_hook_a_series_or_gate_page_calls(tmp_path):
