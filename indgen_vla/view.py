@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import functools
 import socket
+import time
 from dataclasses import dataclass
 from http import HTTPStatus
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
@@ -13,7 +14,7 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 from indgen_vla.errors import ConfigError
-from indgen_vla.html_index import REFRESH_S, find_rows, index_page
+from indgen_vla.html_index import REFRESH_S, find_rows, index_page, run_status
 from indgen_vla.html_page import Section, esc, render_page
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -43,7 +44,7 @@ class ViewConfig:
 
 def live_page(run_path: Path) -> str:
     """A run's page built now from its episodes so far (no plots: those are drawn when the run's report is written);
-    it reloads every ``REFRESH_S`` seconds."""
+    it reloads every ``REFRESH_S`` seconds while the run is running."""
     from indgen_vla.figures import axis_order
     from indgen_vla.html_report import run_page_sections
     from indgen_vla.records import RunDir
@@ -60,14 +61,14 @@ def live_page(run_path: Path) -> str:
     summary = summarize(episodes, run.manifest, float((run.manifest.get("config") or {}).get("gamma", 0.2)))
     order = axis_order([(label, summary)], [run.manifest])
     text = render_markdown([(label, summary)], f"Report: {label}", order)
+    running = run_status(run.path, len(episodes), None, time.time()) == "running"
     sections = [
         s if s.id != "plots" else Section("plots", "Plots", '<p class="note">Plots are drawn when the run writes '
                                           "its report (at its end, or <code>indgen report RUN</code>).</p>")
         for s in run_page_sections(run.path, run.manifest, summary, episodes, text, label, order)
     ]  # fmt: skip
-    return render_page(
-        f"Live: {label}", sections, f"{run_path} · as of now, reloads every {REFRESH_S} s", REFRESH_S
-    )
+    when = f"as of now, reloads every {REFRESH_S} s" if running else "as of now (the run is not running)"
+    return render_page(f"Live: {label}", sections, f"{run_path} · {when}", REFRESH_S if running else None)
 
 
 class _Handler(SimpleHTTPRequestHandler):
