@@ -42,6 +42,7 @@ HANDLERS: dict[str, str] = {
     "budget": "indgen_vla.app.cli.budget:main",
     "gate": "indgen_vla.app.cli.gate:main",
     "series": "indgen_vla.app.cli.series:main",
+    "view": "indgen_vla.app.cli.view:main",
 }
 
 # the modules whose ``add_parser(subparsers)`` build ``indgen --help``, in its order; each imports nothing heavy at
@@ -49,7 +50,7 @@ HANDLERS: dict[str, str] = {
 PARSERS: tuple[str, ...] = tuple(
     f"indgen_vla.app.cli.{name}"
     for name in ("evaluate", "certify", "preview", "report", "merge", "compare", "reference", "gate", "series", "serve",
-                 "catalog", "setup", "blockenv", "demos", "mimicgen", "train", "real", "budget")
+                 "catalog", "setup", "blockenv", "demos", "mimicgen", "train", "real", "budget", "view")
 )  # fmt: skip
 
 PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments

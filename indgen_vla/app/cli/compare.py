@@ -93,5 +93,6 @@ def main(args: argparse.Namespace) -> int:
 
 def _printed(text: str, out, plots: bool) -> int:
     print(text)
-    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}" + (f", {out / 'plots'}/" if plots else ""))
+    print(f"wrote {out / 'compare.json'}, {out / 'compare.md'}, {out / 'report.html'}"
+          + (f", {out / 'plots'}/" if plots else ""))  # fmt: skip
     return 0

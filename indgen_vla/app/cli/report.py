@@ -36,12 +36,12 @@ def main(args: argparse.Namespace) -> int:
     results = write_reports(args.runs, gamma=args.gamma, ci=args.ci, out=args.out, margin=args.margin)
     for path in args.runs:
         run = RunDir(path)
-        print(f"{run.path}: wrote {SUMMARY}, {REPORT}, plots/")
+        print(f"{run.path}: wrote {SUMMARY}, {REPORT}, report.html, plots/")
         # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
         if line := run_status(run.manifest, len(run.episodes()), gamma=args.gamma, ci=args.ci):
             print(f"{run.path}: {line}")
     if len(args.runs) > 1:
         out = overlay_dir(args.runs[0], args.out)
-        print(f"overlay: {out / REPORT}, {out / 'plots'}/")
+        print(f"overlay: {out / REPORT}, {out / 'report.html'}, {out / 'plots'}/")
     print_tables(results)
     return 0

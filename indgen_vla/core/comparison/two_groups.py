@@ -279,5 +279,10 @@ def compare_run_groups(
     result["caveats"] = compare_caveats(result, alpha)  # again, now that the sides' policies are known
     result["verdicts"] = axis_verdicts(result, la, lb)
     result["verdict"] = " ".join(result["verdicts"].values())
-    write_result(groups_dir(runs_a[0].path, out), "compare", result, render_markdown(result, la, lb))
+    out, text = groups_dir(runs_a[0].path, out), render_markdown(result, la, lb)
+    write_result(out, "compare", result, text)
+    from indgen_vla.core.reporting.html_page import markdown_page  # report.html: the verdicts first
+
+    markdown_page(out, f"Group comparison: {la} vs {lb}", text, [*result["verdicts"].values()],
+                  caveats=result["caveats"])  # fmt: skip
     return result

@@ -367,6 +367,14 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
         plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png", "wilson", pairing_note(result))
         plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
+    from indgen_vla.core.reporting.html_page import (
+        markdown_page,  # report.html: the verdict and its pairing first
+    )
+
+    pools = [f"Tasks pooled (`{a}`): {x['tasks']}" for a, x in result["axes"].items() if x.get("tasks")]
+    verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools]
+    title = f"Comparison: {result['label_a']} vs {result['label_b']}"
+    markdown_page(out, title, markdown(result), verdicts, out / "plots", caveats=result["caveats"])
 
 
 def markdown(result: dict) -> str:

@@ -286,7 +286,8 @@ def write_run_report(
 ) -> dict:
     """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
     (``episodes``: ``run.episodes()`` when the caller has it already)."""
-    summary = summarize(run.episodes() if episodes is None else episodes, run.manifest, gamma, ci, margin)
+    episodes = run.episodes() if episodes is None else episodes
+    summary = summarize(episodes, run.manifest, gamma, ci, margin)
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids
@@ -299,6 +300,11 @@ def write_run_report(
         plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
     plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
     plot_grids([(label, summary)], gamma, run.path / "plots")
+    from indgen_vla.core.reporting.html_report import (
+        write_run_html,  # report.html beside report.md, plots inlined
+    )
+
+    write_run_html(run.path, run.manifest, summary, episodes, "\n".join([text, *extra]), label, order)
     return summary
 
 
@@ -365,6 +371,9 @@ def write_reports(
             plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
         plot_axes(results, gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs]))
         plot_grids(results, gamma, out / "plots")
+        from indgen_vla.core.reporting.html_report import write_overlay_html
+
+        write_overlay_html(out, results, text, order)
     return results
 
 
