@@ -115,6 +115,8 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
 def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
     """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
     certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
+    from indgen_vla.protocol_deviations import protocol_deviations
+
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -129,7 +131,8 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
             plan.scene_plan.task_steps,
         ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
-        "resolved": plan.record(),
+        "resolved": (resolved := plan.record()),
+        "deviations": protocol_deviations(cfg.max_steps, resolved["environment"].get("protocol", {})),
         "t0_sharing": sharing_entry(cfg, plan),
         "config": dataclasses.asdict(cfg),
         "versions": package_versions(),
