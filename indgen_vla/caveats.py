@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from indgen_vla.certification_view import certification_caveats, infeasible_caveats
 from indgen_vla.metrics import MIN_N, exact_2x2, mcnemar_exact, pooled_text, success_rate, usable_rows
 
 MAX_SEARCH = 10_000  # the largest episode count a "would need n" hint searches
@@ -125,6 +126,8 @@ def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
         if s.get("reads_observations") is False:
             out.append(blind_caveat(label))
         for axis, a in s["axes"].items():
+            out += certification_caveats(label, axis, a.get("certification") or {})
+            out += infeasible_caveats(label, axis, a.get("infeasible") or {})
             out += axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
     return out
 

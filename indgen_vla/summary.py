@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from indgen_vla.certification_view import certification_entry, infeasible_entry
 from indgen_vla.contrasts import add_vs_t0
 from indgen_vla.levels import (
     axis_verdicts,
@@ -81,6 +82,10 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "tasks": task_entries,
         }
         a = out["axes"][axis]
+        a["certification"] = certification_entry(manifest, axis)  # per task: certified / uncertified / failed
+        a["infeasible"] = infeasible_entry(
+            df
+        )  # per task and level: episodes whose initial state cannot hold it
         if design := design_text(adaptive, per_task):
             a["design"] = design
         a["condition2"] = condition2_validation(a["monotone"], a["regime"])  # None: vanilla (by construction)

@@ -69,11 +69,18 @@ def _noop_episode(task: str, axis: str, out) -> tuple:
 @pytest.mark.slow  # ~15 s of CPU (300 RoboCasa steps, the engine); test_the_oracle_turns_the_blender_on checks the env
 def test_a_noop_episode_on_turn_on_blender_runs_300_steps(placeholders, tmp_path):
     """robocasa/utils/dataset_registry.py registers TurnOnBlender's horizon as 300: a standin:noop episode runs
-    that many steps; the manifest and fingerprint record every task's registered horizon, and no deviation."""
-    df, manifest, _ = _noop_episode("TurnOnBlender", "fixture_x", tmp_path / "run")
+    that many steps; the manifest and fingerprint record every task's registered horizon, and no deviation; its
+    summary.json and report.md name the level uncertified."""
+    df, manifest, run = _noop_episode("TurnOnBlender", "fixture_x", tmp_path / "run")
     assert list(df.status) == ["ok"] and list(df.steps) == [300] and not df.success.any()
     assert manifest["fingerprint"]["horizon"] == TASK_HORIZONS and manifest["deviations"] == []
     assert manifest["resolved"]["environment"]["protocol"]["max_steps"]["TurnOnBlender"] == 300
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["axes"]["fixture_x"]["certification"] == {"TurnOnBlender": {"uncertified": [0]}}
+    assert (
+        "**uncertified** (no certificate with enough evidence; `indgen certify` can make one) at TurnOnBlender: 0"
+        in ((run / "report.md").read_text())
+    )
 
 
 @needs_venv
