@@ -15,6 +15,7 @@ from indgen_vla.errors import ConfigError
 from indgen_vla.interface import EnvSpec
 from indgen_vla.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
+from scenes.robocasa.deviations import DEVIATIONS, SPAWN_JITTER
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
@@ -396,6 +397,8 @@ class RoboCasa(Scene):
             # each task's episode length, RoboCasa's own (the fingerprint's horizon unless --max-steps replaces it)
             "max_steps": dict(TASK_HORIZONS),
             "horizon_source": REGISTRY,
+            "spawn_jitter": SPAWN_JITTER,
+            "deviations": list(DEVIATIONS),  # from RoboCasa's own protocol (docs/robocasa.md)
         }
 
     def check_axis_task(self, task: str, axis: str) -> None:

@@ -7,6 +7,7 @@ import subprocess
 
 import pytest
 
+from scenes.robocasa.deviations import DEVIATIONS, SPAWN_JITTER
 from scenes.robocasa.horizons import TASK_HORIZONS
 
 
@@ -69,11 +70,12 @@ def _noop_episode(task: str, axis: str, out) -> tuple:
 @pytest.mark.slow  # ~15 s of CPU (300 RoboCasa steps, the engine); test_the_oracle_turns_the_blender_on checks the env
 def test_a_noop_episode_on_turn_on_blender_runs_300_steps(placeholders, tmp_path):
     """robocasa/utils/dataset_registry.py registers TurnOnBlender's horizon as 300: a standin:noop episode runs
-    that many steps; the manifest and fingerprint record every task's registered horizon, and no deviation; its
+    that many steps; the manifest and fingerprint record every task's registered horizon, the standing deviations
+    and no --max-steps one; its
     summary.json and report.md name the level uncertified."""
     df, manifest, run = _noop_episode("TurnOnBlender", "fixture_x", tmp_path / "run")
     assert list(df.status) == ["ok"] and list(df.steps) == [300] and not df.success.any()
-    assert manifest["fingerprint"]["horizon"] == TASK_HORIZONS and manifest["deviations"] == []
+    assert manifest["fingerprint"]["horizon"] == TASK_HORIZONS and manifest["deviations"] == list(DEVIATIONS)
     assert manifest["resolved"]["environment"]["protocol"]["max_steps"]["TurnOnBlender"] == 300
     summary = json.loads((run / "summary.json").read_text())
     assert summary["axes"]["fixture_x"]["certification"] == {"TurnOnBlender": {"uncertified": [0]}}
@@ -90,3 +92,23 @@ def test_a_noop_episode_on_pick_place_sink_to_counter_runs_900_steps(placeholder
     cut it 400 steps short)."""
     df, _, _ = _noop_episode("PickPlaceSinkToCounter", "pick_x", tmp_path / "run")
     assert list(df.status) == ["ok"] and list(df.steps) == [900]
+
+
+@needs_venv
+def test_the_spawn_jitter_robocasa_defaults_to_is_recorded_as_set_to_zero(placeholders):
+    """robocasa/robocasa robocasa/environments/kitchen/kitchen.py: Kitchen.__init__ defaults
+    robot_spawn_deviation_pos_x=0.15, robot_spawn_deviation_pos_y=0.05; the manifest's protocol facts record that
+    default beside the 0 the worker builds with, and the deviation in words."""
+    from scenes.registry import get_scene
+
+    code = (
+        "import inspect\nfrom robocasa.environments.kitchen.kitchen import Kitchen\n"
+        "p = inspect.signature(Kitchen.__init__).parameters\n"
+        "print(p['robot_spawn_deviation_pos_x'].default, p['robot_spawn_deviation_pos_y'].default)"
+    )
+    out = subprocess.run([str(_python()), "-c", code], capture_output=True, text=True, check=True)
+    x, y = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
+    assert SPAWN_JITTER["robocasa_default"] == {"pos_x": x, "pos_y": y}
+    facts = get_scene("robocasa").protocol_facts()
+    assert facts["spawn_jitter"] == {**SPAWN_JITTER} and facts["spawn_jitter"]["pos_x"] == 0.0
+    assert any(d.startswith("robot spawn jitter 0") for d in facts["deviations"])
