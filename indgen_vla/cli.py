@@ -378,7 +378,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reference(sp)
     _add_serve(sp)
     _add_simple(sp, "scenes", "list registered scenes and their tasks")
-    _add_simple(sp, "axes", "list registered axes with step, level range and description")
+    _add_simple(sp, "axes", "list registered axes with step, level range and description").add_argument(
+        "--scene",
+        default=None,
+        help="show this scene family's own steps and ranges, per task (e.g. robocasa)",
+    )
     _add_simple(sp, "policies", "list policy spec families and stand-ins")
     p = sp.add_parser(
         "setup", help="create a scene family's own simulator environment (robocasa: a pinned venv)"

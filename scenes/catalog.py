@@ -242,7 +242,12 @@ def scenes_main(args) -> int:
 
 
 def axes_main(args) -> int:
-    """``indgen axes``: every axis with its step, level range, description and supporting scenes."""
+    """``indgen axes``: every axis with its step, level range, description and supporting scenes (``--scene``: that
+    family's own steps and ranges, ``scenes.scene_axes``)."""
+    if getattr(args, "scene", None):
+        from scenes.scene_axes import print_scene_axes
+
+        return print_scene_axes(args.scene, getattr(args, "json", False))
     rows = _axis_rows()
     if getattr(args, "json", False):
         print(json.dumps(rows, indent=2))
