@@ -127,7 +127,7 @@ class BaseSceneEnv(gym.Env):
         self.scene, self.task, self.level = scene.name, task, int(level)
         self.axis = successor.axis
         self.image_size = _check_size(image_size, "image_size")
-        self.max_steps = int(max_steps) if max_steps is not None else scene.max_steps
+        self.max_steps = int(max_steps) if max_steps is not None else scene.task_max_steps(task)
         self._renderers: dict[tuple[int, int], object] = {}
         self._scene_option = None
         self._t = 0

@@ -138,7 +138,9 @@ def resolve_scene_plan(
         step: ``--step``, overriding a single axis's step.
         preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
     """
+    from indgen_vla.core.reporting.certification_view import NO_ORACLE
     from scenes.certificates import certified_levels, find_certification, infeasible_levels, level_status
+    from scenes.oracle import oracle_scripts
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
@@ -166,6 +168,7 @@ def resolve_scene_plan(
         for t in tasks:
             successor = per_task.get(name, {}).get(t, successors[name])
             cert = find_certification(scene, t, name, step, preset=preset)
+            scripted = cert is not None or oracle_scripts(scene, t)
             failed = set(infeasible_levels(cert)) if cert else set()
             certified = set(certified_levels(cert)) if cert else set()
             rows = {int(r["level"]): r for r in cert["levels"]} if cert else {}
@@ -174,6 +177,7 @@ def resolve_scene_plan(
                 status = FAILED if k in failed else CERTIFIED if k in certified else UNCERTIFIED
                 row = rows.get(k)
                 evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
+                evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
                 cells.append(Cell(t, name, k, param, status, evidence, key))

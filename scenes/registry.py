@@ -168,6 +168,10 @@ class Scene:
         """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
         return None
 
+    def task_max_steps(self, task: str) -> int:
+        """``task``'s episode length when no ``--max-steps`` is given: the family's own (RoboCasa365: per task)."""
+        return self.max_steps
+
     def protocol_facts(self) -> dict[str, Any]:
         """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
         settling steps after reset, where initial states come from, and the identity of the asset tree."""

@@ -15,6 +15,8 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import EnvSpec
 from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
+from scenes.robocasa.deviations import DEVIATIONS, SPAWN_JITTER
+from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
 
@@ -237,7 +239,9 @@ class RoboCasa(Scene):
     description = "RoboCasa365 kitchens (own venv: indgen setup robocasa), PandaOmron, 12-d action"
     tasks = tuple(dict.fromkeys(t for ts in AXIS_TASKS.values() for t in ts))
     axes = ("pick_x", "fixture_x", "horizon", "clutter")
-    max_steps = 500
+    # each episode's length is its task's own (``task_max_steps``: RoboCasa's get_task_horizon, 300..900 steps);
+    # this class-wide bound is only what ``indgen scenes`` shows beside them
+    max_steps = max(TASK_HORIZONS.values())
     distractor_slots = ()
     success_predicate = RoboCasaSuccess()
     committed_certificates = False
@@ -286,6 +290,13 @@ class RoboCasa(Scene):
         name, _ = split_task(task)
         super().resolve_task(name)
         return task
+
+    def task_max_steps(self, task: str) -> int:
+        """RoboCasa's registered limit of ``task`` (``horizons.TASK_HORIZONS``), as lerobot and openpi take it."""
+        return task_horizon(self.resolve_task(task))
+
+    def row(self) -> dict:
+        return {**super().row(), "max_steps": f"{min(TASK_HORIZONS.values())}..{self.max_steps} (per task)"}
 
     def base(self, task: str) -> RoboCasaSpec:
         return RoboCasaSpec(task=self.resolve_task(task))
@@ -383,6 +394,11 @@ class RoboCasa(Scene):
                 "listing_sha256": tree_identity(assets),
             },  # fmt: skip
             "regime": BLACK_BOX,
+            # each task's episode length, RoboCasa's own (the fingerprint's horizon unless --max-steps replaces it)
+            "max_steps": dict(TASK_HORIZONS),
+            "horizon_source": REGISTRY,
+            "spawn_jitter": SPAWN_JITTER,
+            "deviations": list(DEVIATIONS),  # from RoboCasa's own protocol (docs/robocasa.md)
         }
 
     def check_axis_task(self, task: str, axis: str) -> None:

@@ -45,6 +45,7 @@ def _load_beside(name: str):
 _facts = _load_beside("worker_facts")
 versions, failure_facts, check_kitchen = _facts.versions, _facts.failure_facts, _facts.check_kitchen
 oracle_facts = _facts.oracle_facts
+placement = _load_beside("placement_check")  # fixture_x / base_y moves checked after the settle
 window = _load_beside("pick_window")  # pick_x's window on RoboCasa's range in the episode's kitchen
 PICK_JITTER = window.PICK_JITTER
 _patches = _load_beside("worker_patches")
@@ -149,8 +150,8 @@ class RoboCasaLevel:
             layout_ids=config.get("layout_ids"),
             style_ids=config.get("style_ids"),
             obj_registries=tuple(config.get("obj_registries", ("objaverse", "lightwheel"))),
-            robot_spawn_deviation_pos_x=0.0,
-            robot_spawn_deviation_pos_y=0.0,
+            robot_spawn_deviation_pos_x=0.0,  # RoboCasa's 0.15 / 0.05 m jitter off: a documented choice
+            robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/deviations.py SPAWN_JITTER, in the manifest)
             translucent_robot=False,
         )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
@@ -282,6 +283,7 @@ class RoboCasaLevel:
                 raw = self._reset(seed, meta, pins, t0["made"], shift)
             finally:
                 self.env._indgen_task_fixture = None
+            self._check_moves(seed, edits, shift)
         self.meta = self.env.get_ep_meta()
         out = {**self._obs(raw), "facts": failure_facts(self.env)}
         if pick:
@@ -290,6 +292,19 @@ class RoboCasaLevel:
             if pick.get("report"):
                 out["axis_param"] = dx  # the episode's own offset (m): episodes.parquet's param
         return out
+
+    def _check_moves(self, seed: int, edits: dict, shift) -> None:
+        """The placement check after the settle (``placement_check``): a fixture_x appliance clear of its neighbours
+        and on its counter, a base_y base clear of what stands behind it; ``PlacementInfeasible`` otherwise."""
+        meta = self.env.get_ep_meta()
+        where = (
+            f"{self.cfg['task']} seed {seed} (layout {meta.get('layout_id')}, style {meta.get('style_id')})"
+        )
+        if shift:
+            name, d = shift
+            placement.check_fixture_move(self.env, [name, *auxiliaries(self.env, name)], np.asarray(d), where)
+        if edits.get("base_back"):
+            placement.check_base_move(self.env, where)
 
     def _check_window(self, t0: dict, dx: float) -> None:
         """The level drew the object in T0's window moved by ``dx``: RoboCasa computed the same range, moved."""

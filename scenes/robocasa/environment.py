@@ -144,10 +144,24 @@ def default_assets() -> Path:
     return cache_dir() / "robocasa-assets"
 
 
+def venv_assets() -> Path:
+    """Where RoboCasa's own download script writes (``robocasa/scripts/download_kitchen_assets.py``: under
+    ``robocasa.__path__[0]/models/assets``), in the venv ``indgen setup robocasa`` makes (Python 3.12)."""
+    return venv_dir() / "lib" / "python3.12" / "site-packages" / "robocasa" / "models" / "assets"
+
+
+def has_objects(path: Path) -> bool:
+    """At least one object model under ``objects/<registry>/<category>/<model>/`` (the wheel's bundled asset folder,
+    3.5 MB of fixtures and layouts, has none: every task would fail at its first object)."""
+    return next((path / "objects").glob("*/*/*/model.xml"), None) is not None
+
+
 def is_asset_tree(path: Path) -> bool:
-    return (path / "fixtures" / "fixture_registry").is_dir() and (
-        path / "scenes" / "kitchen_layouts"
-    ).is_dir()
+    return (
+        (path / "fixtures" / "fixture_registry").is_dir()
+        and (path / "scenes" / "kitchen_layouts").is_dir()
+        and has_objects(path)
+    )
 
 
 def is_placeholder(path: Path) -> bool:
@@ -189,21 +203,32 @@ def find_assets(required: bool = True) -> Path | None:
             if _usable(p, required):
                 return p.resolve()
             if required:
-                raise SceneError(
-                    f"${var}={p} is not a RoboCasa asset tree (no fixtures/fixture_registry); {_hint()}"
-                )
+                raise SceneError(f"${var}={p} is not a RoboCasa asset tree ({_missing(p)}); {_hint()}")
             return None
-    p = default_assets()
-    if _usable(p, required):
-        return p.resolve()
+    for p in (default_assets(), venv_assets()):  # the documented place, then where RoboCasa's download writes
+        if _usable(p, required):
+            return p.resolve()
     if required:
-        raise SceneError(f"RoboCasa's kitchen assets are missing (looked in {p}); {_hint()}")
+        raise SceneError(
+            f"RoboCasa's kitchen assets are missing (looked in {default_assets()} and {venv_assets()}: "
+            f"{_missing(venv_assets())}); {_hint()}"
+        )
     return None
+
+
+def _missing(p: Path) -> str:
+    """What ``p`` lacks of an asset tree, in words."""
+    if not (p / "fixtures" / "fixture_registry").is_dir():
+        return "no fixtures/fixture_registry"
+    if not (p / "scenes" / "kitchen_layouts").is_dir():
+        return "no scenes/kitchen_layouts"
+    return "no object models under objects/ (RoboCasa's bundled assets only: run the download)"
 
 
 def _hint() -> str:
     return (
-        f"download them with RoboCasa's own script in the RoboCasa venv ('python -m robocasa.scripts.download_kitchen_"
-        f"assets') and set {ASSETS_ENV}=DIR, or for smoke runs write placeholders with "
+        f"download them with RoboCasa's own script in the RoboCasa venv ('{venv_dir() / 'bin' / 'python'} -m "
+        f"robocasa.scripts.download_kitchen_assets'; it writes into {venv_assets()}, where indgen finds them, or set "
+        f"{ASSETS_ENV}=DIR for a tree elsewhere), or for smoke runs write placeholders with "
         f"'python -m scenes.robocasa.placeholders {default_assets()}'"
     )

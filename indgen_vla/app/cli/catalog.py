@@ -16,10 +16,17 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     ):
         p = sp.add_parser(name, help=help_)
         p.add_argument("--json", action="store_true", help="machine-readable output")
+        if name == "axes":
+            p.add_argument("--scene", default=None,
+                           help="show this scene family's own steps and ranges, per task (e.g. robocasa)")  # fmt: skip
 
 
 def main(args: argparse.Namespace) -> int:
-    """Print the listing ``args.command`` names."""
+    """Print the listing ``args.command`` names (``axes --scene``: that family's own steps and ranges)."""
+    if args.command == "axes" and args.scene:
+        from scenes.scene_axes import print_scene_axes
+
+        return print_scene_axes(args.scene, args.json)
     return {"scenes": scenes_table, "axes": axes_table, "policies": policies_text}[args.command](args.json)
 
 

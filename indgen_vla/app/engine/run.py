@@ -74,15 +74,22 @@ def _levels_text(levels: list[int]) -> str:
 def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
     """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
     line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
+    from indgen_vla.core.reporting.certification_view import NO_ORACLE
+
     warnings = []
     for name, spec in plan.axes.items():
         want = list(plan.levels[name])
         failed: dict[str, list[int]] = {}
         missing: dict[str, list[int]] = {}
+        no_oracle: dict[str, list[int]] = {}
         for task in plan.tasks:
             cells = [plan.scene_plan.cell(task, name, k) for k in want]
             bad = sorted(c.level for c in cells if c.certificate == FAILED)
-            short = [c.level for c in cells if c.certificate == UNCERTIFIED]
+            short = [c.level for c in cells if c.certificate == UNCERTIFIED and c.evidence != NO_ORACLE]
+            if unscripted := [
+                c.level for c in cells if c.certificate == UNCERTIFIED and c.evidence == NO_ORACLE
+            ]:
+                no_oracle[task] = unscripted
             if bad:
                 failed[task] = bad
             if short:
@@ -96,6 +103,13 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
         if failed:
             where = "; ".join(f"task {t}: {_levels_text(b)}" for t, b in failed.items())
             warnings.append(f"evaluating levels of {name} the oracle failed (--allow-infeasible): {where}")
+        if no_oracle:
+            where = "; ".join(f"task {t}: levels {_levels_text(v)}" for t, v in no_oracle.items())
+            warnings.append(
+                f"axis {name} is uncertified at {where}: the scene's oracle has no script for "
+                f"{'these tasks' if len(no_oracle) > 1 else 'this task'}, so no certificate can say those levels "
+                "are solvable (indgen certify refuses it); report.md and summary.json name them"
+            )
         if missing:
             if all(v == want for v in missing.values()) and len(missing) == len(plan.tasks):
                 where = f"all requested levels of {'every task' if len(plan.tasks) > 1 else 'task ' + plan.tasks[0]}"
@@ -115,6 +129,8 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
 def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
     """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
     certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
+    from indgen_vla.core.protocol.deviations import protocol_deviations
+
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -129,7 +145,8 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
             plan.scene_plan.task_steps,
         ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
-        "resolved": plan.record(),
+        "resolved": (resolved := plan.record()),
+        "deviations": protocol_deviations(cfg.max_steps, resolved["environment"].get("protocol", {})),
         "t0_sharing": sharing_entry(cfg, plan),
         "config": dataclasses.asdict(cfg),
         "versions": package_versions(),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from indgen_vla.core.reporting.certification_view import certification_caveats, infeasible_caveats
 from indgen_vla.core.stats.metrics import (
     MIN_N,
     exact_2x2,
@@ -132,6 +133,8 @@ def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
         if s.get("reads_observations") is False:
             out.append(blind_caveat(label))
         for axis, a in s["axes"].items():
+            out += certification_caveats(label, axis, a.get("certification") or {})
+            out += infeasible_caveats(label, axis, a.get("infeasible") or {})
             out += axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
     return out
 

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from indgen_vla.core.protocol.training_support import cells_from_json, trained_levels
+from indgen_vla.core.reporting.certification_view import certification_entry, infeasible_entry
 from indgen_vla.core.reporting.levels import (
     axis_verdicts,
     by_task,
@@ -87,6 +88,10 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
             "tasks": task_entries,
         }
         a = out["axes"][axis]
+        a["certification"] = certification_entry(manifest, axis)  # per task: certified / uncertified / failed
+        a["infeasible"] = infeasible_entry(
+            df
+        )  # per task and level: episodes whose initial state cannot hold it
         if design := design_text(adaptive, per_task):
             a["design"] = design
         a["condition2"] = condition2_validation(a["monotone"], a["regime"])  # None: vanilla (by construction)

@@ -107,8 +107,11 @@ def test_a_placeholder_tree_of_an_older_generator_is_refused_in_one_line(tmp_pat
     from scenes.robocasa.environment import PLACEHOLDER_MARKER, find_assets
     from scenes.robocasa.placeholder_tree import VERSION
 
-    for d in ("fixtures/fixture_registry", "scenes/kitchen_layouts"):
+    for d in ("fixtures/fixture_registry", "scenes/kitchen_layouts", "objects/lightwheel/apple/apple_ph"):
         (tmp_path / d).mkdir(parents=True)
+    (tmp_path / "objects/lightwheel/apple/apple_ph/model.xml").write_text(
+        "<mujoco/>"
+    )  # a tree with an object
     monkeypatch.setenv("INDGEN_ROBOCASA_ASSETS", str(tmp_path))
     (tmp_path / PLACEHOLDER_MARKER).write_text(f"version {VERSION - 1}\nrobocasa 1.0.1\n")
     old = f"older generator \\(version {VERSION - 1}; current: version {VERSION}\\)"

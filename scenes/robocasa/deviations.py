@@ -1,0 +1,29 @@
+"""Where RoboCasa365 here departs from RoboCasa's own evaluation protocol (robocasa/robocasa be22d659, lerobot's
+``lerobot/envs/robocasa.py``): recorded in every run's manifest (protocol facts ``deviations`` and the manifest's
+``deviations``) and listed in docs/robocasa.md. Importing this is cheap."""
+
+from __future__ import annotations
+
+# RoboCasa's Kitchen defaults robot_spawn_deviation_pos_x=0.15, _pos_y=0.05 (robocasa/environments/kitchen/kitchen.py)
+SPAWN_JITTER = {"pos_x": 0.0, "pos_y": 0.0, "robocasa_default": {"pos_x": 0.15, "pos_y": 0.05}}
+
+DEVIATIONS: tuple[str, ...] = (
+    "robot spawn jitter 0 (RoboCasa's default: uniform +-0.15 m along and +-0.05 m across the anchor): T0's robot "
+    "base is RoboCasa's anchor pose itself, so a base_y step (0.125 m) is not drowned in T0's own spread of the "
+    "base and every level replays one base pose; the oracle's certificates were made so",
+    "T0's kitchen, style and objects are RoboCasa's own draws from streams seeded per episode (layout/style from "
+    "the seed, placements per object from (seed, name)), not the stream RoboCasa's gym reset(seed) would use: "
+    "the same seed gives a RoboCasa task instance, not the one lerobot's env gives for that seed",
+    "levels replay T0's ep_meta with one field moved, skipping RoboCasa's robot-placement collision retry; the "
+    "placement check after the settle stands in for it (a fixture_x / base_y move into an obstacle or off its "
+    "counter is an infeasible cell, recorded as EpisodeUnavailableError, never a policy failure)",
+    "pick_x: T0 draws the pick object's x in a 4 cm window at the low-x end of the range RoboCasa samples it in "
+    "(not across the whole range), with the object's centre (not its footprint) kept in that window",
+    "CheesyBread (pick_x): RoboCasa places the robot base from the cheese's sampler (init_robot_here), so the "
+    "narrowed pick window also moves T0's base (up to about 0.48 m sideways) from where RoboCasa puts it",
+    "object registries (objaverse, lightwheel), RoboCasa's own default, with every layout, style and object "
+    "instance (what split='all' selects); lerobot evaluates split='all' with lightwheel only, RoboCasa365's openpi "
+    "client the pretrain / target splits",
+    "RoboCasa's counter-region order is made first-seen (RoboCasa iterates a set of XML elements, in memory order), "
+    "so one seed is one kitchen in every process",
+)

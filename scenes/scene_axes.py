@@ -1,0 +1,51 @@
+"""``indgen axes --scene NAME``: the axes a family runs with its own steps and ranges, per task where they differ
+(RoboCasa365's pick_x step is each task's region / 5; its fixture_x and base_y run 0..3 at 0.125 m), not the shared
+table of ``indgen axes``. Importing this is cheap."""
+
+from __future__ import annotations
+
+
+def scene_axis_rows(scene: str) -> list[dict]:
+    """One row per (axis, group of tasks that share its step and range) of ``scene``, in the family's axis order."""
+    from scenes.axes import resolve_alias
+    from scenes.registry import get_scene
+
+    sc = get_scene(scene)
+    rows: list[dict] = []
+    for axis in sc.axes:
+        try:
+            tasks = sc.select_tasks("all", (axis,))
+        except Exception:  # a family whose "all" needs its install: its default task only
+            tasks = [sc.resolve_task(None)]
+        groups: dict[tuple, list[str]] = {}
+        for t in tasks:
+            ax = sc.successor(axis, None, None, t).axis
+            low = -ax.max_level if ax.signed else 0
+            key = (resolve_alias(axis), ax.step, ax.unit, f"{low}..{ax.max_level}", ax.description)
+            groups.setdefault(key, []).append(t)
+        for (name, step, unit, levels, description), ts in groups.items():
+            rows.append({"name": name, "step": step, "unit": unit, "levels": levels, "tasks": ts,
+                         "description": description})  # fmt: skip
+    return rows
+
+
+def print_scene_axes(scene: str, as_json: bool = False) -> int:
+    """The table (or JSON) of ``scene_axis_rows``."""
+    import json
+
+    rows = scene_axis_rows(scene)
+    if as_json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"axes of scene {scene}: its own steps and level ranges, per task where they differ")
+    for col in ("axis", "step", "levels", "tasks", "description"):
+        table.add_column(col)
+    for r in rows:
+        table.add_row(
+            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["tasks"]), r["description"]
+        )
+    Console().print(table)
+    return 0
