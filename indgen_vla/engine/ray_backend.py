@@ -15,6 +15,7 @@ travel back with their records (``ray_files``). Each simulator actor waits out a
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import queue
 import threading
@@ -328,18 +329,21 @@ def run_ray(
     route = None
     if runner_cfg.video_dir:  # the run directory is where the videos folder is
         route = files_route(Path(runner_cfg.video_dir).parent)
+        if route.shared:  # the simulators write there directly: the same absolute path on every node
+            video_dir = str(Path(route.run_dir) / Path(runner_cfg.video_dir).name)
+            runner_cfg = dataclasses.replace(runner_cfg, video_dir=video_dir)
     started_here = join(local_cpus(workers, need), keeping_sigterm)
     run_dir = Path(cfg.out)
-    faults_before = _manifest(run_dir).get("ray", {}).get("faults", {})
+    before = _manifest(run_dir).get("ray", {})
 
-    def on_fault(faults) -> None:
+    def on_fault(faults, per_node) -> None:
+        """The faults survived so far (added to those of earlier invocations of this run) into the manifest."""
         if (run_dir / "manifest.json").exists():
             from indgen_vla.records import RunDir
 
-            total = {
-                k: int(faults_before.get(k, 0)) + int(faults.get(k, 0)) for k in {*faults_before, *faults}
-            }
-            RunDir(run_dir).update_manifest(ray={**(route.manifest() if route else {}), "faults": total})
+            entry = {**(route.manifest() if route else {}), "faults": _added(before.get("faults", {}), faults),
+                     "episodes_per_node": _added(before.get("episodes_per_node", {}), per_node)}  # fmt: skip
+            RunDir(run_dir).update_manifest(ray=entry)
 
     factory = make_policy or _policy_factory(cfg, runner_cfg.scene)
     most = max(
@@ -358,7 +362,7 @@ def run_ray(
     try:
         sup = Supervisor(ray, jobs, settings, on_record, on_fault)
         sup.run()
-        on_fault(sup.faults)
+        on_fault(sup.faults, sup.per_node)
         if stats is not None:
             stats["batch_sizes"] = sup.batch_sizes()
             stats["policy_actors"] = len(sup.policies)
@@ -375,6 +379,10 @@ def run_ray(
             sup.close()
         if started_here:
             ray.shutdown()
+
+
+def _added(a: dict, b: dict) -> dict[str, int]:
+    return {k: int(a.get(k, 0)) + int(b.get(k, 0)) for k in sorted({*a, *b})}
 
 
 def _manifest(run_dir: Path) -> dict:

@@ -65,7 +65,7 @@ class Supervisor:
     """The driver's loop over the actors of one run (``run``); ``faults`` counts what it survived."""
 
     def __init__(self, ray, jobs: Sequence[EpisodeJob], s: Settings, on_record: Callable[[EpisodeRecord], None],
-                 on_fault: Callable[[Counter], None] | None = None) -> None:  # fmt: skip
+                 on_fault: Callable[[Counter, Counter], None] | None = None) -> None:  # fmt: skip
         self.ray, self.s, self.on_record, self.on_fault = ray, s, on_record, on_fault
         self.queue, self.left = JobQueue(jobs), len(jobs)
         self.sims: dict[int, _Actor] = {}
@@ -75,6 +75,7 @@ class Supervisor:
             Counter()
         )  # episode key -> simulator crashes while running it (spend attempts)
         self.faults: Counter = Counter()
+        self.per_node: Counter = Counter()  # node id -> episodes its simulators finished
         self.nodes: dict[str, Node] = {}
         self._ids = 0
         self._refreshed = 0.0
@@ -163,9 +164,9 @@ class Supervisor:
 
     # ----------------------------------------------------------------- handing out episodes
     def _dispatch(self) -> None:
-        ready_policies = [k for k, p in self.policies.items() if p.starting is None]
+        ready_policies = [k for k, p in self.policies.items() if p.starting is None and p.node in self.nodes]
         for i, sim in self.sims.items():
-            if sim.starting is not None or sim.job is not None:
+            if sim.starting is not None or sim.job is not None or sim.node not in self.nodes:
                 continue
             if sim.policy is None:
                 if not ready_policies:
@@ -240,6 +241,7 @@ class Supervisor:
             deliver(self.s.files.run_dir, files)
         self.on_record(record)
         self.left -= 1
+        self.per_node[sim.node] += 1
 
     # ----------------------------------------------------------------- faults
     def _sim_died(self, i: int, job: EpisodeJob, error: Exception) -> None:
@@ -293,7 +295,7 @@ class Supervisor:
 
     def _report(self) -> None:
         if self.on_fault is not None:
-            self.on_fault(self.faults)
+            self.on_fault(self.faults, self.per_node)
 
     def _check_stall(self) -> None:
         """No episode running while some wait: allowed for ``patience_s`` (actors starting, nodes joining)."""
@@ -320,9 +322,10 @@ class Supervisor:
 
     # ----------------------------------------------------------------- the end
     def close(self) -> None:
-        """Close every live actor (a policy server's connections, the simulators' scenes), then kill them."""
+        """Close every started actor (a policy server's connections, the simulators' scenes), then kill them all
+        (one still waiting for room would answer a close never)."""
         live = self._all()
-        calls = [a.handle.close.remote() for a in live]
+        calls = [a.handle.close.remote() for a in live if a.starting is None]
         try:
             self.ray.wait(calls, num_returns=len(calls), timeout=60)
         finally:
