@@ -367,6 +367,7 @@ def run_ray(
             stats["batch_sizes"] = sup.batch_sizes()
             stats["policy_actors"] = len(sup.policies)
             stats["faults"] = dict(sup.faults)
+            stats["episodes_per_node"] = dict(sup.per_node)
     except KeyboardInterrupt:
         # Ctrl-C or SIGTERM: a scheduler's SIGTERM reaches Ray's own processes too, and a call that waits on a
         # GCS gone with them hangs 60 s, then Ray aborts with status 1

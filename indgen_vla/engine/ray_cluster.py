@@ -164,6 +164,8 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
     """Join the Ray cluster this process already joined or ``RAY_ADDRESS`` names (``ray.init`` then takes no
     resource counts: the cluster has its own), else start a local Ray instance of ``local_cpus`` CPUs. True when
     this call connected (the caller disconnects with ``ray.shutdown()``, which leaves a joined cluster running).
+    The local instance is always a new one (``address="local"``): a bare ``ray.init`` would join a cluster some
+    ``ray start`` left on this machine, and refuse the CPU count.
     ``start`` wraps the ``ray.init`` call (keeping the SIGTERM handler)."""
     import ray
 
@@ -180,7 +182,9 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
                               "'ray start --head' (docs/cluster.md), or unset RAY_ADDRESS for a local Ray "
                               "instance") from None  # fmt: skip
         return True
-    start(lambda: ray.init(num_cpus=local_cpus, include_dashboard=False, log_to_driver=False))
+    start(
+        lambda: ray.init(address="local", num_cpus=local_cpus, include_dashboard=False, log_to_driver=False)
+    )
     return True
 
 
