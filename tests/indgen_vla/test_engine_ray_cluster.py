@@ -193,25 +193,39 @@ def test_a_node_added_mid_run_gets_simulators_and_work(joined, tmp_path):
     rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=10, privileged=True)  # fmt: skip
 
-    def join_then_open() -> None:
-        added.append(joined.add_node(num_cpus=2))
-        deadline = time.monotonic() + 600
-        while len(actor_pids("_SimActor.run")) < 4 and time.monotonic() < deadline:
-            time.sleep(0.1)
-        gate.touch()
+    got, stats, failed = [], {}, []
 
-    got, stats = [], {}
-    opener = when(lambda: len(actor_pids("_SimActor.run")) >= 3, join_then_open)
+    def run() -> None:
+        try:
+            run_ray(jobs, rc, cfg, RunMeta("r", "standin:oracle", "", "pick_place"), got.append, 5,
+                    make_policy=gated_oracle(str(gate)), stats=stats)  # fmt: skip
+        except BaseException as e:  # noqa: BLE001 - failed below
+            failed.append(e)
+
+    def until(ready: Callable[[], bool]) -> None:
+        deadline = time.monotonic() + 600
+        while not ready() and time.monotonic() < deadline:
+            time.sleep(0.2)
+
+    runner = threading.Thread(
+        target=run, daemon=True
+    )  # the run in a thread: a node is added from the main one
+    runner.start()
     try:
-        run_ray(jobs, rc, cfg, RunMeta("r", "standin:oracle", "", "pick_place"), got.append, 5,
-                make_policy=gated_oracle(str(gate)), stats=stats)  # fmt: skip
-        opener.join(60)
+        until(lambda: len(actor_pids("_SimActor.run")) >= 3 or not runner.is_alive())
+        added.append(joined.add_node(num_cpus=2))
+        until(lambda: len(actor_pids("_SimActor.run")) >= 4 or not runner.is_alive())
+        gate.touch()  # the fourth simulator, on the new node, holds an episode: let them all go
+        runner.join(600)
+        assert not failed and not runner.is_alive(), failed
         assert sorted(r.key for r in got) == sorted(j.key for j in jobs) and all(
             r.status == "ok" for r in got
         )
         assert stats["faults"]["nodes_joined"] == 1 and stats["faults"]["simulator_actors_started"] == 4
         assert len(stats["episodes_per_node"]) == 4  # the new node's simulator ran episodes too
     finally:
+        gate.touch()
+        runner.join(60)
         for node in added:
             joined.remove_node(node)
 
