@@ -284,6 +284,7 @@ def test_an_openpi_server_that_stops_and_restarts_pauses_the_ray_run_and_loses_n
     check_once(out, 4)
 
 
+@pytest.mark.slow  # 5 blocker actors start first (90 s under load 20)
 def test_a_cluster_whose_cpus_are_all_taken_stops_in_one_line_after_the_patience(joined, tmp_path, capsys):
     """Another job holds every CPU of a shared cluster: the run's actors wait for room, and with no episode running
     for --server-patience seconds it stops with one line and exit 4 (before, it waited forever)."""
