@@ -136,6 +136,7 @@ class _PolicyActor:
         self._instances: dict[int, object] = {}
         self._first: object | None = first
         self._batcher = Batcher(first, first.spec.name, max_batch, max_wait_s) if first.spec.batched else None
+        self._closed = threading.Event()
 
     def get_spec(self):
         return self.spec
@@ -143,6 +144,11 @@ class _PolicyActor:
     def hello(self):
         """The first reply, once the policy is loaded: its spec."""
         return self.spec
+
+    def watch(self) -> None:
+        """Returns only when the actor closes: the supervisor learns of its death from this call failing, even when no
+        simulator is calling it (one of the actor's threads waits here)."""
+        self._closed.wait()
 
     def set_clients(self, count: int) -> None:
         """How many simulators this actor serves: every batch is padded to that many rows (see Batcher)."""
@@ -191,6 +197,7 @@ class _PolicyActor:
         return list(self._batcher.batch_sizes) if self._batcher is not None else []
 
     def close(self) -> None:
+        self._closed.set()
         if self._batcher is not None:
             self._batcher.close()
         held = (

@@ -42,6 +42,7 @@ class _Actor:
     job: EpisodeJob | None = None  # a simulator: the episode it runs
     clients: set[int] = field(default_factory=set)  # a policy actor: its simulators
     spec: object = None  # a policy actor: its policy's PolicySpec
+    watch: object = None  # a policy actor: a call that fails when it dies (``_PolicyActor.watch``)
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,7 @@ class Supervisor:
                 self._refresh()
             self._dispatch()
             waiting = list(self.running) + [a.starting for a in self._all() if a.starting is not None]
+            waiting += [p.watch for p in self.policies.values() if p.watch is not None]
             if waiting:
                 first, _ = self.ray.wait(waiting, num_returns=1, timeout=REFRESH_S)
                 if first:
@@ -192,6 +194,10 @@ class Supervisor:
         if ref in self.running:
             self._finished(ref, self.running.pop(ref))
             return
+        for k, p in list(self.policies.items()):
+            if p.watch is ref:  # a policy actor died (its watch returns only when it is closed, at the end)
+                self._policy_died(k)
+                return
         for pool, kind in ((self.policies, "policy"), (self.sims, "simulator")):
             for k, a in list(pool.items()):
                 if a.starting is ref:
@@ -212,7 +218,7 @@ class Supervisor:
             return
         a.starting = None
         if kind == "policy":
-            a.spec = reply
+            a.spec, a.watch = reply, a.handle.watch.remote()
         elif reply is False:  # the simulator does not see the shared run directory
             raise not_shared(self.s.files.run_dir, self._where(a.node))
 
