@@ -62,6 +62,13 @@ class ServerUnreachableError(PolicyConnectionError):
     """The policy server stayed unreachable past ``--server-patience``; finished episodes are on disk."""
 
 
+class ClusterStalledError(IndgenError):
+    """No episode could run on the Ray cluster for ``--server-patience`` (no room for a simulator or policy actor);
+    finished episodes are on disk."""
+
+    exit_code = EXIT_STOPPED
+
+
 class SceneError(IndgenError):
     """A scene that cannot be built or stepped."""
 

@@ -8,6 +8,16 @@ import argparse
 from indgen_vla.app.cli.options import add_level_options
 
 
+def _workers(text: str) -> int | str:
+    """``--workers``: a number, or ``auto`` (the Ray backend follows its cluster's CPUs)."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+
+
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The evaluate subcommand and its flags (a help line each)."""
     p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
@@ -36,7 +46,9 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         "--adaptive-alpha", type=float, default=None, help="error rate of each verdict, α = β (default 0.025)"
     )
     p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: number of cores)")
+    p.add_argument("--workers", type=_workers, default=None,
+                   help="worker processes (default: number of cores); with --backend ray the simulator actors, "
+                   "or auto: as many as the cluster's CPUs hold, following nodes that join or leave")  # fmt: skip
     p.add_argument(
         "--device", default=None, help="where in-process policies run: cpu, cuda, cuda:N (default cpu)"
     )

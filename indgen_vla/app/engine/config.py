@@ -35,7 +35,7 @@ class EvalConfig:
     step: float | None = None
     axes_preset: str | None = None  # preset NAME (configs/axes) or YAML PATH: steps, level ranges
     episodes: int = DEFAULT_EPISODES
-    workers: int = 1
+    workers: int | str = 1  # "auto" (Ray backend): as many simulator actors as the cluster's CPUs hold
     backend: str = "local"
     pipeline: bool = False  # local backend: two environments per worker, stepping overlapped with inference
     seed: int = 0
@@ -81,8 +81,14 @@ class EvalConfig:
             raise ConfigError("--out is required: the run directory (re-run the same command to resume)")
         if self.episodes < 1:
             raise ConfigError(f"--episodes must be >= 1, got {self.episodes}")
-        if self.workers < 1:
-            raise ConfigError(f"--workers must be >= 1, got {self.workers}")
+        if self.workers == "auto":
+            if self.backend != "ray":
+                raise ConfigError("--workers auto follows a Ray cluster's CPUs: use it with --backend ray, or give "
+                                  "a number of worker processes")  # fmt: skip
+        elif isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise ConfigError(
+                f"--workers must be a number >= 1 or auto (--backend ray), got {self.workers!r}"
+            )
         if self.backend not in ("local", "ray"):
             raise ConfigError(f"--backend must be 'local' or 'ray', got {self.backend!r}")
         for name in ("pipeline", "share_t0"):

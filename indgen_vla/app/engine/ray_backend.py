@@ -7,28 +7,39 @@ Per-episode-stateful policies (``batched=False``: history policies, remote openp
 instance per simulator actor inside the policy actor, so connections and weights live there too. Seeds come
 from the plan and each episode runs ``run_episode``, so results equal the local backend's.
 
-Connects to the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance. Each simulator actor
-waits out a policy server outage on its own (``run_episode``'s backoff), with the same ``--server-patience``.
+Joins the cluster in ``RAY_ADDRESS`` when set, else starts a local Ray instance (``ray_cluster``). Which actor
+runs where, and what happens when actors or nodes die or join, is the supervisor's (``ray_pool``); episode files
+travel back with their records (``ray_files``). Each simulator actor waits out a policy server outage on its own
+(``run_episode``'s backoff), with the same ``--server-patience``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import queue
 import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
+from pathlib import Path
 
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.ray_cluster import Need, join, keeping_sigterm, local_cpus
+from indgen_vla.app.engine.ray_files import FileRoute
+from indgen_vla.app.engine.ray_files import route as files_route
+from indgen_vla.app.engine.ray_pool import Interrupted, Settings, Supervisor
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-from indgen_vla.app.engine.scheduler import JobQueue
-from indgen_vla.core.errors import ConfigError, ServerUnreachableError
+from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob
 from indgen_vla.core.runs.records import EpisodeRecord
 
 ENV_KNOBS = {  # environment variable: (default, what it sets)
     "INDGEN_RAY_CPUS_PER_SIM": (1.0, "CPUs reserved per simulator actor"),
+    "INDGEN_RAY_CPUS_PER_POLICY": (
+        1.0,
+        "CPUs reserved per policy actor (0 allowed: e.g. clients of a server)",
+    ),
     "INDGEN_RAY_GPUS_PER_POLICY": (1.0, "GPUs per policy actor (device cuda); one actor per that many GPUs"),
     "INDGEN_RAY_MAX_BATCH": (32, "most observations in one batched act"),
     "INDGEN_RAY_BATCH_WAIT_MS": (5.0, "how long a policy actor waits to fill a batch"),
@@ -44,8 +55,12 @@ def ray_knobs(environ=os.environ) -> dict[str, float]:
             value = type(default)(raw) if raw not in (None, "") else default
         except ValueError:
             value = -1
-        if not value > 0 or (name == "INDGEN_RAY_BATCH_WAIT_MS" and value > 10_000):
-            raise ConfigError(f"{name}={raw!r}: {what} must be a positive number (default {default})")
+        zero_ok = name == "INDGEN_RAY_CPUS_PER_POLICY"
+        if not (value >= 0 if zero_ok else value > 0) or (
+            name == "INDGEN_RAY_BATCH_WAIT_MS" and value > 10_000
+        ):
+            kind = "a number >= 0" if zero_ok else "a positive number"
+            raise ConfigError(f"{name}={raw!r}: {what} must be {kind} (default {default})")
         out[name] = value
     return out
 
@@ -121,9 +136,19 @@ class _PolicyActor:
         self._instances: dict[int, object] = {}
         self._first: object | None = first
         self._batcher = Batcher(first, first.spec.name, max_batch, max_wait_s) if first.spec.batched else None
+        self._closed = threading.Event()
 
     def get_spec(self):
         return self.spec
+
+    def hello(self):
+        """The first reply, once the policy is loaded: its spec."""
+        return self.spec
+
+    def watch(self) -> None:
+        """Returns only when the actor closes: the supervisor learns of its death from this call failing, even when no
+        simulator is calling it (one of the actor's threads waits here)."""
+        self._closed.wait()
 
     def set_clients(self, count: int) -> None:
         """How many simulators this actor serves: every batch is padded to that many rows (see Batcher)."""
@@ -132,6 +157,9 @@ class _PolicyActor:
 
     def node_id(self) -> str:
         return _node()
+
+    def pid(self) -> int:
+        return os.getpid()
 
     def _instance(self, client: int):
         if self._batcher is not None:
@@ -169,6 +197,7 @@ class _PolicyActor:
         return list(self._batcher.batch_sizes) if self._batcher is not None else []
 
     def close(self) -> None:
+        self._closed.set()
         if self._batcher is not None:
             self._batcher.close()
         held = (
@@ -177,6 +206,11 @@ class _PolicyActor:
         for p in held:
             if p is not None:
                 p.close()
+
+
+class _PolicyActorLost(BaseException):  # noqa: N818 - a signal to the simulator actor, not an error
+    """The policy actor went away mid-episode. A ``BaseException``: ``run_episode`` must not retry the episode
+    against a dead actor or record it as an episode fault; the simulator actor replies ``Interrupted``."""
 
 
 class _PolicyClient:
@@ -188,7 +222,10 @@ class _PolicyClient:
     def _call(self, method, *args):
         import ray
 
-        result = ray.get(method.remote(self.client, *args))
+        try:
+            result = ray.get(method.remote(self.client, *args))
+        except ray.exceptions.RayActorError as e:
+            raise _PolicyActorLost(f"policy actor lost ({type(e).__name__})") from None
         if isinstance(result, Exception):
             raise result  # PolicyConnectionError stays itself, so run_episode's backoff sees it
         return result
@@ -206,34 +243,59 @@ class _PolicyClient:
 
 
 class _SimActor:
-    """Holds one EnvRunner for the actor's lifetime and runs whole episodes against a policy actor."""
+    """Holds one EnvRunner for the actor's lifetime and runs whole episodes against a policy actor; files an
+    episode writes go back with its record unless the run directory is shared (``ray_files``)."""
 
-    def __init__(self, runner_cfg: RunnerConfig, render_threads: int):
+    def __init__(self, runner_cfg: RunnerConfig, render_threads: int, route: FileRoute | None = None):
+        import dataclasses
         import logging
 
         os.environ.setdefault("MUJOCO_GL", "egl")
         os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
         logging.getLogger("robosuite").setLevel(logging.ERROR)
+        from indgen_vla.app.engine.ray_files import Scratch
         from indgen_vla.app.engine.rollout import EnvRunner
 
+        self.route = route
+        self.scratch = Scratch() if route is not None and not route.shared and runner_cfg.video_dir else None
+        if self.scratch is not None:
+            runner_cfg = dataclasses.replace(
+                runner_cfg, video_dir=self.scratch.video_dir(runner_cfg.video_dir)
+            )
         self.runner = EnvRunner(runner_cfg)
         self.policy: _PolicyClient | None = None
+
+    def hello(self, token: str | None = None) -> bool:
+        """The first reply, once the simulator is ready: False when it does not see the shared run directory."""
+        from indgen_vla.app.engine.ray_files import sees
+
+        return token is None or sees(self.route.run_dir, token)
 
     def node_id(self) -> str:
         return _node()
 
+    def pid(self) -> int:
+        return os.getpid()
+
     def connect(self, policy_actor, client: int, spec) -> None:
         self.policy = _PolicyClient(policy_actor, client, spec)
 
-    def run(
-        self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float
-    ) -> EpisodeRecord:
+    def run(self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float):
+        """``(record, files)``, or ``Interrupted`` when the policy actor died mid-episode."""
         from indgen_vla.app.engine.rollout import run_episode
 
-        return run_episode(self.runner, self.policy, job, meta, replan, max_retries, patience)
+        try:
+            record = run_episode(self.runner, self.policy, job, meta, replan, max_retries, patience)
+        except _PolicyActorLost as e:
+            if self.scratch is not None:
+                self.scratch.collect()  # a half episode's files go nowhere
+            return Interrupted(str(e))
+        return record, self.scratch.collect() if self.scratch is not None else {}
 
     def close(self) -> None:
         self.runner.close()
+        if self.scratch is not None:
+            self.scratch.close()
 
 
 def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
@@ -256,9 +318,10 @@ def run_ray(
     make_policy: Callable[[], object] | None = None,
     stats: dict | None = None,
 ) -> None:
-    """Run ``jobs`` on ``cfg.workers`` simulator actors served by shared policy actors, recording each
-    episode as it finishes. ``make_policy`` (picklable) replaces loading ``cfg.policy``; ``stats`` gets the
-    policy actors' batch sizes."""
+    """Run ``jobs`` on up to ``cfg.workers`` simulator actors (``auto``: as many as the cluster's CPUs hold)
+    served by shared policy actors, recording each episode as it finishes; survives actors and nodes that die or
+    join (``ray_pool``). ``make_policy`` (picklable) replaces loading ``cfg.policy``; ``stats`` gets the policy
+    actors' batch sizes and the faults survived."""
     try:
         import ray
     except ImportError:
@@ -266,108 +329,80 @@ def run_ray(
     if not jobs:
         return
     knobs = ray_knobs()
-    n = max(1, min(cfg.workers, len(jobs)))
-    started_here = not ray.is_initialized()
-    if started_here:
-        import math
-
-        cpus = math.ceil(n * knobs["INDGEN_RAY_CPUS_PER_SIM"]) + 1  # the simulators and one policy actor
-        _keeping_sigterm(lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False,
-                                          ignore_reinit_error=True))  # fmt: skip
     gpu = cfg.device.startswith("cuda")
-    gpus_per = knobs["INDGEN_RAY_GPUS_PER_POLICY"]
-    resources = ray.cluster_resources()
-    if gpu:
-        if resources.get("GPU", 0) < gpus_per:
-            raise ConfigError(f"--device {cfg.device} but the Ray cluster has {resources.get('GPU', 0):g} GPUs "
-                              f"(< INDGEN_RAY_GPUS_PER_POLICY={gpus_per:g}); use --device cpu or add GPU nodes")  # fmt: skip
-        n_policy = max(1, min(n, int(resources["GPU"] // gpus_per)))
-        policy_opts = {"num_gpus": gpus_per, "num_cpus": 1}
-    else:
-        n_policy = max(1, min(n, len([x for x in ray.nodes() if x.get("Alive")])))
-        policy_opts = {"num_cpus": 1}
+    need = Need(knobs["INDGEN_RAY_CPUS_PER_SIM"], knobs["INDGEN_RAY_CPUS_PER_POLICY"],
+                knobs["INDGEN_RAY_GPUS_PER_POLICY"] if gpu else 0.0)  # fmt: skip
+    workers = None if cfg.workers == "auto" else max(1, min(int(cfg.workers), len(jobs)))
+    route = None
+    if runner_cfg.video_dir:  # the run directory is where the videos folder is
+        route = files_route(Path(runner_cfg.video_dir).parent)
+        if route.shared:  # the simulators write there directly: the same absolute path on every node
+            video_dir = str(Path(route.run_dir) / Path(runner_cfg.video_dir).name)
+            runner_cfg = dataclasses.replace(runner_cfg, video_dir=video_dir)
+    started_here = join(local_cpus(workers, need), keeping_sigterm)
+    run_dir = Path(cfg.out)
+    before = _manifest(run_dir).get("ray", {})
+
+    def on_fault(faults, per_node) -> None:
+        """The faults survived so far (added to those of earlier invocations of this run) into the manifest."""
+        if (run_dir / "manifest.json").exists():
+            from indgen_vla.core.runs.records import RunDir
+
+            entry = {**(route.manifest() if route else {}), "faults": _added(before.get("faults", {}), faults),
+                     "episodes_per_node": _added(before.get("episodes_per_node", {}), per_node)}  # fmt: skip
+            RunDir(run_dir).update_manifest(ray=entry)
+
     factory = make_policy or _policy_factory(cfg, runner_cfg.scene)
-    policy_cls = ray.remote(max_concurrency=n + 4, **policy_opts)(_PolicyActor)
-    wait_s = knobs["INDGEN_RAY_BATCH_WAIT_MS"] / 1000.0
-    servers = [
-        policy_cls.options(scheduling_strategy="SPREAD").remote(
-            factory, knobs["INDGEN_RAY_MAX_BATCH"], wait_s
-        )
-        for _ in range(n_policy)
-    ]
-    sim_cls = ray.remote(num_cpus=knobs["INDGEN_RAY_CPUS_PER_SIM"])(_SimActor)
-    render_threads = max(1, int(knobs["INDGEN_RAY_CPUS_PER_SIM"]))
-    actors = [sim_cls.remote(runner_cfg, render_threads) for _ in range(n)]
-    stopped = False
+    most = max(
+        16, 2 * (workers or int(ray.cluster_resources().get("CPU", 1))) + 4
+    )  # a policy actor's clients
+    policy_opts = {"num_gpus": need.gpus_per_policy} if gpu else {}
+    settings = Settings(
+        meta=meta, replan=replan, max_retries=cfg.max_retries, patience_s=cfg.server_patience, workers=workers,
+        need=need, files=route,
+        sim_cls=ray.remote(num_cpus=need.cpus_per_sim)(_SimActor),
+        sim_args=(runner_cfg, max(1, int(need.cpus_per_sim)), route),
+        policy_cls=ray.remote(max_concurrency=most, num_cpus=need.cpus_per_policy, **policy_opts)(_PolicyActor),
+        policy_args=(factory, knobs["INDGEN_RAY_MAX_BATCH"], knobs["INDGEN_RAY_BATCH_WAIT_MS"] / 1000.0),
+    )  # fmt: skip
+    sup, stopped = None, False
     try:
-        specs = ray.get([s.get_spec.remote() for s in servers])
-        _connect(ray, actors, servers, specs)
-        todo = JobQueue(jobs)  # an actor keeps the scene it holds (one build per cell, as the local backend)
-        running: dict = {}  # a running episode's future -> its actor
-
-        def submit(i: int) -> None:
-            job = todo.take(i)
-            if job is not None:
-                running[actors[i].run.remote(job, meta, replan, cfg.max_retries, cfg.server_patience)] = i
-
-        for i in range(n):
-            submit(i)
-        try:
-            while running:
-                (done,), _ = ray.wait(list(running), num_returns=1)
-                i = running.pop(done)
-                on_record(ray.get(done))
-                submit(i)
-        except ray.exceptions.RayTaskError as e:  # an actor gave up on the server: one clear line
-            if isinstance(getattr(e, "cause", None), ServerUnreachableError):
-                raise ServerUnreachableError(str(e.cause)) from None
-            raise
+        sup = Supervisor(ray, jobs, settings, on_record, on_fault)
+        sup.run()
+        on_fault(sup.faults, sup.per_node)
         if stats is not None:
-            stats["batch_sizes"] = [b for s in ray.get([s.batch_sizes.remote() for s in servers]) for b in s]
-            stats["policy_actors"] = len(servers)
+            stats["batch_sizes"] = sup.batch_sizes()
+            stats["policy_actors"] = len(sup.policies)
+            stats["faults"] = dict(sup.faults)
+            stats["episodes_per_node"] = dict(sup.per_node)
     except KeyboardInterrupt:
         # Ctrl-C or SIGTERM: a scheduler's SIGTERM reaches Ray's own processes too, and a call that waits on a
         # GCS gone with them hangs 60 s, then Ray aborts with status 1
         stopped = True
         raise
     finally:
-        if not stopped:  # the actors are not detached: they end with this driver in any case
-            ray.get([a.close.remote() for a in actors + servers], timeout=60)
-            for a in actors + servers:
-                ray.kill(a)
+        if (
+            sup is not None and not stopped
+        ):  # the actors are not detached: they end with this driver in any case
+            sup.close()
         if started_here:
             ray.shutdown()
 
 
-def _keeping_sigterm(start: Callable[[], object]) -> None:
-    """Call ``start`` (``ray.init``) and put back the SIGTERM handler it replaces: Ray's exits with status 15 and a
-    C++ stack dump instead of the one-line stop and exit 143 of ``indgen`` (``interrupts.sigterm_raises``)."""
-    import signal
-
-    if threading.current_thread() is not threading.main_thread():
-        start()
-        return
-    previous = signal.getsignal(signal.SIGTERM)
-    start()
-    if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
+def _added(a: dict, b: dict) -> dict[str, int]:
+    return {k: int(a.get(k, 0)) + int(b.get(k, 0)) for k in sorted({*a, *b})}
 
 
-def _connect(ray, actors: list, servers: list, specs: list) -> None:
-    """Pair every simulator actor with a policy actor on its own node when there is one (round robin)."""
-    server_nodes = ray.get([s.node_id.remote() for s in servers])
-    sim_nodes = ray.get([a.node_id.remote() for a in actors])
-    turn: dict[str, int] = {}
-    clients: dict[int, int] = {}
-    calls = []
-    for client, (actor, node) in enumerate(zip(actors, sim_nodes, strict=True)):
-        local = [k for k, sn in enumerate(server_nodes) if sn == node] or list(range(len(servers)))
-        k = local[turn.get(node, 0) % len(local)]
-        turn[node] = turn.get(node, 0) + 1
-        calls.append(actor.connect.remote(servers[k], client, specs[k]))
-        clients[k] = clients.get(k, 0) + 1
-    calls += [servers[k].set_clients.remote(count) for k, count in clients.items()]
-    ray.get(calls)
+def _manifest(run_dir: Path) -> dict:
+    import json
+
+    try:
+        return json.loads((run_dir / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+_keeping_sigterm = keeping_sigterm  # the name tests and older callers use
 
 
 def _carried(e: Exception) -> Exception:

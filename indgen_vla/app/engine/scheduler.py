@@ -84,6 +84,17 @@ class JobQueue:
         self._running[cell] += 1
         return job
 
+    def put_back(self, slot: int, job: EpisodeJob) -> None:
+        """``slot`` is gone (a Ray actor that died) with ``job`` unfinished: the job runs next in its cell."""
+        self.release(slot)
+        self._cells.setdefault(cell_of(job), deque()).appendleft(job)
+
+    def release(self, slot: int) -> None:
+        """``slot`` is gone: its environment no longer counts for the cell it held."""
+        held = self._held.pop(slot, None)
+        if held is not None:
+            self._running[held] -= 1
+
 
 def cell_of(job: EpisodeJob) -> tuple:
     """What an environment is built for (``EnvRunner._env_for``'s key)."""

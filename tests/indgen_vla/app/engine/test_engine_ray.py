@@ -116,7 +116,7 @@ needs_ray = pytest.mark.skipif(
 @pytest.fixture
 def ray_session():
     ray = pytest.importorskip("ray")
-    ray.init(num_cpus=3, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
 
