@@ -14,7 +14,12 @@ def mini(tmp_path_factory):
     from scenes.libero.miniature import write_miniature_assets
 
     root = write_miniature_assets(tmp_path_factory.mktemp("libero_assets"))
-    cache = tmp_path_factory.mktemp("indgen_cache")
+    yield from libero_tree(root, tmp_path_factory.mktemp("indgen_cache"))
+
+
+def libero_tree(root, cache):
+    """While the fixture lasts, indgen reads LIBERO's assets from ``root`` and caches into ``cache`` (and a private
+    LIBERO config dir); the variables are restored after."""
     saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
     os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
     os.environ.pop("LIBERO_CONFIG_PATH", None)

@@ -9,6 +9,8 @@ import os
 
 import pytest
 
+from tests.scenes.conftest import libero_tree
+
 pytest.importorskip("libero")
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -24,15 +26,7 @@ def real(tmp_path_factory):
     root = default_dest()
     if not root.is_dir() or tree_identity(root) != COMPLETE_TREE:
         pytest.skip("LIBERO's complete asset tree is not installed ('make libero' / 'indgen setup libero')")
-    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
-    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(tmp_path_factory.mktemp("cache")))
-    os.environ.pop("LIBERO_CONFIG_PATH", None)
-    yield root
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    yield from libero_tree(root, tmp_path_factory.mktemp("cache"))
 
 
 def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
