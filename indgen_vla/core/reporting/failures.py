@@ -48,7 +48,7 @@ def render_breakdown(present: list[tuple[str, dict]]) -> list[str]:
         used = [m for m in MODES if any(r.get("failures", {}).get(m) for r in a["levels"])]
         if not set(used) - {"none", UNCLASSIFIED}:  # nothing classified failed: no table to show
             continue
-        lines += ["", f"Failure modes ({label}; `none` = success, see README):", "",
+        lines += ["", f"Failure modes ({label}; `none` = success, see docs/run-directory.md):", "",
                   "| level | " + " | ".join(used) + " |", "|---|" + "---|" * len(used)]  # fmt: skip
         for r in a["levels"]:
             f = r.get("failures", {})
