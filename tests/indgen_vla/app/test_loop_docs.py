@@ -19,6 +19,7 @@ def blocks(lang: str) -> list[str]:
     return re.findall(rf"```{lang}\n(.*?)```", DOC, flags=re.S)
 
 
+@pytest.mark.slow  # 67 s of training and evaluating; the policy-object path itself is test_engine_objects'
 def test_the_training_loop_recipe_runs_between_optimizer_steps(tmp_path):
     pytest.importorskip("lerobot")
     import torch

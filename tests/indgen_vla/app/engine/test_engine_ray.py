@@ -131,6 +131,7 @@ def _jobs(policy: str, episodes: int, workers: int):
     return c, plan_episodes(c, task, {"pick_y": [0, 1]}, {(task[0], "pick_y", k): 0.03 * k for k in (0, 1)})
 
 
+@pytest.mark.slow  # 70 s; the default suite's Ray == local check is test_engine_ray_cluster's resume test
 @needs_ray
 def test_ray_backend_matches_local(tmp_path, ray_session):
     """The oracle through ``evaluate --backend ray`` (2 simulator actors, per-episode oracle instances held by
