@@ -24,7 +24,7 @@ $(PY):
 $(STAMP): $(PY) pyproject.toml
 	@echo "installing indgen-vla and its stack into $(VENV) (first time: several minutes)"
 	@$(PY) -m pip install -q --upgrade pip
-	@$(PY) -m pip install -q -e ".[dev,ray]"
+	@$(PY) -m pip install -q -e ".[dev,ray,trackio]"
 	@touch $(STAMP)
 
 demo: $(STAMP)
