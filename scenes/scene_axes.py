@@ -27,25 +27,3 @@ def scene_axis_rows(scene: str) -> list[dict]:
             rows.append({"name": name, "step": step, "unit": unit, "levels": levels, "tasks": ts,
                          "description": description})  # fmt: skip
     return rows
-
-
-def print_scene_axes(scene: str, as_json: bool = False) -> int:
-    """The table (or JSON) of ``scene_axis_rows``."""
-    import json
-
-    rows = scene_axis_rows(scene)
-    if as_json:
-        print(json.dumps(rows, indent=2))
-        return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=f"axes of scene {scene}: its own steps and level ranges, per task where they differ")
-    for col in ("axis", "step", "levels", "tasks", "description"):
-        table.add_column(col)
-    for r in rows:
-        table.add_row(
-            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["tasks"]), r["description"]
-        )
-    Console().print(table)
-    return 0

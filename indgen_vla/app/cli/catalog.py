@@ -24,9 +24,7 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """Print the listing ``args.command`` names (``axes --scene``: that family's own steps and ranges)."""
     if args.command == "axes" and args.scene:
-        from scenes.scene_axes import print_scene_axes
-
-        return print_scene_axes(args.scene, args.json)
+        return scene_axes_table(args.scene, args.json)
     return {"scenes": scenes_table, "axes": axes_table, "policies": policies_text}[args.command](args.json)
 
 
@@ -57,22 +55,33 @@ def axes_table(as_json: bool) -> int:
     """Every axis with its step, level range, description and supporting scenes."""
     from scenes.catalog import axis_rows
 
-    rows = axis_rows()
+    title = ("axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one at a "
+             "level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)")  # fmt: skip
+    return _axis_listing(axis_rows(), as_json, title, "scenes")
+
+
+def scene_axes_table(scene: str, as_json: bool) -> int:
+    """One scene family's own steps and level ranges, per task where they differ (``scenes.scene_axes``)."""
+    from scenes.scene_axes import scene_axis_rows
+
+    title = f"axes of scene {scene}: its own steps and level ranges, per task where they differ"
+    return _axis_listing(scene_axis_rows(scene), as_json, title, "tasks")
+
+
+def _axis_listing(rows: list[dict], as_json: bool, title: str, where: str) -> int:
+    """Axis rows as JSON or one rich table (axis, step, levels, ``where``: the scenes or tasks it holds for)."""
     if as_json:
         print(json.dumps(rows, indent=2))
         return 0
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(
-        title="axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one "
-        "at a level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)"
-    )
-    for col in ("axis", "step", "levels", "scenes", "description"):
+    table = Table(title=title)
+    for col in ("axis", "step", "levels", where, "description"):
         table.add_column(col)
     for r in rows:
         table.add_row(
-            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r["scenes"]), r["description"]
+            r["name"], f"{r['step']:g} {r['unit']}", r["levels"], ", ".join(r[where]), r["description"]
         )
     Console().print(table)
     return 0
