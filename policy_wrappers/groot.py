@@ -13,10 +13,14 @@ N1.5 ``examples/Libero/eval/utils.py:normalize_gripper_action`` computes ``sign(
 ``gr00t/eval/sim/LIBERO/libero_env.py`` ``normalize_gripper_action`` (``sign(2x - 1)``) then
 ``invert_gripper_action`` (x -1). Both are our ``gripper=01inv`` (the default): 0.9 -> -1 (open).
 
-RoboCasa365 (the scene's ``EnvSpec`` picks ``layouts.GROOT_ROBOCASA``; N1.6 only): Isaac-GR00T's RoboCasa eval
-(``examples/robocasa/README.md``: ``--embodiment-tag ROBOCASA_PANDA_OMRON --use-sim-policy-wrapper``) steps
-squarefk/robocasa's ``GrootRoboCasaEnv``: ``video.res256_image_side_0/_side_1/_wrist_0``, ``state.<segment>``,
-and ``action.<segment>`` composed by RoboCasa (gripper and control mode thresholded at 0.5: no gripper map).
+RoboCasa365 (``?keys=robocasa365``, the default): RoboCasa's own gym wrapper keys (``robocasa/wrappers/gym_wrapper.py``:
+``video.robot0_agentview_left/_right``, ``video.robot0_eye_in_hand`` at 256 px, ``state.<segment>``,
+``annotation.human.task_description``; ``action.<segment>`` unmapped by RoboCasa, gripper and control mode
+thresholded at 0.5: no gripper map). N1.5 speaks as RoboCasa365's fork (robocasa-benchmark/Isaac-GR00T
+``scripts/run_eval.py``, ``gr00t/eval/simulation.py``) does: its vector env's flat batched keys (B, 1, …) in one
+``get_action``, framed by ``torch.save`` (``TorchSerializer``; ``?serializer=msgpack`` for a later N1.5 server).
+``?keys=squarefk``: Isaac-GR00T N1.6's ``examples/robocasa`` set-up on squarefk/robocasa's ``GrootRoboCasaEnv``
+(``video.res256_image_side_0/_side_1/_wrist_0`` from 512 px renders).
 """
 
 from __future__ import annotations
@@ -36,10 +40,18 @@ from indgen_vla.core.protocol.interface import (
     validate_chunk,
 )
 from policy_wrappers.image_tools import GRIPPER_MODES
-from policy_wrappers.layouts import Layout, layout_for, spans
+from policy_wrappers.layouts import GROOT_ROBOCASA_KEYS, Layout, checked, layout_for, spans
 from policy_wrappers.msgpack_numpy import groot_packb, groot_unpackb
 from policy_wrappers.remote import REMOTE_OPTIONS, RemoteConfig, RemotePolicy
-from policy_wrappers.transforms import LIBERO_GROOT_N15, LIBERO_GROOT_N16, ROBOCASA_GROOT_N16, Conventions
+from policy_wrappers.torch_wire import looks_like_torch, torch_packb, torch_unpackb
+from policy_wrappers.transforms import (
+    LIBERO_GROOT_N15,
+    LIBERO_GROOT_N16,
+    ROBOCASA365_GROOT_N15,
+    ROBOCASA365_GROOT_N16,
+    ROBOCASA_GROOT_N16,
+    Conventions,
+)
 
 LIBERO_STATE = (
     ("x", 0, 1),
@@ -63,18 +75,30 @@ class GrootConfig(RemoteConfig):
     state: tuple[tuple[str, int, int], ...] = LIBERO_STATE
     action: tuple[str, ...] = LIBERO_ACTION
     language_key: str = "annotation.human.action.task_description"
+    keys: str = "robocasa365"  # on RoboCasa365: whose modality keys (layouts.GROOT_ROBOCASA_KEYS)
+    serializer: str | None = None  # msgpack or torch (None: the server's of this API and keys)
     env_spec: EnvSpec | None = None  # the scene family's contract (None: the tabletop one)
     layout: Layout | None = field(init=False, default=None)  # GR00T's keys on that family (layouts.py)
 
     def __post_init__(self) -> None:
         if self.api not in APIS:
             raise ConfigError(f"groot {self.url}: api must be n1.5 or n1.6, got {self.api!r}")
-        layout = layout_for("groot", self.env_spec)
-        object.__setattr__(self, "layout", layout)
-        if layout is not None and self.api != "n1.6":
+        if self.keys not in GROOT_ROBOCASA_KEYS:
             raise ConfigError(
-                f"groot {self.url}: on scene family {self.env_spec.name} only GR00T N1.6's RoboCasa evaluation "
-                "(Isaac-GR00T examples/robocasa, ROBOCASA_PANDA_OMRON) is wired; serve an N1.6 checkpoint (api=n1.6)"
+                f"groot {self.url}: keys must be one of {sorted(GROOT_ROBOCASA_KEYS)}, got {self.keys!r}"
+            )
+        if self.serializer not in (None, *SERIALIZERS):
+            raise ConfigError(
+                f"groot {self.url}: serializer must be msgpack or torch, got {self.serializer!r}"
+            )
+        layout = layout_for("groot", self.env_spec)
+        if layout is not None:
+            layout = checked(GROOT_ROBOCASA_KEYS[self.keys], self.env_spec)
+        object.__setattr__(self, "layout", layout)
+        if self.keys == "squarefk" and layout is not None and self.api != "n1.6":
+            raise ConfigError(
+                f"groot {self.url}: keys=squarefk is Isaac-GR00T N1.6's RoboCasa set-up (examples/robocasa); "
+                "use api=n1.6, or keys=robocasa365 for RoboCasa365's N1.5 checkpoints"
             )
         cams = (self.env_spec or TABLETOP).cameras
         bad = [cam for _, cam in self.video if cam not in cams]
@@ -90,7 +114,22 @@ class GrootConfig(RemoteConfig):
         super().__post_init__()
 
     def family_conventions(self) -> Conventions:
-        return ROBOCASA_GROOT_N16 if self.layout is not None else APIS[self.api].upstream
+        if self.layout is None:
+            return APIS[self.api].upstream
+        if self.keys == "squarefk":
+            return ROBOCASA_GROOT_N16
+        return ROBOCASA365_GROOT_N15 if self.api == "n1.5" else ROBOCASA365_GROOT_N16
+
+    @property
+    def wire(self) -> str:
+        """The serializer: the option, else torch for RoboCasa365's N1.5 fork server, else msgpack."""
+        if self.serializer is not None:
+            return self.serializer
+        return (
+            "torch"
+            if self.layout is not None and self.keys == "robocasa365" and self.api == "n1.5"
+            else "msgpack"
+        )
 
 
 class GrootPolicy(RemotePolicy):
@@ -130,6 +169,7 @@ class GrootPolicy(RemotePolicy):
         # reference cycle (an exception's traceback), can be finalised before its socket and block forever.
         self._ctx = zmq.Context.instance()
         self._sock = None
+        self._pack, self._unpack = SERIALIZERS[config.wire]
         self._language_key = config.language_key
         self.modality_config: dict = {}
         self._handshake()
@@ -164,21 +204,33 @@ class GrootPolicy(RemotePolicy):
         timeout = self.config.timeout_s if timeout_s is None else timeout_s
         with self.transport(f" to {endpoint!r}", timeout_s=timeout):
             sock = self._socket()
-            sock.send(groot_packb(request))
+            sock.send(self._pack(request))
             if not sock.poll(int(timeout * 1000)):
                 raise TimeoutError
             message = sock.recv()
         if message == b"ERROR":
             raise self.fail("server error (is it the right GR00T policy server?)")
         try:
-            response = groot_unpackb(message)
+            response = self._unpack(message)
         except Exception as e:
-            raise self.fail(f"undecodable reply ({type(e).__name__}: {e})") from None
+            raise self.fail(self._undecodable(message, e)) from None
         if isinstance(response, dict) and "error" in response:
             first = (str(response["error"]).strip().splitlines() or [""])[0][:300]
             hint = self.action_hint if endpoint == "get_action" else ""
             raise self.fail(f"server error: {first}{hint}")
         return response
+
+    def _undecodable(self, message: bytes, error: Exception) -> str:
+        """Why a reply could not be read, naming the serializer option when the server speaks the other one."""
+        first = (str(error).strip().splitlines() or [""])[0][:200]
+        if self.config.wire == "msgpack" and looks_like_torch(message):
+            return (
+                "the server answers in torch.save archives (RoboCasa365's GR00T N1.5 fork, TorchSerializer); "
+                "add ?serializer=torch"
+            )
+        if self.config.wire == "torch" and not looks_like_torch(message):
+            return "the server answers in msgpack (Isaac-GR00T's later service); add ?serializer=msgpack"
+        return f"undecodable reply ({type(error).__name__}: {first})"
 
     def ping(self) -> None:
         """GR00T's ``ping`` endpoint."""
@@ -218,9 +270,13 @@ class GrootPolicy(RemotePolicy):
             missing = sorted(set(theirs) - set(ours))
             if theirs and missing:
                 self.close()
-                raise self.fail(
-                    f"server expects {modality} keys {theirs}; our map gives {ours} (set ?{modality}=... to map {missing})"
-                )
+                other = [
+                    name
+                    for name, layout in GROOT_ROBOCASA_KEYS.items()
+                    if self.layout is not None and set(theirs) <= {k for k, _ in layout.cameras}
+                ]
+                fix = f"add ?keys={other[0]}" if other else f"set ?{modality}=... to map {missing}"
+                raise self.fail(f"server expects {modality} keys {theirs}; our map gives {ours} ({fix})")
         lang = (
             (self.modality_config.get("language") or {})
             if isinstance(self.modality_config.get("language"), dict)
@@ -312,6 +368,27 @@ class GrootN15Policy(GrootPolicy):
         return np.stack(chunks)
 
 
+class GrootN15VectorPolicy(GrootN15Policy):
+    """N1.5 as RoboCasa365's fork evaluates (``gr00t/eval/simulation.py`` over a gym vector env of
+    ``MultiStepWrapper`` wrappers): the whole batch in one flat ``get_action``, video (B, 1, H, W, 3) uint8, state
+    (B, 1, D) float32 (its gym wrapper's cast), the language a tuple of B strings; ``action.*`` (B, T, D) back."""
+
+    batched = True
+
+    def make_observation(self, observations: Sequence[Observation]) -> dict:
+        video, state = self.batch_keys(observations)
+        out = dict(video)
+        out.update({k: v.astype(np.float32) for k, v in state.items()})
+        out[self._language_key] = tuple(o.instruction for o in observations)
+        return out
+
+    def predict(self, observations: Sequence[Observation]) -> np.ndarray:
+        reply = self.call("get_action", self.make_observation(observations))
+        if isinstance(reply, list | tuple):
+            raise self.fail("got [action, info]; this is an N1.6 server (use ?api=n1.6)")
+        return self._parse_actions(reply, len(observations))
+
+
 class GrootN16Policy(GrootPolicy):
     """N1.6+ (``gr00t/policy/server_client.py``, ``--use-sim-policy-wrapper``): the whole batch in one
     ``get_action`` ``{"observation", "options"}`` returning ``[action, info]``; ``reset`` per episode."""
@@ -341,6 +418,9 @@ class GrootN16Policy(GrootPolicy):
 
 
 APIS: dict[str, type[GrootPolicy]] = {"n1.5": GrootN15Policy, "n1.6": GrootN16Policy}
+SERIALIZERS = {"msgpack": (groot_packb, groot_unpackb), "torch": (torch_packb, torch_unpackb)}
+# RoboCasa365's gym wrapper (robocasa/wrappers/gym_wrapper.py get_observation) names the instruction so
+ROBOCASA365_LANGUAGE = "annotation.human.task_description"
 
 
 def _pairs(text: str | None) -> tuple[tuple[str, str], ...] | None:
@@ -367,20 +447,27 @@ OPTIONS = {
 def load(
     parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec: EnvSpec | None = None
 ) -> GrootPolicy:
-    """``groot:tcp://HOST:PORT[?api=n1.5|n1.6&api_token=&video=key:cam,..&replan=&chunk=&size=&flip=&gripper=]``.
+    """``groot:tcp://HOST:PORT[?api=n1.5|n1.6&api_token=&video=key:cam,..&replan=&chunk=&size=&flip=&gripper=
+    &keys=robocasa365|squarefk&serializer=msgpack|torch]``.
 
     On a scene family with its own robot (``env_spec``; RoboCasa365) the keys default to GR00T's there."""
     chosen = {
         "api": options.choice("api", tuple(APIS)),
         "gripper": options.choice("gripper", GRIPPER_MODES),
         "video": _pairs(options.str("video")),
+        "keys": options.choice("keys", tuple(GROOT_ROBOCASA_KEYS)),
+        "serializer": options.choice("serializer", tuple(SERIALIZERS)),
     }
     values = {k: v for k, v in chosen.items() if v is not None} | options.fields(GrootConfig, OPTIONS)
-    layout = layout_for("groot", env_spec)
-    if layout is not None:  # GR00T's RoboCasa keys: cameras, one state key per segment, action keys in order
+    if layout_for("groot", env_spec) is not None:
+        # GR00T's RoboCasa keys: cameras, one state key per segment, action keys in order
+        layout = GROOT_ROBOCASA_KEYS[values.get("keys", "robocasa365")]
         ours = spans(env_spec.state_parts)
         values.setdefault("video", layout.cameras)
         values["state"] = tuple((name, *ours[name]) for name, _ in layout.state)
         values["action"] = tuple(name for name, _ in layout.action)
+        if layout is GROOT_ROBOCASA_KEYS["robocasa365"]:
+            values.setdefault("language_key", ROBOCASA365_LANGUAGE)
     config = GrootConfig(url=GrootPolicy.url_from(parsed), env_spec=env_spec, **values)
-    return APIS[config.api](parsed.spec, config)
+    vector = config.layout is GROOT_ROBOCASA_KEYS["robocasa365"] and config.api == "n1.5"
+    return (GrootN15VectorPolicy if vector else APIS[config.api])(parsed.spec, config)

@@ -97,14 +97,31 @@ LEROBOT_ROBOCASA = Layout(
             ("gripper_close", 1)),
     source="huggingface/lerobot src/lerobot/envs/robocasa.py (convert_action, _format_raw_obs)",
 )  # fmt: skip
-# GR00T N1.6 (Isaac-GR00T examples/robocasa/README.md: --embodiment-tag ROBOCASA_PANDA_OMRON, --n-action-steps 8),
-# its sim env squarefk/robocasa robocasa/utils/gym_utils/gymnasium_groot.py and robocasa/models/robots/__init__.py
-# PandaOmronKeyConverter: video.res256_image_side_0/side_1/wrist_0 = agentview_left/right/eye_in_hand, rendered
-# 512x512 upright and cv2.resize'd to 256; state.<name> per segment; action.<name> per segment, composed by
-# unmap_action (gripper_close and control_mode thresholded at 0.5, as RoboCasa's own). Keys, not order, carry the
-# meaning; ``action`` is the order the client concatenates the returned keys in.
-GROOT_ROBOCASA = Layout(
-    name="groot-robocasa_panda_omron",
+# GR00T on RoboCasa365's own gym wrapper (robocasa/robocasa robocasa/wrappers/gym_wrapper.py PandaOmronKeyConverter:
+# video.robot0_agentview_left/right, video.robot0_eye_in_hand at 256x256 upright, state.<segment>, action.<segment>
+# unmapped by key with gripper_close and control_mode thresholded at 0.5), as RoboCasa365's GR00T N1.5 fork trains
+# and evaluates it (robocasa-benchmark/Isaac-GR00T gr00t/experiment/data_config.py PandaOmronDataConfig, read from its
+# copy XingxinHE/Isaac-GR00T 9d7d7a9e): its state_keys and action_keys orders below; keys, not order, carry the
+# meaning on the wire; ``action`` is the order the client concatenates the returned keys in.
+GROOT_ROBOCASA365 = Layout(
+    name="groot-robocasa365 (RoboCasa365 gym wrapper keys)",
+    env=_RC,
+    cameras=(("robot0_agentview_left", "robot0_agentview_left"), ("robot0_agentview_right", "robot0_agentview_right"),
+             ("robot0_eye_in_hand", "robot0_eye_in_hand")),
+    state=(("end_effector_position_relative", 3), ("end_effector_rotation_relative", 4), ("gripper_qpos", 2),
+           ("base_position", 3), ("base_rotation", 4)),
+    action=(("end_effector_position", 3), ("end_effector_rotation", 3), ("gripper_close", 1), ("base_motion", 4),
+            ("control_mode", 1)),
+    source="robocasa/robocasa robocasa/wrappers/gym_wrapper.py + robocasa-benchmark/Isaac-GR00T "
+    "gr00t/experiment/data_config.py PandaOmronDataConfig (copy: XingxinHE/Isaac-GR00T)",
+)  # fmt: skip
+# The older set-up (``?keys=squarefk``): GR00T N1.6 (Isaac-GR00T examples/robocasa/README.md: --embodiment-tag
+# ROBOCASA_PANDA_OMRON, --n-action-steps 8), its sim env squarefk/robocasa robocasa/utils/gym_utils/gymnasium_groot.py
+# and robocasa/models/robots/__init__.py PandaOmronKeyConverter: video.res256_image_side_0/side_1/wrist_0 =
+# agentview_left/right/eye_in_hand, rendered 512x512 upright and cv2.resize'd to 256; state.<name> per segment;
+# action.<name> per segment, composed by unmap_action (gripper_close and control_mode thresholded at 0.5).
+GROOT_SQUAREFK = Layout(
+    name="groot-squarefk (Isaac-GR00T examples/robocasa keys)",
     env=_RC,
     cameras=(("res256_image_side_0", "robot0_agentview_left"), ("res256_image_side_1", "robot0_agentview_right"),
              ("res256_image_wrist_0", "robot0_eye_in_hand")),
@@ -114,6 +131,7 @@ GROOT_ROBOCASA = Layout(
             ("control_mode", 1)),
     source="squarefk/robocasa robocasa/utils/gym_utils/gymnasium_groot.py + robocasa/models/robots/__init__.py",
 )  # fmt: skip
+GROOT_ROBOCASA_KEYS = {"robocasa365": GROOT_ROBOCASA365, "squarefk": GROOT_SQUAREFK}  # groot's ?keys=
 # RoboCasa365's openpi client (robocasa-benchmark/openpi examples/robocasa/main.py, read from its copy
 # J-Oyasumi/openpi_robocasa): observation/image = agentview_left, observation/wrist_image = eye_in_hand,
 # observation/right_image = agentview_right (256 upright, resize_with_pad 224); observation/state =
@@ -136,7 +154,7 @@ OPENPI_ROBOCASA = Layout(
 
 LAYOUTS: dict[tuple[str, str], Layout] = {
     ("lerobot", _RC): LEROBOT_ROBOCASA,
-    ("groot", _RC): GROOT_ROBOCASA,
+    ("groot", _RC): GROOT_ROBOCASA365,
     ("openpi", _RC): OPENPI_ROBOCASA,
 }
 TABLETOP_NAMES = ("tabletop",)
@@ -156,6 +174,11 @@ def layout_for(family: str, spec: EnvSpec | None) -> Layout | None:
             f"policy family {family} has no convention for scene family {spec.name} ({spec.layout}); families "
             f"with one: {', '.join(known) or 'none'}"
         )
+    return checked(layout, spec)
+
+
+def checked(layout: Layout, spec: EnvSpec) -> Layout:
+    """``layout`` once its segments are known to be the scene family's (ConfigError, in one line, if not)."""
     for what, ours, theirs in (
         ("state", spec.state_parts, layout.state),
         ("action", spec.action_parts, layout.action),

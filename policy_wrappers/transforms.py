@@ -249,9 +249,16 @@ LIBERO_UNIVLA = Conventions(images=compose(Flip180()), chunk=10)
 LIBERO_RYNNVLA = Conventions(images=compose(Flip180()), chunk=5)
 
 # ---- RoboCasa365 (PandaOmron): images upright, actions in the layout's order (policy_wrappers/layouts.py) -------
-# GR00T N1.6 (Isaac-GR00T examples/robocasa/README.md, --n-action-steps 8; squarefk/robocasa gymnasium_groot.py):
-# PandaOmronKeyConverter renders 512x512, process_img brings each camera to 256; gripper_close and control_mode
-# are thresholded at 0.5 by RoboCasa itself (no gripper map); 16-step chunk, 8 executed.
+# GR00T on RoboCasa365's own gym wrapper (robocasa/robocasa robocasa/wrappers/gym_wrapper.py): 256x256 upright renders
+# sent as they are (the server resizes). N1.5 (RoboCasa365's fork robocasa-benchmark/Isaac-GR00T scripts/run_eval.py,
+# --n_action_steps 16, PandaOmronDataConfig action_indices range(16)): the 16-step chunk, all executed. N1.6+
+# (Isaac-GR00T examples/robocasa/README.md --n-action-steps 8): 16-step chunk, 8 executed. Gripper and control mode
+# are thresholded at 0.5 by RoboCasa itself (no gripper map).
+ROBOCASA365_GROOT_N15 = Conventions(render=256, chunk=16, replan=16)
+ROBOCASA365_GROOT_N16 = Conventions(render=256, chunk=16, replan=8)
+# The older set-up (groot ?keys=squarefk; Isaac-GR00T examples/robocasa/README.md, squarefk/robocasa
+# gymnasium_groot.py): PandaOmronKeyConverter renders 512x512, process_img brings each camera to 256; 16-step chunk,
+# 8 executed.
 ROBOCASA_GROOT_N16 = Conventions(render=512, images=compose(PadResizeCv(256)), chunk=16, replan=8)
 # RoboCasa365's openpi client (robocasa-benchmark/openpi examples/robocasa/main.py): RoboCasaGymEnv's 256 upright
 # renders, resize_with_pad to 224; replan_steps 5 (the client asserts the server returns at least that many and

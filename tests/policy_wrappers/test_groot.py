@@ -33,11 +33,36 @@ def encode(obj):  # gr00t MsgSerializer.encode_custom_classes
     return obj
 
 
-class GrootServer:
-    """A REP socket loop like gr00t's PolicyServer: ping, kill, get_modality_config, reset, get_action."""
+def torch_to_bytes(obj) -> bytes:  # RoboCasa365's N1.5 fork gr00t/eval/service.py TorchSerializer.to_bytes
+    import torch
 
-    def __init__(self, get_action, modality=None, token=None, silent=False):
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    return buf.getvalue()
+
+
+def torch_from_bytes(data: bytes):  # TorchSerializer.from_bytes, as upstream's server reads requests
+    import torch
+
+    return torch.load(io.BytesIO(data), weights_only=False)
+
+
+WIRES = {
+    "msgpack": (lambda o: msgpack.packb(o, default=encode), lambda b: msgpack.unpackb(b, object_hook=decode)),
+    "torch": (torch_to_bytes, torch_from_bytes),
+}
+
+
+class GrootServer:
+    """A REP socket loop like gr00t's PolicyServer: ping, kill, get_modality_config, reset, get_action.
+
+    ``wire="torch"``: RoboCasa365's GR00T N1.5 fork (robocasa-benchmark/Isaac-GR00T, read from its copy
+    XingxinHE/Isaac-GR00T 9d7d7a9eb7ad30bd8ce30448d9ab53a918b45b10, gr00t/eval/service.py BaseInferenceServer.run):
+    torch.save framing, and any failure, an undecodable request included, answered as {"error": str(e)}."""
+
+    def __init__(self, get_action, modality=None, token=None, silent=False, wire="msgpack"):
         self.get_action, self.modality, self.token, self.silent = get_action, modality or {}, token, silent
+        self.pack, self.unpack = WIRES[wire]
         self.requests = []
         self.ctx = zmq.Context()
         self.sock = self.ctx.socket(zmq.REP)
@@ -48,7 +73,11 @@ class GrootServer:
         while self.running:
             if not self.sock.poll(50):
                 continue
-            request = msgpack.unpackb(self.sock.recv(), object_hook=decode)
+            try:
+                request = self.unpack(self.sock.recv())
+            except Exception as e:  # both services answer a request they cannot read with its error
+                self.sock.send(self.pack({"error": str(e)}))
+                continue
             self.requests.append(request)
             if self.silent:
                 self.running = False
@@ -66,7 +95,7 @@ class GrootServer:
                     }[endpoint](request.get("data"))
                 except Exception as e:  # gr00t replies {"error": str(e)}
                     result = {"error": str(e)}
-            self.sock.send(msgpack.packb(result, default=encode))
+            self.sock.send(self.pack(result))
 
     def __enter__(self):
         self.thread = threading.Thread(target=self._loop, daemon=True)

@@ -107,8 +107,9 @@ def test_openpi_and_groot_layouts_follow_their_upstream_clients():
     assert dict(openpi.cameras) == {"observation/image": "robot0_agentview_left",
                                     "observation/wrist_image": "robot0_eye_in_hand",
                                     "observation/right_image": "robot0_agentview_right"}  # fmt: skip
-    groot = layout_for("groot", spec)
-    assert dict(groot.cameras) == {"res256_image_side_0": "robot0_agentview_left",
+    from policy_wrappers.layouts import GROOT_SQUAREFK
+
+    assert dict(GROOT_SQUAREFK.cameras) == {"res256_image_side_0": "robot0_agentview_left",
                                    "res256_image_side_1": "robot0_agentview_right",
                                    "res256_image_wrist_0": "robot0_eye_in_hand"}  # fmt: skip
 
@@ -207,7 +208,7 @@ GROOT_ACTION = {"end_effector_position": 3, "end_effector_rotation": 3, "gripper
 
 
 def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
-    """A loopback N1.6 server declaring ROBOCASA_PANDA_OMRON's modalities: the client sends video.res256_* (our
+    """``?keys=squarefk``, a loopback N1.6 server declaring ROBOCASA_PANDA_OMRON's modalities: the client sends video.res256_* (our
     512 renders through GR00T's process_img), state.<name> (map_obs), and our action is RoboCasa's own
     convert_action order of the returned action.<name> keys (unmap_action reads them by key)."""
     from test_groot import GrootServer
@@ -234,7 +235,7 @@ def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
     raw = robocasa_raw_obs(rng)
     obs = Observation(images=images, state=our_state(raw), instruction="close the stand mixer head")
     with GrootServer(reply, modality=modality) as srv:
-        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}", env_spec=_spec())
+        policy = load_policy(f"groot:tcp://127.0.0.1:{srv.port}?keys=squarefk", env_spec=_spec())
         assert policy.spec.image_size == (512, 512) and (
             policy.spec.chunk_size,
             policy.spec.replan_steps,
@@ -256,14 +257,14 @@ def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
         np.testing.assert_allclose(got[f"action.{name}"], reply_actions[f"action.{name}"][0, 0])
 
 
-def test_groot_on_robocasa_refuses_n15_and_a_server_wanting_other_state():
+def test_groot_on_robocasa_refuses_n15_with_squarefk_keys_and_a_server_wanting_other_state():
     from test_groot import GrootServer
 
     from indgen_vla.core.errors import PolicyError
     from policy_wrappers.registry import load_policy
 
-    with pytest.raises(ConfigError, match="only GR00T N1.6's RoboCasa evaluation"):
-        load_policy("groot:tcp://127.0.0.1:1?api=n1.5", env_spec=_spec())
+    with pytest.raises(ConfigError, match="keys=squarefk is Isaac-GR00T N1.6's RoboCasa set-up"):
+        load_policy("groot:tcp://127.0.0.1:1?api=n1.5&keys=squarefk", env_spec=_spec())
     modality = {"state": {"delta_indices": [0], "modality_keys": ["joint_position", "gripper_qpos"]}}
     with GrootServer(lambda d: None, modality=modality) as srv:
         with pytest.raises(PolicyError, match="server expects state keys"):
