@@ -1,7 +1,8 @@
 """``groot:tcp://HOST:PORT`` — Isaac-GR00T's ZMQ REQ/REP inference service (N1.5 and N1.6 message shapes).
 
 Wire (``gr00t/eval/service.py`` N1.5, ``gr00t/policy/server_client.py`` N1.6): msgpack with ndarrays as
-``{"__ndarray_class__": True, "as_npy": np.save bytes}``; requests ``{"endpoint", "data"[, "api_token"]}``;
+``{"__ndarray_class__": True, "as_npy": np.save bytes}`` (N1.5 trees up to July 2025 frame with ``torch.save``
+instead: ``?serializer=torch``, ``torch_wire.py``); requests ``{"endpoint", "data"[, "api_token"]}``;
 errors come back as ``{"error": msg}``. N1.5 ``get_action`` takes flat unbatched keys (LIBERO example
 ``examples/Libero/eval/run_libero_eval.py``: ``video.image`` (1,H,W,3), ``state.x`` (1,1) … ``state.gripper``
 (1,2), ``annotation.human.action.task_description`` [str]) and returns ``action.*`` (16, D). N1.6 (server run
