@@ -341,7 +341,9 @@ def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_
     with pytest.raises(ConfigError, match="placeholder assets.*pass --smoke"):
         check_policy_contract(cfg, _plan(True), image)
     check_policy_contract(cfg, _plan(False), image)  # real assets: a measurement
-    smoke = EvalConfig.from_flat(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path), smoke=True)
+    smoke = EvalConfig.from_flat(
+        policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path), smoke=True
+    )
     check_policy_contract(smoke, _plan(True), _policy(cameras=("robot0_eye_in_hand",), action_dim=12))
     check_policy_contract(cfg, _plan(True), _policy(cameras=(), action_dim=12))  # state-only: no images
 

@@ -214,7 +214,7 @@ def test_device_precision_and_compile_are_checked_and_recorded():
     with pytest.raises(
         ConfigError, match="--compile reduce-overhead captures CUDA graphs and needs --device cuda"
     ):
-        EvalConfig.from_flat(**base, compile="reduce-overhead")  # CPU: refused, never rewritten to another mode
+        EvalConfig.from_flat(**base, compile="reduce-overhead")  # CPU: refused, never rewritten
     with pytest.raises(ConfigError, match="--compile must be one of"):
         EvalConfig.from_flat(**base, compile="fast")
 
