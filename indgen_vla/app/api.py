@@ -47,22 +47,14 @@ def evaluate(
         **({"policy": policy} if policy is not None else {}),
         **({"out": out} if out is not None else {}),
     }
-    if isinstance(config, EvalConfig):
-        cfg = config_from_values({**_config_values(config), **given}, strict=True)
-    elif config is None or isinstance(config, str | os.PathLike):
-        cfg = config_from_values(given, os.fspath(config) if config is not None else None, strict=True)
+    if config is None or isinstance(config, EvalConfig | str | os.PathLike):
+        preset = os.fspath(config) if isinstance(config, str | os.PathLike) else config
+        cfg = config_from_values(given, preset, strict=True)
     else:
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
     return Run(run_evaluation(cfg, quiet=quiet, policy=obj))
-
-
-def _config_values(cfg: Any) -> dict[str, Any]:
-    """An ``EvalConfig``'s options as flat values (``axes`` under its flag name ``axis``)."""
-    values = cfg.flat()
-    values["axis"] = list(values.pop("axes"))
-    return values
 
 
 def report(

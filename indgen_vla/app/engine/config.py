@@ -428,14 +428,18 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
 
 
 def config_from_values(
-    given: Mapping[str, Any], config: str | None = None, *, strict: bool = False
+    given: Mapping[str, Any], config: str | EvalConfig | None = None, *, strict: bool = False
 ) -> EvalConfig:
     """The one road from option values (parsed flags, or the Python API's keyword arguments, named like the flags)
-    and an optional preset to an ``EvalConfig``: a preset is read first, then every value that is set wins.
+    and an optional preset (a YAML name or path, or an ``EvalConfig``) to an ``EvalConfig``: a preset is read
+    first, then every value that is set wins.
     A section given whole (``plan=PlanConfig(...)``, or a mapping of its fields) replaces the preset's, and flat
     values win over it. ``strict`` refuses names that are no option (the API's keywords; argparse has already
     refused bad flags)."""
-    values: dict[str, Any] = load_config_preset(config) if config else {}
+    if isinstance(config, EvalConfig):
+        values = config.flat()
+    else:
+        values = load_config_preset(config) if config else {}
     if strict:
         unknown = sorted(k for k in given if FLAG_NAMES.get(k, k) not in FLAG_FIELDS and k not in SECTIONS)
         if unknown:
