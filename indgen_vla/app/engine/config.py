@@ -66,7 +66,6 @@ class PlanConfig:
     axes: tuple[str, ...] = option(help="axis or comma list of axes (see 'indgen axes')", flag="axis")
     levels: str | None = option(None, "inclusive range like -3:3 or list like 0,1,2 ({levels_default})")
     step: float | None = option(None, "override the axis's atomic step size", type=float)
-    # preset NAME (configs/axes) or YAML PATH: steps, level ranges
     axes_preset: str | None = option(None, "shipped axes preset (paper, quick) or YAML path: steps and level ranges, "
                                      "compositions' components too", metavar="NAME|PATH")  # fmt: skip
     episodes: int = option(
@@ -77,11 +76,10 @@ class PlanConfig:
     data_regime: str = option("", "label of the training data regime, e.g. h-only or h+mg")
     gamma: float = option(0.2, "break threshold for the report (default 0.2)", type=float)
     allow_infeasible: bool = option(False, "evaluate levels the oracle did not certify")
-    # run level 0 once per task for the axes whose level 0 is one environment (plan.shared_t0, engine/share.py)
+    # level 0 shared by the axes whose level 0 is one environment: plan.shared_t0, engine/share.py
     share_t0: bool = option(True, "run level 0 once per task for the axes whose level 0 is the same environment; each "
                             "such axis reports those episodes as its own (episodes.parquet shared_from; default on, "
                             "--adaptive too)", action=argparse.BooleanOptionalAction)  # fmt: skip
-    # a plan.lock (indgen budget --write): refuse any deviation from it
     preregistered: str | None = option(None, "a plan.lock written by 'indgen budget --write': refuse to run anything "
                                        "that deviates from it", metavar="LOCK")  # fmt: skip
 
@@ -113,17 +111,14 @@ class PolicyConfig:
         help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle", name="policy"
     )
     device: str = option("cpu", "where in-process policies run: cpu, cuda, cuda:N (default cpu)")
-    # "bf16": autocast forward, for policies that support it (lerobot:)
     precision: str = option("fp32", "bf16: autocast forward (lerobot: policies)", choices=list(PRECISIONS))
-    # torch.compile mode of the policy's per-call forward (lerobot:), cached on disk
     compile: str = option("off", "torch.compile the policy's per-call forward (lerobot: policies; reduce-overhead = "
                           "CUDA graphs, needs --device cuda); the first call compiles, ~/.cache/indgen/inductor keeps "
                           "it for the next run", choices=list(COMPILE_MODES))  # fmt: skip
     replan_steps: int | None = option(None, "actions executed per chunk (default: the policy's)", type=int)
-    warmup_steps: int = option(0)
+    warmup_steps: int = option(0)  # control steps before the policy's first observation (API and YAML only)
     image_size: int | None = option(None, "rendered image side in pixels (default: the policy's)", type=int)
     trust_remote_code: bool = option(False, "allow checkpoints that ship their own code")
-    # seconds a remote policy server may stay unreachable before the run stops
     server_patience: float = option(600.0, "seconds to keep reconnecting to an unreachable policy server before "
                                     "stopping (default 600)", type=float)  # fmt: skip
 
@@ -160,21 +155,18 @@ class RunConfig:
     """Where and how the episodes execute and what the run keeps: none of it changes an episode's outcome."""
 
     out: str = option(help="run directory (re-run the same command to resume)")
-    # "auto" (Ray backend): as many simulator actors as the cluster's CPUs hold
+    # 1 here; the command and the API default to the number of cores (config_from_values)
     workers: int | str = option(1, "worker processes (default: number of cores); with --backend ray the simulator "
                                 "actors, or auto: as many as the cluster's CPUs hold, following nodes that join or "
                                 "leave", type=workers_value)  # fmt: skip
     backend: str = option("local", "local worker processes or Ray (default local)", choices=["local", "ray"])
-    # local backend: two environments per worker, stepping overlapped with inference
     pipeline: bool = option(False, "two environments per worker: one steps while the policy computes the other's "
                             "chunk (default off)", action=argparse.BooleanOptionalAction)  # fmt: skip
-    max_retries: int = option(2)
+    max_retries: int = option(2)  # tries again of an episode that raised, before it is recorded as an error
     video: bool = option(False, "write mp4 videos of episodes")
     video_per_level: int = option(1, "videos per level when --video (default 1)", type=int)
-    # run an image policy on placeholder assets anyway: the manifest says "not a measurement"
     smoke: bool = option(False, "run an image policy on placeholder assets (RoboCasa's boxes) anyway; recorded as not "
                          "a measurement")  # fmt: skip
-    # resume a run under a protocol that changes outcomes (manifest lists it)
     allow_protocol_mismatch: bool = option(False, "resume a run although its protocol fingerprint changed in a field "
                                            "that changes outcomes (simulator versions, assets, horizon, cameras, "
                                            "render backend, policy conventions); the manifest lists it")  # fmt: skip
@@ -214,15 +206,12 @@ class AdaptiveConfig:
                               "observed rate < γ (no test); docs/adaptive.md", name="adaptive",
                               choices=list(ADAPTIVE_MODES))  # fmt: skip
     # indifference half-width around gamma
-    delta: float = option(
-        0.1, "indifference half-width around γ (default 0.1)", name="adaptive_delta", type=float
-    )
+    delta: float = option(0.1, "indifference half-width around γ (default 0.1)", name="adaptive_delta",
+                          type=float)  # fmt: skip
     # stated error rate of each verdict (alpha = beta)
     alpha: float = option(0.025, "error rate of each verdict, α = β (default 0.025)", name="adaptive_alpha",
                           type=float)  # fmt: skip
-    round_size: int = option(
-        5, "episodes between two looks (default 5)", type=int
-    )  # between two looks of the rule
+    round_size: int = option(5, "episodes between two looks (default 5)", type=int)
 
     def __post_init__(self) -> None:
         if self.mode is not None and self.mode not in ADAPTIVE_MODES:
@@ -265,9 +254,8 @@ OPTIONS: dict[str, Option] = {
     for o in [Option(f.metadata["name"] or f.name, section, f)]
 }
 FLAG_FIELDS = set(OPTIONS)  # the flat names
-FLAG_NAMES = {
-    o.flag: n for n, o in OPTIONS.items() if o.flag and o.flag != n
-}  # flag dest -> flat name: axis -> axes
+# a flag's dest -> its option's flat name, where they differ (axis -> axes)
+FLAG_NAMES = {o.flag: n for n, o in OPTIONS.items() if o.flag and o.flag != n}
 # the manifest's "config" keys in the order runs have always recorded them (options added later follow)
 RECORD_ORDER = ("policy", "scene", "axes", "out", "task", "levels", "step", "axes_preset", "episodes", "workers",
                 "backend", "pipeline", "seed", "max_steps", "replan_steps", "warmup_steps", "image_size", "video",
@@ -289,8 +277,9 @@ class EvalConfig:
     def __post_init__(self) -> None:
         for name, cls in SECTIONS.items():
             if not isinstance(getattr(self, name), cls):
-                raise ConfigError(f"EvalConfig {name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}"
-                                  f"; build it with EvalConfig.from_flat(...) or {cls.__name__}(...)")  # fmt: skip
+                got = type(getattr(self, name)).__name__
+                raise ConfigError(f"EvalConfig {name} must be a {cls.__name__}, got {got}; build it with "
+                                  f"{cls.__name__}(...), or the whole config with EvalConfig.from_flat(...)")  # fmt: skip
         if self.adaptive.mode is not None:
             self.sequential_rule()  # validates the rule's parameters against the plan in one clear line each
 
