@@ -20,6 +20,10 @@ _LAZY = {
     "Run": "indgen_vla.core.runs.result:Run",
     "KStar": "indgen_vla.core.runs.result:KStar",
     "EvalConfig": "indgen_vla.app.engine.config:EvalConfig",
+    "PlanConfig": "indgen_vla.app.engine.config:PlanConfig",
+    "PolicyConfig": "indgen_vla.app.engine.config:PolicyConfig",
+    "RunConfig": "indgen_vla.app.engine.config:RunConfig",
+    "AdaptiveConfig": "indgen_vla.app.engine.config:AdaptiveConfig",
     "IndgenError": "indgen_vla.core.errors:IndgenError",
     "ConfigError": "indgen_vla.core.errors:ConfigError",
 }

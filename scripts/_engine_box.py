@@ -66,7 +66,7 @@ def level0_jobs(scene: str, episodes: int) -> tuple[str, list]:
     from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
     task = scenes.tasks(scene)[0]
-    cfg = EvalConfig(policy="bench", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
+    cfg = EvalConfig.from_flat(policy="bench", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
     return task, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
 
 

@@ -30,8 +30,8 @@ def _jobs(episodes: int):
     from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
     task = scenes.tasks("pick_place")[0]
-    cfg = EvalConfig(policy="standin:oracle", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes,
-                     workers=2, backend="ray")  # fmt: skip
+    cfg = EvalConfig.from_flat(policy="standin:oracle", scene="pick_place", axes=("pick_y",), out="-",
+                               episodes=episodes, workers=2, backend="ray")  # fmt: skip
     return cfg, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
 
 

@@ -3,7 +3,6 @@ scripts, with keyword arguments named like the flags and typed results instead o
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -15,43 +14,47 @@ from indgen_vla.core.runs.result import Run
 PathLike = str | os.PathLike[str]
 
 
-def evaluate(*, policy: Any, out: PathLike, config: Any = None, quiet: bool = False, **options: Any) -> Run:
+def evaluate(
+    *,
+    policy: Any = None,
+    out: PathLike | None = None,
+    config: Any = None,
+    quiet: bool = False,
+    **options: Any,
+) -> Run:
     """Run (or resume) an evaluation and return its run directory, exactly as ``indgen evaluate`` writes it.
 
-    ``policy`` is a spec string (``--policy``), or a policy already in memory: a LeRobot
+    ``policy`` is a spec string (``--policy``), a ``PolicyConfig``, or a policy already in memory: a LeRobot
     ``(policy, preprocessor, postprocessor)`` or any ``Policy`` (a training loop evaluates its current weights
     without saving them; local backend only; the run records it as ``object:<class>``).
 
     Keyword arguments are ``indgen evaluate``'s flags with ``_`` for ``-`` (``scene``, ``task``, ``axis``,
-    ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists.
-    ``config`` is a preset name or YAML path (``--config``) whose values the keywords override, or an
-    ``EvalConfig``. ``quiet`` hides the live progress display.
+    ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists. Whole config
+    sections are accepted too (``plan=PlanConfig(...)``, ``run=RunConfig(...)``, ``adaptive=AdaptiveConfig(...)``),
+    which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
+    override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
     """
-    from indgen_vla.app.engine.config import EvalConfig, config_from_values
+    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values
     from indgen_vla.app.engine.run import evaluate as run_evaluation
 
-    obj = None if isinstance(policy, str) else policy
+    obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if obj is not None:
         from policy_wrappers.objects import describe
 
         policy = describe(obj)
-    given = {**options, "policy": policy, "out": out}
-    if isinstance(config, EvalConfig):
-        cfg = config_from_values({**_config_values(config), **given}, strict=True)
-    elif config is None or isinstance(config, str | os.PathLike):
-        cfg = config_from_values(given, os.fspath(config) if config is not None else None, strict=True)
+    given = {
+        **options,
+        **({"policy": policy} if policy is not None else {}),
+        **({"out": out} if out is not None else {}),
+    }
+    if config is None or isinstance(config, EvalConfig | str | os.PathLike):
+        preset = os.fspath(config) if isinstance(config, str | os.PathLike) else config
+        cfg = config_from_values(given, preset, strict=True)
     else:
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
     return Run(run_evaluation(cfg, quiet=quiet, policy=obj))
-
-
-def _config_values(cfg: Any) -> dict[str, Any]:
-    """An ``EvalConfig``'s fields as option values (``axes`` under its flag name ``axis``)."""
-    values = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)}
-    values["axis"] = list(values.pop("axes"))
-    return values
 
 
 def report(

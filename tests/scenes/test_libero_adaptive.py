@@ -20,7 +20,7 @@ pytestmark = pytest.mark.filterwarnings("ignore")
 @pytest.mark.slow  # ~20 s idle: a LIBERO reset rebuilds the MJCF each episode
 def test_adaptive_kstar_on_libero_object(mini, tmp_path):
     need = SequentialRule(max_episodes=30).decide([False] * 30).episodes  # a never-succeeding policy
-    cfg = EvalConfig(policy="standin:noop", scene="libero_object", axes=("pick_y",), levels="-1:1", episodes=30,
+    cfg = EvalConfig.from_flat(policy="standin:noop", scene="libero_object", axes=("pick_y",), levels="-1:1", episodes=30,
                      workers=1, max_steps=2, adaptive="kstar", out=str(tmp_path / "run"))  # fmt: skip
     run = Path(evaluate(cfg, quiet=True))
     eps = pd.read_parquet(run / "episodes.parquet")

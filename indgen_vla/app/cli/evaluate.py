@@ -5,134 +5,34 @@ from __future__ import annotations
 
 import argparse
 
-from indgen_vla.app.cli.options import add_level_options
+from indgen_vla.app.cli.options import add_config_flags
 
-
-def _workers(text: str) -> int | str:
-    """``--workers``: a number, or ``auto`` (the Ray backend follows its cluster's CPUs)."""
-    if text == "auto":
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+# evaluate's config options (flat names, engine/config.py) in --help's order around the command's own --config,
+# --log and --log-project; an option listed in neither tuple is added at the end of the first (before --config)
+FLAGS_BEFORE_CONFIG = ("policy", "scene", "task", "axes", "levels", "step", "axes_preset", "episodes", "adaptive",
+                       "adaptive_delta", "adaptive_alpha", "round_size", "workers", "device", "precision", "compile",
+                       "pipeline", "share_t0", "backend", "seed", "max_steps", "replan_steps", "image_size", "video",
+                       "video_per_level", "data_regime", "gamma", "allow_infeasible", "smoke", "trust_remote_code",
+                       "allow_protocol_mismatch", "server_patience")  # fmt: skip
+FLAGS_AFTER_CONFIG = ("preregistered", "out")
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
-    """The evaluate subcommand and its flags (a help line each)."""
+    """The evaluate subcommand: a flag per config option with a help line (made from the config's fields), and
+    the command's own --config, --log and --log-project."""
+    from indgen_vla.app.engine.config import OPTIONS  # light: no numpy, no scene
+
     p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
-    p.add_argument("--policy", help="policy spec, e.g. lerobot:HUB_ID, openpi:ws://HOST:PORT, standin:oracle")
-    p.add_argument("--scene", help="scene name (see 'indgen scenes')")
-    p.add_argument(
-        "--task", default=None, help="task of the scene, or 'all' (default: the scene's first task)"
-    )
-    p.add_argument("--axis", help="axis or comma list of axes (see 'indgen axes')")
-    add_level_options(p)
-    p.add_argument(
-        "--episodes", type=int, default=None, help="episodes per level (default 50; the cap with --adaptive)"
-    )
-    p.add_argument(
-        "--adaptive",
-        choices=["kstar", "curve", "until-failure"],
-        default=None,
-        help="run episodes in rounds and stop a level once a sequential test decides it (kstar: also skip levels "
-        "past a decided break; curve: decide every level); until-failure: the paper's real-robot design, "
-        "--episodes per level, levels in order until the first observed rate < γ (no test); docs/adaptive.md",
-    )
-    p.add_argument(
-        "--adaptive-delta", type=float, default=None, help="indifference half-width around γ (default 0.1)"
-    )
-    p.add_argument(
-        "--adaptive-alpha", type=float, default=None, help="error rate of each verdict, α = β (default 0.025)"
-    )
-    p.add_argument("--round-size", type=int, default=None, help="episodes between two looks (default 5)")
-    p.add_argument("--workers", type=_workers, default=None,
-                   help="worker processes (default: number of cores); with --backend ray the simulator actors, "
-                   "or auto: as many as the cluster's CPUs hold, following nodes that join or leave")  # fmt: skip
-    p.add_argument(
-        "--device", default=None, help="where in-process policies run: cpu, cuda, cuda:N (default cpu)"
-    )
-    p.add_argument(
-        "--precision",
-        choices=["fp32", "bf16"],
-        default=None,
-        help="bf16: autocast forward (lerobot: policies)",
-    )
-    p.add_argument(
-        "--compile",
-        choices=["off", "default", "reduce-overhead", "max-autotune"],
-        default=None,
-        help="torch.compile the policy's per-call forward (lerobot: policies; reduce-overhead = CUDA graphs, "
-        "needs --device cuda); the first call compiles, ~/.cache/indgen/inductor keeps it for the next run",
-    )
-    p.add_argument(
-        "--pipeline",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="two environments per worker: one steps while the policy computes the other's chunk (default off)",
-    )
-    p.add_argument(
-        "--share-t0",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="run level 0 once per task for the axes whose level 0 is the same environment; each such axis reports "
-        "those episodes as its own (episodes.parquet shared_from; default on, --adaptive too)",
-    )
-    p.add_argument(
-        "--backend",
-        choices=["local", "ray"],
-        default=None,
-        help="local worker processes or Ray (default local)",
-    )
-    p.add_argument("--seed", type=int, default=None, help="run seed (default 0)")
-    p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
-    p.add_argument(
-        "--replan-steps", type=int, default=None, help="actions executed per chunk (default: the policy's)"
-    )
-    p.add_argument(
-        "--image-size", type=int, default=None, help="rendered image side in pixels (default: the policy's)"
-    )
-    p.add_argument("--video", action="store_true", help="write mp4 videos of episodes")
-    p.add_argument(
-        "--video-per-level", type=int, default=None, help="videos per level when --video (default 1)"
-    )
-    p.add_argument(
-        "--data-regime", default=None, help="label of the training data regime, e.g. h-only or h+mg"
-    )
-    p.add_argument("--gamma", type=float, default=None, help="break threshold for the report (default 0.2)")
-    p.add_argument(
-        "--allow-infeasible", action="store_true", help="evaluate levels the oracle did not certify"
-    )
-    p.add_argument(
-        "--smoke",
-        action="store_true",
-        help="run an image policy on placeholder assets (RoboCasa's boxes) anyway; recorded as not a measurement",
-    )
-    p.add_argument(
-        "--trust-remote-code", action="store_true", help="allow checkpoints that ship their own code"
-    )
-    p.add_argument(
-        "--allow-protocol-mismatch",
-        action="store_true",
-        help="resume a run although its protocol fingerprint changed in a field that changes outcomes "
-        "(simulator versions, assets, horizon, cameras, render backend, policy conventions); the manifest lists it",
-    )
-    p.add_argument(
-        "--server-patience",
-        type=float,
-        default=None,
-        help="seconds to keep reconnecting to an unreachable policy server before stopping (default 600)",
+    listed = {*FLAGS_BEFORE_CONFIG, *FLAGS_AFTER_CONFIG}
+    add_config_flags(
+        p, [*FLAGS_BEFORE_CONFIG, *(n for n, o in OPTIONS.items() if o.flag and n not in listed)]
     )
     p.add_argument(
         "--config",
         default=None,
         help="shipped preset name (configs/paper) or YAML path; flags override it",
     )
-    p.add_argument(
-        "--preregistered", default=None, metavar="LOCK",
-        help="a plan.lock written by 'indgen budget --write': refuse to run anything that deviates from it",
-    )  # fmt: skip
-    p.add_argument("--out", help="run directory (re-run the same command to resume)")
+    add_config_flags(p, FLAGS_AFTER_CONFIG)
     p.add_argument("--log", choices=["trackio", "wandb"], default=None,
                    help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to this "
                    "tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip

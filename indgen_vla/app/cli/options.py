@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import copy
 import re
+from collections.abc import Iterable
 
 
 class IndgenParser(argparse.ArgumentParser):
@@ -28,21 +29,33 @@ class IndgenParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def add_level_options(p: argparse.ArgumentParser, levels_default: str = "default: the axis range") -> None:
+LEVELS_DEFAULT = "default: the axis range"  # what an omitted --levels means to evaluate
+
+
+def add_config_flags(
+    p: argparse.ArgumentParser, names: Iterable[str], levels_default: str = LEVELS_DEFAULT
+) -> None:
+    """Add the flags of these evaluate options (flat names), each made from its config field's metadata
+    (``indgen_vla.app.engine.config.option``): its help line, type, choices, metavar; a bool is a switch."""
+    from indgen_vla.app.engine.config import OPTIONS  # light: no numpy, no scene
+
+    for name in names:
+        o = OPTIONS[name]
+        if o.flag is None:
+            raise ValueError(f"option {name} has no flag (its field's metadata has no help line)")
+        kwargs = dict(o.field.metadata["argparse"])
+        if isinstance(o.field.default, bool) and "action" not in kwargs:
+            kwargs["action"] = "store_true"
+        else:
+            kwargs.setdefault("default", None)
+        help_ = o.field.metadata["help"].replace("{levels_default}", levels_default)
+        p.add_argument("--" + o.flag.replace("_", "-"), help=help_, **kwargs)
+
+
+def add_level_options(p: argparse.ArgumentParser, levels_default: str = LEVELS_DEFAULT) -> None:
     """--levels, --step and --axes-preset: which levels run and how far apart (evaluate, certify, preview and demos
     alike; ``levels_default`` says what an omitted --levels means there)."""
-    p.add_argument(
-        "--levels",
-        default=None,
-        help=f"inclusive range like -3:3 or list like 0,1,2 ({levels_default})",
-    )
-    p.add_argument("--step", type=float, default=None, help="override the axis's atomic step size")
-    p.add_argument(
-        "--axes-preset",
-        default=None,
-        metavar="NAME|PATH",
-        help="shipped axes preset (paper, quick) or YAML path: steps and level ranges, compositions' components too",
-    )
+    add_config_flags(p, ("levels", "step", "axes_preset"), levels_default)
 
 
 def add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:

@@ -34,7 +34,7 @@ def ladder_plans(plan: EvalPlan, episodes, cfg) -> dict[tuple[str, str], Plan]:
     rule = cfg.sequential_rule()
     outcomes = ladder_outcomes(episodes)
     return {
-        (t, a): plan_next(rule, sorted(plan.levels[a]), outcomes.get((t, a), {}), cfg.adaptive)
+        (t, a): plan_next(rule, sorted(plan.levels[a]), outcomes.get((t, a), {}), cfg.adaptive.mode)
         for a in plan.axes
         for t in plan.tasks
     }

@@ -123,11 +123,9 @@ def _costs(req: BudgetRequest, plan, horizon: int):
         notes.append(
             f"the smoke ran {smoke_h}-step episodes, this protocol {horizon}: its steps per episode scaled"
         )
-    for key in ("scene", "policy"):
-        if run.manifest.get(key) != getattr(req.cfg, key):
-            notes.append(
-                f"the smoke's {key} is {run.manifest.get(key)}, this protocol's {getattr(req.cfg, key)}"
-            )
+    for key, now in (("scene", req.cfg.plan.scene), ("policy", req.cfg.policy.spec)):
+        if run.manifest.get(key) != now:
+            notes.append(f"the smoke's {key} is {run.manifest.get(key)}, this protocol's {now}")
     costs = from_timing(timing, steps)
     if costs.box_load > 1.5:
         notes.append(f"the smoke ran with load {timing.get('load_avg_1m')} on {costs.cores} cores (other jobs): the "
@@ -148,16 +146,19 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     levels = {a: list(v) for a, v in plan.levels.items()}
     rollouts = plan.rollouts()
     cells = len({(j.task, j.axis, j.level) for j in rollouts})
-    horizon = int(cfg.max_steps or plan.record()["environment"].get("protocol", {}).get("max_steps") or 0)
+    horizon = int(
+        cfg.plan.max_steps or plan.record()["environment"].get("protocol", {}).get("max_steps") or 0
+    )
+    episodes, gamma, mode = cfg.plan.episodes, cfg.plan.gamma, cfg.adaptive.mode
     out: dict[str, Any] = {"protocol": {
-        "scene": cfg.scene, "policy": cfg.policy, "tasks": len(plan.tasks), "axes": list(plan.axes), "levels": levels,
-        "episodes_per_level": cfg.episodes, "rollouts_planned": len(rollouts), "cells": cells, "horizon": horizon,
-        "adaptive": cfg.adaptive}}  # fmt: skip
-    delta, alpha = cfg.adaptive_delta, cfg.adaptive_alpha
-    fixed = fixed_design(cfg.gamma, delta, alpha, req.ci)
-    miss = decided_rates(cfg.episodes, cfg.gamma, delta, req.ci)
+        "scene": cfg.plan.scene, "policy": cfg.policy.spec, "tasks": len(plan.tasks), "axes": list(plan.axes),
+        "levels": levels, "episodes_per_level": episodes, "rollouts_planned": len(rollouts), "cells": cells,
+        "horizon": horizon, "adaptive": mode}}  # fmt: skip
+    delta, alpha = cfg.adaptive.delta, cfg.adaptive.alpha
+    fixed = fixed_design(gamma, delta, alpha, req.ci)
+    miss = decided_rates(episodes, gamma, delta, req.ci)
     out["episodes_fixed"] = {**fixed.as_dict(), "protocol": fixed.episodes * cells if fixed.episodes else None,
-                             "at_episodes": {"episodes": cfg.episodes, "miss_intact": miss[0], "miss_broken": miss[1]}}  # fmt: skip
+                             "at_episodes": {"episodes": episodes, "miss_intact": miss[0], "miss_broken": miss[1]}}  # fmt: skip
     curve = None
     if req.assume is not None:
         curve = assumed_curve(req.assume, list(plan.axes), levels)
@@ -168,24 +169,24 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     a_level = ALPHA / tested
     out["power"] = {"t0_rate": p0, "drop": req.drop, "alpha": ALPHA, "alpha_per_level": a_level,
                     "test": f"exact McNemar, paired on seeds, at α/{tested} (Holm's first step over {tested} levels)",
-                    **{m: {"at_episodes": paired_power(p0, max(0.0, p0 - req.drop), cfg.episodes, a_level, m),
+                    **{m: {"at_episodes": paired_power(p0, max(0.0, p0 - req.drop), episodes, a_level, m),
                            "pairs_for_80": pairs_for_power(p0, max(0.0, p0 - req.drop), a_level, POWER, m)}
                        for m in ("independent", "nested")}}  # fmt: skip
-    if not cfg.adaptive and not curve:
+    if not mode and not curve:
         out["episodes_adaptive"] = None
     elif curve is None:
         raise ConfigError("--adaptive needs a success curve to size: --assume 0.95,0.9,0.5,0.1 (per |level|) or "
                           "--pilot RUN")  # fmt: skip
     else:
-        mode = cfg.adaptive or "kstar"
-        rule = cfg.sequential_rule() if cfg.adaptive else make_rule("kstar", cfg.gamma, delta, alpha, cfg.round_size,
-                                                                     cfg.episodes)  # fmt: skip
+        sized = mode or "kstar"
+        rule = cfg.sequential_rule() if mode else make_rule(sized, gamma, delta, alpha, cfg.adaptive.round_size,
+                                                            episodes)  # fmt: skip
         first = plan.tasks[0]
         owners = {a: plan.shared.get((first, a), a) for a in plan.axes}
         cost = simulate_protocol(
-            rule, mode, len(plan.tasks), levels, curve, owners, len(rollouts), req.replicates
+            rule, sized, len(plan.tasks), levels, curve, owners, len(rollouts), req.replicates
         )
-        out["episodes_adaptive"] = {**cost.summary(), "mode": mode, "as_configured": bool(cfg.adaptive),
+        out["episodes_adaptive"] = {**cost.summary(), "mode": sized, "as_configured": bool(mode),
                                     "curve": "pilot " + req.pilot if req.pilot else f"assumed {list(req.assume)}"}  # fmt: skip
     costs, smoke_replan, notes = _costs(req, plan, horizon)
     out["notes"] = notes
@@ -193,16 +194,18 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     if costs is not None:
         from indgen_vla.app.engine.wall_time import project
 
-        replan = cfg.replan_steps or smoke_replan or 1
+        replan = cfg.policy.replan_steps or smoke_replan or 1
         rounds = [[len(rollouts)]] * 3
-        if cfg.adaptive:
+        if mode:
             rounds = _percentile_rounds(cost)
-        gpus = req.gpus if req.gpus is not None else (1 if cfg.device.startswith("cuda") else 0)
+        gpus = req.gpus if req.gpus is not None else (1 if cfg.policy.device.startswith("cuda") else 0)
         for w in req.workers:
             pr = project(costs, w, replan, cells, rounds[1], rounds[0], rounds[2])
             out["workers"][str(w)] = pr.as_dict(gpus)
         out["gpus"] = gpus
-    if cfg.preregistered:  # budget a locked protocol: the same check evaluate makes, one line on a deviation
+    if (
+        cfg.plan.preregistered
+    ):  # budget a locked protocol: the same check evaluate makes, one line on a deviation
         from indgen_vla.app.engine.preregister import check_preregistered
         from indgen_vla.app.engine.run import package_versions
 
@@ -237,8 +240,9 @@ def _write_lock(req: BudgetRequest, plan, out: dict) -> dict:
     from indgen_vla.core.stats.contrasts import ALPHA
 
     cfg = req.cfg
-    analysis = {"gamma": cfg.gamma, "ci": req.ci, "alpha": ALPHA, "test": "exact McNemar vs T0, Holm over levels",
-                "delta": cfg.adaptive_delta, "error_rate": cfg.adaptive_alpha}  # fmt: skip
+    analysis = {"gamma": cfg.plan.gamma, "ci": req.ci, "alpha": ALPHA,
+                "test": "exact McNemar vs T0, Holm over levels", "delta": cfg.adaptive.delta,
+                "error_rate": cfg.adaptive.alpha}  # fmt: skip
     budget = {"rollouts_planned": out["protocol"]["rollouts_planned"],
               "episodes_adaptive_expected": (out.get("episodes_adaptive") or {}).get("expected"),
               "wall_s": {w: v["wall_s"] for w, v in out["workers"].items()}}  # fmt: skip

@@ -9,7 +9,6 @@ is written whole under a temporary name and renamed into place (the shards are o
 
 from __future__ import annotations
 
-import dataclasses
 import glob
 import json
 import os
@@ -19,7 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.engine.config import FLAG_FIELDS, EvalConfig
+from indgen_vla.app.engine.config import FLAG_FIELDS, FLAT_DEFAULTS, EvalConfig
 from indgen_vla.core.errors import IndgenError, RunDirError
 from indgen_vla.core.runs.records import MANIFEST, EpisodeRecord, RunDir, atomic_write_json
 from indgen_vla.core.runs.shards import (
@@ -39,15 +38,14 @@ RESUME_FLAGS = ("policy", "scene", "task", "axes", "levels", "step", "axes_prese
                 "replan_steps", "warmup_steps", "image_size", "video", "video_per_level", "data_regime", "gamma",
                 "allow_infeasible", "smoke", "trust_remote_code", "device", "precision", "compile", "adaptive",
                 "adaptive_delta", "adaptive_alpha", "round_size", "share_t0")  # fmt: skip
-DEFAULTS = {f.name: f.default for f in dataclasses.fields(EvalConfig)}
 
 
 def resume_command(cfg: EvalConfig) -> str:
     """``cfg`` as the ``indgen evaluate`` command line that runs (or resumes) it."""
-    parts = ["indgen", "evaluate"]
+    parts, values = ["indgen", "evaluate"], cfg.flat()
     for name in RESUME_FLAGS:
-        value = getattr(cfg, name)
-        if name not in ("policy", "scene", "axes") and (value is None or value == DEFAULTS[name]):
+        value = values[name]
+        if name not in ("policy", "scene", "axes") and (value is None or value == FLAT_DEFAULTS[name]):
             continue
         flag = "--axis" if name == "axes" else "--" + name.replace("_", "-")
         if name == "share_t0":  # the one flag whose non-default is False
@@ -56,7 +54,7 @@ def resume_command(cfg: EvalConfig) -> str:
             parts.append(flag)
         else:
             parts += [flag, shlex.quote(",".join(value) if name == "axes" else str(value))]
-    return " ".join([*parts, "--out", shlex.quote(cfg.out)])
+    return " ".join([*parts, "--out", shlex.quote(cfg.run.out)])
 
 
 def resume_plan(
@@ -74,18 +72,18 @@ def resume_plan(
     if share_t0 is not None:
         config["share_t0"] = share_t0
     try:
-        cfg = EvalConfig(**config)
+        cfg = EvalConfig.from_flat(**config)
         resolved = build_plan(cfg)
     except (IndgenError, ImportError, OSError) as e:  # e.g. LIBERO's assets missing on this machine
         why = str(e).splitlines()[0] if str(e) else type(e).__name__
         note = f"the shards' command does not resolve on this machine ({why}); merge where the shards ran"
         return plan, {"config": config, "note": note}
-    want = cfg.plan_dict(list(resolved.tasks), {a: list(v) for a, v in resolved.levels.items()}, cfg.max_steps,
+    want = cfg.plan_dict(list(resolved.tasks), {a: list(v) for a, v in resolved.levels.items()}, cfg.plan.max_steps,
                          resolved.scene_plan.task_steps)  # fmt: skip
     if set(want["tasks"]) == set(tasks):  # evaluate's order: --task all lists the scene's tasks in its order
         plan = {**plan, "tasks": want["tasks"]}
     diff = [k for k in dict.fromkeys([*want, *plan]) if want.get(k) != plan.get(k)]
-    config = dataclasses.asdict(cfg)
+    config = cfg.flat()
     if not diff:
         return plan, {"config": config, "command": resume_command(cfg)}
     why = (f"tasks {', '.join(tasks)} are neither one task nor all of the scene's ('--task' takes one or 'all')"

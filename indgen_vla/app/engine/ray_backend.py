@@ -304,8 +304,9 @@ def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
     from policy_wrappers.registry import load_policy
 
     extra = cfg.policy_options()  # precision/compile, for families that take them
-    return partial(load_policy, cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device,
-                   scene=scene, **extra)  # fmt: skip
+    p = cfg.policy
+    return partial(load_policy, p.spec, trust_remote_code=p.trust_remote_code, device=p.device, scene=scene,
+                   **extra)  # fmt: skip
 
 
 def run_ray(
@@ -318,9 +319,9 @@ def run_ray(
     make_policy: Callable[[], object] | None = None,
     stats: dict | None = None,
 ) -> None:
-    """Run ``jobs`` on up to ``cfg.workers`` simulator actors (``auto``: as many as the cluster's CPUs hold)
+    """Run ``jobs`` on up to ``cfg.run.workers`` simulator actors (``auto``: as many as the cluster's CPUs hold)
     served by shared policy actors, recording each episode as it finishes; survives actors and nodes that die or
-    join (``ray_pool``). ``make_policy`` (picklable) replaces loading ``cfg.policy``; ``stats`` gets the policy
+    join (``ray_pool``). ``make_policy`` (picklable) replaces loading ``cfg.policy.spec``; ``stats`` gets the policy
     actors' batch sizes and the faults survived."""
     try:
         import ray
@@ -329,10 +330,10 @@ def run_ray(
     if not jobs:
         return
     knobs = ray_knobs()
-    gpu = cfg.device.startswith("cuda")
+    gpu = cfg.policy.device.startswith("cuda")
     need = Need(knobs["INDGEN_RAY_CPUS_PER_SIM"], knobs["INDGEN_RAY_CPUS_PER_POLICY"],
                 knobs["INDGEN_RAY_GPUS_PER_POLICY"] if gpu else 0.0)  # fmt: skip
-    workers = None if cfg.workers == "auto" else max(1, min(int(cfg.workers), len(jobs)))
+    workers = None if cfg.run.workers == "auto" else max(1, min(int(cfg.run.workers), len(jobs)))
     route = None
     if runner_cfg.video_dir:  # the run directory is where the videos folder is
         route = files_route(Path(runner_cfg.video_dir).parent)
@@ -340,7 +341,7 @@ def run_ray(
             video_dir = str(Path(route.run_dir) / Path(runner_cfg.video_dir).name)
             runner_cfg = dataclasses.replace(runner_cfg, video_dir=video_dir)
     started_here = join(local_cpus(workers, need), keeping_sigterm)
-    run_dir = Path(cfg.out)
+    run_dir = Path(cfg.run.out)
     before = _manifest(run_dir).get("ray", {})
 
     def on_fault(faults, per_node) -> None:
@@ -358,8 +359,8 @@ def run_ray(
     )  # a policy actor's clients
     policy_opts = {"num_gpus": need.gpus_per_policy} if gpu else {}
     settings = Settings(
-        meta=meta, replan=replan, max_retries=cfg.max_retries, patience_s=cfg.server_patience, workers=workers,
-        need=need, files=route,
+        meta=meta, replan=replan, max_retries=cfg.run.max_retries, patience_s=cfg.policy.server_patience,
+        workers=workers, need=need, files=route,
         sim_cls=ray.remote(num_cpus=need.cpus_per_sim)(_SimActor),
         sim_args=(runner_cfg, max(1, int(need.cpus_per_sim)), route),
         policy_cls=ray.remote(max_concurrency=most, num_cpus=need.cpus_per_policy, **policy_opts)(_PolicyActor),

@@ -61,9 +61,10 @@ def build_plan(cfg: EvalConfig) -> EvalPlan:
     planned episode. The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
     from scenes.planning import resolve_scene_plan
 
-    sp = resolve_scene_plan(cfg.scene, cfg.task, cfg.axes, cfg.levels, cfg.step, cfg.axes_preset)
-    jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), cfg.episodes, cfg.seed, cfg.video,
-                     cfg.video_per_level)  # fmt: skip
+    p = cfg.plan
+    sp = resolve_scene_plan(p.scene, p.task, p.axes, p.levels, p.step, p.axes_preset)
+    jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), p.episodes, p.seed, cfg.run.video,
+                     cfg.run.video_per_level)  # fmt: skip
     return with_sharing(cfg, EvalPlan(sp, jobs))
 
 
@@ -94,10 +95,10 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
                 failed[task] = bad
             if short:
                 missing[task] = short
-        if failed and not cfg.allow_infeasible:
+        if failed and not cfg.plan.allow_infeasible:
             where = "; ".join(f"task {t}: levels {_levels_text(b)}" for t, b in failed.items())
             raise InfeasibleLevelError(
-                f"{cfg.scene}/{name}: the oracle failed its certification at {where}; drop them from --levels "
+                f"{cfg.plan.scene}/{name}: the oracle failed its certification at {where}; drop them from --levels "
                 "or pass --allow-infeasible"
             )
         if failed:
@@ -119,9 +120,10 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
             step = "each task's own step" if own else f"step {spec.step:g} {spec.unit}"
             warnings.append(
                 f"axis {name} ({step}) is uncertified at {where} (no oracle certificate "
-                f"with enough evidence); run 'indgen certify --scene {cfg.scene} --axis {name} --task "
-                f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}{f' --step {cfg.step:g}' if cfg.step else ''}"
-                f"{f' --axes-preset {cfg.axes_preset}' if cfg.axes_preset else ''}'"
+                f"with enough evidence); run 'indgen certify --scene {cfg.plan.scene} --axis {name} --task "
+                f"{'all' if len(plan.tasks) > 1 else plan.tasks[0]}"
+                f"{f' --step {cfg.plan.step:g}' if cfg.plan.step else ''}"
+                f"{f' --axes-preset {cfg.plan.axes_preset}' if cfg.plan.axes_preset else ''}'"
             )
     return warnings
 
@@ -134,21 +136,21 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "policy": cfg.policy,
-        "data_regime": cfg.data_regime,
-        "scene": cfg.scene,
-        "seed": cfg.seed,
+        "policy": cfg.policy.spec,
+        "data_regime": cfg.plan.data_regime,
+        "scene": cfg.plan.scene,
+        "seed": cfg.plan.seed,
         "plan": cfg.plan_dict(
             list(plan.tasks),
             {a: list(v) for a, v in plan.levels.items()},
-            cfg.max_steps,
+            cfg.plan.max_steps,
             plan.scene_plan.task_steps,
         ),
         "axes": {n: dataclasses.asdict(s) for n, s in plan.axes.items()},
         "resolved": (resolved := plan.record()),
-        "deviations": protocol_deviations(cfg.max_steps, resolved["environment"].get("protocol", {})),
+        "deviations": protocol_deviations(cfg.plan.max_steps, resolved["environment"].get("protocol", {})),
         "t0_sharing": sharing_entry(cfg, plan),
-        "config": dataclasses.asdict(cfg),
+        "config": cfg.flat(),  # flat, as runs have always recorded it
         "versions": package_versions(),
         "git_sha": git_sha(),
         "command": " ".join(["indgen", *sys.argv[1:]]) if sys.argv and "indgen" in sys.argv[0] else "",
@@ -156,7 +158,7 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
             {
                 "measurement": "not a measurement (--smoke: a smoke run, e.g. an image policy on placeholder assets)"
             }
-            if cfg.smoke
+            if cfg.run.smoke
             else {}
         ),  # fmt: skip
     }
@@ -164,7 +166,7 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
 
 def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
     """An image policy on placeholder assets without ``--smoke``: its cameras would see boxes."""
-    return bool(cameras) and getattr(plan.builder, "placeholder_assets", False) and not cfg.smoke
+    return bool(cameras) and getattr(plan.builder, "placeholder_assets", False) and not cfg.run.smoke
 
 
 def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
@@ -174,11 +176,11 @@ def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
     env_spec = getattr(plan.builder, "env_spec", None)
     try:
         if env_spec is not None:
-            env_spec.check_policy(spec, cfg.scene)
+            env_spec.check_policy(spec, cfg.plan.scene)
         if _refused_on_placeholders(cfg, plan, spec.cameras):
             raise ConfigError(
-                f"scene {cfg.scene} runs on placeholder assets (boxes, flat textures): an image policy's success "
-                f"there is not a measurement; point the scene at its real assets, or pass --smoke to run "
+                f"scene {cfg.plan.scene} runs on placeholder assets (boxes, flat textures): an image policy's "
+                f"success there is not a measurement; point the scene at its real assets, or pass --smoke to run "
                 f"{spec.name} anyway (the manifest records 'not a measurement')"
             )
     except ConfigError:
@@ -189,7 +191,7 @@ def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
 def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = None) -> Path:
     """Run (or resume) an evaluation and write its report; returns the run directory.
 
-    ``policy``: a policy already in memory, run instead of loading ``cfg.policy`` (then only the run's label):
+    ``policy``: a policy already in memory, run instead of loading ``cfg.policy.spec`` (then only the run's label):
     ``(policy, preprocessor, postprocessor)`` of LeRobot or any ``indgen_vla.core.protocol.interface.Policy``
     (``policy_wrappers.objects``; the local backend only)."""
     from rich.console import Console
@@ -202,13 +204,15 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         check_object_run(cfg)
     console = Console(stderr=True, quiet=quiet)
     plan = build_plan(cfg)
-    if cfg.preregistered:  # before anything loads or is written: the lock refuses a deviation in one line
+    if (
+        cfg.plan.preregistered
+    ):  # before anything loads or is written: the lock refuses a deviation in one line
         from indgen_vla.app.engine.preregister import check_preregistered
 
         preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
-    out = Path(cfg.out)
+    out = Path(cfg.run.out)
     existing = RunDir(out)
     run_id = (
         existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
@@ -223,22 +227,22 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         from policy_wrappers.registry import load_policy
 
         return load_policy(
-            cfg.policy, trust_remote_code=cfg.trust_remote_code, device=cfg.device, scene=cfg.scene,
-            env_spec=env_spec, **options,
+            cfg.policy.spec, trust_remote_code=cfg.policy.trust_remote_code, device=cfg.policy.device,
+            scene=cfg.plan.scene, env_spec=env_spec, **options,
         )  # fmt: skip
 
     def prestart(jobs: list) -> EarlyWorkers | None:
         """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
         simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
         their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
-        if cfg.backend != "local" or not jobs:
+        if cfg.run.backend != "local" or not jobs:
             return None
         from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
         from policy_wrappers.registry import preview_policy
 
-        n = worker_processes(len(jobs), cfg.workers, cfg.pipeline)
-        view = None if policy is not None else preview_policy(cfg.policy, device=cfg.device, env_spec=env_spec,
-                                                               **options)  # fmt: skip
+        n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
+        view = None if policy is not None else preview_policy(cfg.policy.spec, device=cfg.policy.device,
+                                                               env_spec=env_spec, **options)  # fmt: skip
         if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
             return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
         if view is not None:
@@ -256,10 +260,12 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
             check_policy_contract(cfg, plan, probe)
         run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
         record_sharing(run, sharing_entry(cfg, plan))
-        if cfg.preregistered:
+        if cfg.plan.preregistered:
             run.update_manifest(preregistered=preregistered)
         fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
-        if cfg.adaptive:  # only what the sequential rule still needs (levels past a decided break never run)
+        if (
+            cfg.adaptive.mode
+        ):  # only what the sequential rule still needs (levels past a decided break never run)
             from indgen_vla.app.engine.adaptive import next_round
 
             todo = next_round(plan, run.episodes(), cfg)
@@ -280,28 +286,29 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
     if not todo and not quiet:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
-            if cfg.adaptive
+            if cfg.adaptive.mode
             else f"all {len(plan.jobs)} planned episodes are"
         )
         console.print(f"{done_text} already in {out}; writing the report")
-    write_run_report(run, cfg.gamma)
+    write_run_report(run, cfg.plan.gamma)
     if clock.episodes:  # what this session's clocks saw (indgen budget --timing reads it back)
         from indgen_vla.app.engine.local import worker_processes
 
         spec = probe.spec if probe is not None else None
         run.update_manifest(timing=clock.record(
-            workers=cfg.workers, processes=worker_processes(len(todo), cfg.workers, cfg.pipeline),
-            pipeline=cfg.pipeline, batched=spec.batched if spec else None, device=cfg.device, backend=cfg.backend,
-            replan=(cfg.replan_steps or spec.replan_steps) if spec else cfg.replan_steps))  # fmt: skip
+            workers=cfg.run.workers, processes=worker_processes(len(todo), cfg.run.workers, cfg.run.pipeline),
+            pipeline=cfg.run.pipeline, batched=spec.batched if spec else None, device=cfg.policy.device,
+            backend=cfg.run.backend,
+            replan=(cfg.policy.replan_steps or spec.replan_steps) if spec else cfg.policy.replan_steps))  # fmt: skip
     return out
 
 
 def check_object_run(cfg: EvalConfig) -> None:
     """What a run of a policy object in memory cannot do, refused in one line before anything starts."""
-    if cfg.backend != "local":
-        raise ConfigError(f"a policy object in memory runs on the local backend only (--backend {cfg.backend} "
+    if cfg.run.backend != "local":
+        raise ConfigError(f"a policy object in memory runs on the local backend only (--backend {cfg.run.backend} "
                           "would ship it to other processes); save it (save_pretrained) and pass lerobot:DIR")  # fmt: skip
-    if cfg.compile != "off":
+    if cfg.policy.compile != "off":
         raise ConfigError("compile is for policies loaded from a spec; a policy object in memory runs uncompiled "
                           "(compile it yourself before passing it)")  # fmt: skip
 
@@ -311,11 +318,11 @@ def adopt_object(obj: object, cfg: EvalConfig, env_spec):
     with per-episode state serves one environment, so it refuses more than one worker."""
     from policy_wrappers.objects import adopt
 
-    p = adopt(obj, name=cfg.policy, device=cfg.device, env_spec=env_spec, precision=cfg.precision,
-              replan_steps=cfg.replan_steps)  # fmt: skip
-    if not p.spec.batched and (cfg.workers > 1 or cfg.pipeline):
+    p = adopt(obj, name=cfg.policy.spec, device=cfg.policy.device, env_spec=env_spec,
+              precision=cfg.policy.precision, replan_steps=cfg.policy.replan_steps)  # fmt: skip
+    if not p.spec.batched and (cfg.run.workers > 1 or cfg.run.pipeline):
         p.close()
-        raise ConfigError(f"policy object {cfg.policy} keeps per-episode state (not batched), so one instance "
+        raise ConfigError(f"policy object {cfg.policy.spec} keeps per-episode state (not batched), so one instance "
                           "serves one environment: run it with workers=1 and no pipeline")  # fmt: skip
     return p
 
@@ -323,7 +330,7 @@ def adopt_object(obj: object, cfg: EvalConfig, env_spec):
 def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
     """The jobs a new run starts with: the whole plan, or the adaptive rule's first round (its workers prepare
     the scenes of those, not of levels the rule may never reach)."""
-    if not cfg.adaptive:
+    if not cfg.adaptive.mode:
         return plan.rollouts()
     from indgen_vla.app.engine.adaptive import next_round
     from indgen_vla.core.runs.records import episodes_frame
@@ -336,11 +343,11 @@ def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
     ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
     from indgen_vla.app.engine.rollout import RunnerConfig
 
-    side = cfg.image_size or (view.image_size[0] if view.image_size else 128)
+    side = cfg.policy.image_size or (view.image_size[0] if view.image_size else 128)
     return RunnerConfig(
-        levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.max_steps,
-        privileged=view.privileged, warmup_steps=cfg.warmup_steps, objects=view.observes_objects,
-        video_dir=str(Path(cfg.out) / "videos") if cfg.video else None, history_steps=view.history_steps,
+        levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.plan.max_steps,
+        privileged=view.privileged, warmup_steps=cfg.policy.warmup_steps, objects=view.observes_objects,
+        video_dir=str(Path(cfg.run.out) / "videos") if cfg.run.video else None, history_steps=view.history_steps,
     )  # fmt: skip
 
 
@@ -352,7 +359,7 @@ def _run_todo(
     from indgen_vla.app.engine.rollout import RunMeta
 
     spec = probe.spec
-    replan = cfg.replan_steps or spec.replan_steps
+    replan = cfg.policy.replan_steps or spec.replan_steps
     if replan > spec.chunk_size:
         raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
     runner_cfg = _runner_config(cfg, plan, spec)
@@ -364,18 +371,20 @@ def _run_todo(
         trained = {"training_levels": cells_to_json(spec.training)} if spec.training else {}
         run.update_manifest(fingerprint=fingerprint, reads_observations=spec.reads_observations, **trained)
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
-        for line in _check_resumed_protocol(run, fingerprint, cfg.allow_protocol_mismatch):
+        for line in _check_resumed_protocol(run, fingerprint, cfg.run.allow_protocol_mismatch):
             console.print(f"[yellow]warning:[/] {line}")
         if "reads_observations" not in manifest:  # a run started before policies declared it: the same policy
             run.update_manifest(reads_observations=spec.reads_observations)
         # say what it keeps and what it runs (an adaptive round's todo is not "the rest")
-        if not cfg.adaptive:
+        if not cfg.adaptive.mode:
             left = len(plan.jobs) - len(run.done_keys() & {j.key for j in plan.jobs})
             why = f" ({len(todo)} rollouts: level 0 runs once for the axes sharing it)"
             shared = "" if left == len(todo) else why
             console.print(f"resuming {run.path}: {len(plan.jobs) - left} of {len(plan.jobs)} planned episodes "
                           f"already recorded; running the other {left}{shared}", soft_wrap=True)  # fmt: skip
-    meta = RunMeta(run_id=run_id, policy=cfg.policy, data_regime=cfg.data_regime, scene=cfg.scene)
+    meta = RunMeta(
+        run_id=run_id, policy=cfg.policy.spec, data_regime=cfg.plan.data_regime, scene=cfg.plan.scene
+    )
     try:
         _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
     except ServerUnreachableError as e:
@@ -416,8 +425,8 @@ def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, po
 
     cams = tuple(runner_cfg.cameras)
     return build_fingerprint(
-        resolved, package_versions(), max_steps=cfg.max_steps, warmup_steps=cfg.warmup_steps, cameras=cams,
-        image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
+        resolved, package_versions(), max_steps=cfg.plan.max_steps, warmup_steps=cfg.policy.warmup_steps,
+        cameras=cams, image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
         policy=policy_conventions(policy.spec, policy),
     )  # fmt: skip
 
@@ -447,7 +456,7 @@ def _run_with_progress(
         label = "all episodes" if len(rollouts) == len(plan.jobs) else "rollouts (T0 shared)"
         total = progress.add_task(label, total=len(rollouts), completed=done, info="")
         rows = {}
-        for key in sorted(planned, key=lambda k: (cfg.axes.index(k[0]), k[1])):
+        for key in sorted(planned, key=lambda k: (cfg.plan.axes.index(k[0]), k[1])):
             s = stats[key]
             rows[key] = progress.add_task(level_label(*key), total=planned[key], completed=s[1] + s[2],
                                           info=level_info(*s))  # fmt: skip
@@ -479,7 +488,7 @@ def _run_with_progress(
         def run_jobs(batch: list) -> None:
             handed[0] = 0
             timing.CLOCK.rollout(started=True)
-            if cfg.backend == "ray":
+            if cfg.run.backend == "ray":
                 from indgen_vla.app.engine.ray_backend import run_ray
 
                 run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
@@ -491,12 +500,13 @@ def _run_with_progress(
                 workers = early.take(runner_cfg) if early is not None else list(kept)
                 early = None
                 kept.clear()
-                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.workers, replan, cfg.max_retries,
-                          cfg.server_patience, on_wait=lambda text: progress.update(total, info=text),
-                          close_policies=False, pipeline=cfg.pipeline, early=workers, keep=kept)  # fmt: skip
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.run.workers, replan,
+                          cfg.run.max_retries, cfg.policy.server_patience,
+                          on_wait=lambda text: progress.update(total, info=text), close_policies=False,
+                          pipeline=cfg.run.pipeline, early=workers, keep=kept)  # fmt: skip
 
         try:
-            if cfg.adaptive:  # rounds until the sequential rule settles every level (docs/adaptive.md)
+            if cfg.adaptive.mode:  # rounds until the sequential rule settles every level (docs/adaptive.md)
                 from indgen_vla.app.engine.adaptive import run_adaptive
 
                 run_adaptive(plan, run.episodes, run_jobs, cfg)

@@ -10,7 +10,6 @@ under other flags is refused in one line instead of mixing two protocols in one 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import re
 import time
@@ -97,7 +96,7 @@ def find_checkpoints(roots: Sequence[str | Path], *, must_exist: bool = True) ->
 
 def protocol_of(cfg: EvalConfig) -> dict:
     """The series' protocol: evaluate's config without what changes per checkpoint."""
-    return {k: v for k, v in dataclasses.asdict(cfg).items() if k not in OWN_FIELDS}
+    return {k: v for k, v in cfg.flat().items() if k not in OWN_FIELDS}
 
 
 def check_protocol(out: Path, protocol: dict) -> None:
@@ -164,7 +163,7 @@ def run_series(
             if c.step in done:
                 continue
             say(f"series: step {c.step}: evaluating {c.path}")
-            cfg = dataclasses.replace(base, policy=f"lerobot:{c.path}", out=str(run_dir(out, c)))
+            cfg = base.override(policy=f"lerobot:{c.path}", out=str(run_dir(out, c)))
             done[c.step] = evaluate(cfg)
             last_new = time.monotonic()
             if after_each is not None:
@@ -191,7 +190,7 @@ def series_main(args: argparse.Namespace) -> int:
     logged: set[int] = set()
 
     def report(entries):
-        write_series(entries, out, base.gamma)
+        write_series(entries, out, base.plan.gamma)
         if args.log:
             from indgen_vla.app.engine.trackers import log_runs
 

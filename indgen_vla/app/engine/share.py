@@ -26,13 +26,13 @@ if TYPE_CHECKING:
 
 
 def with_sharing(cfg: EvalConfig, plan: EvalPlan) -> EvalPlan:
-    """``plan`` with its shared level-0 cells, when ``cfg.share_t0``."""
-    return dataclasses.replace(plan, shared=shared_t0(plan.scene_plan)) if cfg.share_t0 else plan
+    """``plan`` with its shared level-0 cells, when ``cfg.plan.share_t0``."""
+    return dataclasses.replace(plan, shared=shared_t0(plan.scene_plan)) if cfg.plan.share_t0 else plan
 
 
 def sharing_entry(cfg: EvalConfig, plan: EvalPlan) -> dict[str, Any]:
     """The manifest's ``t0_sharing`` of a plan ``with_sharing`` made: what is shared, or why nothing is."""
-    return sharing_record(plan, cfg.share_t0, "" if cfg.share_t0 else SHARING_OFF)
+    return sharing_record(plan, cfg.plan.share_t0, "" if cfg.plan.share_t0 else SHARING_OFF)
 
 
 def round_rollouts(plan: EvalPlan, jobs: Iterable[EpisodeJob]) -> list[EpisodeJob]:

@@ -64,8 +64,6 @@ def eval_hook(args: argparse.Namespace, out: Path) -> Callable[[int, Any], None]
 def make_hook(base, root: Path, every: int, last: int | None = None, say: Callable[[str], None] = print):
     """``after_step(step, model)``: at every ``every``-th step (and ``last``) evaluate ``model`` in memory into
     ``root/runs/<step>`` and rewrite ``root``'s series report."""
-    import dataclasses
-
     from indgen_vla.app.engine.run import evaluate
     from indgen_vla.core.reporting.series_report import write_series
 
@@ -76,12 +74,10 @@ def make_hook(base, root: Path, every: int, last: int | None = None, say: Callab
     def after_step(step: int, model) -> None:
         if step % every and step != last:
             return
-        cfg = dataclasses.replace(
-            base, policy=f"object:indgen-train@step{step}", out=str(root / "runs" / f"{step:09d}")
-        )
-        say(f"train: evaluating step {step} in memory into {cfg.out}")
+        cfg = base.override(policy=f"object:indgen-train@step{step}", out=str(root / "runs" / f"{step:09d}"))
+        say(f"train: evaluating step {step} in memory into {cfg.run.out}")
         run = evaluate(cfg, quiet=True, policy=(model.policy, model.pre, model.post))
         done[:] = sorted({**dict(done), step: run}.items())
-        write_series(done, root, base.gamma)
+        write_series(done, root, base.plan.gamma)
 
     return after_step

@@ -9,6 +9,11 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.policy_options import (  # noqa: F401  (re-exported: --precision, --compile)
+    COMPILE_MODES,
+    CUDA_GRAPH_COMPILE_MODES,
+    PRECISIONS,
+)
 from indgen_vla.core.protocol.training_support import TrainedCell
 
 CAMERAS = ("agentview", "wrist")
@@ -21,18 +26,9 @@ OBJECT_DIM = len(OBJECT_NAMES)
 POS_SCALE = 0.05  # metres per unit action
 ROT_SCALE = 0.5  # radians per unit action
 NOOP_ACTION = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0)  # no motion, gripper open
-# the in-process policy options the CLI flags and the lerobot: spec options share (--precision, --compile)
-PRECISIONS = ("fp32", "bf16")  # bf16: the forward under torch.autocast
 # Observation.extras key the engine fills with (episode seed, control steps taken) of each query: a sampling policy
 # draws that query's noise from it, so an episode's noise does not depend on the episodes it shares a batch with
 QUERY_KEY = "indgen/query"
-COMPILE_MODES = (
-    "off",
-    "default",
-    "reduce-overhead",
-    "max-autotune",
-)  # torch.compile modes (policy_wrappers/compile.py)
-CUDA_GRAPH_COMPILE_MODES = ("reduce-overhead",)  # CUDA graphs: nothing to capture on a CPU or MPS device
 # why an episode failed (episodes.parquet "failure"), classified by the scene from privileged state; "" = older runs
 FAILURE_MODES = (
     "none",

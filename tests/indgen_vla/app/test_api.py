@@ -23,10 +23,14 @@ def _digest(run: Path) -> dict[str, str]:
     return mod.run_digest(run)
 
 
+def _examples() -> list[str]:
+    """The python blocks of docs/api.md."""
+    return re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "api.md").read_text(), re.S)
+
+
 def _example() -> str:
     """The first python block of docs/api.md."""
-    text = (ROOT / "docs" / "api.md").read_text()
-    return re.search(r"```python\n(.*?)```", text, re.S).group(1)
+    return _examples()[0]
 
 
 def test_import_is_cheap_and_names_load_lazily():
@@ -75,6 +79,10 @@ def test_docs_example_runs_and_matches_the_cli(tmp_path, monkeypatch, capsys):
     again = indgen_vla.evaluate(policy="standin:oracle", scene="pick_place", axis=["pick_y"], levels=[0, 1],
                                 episodes=2, out=tmp_path / "cli", workers=1, quiet=True)  # fmt: skip
     assert again.path == tmp_path / "cli" and _digest(again.path) == _digest(run.path)
+    # docs/api.md's sections example names the same run: it resumes it, running nothing
+    before = len(run.episodes())
+    exec(compile(_examples()[1], "docs/api.md", "exec"), scope)  # noqa: S102
+    assert scope["run"].path == run.path and len(scope["run"].episodes()) == before
     assert [r.path for r in indgen_vla.report(again)] == [again.path]
     result = indgen_vla.compare(run, again, out=tmp_path / "cmp")
     assert set(result["axes"]) == {"pick_y"} and (tmp_path / "cmp" / "compare.md").is_file()

@@ -42,7 +42,7 @@ def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(placehold
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import build_plan, check_feasible
 
-    cfg = EvalConfig(policy="standin:noop", scene="robocasa", task="all", axes=("fixture_x",), levels="0:1",
+    cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task="all", axes=("fixture_x",), levels="0:1",
                      episodes=1, out=str(tmp_path / "run"))  # fmt: skip
     lines = check_feasible(cfg, build_plan(cfg))
     (none,) = [x for x in lines if "no script" in x]

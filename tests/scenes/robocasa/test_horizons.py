@@ -60,7 +60,7 @@ def _noop_episode(task: str, axis: str, out) -> tuple:
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import evaluate
 
-    cfg = EvalConfig(policy="standin:noop", scene="robocasa", task=task, axes=(axis,), levels="0", episodes=1,
+    cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task=task, axes=(axis,), levels="0", episodes=1,
                      workers=1, out=str(out))  # fmt: skip
     run = evaluate(cfg, quiet=True)
     return pd.read_parquet(run / "episodes.parquet"), json.loads((run / "manifest.json").read_text()), run

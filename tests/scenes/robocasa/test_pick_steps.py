@@ -126,7 +126,7 @@ def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
     assert plan.task_steps == {"pick_x": {t: {"pick_x": s} for t, s in STEPS.items()}}
     described = plan.builder.describe()["successors"]["pick_x"]
     assert described == {"type": "Shift", "task_steps": plan.task_steps["pick_x"]}
-    cfg = EvalConfig(policy="standin:noop", scene="robocasa", axes=("pick_x",), out="x")
+    cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", axes=("pick_x",), out="x")
     assert (
         cfg.plan_dict(list(plan.tasks), {"pick_x": [0]}, None, plan.task_steps)["task_steps"]
         == plan.task_steps

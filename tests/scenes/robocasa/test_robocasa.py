@@ -329,7 +329,7 @@ def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import check_policy_contract
 
-    cfg = EvalConfig(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path))
+    cfg = EvalConfig.from_flat(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path))
     seven = _policy(action_dim=7, cameras=())
     with pytest.raises(ConfigError, match=r"returns 7-d actions but scene robocasa takes 12-d \(eef pos 3"):
         check_policy_contract(cfg, _plan(False), seven)
@@ -341,7 +341,9 @@ def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_
     with pytest.raises(ConfigError, match="placeholder assets.*pass --smoke"):
         check_policy_contract(cfg, _plan(True), image)
     check_policy_contract(cfg, _plan(False), image)  # real assets: a measurement
-    smoke = EvalConfig(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path), smoke=True)
+    smoke = EvalConfig.from_flat(
+        policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path), smoke=True
+    )
     check_policy_contract(smoke, _plan(True), _policy(cameras=("robot0_eye_in_hand",), action_dim=12))
     check_policy_contract(cfg, _plan(True), _policy(cameras=(), action_dim=12))  # state-only: no images
 
@@ -358,7 +360,7 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import evaluate
 
-    cfg = EvalConfig(policy="standin:random", scene="robocasa", task="PickPlaceCounterToCabinet", axes=("base_y",),
+    cfg = EvalConfig.from_flat(policy="standin:random", scene="robocasa", task="PickPlaceCounterToCabinet", axes=("base_y",),
                      levels="0:1", episodes=1, workers=1, max_steps=4, out=str(tmp_path / "run"))  # fmt: skip
     out = evaluate(cfg, quiet=True)
     df = pd.read_parquet(out / "episodes.parquet")

@@ -1,4 +1,3 @@
-import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -186,7 +185,7 @@ def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
 
     def cfg(**kw):
         base = dict(policy="standin:oracle", scene="stack", axes=("stack",), out=str(tmp_path), levels="0:1")
-        return EvalConfig(**{**base, **kw})
+        return EvalConfig.from_flat(**{**base, **kw})
 
     plan = build_plan(cfg(task="all"))
     assert len(plan.tasks) > 1 and plan.levels == {"stack": (0, 1)}
@@ -202,22 +201,22 @@ def test_device_precision_and_compile_are_checked_and_recorded():
     from indgen_vla.core.errors import ConfigError
 
     base = dict(policy="standin:random", scene="pick_place", axes=("pick_y",), out="x")
-    cfg = EvalConfig(**base, device="cuda:1", precision="bf16")
-    assert (cfg.device, cfg.precision) == ("cuda:1", "bf16")  # manifest "config" is dataclasses.asdict(cfg)
+    cfg = EvalConfig.from_flat(**base, device="cuda:1", precision="bf16")
+    assert (cfg.policy.device, cfg.policy.precision) == ("cuda:1", "bf16")  # manifest "config" is cfg.flat()
     with pytest.raises(ConfigError, match="--device"):
-        EvalConfig(**base, device="gpu")
+        EvalConfig.from_flat(**base, device="gpu")
     with pytest.raises(ConfigError, match="--precision"):
-        EvalConfig(**base, precision="fp16")
-    cfg = EvalConfig(**base, device="cuda", precision="bf16", compile="reduce-overhead")
-    assert dataclasses.asdict(cfg)["compile"] == "reduce-overhead"  # recorded in the manifest like precision
+        EvalConfig.from_flat(**base, precision="fp16")
+    cfg = EvalConfig.from_flat(**base, device="cuda", precision="bf16", compile="reduce-overhead")
+    assert cfg.flat()["compile"] == "reduce-overhead"  # recorded in the manifest like precision
     assert cfg.policy_options() == {"precision": "bf16", "compile": "reduce-overhead"}
-    assert EvalConfig(**base).policy_options() == {}  # families without these options still load
+    assert EvalConfig.from_flat(**base).policy_options() == {}  # families without these options still load
     with pytest.raises(
         ConfigError, match="--compile reduce-overhead captures CUDA graphs and needs --device cuda"
     ):
-        EvalConfig(**base, compile="reduce-overhead")  # CPU: refused, never rewritten to another mode
+        EvalConfig.from_flat(**base, compile="reduce-overhead")  # CPU: refused, never rewritten
     with pytest.raises(ConfigError, match="--compile must be one of"):
-        EvalConfig(**base, compile="fast")
+        EvalConfig.from_flat(**base, compile="fast")
 
 
 def test_workers_get_one_egl_device_each_round_robin(monkeypatch):

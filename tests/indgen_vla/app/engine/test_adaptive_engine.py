@@ -19,7 +19,7 @@ def cfg(tmp_path, **kw):
     base = dict(policy="standin:random", scene="pick_place", axes=("pick_y",), levels="-2:2", episodes=50,
                 workers=1, max_steps=6, adaptive="kstar", out=str(tmp_path / "run"))  # fmt: skip
     base.update(kw)
-    return EvalConfig(**base)
+    return EvalConfig.from_flat(**base)
 
 
 @pytest.mark.slow  # 9 s; the 4-task protocol test covers a kstar stop, 1 vs 2 workers and resume by default

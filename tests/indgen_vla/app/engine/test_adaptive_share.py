@@ -25,7 +25,7 @@ OUTCOME = ["seed", "success", "steps", "status", "failure", "progress", "param"]
 def cfg(out, **kw):
     base = dict(policy="standin:random", scene="pick_place", axes=AXES, levels="0:1", episodes=2, workers=1,
                 max_steps=8, adaptive="until-failure", out=str(out))  # fmt: skip
-    return EvalConfig(**{**base, **kw})
+    return EvalConfig.from_flat(**{**base, **kw})
 
 
 def test_a_round_runs_a_shared_level_0_once_for_its_owner(tmp_path):
@@ -56,7 +56,7 @@ def _run(tmp_path, name, c):
         recs = []
         for j in batch:
             rolled.append(j.key)
-            rec = EpisodeRecord("r", c.policy, "", c.scene, j.task, j.axis, j.level, j.param, j.episode, j.seed,
+            rec = EpisodeRecord("r", c.policy.spec, "", c.plan.scene, j.task, j.axis, j.level, j.param, j.episode, j.seed,
                                 _outcome(j), 10)  # fmt: skip
             recs += [rec, *copies(plan, rec, set())]
         run.append(recs)

@@ -24,7 +24,7 @@ def cfg(tmp_path, **kw):
     base = dict(policy="standin:random", scene="pick_place", axes=("pick_y",), levels="0:1", episodes=2,
                 workers=1, max_steps=12, out=str(tmp_path / "run"))  # fmt: skip
     base.update(kw)
-    return EvalConfig(**base)
+    return EvalConfig.from_flat(**base)
 
 
 def outcomes(run_dir):
@@ -174,7 +174,7 @@ def test_config_from_yaml_and_flags(tmp_path):
     preset.write_text("scene: pick_place\naxis: [pick_y, scale]\nepisodes: 50\nlevels: '-3:3'\n")
     ns = argparse.Namespace(config=str(preset), policy="standin:noop", episodes=5, out="x", axis=None)
     c = config_from_args(ns)
-    assert c.axes == ("pick_y", "scale") and c.episodes == 5 and c.levels == "-3:3"
+    assert c.plan.axes == ("pick_y", "scale") and c.plan.episodes == 5 and c.plan.levels == "-3:3"
     preset.write_text("episods: 3\n")
     with pytest.raises(ConfigError, match="did you mean episodes"):
         config_from_args(argparse.Namespace(config=str(preset)))
@@ -271,7 +271,7 @@ def test_warmup_steps_render_only_the_last_and_change_no_image(monkeypatch):
     from tests.fixtures.renders import count_renders
 
     renders = count_renders(monkeypatch)
-    c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
+    c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
     task = "milk"
     (job,) = plan_episodes(c, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
     firsts = []

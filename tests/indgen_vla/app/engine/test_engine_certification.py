@@ -20,7 +20,7 @@ def cfg(tmp_path, **kw):
     base = dict(policy="standin:random", scene="stack", axes=("stack",), levels="0:2", episodes=1,
                 workers=1, max_steps=3, out=str(tmp_path / "run"))  # fmt: skip
     base.update(kw)
-    return EvalConfig(**base)
+    return EvalConfig.from_flat(**base)
 
 
 @pytest.mark.parametrize(
@@ -81,7 +81,7 @@ def test_axes_preset_option_reaches_config_and_plan(tmp_path):
     ns = argparse.Namespace(policy="standin:random", scene="stack", axis="stack", out=str(tmp_path / "r"),
                             axes_preset=str(preset), episodes=1, workers=1, max_steps=3, levels="2")  # fmt: skip
     c = config_from_args(ns)
-    assert c.axes_preset == str(preset) and c.plan_dict(["t"], {"stack": [0]}, 3)["axes_preset"] == str(
+    assert c.plan.axes_preset == str(preset) and c.plan_dict(["t"], {"stack": [0]}, 3)["axes_preset"] == str(
         preset
     )
     assert "axes_preset" not in cfg(tmp_path).plan_dict(["t"], {"stack": [0]}, 3)  # old runs still resume

@@ -57,7 +57,7 @@ def _setup(scene: str, cameras: tuple[str, ...], history_steps: int = 0):
     import scenes
 
     tasks = list(scenes.tasks(scene))[:2]
-    c = EvalConfig(policy="test", scene=scene, axes=("pick_y",), out="-", episodes=2)
+    c = EvalConfig.from_flat(policy="test", scene=scene, axes=("pick_y",), out="-", episodes=2)
     jobs = plan_episodes(c, tasks, {"pick_y": [1]}, {(t, "pick_y", 1): 0.0 for t in tasks})
     rc = RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=cameras, image_size=SIZE, max_steps=MAX_STEPS,
                       privileged=False, history_steps=history_steps)  # fmt: skip

@@ -28,7 +28,7 @@ def _outcomes(records) -> dict:
 def _jobs_and_config():
     import scenes
 
-    c = EvalConfig(
+    c = EvalConfig.from_flat(
         policy="standin:random", scene="pick_place", axes=("pick_y",), levels="0:1", episodes=2, out="unused"
     )
     tasks = list(scenes.tasks("pick_place"))[:1]
@@ -85,7 +85,7 @@ def test_evaluate_builds_the_first_scene_while_the_policy_loads(tmp_path, monkey
     monkeypatch.setattr(EarlyWorkers, "take", spy)
 
     def run(name: str) -> dict:
-        cfg = EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
+        cfg = EvalConfig.from_flat(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
                          episodes=2, max_steps=6, workers=1, out=str(tmp_path / name))  # fmt: skip
         out = evaluate(cfg, quiet=True)
         return _outcomes(pd.read_parquet(Path(out) / "episodes.parquet").itertuples())
@@ -110,7 +110,7 @@ def test_a_policy_refused_after_its_preview_leaves_no_workers_and_no_run(tmp_pat
     )
     assert preview_policy(f"lerobot:{ckpt}") is not None  # so workers start during the load
     before = set(mp.active_children())
-    cfg = EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0", episodes=1,
+    cfg = EvalConfig.from_flat(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0", episodes=1,
                      max_steps=2, out=str(tmp_path / "run"))  # fmt: skip
     with pytest.raises(PolicyError, match=r"actions of shape \(12,\)"):
         evaluate(cfg, quiet=True)
@@ -129,7 +129,7 @@ def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkey
     start_forkserver(builder)  # a no-op when an earlier test started it: either way it predates the next line
     nowhere = tmp_path / "nowhere"
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(nowhere))
-    c = EvalConfig(policy="standin:random", scene="libero_object", axes=("pick_y",), levels="0", episodes=2,
+    c = EvalConfig.from_flat(policy="standin:random", scene="libero_object", axes=("pick_y",), levels="0", episodes=2,
                    out="unused")  # fmt: skip
     task = list(scenes.tasks("libero_object"))[:1]
     jobs = plan_episodes(c, task, {"pick_y": [0]}, {(task[0], "pick_y", 0): 0.0})

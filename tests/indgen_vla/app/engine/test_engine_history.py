@@ -108,7 +108,7 @@ def test_history_renders_only_when_asked_and_changes_no_outcome(monkeypatch):
     """The extra render does not step the simulator: the same states, actions and records with and without it; a
     policy without history gets none and one render per query, one with history one more per query."""
     renders = count_renders(monkeypatch)
-    c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
+    c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
     jobs = plan_episodes(c, [_task()], {"pick_y": [0]}, {(_task(), "pick_y", 0): 0.0})
     runs = {}
     for k in (0, 1):
@@ -135,7 +135,7 @@ def test_history_steps_reach_the_runner_config():
 
     from indgen_vla.app.engine.run import _runner_config
 
-    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
+    cfg = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
     plan = SimpleNamespace(builder=scene_levels("pick_place", ["pick_y"]))
     spec = PolicySpec("rynnvla", "x", cameras=CAMS, history_steps=1)
     assert _runner_config(cfg, plan, spec).history_steps == 1

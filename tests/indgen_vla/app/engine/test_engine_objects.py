@@ -20,7 +20,7 @@ COLUMNS = ["task", "axis", "level", "episode", "seed", "success", "steps", "stat
 def cfg(out, policy, **kw):
     base = dict(policy=policy, scene="pick_place", axes=("pick_y",), levels="0:1", episodes=2, workers=1,
                 max_steps=40, out=str(out))  # fmt: skip
-    return EvalConfig(**{**base, **kw})
+    return EvalConfig.from_flat(**{**base, **kw})
 
 
 def from_disk(path):

@@ -41,7 +41,7 @@ class Logged:
 
 
 def _run(make_inner, privileged: bool, workers: int, pipeline: bool, max_steps: int):
-    c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
+    c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
     import scenes
 
     task = list(scenes.tasks("pick_place"))[:1]
@@ -126,7 +126,7 @@ def test_lazy_render_reads_the_same_observations(monkeypatch):
         log, records = Counter(), []
         rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=(32, 32), max_steps=10,
                           privileged=False, lazy_render=lazy)  # fmt: skip
-        c = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
+        c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
         import scenes
 
         task = list(scenes.tasks("pick_place"))[:1]
@@ -166,10 +166,10 @@ def test_pipeline_flag(tmp_path):
 
     preset = tmp_path / "p.yaml"
     preset.write_text("scene: pick_place\naxis: pick_y\npolicy: standin:noop\nout: x\npipeline: true\n")
-    assert config_from_args(argparse.Namespace(config=str(preset))).pipeline is True
-    assert config_from_args(argparse.Namespace(config=str(preset), pipeline=False)).pipeline is False
-    assert config_from_args(argparse.Namespace(config=str(preset), pipeline=None)).pipeline is True
+    assert config_from_args(argparse.Namespace(config=str(preset))).run.pipeline is True
+    assert config_from_args(argparse.Namespace(config=str(preset), pipeline=False)).run.pipeline is False
+    assert config_from_args(argparse.Namespace(config=str(preset), pipeline=None)).run.pipeline is True
     with pytest.raises(ConfigError, match="--pipeline is for --backend local"):
-        EvalConfig(policy="p", scene="s", axes=("a",), out="x", pipeline=True, backend="ray")
+        EvalConfig.from_flat(policy="p", scene="s", axes=("a",), out="x", pipeline=True, backend="ray")
     with pytest.raises(ConfigError, match="pipeline must be true or false"):
-        EvalConfig(policy="p", scene="s", axes=("a",), out="x", pipeline="yes")
+        EvalConfig.from_flat(policy="p", scene="s", axes=("a",), out="x", pipeline="yes")

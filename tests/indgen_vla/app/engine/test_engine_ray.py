@@ -125,7 +125,7 @@ def _jobs(policy: str, episodes: int, workers: int):
     import scenes
 
     task = list(scenes.tasks("pick_place"))[:1]
-    c = EvalConfig(
+    c = EvalConfig.from_flat(
         policy=policy, scene="pick_place", axes=("pick_y",), out="-", episodes=episodes, workers=workers
     )
     return c, plan_episodes(c, task, {"pick_y": [0, 1]}, {(task[0], "pick_y", k): 0.03 * k for k in (0, 1)})
@@ -147,7 +147,7 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     ref = []
     run_local(jobs, rc, OraclePolicy, RunMeta("r", "standin:oracle", "", "pick_place"), ref.append, workers=1,
               replan_steps=OraclePolicy.spec.replan_steps)  # fmt: skip
-    out = evaluate(EvalConfig(policy="standin:oracle", scene="pick_place", axes=("pick_y",), levels="0:1",
+    out = evaluate(EvalConfig.from_flat(policy="standin:oracle", scene="pick_place", axes=("pick_y",), levels="0:1",
                               episodes=2, max_steps=25, workers=2, backend="ray", out=str(tmp_path / "ray")),
                    quiet=True)  # fmt: skip
     df = pd.read_parquet(Path(out) / "episodes.parquet")

@@ -58,7 +58,7 @@ def joined(cluster, monkeypatch):
 def config(out: Path, **kw) -> EvalConfig:
     base = dict(policy="standin:oracle", scene="pick_place", axes=("pick_y",), levels="0:1", episodes=4,
                 max_steps=10, workers=4, backend="ray", out=str(out), server_patience=120.0)  # fmt: skip
-    return EvalConfig(**{**base, **kw})
+    return EvalConfig.from_flat(**{**base, **kw})
 
 
 def rows(out: Path) -> pd.DataFrame:

@@ -77,13 +77,13 @@ def test_need_and_knob_checks():
 
 def test_workers_auto_is_for_the_ray_backend_only():
     base = dict(policy="standin:oracle", scene="pick_place", axes=("pick_y",), out="x")
-    assert EvalConfig(**base, workers="auto", backend="ray").workers == "auto"
+    assert EvalConfig.from_flat(**base, workers="auto", backend="ray").run.workers == "auto"
     with pytest.raises(
         ConfigError, match="--workers auto follows a Ray cluster's CPUs: use it with --backend ray"
     ):
-        EvalConfig(**base, workers="auto")
+        EvalConfig.from_flat(**base, workers="auto")
     with pytest.raises(ConfigError, match="--workers must be a number >= 1 or auto"):
-        EvalConfig(**base, workers=0)
+        EvalConfig.from_flat(**base, workers=0)
     from indgen_vla.app.cli import build_parser
 
     args = build_parser().parse_args(["evaluate", "--workers", "auto"])

@@ -67,7 +67,9 @@ def _counted(log: Path, levels: list[int], episodes: int) -> tuple[list, RunnerC
     import scenes
 
     task = scenes.tasks("pick_place")[0]
-    cfg = EvalConfig(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes)
+    cfg = EvalConfig.from_flat(
+        policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes
+    )
     jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
     log.touch()
     base = scene_levels("pick_place", ["pick_y"])

@@ -22,7 +22,7 @@ OUTCOME = ["seed", "success", "steps", "status", "failure", "progress"]
 def cfg(out, **kw):
     base = dict(policy="standin:random", scene="pick_place", axes=AXES, levels="0:1", episodes=2, workers=1,
                 max_steps=8, out=str(out))  # fmt: skip
-    return EvalConfig(**{**base, **kw})
+    return EvalConfig.from_flat(**{**base, **kw})
 
 
 @pytest.fixture(scope="module")

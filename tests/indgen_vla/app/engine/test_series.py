@@ -108,7 +108,7 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     (root / "checkpoints").mkdir(parents=True)
     timer = threading.Timer(0.5, lambda: lerobot_output(root, [300]))
     timer.start()
-    base = EvalConfig(policy="series", scene="pick_place", axes=("pick_y",), levels="0", episodes=1, max_steps=5,
+    base = EvalConfig.from_flat(policy="series", scene="pick_place", axes=("pick_y",), levels="0", episodes=1, max_steps=5,
                       workers=1, out="_")  # fmt: skip
     said = []
     entries = run_series(

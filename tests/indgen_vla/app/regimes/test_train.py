@@ -112,7 +112,7 @@ def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos,
     obs = Observation(images={}, state=state, instruction="pick up the milk carton", objects=objects)
     assert policy.act([obs]).shape == (1, 20, 7)
     policy.close()
-    out = evaluate(EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
+    out = evaluate(EvalConfig.from_flat(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0",
                               episodes=1, max_steps=10, out=str(tmp_path / "run")), quiet=True)  # fmt: skip
     import pandas as pd
 
@@ -185,7 +185,7 @@ def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_
     ckpt = train_policy([level_demos[0]], tmp_path / "act", cfg)
     cells = cells_from_json(json.loads((ckpt / "train_info.json").read_text())["levels"])
     assert sorted((c.axis, c.level, c.episodes) for c in cells) == [("pick_y", 0, 1), ("pick_y", 1, 1)]
-    out = evaluate(EvalConfig(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0:2",
+    out = evaluate(EvalConfig.from_flat(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0:2",
                               episodes=1, max_steps=5, workers=1, out=str(tmp_path / "run")), quiet=True)  # fmt: skip
     assert cells_from_json(json.loads((out / "manifest.json").read_text())["training_levels"]) == cells
     summary = json.loads((out / "summary.json").read_text())
