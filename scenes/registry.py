@@ -38,7 +38,7 @@ class Scene:
         description: one line for ``indgen scenes``.
         tasks: the task names (the first is the default); a property where they are read from external files.
         axes: the single axes the family supports (any '+'-composition of them works too); the first is the
-            default axis of ``make_env``.
+            ``default_axis`` (T0 is built as its level 0).
         max_steps: the episode length (steps at 20 Hz) unless the caller overrides it.
         distractor_slots: (x, y) table spots of the ``distractor`` axis's visual-only objects, in order.
         success_predicate: the one frozen predicate that judges every level of every axis.
@@ -93,7 +93,7 @@ class Scene:
 
     @property
     def default_axis(self) -> str:
-        """The axis ``make_env`` moves along when none is given: the family's first axis."""
+        """The family's first axis: T0 builds (``indgen demos`` without --axis, the asset cache) are its level 0."""
         return self.axes[0]
 
     def successor(
