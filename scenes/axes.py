@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
-from indgen_vla.core.protocol.progression import AxisSpec, apply_level, split_held
+from indgen_vla.core.protocol.axis_ref import AxisRef
+from indgen_vla.core.protocol.progression import AxisSpec, apply_level
 from scenes.spec import SceneSpec
 
 # name -> (description, field, step, unit, signed, max_level)
@@ -79,11 +80,9 @@ def resolve_alias(name: str) -> str:
     return AXIS_ALIASES.get(name, name)
 
 
-def axis_components(name: str) -> list[str]:
-    """The single axes ``name`` moves (aliases resolved): its components, then a held axis's held one."""
-    held = split_held(name)
-    inner = held[0] if held else name
-    return [resolve_alias(p) for p in inner.split("+")] + ([resolve_alias(held[1])] if held else [])
+def axis_components(axis: AxisRef) -> list[str]:
+    """The single axes ``axis`` moves (aliases resolved): its components, then a held axis's held one."""
+    return [resolve_alias(p) for p in axis.axes()]
 
 
 # Axes that translate a jittered item: their support at level k is param +- spec.jitter.
@@ -204,32 +203,30 @@ def merge_overrides(
 
 
 def get_successor(
-    name: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None
+    axis: AxisRef, step: float | None = None, overrides: Mapping[str, Mapping] | None = None
 ) -> Successor:
-    """The successor for ``name`` (``a+b`` for a composition), with an optional step override.
+    """The successor of ``axis`` (a single axis, a composition or a held axis), with an optional step override.
 
     ``overrides`` maps axis names to ``{"step": s, "max_level": K}`` (a YAML preset's ``axes``).
     ``step`` overrides a single axis's step; a composition's components take steps from presets only.
     """
-    held = split_held(name)
-    if held is not None:
-        return _held(name, *held, step, overrides)
+    if axis.held is not None:
+        return _held(axis, step, overrides)
+    name = axis.name
     overrides = overrides or {}
-    names = [resolve_alias(n) for n in name.split("+")]
-    if any(not n for n in names):
-        raise ConfigError(f"axis {name!r}: write compositions as 'pick_y+distractor'")
-    if len(set(names)) != len(names):
+    names = [resolve_alias(n) for n in axis.components]
+    if len(set(names)) != len(names):  # base_y+horizon: one axis under two names
         raise ConfigError(f"axis {name!r} repeats a component")
     parts = []
     for n in names:
-        axis = _base_axis(n)
+        spec = _base_axis(n)
         ov = dict(overrides.get(n, {}))
         if "step" in ov:
-            _validate_step(axis, ov["step"])
-        axis = dataclasses.replace(
-            axis, step=float(ov.get("step", axis.step)), max_level=int(ov.get("max_level", axis.max_level))
+            _validate_step(spec, ov["step"])
+        spec = dataclasses.replace(
+            spec, step=float(ov.get("step", spec.step)), max_level=int(ov.get("max_level", spec.max_level))
         )
-        parts.append(Shift(axis))
+        parts.append(Shift(spec))
     if len(parts) == 1:
         if step is not None:
             _validate_step(parts[0].axis, step)
@@ -255,21 +252,17 @@ def get_successor(
     return Composite(comp, tuple(parts))
 
 
-def _held(
-    name: str, inner: str, held: str, at: int, step: float | None, overrides: Mapping[str, Mapping] | None
-) -> Held:
-    """``inner@held=at``: inner's successor (``--step`` applies to it) over T0 moved ``at`` steps along ``held``."""
-    if "+" in held:
-        raise ConfigError(
-            f"axis {name!r}: the held axis must be a single axis, e.g. {inner}@{held.split('+')[0]}={at}"
-        )
-    inner_succ = get_successor(inner, step, overrides)
-    held_succ = get_successor(held, None, overrides)
+def _held(axis: AxisRef, step: float | None, overrides: Mapping[str, Mapping] | None) -> Held:
+    """``A@B=j``: A's successor (``--step`` applies to it) over T0 moved j steps along B."""
+    name, at = axis.name, axis.held_level
+    inner_succ = get_successor(axis.ladder, step, overrides)
+    held_succ = get_successor(AxisRef(axis.held, (axis.held,)), None, overrides)
     assert isinstance(held_succ, Shift)
     components = {p.axis.name for p in shifts(inner_succ)}
     if held_succ.axis.name in components:
         raise ConfigError(
-            f"axis {name!r} holds {held_succ.axis.name}, which its ladder {inner} already moves; hold another axis"
+            f"axis {name!r} holds {held_succ.axis.name}, which its ladder {axis.ladder} already moves; hold another "
+            "axis"
         )
     h = held_succ.axis
     if not h.min_level <= at <= h.max_level:
@@ -280,16 +273,10 @@ def _held(
     a = inner_succ.axis
     moved, unit = at * h.step, h.unit
     unit = unit[:-1] if abs(moved) == 1 and unit.endswith("s") else unit  # "1 object"
-    axis = dataclasses.replace(
+    spec = dataclasses.replace(
         a, name=name, description=f"{a.description}, with {h.name} held at level {at} ({moved:g} {unit})"
     )
-    return Held(axis, inner_succ, held_succ, at)
-
-
-def get_axis(name: str, step: float | None = None, preset: str | Path | None = None) -> AxisSpec:
-    """The ``AxisSpec`` of a single axis or a composition, with optional step / preset overrides."""
-    overrides = load_preset(preset) if preset is not None else None
-    return get_successor(name, step, overrides).axis
+    return Held(spec, inner_succ, held_succ, at)
 
 
 def spec_at_level(base: SceneSpec, successor: Successor, level: int) -> SceneSpec:

@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from scenes.axes import axis_components, base_axis_names, get_successor
 from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
 from scenes.registry import Scene, register_scene, registered_scenes
@@ -203,8 +204,8 @@ def axis_rows() -> list[dict]:
     """Every base axis and two examples of compositions: step, unit, levels, field, description, scenes."""
     scenes = scene_rows()
     rows = []
-    for name in base_axis_names() + ["pick_y+distractor", "pick_y@distractor=2"]:
-        ax = get_successor(name).axis
+    for ref in map(AxisRef.parse, base_axis_names() + ["pick_y+distractor", "pick_y@distractor=2"]):
+        ax = get_successor(ref).axis
         rows.append(
             {
                 "name": ax.name,
@@ -214,7 +215,7 @@ def axis_rows() -> list[dict]:
                 "signed": ax.signed,
                 "field": ax.field,
                 "description": ax.description,
-                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in axis_components(name))],
+                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in axis_components(ref))],
             }
         )
     return rows

@@ -26,6 +26,7 @@ import sys
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.stats.metrics import clopper_pearson_ci
 from scenes.registry import get_scene
 
@@ -203,23 +204,33 @@ def certification_root(scene: str | None = None) -> Path:
     return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser() / "certification" / tag
 
 
+def _steps(
+    axis: AxisRef, step: float | None, preset: str | None, scene: str | None, task: str | None
+) -> dict[str, float]:
+    """The component steps of ``axis`` with --step / --axes-preset over ``scene``'s (and ``task``'s) own steps."""
+    from scenes.axes import get_successor, load_preset, successor_steps
+
+    overrides = load_preset(preset) if preset else None
+    if scene is None:
+        return successor_steps(get_successor(axis, step, overrides))
+    return successor_steps(get_scene(scene).successor(axis, step, overrides, task))
+
+
 def axis_dirname(
-    axis: str, step: float | None = None, preset: str | None = None, scene: str | None = None,
+    axis: str | AxisRef, step: float | None = None, preset: str | None = None, scene: str | None = None,
     task: str | None = None,
 ) -> str:  # fmt: skip
     """``axis`` at the (family's, task's) default steps, else ``axis@comp=step,...`` so other steps never overwrite
     it."""
-    import scenes
-    from scenes.axes import successor_steps
-
-    steps = successor_steps(scenes.successor_for(axis, step, preset, scene, task))
-    if steps == successor_steps(scenes.successor_for(axis, scene=scene, task=task)):
-        return axis
-    return axis + "@" + ",".join(f"{k}={v:g}" for k, v in steps.items())
+    ref = AxisRef.parse(axis)
+    steps = _steps(ref, step, preset, scene, task)
+    if steps == _steps(ref, None, None, scene, task):
+        return ref.name
+    return ref.name + "@" + ",".join(f"{k}={v:g}" for k, v in steps.items())
 
 
 def cert_path(
-    scene: str, task: str | None, axis: str, step: float | None = None, preset: str | None = None,
+    scene: str, task: str | None, axis: str | AxisRef, step: float | None = None, preset: str | None = None,
     root: str | Path | None = None,
 ) -> Path:  # fmt: skip
     """The certify.json of (scene, task, axis, steps)."""
@@ -229,21 +240,17 @@ def cert_path(
 
 
 def find_certification(
-    scene: str, task: str | None, axis: str, step: float | None = None, *, preset: str | None = None,
+    scene: str, task: str | None, axis: str | AxisRef, step: float | None = None, *, preset: str | None = None,
     root: str | Path | None = None,
 ) -> dict | None:  # fmt: skip
     """The certificate of (scene, task, axis) made at these component steps, or None if there is none."""
     import json
 
-    import scenes
-    from scenes.axes import successor_steps
-
-    want = successor_steps(
-        scenes.successor_for(axis, step, preset, scene, get_scene(scene).resolve_task(task))
-    )
+    axis = AxisRef.parse(axis)
+    want = _steps(axis, step, preset, scene, get_scene(scene).resolve_task(task))
 
     def same_steps(cert: dict) -> bool:
-        have = cert.get("steps") or {axis: cert.get("step")}
+        have = cert.get("steps") or {axis.name: cert.get("step")}
         return json.dumps(want, sort_keys=True) == json.dumps(
             {k: float(v) for k, v in have.items()}, sort_keys=True
         )

@@ -3,7 +3,10 @@
 ``resolve_scene_plan`` is the one call the engine makes into ``scenes`` for a run. It checks the scene, tasks,
 axes, levels and condition 2 with the registry's one-line errors, computes every level's axis parameter, looks up
 the certificate behind every level, and returns a frozen ``ScenePlan`` whose ``SceneLevels`` builder later builds
-each level's env in the worker processes (so nothing downstream looks a scene up by name again).
+each level's env in the worker processes (so nothing downstream looks a scene up by name again). Each axis name
+is parsed here once (``indgen_vla.core.protocol.axis_ref.AxisRef``); the family's methods take the parsed axis.
+Everything that builds an environment (evaluate, certify, demos, mimicgen, the scripts) builds it through a
+``SceneLevels``: the plan's, or ``scene_levels``'s where no plan is needed.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
 from indgen_vla.core.protocol.progression import parse_levels
 from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
@@ -23,6 +27,7 @@ from scenes.registry import get_scene
 if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.env import BaseSceneEnv
+    from scenes.registry import Scene
 
 
 @dataclass(frozen=True)
@@ -60,10 +65,12 @@ class SceneLevels:
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
     ) -> BaseSceneEnv:  # fmt: skip
-        sc = get_scene(self.scene)
-        successor = self.task_successors.get(axis, {}).get(task, self.successors[axis])
-        return sc.make_env(task, successor, level, cameras=cameras, image_size=image_size,
-                           max_steps=max_steps)  # fmt: skip
+        return get_scene(self.scene).make_env(task, self.successor(task, axis), level, cameras=cameras,
+                                              image_size=image_size, max_steps=max_steps)  # fmt: skip
+
+    def successor(self, task: str, axis: str) -> Successor:
+        """The successor ``axis`` moves ``task`` along (the task's own where the family's steps differ by task)."""
+        return self.task_successors.get(axis, {}).get(task, self.successors[axis])
 
     def describe(self) -> dict[str, Any]:
         sc = get_scene(self.scene)
@@ -112,31 +119,53 @@ def task_steps(per_task: Mapping[str, Successor]) -> dict[str, dict[str, float]]
 
 
 def scene_levels(
-    scene: str, axes: Sequence[str], step: float | None = None, preset: str | None = None
-) -> SceneLevels:
-    """A builder for ``axes`` of ``scene`` without a full plan (benchmarks and tests that drive workers directly)."""
-    overrides = load_preset(preset) if preset else None
+    scene: str, axes: Sequence[str | AxisRef], step: float | None = None, preset: str | None = None,
+    tasks: Sequence[str] = (),
+) -> SceneLevels:  # fmt: skip
+    """A builder for ``axes`` of ``scene`` without a full plan (T0 builds, benchmarks, tests that drive workers
+    directly); with ``tasks``, each task's own successor where the family's steps differ by task."""
     sc = get_scene(scene)
-    return SceneLevels(scene, {a: sc.successor(a, step, overrides) for a in axes})
+    overrides = load_preset(preset) if preset else None
+    return _levels(sc, [AxisRef.parse(a) for a in axes], tasks, step, overrides)
+
+
+def _levels(
+    sc: Scene, refs: Sequence[AxisRef], tasks: Sequence[str], step: float | None, overrides: Mapping | None
+) -> SceneLevels:
+    """Each axis's successor (the family's own steps/ranges under the preset's), per task where they differ."""
+    successors, per_task = {}, {}
+    for ref in refs:
+        shared = sc.successor(ref, step, overrides)
+        if not tasks:
+            successors[ref.name] = shared
+            continue
+        by_task = {t: sc.successor(ref, step, overrides, t) for t in tasks}
+        successors[ref.name] = by_task[tasks[0]]
+        if any(s != shared for s in by_task.values()):
+            per_task[ref.name] = by_task
+    return SceneLevels(sc.name, successors, per_task)
 
 
 def resolve_scene_plan(
     scene: str,
     task: str | None,
-    axes: Sequence[str],
-    levels: str | None = None,
+    axes: Sequence[str | AxisRef],
+    levels: str | Sequence[int] | None = None,
     step: float | None = None,
     preset: str | None = None,
+    certificates: bool = True,
 ) -> ScenePlan:
     """Resolve a run's scene side once (one-line errors for unknown names, bad levels, condition 2).
 
     Args:
         scene: a registered scene name (``indgen scenes``).
         task: a task name, ``"all"``, or None for the scene's default task.
-        axes: axis names or compositions, in the run's order.
-        levels: the ``--levels`` text (``-3:3``, ``0,2``), None for each axis's default range.
+        axes: axis names or compositions (or their parsed ``AxisRef``), in the run's order.
+        levels: the ``--levels`` text (``-3:3``, ``0,2``) or list, None for each axis's default range.
         step: ``--step``, overriding a single axis's step.
         preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
+        certificates: look up each level's certificate; False for ``indgen certify``, which makes them (every
+            level then uncertified, and an unreadable certify.json is certify's to replace, not an error).
     """
     from indgen_vla.core.reporting.certification_view import NO_ORACLE
     from scenes.certificates import certified_levels, find_certification, infeasible_levels, level_status
@@ -144,43 +173,38 @@ def resolve_scene_plan(
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
-    for name in axes:  # every component one of the scene's axes, before select_tasks reads the axes
-        sc.check_axis(name)
-    tasks = sc.select_tasks(task, axes)  # on RoboCasa365 "all" is the axes' own task list (appendix B)
+    refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups
+    for ref in refs:  # every component one of the scene's axes, before select_tasks reads the axes
+        sc.check_axis(ref)
+    tasks = sc.select_tasks(task, refs)  # on RoboCasa365 "all" is the axes' own task list (appendix B)
     overrides = load_preset(preset) if preset else None
     overridden = step is not None or preset is not None
-    successors, per_task, specs, planned = {}, {}, {}, {}
-    for name in axes:
-        # the family's own steps/ranges under the preset's, each task's own where the family's differ by task
-        by_task, shared = (
-            {t: sc.successor(name, step, overrides, t) for t in tasks},
-            sc.successor(name, step, overrides),
-        )
-        successor = by_task[tasks[0]]
-        successors[name], specs[name] = successor, successor.axis
-        if any(s != shared for s in by_task.values()):
-            per_task[name] = by_task
-        planned[name] = tuple(parse_levels(levels, successor.axis))
+    builder = _levels(sc, refs, tasks, step, overrides)
+    specs, planned = {}, {}
+    for ref in refs:
+        name = ref.name
+        specs[name] = builder.successors[name].axis
+        planned[name] = tuple(parse_levels(levels, specs[name]))
         for t in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
-            sc.check_progression(t, by_task[t], overridden)
+            sc.check_progression(t, builder.successor(t, name), overridden)
     cells = []
-    for name in successors:
+    for ref in refs:
         for t in tasks:
-            successor = per_task.get(name, {}).get(t, successors[name])
-            cert = find_certification(scene, t, name, step, preset=preset)
+            successor = builder.successor(t, ref.name)
+            cert = find_certification(scene, t, ref, step, preset=preset) if certificates else None
             scripted = cert is not None or oracle_scripts(scene, t)
             failed = set(infeasible_levels(cert)) if cert else set()
             certified = set(certified_levels(cert)) if cert else set()
             rows = {int(r["level"]): r for r in cert["levels"]} if cert else {}
             base = sc.base(t)
-            for k in planned[name]:
+            for k in planned[ref.name]:
                 status = FAILED if k in failed else CERTIFIED if k in certified else UNCERTIFIED
                 row = rows.get(k)
                 evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
-                cells.append(Cell(t, name, k, param, status, evidence, key))
-    steps = {a: task_steps(by_task) for a, by_task in per_task.items()}
-    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), SceneLevels(scene, successors, per_task),
-                     task_steps=steps)  # fmt: skip
+                cells.append(Cell(t, ref.name, k, param, status, evidence, key))
+    steps = {a: task_steps(by_task) for a, by_task in builder.task_successors.items()}
+    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,
+                     refs={r.name: r for r in refs})  # fmt: skip

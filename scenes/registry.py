@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.interface import TABLETOP, EnvSpec
-from indgen_vla.core.protocol.progression import split_held
 from scenes.axes import axis_components, base_axis_names
 
 if TYPE_CHECKING:
@@ -23,6 +22,7 @@ if TYPE_CHECKING:
 
     import gymnasium as gym
 
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import Successor
 
 DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
@@ -38,7 +38,7 @@ class Scene:
         description: one line for ``indgen scenes``.
         tasks: the task names (the first is the default); a property where they are read from external files.
         axes: the single axes the family supports (any '+'-composition of them works too); the first is the
-            default axis of ``make_env``.
+            ``default_axis`` (T0 is built as its level 0).
         max_steps: the episode length (steps at 20 Hz) unless the caller overrides it.
         distractor_slots: (x, y) table spots of the ``distractor`` axis's visual-only objects, in order.
         success_predicate: the one frozen predicate that judges every level of every axis.
@@ -93,11 +93,11 @@ class Scene:
 
     @property
     def default_axis(self) -> str:
-        """The axis ``make_env`` moves along when none is given: the family's first axis."""
+        """The family's first axis: T0 builds (``indgen demos`` without --axis, the asset cache) are its level 0."""
         return self.axes[0]
 
     def successor(
-        self, axis: str, step: float | None = None, overrides: Mapping[str, Mapping] | None = None,
+        self, axis: AxisRef, step: float | None = None, overrides: Mapping[str, Mapping] | None = None,
         task: str | None = None,
     ):  # fmt: skip
         """The successor of ``axis`` on this family: its own ``axis_overrides`` under a preset's and ``--step``;
@@ -198,7 +198,7 @@ class Scene:
             raise UnknownNameError(f"task of scene {self.name}", task, list(self.tasks))
         return task
 
-    def select_tasks(self, task: str | None, axes: Sequence[str] = ()) -> list[str]:
+    def select_tasks(self, task: str | None, axes: Sequence[AxisRef] = ()) -> list[str]:
         """The tasks a run along ``axes`` covers: the default for None/"", every task for "all", else the one
         named (a family whose axes run on their own task lists narrows "all" to them: RoboCasa365)."""
         tasks = list(self.tasks)
@@ -210,15 +210,14 @@ class Scene:
             raise UnknownNameError(f"task of scene {self.name}", task, tasks + ["all"])
         return [task]
 
-    def check_axis(self, axis: str) -> None:
+    def check_axis(self, axis: AxisRef) -> None:
         """Every component of ``axis`` must be one of the family's axes (one line naming the right ones); a held axis
         (``A@B=j``) only on a family that resolves successors as ``Scene.successor`` does (the held level is a level
         of B's default ladder, which a family with its own per-task successors does not promise)."""
-        held = split_held(axis)
-        if held and type(self).successor is not Scene.successor:
+        if axis.held is not None and type(self).successor is not Scene.successor:
             raise ConfigError(
                 f"scene {self.name} resolves its axes its own way (per-task steps and task lists), so held axes "
-                f"(A@B=j) do not run there; evaluate {held[0]} and {held[1]} as separate axes on it"
+                f"(A@B=j) do not run there; evaluate {axis.ladder} and {axis.held} as separate axes on it"
             )
         for part in axis_components(axis):
             if part not in self.axes:

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 def scene_axis_rows(scene: str) -> list[dict]:
     """One row per (axis, group of tasks that share its step and range) of ``scene``, in the family's axis order."""
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import resolve_alias
     from scenes.registry import get_scene
 
     sc = get_scene(scene)
     rows: list[dict] = []
-    for axis in sc.axes:
+    for axis in map(AxisRef.parse, sc.axes):
         try:
             tasks = sc.select_tasks("all", (axis,))
         except Exception:  # a family whose "all" needs its install: its default task only
@@ -21,7 +22,7 @@ def scene_axis_rows(scene: str) -> list[dict]:
         for t in tasks:
             ax = sc.successor(axis, None, None, t).axis
             low = -ax.max_level if ax.signed else 0
-            key = (resolve_alias(axis), ax.step, ax.unit, f"{low}..{ax.max_level}", ax.description)
+            key = (resolve_alias(axis.name), ax.step, ax.unit, f"{low}..{ax.max_level}", ax.description)
             groups.setdefault(key, []).append(t)
         for (name, step, unit, levels, description), ts in groups.items():
             rows.append({"name": name, "step": step, "unit": unit, "levels": levels, "tasks": ts,

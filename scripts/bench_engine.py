@@ -32,14 +32,14 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 def bare_loop(jobs, scene, policy, replan, max_steps) -> float:
     """The reference: the same episodes with nothing but make_env / reset / act / step."""
-    import scenes
+    from scenes.planning import scene_levels
 
     t0 = time.perf_counter()
     env = None
     for job in jobs:
         if env is None:
-            env = scenes.make_env(scene, task=job.task, axis=job.axis, level=job.level, cameras=(),
-                                  max_steps=max_steps)  # fmt: skip
+            env = scene_levels(scene, [job.axis]).make_env(job.task, job.axis, job.level, cameras=(),
+                                                           image_size=(128, 128), max_steps=max_steps)  # fmt: skip
         obs, _ = env.reset(seed=job.seed)
         policy.reset(obs.instruction, seed=job.seed)
         done = False
@@ -95,7 +95,6 @@ def pipeline_bench(
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.fixtures
     import numpy as np
 
-    import scenes
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.registry import load_policy
@@ -107,9 +106,10 @@ def pipeline_bench(
         path = build_tiny_checkpoint("act", d, cameras=("agentview",), size=size)
         policy = load_policy(f"lerobot:{path}", scene=scene, device=device)
         cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
-        env = scenes.make_env(
-            scene, task=task, cameras=cams, image_size=hw
-        )  # calibration: one step vs one act
+        # calibration: one step vs one act
+        env = scene_levels(scene, ["pick_y"]).make_env(
+            task, "pick_y", 0, cameras=cams, image_size=hw, max_steps=None
+        )
         obs, _ = env.reset(seed=0)
         policy.reset(obs.instruction, seed=0)
         policy.act([obs])
@@ -247,16 +247,20 @@ def gil_overlap(scene: str, size: int, n: int) -> dict:
 
     import scenes
     from policy_wrappers.registry import load_policy
+    from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     task = scenes.tasks(scene)[0]
+    levels = scene_levels(scene, ["pick_y"])  # level 0: T0
     out = {}
     with tempfile.TemporaryDirectory() as d:
         policy = load_policy(f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview',), size=size)}")
         hw = tuple(policy.spec.image_size or (size, size))
         for label, cams in (("physics", ()), ("physics+render", ("agentview",))):
-            env = scenes.make_env(scene, task=task, cameras=cams or (), image_size=hw)
-            render_env = scenes.make_env(scene, task=task, cameras=("agentview",), image_size=hw)
+            env = levels.make_env(task, "pick_y", 0, cameras=cams or (), image_size=hw, max_steps=None)
+            render_env = levels.make_env(
+                task, "pick_y", 0, cameras=("agentview",), image_size=hw, max_steps=None
+            )
             obs, _ = render_env.reset(seed=0)
             policy.reset(obs.instruction, seed=0)
             policy.act([obs])
@@ -391,14 +395,16 @@ def main() -> None:
         return
     episodes, max_steps = (4, 40) if args.quick else (16, 200)
     episodes, max_steps = args.episodes or episodes, args.max_steps or max_steps
-    import scenes
+    from scenes.planning import scene_levels
 
     task, jobs = level0_jobs(args.scene, episodes)
     from policy_wrappers.registry import load_policy
 
     policy = load_policy(args.policy)
     replan = policy.spec.replan_steps
-    scenes.make_env(args.scene, task=task, cameras=()).close()  # warm-up: imports and first model build
+    # warm-up: imports and first model build
+    scene_levels(args.scene, ["pick_y"]).make_env(task, "pick_y", 0, cameras=(), image_size=(128, 128),
+                                                  max_steps=None).close()  # fmt: skip
     steps = len(jobs) * max_steps
     times: dict[str, list[float]] = {"bare": [], "1w": [], "2w": [], "start_1w": [], "start_2w": []}
     for _ in range(repeats):  # interleaved, so a burst of load elsewhere hits every variant alike

@@ -123,9 +123,12 @@ def _diff(a: list[np.ndarray], b: list[np.ndarray]) -> dict:
 
 def child(scene: str, size: int, frames: int, repeats: int, only_default: bool) -> list[dict]:
     """All options (or only the default) in this process; rows with timings and pixel differences."""
-    import scenes
+    from scenes.planning import resolve_scene_plan
+    from scenes.registry import get_scene
 
-    env = scenes.make_env(scene, cameras=(), max_steps=10**6)
+    axis = get_scene(scene).default_axis  # level 0: T0 on every axis
+    plan = resolve_scene_plan(scene, None, (axis,), [0])
+    env = plan.builder.make_env(plan.tasks[0], axis, 0, cameras=(), image_size=(128, 128), max_steps=10**6)
     try:
         env.reset(seed=0)
         rng = np.random.default_rng(0)

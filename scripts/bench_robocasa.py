@@ -52,15 +52,14 @@ def bare(task: str, steps: int, cameras: tuple[str, ...]) -> dict:
 
 
 def proxy(task: str, steps: int, cameras: tuple[str, ...]) -> dict:
-    import scenes
     from scenes.external import close_idle_workers
+    from scenes.planning import resolve_scene_plan
 
     close_idle_workers()
     out = {}
     t = time.perf_counter()
-    env = scenes.make_env(
-        "robocasa", task=task, axis="base_y", level=0, cameras=cameras, image_size=(256, 256)
-    )
+    plan = resolve_scene_plan("robocasa", task, ("base_y",), [0])
+    env = plan.builder.make_env(task, "base_y", 0, cameras=cameras, image_size=(256, 256), max_steps=None)
     try:
         env.reset(seed=3)
         out["first_reset_s"] = time.perf_counter() - t

@@ -24,8 +24,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-import scenes  # noqa: E402
 from scenes.catalog import builtin_scenes  # noqa: E402  (the bare-robosuite baseline needs a built-in scene)
+from scenes.planning import scene_levels  # noqa: E402
+from scenes.registry import get_scene  # noqa: E402
 from scenes.sim import CAMERA_NAMES  # noqa: E402
 
 CAMS = ("agentview", "wrist")
@@ -128,10 +129,18 @@ def _bare(env, actions, render: bool, fast: bool = True) -> tuple[float, float]:
     return c.wall, c.cpu
 
 
+def t0_env(scene: str, cameras: tuple[str, ...], image_size: tuple[int, int]):
+    """``scene``'s T0 (level 0 of its first axis, its first task), built as a run builds it, without a step limit."""
+    sc = get_scene(scene)
+    return scene_levels(scene, [sc.default_axis]).make_env(
+        sc.resolve_task(None), sc.default_axis, 0, cameras=cameras, image_size=image_size, max_steps=10**6
+    )
+
+
 def bench_scene(scene: str, steps: int, repeats: int, render: bool = True) -> dict:
     actions = _actions(steps)
     out: dict = {"scene": scene}
-    env = scenes.make_env(scene, cameras=(), max_steps=10**6)
+    env = t0_env(scene, cameras=(), image_size=SIZE)
     try:
         ctrls, qpos_end = _record_controls(env, actions)
         runs: dict[str, list[tuple[float, float]]] = {k: [] for k in ("stock", "fast", "raw", "wrapper")}
@@ -155,7 +164,7 @@ def bench_scene(scene: str, steps: int, repeats: int, render: bool = True) -> di
     )
     if not render:
         return out
-    env = scenes.make_env(scene, cameras=CAMS, image_size=SIZE, max_steps=10**6)
+    env = t0_env(scene, cameras=CAMS, image_size=SIZE)
     try:
         rsteps = max(steps // 4, 10)
         w, b = [], []

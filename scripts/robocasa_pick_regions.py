@@ -3,7 +3,7 @@ to the fixture), the level offsets and windows the worker uses there, and the ki
 
     INDGEN_ROBOCASA_ASSETS=DIR python scripts/robocasa_pick_regions.py [--seeds 16] [--task T ...] [--json OUT]
 
-Every level 0..4 of every task is built and reset through ``scenes.make_env`` (the run's own path: the plan's pick
+Every level 0..4 of every task is built and reset through ``resolve_scene_plan(...).builder`` (the run's own path: the plan's pick
 config, the worker's window, its T0 cache); prints one markdown table for docs/results/robocasa_pick_regions.md.
 """
 
@@ -18,13 +18,14 @@ import time
 
 def measure(task: str, seeds: list[int]) -> dict:
     """Each seed's range, and per level the episode's offset and window, or why the kitchen holds no level."""
-    import scenes
     from indgen_vla.core.errors import EpisodeUnavailableError
+    from scenes.planning import resolve_scene_plan
     from scenes.robocasa.pick_window import PICK_KEY
 
     rows: dict[int, dict] = {s: {"levels": {}} for s in seeds}
     for level in range(5):
-        env = scenes.make_env("robocasa", task=task, axis="pick_x", level=level, cameras=())
+        plan = resolve_scene_plan("robocasa", task, ("pick_x",), [level])
+        env = plan.builder.make_env(task, "pick_x", level, cameras=(), image_size=(128, 128), max_steps=None)
         try:
             for seed in seeds:
                 try:

@@ -41,14 +41,15 @@ def run_cell(job: tuple) -> dict:
     task, axis, level, episodes, seed, videos = job
     import numpy as np
 
-    import scenes
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracle import oracle_for
+    from scenes.planning import resolve_scene_plan
     from scenes.privileged import with_privileged
 
     t0 = time.time()
     try:
-        env = scenes.make_env(SCENE, task=task, axis=axis, level=level, cameras=())
+        plan = resolve_scene_plan(SCENE, task, (axis,), [level])
+        env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=None)
     except Exception as e:  # a level LIBERO cannot build is a finding, not a crash of the sweep
         return {"task": task, "axis": axis, "level": level, "n": 0, "successes": 0, "episodes": [], "seed": seed,
                 "error": f"{type(e).__name__}: {e}", "wall_s": round(time.time() - t0, 1)}  # fmt: skip
@@ -150,6 +151,8 @@ def main(argv=None) -> int:
         print(table(out))
         return 0
     import scenes
+    from indgen_vla.core.protocol.axis_ref import AxisRef
+    from scenes.axes import get_successor
 
     tasks = scenes.tasks(SCENE) if a.tasks == "all" else tuple(a.tasks.split(","))
     have = done_cells(out)
@@ -158,7 +161,7 @@ def main(argv=None) -> int:
         levels = (
             [int(x) for x in a.levels.split(",")]
             if a.levels
-            else list(scenes.get_axis(axis).default_levels())
+            else list(get_successor(AxisRef.parse(axis)).axis.default_levels())
         )
         for k in levels:
             for t in tasks:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError, SceneError
-from scenes.axes import axis_components
+from scenes.axes import shifts
 from scenes.predicates import BddlGoal
 from scenes.registry import Scene, get_scene, register_scene
 from scenes.spec import Item
@@ -151,7 +151,7 @@ class LiberoSuite(Scene):
         """Condition 2 is checked against LIBERO's fixed initial states, which needs level 0 built (physics only,
         ~10 s): up front only when --step / --axes-preset changed a pick_y/goal_y step; the env repeats the check
         when it is built."""
-        if overridden and any(p in ("pick_y", "goal_y") for p in axis_components(successor.axis.name)):
+        if overridden and any(p.axis.name in ("pick_y", "goal_y") for p in shifts(successor)):
             self.make_env(task, successor, 0, cameras=(), image_size=(128, 128), max_steps=None).close()
 
 

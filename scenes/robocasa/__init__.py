@@ -21,6 +21,9 @@ from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import Successor
     from scenes.external import ExternalSceneEnv
 
@@ -253,7 +256,7 @@ class RoboCasa(Scene):
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
     oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
 
-    def successor(self, axis: str, step=None, overrides=None, task: str | None = None):
+    def successor(self, axis: AxisRef, step=None, overrides=None, task: str | None = None):
         """pick_x's step is ``task``'s own (``pick_step``: its region / 5, appendix B) unless --step (a single axis)
         or the axes preset sets one; every other step is the family's (``axis_overrides``) or the preset's."""
         import dataclasses
@@ -262,12 +265,12 @@ class RoboCasa(Scene):
 
         merged = merge_overrides(self.axis_overrides, overrides)
         pick = merged.get("pick_x", {})
-        parts = [resolve_alias(p) for p in axis.split("+")]
+        parts = [resolve_alias(p) for p in axis.components]
         explicit = "step" in pick or (step is not None and len(parts) == 1)
         if task is None or "pick_x" not in parts or explicit:
             return super().successor(axis, step, overrides)
         name = self.resolve_task(task)
-        self.check_axis_task(name, "pick_x")
+        self._check_task_lists(name, ("pick_x",))
         merged["pick_x"] = {**pick, "step": pick_step(name)}
         successor = get_successor(axis, step, merged)
         if len(parts) > 1:
@@ -344,7 +347,7 @@ class RoboCasa(Scene):
         kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
         return f"{venv}; kitchen assets {kind} ({assets})"
 
-    def select_tasks(self, task: str | None, axes=()) -> list[str]:
+    def select_tasks(self, task: str | None, axes: Sequence[AxisRef] = ()) -> list[str]:
         """``all``: the tasks on every axis of the run (appendix B's lists, ``AXIS_TASKS``), None their first; a
         named task must be on each axis's list (one line naming the list)."""
         from scenes.axes import resolve_alias
@@ -362,7 +365,7 @@ class RoboCasa(Scene):
                         f"task {n}@{kitchen}: RoboCasa's {n} excludes layout {lay}; pick another kitchen"
                     )
             return [f"{n}@{kitchen}" for n in names]
-        lists = [AXIS_TASKS[p] for a in axes for p in map(resolve_alias, a.split("+")) if p in AXIS_TASKS]
+        lists = [AXIS_TASKS[p] for a in axes for p in map(resolve_alias, a.components) if p in AXIS_TASKS]
         if task not in (None, "", "all") or not lists:
             tasks = super().select_tasks(task)
             for a in axes:
@@ -371,7 +374,7 @@ class RoboCasa(Scene):
         shared = [t for t in lists[0] if all(t in ts for ts in lists[1:])]
         if not shared:
             raise ConfigError(
-                f"scene robocasa: axes {', '.join(axes)} share no task (appendix B gives each its own list); run "
+                f"scene robocasa: axes {', '.join(map(str, axes))} share no task (appendix B gives each its own list); run "
                 "them one at a time (--config robocasa_pick, robocasa_fixture, robocasa_horizon, robocasa_clutter)"
             )
         return shared if task == "all" else shared[:1]
@@ -401,12 +404,16 @@ class RoboCasa(Scene):
             "deviations": list(DEVIATIONS),  # from RoboCasa's own protocol (docs/robocasa.md)
         }
 
-    def check_axis_task(self, task: str, axis: str) -> None:
+    def check_axis_task(self, task: str, axis: AxisRef) -> None:
+        """Every component of ``axis`` must list ``task`` (appendix B gives each axis its own tasks)."""
+        self._check_task_lists(task, axis.components)
+
+    def _check_task_lists(self, task: str, parts: Sequence[str]) -> None:
+        """One line naming the list of the first of the single axes ``parts`` whose task list lacks ``task``."""
         from scenes.axes import resolve_alias
 
         task = split_task(task)[0]
-        for part in axis.split("+"):
-            part = resolve_alias(part)
+        for part in map(resolve_alias, parts):
             if task not in AXIS_TASKS.get(part, ()):
                 raise ConfigError(
                     f"scene robocasa: task {task} is not on axis {part}'s task list (appendix B); its tasks are "
@@ -421,11 +428,12 @@ class RoboCasa(Scene):
 
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
-        from scenes.axes import axis_param, resolve_alias, spec_at_level
+        from scenes.axes import axis_param, shifts, spec_at_level
 
-        self.check_axis_task(task, successor.axis.name)
+        names = [p.axis.name for p in shifts(successor)]
+        self._check_task_lists(task, names)
         spec = spec_at_level(self.base(task), successor, level)
-        parts = {resolve_alias(p) for p in successor.axis.name.split("+")}
+        parts = set(names)
         name, kitchen = split_task(task)
         return {
             "task": name,

@@ -10,6 +10,7 @@ import pytest
 
 import scenes
 from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.progression import (
     ProgressionError,
     check_semantics_preserved,
@@ -31,13 +32,20 @@ from scenes.axes import (
 )
 from scenes.catalog import builtin_scenes
 from scenes.registry import get_scene
+from tests.fixtures.levels import level_env
+
+
+def _successor(name: str, *args, **kwargs):
+    """The shared table's successor of the axis ``name`` (parsed here, as the entrances parse it)."""
+    return get_successor(AxisRef.parse(name), *args, **kwargs)
+
 
 SCENE_AXES = [(s.name, a) for s in builtin_scenes() for a in s.axes]
 
 
 @pytest.mark.parametrize(("scene", "axis"), SCENE_AXES)
 def test_each_step_changes_only_the_axis_field(scene, axis):
-    succ = get_successor(axis)
+    succ = _successor(axis)
     for task in get_scene(scene).tasks:
         base = get_scene(scene).base(task)
         levels = succ.axis.default_levels()
@@ -49,14 +57,14 @@ def test_each_step_changes_only_the_axis_field(scene, axis):
 @pytest.mark.parametrize(("scene", "axis"), SCENE_AXES + [("pick_place", "pick_y+distractor")])
 def test_levels_leave_the_easier_levels_support(scene, axis):
     sdef = get_scene(scene)
-    supports = check_progression(sdef.base(sdef.tasks[0]), get_successor(axis))
-    assert sorted(supports) == get_successor(axis).axis.default_levels()
+    supports = check_progression(sdef.base(sdef.tasks[0]), _successor(axis))
+    assert sorted(supports) == _successor(axis).axis.default_levels()
 
 
 def test_successor_is_pure_and_frozen():
     base = get_scene("pick_place").base("milk")
     copy = dataclasses.replace(base)
-    succ = get_successor("pick_y")
+    succ = _successor("pick_y")
     out = succ(base, 1)
     assert base == copy and out is not base
     assert out.pick.y == pytest.approx(base.pick.y + 0.025)
@@ -67,19 +75,19 @@ def test_successor_is_pure_and_frozen():
 
 def test_signed_and_one_sided_directions():
     base = get_scene("pick_place").base("milk")
-    assert spec_at_level(base, get_successor("scale"), -3).pick.scale == pytest.approx(1 - 3 * 0.0667)
-    assert spec_at_level(base, get_successor("distractor"), 4).distractors == 4
+    assert spec_at_level(base, _successor("scale"), -3).pick.scale == pytest.approx(1 - 3 * 0.0667)
+    assert spec_at_level(base, _successor("distractor"), 4).distractors == 4
     with pytest.raises(ConfigError, match="one-sided"):
-        get_successor("distractor")(base, -1)
+        _successor("distractor")(base, -1)
     with pytest.raises(ConfigError, match="outside axis distractor's range"):
-        spec_at_level(base, get_successor("distractor"), -1)
+        spec_at_level(base, _successor("distractor"), -1)
     with pytest.raises(ConfigError, match="outside"):
-        spec_at_level(base, get_successor("pick_y"), 4)
+        spec_at_level(base, _successor("pick_y"), 4)
 
 
 def test_composition_steps_each_component_and_uses_abs_level_for_one_sided():
     base = get_scene("pick_place").base("milk")
-    comp = get_successor("pick_y+distractor")
+    comp = _successor("pick_y+distractor")
     assert isinstance(comp, Composite) and comp.axis.signed and comp.axis.max_level == 3
     spec = spec_at_level(base, comp, -2)
     assert spec.pick.y == pytest.approx(base.pick.y - 0.05)
@@ -90,25 +98,25 @@ def test_composition_steps_each_component_and_uses_abs_level_for_one_sided():
 
 
 def test_step_override_and_presets():
-    assert scenes.get_axis("pick_y", step=0.03).step == 0.03
-    assert isinstance(get_successor("pick_y", 0.03), Shift)
+    assert _successor("pick_y", 0.03).axis.step == 0.03
+    assert isinstance(_successor("pick_y", 0.03), Shift)
     with pytest.raises(ConfigError, match="whole number"):
-        get_successor("clutter", 1.5)
+        _successor("clutter", 1.5)
     with pytest.raises(ConfigError, match="composition"):
-        get_successor("pick_y+distractor", 0.03)
+        _successor("pick_y+distractor", 0.03)
     assert {"paper", "quick"} <= set(preset_names())
     paper = load_preset("paper")
     for name in paper:
-        assert scenes.get_axis(name).step == pytest.approx(paper[name]["step"])
-        assert scenes.get_axis(name).max_level == paper[name]["max_level"]
-    quick = get_successor("pick_y+distractor", overrides=load_preset("quick"))
+        assert _successor(name).axis.step == pytest.approx(paper[name]["step"])
+        assert _successor(name).axis.max_level == paper[name]["max_level"]
+    quick = _successor("pick_y+distractor", overrides=load_preset("quick"))
     assert quick.axis.max_level == 1
 
 
 def test_step_below_jitter_is_rejected():
     base = get_scene("pick_place").base("milk")
     with pytest.raises(ProgressionError, match="jitter"):
-        check_progression(base, get_successor("pick_y", 0.015))
+        check_progression(base, _successor("pick_y", 0.015))
 
 
 def test_bad_preset(tmp_path):
@@ -125,13 +133,13 @@ def test_bad_preset(tmp_path):
 
 def test_bad_names_suggest():
     with pytest.raises(UnknownNameError, match="did you mean 'pick_place'"):
-        scenes.make_env("pick_plac")
+        level_env("pick_plac")
     with pytest.raises(UnknownNameError, match="did you mean 'pick_y'"):
-        scenes.get_axis("pick_yy")
+        _successor("pick_yy")
     with pytest.raises(UnknownNameError, match="did you mean 'milk'"):
-        scenes.make_env("pick_place", task="mlk")
+        level_env("pick_place", task="mlk")
     with pytest.raises(UnknownNameError, match="axis of scene cabinet_pick"):
-        scenes.make_env("cabinet_pick", axis="pick_y")
+        level_env("cabinet_pick", axis="pick_y")
 
 
 def test_one_predicate_per_scene_is_shared():
@@ -175,7 +183,7 @@ def _repo_root() -> str:
                                                    ("pick_y+scale", "goal_y", 3)])  # fmt: skip
 def test_held_level_k_is_b_applied_j_times_then_a_k_times(inner, held, at):
     base = get_scene("pick_place").base("milk")
-    succ, a, b = get_successor(f"{inner}@{held}={at}"), get_successor(inner), get_successor(held)
+    succ, a, b = _successor(f"{inner}@{held}={at}"), _successor(inner), _successor(held)
     assert isinstance(succ, Held) and succ.axis.name == f"{inner}@{held}={at}"
     assert (succ.axis.signed, succ.axis.max_level, succ.axis.step) == (
         a.axis.signed,
@@ -194,12 +202,12 @@ def test_held_level_k_is_b_applied_j_times_then_a_k_times(inner, held, at):
 
 def test_held_at_zero_is_exactly_the_axis():
     base = get_scene("pick_place").base("milk")
-    held, plain = get_successor("pick_y@distractor=0"), get_successor("pick_y")
+    held, plain = _successor("pick_y@distractor=0"), _successor("pick_y")
     for k in plain.axis.default_levels():
         assert spec_at_level(base, held, k) == spec_at_level(base, plain, k)
     assert check_progression(base, held) == check_progression(base, plain)
-    assert spec_at_level(base, get_successor("pick_y@distractor=3"), 0).distractors == 3
-    assert axis_components("pick_y+scale@base_y=1") == ["pick_y", "scale", "horizon"]
+    assert spec_at_level(base, _successor("pick_y@distractor=3"), 0).distractors == 3
+    assert axis_components(AxisRef.parse("pick_y+scale@base_y=1")) == ["pick_y", "scale", "horizon"]
 
 
 @pytest.mark.parametrize(
@@ -222,17 +230,29 @@ def test_held_at_zero_is_exactly_the_axis():
 )
 def test_bad_held_axes_are_refused_in_one_line(name, match):
     with pytest.raises(ConfigError, match=match) as e:
-        get_successor(name)
+        _successor(name)
     assert "\n" not in str(e.value)
 
 
 def test_held_axes_need_the_scenes_axes_and_stay_off_robocasa():
-    get_scene("pick_place").check_axis("pick_y@distractor=2")
+    get_scene("pick_place").check_axis(AxisRef.parse("pick_y@distractor=2"))
     with pytest.raises(UnknownNameError, match="axis of scene pick_place 'clutter'"):
-        get_scene("pick_place").check_axis("pick_y@clutter=1")
+        get_scene("pick_place").check_axis(AxisRef.parse("pick_y@clutter=1"))
     with pytest.raises(UnknownNameError, match="unknown axis 'nope'"):
-        get_successor("pick_y@nope=1")
+        _successor("pick_y@nope=1")
     with pytest.raises(
         ConfigError, match="held axes \\(A@B=j\\) do not run there; evaluate pick_x and clutter"
     ):
-        get_scene("robocasa").check_axis("pick_x@clutter=1")
+        get_scene("robocasa").check_axis(AxisRef.parse("pick_x@clutter=1"))
+
+
+def test_scenes_builds_only_through_a_level_builder():
+    """One road to an environment: the name-keyed helpers are gone; a run, certify, demos and mimicgen build through
+    ``scenes.planning`` (a plan's builder), whose family methods take the parsed axis."""
+    for gone in ("make_env", "successor_for", "level_param", "get_axis", "check_axis_progression"):
+        assert not hasattr(scenes, gone), gone
+    sc = get_scene("pick_place")
+    ref = AxisRef.parse("pick_y+distractor")
+    sc.check_axis(ref)
+    assert sc.successor(ref).axis.name == "pick_y+distractor"
+    assert sc.select_tasks(None, (ref,)) == ["milk"]

@@ -17,7 +17,9 @@ from indgen_vla.app.cli import main
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
 from scenes import registry
 from scenes.catalog import PickPlace, builtin_scenes
+from scenes.planning import resolve_scene_plan
 from scenes.registry import Scene, get_scene, register_scene, registered_scenes
+from tests.fixtures.levels import level_env, level_param
 
 
 def test_scenes_json(capsys):
@@ -209,14 +211,12 @@ def test_a_registered_subclass_is_found_by_the_scenes_api(private_registry):
     assert scenes.scene_names()[-1] == "tiny_pick"
     assert scenes.tasks("tiny_pick") == ["milk"] and scenes.axes_for("tiny_pick") == ["distractor", "pick_y"]
     assert scenes.select_tasks("tiny_pick", "all") == ["milk"] == scenes.select_tasks("tiny_pick", None)
-    assert scenes.level_param("tiny_pick", None, "pick_y", 2) == scenes.level_param(
-        "pick_place", "milk", "pick_y", 2
-    )
-    scenes.check_axis_progression("tiny_pick", None, "pick_y+distractor")
+    assert level_param("tiny_pick", None, "pick_y", 2) == level_param("pick_place", "milk", "pick_y", 2)
+    resolve_scene_plan("tiny_pick", None, ["pick_y+distractor"])
     with pytest.raises(UnknownNameError, match="axis of scene tiny_pick 'goal_y'"):
-        scenes.make_env("tiny_pick", axis="goal_y")
+        level_env("tiny_pick", axis="goal_y")
     # the family's own distractor slots place the distractors of its levels (make_env's default axis: distractor)
-    env = scenes.make_env("tiny_pick", level=2, cameras=())
+    env = level_env("tiny_pick", level=2, cameras=())
     try:
         assert env.spec.scene == "tiny_pick" and env.axis.name == "distractor" and env.spec.distractors == 2
         assert env.success_predicate is get_scene("pick_place").success_predicate
@@ -264,7 +264,7 @@ def test_libero_spatial_defaults_to_scale_and_missing_assets_are_one_line(tmp_pa
     assert get_scene("libero_spatial").default_axis == "scale" and len(scenes.tasks("libero_spatial")) == 10
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
     with pytest.raises(SceneError, match="not a LIBERO asset folder") as err:
-        scenes.make_env("libero_spatial", cameras=())
+        level_env("libero_spatial", cameras=())
     assert "\n" not in str(err.value)
     with pytest.raises(SceneError, match="hf download"):
         scenes.check_ready("libero_spatial")
@@ -273,7 +273,7 @@ def test_libero_spatial_defaults_to_scale_and_missing_assets_are_one_line(tmp_pa
 
 @pytest.mark.slow
 def test_libero_spatial_builds_at_its_default_axis(mini):
-    env = scenes.make_env("libero_spatial", cameras=())
+    env = level_env("libero_spatial", cameras=())
     try:
         assert env.axis.name == "scale" and env.level == 0 and env.max_steps == 280
         obs, info = env.reset(seed=0)

@@ -12,9 +12,12 @@ import pytest
 
 import scenes
 from indgen_vla.core.errors import ConfigError, SceneError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.progression import check_semantics_preserved, check_single_axis
+from scenes.axes import get_successor
 from scenes.catalog import builtin_scenes
+from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 SCENE_AXES = [(s.name, a) for s in builtin_scenes() for a in s.axes]
@@ -26,16 +29,14 @@ COMPOSITIONS = [
 
 
 def _extreme(axis: str) -> int:
-    ax = scenes.get_axis(axis)
+    ax = get_successor(AxisRef.parse(axis)).axis
     return ax.min_level if ax.signed else ax.max_level
 
 
 @pytest.mark.parametrize(("scene", "axis"), SCENE_AXES + COMPOSITIONS)
 def test_builds_and_steps_at_the_extreme_level(scene, axis):
     level = _extreme(axis)
-    env = scenes.make_env(
-        scene, axis=axis, level=level, cameras=("agentview",), image_size=(64, 64), max_steps=3
-    )
+    env = level_env(scene, axis=axis, level=level, cameras=("agentview",), image_size=(64, 64), max_steps=3)
     try:
         obs, info = env.reset(seed=1)
         assert isinstance(obs, Observation) and set(obs.images) == {"agentview"}
@@ -55,7 +56,7 @@ def test_builds_and_steps_at_the_extreme_level(scene, axis):
 
 def test_conditions_on_built_envs():
     """Same predicate object at every level; the built specs differ only in the axis field."""
-    envs = [scenes.make_env("pick_place", axis="goal_y", level=k, cameras=()) for k in (-1, 0, 1)]
+    envs = [level_env("pick_place", axis="goal_y", level=k, cameras=()) for k in (-1, 0, 1)]
     try:
         check_semantics_preserved([e.success_predicate for e in envs], "goal_y")
         assert envs[0].success_predicate is envs[2].success_predicate
@@ -84,9 +85,7 @@ def _fingerprint(env, seed: int) -> str:
 
 
 def test_seeded_determinism_in_process_and_across_processes():
-    env = scenes.make_env(
-        "stack", axis="pick_y", level=2, cameras=("agentview", "wrist"), image_size=(32, 32)
-    )
+    env = level_env("stack", axis="pick_y", level=2, cameras=("agentview", "wrist"), image_size=(32, 32))
     try:
         a, b, c = _fingerprint(env, 7), _fingerprint(env, 7), _fingerprint(env, 8)
         start7 = env.reset(seed=7)[0].state
@@ -100,7 +99,8 @@ def test_seeded_determinism_in_process_and_across_processes():
     code = (
         "import json, scenes, hashlib, numpy as np\n"
         "from tests.scenes.test_env import _fingerprint\n"
-        "env = scenes.make_env('stack', axis='pick_y', level=2, cameras=('agentview', 'wrist'), image_size=(32, 32))\n"
+        "from tests.fixtures.levels import level_env\n"
+        "env = level_env('stack', axis='pick_y', level=2, cameras=('agentview', 'wrist'), image_size=(32, 32))\n"
         "print(json.dumps(_fingerprint(env, 7))); env.close()\n"
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=_root())
@@ -114,7 +114,7 @@ def test_gymnasium_env_checker():
 
     from scenes.env import DictObservation
 
-    env = scenes.make_env("pick_place", cameras=("wrist",), image_size=(32, 32))
+    env = level_env("pick_place", cameras=("wrist",), image_size=(32, 32))
     try:
         check_env(DictObservation(env), skip_render_check=True, skip_close_check=True)
         obs, _ = env.reset(seed=0)  # the unwrapped env honours its own space: Observation objects
@@ -128,7 +128,7 @@ def test_gymnasium_env_checker():
 
 
 def test_renders_only_requested_cameras_and_video_frames():
-    env = scenes.make_env("cabinet_pick", cameras=(), max_steps=2)
+    env = level_env("cabinet_pick", cameras=(), max_steps=2)
     try:
         obs, _ = env.reset(seed=0)
         assert obs.images == {} and env._renderers == {}
@@ -143,15 +143,15 @@ def test_renders_only_requested_cameras_and_video_frames():
     finally:
         env.close()
     with pytest.raises(ConfigError, match="unknown camera"):
-        scenes.make_env("pick_place", cameras=("front",))
+        level_env("pick_place", cameras=("front",))
     with pytest.raises(ConfigError, match="max_steps"):
-        scenes.make_env("pick_place", max_steps=0)
+        level_env("pick_place", max_steps=0)
 
 
 def test_observation_state_follows_libero_convention():
     from robosuite.utils.transform_utils import quat2axisangle
 
-    env = scenes.make_env("pick_place", cameras=())
+    env = level_env("pick_place", cameras=())
     try:
         obs, _ = env.reset(seed=3)
         rs = env._rs

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from scenes.failure import FAILURE_MODES, GRASP_STEPS, LIFT_M, FailureTrace
+from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -115,9 +116,7 @@ def _scripted(env, variant: str, steps: int, seed: int = 1) -> tuple[bool, str, 
 
 
 def test_scripted_episodes_fail_each_way():
-    import scenes
-
-    env = scenes.make_env("pick_place", task="milk", axis="pick_y", level=0, cameras=(), max_steps=150)
+    env = level_env("pick_place", task="milk", axis="pick_y", level=0, cameras=(), max_steps=150)
     try:
         budget = {
             "oracle": 150,

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import scenes
 from indgen_vla.core.errors import SceneError
 from scenes.catalog import builtin_scenes
 from scenes.oracle import OraclePolicy
 from scenes.privileged import with_privileged
+from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -56,7 +56,7 @@ def _assert_identical(fast: dict, stock: dict) -> None:
 
 @pytest.fixture(scope="module", params=[s.name for s in builtin_scenes()])
 def env(request):
-    e = scenes.make_env(request.param, cameras=(), max_steps=10**6)
+    e = level_env(request.param, cameras=(), max_steps=10**6)
     yield e
     e.close()
 
@@ -103,7 +103,7 @@ def _oracle_episode(env, fast: bool, seed: int, steps: int) -> tuple[np.ndarray,
 )
 def test_oracle_episode_is_identical(scene, steps):
     """The oracle's actions (closed loop on privileged state), states and outcome do not change."""
-    env = scenes.make_env(scene, cameras=())
+    env = level_env(scene, cameras=())
     try:
         fa, fq, fo = _oracle_episode(env, True, 11, steps)
         sa, sq, so = _oracle_episode(env, False, 11, steps)
@@ -115,7 +115,7 @@ def test_oracle_episode_is_identical(scene, steps):
 def test_fast_path_refuses_what_it_cannot_reproduce():
     import mujoco
 
-    env = scenes.make_env("pick_place", cameras=(), max_steps=10**6)
+    env = level_env("pick_place", cameras=(), max_steps=10**6)
     try:
         env.reset(seed=0)
         assert env._rs.fast_physics  # the default
@@ -160,7 +160,7 @@ def test_libero_fast_matches_stock(mini, steps, cameras):
     compares this fast path's frames with lerobot's stock ``LiberoEnv`` pixel for pixel.
     """
     pytest.importorskip("libero")
-    env = scenes.make_env("libero_object", cameras=cameras, image_size=(16, 16), max_steps=10**6)
+    env = level_env("libero_object", cameras=cameras, image_size=(16, 16), max_steps=10**6)
     try:
         acts = _actions(steps, seed=9)
         stock = _libero_run(env, False, acts)

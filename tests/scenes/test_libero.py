@@ -14,7 +14,9 @@ pytest.importorskip("libero")
 
 import scenes  # noqa: E402
 from indgen_vla.core.errors import SceneError  # noqa: E402
+from indgen_vla.core.protocol.axis_ref import AxisRef  # noqa: E402
 from scenes.libero.bddl import add_fixtures, load_task, parse_regions, shift_region  # noqa: E402
+from tests.fixtures.levels import level_env, level_param  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -39,7 +41,7 @@ def _evaluate(policy, args, env, timeout):
 
 def _env(axis="pick_y", level=0, **kw):
     kw.setdefault("cameras", ())
-    return scenes.make_env(SCENE, axis=axis, level=level, **kw)
+    return level_env(SCENE, axis=axis, level=level, **kw)
 
 
 def test_registry_without_simulator():
@@ -48,9 +50,9 @@ def test_registry_without_simulator():
     # lerobot task_id order
     assert len(tasks) == 10 and tasks[0] == "alphabet_soup" and tasks[-1] == "orange_juice"
     assert set(scenes.axes_for(SCENE)) == {"pick_y", "goal_y", "scale", "distractor"}
-    assert scenes.level_param(SCENE, None, "pick_y", 2) == pytest.approx(-0.24 + 0.05)
-    assert scenes.level_param(SCENE, "milk", "goal_y", -3) == pytest.approx(0.26 - 3 * 0.0367)
-    assert scenes.level_param(SCENE, None, "scale", 3) == pytest.approx(1.2001)
+    assert level_param(SCENE, None, "pick_y", 2) == pytest.approx(-0.24 + 0.05)
+    assert level_param(SCENE, "milk", "goal_y", -3) == pytest.approx(0.26 - 3 * 0.0367)
+    assert level_param(SCENE, None, "scale", 3) == pytest.approx(1.2001)
     t = load_task(SCENE, "alphabet_soup")
     assert (t.pick, t.goal, t.pick_region, t.goal_region) == (
         "alphabet_soup_1",
@@ -146,12 +148,11 @@ def test_level0_matches_lerobot_libero_env(mini):
 )
 def test_axes_build_step_and_change_one_thing(mini, axis, level):
     from indgen_vla.core.protocol.progression import check_single_axis
+    from scenes.axes import get_successor, shifts
 
     env, base = _env(axis, level, max_steps=2), _env(axis, 0)
     try:
-        fields = [
-            p.axis.field for p in getattr(scenes.get_successor(axis), "parts", [scenes.get_successor(axis)])
-        ]
+        fields = [p.axis.field for p in shifts(get_successor(AxisRef.parse(axis)))]
         check_single_axis(base.spec, env.spec, fields, axis)
         assert env.success_predicate is base.success_predicate
         env.reset(seed=1, options={"episode": 5})
@@ -346,10 +347,14 @@ def test_a_held_axis_starts_its_ladder_at_the_held_level(mini):
     checked against them) and one distractor; its level 0 is pick_y's level -1, and A@B=0 is A's T0."""
     sc = scenes.get_scene(SCENE)
     task = sc.tasks[0]
-    held = scenes.successor_for("distractor@pick_y=-1", scene=SCENE)
-    assert sc.level_identity(task, held, 0) == sc.level_identity(task, scenes.successor_for("pick_y"), -1)
-    zero = sc.level_identity(task, scenes.successor_for("pick_y@distractor=0"), 0)
-    assert zero == sc.level_identity(task, scenes.successor_for("pick_y"), 0)
+
+    def successor(name: str):
+        return sc.successor(AxisRef.parse(name))
+
+    held = successor("distractor@pick_y=-1")
+    assert sc.level_identity(task, held, 0) == sc.level_identity(task, successor("pick_y"), -1)
+    zero = sc.level_identity(task, successor("pick_y@distractor=0"), 0)
+    assert zero == sc.level_identity(task, successor("pick_y"), 0)
     env = _env("distractor@pick_y=-1", 1, max_steps=2)
     try:
         assert (

@@ -9,6 +9,7 @@ import os
 
 import pytest
 
+from tests.fixtures.levels import level_env
 from tests.scenes.conftest import libero_tree
 
 pytest.importorskip("libero")
@@ -32,13 +33,12 @@ def real(tmp_path_factory):
 def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
     """cream_cheese ``pick_y`` -2, episode 1: the box lies 5 mm from the tomato-sauce can, and the open hand came
     down on the can's top and closed above the box (no_contact) before the grasp point moved off centre."""
-    import scenes
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracle import oracle_for
 
-    env = scenes.make_env(SCENE, task="cream_cheese", axis="pick_y", level=-2, cameras=("agentview",),
-                          image_size=(64, 64))  # fmt: skip
+    env = level_env(SCENE, task="cream_cheese", axis="pick_y", level=-2, cameras=("agentview",),
+                    image_size=(64, 64))  # fmt: skip
     try:
         seed = episode_seed(0, SCENE, "cream_cheese", "pick_y", -2, 1)
         obs, _ = env.reset(seed=seed, options={"episode": 1})
@@ -86,9 +86,10 @@ def test_partial_levels_resume_with_the_same_episodes(tmp_path):
     """A level a killed run left half done resumes from its finished episodes (same seeds, same outcomes)."""
     from indgen_vla.app.certify.partial import EpisodeLog
     from indgen_vla.app.certify.run import Rule, certify_level
+    from scenes.planning import scene_levels
 
     part = tmp_path / "certify.partial.L0.jsonl"
-    args = ("stack", "orange_on_blue", "stack", 0, None, None, 0, None)
+    args = (scene_levels("stack", ["stack"]), "orange_on_blue", "stack", 0, 0, None)
     first = certify_level(*args, Rule(n_max=1), partial=part, key="k")
     assert first["n"] == 1 and len(EpisodeLog(part, "k").results) == 1
     again = certify_level(*args, Rule(n_max=2), partial=part, key="k")  # runs episode 1 only

@@ -11,6 +11,7 @@ pytest.importorskip("libero")
 import scenes  # noqa: E402
 from indgen_vla.core.errors import UnknownNameError  # noqa: E402
 from scenes.libero.bddl import load_task  # noqa: E402
+from tests.fixtures.levels import level_env  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -20,7 +21,7 @@ DRAWER = "in_the_top_drawer_of_the_wooden_cabinet"
 
 def _env(axis="scale", level=0, **kw):
     kw.setdefault("cameras", ())
-    return scenes.make_env(SCENE, axis=axis, level=level, **kw)
+    return level_env(SCENE, axis=axis, level=level, **kw)
 
 
 def test_registry_axes_and_tasks():
@@ -44,7 +45,7 @@ def test_registry_axes_and_tasks():
 @pytest.mark.parametrize("axis", ["pick_y", "goal_y", "pick_y+distractor"])
 def test_moving_axes_are_refused_with_the_supported_ones(axis):
     with pytest.raises(UnknownNameError) as e:
-        scenes.make_env(SCENE, axis=axis)
+        level_env(SCENE, axis=axis)
     msg = str(e.value)
     assert "\n" not in msg and f"axis of scene {SCENE}" in msg and "known: distractor, scale" in msg
 
@@ -109,12 +110,14 @@ def test_level0_matches_lerobot_libero_env(mini):
     ],
 )
 def test_levels_build_and_change_one_thing(mini, axis, level, task):
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from indgen_vla.core.protocol.progression import check_single_axis
+    from scenes.axes import get_successor, shifts
 
     env, base = _env(axis, level, task=task, max_steps=2), _env(axis, 0, task=task)
     try:
-        succ = scenes.get_successor(axis)
-        check_single_axis(base.spec, env.spec, [p.axis.field for p in getattr(succ, "parts", [succ])], axis)
+        fields = [p.axis.field for p in shifts(get_successor(AxisRef.parse(axis)))]
+        check_single_axis(base.spec, env.spec, fields, axis)
         assert env.success_predicate is base.success_predicate
         env.reset(seed=1, options={"episode": 5})
         base.reset(seed=1, options={"episode": 5})

@@ -10,10 +10,13 @@ import pytest
 import scenes
 from indgen_vla.app.certify.run import certify, run_oracle_episode
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.interface import Observation, Policy
+from scenes.axes import get_successor
 from scenes.catalog import builtin_scenes
 from scenes.certificates import infeasible_levels, load_certification
 from scenes.oracle import OraclePolicy
+from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -26,17 +29,24 @@ FAST = [
     ("stack", "stack", 4, None),
     ("cabinet_pick", "clutter", 4, None),
 ]
+
+
+def _spec(axis: str):
+    """The shared table's spec of ``axis``."""
+    return get_successor(AxisRef.parse(axis)).axis
+
+
 FULL = [
     (s.name, a, k, t)
     for s in builtin_scenes()
     for a in s.axes
-    for k in sorted({scenes.get_axis(a).min_level, scenes.get_axis(a).max_level})
+    for k in sorted({_spec(a).min_level, _spec(a).max_level})
     for t in s.tasks
 ]
 
 
 def _solve(scene, axis, level, task, seed=11) -> tuple[bool, int]:
-    env = scenes.make_env(scene, task=task, axis=axis, level=level, cameras=())
+    env = level_env(scene, task=task, axis=axis, level=level, cameras=())
     try:
         return run_oracle_episode(env, OraclePolicy(), seed)
     finally:
@@ -69,7 +79,7 @@ def test_oracle_protocol_and_errors():
 
 
 def test_oracle_is_deterministic_and_env_reset_does_not_leak_state():
-    env = scenes.make_env("stack", axis="stack", level=1, cameras=())
+    env = level_env("stack", axis="stack", level=1, cameras=())
     try:
         first = run_oracle_episode(env, OraclePolicy(), 3)
         q1 = env._rs.sim.data.qpos.copy()
@@ -153,7 +163,7 @@ def test_write_mp4(tmp_path):
 
     from indgen_vla.core.runs.video import write_mp4
 
-    env = scenes.make_env("pick_place", cameras=(), max_steps=4)
+    env = level_env("pick_place", cameras=(), max_steps=4)
     try:
         env.reset(seed=0)
         frames = [env.render_frame("agentview", (63, 80))]

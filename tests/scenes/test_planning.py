@@ -6,6 +6,8 @@ import sys
 import pytest
 
 import scenes
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED
 from scenes.planning import resolve_scene_plan, scene_levels
 
@@ -28,7 +30,7 @@ def test_a_step_no_certificate_was_made_at_leaves_every_level_uncertified():
     assert sp.cell("milk", "pick_y", 2).param == pytest.approx(sp.cell("milk", "pick_y", 0).param + 0.06)
 
 
-def test_the_builder_pickles_and_builds_the_same_level_as_make_env():
+def test_the_builder_pickles_and_builds_the_same_level_as_the_family():
     sp = resolve_scene_plan("pick_place", "milk", ["scale"], "2")
     builder = pickle.loads(pickle.dumps(sp.builder))
     assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
@@ -40,8 +42,9 @@ def test_the_builder_pickles_and_builds_the_same_level_as_make_env():
         "scenes.asset_cache",
     )
     env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
-    ref = scenes.make_env(
-        "pick_place", task="milk", axis="scale", level=2, cameras=(), image_size=(64, 64), max_steps=5
+    sc = scenes.get_scene("pick_place")
+    ref = sc.make_env(
+        "milk", sc.successor(AxisRef.parse("scale")), 2, cameras=(), image_size=(64, 64), max_steps=5
     )
     try:
         assert env.spec == ref.spec and env.axis_param == sp.cell("milk", "scale", 2).param
@@ -54,6 +57,27 @@ def test_scene_levels_needs_no_plan_and_refuses_an_unknown_axis_in_one_line():
     assert scene_levels("pick_place", ["pick_y"]).successors["pick_y"].axis.step == 0.025
     with pytest.raises(Exception, match=r"unknown axis 'pick_q'"):
         scene_levels("pick_place", ["pick_q"])
+
+
+def test_the_plan_parses_each_axis_once_and_hands_out_the_resolved_axes():
+    sp = resolve_scene_plan(
+        "pick_place", "milk", ["pick_y@distractor=2", "pick_y+scale", "pick_y@distractor=2"], "0:1"
+    )
+    assert list(sp.axes) == list(sp.refs) == ["pick_y@distractor=2", "pick_y+scale"]  # a repeat is one axis
+    held = sp.axis("pick_y@distractor=2")
+    assert (held.ref.ladder.name, held.ref.held, held.ref.held_level) == ("pick_y", "distractor", 2)
+    assert held.spec is sp.axes["pick_y@distractor=2"] and held.levels == (0, 1)
+    assert sp.axis("pick_y+scale").ref.components == ("pick_y", "scale")
+    assert sp.builder.successor("milk", "pick_y+scale").axis.name == "pick_y+scale"
+    with pytest.raises(ConfigError, match="write compositions as") as e:
+        resolve_scene_plan("pick_place", None, ["pick_y+"])
+    assert "\n" not in str(e.value)
+
+
+def test_scene_levels_resolves_each_tasks_own_successor():
+    """Without a plan (a T0 build), ``tasks`` gives a family whose steps differ by task its per-task successors."""
+    builder = scene_levels("pick_place", ["pick_y"], tasks=["milk", "lemon"])
+    assert builder.task_successors == {} and builder.successor("lemon", "pick_y").axis.step == 0.025
 
 
 def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
@@ -120,7 +144,7 @@ def test_robocasa_pick_x_level_0_is_a_window_so_it_shares_nothing():
 
     sc, task = scenes.get_scene("robocasa"), "PickPlaceCabinetToCounter"  # on both axes' task lists
     keys = {
-        a: env_key(sc.level_identity(task, sc.successor(a, None, None, task), 0))
+        a: env_key(sc.level_identity(task, sc.successor(AxisRef.parse(a), None, None, task), 0))
         for a in ("pick_x", "clutter")
     }
     assert keys["pick_x"] != keys["clutter"] and "" not in keys.values()

@@ -14,9 +14,10 @@ import dataclasses
 import json
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
-from indgen_vla.core.protocol.progression import parse_levels
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.seeding import episode_seed
 from scenes.certificates import (
     THRESHOLD,
@@ -28,6 +29,9 @@ from scenes.certificates import (
     write_json_atomic,
 )
 from scenes.privileged import with_privileged
+
+if TYPE_CHECKING:
+    from indgen_vla.core.protocol.plan import LevelBuilder
 
 
 class NoOracleError(ConfigError):
@@ -65,23 +69,22 @@ def level_row(
 
 
 def certify_level(
-    scene: str, task: str, axis: str, level: int, step: float | None, preset: str | None, seed: int,
-    max_steps: int | None, rule: Rule, on_episode=None, partial: Path | None = None, key: str = "",
+    builder: LevelBuilder, task: str, axis: str, level: int, seed: int, max_steps: int | None, rule: Rule,
+    on_episode=None, partial: Path | None = None, key: str = "",
 ) -> dict:  # fmt: skip
-    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility);
-    ``on_episode(level, successes, n)`` hears of each finished episode. A seed whose initial state cannot hold the
-    level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x) is skipped and counted. With
-    ``partial`` (``indgen_vla.app.certify.partial``) the episodes a killed run finished under the same ``key`` are reused."""
-    import scenes
+    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility), its env built by
+    the plan's ``builder`` as ``evaluate`` builds it; ``on_episode(level, successes, n)`` hears of each finished
+    episode. A seed whose initial state cannot hold the level (``EpisodeUnavailableError``: a RoboCasa kitchen too
+    narrow for pick_x) is skipped and counted. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
+    killed run finished under the same ``key`` are reused."""
     from indgen_vla.app.certify.partial import EpisodeLog
     from scenes.oracle import oracle_for
 
     t0 = time.time()
+    scene = builder.scene
     log = EpisodeLog(partial, key)
     results = log.results
-    env = scenes.make_env(
-        scene, task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps, preset=preset
-    )
+    env = builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
     try:
         policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not rule.stop(sum(ok for ok, _ in results), len(results)):
@@ -169,7 +172,7 @@ class Pending:
 
 def certify(
     scene: str,
-    axis: str,
+    axis: str | AxisRef,
     *,
     task: str | None = None,
     levels: str | list[int] | None = None,
@@ -202,20 +205,23 @@ def certify(
 
 
 def prepare(
-    scene: str, axis: str, *, task: str | None = None, levels: str | list[int] | None = None,
+    scene: str, axis: str | AxisRef, *, task: str | None = None, levels: str | list[int] | None = None,
     step: float | None = None, episodes: int | None = None, seed: int = 0, max_steps: int | None = None,
     threshold: float = THRESHOLD, preset: str | None = None, out: str | Path | None = None, log=None, watch=None,
 ) -> Pending:  # fmt: skip
-    """Check the request, read what ``out`` already holds, and list the level jobs still to run."""
-    import scenes
+    """Check the request (resolved as ``evaluate`` resolves it: ``scenes.planning.resolve_scene_plan``), read what
+    ``out`` already holds, and list the level jobs still to run."""
     from indgen_vla.app.certify.partial import partial_path
     from scenes.axes import successor_steps
+    from scenes.oracle import oracle_scripts
+    from scenes.planning import resolve_scene_plan
     from scenes.registry import get_scene
 
     sc = get_scene(scene)
     task = sc.resolve_task(task)
-    sc.check_axis(axis)
-    from scenes.oracle import oracle_scripts
+    ref = AxisRef.parse(axis)
+    sc.check_axis(ref)
+    axis = ref.name
 
     if not oracle_scripts(scene, task):
         raise NoOracleError(
@@ -225,11 +231,10 @@ def prepare(
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     rule = Rule(threshold=threshold, n_max=episodes or 0)
-    successor = scenes.successor_for(axis, step, preset, scene, task)  # the family's (and task's) own steps
-    spec = successor.axis
-    lv = parse_levels(levels, spec)
-    scenes.check_axis_progression(scene, task, axis, step, preset)  # before any episode runs
-    scenes.check_ready(scene)
+    # the family's (and task's) own steps, the levels' range and condition 2, before any episode runs
+    plan = resolve_scene_plan(scene, task, (ref,), levels, step, preset, certificates=False)
+    successor = plan.builder.successor(task, axis)
+    spec, lv = successor.axis, list(plan.levels[axis])
     cert = {
         "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
         "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
@@ -263,12 +268,10 @@ def prepare(
     key = json.dumps([*_key(cert), task, (stamp or {}).get("stat_sha256")])
     jobs = [
         (
-            scene,
+            plan.builder,
             task,
             axis,
             k,
-            step,
-            preset,
             seed,
             max_steps,
             rule,

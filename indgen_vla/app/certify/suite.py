@@ -7,6 +7,8 @@ import os
 from pathlib import Path
 
 from indgen_vla.app.certify.run import certify
+from indgen_vla.core.protocol.axis_ref import AxisRef
+from scenes.axes import get_successor
 from scenes.certificates import (
     cert_path,
     certification_root,
@@ -82,9 +84,7 @@ def write_summary(out_dir: str | Path) -> Path:
         ok = certified_levels(c)
         levels = {int(r["level"]) for r in c["levels"]}
         try:
-            import scenes
-
-            want = set(scenes.get_axis(c["axis"]).default_levels())
+            want = set(get_successor(AxisRef.parse(c["axis"])).axis.default_levels())
         except Exception:  # an axis this version no longer knows: report what is there
             want = levels
         missing = sorted(want - set(ok))

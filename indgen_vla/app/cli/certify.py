@@ -36,16 +36,18 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.app.certify.display import CertifyDisplay, print_table
     from indgen_vla.app.certify.run import certify
     from indgen_vla.core.errors import RunDirError
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.certificates import cert_path, certified_levels, infeasible_levels
     from scenes.oracle import oracle_scripts
     from scenes.registry import get_scene
 
-    tasks = get_scene(args.scene).select_tasks(args.task, (args.axis,))
+    axis = AxisRef.parse(args.axis)  # a malformed name: one line, before any scene lookup
+    tasks = get_scene(args.scene).select_tasks(args.task, (axis,))
     preset = args.axes_preset
     failed = False
     for task in tasks:
         if args.out is None:
-            path = cert_path(args.scene, task, args.axis, args.step, preset)
+            path = cert_path(args.scene, task, axis, args.step, preset)
         else:
             path = Path(args.out) / (task if len(tasks) > 1 else "") / "certify.json"
         if len(tasks) > 1 and not oracle_scripts(args.scene, task):
@@ -56,7 +58,7 @@ def main(args: argparse.Namespace) -> int:
         try:
             with CertifyDisplay(args.scene, get_scene(args.scene).resolve_task(task), args.axis) as display:
                 cert = certify(
-                    args.scene, args.axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
+                    args.scene, axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
                     seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
                     threshold=args.threshold or 0.95, preset=preset, out=path,
                     log=display.log, watch=display,

@@ -99,29 +99,25 @@ class EnvMaker:
 
     Attributes:
         scene, cameras, image_size: as ``indgen demos`` got them.
-        builder: with ``--axis``, the plan's ``LevelBuilder`` (``scenes.planning``); None builds T0.
+        builder: the ``LevelBuilder`` every cell is built with (``scenes.planning``): the plan's with ``--axis``.
+        t0_axis: the axis a T0 cell (``axis`` None) is built along, at level 0: T0 on every axis.
     """
 
     scene: str
     cameras: tuple[str, ...]
     image_size: int
-    builder: Any = None
+    builder: Any
+    t0_axis: str = ""
 
     @property
     def preload(self) -> tuple[str, ...]:
         """The modules the workers' fork server imports first (the engine's ``LevelBuilder.preload``)."""
-        from scenes.registry import get_scene
-
-        return tuple(get_scene(self.scene).preload)
+        return tuple(self.builder.preload)
 
     def __call__(self, cell: DemoCell):
         size = (self.image_size, self.image_size)
-        if self.builder is None:
-            import scenes
-
-            return scenes.make_env(self.scene, task=cell.task, level=0, cameras=self.cameras, image_size=size)
-        return self.builder.make_env(cell.task, cell.axis, cell.level, cameras=self.cameras, image_size=size,
-                                     max_steps=None)  # fmt: skip
+        return self.builder.make_env(cell.task, cell.axis or self.t0_axis, cell.level, cameras=self.cameras,
+                                     image_size=size, max_steps=None)  # fmt: skip
 
 
 _OPEN: dict = {}  # this process's one open scene: {"for": (maker, cell), "env": env}

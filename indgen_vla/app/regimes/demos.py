@@ -124,20 +124,21 @@ def plan_cells(
 ) -> tuple[list[DemoCell], EnvMaker]:
     """The cells to record and the ``EnvMaker`` of their scenes; with ``--axis`` resolved exactly as ``evaluate``
     resolves it (``scenes.planning.resolve_scene_plan``: names, level range, condition 2, certificates)."""
-    import scenes
     from indgen_vla.core.protocol.plan import FAILED
+    from scenes.planning import resolve_scene_plan, scene_levels
     from scenes.registry import get_scene
 
-    fixed = get_scene(scene).fixed_initial_states
-    if fixed:
-        raise ConfigError(f"scene {scene} starts every episode from {fixed}, the initial states `evaluate` runs; "
-                          "demonstrations there would train on them: record on a scene whose seed draws the "
-                          "initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
-    if req.axis is None:
-        return [DemoCell(t) for t in scenes.select_tasks(scene, task)], EnvMaker(
-            scene, tuple(cameras), image_size
+    sc = get_scene(scene)
+    if sc.fixed_initial_states:
+        raise ConfigError(f"scene {scene} starts every episode from {sc.fixed_initial_states}, the initial states "
+                          "`evaluate` runs; demonstrations there would train on them: record on a scene whose seed "
+                          "draws the initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
+    if req.axis is None:  # T0: level 0 of the family's first axis, each task's own
+        tasks = sc.select_tasks(task)
+        builder = scene_levels(scene, (sc.default_axis,), tasks=tasks)
+        return [DemoCell(t) for t in tasks], EnvMaker(
+            scene, tuple(cameras), image_size, builder, sc.default_axis
         )
-    from scenes.planning import resolve_scene_plan
 
     plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.preset)
     axis = next(iter(plan.axes))

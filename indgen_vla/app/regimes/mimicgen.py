@@ -173,13 +173,19 @@ def _new_seed(
 
 
 def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, ...], size: tuple[int, int]):
-    """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis."""
-    import scenes
+    """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis resolved
+    as ``evaluate`` resolves it (``scenes.planning.resolve_scene_plan``), both through the builder."""
+    from scenes.planning import resolve_scene_plan, scene_levels
+    from scenes.registry import get_scene
 
     if where.get("axis") is None:
-        return scenes.make_env(scene, task=task, level=0, cameras=cams, image_size=size)
-    return scenes.make_env(scene, task=task, axis=where["axis"], level=level, step=where.get("step"),
-                           preset=where.get("axes_preset"), cameras=cams, image_size=size)  # fmt: skip
+        axis, level = get_scene(scene).default_axis, 0
+        builder = scene_levels(scene, (axis,), tasks=(task,))
+    else:
+        axis = where["axis"]
+        plan = resolve_scene_plan(scene, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
+        builder = plan.builder
+    return builder.make_env(task, axis, level, cameras=cams, image_size=size, max_steps=None)
 
 
 def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError, RunDirError
-from indgen_vla.core.protocol.progression import split_held
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.stats.contrasts import ALPHA, AxisPairs, pair_axes, paired_delta
 from indgen_vla.core.stats.metrics import compare_paired_levels
 
@@ -58,8 +58,8 @@ def same_start(axis_a: str, axis_b: str) -> bool:
     starts at B's level j; ``A@B=0`` at T0)."""
 
     def start(axis: str) -> tuple[str, int] | None:
-        held = split_held(axis)
-        return (held[1], held[2]) if held and held[2] != 0 else None
+        ref = AxisRef.parse(axis)
+        return (ref.held, ref.held_level) if ref.held is not None and ref.held_level != 0 else None
 
     return start(axis_a) == start(axis_b)
 

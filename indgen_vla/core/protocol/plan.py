@@ -18,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.progression import AxisSpec
 from indgen_vla.core.protocol.seeding import evaluation_seed
 
@@ -74,6 +75,15 @@ class Cell:
 
 
 @dataclass(frozen=True)
+class PlannedAxis:
+    """One axis of a plan, resolved: what its name means, its spec and its planned levels."""
+
+    ref: AxisRef
+    spec: AxisSpec
+    levels: tuple[int, ...]
+
+
+@dataclass(frozen=True)
 class ScenePlan:
     """What the scene layer resolves from a config: everything scene-side an evaluation needs."""
 
@@ -86,6 +96,12 @@ class ScenePlan:
     # axis -> task -> component steps, for an axis whose family resolves its step per task (RoboCasa365's pick_x:
     # the task's region / 5); empty when every task of an axis shares ``axes[axis].step``
     task_steps: Mapping[str, Mapping[str, Mapping[str, float]]] = dataclasses.field(default_factory=dict)
+    # axis -> the parsed name (its components, held axis and level), in the config's order
+    refs: Mapping[str, AxisRef] = dataclasses.field(default_factory=dict)
+
+    def axis(self, name: str) -> PlannedAxis:
+        """The resolved axis ``name``: its parsed name, its spec (step, range) and the levels the run covers."""
+        return PlannedAxis(self.refs.get(name) or AxisRef.parse(name), self.axes[name], self.levels[name])
 
     def cell(self, task: str, axis: str, level: int) -> Cell:
         return self._by_key[(task, axis, level)]

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 
 
 class ProgressionError(ConfigError):
@@ -44,10 +45,8 @@ class AxisSpec:
     base: float = 0.0
 
     def __post_init__(self) -> None:
-        held = split_held(self.name)
-        for part in (held[0], held[1]) if held else (self.name,):
-            if not part or not part.replace("_", "").replace("+", "").isalnum():
-                raise ConfigError(f"axis name {self.name!r} must be alphanumeric with '_' or '+' (or A@B=j)")
+        if not all(part.replace("_", "").isalnum() for part in AxisRef.parse(self.name).axes()):
+            raise ConfigError(f"axis name {self.name!r} must be alphanumeric with '_' or '+' (or A@B=j)")
         if not (self.step > 0 and math.isfinite(self.step)):
             raise ConfigError(f"axis {self.name}: step must be a positive number, got {self.step}")
         if self.max_level < 1:
@@ -66,29 +65,6 @@ class AxisSpec:
     def param(self, level: int) -> float:
         """The axis parameter at ``level``: its level-0 value plus ``level`` atomic steps."""
         return self.base + level * self.step
-
-
-def split_held(name: str) -> tuple[str, str, int] | None:
-    """``("pick_y", "distractor", 2)`` for the held axis ``pick_y@distractor=2`` (pick_y's ladder with distractor held
-    at its level 2: one row of a 2-D grid); None for a name without ``@``. One-line ConfigError for a malformed one."""
-    if "@" not in name:
-        return None
-    example = "e.g. pick_y@distractor=2: pick_y's levels, each with distractor at its level 2"
-    inner, _, rest = name.partition("@")
-    held, eq, at = rest.partition("=")
-    if "@" in rest:
-        raise ConfigError(f"axis {name!r}: hold one axis at a time (A@B=j); for more, compose A as 'a+b'")
-    if not inner or not held or not eq:
-        raise ConfigError(f"axis {name!r}: write a held axis as A@B=j, {example}")
-    if ":" in at:
-        raise ConfigError(
-            f"axis {name!r}: the range form A@B=i:j is for --axis and a config's axes (it expands to one axis per "
-            f"level); name one held level here, e.g. {inner}@{held}={at.partition(':')[0] or 0}"
-        )
-    try:
-        return inner, held, int(at)
-    except ValueError:
-        raise ConfigError(f"axis {name!r}: the held level {at!r} is not an integer; {example}") from None
 
 
 def expand_axes(names: Sequence[str]) -> tuple[str, ...]:

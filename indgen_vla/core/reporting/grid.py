@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.protocol.progression import split_held
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.runs.records import atomic_savefig
 from indgen_vla.core.stats.metrics import is_usable, pooled_text
 
@@ -41,11 +41,11 @@ def find_grids(axes: Mapping[str, dict]) -> list[Grid]:
     found: dict[tuple[str, str], dict[int, str]] = {}
     for name in axes:
         try:
-            held = split_held(name)
+            ref = AxisRef.parse(name)
         except ConfigError:  # an '@' name that is no held axis: no grid
             continue
-        if held is not None:
-            found.setdefault(held[:2], {})[held[2]] = name
+        if ref.held is not None:
+            found.setdefault((ref.ladder.name, ref.held), {})[ref.held_level] = name
     grids = []
     for (inner, b), names in sorted(found.items()):
         if 0 not in names and inner in axes:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.axis_ref import AxisRef
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 # hand-computed: RoboCasa 1.0.1's pick region (m) / 5
@@ -24,26 +25,31 @@ def test_each_tasks_step_is_its_region_over_five():
     sc = get_scene("robocasa")
     assert list(STEPS) == list(AXIS_TASKS["pick_x"])  # appendix B's nine tasks, in its order
     for task, step in STEPS.items():
-        axis = sc.successor("pick_x", task=task).axis
+        axis = sc.successor(AxisRef.parse("pick_x"), task=task).axis
         assert (axis.step, axis.max_level) == (step, 4)
     assert (
-        sc.successor("pick_x", task="PickPlaceSinkToCounter@11-34").axis.step == 0.05
+        sc.successor(AxisRef.parse("pick_x"), task="PickPlaceSinkToCounter@11-34").axis.step == 0.05
     )  # a canonical kitchen
     # a preset's range narrows the levels and keeps the step (the quick preset: levels 0..1)
     assert (
         sc.successor(
-            "pick_x", overrides={"pick_x": {"max_level": 1}}, task="PickPlaceSinkToCounter"
+            AxisRef.parse("pick_x"), overrides={"pick_x": {"max_level": 1}}, task="PickPlaceSinkToCounter"
         ).axis.step
         == 0.05
     )
     # --step and a preset's step are the user's: the same for every task
-    assert sc.successor("pick_x", 0.05, task="PickPlaceCounterToCabinet").axis.step == 0.05
-    assert sc.successor("pick_x", overrides={"pick_x": {"step": 0.05}}, task="CheesyBread").axis.step == 0.05
+    assert sc.successor(AxisRef.parse("pick_x"), 0.05, task="PickPlaceCounterToCabinet").axis.step == 0.05
+    assert (
+        sc.successor(
+            AxisRef.parse("pick_x"), overrides={"pick_x": {"step": 0.05}}, task="CheesyBread"
+        ).axis.step
+        == 0.05
+    )
     # in a composition the pick component takes the task's step
-    comp = sc.successor("pick_x+horizon", task="PickPlaceCounterToSink")
+    comp = sc.successor(AxisRef.parse("pick_x+horizon"), task="PickPlaceCounterToSink")
     assert [p.axis.step for p in comp.parts] == [0.06, 0.125]
     with pytest.raises(ConfigError, match="not on axis pick_x's task list"):
-        sc.successor("pick_x", task="CloseStandMixerHead")
+        sc.successor(AxisRef.parse("pick_x"), task="CloseStandMixerHead")
 
 
 def test_the_worker_gets_what_its_pick_window_needs():
@@ -54,7 +60,9 @@ def test_the_worker_gets_what_its_pick_window_needs():
     sc = get_scene("robocasa")
 
     def pick(task, axis="pick_x", step=None, level=2):
-        return sc.level_config(task, sc.successor(axis, step, task=task), level, (), (64, 64))["pick"]
+        return sc.level_config(task, sc.successor(AxisRef.parse(axis), step, task=task), level, (), (64, 64))[
+            "pick"
+        ]
 
     assert pick("CheesyBread") == {"cfg": "cheese", "declared": 1.0, "level": 2, "top": 4, "step": None,
                                    "progressions": 5, "report": True}  # fmt: skip
@@ -74,7 +82,7 @@ def test_a_step_whose_top_level_leaves_the_region_is_refused(task, step, fits):
     from scenes.registry import get_scene
 
     sc = get_scene("robocasa")
-    successor = sc.successor("pick_x", step, task=task)
+    successor = sc.successor(AxisRef.parse("pick_x"), step, task=task)
     if fits:
         sc.check_progression(task, successor, True)
         return

@@ -8,10 +8,17 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.axis_ref import AxisRef
+from tests.fixtures.levels import level_env
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 PRESETS = {"robocasa_pick": "pick_x", "robocasa_fixture": "fixture_x", "robocasa_horizon": "base_y",
            "robocasa_clutter": "clutter"}  # fmt: skip
+
+
+def _axes(*names: str) -> list[AxisRef]:
+    """The parsed axes of ``names`` (the family's methods take them parsed)."""
+    return [AxisRef.parse(n) for n in names]
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
@@ -27,8 +34,8 @@ def test_each_paper_preset_runs_its_axis_on_appendix_bs_task_list(name):
     d = load_config_preset(name)
     sc = get_scene("robocasa")
     assert d["scene"] == "robocasa" and d["axes"] == [PRESETS[name]] and d["task"] == "all"
-    assert sc.select_tasks(d["task"], d["axes"]) == list(AXIS_TASKS[resolve_alias(PRESETS[name])])
-    axis = sc.successor(PRESETS[name]).axis
+    assert sc.select_tasks(d["task"], _axes(*d["axes"])) == list(AXIS_TASKS[resolve_alias(PRESETS[name])])
+    axis = sc.successor(AxisRef.parse(PRESETS[name])).axis
     assert list(parse_levels(d["levels"], axis)) == list(range(axis.max_level + 1))
     assert d["episodes"] == 50
 
@@ -38,16 +45,16 @@ def test_task_all_is_the_axis_list_and_a_task_off_the_list_is_refused():
     from scenes.robocasa import AXIS_TASKS
 
     sc = get_scene("robocasa")
-    assert sc.select_tasks("all", ["fixture_x"]) == list(AXIS_TASKS["fixture_x"])
-    assert sc.select_tasks(None, ["base_y"]) == ["PickPlaceFridgeDrawerToShelf"]
+    assert sc.select_tasks("all", _axes("fixture_x")) == list(AXIS_TASKS["fixture_x"])
+    assert sc.select_tasks(None, _axes("base_y")) == ["PickPlaceFridgeDrawerToShelf"]
     # pick_x and horizon share four tasks, in pick_x's order
-    assert sc.select_tasks("all", ["pick_x", "horizon"]) == [
+    assert sc.select_tasks("all", _axes("pick_x", "horizon")) == [
         "PickPlaceCounterToBlender", "PickPlaceCounterToCabinet", "PickPlaceCounterToDrawer", "PickPlaceCounterToSink"
     ]  # fmt: skip
     with pytest.raises(ConfigError, match="share no task"):
-        sc.select_tasks("all", ["fixture_x", "clutter"])
+        sc.select_tasks("all", _axes("fixture_x", "clutter"))
     with pytest.raises(ConfigError, match="not on axis horizon's task list"):
-        sc.select_tasks("CloseStandMixerHead", ["base_y"])
+        sc.select_tasks("CloseStandMixerHead", _axes("base_y"))
     assert sc.select_tasks("all") == list(sc.tasks)  # no axis given: every task of the family
 
 
@@ -123,10 +130,9 @@ def test_the_oracle_touching_the_object_then_cut_short_is_no_grasp(placeholders)
     """The worker's facts come from MuJoCo's contacts: the first step whose gripper touches the object (as the
     worker's privileged ``obj_touching`` also says) makes the episode ``no_grasp`` at progress 1, not ``no_contact``.
     The grasp and lift stages: test_the_oracle_lifting_the_object_then_cut_short_is_timeout_holding."""
-    import scenes
 
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
-                          max_steps=400)  # fmt: skip
+    env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                    max_steps=400)  # fmt: skip
     try:
         assert env.has_progress is False  # nothing known before the first reset
         steps = _oracle_until(env, 3, lambda e: e._facts()["touching"], limit=120)
@@ -140,10 +146,8 @@ def test_the_oracle_touching_the_object_then_cut_short_is_no_grasp(placeholders)
 @needs_venv
 @pytest.mark.slow  # ~6 s: ~100 oracle steps; test_a_worker_that_dies_mid_episode_... covers the facts
 def test_the_oracle_lifting_the_object_then_cut_short_is_timeout_holding(placeholders):
-    import scenes
-
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
-                          max_steps=400)  # fmt: skip
+    env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                    max_steps=400)  # fmt: skip
     try:
         start = []
 
@@ -169,10 +173,8 @@ def test_a_pick_task_sends_its_contact_facts_over_the_pipe(placeholders):
     ``no_contact`` at progress 0; the gripper command is read at RoboCasa's index 6, not the last entry."""
     import numpy as np
 
-    import scenes
-
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
-                          max_steps=5)  # fmt: skip
+    env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                    max_steps=5)  # fmt: skip
     try:
         env.reset(seed=3)
         action = np.zeros(12)
@@ -193,10 +195,8 @@ def test_a_fixture_task_has_no_contact_facts_so_its_failure_is_unknown(placehold
     progress is missing (None), never a made-up ``no_contact`` / 0."""
     import numpy as np
 
-    import scenes
-
-    env = scenes.make_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
-                          max_steps=2)  # fmt: skip
+    env = level_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
+                    max_steps=2)  # fmt: skip
     try:
         env.reset(seed=1)
         action = np.zeros(12)
@@ -217,9 +217,9 @@ def test_canonical_kitchens_expand_and_reach_the_worker_config():
     from scenes.robocasa import AXIS_TASKS, KITCHEN_SETS
 
     sc = get_scene("robocasa")
-    tasks = sc.select_tasks("PickPlaceCounterToCabinet@5x5", ["base_y"])
+    tasks = sc.select_tasks("PickPlaceCounterToCabinet@5x5", _axes("base_y"))
     assert tasks == [f"PickPlaceCounterToCabinet@{lay}-{sty}" for lay, sty in KITCHEN_SETS["5x5"]]
-    horizon = sc.select_tasks("all@5x1", ["base_y"])
+    horizon = sc.select_tasks("all@5x1", _axes("base_y"))
     assert (
         len(horizon) == 5 * len(AXIS_TASKS["horizon"]) - 1
     )  # PickPlaceFridgeDrawerToShelf excludes layout 18
@@ -227,17 +227,21 @@ def test_canonical_kitchens_expand_and_reach_the_worker_config():
         "PickPlaceFridgeDrawerToShelf@18-34" not in horizon
         and "PickPlaceFridgeDrawerToShelf@11-34" in horizon
     )
-    cfg = sc.level_config("PickPlaceCounterToCabinet@40-46", get_successor("horizon"), 1, (), (64, 64))
+    cfg = sc.level_config(
+        "PickPlaceCounterToCabinet@40-46", get_successor(AxisRef.parse("horizon")), 1, (), (64, 64)
+    )
     assert (cfg["task"], cfg["layout_ids"], cfg["style_ids"]) == ("PickPlaceCounterToCabinet", [40], [46])
     assert (
-        sc.level_config("PickPlaceCounterToCabinet", get_successor("horizon"), 1, (), (64, 64))["layout_ids"]
+        sc.level_config(
+            "PickPlaceCounterToCabinet", get_successor(AxisRef.parse("horizon")), 1, (), (64, 64)
+        )["layout_ids"]
         is None
     )
     for bad, match in (("PickPlaceCounterToCabinet@7-3", "not one of RoboCasa's canonical kitchens"),
                        ("PickPlaceFridgeDrawerToShelf@18-14", "excludes layout 18"),
                        ("CloseStandMixerHead@11-34", "not on axis horizon's task list")):  # fmt: skip
         with pytest.raises(ConfigError, match=match):
-            sc.select_tasks(bad, ["base_y"])
+            sc.select_tasks(bad, _axes("base_y"))
 
 
 @needs_venv

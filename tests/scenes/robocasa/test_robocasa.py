@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError
+from tests.fixtures.levels import level_env
 
 
 def _python():
@@ -24,14 +25,15 @@ needs_venv = pytest.mark.skipif(
 
 
 def test_base_y_is_the_horizon_axis_and_task_lists_are_checked():
-    import scenes
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.registry import get_scene
 
-    assert scenes.get_axis("base_y").name == "horizon"
+    base_y = AxisRef.parse("base_y")
     sc = get_scene("robocasa")
-    sc.check_axis("base_y")
+    assert sc.successor(base_y).axis.name == "horizon"
+    sc.check_axis(base_y)
     with pytest.raises(ConfigError, match="not on axis horizon's task list"):
-        sc.check_axis_task("CloseStandMixerHead", "base_y")
+        sc.check_axis_task("CloseStandMixerHead", base_y)
 
 
 def test_env_spec_follows_lerobot():
@@ -116,11 +118,10 @@ def _changed(m0: dict, m1: dict) -> set[str]:
 def _levels(task: str, axis: str, levels, seed: int, step_at: int | None = None) -> list[tuple[dict, dict]]:
     """(ep_meta, privileged state) after reset(seed) at each level, in order (one pooled worker); at level
     ``step_at`` one 12-d control step after the reset."""
-    import scenes
 
     out = []
     for level in levels:
-        env = scenes.make_env("robocasa", task=task, axis=axis, level=level, cameras=())
+        env = level_env("robocasa", task=task, axis=axis, level=level, cameras=())
         try:
             obs, _ = env.reset(seed=seed)
             assert obs.state.shape == (16,) and obs.images == {}
@@ -174,7 +175,6 @@ def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placehol
     ep_meta field: the offset; the worker reports the window beside it), which the episode records as its param.
     Level 1 draws T0 itself in a fresh worker (no cached T0): the kitchen's range, so the offset, is the seed's.
     A user's --step whose level 4 leaves that range makes the episode unavailable, in one line, not a moved level."""
-    import scenes
     from indgen_vla.core.errors import EpisodeUnavailableError
     from scenes.external import close_idle_workers
     from scenes.robocasa.pick_window import PICK_KEY
@@ -182,7 +182,7 @@ def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placehol
     task, got = "PickPlaceCounterToBlender", []
     close_idle_workers()
     for level, step in ((1, None), (0, None), (1, 0.09)):
-        env = scenes.make_env("robocasa", task=task, axis="pick_x", level=level, step=step, cameras=())
+        env = level_env("robocasa", task=task, axis="pick_x", level=level, step=step, cameras=())
         try:
             if step is not None:  # level 4 at 0.09 m a level: 0.36..0.40 m, past the kitchen's 0.365 m
                 with pytest.raises(
@@ -246,13 +246,14 @@ def test_clutter_adds_one_object_in_the_cabinet(placeholders):
 @needs_venv
 def test_levels_0_to_3_on_base_y_resolve_for_robocasa(placeholders):
     """RoboCasa365 runs base_y 0..3 (its own range, Scene.axis_overrides); the shared table's horizon stops at 2."""
+    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import get_successor
     from scenes.planning import resolve_scene_plan
 
     plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:3")
     assert list(plan.levels["base_y"]) == [0, 1, 2, 3]
     assert [c.param for c in plan.cells] == pytest.approx([0.0, 0.125, 0.25, 0.375])
-    assert get_successor("horizon").axis.max_level == 2
+    assert get_successor(AxisRef.parse("horizon")).axis.max_level == 2
     with pytest.raises(ConfigError, match="outside"):
         resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:4")
 
@@ -270,10 +271,9 @@ def test_backend_and_family_agree_on_the_pick_window():
 
 @needs_venv
 def test_a_worker_that_dies_mid_episode_is_an_episode_error_then_restarts(placeholders):
-    import scenes
     from scenes.runtime import WorkerDied
 
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=())
+    env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=())
     try:
         env.reset(seed=3)
         env.step(np.zeros(12))
@@ -375,15 +375,14 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
 def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
     worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
-    import scenes
     from indgen_vla.app.certify.run import run_oracle_episode
     from scenes.oracle import oracle_for
     from scenes.robocasa.oracle import RoboCasaOracle
 
     policy = oracle_for("robocasa")
     assert isinstance(policy, RoboCasaOracle) and policy.spec.action_dim == 12
-    env = scenes.make_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
-                          max_steps=150)  # fmt: skip
+    env = level_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
+                    max_steps=150)  # fmt: skip
     try:
         ok, steps = run_oracle_episode(env, policy, seed=1)
         assert ok and steps < 150
@@ -398,12 +397,11 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
 @needs_venv
 @pytest.mark.slow
 def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
-    import scenes
     from indgen_vla.app.certify.run import run_oracle_episode
     from scenes.oracle import oracle_for
 
-    env = scenes.make_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
-                          max_steps=400)  # fmt: skip
+    env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
+                    max_steps=400)  # fmt: skip
     try:
         assert run_oracle_episode(env, oracle_for("robocasa"), seed=3)[0]
     finally:
@@ -427,13 +425,12 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
 
 def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int | None) -> list[bool]:
     """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
-    import scenes
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracle import oracle_for
     from scenes.robocasa.horizons import TASK_HORIZONS
 
-    env = scenes.make_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)
+    env = level_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)
     # no max_steps: the task's own horizon (RoboCasa's get_task_horizon; test_horizons checks it against upstream)
     assert env.max_steps == (max_steps or TASK_HORIZONS[task])
     try:

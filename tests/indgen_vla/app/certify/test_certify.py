@@ -10,7 +10,7 @@ import pytest
 from scipy.stats import beta
 
 import scenes
-from indgen_vla.app.certify.run import certify
+from indgen_vla.app.certify.run import certify, prepare
 from indgen_vla.app.certify.suite import default_jobs, write_summary
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.progression import ProgressionError
@@ -27,6 +27,8 @@ from scenes.certificates import (
     lower_bound,
     write_json_atomic,
 )
+from scenes.planning import resolve_scene_plan
+from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 
@@ -160,44 +162,49 @@ def test_default_jobs_put_every_tasks_first_axis_first():
 
 
 def test_strictly_harder_is_checked_up_front_for_axes_and_compositions(tmp_path):
-    scenes.check_axis_progression("pick_place", None, "pick_y")
-    scenes.check_axis_progression("pick_place", None, "pick_y+distractor")
+    resolve_scene_plan("pick_place", None, ["pick_y"])
+    resolve_scene_plan("pick_place", None, ["pick_y+distractor"])
     with pytest.raises(ProgressionError, match="placement jitter"):
-        scenes.check_axis_progression("pick_place", None, "pick_y", step=0.005)
+        resolve_scene_plan("pick_place", None, ["pick_y"], step=0.005)
     preset = tmp_path / "small.yaml"
     preset.write_text("axes:\n  pick_y: {step: 0.005}\n")
     with pytest.raises(ProgressionError, match=r"component pick_y at step 0.005"):
-        scenes.check_axis_progression("pick_place", None, "pick_y+distractor", preset=str(preset))
+        resolve_scene_plan("pick_place", None, ["pick_y+distractor"], preset=str(preset))
     preset.write_text("axes:\n  goal_y: {step: 0.004}\n")
     with pytest.raises(ProgressionError, match="component goal_y"):
-        scenes.check_axis_progression("stack", None, "goal_y+distractor", preset=str(preset))
+        resolve_scene_plan("stack", None, ["goal_y+distractor"], preset=str(preset))
     with pytest.raises(ProgressionError):  # certify refuses before building any env
         certify("pick_place", "pick_y", step=0.005, episodes=1, out=tmp_path / "x" / "certify.json")
     assert not (tmp_path / "x").exists()
 
 
+def _spec(name: str, step: float | None = None, preset: str | None = None):
+    """The spec of ``name`` on pick_place under ``step`` / ``preset``, as the plan resolves it."""
+    return resolve_scene_plan("pick_place", None, [name], step=step, preset=preset).axes[name]
+
+
 def test_axes_preset_steps_reach_specs_params_and_folders(tmp_path):
     (tmp_path / "wide.yaml").write_text("axes:\n  pick_y: {step: 0.05, max_level: 2}\n")
     p = str(tmp_path / "wide.yaml")
-    spec = scenes.get_axis("pick_y+distractor", preset=p)
+    spec = _spec("pick_y+distractor", preset=p)
     assert "pick_y (0.05 m)" in spec.description and spec.max_level == 2
-    base = scenes.level_param("pick_place", None, "pick_y", 1)
-    assert scenes.level_param("pick_place", None, "pick_y", 1, preset=p) == pytest.approx(base + 0.025)
+    base = level_param("pick_place", None, "pick_y", 1)
+    assert level_param("pick_place", None, "pick_y", 1, preset=p) == pytest.approx(base + 0.025)
     assert axis_dirname("pick_y+distractor") == "pick_y+distractor"
     assert axis_dirname("pick_y+distractor", preset=p) == "pick_y+distractor@pick_y=0.05,distractor=1"
     assert axis_dirname("pick_y", preset="paper") == "pick_y"  # the paper preset states the defaults
     with pytest.raises(UnknownNameError, match="did you mean 'paper'"):
-        scenes.get_axis("pick_y", preset="papr")
+        _spec("pick_y", preset="papr")
     (tmp_path / "bad.yaml").write_text("axes: [pick_y\n")
     with pytest.raises(ConfigError, match="invalid YAML"):
-        scenes.get_axis("pick_y", preset=str(tmp_path / "bad.yaml"))
+        _spec("pick_y", preset=str(tmp_path / "bad.yaml"))
     (tmp_path / "typo.yaml").write_text("axes:\n  pick_z: {step: 0.05}\n")
     with pytest.raises(
         ConfigError, match=r"unknown axis in preset .*typo.yaml: 'pick_z'; did you mean 'pick_y', 'pick_x'"
     ):
-        scenes.get_axis("pick_y", preset=str(tmp_path / "typo.yaml"))
+        _spec("pick_y", preset=str(tmp_path / "typo.yaml"))
     with pytest.raises(ConfigError, match="--axes-preset NAME"):
-        scenes.get_axis("pick_y+distractor", step=0.05)
+        _spec("pick_y+distractor", step=0.05)
 
 
 def test_json_is_written_atomically(tmp_path):
@@ -261,6 +268,20 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     assert find_certification("stack", None, "stack", root=root) is None
 
 
+def test_certify_builds_its_levels_through_the_plan(tmp_path):
+    """certify resolves its axis as evaluate does and hands each level job the plan's builder (the one road)."""
+    p = prepare(
+        "pick_place", "pick_y+distractor", task="lemon", levels="0:1", episodes=1, out=tmp_path / "c.json"
+    )
+    plan = resolve_scene_plan("pick_place", "lemon", ["pick_y+distractor"], "0:1")
+    assert [j[1:4] for j in p.jobs] == [("lemon", "pick_y+distractor", 0), ("lemon", "pick_y+distractor", 1)]
+    assert all(j[0] == plan.builder for j in p.jobs)
+    assert p.cert["steps"] == {"pick_y": 0.025, "distractor": 1.0} and p.levels == [0, 1]
+    with pytest.raises(ConfigError, match="write a held axis as A@B=j") as e:
+        prepare("pick_place", "pick_y@distractor", episodes=1)
+    assert "\n" not in str(e.value)
+
+
 def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level no seed holds is one line."""
@@ -279,17 +300,22 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
         def close(self):
             pass
 
-    monkeypatch.setattr(scenes, "make_env", lambda *a, **k: Env())
+    class Builder:  # the plan's builder, building the stand-in above
+        scene = "stack"
+
+        def make_env(self, *args, **kwargs):
+            return Env()
+
     monkeypatch.setattr(scenes.oracle, "oracle_for", lambda scene: None)
     monkeypatch.setattr(
         certify_run, "run_oracle_episode", lambda env, policy, seed, i: (env.reset(seed), (True, 9))[1]
     )
     rule = certify_run.Rule(n_max=3)
-    row = certify_run.certify_level("stack", "t", "a", 0, None, None, 0, None, rule)
+    row = certify_run.certify_level(Builder(), "t", "a", 0, 0, None, rule)
     assert (row["n"], row["unavailable"], len(Env.calls), len(set(Env.calls))) == (3, 1, 4, 4)
     assert "unavailable" not in certify_run.level_row(0, 0.0, [(True, 9)], rule, 1.0)
     Env.calls, Env.out = [], set(range(10))
     with pytest.raises(
         SceneError, match=r"^4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range$"
     ):
-        certify_run.certify_level("stack", "t", "a", 0, None, None, 0, None, rule)
+        certify_run.certify_level(Builder(), "t", "a", 0, 0, None, rule)

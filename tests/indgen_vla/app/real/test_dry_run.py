@@ -12,6 +12,7 @@ from indgen_vla.app.cli import main
 from indgen_vla.app.real.plan import RealRun
 from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import OPERATOR_FAILURES
+from tests.fixtures.levels import level_param
 
 
 @pytest.fixture
@@ -46,7 +47,7 @@ def test_plan_record_report_against_a_simulated_robot(tmp_path, capsys, robot):
     judged = []
     while (nxt := status(rr)["next"]) is not None:
         level, ep = nxt["level"], nxt["episode"]
-        param = scenes.level_param("stack", task, "stack", level, None, None)
+        param = level_param("stack", task, "stack", level, None, None)
         assert param == pytest.approx(nxt["param"])  # the simulated riser height is the preset's, in inches
         job = EpisodeJob(task, "stack", level, ep, rr.seeds[ep], param)
         runner = runners[30 if (level, ep) == (1, 1) else None]  # one episode cut short: the oracle fails

@@ -7,6 +7,7 @@ import pytest
 
 from indgen_vla.app.regimes.demos import HumanNoise, record_demos
 from indgen_vla.core.errors import ConfigError
+from tests.fixtures.levels import level_env, level_param
 
 
 @pytest.mark.slow  # ~30 s (32-px rendering + dataset write); test_train covers the state-only round trip by default
@@ -45,12 +46,27 @@ def _run(code: str) -> str:
     return out.stdout + out.stderr
 
 
+def test_demos_build_t0_and_levels_through_the_plans_builder():
+    """T0 is level 0 of the family's first axis, each task's own; --axis cells use the plan's builder."""
+    from indgen_vla.app.regimes.demos import LevelRequest, plan_cells
+    from scenes.planning import resolve_scene_plan, scene_levels
+
+    cells, maker = plan_cells("pick_place", "all", LevelRequest(), (), 64)
+    assert maker.t0_axis == "pick_y" and {c.axis for c in cells} == {None}
+    assert maker.builder == scene_levels("pick_place", ["pick_y"], tasks=[c.task for c in cells])
+    cells, maker = plan_cells("pick_place", "milk", LevelRequest("pick_y+distractor", "0:1"), (), 64)
+    assert maker.builder == resolve_scene_plan("pick_place", "milk", ["pick_y+distractor"], "0:1").builder
+    assert [(c.axis, c.level) for c in cells] == [("pick_y+distractor", 0), ("pick_y+distractor", 1)]
+
+
 def test_demos_and_mimicgen_build_their_scenes_without_robosuites_macro_warning():
-    """Both commands build scenes in their own process through scenes.make_env, whose layouts import robosuite by
+    """Both commands build scenes in their own process through the plan's builder, whose layouts import robosuite by
     scenes.objects, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
     (the fork server's preload: tests/scenes/test_planning.py::test_the_fork_servers_preload_is_quiet)."""
-    code = ("import indgen_vla.app.regimes.demos, indgen_vla.app.regimes.mimicgen, scenes\n"
-            "env = scenes.make_env('pick_place', cameras=())\nenv.reset(seed=0)\nenv.close()")  # fmt: skip
+    code = ("import indgen_vla.app.regimes.mimicgen\n"
+            "from indgen_vla.app.regimes.demos import LevelRequest, plan_cells\n"
+            "cells, maker = plan_cells('pick_place', None, LevelRequest(), (), 64)\n"
+            "env = maker(cells[0])\nenv.reset(seed=0)\nenv.close()")  # fmt: skip
     assert "macro" not in _run(code)
 
 
@@ -145,13 +161,12 @@ def test_level_demos_record_each_level_with_its_axis_parameter(level_demos, demo
     """Per frame (lerobot reads the columns back) and in the sidecar; level 0 is the default recording's episode."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    import scenes
     from indgen_vla.app.regimes.demos import read_episode_sidecar
 
     out, stats = level_demos
     assert stats["episodes"] == 2 and stats["axis"] == "pick_y" and stats["levels"] == [0, 1]
     records = read_episode_sidecar(out)
-    want = {k: scenes.level_param("pick_place", "milk", "pick_y", k) for k in (0, 1)}
+    want = {k: level_param("pick_place", "milk", "pick_y", k) for k in (0, 1)}
     assert [(r["level"], r["axis"], r["param"]) for r in records] == [(k, "pick_y", want[k]) for k in (0, 1)]
     data = LeRobotDataset("local/indgen_demos", root=out).hf_dataset.with_format("numpy")
     cols = {k: np.asarray(data[k]) for k in ("episode_index", "level", "axis", "axis_param")}
@@ -168,13 +183,12 @@ def test_level_demos_record_each_level_with_its_axis_parameter(level_demos, demo
 
 
 def test_demos_start_from_other_initial_states_than_evaluation_episodes(level_demos):
-    import scenes
     from indgen_vla.app.regimes.demos import read_episode_sidecar
     from indgen_vla.core.protocol.seeding import evaluation_seed
     from scenes.poses import object_poses
     from scenes.privileged import privileged_of, with_privileged
 
-    env = scenes.make_env("pick_place", task="milk", cameras=())
+    env = level_env("pick_place", task="milk", cameras=())
     try:
         starts = []
         for e in range(5):
