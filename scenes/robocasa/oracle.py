@@ -62,6 +62,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
         "TurnOnBlender",
+        "CloseElectricKettleLid",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -161,6 +162,10 @@ class RoboCasaOracle:
         press = s.target.floor_z is None  # a fixture part to push: no receptacle floor to put anything on
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
+        if press and s.goal is not None:  # a hinged lid standing open (its hinge the goal)
+            from scenes.robocasa.oracle_fixtures import close_lid
+
+            return close_lid(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:
