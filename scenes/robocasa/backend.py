@@ -24,8 +24,6 @@ MOVED_FIXTURE = {
     "CloseStandMixerHead": "stand_mixer", "OpenStandMixerHead": "stand_mixer", "TurnOnElectricKettle": "electric_kettle",
     "OpenElectricKettleLid": "electric_kettle", "CloseElectricKettleLid": "electric_kettle", "TurnOnBlender": "blender",
 }  # fmt: skip
-# the object config a task moves where it is not RoboCasa's usual "obj" (what the oracle picks)
-PICK_OBJECT = {"CheesyBread": "cheese"}
 FIXTURE_KEY = (
     "indgen_fixture_offset"  # the ep_meta field fixture_x edits: {"fixture": name, "offset": [dx, 0, 0]}
 )
@@ -352,9 +350,8 @@ class RoboCasaLevel:
             "base_pos": np.array(data.get_body_xpos("mobilebase0_base"), dtype=np.float64),
             "base_yaw": float(_yaw(bq)),
         }
-        name = PICK_OBJECT.get(self.cfg["task"], "obj")  # the object the task moves
-        if name in getattr(env, "objects", {}):
-            obj, bid = env.objects[name], env.obj_body_id[name]
+        if "obj" in getattr(env, "objects", {}):
+            obj, bid = env.objects["obj"], env.obj_body_id["obj"]
             pos = np.array(data.body_xpos[bid])
             out.update(
                 obj_pos=pos, obj_quat=np.array(data.body_xquat[bid]),

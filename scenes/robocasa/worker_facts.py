@@ -112,8 +112,7 @@ def check_kitchen(config: dict) -> None:
 def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {
-        **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env, task),
-        **place_facts(env, task),
+        **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
         **button_facts(env, task), **kettle_facts(env, task),
     }  # fmt: skip
 
@@ -196,10 +195,10 @@ def kettle_facts(env, task: str) -> dict:
     }  # fmt: skip
 
 
-def object_extent_facts(env, task: str = "") -> dict:
+def object_extent_facts(env) -> dict:
     """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
-    the fingers across the narrower side (CheesyBread's pick object is its ``cheese``)."""
-    obj = getattr(env, "objects", {}).get("cheese" if task == "CheesyBread" else "obj")
+    the fingers across the narrower side."""
+    obj = getattr(env, "objects", {}).get("obj")
     return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
 
 
@@ -235,9 +234,6 @@ def place_facts(env, task: str) -> dict:
         return {"place_pos": np.array([*xy, z]), "place_ceiling": _ceiling(env, xy, z)}
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
-    if task == "CheesyBread":  # onto the bread's top, at its centre (RoboCasa wants the cheese touching it)
-        pos = np.array(data.body_xpos[env.obj_body_id["bread"]], dtype=np.float64)
-        return {"place_pos": pos + np.array([0.0, 0.0, env.objects["bread"].top_offset[2]])}
     if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
         return {"place_pos": _floor_centre(env.sink)}
     if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
