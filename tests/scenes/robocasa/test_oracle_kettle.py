@@ -53,6 +53,7 @@ def test_the_oracle_goes_behind_the_lid_then_sweeps_it_toward_the_front():
     assert o.phase == "press"  # nearly shut: pressed down the rest of the way
 
 
-@needs_venv  # ~20 s: a cold worker and a 141-step episode
+@needs_venv
+@pytest.mark.slow  # 32 s on the shared 2-core machine: a cold worker and a 141-step episode
 def test_the_oracle_closes_the_kettle_lid(placeholders):
     assert _oracle_episodes("CloseElectricKettleLid", "fixture_x", 0, (0,), None) == [True]
