@@ -25,17 +25,17 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
+from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
-OPEN, CLOSED = -1.0, 1.0
+OPEN = -1.0  # robosuite's gripper action (CLOSED, 1.0, comes with the lid script's module)
 # radians the hand tips forward to press a button low on an appliance's front (the blender's): PRESS_TILT swings
 # the fingers into the appliance's face above it
 BUTTON_TILT = 0.25
 CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
-MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
@@ -164,8 +164,6 @@ class RoboCasaOracle:
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
         if press and s.goal is not None:  # a hinged lid standing open (its hinge the goal)
-            from scenes.robocasa.oracle_fixtures import close_lid
-
             return close_lid(self, s)
         if press:
             return self._press(s)

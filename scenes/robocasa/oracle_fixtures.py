@@ -12,6 +12,8 @@ import numpy as np
 
 from scenes.privileged import PrivilegedState
 
+CLOSED = 1.0  # robosuite's gripper action: fingers shut
+MAX_PRESS_TILT = 1.3  # radians: the most a press tips the hand while its reach falls short
 BEHIND = 0.03  # m the grip site stays behind a standing lid's back face before sweeping it shut
 CLOSED_BELOW = 0.3  # how open (RoboCasa's 0..1) a lid may still be when the sweep hands over to the press
 
@@ -29,8 +31,6 @@ def hinge_frame(s: PrivilegedState) -> tuple[np.ndarray, np.ndarray, float, floa
 def _reach(o, s: PrivilegedState, target, tol: float) -> bool:
     """At ``target``; stalled short of it, tips the hand 0.2 rad further (a tipped hand reaches farther; the
     press's rule, up to its ``MAX_PRESS_TILT``) and is done when it cannot tip more."""
-    from scenes.robocasa.oracle import MAX_PRESS_TILT
-
     if np.linalg.norm(np.asarray(target) - s.eef_pos) < tol:
         return True
     if o._near(s, target, tol) and o._count > 20:
@@ -45,8 +45,6 @@ def close_lid(o, s: PrivilegedState) -> np.ndarray:
     falls short), swept toward the fixture's front faster than RoboCasa's hold pulls it back open, then pushed down
     near its free end until RoboCasa reads it shut, then up; ``o`` is the ``RoboCasaOracle`` (phase, motion).
     Dragging the edge by friction from above instead lost the edge at once (0/1 where the sweep succeeds)."""
-    from scenes.robocasa.oracle import CLOSED
-
     hinge, u, length, t, _ = hinge_frame(s)
     z = np.array([0.0, 0.0, 1.0])
     behind = hinge - u * (t + BEHIND)
