@@ -4,13 +4,14 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Four scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+control mode -1 (arm). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
-time on placeholder assets) and a press: the stand mixer's head (pushed down at its free end, the hand tipped
-further while the reach falls short) or the blender's power button (touched, then left straight up). ``tasks``
+time on placeholder assets), a press: the stand mixer's head (pushed down at its free end, the hand tipped
+further while the reach falls short) or the blender's power button (touched, then left straight up), and the
+electric kettle's standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -24,17 +25,17 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
+from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
-OPEN, CLOSED = -1.0, 1.0
+OPEN = -1.0  # robosuite's gripper action (CLOSED, 1.0, comes with the lid script's module)
 # radians the hand tips forward to press a button low on an appliance's front (the blender's): PRESS_TILT swings
 # the fingers into the appliance's face above it
 BUTTON_TILT = 0.25
 CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
-MAX_PRESS_TILT = 1.3  # radians: the most the press tips the hand when the head is beyond a 0.5-rad reach
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
 TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
@@ -52,7 +53,7 @@ class RoboCasaOracle:
 
     spec = oracle_spec(ACTION_DIM)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (TurnOnElectricKettle's switch push was tried and left out: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -62,6 +63,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
         "TurnOnBlender",
+        "CloseElectricKettleLid",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -161,6 +163,8 @@ class RoboCasaOracle:
         press = s.target.floor_z is None  # a fixture part to push: no receptacle floor to put anything on
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
+        if press and s.goal is not None:  # a hinged lid standing open (its hinge the goal)
+            return close_lid(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:

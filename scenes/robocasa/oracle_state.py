@@ -16,6 +16,30 @@ def press_point(raw: dict, part):
     return part + 0.7 * (part - np.asarray(hinge, dtype=np.float64))
 
 
+def hinge_goal(raw: dict):
+    """A hinged lid's hinge as the goal: its world anchor, turned (about z) to the way the fixture faces, its top
+    the lid's half thickness (``worker_facts.kettle_facts``)."""
+    import numpy as np
+
+    from scenes.privileged import GoalState
+
+    front = np.asarray(raw["hinge_front"], dtype=np.float64)
+    half = np.arctan2(front[1], front[0]) / 2
+    quat = np.array([np.cos(half), 0.0, 0.0, np.sin(half)])
+    return GoalState(np.asarray(raw["hinge_pos"], dtype=np.float64), quat, float(raw["hinge_thick"]))
+
+
+def hinge_target(raw: dict):
+    """A hinged lid's target: the lid's free edge (``place_xy``, ``grasp_z``) and how open RoboCasa reads it
+    (``clear_z``, 0 closed .. 1 open); no floor (a push, not a put-down)."""
+    import numpy as np
+
+    from scenes.privileged import Targets
+
+    edge = np.asarray(raw["hinge_edge"], dtype=np.float64)
+    return Targets(edge[:2].copy(), float(edge[2]), float(raw["hinge_state"]), float(edge[2]))
+
+
 def unload_target(raw: dict, pick, centre):
     """Cabinet to counter: put the object down on the counter 12 cm (plus its half width) in front of the cabinet's
     face, straight back from where it stands; the cabinet is the fixture it must leave (``SceneFacts``)."""
@@ -55,7 +79,9 @@ def privileged_state(raw: dict):
         pick = PickState(pos, f64(raw["obj_quat"]), f64(raw["obj_linvel"]), raw["obj_bottom"], raw["obj_top"],
                          raw["obj_half_width"], raw["obj_touching"], None if ext is None else f64(ext))  # fmt: skip
     else:
-        part = raw.get("button_pos", raw.get("mixer_head_pos", raw.get("fixture_pos", raw["eef_pos"])))
+        # the blender's button, the stand mixer's head, the kettle's lid, else the moved fixture
+        part = raw.get("button_pos", raw.get("mixer_head_pos", raw.get("fixture_pos")))
+        part = raw.get("hinge_edge", raw["eef_pos"] if part is None else part)
         pos, touched = f64(part), bool(raw.get("button_touched", False))
         pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, touched)
     goal, facts = None, SceneFacts()
@@ -74,6 +100,8 @@ def privileged_state(raw: dict):
             place[:2].copy(), float(place[2]), clear, float(pick.pos[2]), floor_z=float(place[2])
         )
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
+    elif "hinge_pos" in raw:  # a lid to swing shut: goal is its hinge, turned the way the fixture faces
+        goal, target = hinge_goal(raw), hinge_target(raw)
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

@@ -113,7 +113,7 @@ def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {
         **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
-        **button_facts(env, task),
+        **button_facts(env, task), **kettle_facts(env, task),
     }  # fmt: skip
 
 
@@ -147,6 +147,52 @@ def button_facts(env, task: str) -> dict:
         "button_pos": top + out * max(0.0, float(size[1]) - BUTTON_EDGE),
         "button_touched": bool(env.check_contact(env.robots[0].gripper["right"], name)),
     }
+
+
+def _front(env, fixture) -> np.ndarray:
+    """The horizontal world unit vector ``fixture`` faces (RoboCasa's fixtures face their -y)."""
+    mat = np.asarray(env.sim.data.get_body_xmat(f"{fixture.naming_prefix}main")).reshape(3, 3)
+    return -mat[:, 1] / max(float(np.linalg.norm(mat[:2, 1])), 1e-9)
+
+
+def _part_box(env, body: str, along=None):
+    """The world AABB (centre, half sizes) of the collision geoms of ``body`` (MuJoCo's ``geom_aabb``, each geom's
+    local box turned into the world); with ``along`` (a world unit vector), their half extent along it instead of
+    the half sizes."""
+    model, data = env.sim.model, env.sim.data
+    b = model.body_name2id(body)
+    lo, hi, ext = np.full(3, np.inf), np.full(3, -np.inf), 0.0
+    for g in np.flatnonzero((model.geom_bodyid == b) & (model.geom_contype != 0)):
+        mat = np.asarray(data.geom_xmat[g]).reshape(3, 3)
+        c = data.geom_xpos[g] + mat @ model.geom_aabb[g][:3]
+        h = np.abs(mat) @ model.geom_aabb[g][3:]
+        lo, hi = np.minimum(lo, c - h), np.maximum(hi, c + h)
+        if along is not None:
+            ext = max(ext, float(np.abs(mat.T @ along) @ model.geom_aabb[g][3:]))
+    return (lo + hi) / 2, ext if along is not None else (hi - lo) / 2
+
+
+def kettle_facts(env, task: str) -> dict:
+    """CloseElectricKettleLid's lid (``ElectricKettle._joint_names["lid"]``), which the oracle swings shut: its
+    hinge (``hinge_pos``, world anchor), its free edge's middle (``hinge_edge``: the hinge mirrored through the
+    lid's centre), its half thickness, how open RoboCasa reads it (``hinge_state``, 0..1) and the way the kettle
+    faces (``hinge_front``); empty for other tasks."""
+    kettle = getattr(env, "electric_kettle", None)
+    if kettle is None or task != "CloseElectricKettleLid":
+        return {}
+    model, data = env.sim.model, env.sim.data
+    front = _front(env, kettle)
+    j = model.joint_name2id(kettle._joint_names["lid"])
+    hinge = np.array(data.xanchor[j], dtype=np.float64)
+    centre, _ = _part_box(env, f"{kettle.naming_prefix}lid")
+    axis = np.asarray(data.xaxis[j], dtype=np.float64)
+    across = centre - hinge - axis * float(np.dot(centre - hinge, axis))  # hinge to centre, off the axis
+    normal = np.cross(axis, across / max(float(np.linalg.norm(across)), 1e-9))
+    return {
+        "hinge_pos": hinge, "hinge_edge": hinge + 2 * across, "hinge_front": front,
+        "hinge_thick": _part_box(env, f"{kettle.naming_prefix}lid", normal)[1],
+        "hinge_state": float(kettle.get_state(env)["lid"]),
+    }  # fmt: skip
 
 
 def object_extent_facts(env) -> dict:
