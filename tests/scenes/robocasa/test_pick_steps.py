@@ -156,17 +156,18 @@ def test_a_step_that_leaves_a_region_exits_2_before_any_episode(placeholders, tm
 @pytest.mark.slow  # ~10 s: two kitchens built; test_robocasa covers the "obj" tasks
 def test_cheesy_bread_moves_its_cheese(placeholders):
     """CheesyBread's pick object is the cheese (no "obj" config): level 1 moves its window by 1/5 of the range
-    RoboCasa samples it in, in the episode's kitchen (1/5 of the declared 1.0 m where the kitchen holds it all)."""
+    RoboCasa samples its centre in, in the episode's kitchen (that range less the cheese's buffer at each end)."""
     from scenes.robocasa.pick_window import PICK_KEY
     from tests.scenes.robocasa.test_robocasa import _changed, _levels
 
     (m0, s0), (m1, _) = _levels("CheesyBread", "pick_x", (0, 1), seed=3)
     assert _changed(m0, m1) == {"object_cfgs", PICK_KEY}
     c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "cheese"][0]["placement"] for m in (m0, m1))
-    lo, hi = m0[PICK_KEY]["range"]
+    (lo, hi), b = m0[PICK_KEY]["range"], m0[PICK_KEY]["buffer"]
     dx = c1["offset"][0] - c0.get("offset", (0.0,))[0]
     assert (
-        dx == pytest.approx((hi - lo) / 5) == pytest.approx(m1[PICK_KEY]["offset"]) and hi - lo <= 1.0 + 1e-9
+        dx == pytest.approx((hi - lo - 2 * b) / 5) == pytest.approx(m1[PICK_KEY]["offset"])
+        and hi - lo <= 1.0 + 1e-9
     )
     assert m1[PICK_KEY]["cfg"] == "cheese" and c0["size"][0] == pytest.approx(1.0)
 
