@@ -49,9 +49,10 @@ def level_offset(width: float, pick: dict, nominal: float, where: str, buffer: f
     declared, own, centre = float(pick["declared"]), pick["step"] is None, width - 2 * float(buffer)
     moved = centre < declared - TOL
     step = (centre if moved else declared) / int(pick["progressions"]) if own else float(pick["step"])
+    clips = " (RoboCasa clips it to the fixture)" if width < declared - TOL else ""
     region = (
-        f"a {width:.3f} m range of its {declared:.2f} m pick region (RoboCasa clips it to the fixture), "
-        f"{centre:.3f} m for the object's centre (RoboCasa keeps {buffer:.3f} m of it inside each end)"
+        f"a {width:.3f} m range of its {declared:.2f} m pick region{clips}, {centre:.3f} m for the object's "
+        f"centre (RoboCasa keeps {buffer:.3f} m of it inside each end)"
     )
     if own and step <= window + TOL:
         raise LevelUnavailable(
