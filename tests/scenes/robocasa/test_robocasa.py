@@ -428,7 +428,9 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
     assert not (tmp_path / "certify.json").exists()
 
 
-def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int | None) -> list[bool]:
+def _oracle_episodes(
+    task: str, axis: str, level: int, episodes, max_steps: int | None, step: float | None = None
+) -> list[bool]:
     """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
     import scenes
     from indgen_vla.app.certify.run import run_oracle_episode
@@ -436,7 +438,9 @@ def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int 
     from scenes.oracle import oracle_for
     from scenes.robocasa.horizons import TASK_HORIZONS
 
-    env = scenes.make_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)
+    env = scenes.make_env(
+        "robocasa", task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps
+    )
     # no max_steps: the task's own horizon (RoboCasa's get_task_horizon; test_horizons checks it against upstream)
     assert env.max_steps == (max_steps or TASK_HORIZONS[task])
     try:
