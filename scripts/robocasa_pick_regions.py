@@ -1,5 +1,6 @@
 """RoboCasa365 pick_x per kitchen: the range RoboCasa samples each task's pick object in (its declared region clipped
-to the fixture), the level offsets and windows the worker uses there, and the kitchens too narrow for the levels.
+to the fixture, less the object's buffer for its centre), the level offsets and windows the worker uses there, and
+the kitchens and objects that cannot hold the levels.
 
     INDGEN_ROBOCASA_ASSETS=DIR python scripts/robocasa_pick_regions.py [--seeds 16] [--task T ...] [--json OUT]
 
@@ -32,14 +33,17 @@ def measure(task: str, seeds: list[int]) -> dict:
                     env.reset(seed=seed)
                 except EpisodeUnavailableError as e:  # its line names the kitchen's range
                     rows[seed].update(
-                        unavailable=str(e), width=float(re.search(r"a ([\d.]+) m range", str(e))[1])
+                        unavailable=str(e),
+                        width=float(re.search(r"a ([\d.]+) m range", str(e))[1]),
+                        buffer=float(re.search(r"keeps ([\d.]+) m of it", str(e))[1]),
                     )
                     continue
                 meta = env.call("ep_meta")
                 lo, hi = meta[PICK_KEY]["range"]
                 rows[seed].update(
-                    range=[lo, hi], width=hi - lo, kitchen=(meta["layout_id"], meta["style_id"])
-                )
+                    range=[lo, hi], width=hi - lo, buffer=meta[PICK_KEY]["buffer"],
+                    kitchen=(meta["layout_id"], meta["style_id"]),
+                )  # fmt: skip
                 rows[seed]["levels"][level] = {"param": env.episode_param, "window": meta[PICK_KEY]["window"]}
         finally:
             env.close()
@@ -47,28 +51,33 @@ def measure(task: str, seeds: list[int]) -> dict:
 
 
 def summarize(task: str, rows: dict[int, dict]) -> dict:
-    """The task's line: kitchens, clipped ones, their widths, unavailable ones, and whether every window held."""
+    """The task's line: kitchens, clipped ones, their widths, the objects' buffers, unavailable ones (narrow
+    kitchens apart), and whether every window held the object's centre its buffer inside the range."""
     from scenes.robocasa import PICK_REGIONS
 
     declared = PICK_REGIONS[task].width
     widths = [r["width"] for r in rows.values()]
+    buffers = [r["buffer"] for r in rows.values()]
     held = all(
-        lv["window"][0] >= r["range"][0] - 1e-9 and lv["window"][1] <= r["range"][1] + 1e-9
+        lv["window"][0] - r["buffer"] >= r["range"][0] - 1e-9 and lv["window"][1] + r["buffer"] <= r["range"][1] + 1e-9
         for r in rows.values() if "range" in r for lv in r["levels"].values()
     )  # fmt: skip
     return {
         "task": task, "declared": declared, "kitchens": len(rows),
         "clipped": sum(w < declared - 1e-9 for w in widths), "min": min(widths), "median": statistics.median(widths),
-        "unavailable": sum("unavailable" in r for r in rows.values()), "windows_in_range": held,
+        "buffer": (min(buffers), max(buffers)), "unavailable": sum("unavailable" in r for r in rows.values()),
+        "narrow": sum("unavailable" in r and r["width"] <= 0.2 + 1e-9 for r in rows.values()),
+        "windows_in_range": held,
     }  # fmt: skip
 
 
 def table(lines: list[dict]) -> str:
-    out = ["| task | declared (m) | kitchens | clipped | range min / median (m) | unavailable | windows in range |",
-           "|---|---|---|---|---|---|---|"]  # fmt: skip
+    out = ["| task | declared (m) | kitchens | clipped | range min / median (m) | buffer min..max (m) | unavailable "
+           "(range <= 0.20 m) | windows +- buffer in range |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for s in lines:
         out.append(f"| {s['task']} | {s['declared']:.2f} | {s['kitchens']} | {s['clipped']} | {s['min']:.3f} / "
-                   f"{s['median']:.3f} | {s['unavailable']} | {'yes' if s['windows_in_range'] else 'NO'} |")  # fmt: skip
+                   f"{s['median']:.3f} | {s['buffer'][0]:.3f}..{s['buffer'][1]:.3f} | {s['unavailable']} "
+                   f"({s['narrow']}) | {'yes' if s['windows_in_range'] else 'NO'} |")  # fmt: skip
     return "\n".join(out)
 
 

@@ -15,7 +15,7 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import EnvSpec
 from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.registry import Scene, register_scene
-from scenes.robocasa.deviations import DEVIATIONS, SPAWN_JITTER
+from scenes.robocasa.deviations import DEVIATIONS, PICK_T0, SPAWN_JITTER
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.runtime import ExternalRuntime
@@ -390,7 +390,7 @@ class RoboCasa(Scene):
         return {
             **super().protocol_facts(),
             "initial_states": "RoboCasa's own reset from each episode's seed (layout, style, objects); levels "
-            "replay T0's ep_meta with one field moved",
+            f"replay T0's ep_meta with one field moved; {PICK_T0}",
             "assets": {
                 "root": str(assets),
                 "placeholders": is_placeholder(assets),

@@ -121,10 +121,10 @@ def _flat_action(env, action: np.ndarray) -> np.ndarray:
 class RoboCasaLevel:
     """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed.
 
-    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick object's x
-    drawn in a 2 x ``PICK_JITTER`` window at the low-x end of the range RoboCasa samples it in, in that kitchen:
-    ``pick_window``). Its ep_meta and the placements it drew are kept per
-    worker; a level k > 0 (or a later reset of the same seed) replays that ep_meta with the level's one field edited,
+    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick object's
+    centre x drawn in a 2 x ``PICK_JITTER`` window at the low end of the range RoboCasa samples it in, in that
+    kitchen, RoboCasa's footprint rule and robot base kept: ``pick_window``). Its ep_meta and the placements it
+    drew are kept per worker; a level k > 0 (or a later reset of the same seed) replays that ep_meta with the level's one field edited,
     every fixture and object placement pinned to T0's except what the edit moves, and the post-load draws
     (``_setup_scene``) from the same stream, so T0 and level k differ in the one field only.
     """
@@ -158,6 +158,8 @@ class RoboCasaLevel:
         self.env._indgen_task_fixture = None  # T0's task fixture on a replay (keep_task_fixture)
         self.env._indgen_pick = config.get("pick")  # pick_x: the window's config (pick_window.level_offset)
         self.env._indgen_pick_range = None  # RoboCasa's x range of the pick object at the last load
+        self.env._indgen_pick_buffer = 0.0  # RoboCasa's _sample_x buffer of the pick object at the last load
+        self.env._indgen_pick_t0 = None  # on a level's replay: T0's range, the high end every level keeps
         self.env._indgen_drawn = {}  # cfg name -> (object kwargs, info) RoboCasa drew at the last load
         self.meta: dict = {}
         self._seed = 0
@@ -197,7 +199,7 @@ class RoboCasaLevel:
         self.env.unset_ep_meta()
         self.env.set_ep_meta(copy.deepcopy(meta))
         self.env._indgen_pins, self.env._indgen_made, self.env._indgen_fixture_shift = pins, made, shift
-        self.env._indgen_pick_range = None
+        self.env._indgen_pick_range, self.env._indgen_pick_buffer = None, 0.0
         self.env.rng = np.random.default_rng([self._seed, 0])
         try:
             return self.env.reset()
@@ -224,6 +226,7 @@ class RoboCasaLevel:
             },
             "fixture": getattr(self.env, moved).name if moved and hasattr(self.env, moved) else None,
             "pick_range": self.env._indgen_pick_range,  # pick_x: RoboCasa's x range of the object in this kitchen
+            "pick_buffer": self.env._indgen_pick_buffer,  # and how far inside each end it keeps the object's centre
         }
         _T0[key] = t0
         return t0, raw
@@ -264,7 +267,8 @@ class RoboCasaLevel:
         lo, hi = t0["pick_range"]
         meta = t0["meta"]
         where = f"{self.cfg['task']} seed {seed} (layout {meta['layout_id']}, style {meta['style_id']})"
-        return window.level_offset(hi - lo, self.cfg["pick"], self.cfg["edits"].get("pick_x", 0.0), where)
+        nominal = self.cfg["edits"].get("pick_x", 0.0)
+        return window.level_offset(hi - lo, self.cfg["pick"], nominal, where, t0["pick_buffer"])
 
     def reset(self, seed: int) -> dict:
         edits = {k: v for k, v in self.cfg.get("edits", {}).items() if v and k != "pick_x"}
@@ -278,17 +282,17 @@ class RoboCasaLevel:
             meta = edit_ep_meta(t0["meta"], edits, fixture=t0["fixture"], cab=fixture_refs.get("cab"),
                                 pick=self._pick_cfg())  # fmt: skip
             pins, shift = self._pins(t0, meta, edits)
-            self.env._indgen_task_fixture = t0["fixture"]
+            self.env._indgen_task_fixture, self.env._indgen_pick_t0 = t0["fixture"], t0["pick_range"]
             try:
                 raw = self._reset(seed, meta, pins, t0["made"], shift)
             finally:
-                self.env._indgen_task_fixture = None
+                self.env._indgen_task_fixture = self.env._indgen_pick_t0 = None
             self._check_moves(seed, edits, shift)
         self.meta = self.env.get_ep_meta()
         out = {**self._obs(raw), "facts": failure_facts(self.env)}
         if pick:
             self._check_window(t0, dx)
-            self.meta[window.PICK_KEY] = window.record(t0["pick_range"], pick, dx)
+            self.meta[window.PICK_KEY] = window.record(t0["pick_range"], pick, dx, t0["pick_buffer"])
             if pick.get("report"):
                 out["axis_param"] = dx  # the episode's own offset (m): episodes.parquet's param
         return out

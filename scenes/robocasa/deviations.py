@@ -7,6 +7,15 @@ from __future__ import annotations
 # RoboCasa's Kitchen defaults robot_spawn_deviation_pos_x=0.15, _pos_y=0.05 (robocasa/environments/kitchen/kitchen.py)
 SPAWN_JITTER = {"pos_x": 0.0, "pos_y": 0.0, "robocasa_default": {"pos_x": 0.15, "pos_y": 0.05}}
 
+# what T0 is on pick_x, in the protocol facts' initial_states (the fingerprint): rule 2 (the window inside RoboCasa's
+# buffer, its footprint rule and robot base kept) replaced rule 1 (the window at the range's own end, no footprint
+# rule, the sampler's range narrowed to it): the runs of the two are not pooled and one does not resume the other
+PICK_T0 = (
+    "pick_x (window rule 2): T0 draws the pick object's centre x in a 4 cm window at the low end of the range "
+    "RoboCasa draws it in (its range less the object's buffer), RoboCasa's footprint rule and robot base kept; a "
+    "level moves the window 1/5 of that range"
+)
+
 DEVIATIONS: tuple[str, ...] = (
     "robot spawn jitter 0 (RoboCasa's default: uniform +-0.15 m along and +-0.05 m across the anchor): T0's robot "
     "base is RoboCasa's anchor pose itself, so a base_y step (0.125 m) is not drowned in T0's own spread of the "
@@ -17,10 +26,10 @@ DEVIATIONS: tuple[str, ...] = (
     "levels replay T0's ep_meta with one field moved, skipping RoboCasa's robot-placement collision retry; the "
     "placement check after the settle stands in for it (a fixture_x / base_y move into an obstacle or off its "
     "counter is an infeasible cell, recorded as EpisodeUnavailableError, never a policy failure)",
-    "pick_x: T0 draws the pick object's x in a 4 cm window at the low-x end of the range RoboCasa samples it in "
-    "(not across the whole range), with the object's centre (not its footprint) kept in that window",
-    "CheesyBread (pick_x): RoboCasa places the robot base from the cheese's sampler (init_robot_here), so the "
-    "narrowed pick window also moves T0's base (up to about 0.48 m sideways) from where RoboCasa puts it",
+    "pick_x: T0 draws the pick object's centre x in a 4 cm window at the low end of the range RoboCasa draws it "
+    "in (its range less the object's buffer at each end), not across that whole range; RoboCasa's buffer, "
+    "footprint rule (rotations whose footprint leaves its range are redrawn, so fewer fit at the window's low "
+    "end) and robot base (CheesyBread's, from the cheese's range) are its own",
     "object registries (objaverse, lightwheel), RoboCasa's own default, with every layout, style and object "
     "instance (what split='all' selects); lerobot evaluates split='all' with lightwheel only, RoboCasa365's openpi "
     "client the pretrain / target splits",

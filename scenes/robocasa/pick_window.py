@@ -1,22 +1,28 @@
-"""pick_x's window, placed on the range RoboCasa samples the pick object's x in, in the episode's own kitchen.
+"""pick_x's window, placed on the range RoboCasa samples the pick object's centre in, in the episode's own kitchen.
 
 RoboCasa 1.0.1 clips a task's declared region to the fixture it lies on (``utils/env_utils.py``
 ``_get_placement_initializer``: ``inner_size = min(outer_size - margin, size)``, then centres it by ``pos``), so in
 a narrow kitchen the object is drawn from less than the declared width (CounterToBlender seed 6: 0.20 of 0.50 m).
-Appendix B divides "the valid sampling region" by the number of progressions; the region is the one RoboCasa
-samples from in that kitchen. T0's window is ``2 x PICK_JITTER`` at its low-x end and level k moves it k steps:
-the task's own step is 1/5 of that range (the declared width / 5 where the kitchen does not clip it), a --step is
-the user's metres. A kitchen whose range cannot hold the levels 0..top (``level_offset``) hosts none of them.
+Its ``UniformRandomSampler._sample_x`` (``utils/placement_samplers.py``) then draws the centre in that range less
+``buffer = min(obj_size[0], obj_size[1]) / 2`` at each end, and ``obj_in_region`` rejects a draw whose rotated
+footprint leaves the range (``ensure_object_boundary_in_range``, on for every pick_x task). Appendix B divides "the
+valid sampling region" by the number of progressions: here the centre range ``[lo + buffer, hi - buffer]``. T0's
+window is ``2 x PICK_JITTER`` at its low end and level k moves it k steps: the task's own step is 1/5 of that
+centre range (the declared width / 5 only for an object without a footprint where the kitchen does not clip the
+region), a --step is the user's metres. A kitchen and object whose centre range cannot hold the levels 0..top
+(``level_offset``) host none of them.
 
-Runs in RoboCasa's venv, loaded by ``backend.py`` by path; imports only the standard library and numpy, so our own
-venv's tests import it as ``scenes.robocasa.pick_window``.
+Runs in RoboCasa's venv, loaded by ``backend.py`` by path; imports only the standard library and numpy at module
+level, so our own venv's tests import it as ``scenes.robocasa.pick_window``.
 """
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 
-PICK_JITTER = 0.02  # T0's window: 2 x 2 cm of x at the low-x end of RoboCasa's range (levels shift it)
+PICK_JITTER = 0.02  # T0's window: 2 x 2 cm of centre x at the low end of RoboCasa's range (levels shift it)
 PICK_KEY = "indgen_pick_window"  # what the worker's ep_meta reports of the episode's window (not an edit)
 TOL = 1e-9
 
@@ -28,40 +34,69 @@ class LevelUnavailable(Exception):
     unavailable = True
 
 
-def level_offset(width: float, pick: dict, nominal: float, where: str) -> float:
-    """Level ``pick["level"]``'s offset (m) of the window from T0's in a kitchen whose range is ``width`` wide.
+def level_offset(width: float, pick: dict, nominal: float, where: str, buffer: float = 0.0) -> float:
+    """Level ``pick["level"]``'s offset (m) of the window from T0's in a kitchen whose range is ``width`` wide, for
+    an object RoboCasa keeps ``buffer`` (m) inside each end of it (``_sample_x``'s buffer).
 
     ``pick``: ``declared`` (the task's region, m), ``level``, ``top`` (the axis's last level), ``step`` (None: the
-    task's own, 1/``progressions`` of the range; else the user's, m), ``progressions``. ``nominal``: the plan's
-    offset, used as is where the kitchen does not clip the region (the same numbers as before) or the step is the
-    user's. Raises ``LevelUnavailable`` (one line) when the levels' windows would overlap (a fifth no wider than
-    the window) or the top level's window would leave the range.
+    task's own, 1/``progressions`` of the centre range ``width - 2 buffer``; else the user's, m), ``progressions``.
+    ``nominal``: the plan's offset, used as is where the centre range is the declared width (the same numbers as
+    before) or the step is the user's. Raises ``LevelUnavailable`` (one line) when the levels' windows would overlap
+    (a fifth no wider than the window) or the top level's window would leave the centre range (its footprint the
+    range).
     """
     window, level, top = 2 * PICK_JITTER, int(pick["level"]), int(pick["top"])
-    declared, own = float(pick["declared"]), pick["step"] is None
-    clipped = width < declared - TOL
-    step = (width if clipped else declared) / int(pick["progressions"]) if own else float(pick["step"])
-    region = f"a {width:.3f} m range of its {declared:.2f} m pick region (RoboCasa clips it to the fixture)"
+    declared, own, centre = float(pick["declared"]), pick["step"] is None, width - 2 * float(buffer)
+    moved = centre < declared - TOL
+    step = (centre if moved else declared) / int(pick["progressions"]) if own else float(pick["step"])
+    clips = " (RoboCasa clips it to the fixture)" if width < declared - TOL else ""
+    region = (
+        f"a {width:.3f} m range of its {declared:.2f} m pick region{clips}, {centre:.3f} m for the object's "
+        f"centre (RoboCasa keeps {buffer:.3f} m of it inside each end)"
+    )
     if own and step <= window + TOL:
         raise LevelUnavailable(
             f"{where}: {region}, whose 1/{pick['progressions']} ({step:.3f} m) is no wider than pick_x's "
             f"{window:.2f} m window: the levels would overlap, so this episode runs at no pick_x level (not retried)"
         )
-    if top * step + window > width + TOL:
+    if top * step + window > centre + TOL:
         raise LevelUnavailable(
             f"{where}: {region}; level {top}'s window at {top * step:.3f}..{top * step + window:.3f} m leaves it "
             f"at {step:g} m a level, so this episode runs at no pick_x level (not retried)"
         )
-    return float(nominal) if not (own and clipped) else round(level * step, 9)
+    return float(nominal) if not (own and moved) else round(level * step, 9)
+
+
+def _window_x(env, span: float):
+    """``UniformRandomSampler._sample_x`` (robocasa/utils/placement_samplers.py) drawing in the ``span``-wide window
+    at the low end of the range it would draw in: the same buffer (``ensure_object_boundary_in_range``), the same
+    one ``rng.uniform``; the buffer is kept as ``env._indgen_pick_buffer``."""
+
+    def sample_x(self, obj_size=None):
+        minimum, maximum = (float(v) for v in self.x_range)
+        buffer = 0.0
+        if obj_size is not None and self.ensure_object_boundary_in_range:
+            buffer = min(obj_size[0], obj_size[1]) / 2
+        env._indgen_pick_buffer = float(buffer)
+        low, high = minimum + buffer, min(minimum + buffer + span, maximum - buffer)
+        if low > high:
+            from robocasa.utils.errors import PlacementError
+
+            raise PlacementError(f"Invalid x range for placement initializer: ({low}, {maximum - buffer})")
+        return self.rng.uniform(high=high, low=low)
+
+    return sample_x
 
 
 def narrow(env, sampler, cfg_list: list, pick: dict) -> None:
-    """The pick object's sampler of ``sampler`` (RoboCasa's placement initializer of ``cfg_list``) draws its x in
-    the window at the low-x end of the range RoboCasa computed; that range is kept as ``env._indgen_pick_range``.
+    """The pick object's sampler of ``sampler`` (RoboCasa's placement initializer of ``cfg_list``) draws its centre
+    in the window at the low end of the centre range RoboCasa computed; that range is kept as
+    ``env._indgen_pick_range``.
 
-    Everything else is RoboCasa's: the counter region it chose, the y range, the rotation, the collision checks;
-    the window bounds the object's centre (``ensure_object_boundary_in_range`` off: RoboCasa would shrink a 4 cm
-    range by the object's radius). A replay's range is T0's moved by the level's offset edit.
+    Everything else is RoboCasa's: the counter region, its ``x_range`` (so at T0 the robot base RoboCasa places from
+    it, CheesyBread's ``init_robot_here``), the y range, the rotation, the footprint rule, the collision checks. On
+    a level's replay (``env._indgen_pick_t0``: T0's range) the range's high end stays T0's, so the footprint check
+    keeps the object inside T0's range at every level; its low end is T0's moved by the level's offset edit.
     """
     cfg = next((c for c in cfg_list if c.get("name") == pick["cfg"] and c.get("type") == "object"), None)
     if cfg is None:
@@ -75,15 +110,18 @@ def narrow(env, sampler, cfg_list: list, pick: dict) -> None:
     sub = sampler.samplers[f"{pick['cfg']}_Sampler"]
     lo, hi = (float(v) for v in sub.x_range)
     env._indgen_pick_range = (lo, hi)
-    sub.x_range = np.array([lo, lo + 2 * PICK_JITTER])
-    sub.ensure_object_boundary_in_range = False
+    t0 = getattr(env, "_indgen_pick_t0", None)
+    if t0 is not None:
+        sub.x_range = np.array([lo, float(t0[1])])
+    sub._sample_x = types.MethodType(_window_x(env, 2 * PICK_JITTER), sub)
 
 
-def record(t0_range: tuple[float, float], pick: dict, offset: float) -> dict:
+def record(t0_range: tuple[float, float], pick: dict, offset: float, buffer: float) -> dict:
     """The episode's window as the worker's ep_meta reports it (``PICK_KEY``): RoboCasa's range at T0 in its
-    fixture's frame, the declared width, the level's offset and the window it drew the object's x in."""
+    fixture's frame, the declared width, the object's buffer, the level's offset and the window of its centre."""
     lo, hi = t0_range
+    start = lo + buffer + offset
     return {
-        "cfg": pick["cfg"], "range": [lo, hi], "declared": float(pick["declared"]), "offset": offset,
-        "window": [lo + offset, lo + offset + 2 * PICK_JITTER],
+        "cfg": pick["cfg"], "range": [lo, hi], "declared": float(pick["declared"]), "buffer": float(buffer),
+        "offset": offset, "window": [start, start + 2 * PICK_JITTER],
     }  # fmt: skip

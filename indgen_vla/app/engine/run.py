@@ -365,6 +365,8 @@ def _run_todo(
     runner_cfg = _runner_config(cfg, plan, spec)
     manifest = run.manifest
     resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
+    if "fingerprint" in manifest:  # a resume weighs today's scene facts (assets, worker, initial states)
+        resolved = plan.record()
     fingerprint = _fingerprint(cfg, plan, resolved, runner_cfg, probe)
     if "fingerprint" not in manifest:  # what fixes the outcomes, once the policy's conventions are known
         # and the levels its training data covered, where the policy declares them (report marks them "trained")

@@ -164,17 +164,18 @@ def test_a_step_that_leaves_a_region_exits_2_before_any_episode(placeholders, tm
 @pytest.mark.slow  # ~10 s: two kitchens built; test_robocasa covers the "obj" tasks
 def test_cheesy_bread_moves_its_cheese(placeholders):
     """CheesyBread's pick object is the cheese (no "obj" config): level 1 moves its window by 1/5 of the range
-    RoboCasa samples it in, in the episode's kitchen (1/5 of the declared 1.0 m where the kitchen holds it all)."""
+    RoboCasa samples its centre in, in the episode's kitchen (that range less the cheese's buffer at each end)."""
     from scenes.robocasa.pick_window import PICK_KEY
     from tests.scenes.robocasa.test_robocasa import _changed, _levels
 
     (m0, s0), (m1, _) = _levels("CheesyBread", "pick_x", (0, 1), seed=3)
     assert _changed(m0, m1) == {"object_cfgs", PICK_KEY}
     c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "cheese"][0]["placement"] for m in (m0, m1))
-    lo, hi = m0[PICK_KEY]["range"]
+    (lo, hi), b = m0[PICK_KEY]["range"], m0[PICK_KEY]["buffer"]
     dx = c1["offset"][0] - c0.get("offset", (0.0,))[0]
     assert (
-        dx == pytest.approx((hi - lo) / 5) == pytest.approx(m1[PICK_KEY]["offset"]) and hi - lo <= 1.0 + 1e-9
+        dx == pytest.approx((hi - lo - 2 * b) / 5) == pytest.approx(m1[PICK_KEY]["offset"])
+        and hi - lo <= 1.0 + 1e-9
     )
     assert m1[PICK_KEY]["cfg"] == "cheese" and c0["size"][0] == pytest.approx(1.0)
 
@@ -205,9 +206,10 @@ def test_certificates_are_keyed_by_the_tasks_own_step(placeholders, tmp_path, mo
 @needs_venv
 @pytest.mark.slow  # ~40 s: three short RoboCasa runs; test_robocasa's pick_x test covers the worker by default
 def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(placeholders, tmp_path, capsys):
-    """CounterToBlender, --seed 0: episodes 0..2 draw kitchens whose range is 0.485, 0.50 and 0.404 m. At the task's
-    own step level 1 records 0.097, 0.1 and 0.0808 m (1 and 2 workers alike) and pools to no one parameter; at
-    --step 0.11 episode 2's kitchen cannot hold level 4's window (0.44..0.48 m): one error row per level, not
+    """CounterToBlender, --seed 0: episodes 0..2 draw kitchens whose range is 0.485, 0.50 and 0.404 m, 0.437, 0.452
+    and 0.356 m of it for the object's centre (RoboCasa's buffer, 2.4 cm at each end). At the task's own step level
+    1 records a fifth of that, 0.0875, 0.0904 and 0.0711 m (1 and 2 workers alike), and pools to no one parameter;
+    at --step 0.09 episode 2's kitchen cannot hold level 4's window (0.36..0.40 m): one error row per level, not
     retried, and the run exits 3 (finished with error episodes)."""
     import pandas as pd
 
@@ -219,12 +221,12 @@ def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(pl
     for name, extra in (
         ("own", ["--workers", "1"]),
         ("own2", ["--workers", "2"]),
-        ("step", ["--step", "0.11"]),
+        ("step", ["--step", "0.09"]),
     ):
         runs[name] = (main([*args, *extra, "--out", str(tmp_path / name)]), tmp_path / name)
     own = pd.read_parquet(runs["own"][1] / "episodes.parquet").sort_values(["level", "episode"])
     assert runs["own"][0] == 0 and (own["status"] == "ok").all()
-    assert list(own["param"]) == pytest.approx([0, 0, 0, 0.097, 0.1, 0.0808], abs=5e-4)
+    assert list(own["param"]) == pytest.approx([0, 0, 0, 0.0875, 0.0904, 0.0711], abs=5e-4)
     cols = ["level", "episode", "seed", "param", "status"]
     two = pd.read_parquet(runs["own2"][1] / "episodes.parquet").sort_values(["level", "episode"])
     assert own[cols].values.tolist() == two[cols].values.tolist()  # the seed decides, not the worker
@@ -240,5 +242,6 @@ def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(pl
     assert (
         bad.str.startswith("attempt 1: EpisodeUnavailableError").all()
         and bad.str.contains("0.404 m range").all()
+        and bad.str.contains(r"level 4's window at 0\.360\.\.0\.400 m").all()
     )
-    assert list(step[step["status"] == "ok"]["param"]) == pytest.approx([0, 0, 0.11, 0.11])
+    assert list(step[step["status"] == "ok"]["param"]) == pytest.approx([0, 0, 0.09, 0.09])

@@ -45,3 +45,26 @@ def test_a_users_step_is_metres_and_the_top_level_must_fit():
     with pytest.raises(LevelUnavailable, match=r"level 4's window at 0\.240\.\.0\.280 m leaves it"):
         level_offset(0.27, pick(0, 0.30, step=0.06), nominal=0.0, where="w")
     assert level_offset(0.10, pick(1, 0.30, step=0.06, top=1), nominal=0.06, where="w") == 0.06
+
+
+def test_the_ladder_divides_the_range_of_the_objects_centre():
+    """RoboCasa keeps a 3 cm buffer inside each end of an unclipped 0.30 m range (``_sample_x``): the centre's range
+    is 0.24 m, a level 0.048 m, and level 4's window ends at 0.232 m, inside it (not the plan's 0.06 m a level)."""
+    got = [level_offset(0.30, pick(k, 0.30), nominal=k * 0.06, where="w", buffer=0.03) for k in range(5)]
+    assert got == pytest.approx([0.0, 0.048, 0.096, 0.144, 0.192])
+    assert 4 * 0.048 + 0.04 <= 0.30 - 2 * 0.03
+
+
+def test_an_object_whose_footprint_leaves_too_little_of_the_range_holds_no_level():
+    """0.25 m less a 3 cm buffer at each end leaves 0.19 m for the centre, whose fifth is narrower than the window;
+    with --step 0.06 a 0.30 m range less 2 cm each end (0.26 m) cannot hold level 4's window at 0.24..0.28 m."""
+    with pytest.raises(
+        LevelUnavailable, match=r"^w: a 0\.250 m range .*, 0\.190 m for the object's centre .*"
+    ) as e:
+        level_offset(0.25, pick(0, 0.25), nominal=0.0, where="w", buffer=0.03)
+    assert "\n" not in str(e.value) and "0.030 m of it inside each end" in str(e.value)
+    with pytest.raises(
+        LevelUnavailable, match=r"0\.260 m for the object's centre.*level 4's window at 0\.240\.\.0\.280"
+    ):
+        level_offset(0.30, pick(2, 0.30, step=0.06), nominal=0.12, where="w", buffer=0.02)
+    assert level_offset(0.30, pick(2, 0.30, step=0.06), nominal=0.12, where="w", buffer=0.01) == 0.12

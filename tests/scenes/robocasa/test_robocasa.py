@@ -171,8 +171,9 @@ def test_a_replay_of_t0_is_t0(base_y):
 @needs_venv
 def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placeholders):
     """CounterToBlender seed 0 (layout 52, style 3): RoboCasa clips the declared 0.50 m region to 0.365 m of counter
-    there, so T0's 4 cm window sits at that range's low-x end and level 1 moves it 1/5 of the range, 0.073 m (one
-    ep_meta field: the offset; the worker reports the window beside it), which the episode records as its param.
+    there and keeps the object's centre its buffer inside each end, so T0's 4 cm window sits at the low end of the
+    centre's range and level 1 moves it 1/5 of that range (one ep_meta field: the offset; the worker reports the
+    window beside it), which the episode records as its param.
     Level 1 draws T0 itself in a fresh worker (no cached T0): the kitchen's range, so the offset, is the seed's.
     A user's --step whose level 4 leaves that range makes the episode unavailable, in one line, not a moved level."""
     from indgen_vla.core.errors import EpisodeUnavailableError
@@ -202,12 +203,16 @@ def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placehol
     (m1, s1, p1, plan1), (m0, s0, p0, _) = got
     assert _changed(m0, m1) == {"object_cfgs", PICK_KEY}
     w0, w1 = m0[PICK_KEY], m1[PICK_KEY]
-    lo, hi = w0["range"]
-    dx = (hi - lo) / 5
-    assert hi - lo == pytest.approx(0.365, abs=5e-4) and w1["range"] == w0["range"]
+    (lo, hi), b = w0["range"], w0["buffer"]
+    dx = (hi - lo - 2 * b) / 5  # RoboCasa keeps the centre b inside each end (_sample_x's buffer)
+    assert (
+        hi - lo == pytest.approx(0.365, abs=5e-4) and w1["range"] == w0["range"] and 0.0 < b == w1["buffer"]
+    )
     assert (p0, p1, plan1) == (0.0, pytest.approx(dx), pytest.approx(0.1))  # the episode's own, the plan's
-    assert w0["window"] == pytest.approx([lo, lo + 0.04])
-    assert w1["window"] == pytest.approx([lo + dx, lo + dx + 0.04]) and lo + 4 * dx + 0.04 <= hi
+    assert w0["window"] == pytest.approx([lo + b, lo + b + 0.04])
+    assert (
+        w1["window"] == pytest.approx([lo + b + dx, lo + b + dx + 0.04]) and lo + b + 4 * dx + 0.04 <= hi - b
+    )
     c0, c1 = ([c for c in m["object_cfgs"] if c["name"] == "obj"][0]["placement"] for m in (m0, m1))
     assert {k for k in c0.keys() | c1.keys() if repr(c0.get(k)) != repr(c1.get(k))} == {"offset"}
     assert c1["offset"][0] - c0.get("offset", (0.0,))[0] == pytest.approx(dx)
@@ -423,14 +428,16 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
     assert not (tmp_path / "certify.json").exists()
 
 
-def _oracle_episodes(task: str, axis: str, level: int, episodes, max_steps: int | None) -> list[bool]:
+def _oracle_episodes(
+    task: str, axis: str, level: int, episodes, max_steps: int | None, step: float | None = None
+) -> list[bool]:
     """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracle import oracle_for
     from scenes.robocasa.horizons import TASK_HORIZONS
 
-    env = level_env("robocasa", task=task, axis=axis, level=level, cameras=(), max_steps=max_steps)
+    env = level_env("robocasa", task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps)
     # no max_steps: the task's own horizon (RoboCasa's get_task_horizon; test_horizons checks it against upstream)
     assert env.max_steps == (max_steps or TASK_HORIZONS[task])
     try:

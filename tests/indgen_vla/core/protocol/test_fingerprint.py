@@ -142,6 +142,33 @@ def test_a_resume_under_another_protocol_is_refused_in_one_line_and_the_flag_rec
     assert sorted(pd.read_parquet(out / "episodes.parquet").episode) == [0, 1]
 
 
+def test_a_resume_under_other_scene_facts_is_refused(tmp_path, capsys):
+    """A run started when the scene drew its initial states otherwise (RoboCasa's pick_x window rule 1, say) holds
+    the old facts in its resolved plan and its fingerprint alike: the resume weighs today's scene facts, not the
+    manifest's copy, and refuses in the one protocol-mismatch line."""
+    import pandas as pd
+
+    out = tmp_path / "run"
+    args = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
+            "--episodes", "2", "--workers", "1", "--max-steps", "2", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["resolved"]["environment"]["protocol"]["initial_states"] = "an older rule"
+    manifest["fingerprint"]["initial_states"] = "an older rule"
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    episodes = pd.read_parquet(out / "episodes.parquet")
+    episodes[episodes.episode == 0].to_parquet(out / "episodes.parquet", index=False)
+    capsys.readouterr()
+    assert main(args) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert (
+        len(err) == 1
+        and "initial_states was an older rule" in err[0]
+        and "--allow-protocol-mismatch" in err[0]
+    )
+    assert len(pd.read_parquet(out / "episodes.parquet")) == 1  # refused before any episode
+
+
 def test_compare_shows_the_policys_conventions_as_the_key_value_pairs_that_differ(tmp_path, capsys):
     """The fingerprint stores a policy's conventions as their repr (kept as is: changing it would change every run's
     fingerprint); compare.md and the terminal show the differing keys instead of a cut-off repr."""
