@@ -205,6 +205,7 @@ def test_episode_index_fixes_the_initial_state(mini):
         env.close()
 
 
+@pytest.mark.slow  # ~15 s: oracle episodes at the extreme levels
 def test_oracle_certifies_extreme_levels(mini):
     from indgen_vla.app.certify.run import certify
 
@@ -281,6 +282,7 @@ def test_level_0_of_axes_with_one_key_is_one_environment(mini):
             e.close()
 
 
+@pytest.mark.slow  # ~8 s: a whole LIBERO episode, then a reset
 def test_reset_after_an_episode_that_ended_on_a_lazy_step_sees_fresh_frames(mini):
     """An episode that ends on a step nobody observed (``observe=False``) must not leave the next reset's cameras
     held: the first observation of episode i is the same whatever ran on the env before (seen: stale frames,
@@ -300,6 +302,7 @@ def test_reset_after_an_episode_that_ended_on_a_lazy_step_sees_fresh_frames(mini
         used.close()
 
 
+@pytest.mark.slow  # ~12 s: two LIBERO envs rendered
 def test_envs_sharing_a_process_render_their_own_frames(mini):
     """robosuite renders LIBERO's cameras, and frees a hard reset's old render context, in whatever GL context is
     current; another env in the process (a pipelined lane's) and video frames (``mujoco.Renderer``) make their own

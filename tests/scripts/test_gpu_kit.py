@@ -85,6 +85,7 @@ def test_unknown_row_is_one_line_and_exit_2(tmp_path, capsys):
     assert len(err) == 1 and "unknown row 'scalling'" in err[0] and "scaling" in err[0]
 
 
+@pytest.mark.slow  # ~6 s: the GPU kit's env row through its command line
 def test_rehearsal_env_row_through_the_command_line(tmp_path):
     proc = subprocess.run([sys.executable, "scripts/gpu/rows.py", "--rehearsal", "env", "--out", str(tmp_path)],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)  # fmt: skip
@@ -194,6 +195,7 @@ def test_the_measured_lists_name_installed_distributions():
     assert [a for a in assets if not (site / a).is_file()] == []
 
 
+@pytest.mark.slow  # ~9 s: a venv made and wheels installed
 def test_install_kit_makes_a_venv_over_a_venv_where_carried_wheels_win(tmp_path):
     """The box's python3 is a venv (torch in it); here the project's .venv plays it: the new venv must import
     torch from it, a carried wheel before the parent's copy of the same distribution, and this checkout."""

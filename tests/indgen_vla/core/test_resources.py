@@ -45,6 +45,7 @@ def _run(*cmd, cwd, **kw) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=300, **kw)
 
 
+@pytest.mark.slow  # ~12 s: a wheel built and unpacked
 def test_an_installed_wheel_carries_the_presets(tmp_path):
     """Build the wheel from a copy of the checkout, install it (no deps) into a fresh venv that sees this venv's
     packages through a .pth line, and use it from outside any checkout (~6 s: no build isolation, no pip in the venv)."""

@@ -50,6 +50,7 @@ def test_the_press_leaves_the_button_straight_up_at_the_first_touch():
 
 
 @needs_venv  # ~10 s: a cold worker and a 31-step episode (the reset raised TypeError before the lid's anchor)
+@pytest.mark.slow  # ~14 s: a whole oracle episode
 def test_the_oracle_turns_the_blender_on(placeholders):
     assert _oracle_episodes("TurnOnBlender", "fixture_x", 0, (0,), None) == [
         True

@@ -33,6 +33,7 @@ def _worker_resets(task: str, levels: list[tuple[dict, int]]) -> list:
 
 
 @needs_venv  # ~8 s of CPU: one worker, two builds and resets
+@pytest.mark.slow  # ~9 s: two RoboCasa builds; the check's unit tests stay in the default suite
 def test_a_base_moved_into_the_counter_is_infeasible_and_back_from_it_is_not(placeholders):
     """0.6 m toward the counter (a base_y move the other way) puts the base's feet into the cabinets below it;
     0.375 m back (base_y level 3) is clear in the same kitchen."""

@@ -144,6 +144,7 @@ def base_y(placeholders):
 
 
 @needs_venv
+@pytest.mark.slow  # the base_y fixture builds three levels in RoboCasa's worker (~35 s)
 def test_base_y_successor_edits_only_the_robot_base(base_y):
     (m0, s0), (m1, s1), _ = base_y
     assert _changed(m0, m1) == {"init_robot_base_pos"}
@@ -153,6 +154,7 @@ def test_base_y_successor_edits_only_the_robot_base(base_y):
 
 
 @needs_venv
+@pytest.mark.slow  # the base_y fixture (~35 s)
 def test_base_y_keeps_the_objects_pose(base_y):
     """T0's placements are pinned at every level; only the 10 settling steps see the robot elsewhere (< 0.1 mm)."""
     (_, s0), (_, s1), _ = base_y
@@ -160,6 +162,7 @@ def test_base_y_keeps_the_objects_pose(base_y):
 
 
 @needs_venv
+@pytest.mark.slow  # the base_y fixture (~35 s)
 def test_a_replay_of_t0_is_t0(base_y):
     """Level 0 from the worker's cached T0 (ep_meta replayed, placements pinned) is the episode RoboCasa drew."""
     (m0, s0), _, (m0b, s0b) = base_y
@@ -169,6 +172,7 @@ def test_a_replay_of_t0_is_t0(base_y):
 
 
 @needs_venv
+@pytest.mark.slow  # ~25 s: two fresh workers; test_pick_window and test_pick_footprint keep the rule by default
 def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placeholders):
     """CounterToBlender seed 0 (layout 52, style 3): RoboCasa clips the declared 0.50 m region to 0.365 m of counter
     there and keeps the object's centre its buffer inside each end, so T0's 4 cm window sits at the low end of the
@@ -221,6 +225,7 @@ def test_pick_x_levels_divide_the_range_robocasa_samples_in_the_kitchen(placehol
 
 
 @needs_venv
+@pytest.mark.slow  # ~12 s: two levels built
 def test_fixture_x_moves_the_mixer_not_the_robot_and_resets_cleanly(placeholders):
     """Seed 1 of CloseStandMixerHead reset with MuJoCo's BADQACC on the first placeholder tree (a part inside its
     collider); the mixer slides 12.5 cm along the counter (across T0's robot heading, backend.fixture_shift), the
@@ -238,6 +243,7 @@ def test_fixture_x_moves_the_mixer_not_the_robot_and_resets_cleanly(placeholders
 
 
 @needs_venv
+@pytest.mark.slow  # ~7 s: two levels built
 def test_clutter_adds_one_object_in_the_cabinet(placeholders):
     (m0, s0), (m1, s1) = _levels("PickPlaceCabinetToCounter", "clutter", (0, 1), seed=3)
     assert _changed(m0, m1) == {"object_cfgs"}
@@ -275,6 +281,7 @@ def test_backend_and_family_agree_on_the_pick_window():
 
 
 @needs_venv
+@pytest.mark.slow  # ~15 s: a worker killed and restarted
 def test_a_worker_that_dies_mid_episode_is_an_episode_error_then_restarts(placeholders):
     from scenes.runtime import WorkerDied
 
@@ -377,6 +384,7 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
 
 
 @needs_venv
+@pytest.mark.slow  # ~12 s: a whole oracle episode
 def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
     worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
@@ -459,5 +467,6 @@ def test_the_oracle_closes_the_mixer_head_after_it_slides_away(placeholders):
 
 
 @needs_venv  # ~20 s: the pick-and-place oracle's episode of the smoke group (the mixer's is above)
+@pytest.mark.slow  # ~40 s: a whole oracle episode in RoboCasa's worker
 def test_the_oracle_takes_the_object_out_of_the_cabinet(placeholders):
     assert _oracle_episodes("PickPlaceCabinetToCounter", "clutter", 0, (0,), 400) == [True]

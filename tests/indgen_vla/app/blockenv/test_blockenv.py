@@ -153,6 +153,7 @@ def _workers_config(methods, steps):
                            methods=methods, method_steps=(), hidden=32)  # fmt: skip
 
 
+@pytest.mark.slow  # ~35 s: the reproduction twice, 1 and 2 workers
 def test_reproduce_results_do_not_depend_on_workers(tmp_path):
     from indgen_vla.app.blockenv.reproduce import reproduce
 

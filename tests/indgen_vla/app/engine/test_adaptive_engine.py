@@ -138,6 +138,7 @@ def test_every_task_axis_ladder_is_decided_on_its_own_episodes(tmp_path):
     assert {(j.task, j.level) for j in todo} == {(b, 1)} | {(t, 0) for t in untouched}
 
 
+@pytest.mark.slow  # ~15 s: a CLI run killed and resumed; test_adaptive_share resumes by default
 def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_kill(tmp_path):
     """--task all: every task's ladder decided in one run; a 1-worker run killed with SIGKILL mid-protocol and
     resumed gives the same episodes, outcomes and per-task decisions as a 2-worker run."""

@@ -81,6 +81,7 @@ def test_the_lock_round_trips_through_evaluate_report_and_compare(tmp_path, caps
     assert capsys.readouterr().out.count(f"pre-registered: yes ({digest[:12]})") == 2
 
 
+@pytest.mark.slow  # ~11 s, and a timing claim: benchmarks hold those
 def test_the_projected_wall_time_holds_on_this_machine(smoke, tmp_path):
     """Budget a run of 3x the smoke's episodes, twice its levels, longer episodes; run it; time the whole command as
     a user does: inside the stated interval (widen wall_time.LOW/HIGH if not, never tune them to one run)."""

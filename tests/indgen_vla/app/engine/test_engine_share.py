@@ -108,6 +108,7 @@ def test_a_resume_writes_the_copies_a_kill_cut_off(tmp_path, runs):
     assert got == {(r["axis"], r["level"], r["episode"]): (r["success"], r["shared_from"]) for r in full}
 
 
+@pytest.mark.slow  # ~8 s: a CLI run killed and resumed; test_adaptive_share resumes shared rows by default
 def test_resume_after_sigkill_with_shared_rows(tmp_path, runs, capsys):
     """The killed run is a real process; the resume (cli.main in this process) reads only what it left on disk."""
     from indgen_vla.app.cli import main

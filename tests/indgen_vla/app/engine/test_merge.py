@@ -107,6 +107,7 @@ def test_merged_shards_report_like_one_unsharded_run(runs, tmp_path, capsys):
     assert snapshot(*shards) == before  # read, never written
 
 
+@pytest.mark.slow  # ~12 s: a shard run, cut and merged
 def test_merge_resumes_what_a_shard_did_not_finish(runs, tmp_path, capsys):
     """A shard cut short (its level 1 unfinished): the merge names the one evaluate command of the union, which
     finishes exactly the missing episodes into the merged run; the refusal of another command names it too."""
@@ -293,6 +294,7 @@ def test_a_killed_merges_temporary_tree_is_removed_by_the_next_merge(runs, tmp_p
         live.wait()
 
 
+@pytest.mark.slow  # ~10 s: a merge killed before its report
 def test_a_merge_stopped_before_its_report_is_finished_by_running_it_again(runs, tmp_path, capsys):
     """Ctrl-C or a kill between the rename and the report leaves OUT with the merged episodes and no report; the same
     merge again writes the report (it used to refuse: "exists and is not empty"). Other shards still refuse."""

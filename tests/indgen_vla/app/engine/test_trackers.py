@@ -76,6 +76,7 @@ print("LOGGED", log_runs("trackio", [(1000, {str(run)!r})], project="indgen-test
     assert config["policy"] == "standin:noop"
 
 
+@pytest.mark.slow  # ~9 s: wandb's offline run; trackio's stays in the default suite
 def test_wandb_offline_writes_a_local_run(tmp_path):
     pytest.importorskip("wandb")
     run = a_run(tmp_path)

@@ -59,6 +59,7 @@ def test_demos_build_t0_and_levels_through_the_plans_builder():
     assert [(c.axis, c.level) for c in cells] == [("pick_y+distractor", 0), ("pick_y+distractor", 1)]
 
 
+@pytest.mark.slow  # ~12 s: fresh interpreters
 def test_demos_and_mimicgen_build_their_scenes_without_robosuites_macro_warning():
     """Both commands build scenes in their own process through the plan's builder, whose layouts import robosuite by
     scenes.objects, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
@@ -210,6 +211,7 @@ def _sidecar_lines(out) -> int:
     return len(path.read_text().splitlines()) if path.is_file() else 0
 
 
+@pytest.mark.slow  # ~25 s: a 2-worker recording interrupted and resumed
 def test_an_interrupted_two_worker_recording_resumes_into_the_uninterrupted_dataset(demos, tmp_path):
     """Ctrl-C after the first kept episode of a 2-worker run, resumed with 1 worker: the files of the `demos`
     fixture (one uninterrupted in-process run), the first episode saved again from the journal."""

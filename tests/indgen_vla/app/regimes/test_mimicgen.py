@@ -231,6 +231,7 @@ def generated(demos, tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # ~14 s: a generation interrupted and resumed
 def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tmp_path):
     """Stopped (Ctrl-C) after its first kept episode and a discarded attempt, with the next staging cut short as a
     kill leaves it, the rerun keeps that episode, runs the discarded attempt again and writes the same dataset,

@@ -90,6 +90,7 @@ def test_config_and_input_errors(demos, tmp_path):
         train_policy([demos], tmp_path / "out", steps=1, cameras=("agentview",))
 
 
+@pytest.mark.slow  # ~9 s: a training run and an evaluation
 def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos, tmp_path):
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import evaluate

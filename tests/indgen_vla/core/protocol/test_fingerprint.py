@@ -85,6 +85,7 @@ def test_certificates_and_plan_are_shown_but_never_refuse():
     ]
 
 
+@pytest.mark.slow  # ~14 s: two runs at two horizons
 def test_compare_refuses_runs_with_different_horizons_and_the_flag_lets_it_through(tmp_path, capsys):
     common = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
               "--episodes", "2", "--workers", "1"]  # fmt: skip
