@@ -6,7 +6,7 @@ texture changes what a camera sees, so such a tree is marked (``assets.PLACEHOLD
 ``evaluate`` refuses an image policy on it unless ``--smoke``. ``collision`` in the
 report names any filled file that a collision geom could use (those change the physics too).
 
-    python -m scenes.libero.overlay SRC DST     # then: export INDGEN_LIBERO_ASSETS=DST
+    indgen setup libero --overlay SRC --dest DST     # then: export INDGEN_LIBERO_ASSETS=DST
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import io
 import os
 import re
 import struct
-import sys
 from pathlib import Path
 
 _FILE_REF = re.compile(r'file="([^"]+)"')
@@ -87,32 +86,3 @@ def collision_suspects(filled: list[str]) -> list[str]:
     """Filled meshes that are not named as visual-only (LIBERO keeps visuals in ``visual/`` or ``*_vis.*``)."""
     meshes = [p for p in filled if Path(p).suffix.lower() in (".msh", ".stl", ".obj")]
     return [p for p in meshes if "/visual/" not in f"/{p}" and "_vis." not in Path(p).name]
-
-
-def main(argv: list[str] | None = None) -> int:
-    args = sys.argv[1:] if argv is None else argv
-    if len(args) != 2:
-        print(
-            "usage: python -m scenes.libero.overlay SRC DST  (SRC: a partial LIBERO assets folder)",
-            file=sys.stderr,
-        )
-        return 2
-    src, dst = Path(args[0]).expanduser(), Path(args[1]).expanduser()
-    if not src.is_dir():
-        print(f"{src} is not a folder; pass LIBERO's libero/libero/assets folder of a clone", file=sys.stderr)
-        return 2
-    filled = overlay_assets(src, dst)
-    suspects = collision_suspects(filled)
-    print(f"{dst}: symlinks to {src} with {len(filled)} placeholder file(s) for missing ones"
-          + (f"; {len(suspects)} may be collision meshes: {', '.join(suspects)}" if suspects else
-             "; all are visual meshes or textures (physics is LIBERO's own)"))  # fmt: skip
-    for p in filled:
-        print(f"  filled {p}")
-    print(
-        "Physics checks only: never evaluate an image policy on this tree (its missing visuals are placeholders)."
-    )
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -242,26 +242,3 @@ def install(options: SetupOptions = SetupOptions(), log=print) -> SetupResult:
         )
     tree_identity.cache_clear()
     return SetupResult(root, len(files), len(todo), tree_identity(root), extra_files(files, root))
-
-
-def setup_libero_main(args) -> int:
-    """``indgen setup libero``: install (or check) the tree and say where it is and how indgen finds it."""
-    from scenes.libero.assets import ASSETS_ENV, find_assets
-
-    res = install(SetupOptions(dest=args.dest, wheels=args.wheels, verify=args.verify, offline=args.offline))
-    state = f"unpacked {res.written} files" if res.written else "already complete"
-    print(f"LIBERO assets: {res.root} ({res.files} files, {state}; every file LIBERO's tasks load is there)")
-    print(f"tree identity (listing sha256): {res.identity}")
-    if res.identity != COMPLETE_TREE:
-        print(f"note: this tree is not the one the shipped certificates cover ({COMPLETE_TREE[:12]}...)")
-    if res.extra:
-        print(
-            f"note: {len(res.extra)} files there are not LIBERO's (e.g. {res.extra[0]}); shipped certificates "
-            "cover only the wheels' tree, so remove them or certify this tree yourself"
-        )
-    found = find_assets(required=False)
-    if found is None or found.resolve() != res.root.resolve():
-        print(f"indgen uses {found} first; to use this tree: export {ASSETS_ENV}={res.root}")
-    else:
-        print("indgen and lerobot's LIBERO env use it by default")
-    return 0

@@ -180,7 +180,7 @@ def stale_placeholders(path: Path) -> str | None:
         return None
     return (
         f"{path} holds RoboCasa placeholders of an older generator ({first or 'no version'}; current: version "
-        f"{VERSION}); rewrite them with 'python -m scenes.robocasa.placeholders {path}'"
+        f"{VERSION}); rewrite them with 'indgen setup robocasa --placeholders {path}'"
     )
 
 
@@ -230,5 +230,5 @@ def _hint() -> str:
         f"download them with RoboCasa's own script in the RoboCasa venv ('{venv_dir() / 'bin' / 'python'} -m "
         f"robocasa.scripts.download_kitchen_assets'; it writes into {venv_assets()}, where indgen finds them, or set "
         f"{ASSETS_ENV}=DIR for a tree elsewhere), or for smoke runs write placeholders with "
-        f"'python -m scenes.robocasa.placeholders {default_assets()}'"
+        f"'indgen setup robocasa --placeholders {default_assets()}'"
     )

@@ -6,7 +6,6 @@ import mujoco
 from scenes.libero.assets import PLACEHOLDER_MARK, is_placeholder_tree
 from scenes.libero.overlay import (
     collision_suspects,
-    main,
     overlay_assets,
     placeholder_bytes,
     referenced_missing,
@@ -64,11 +63,17 @@ def test_overlay_fills_missing_files_that_mujoco_then_loads(tmp_path):
 
 def test_overlay_cli(tmp_path, capsys):
     src = _tree(tmp_path / "src")
-    assert main([str(src), str(tmp_path / "dst")]) == 0
+    from indgen_vla.app.cli import main
+
+    assert main(["setup", "libero", "--overlay", str(src), "--dest", str(tmp_path / "dst")]) == 0
     out = capsys.readouterr().out
     assert "3 placeholder file(s)" in out and "1 may be collision meshes: thing/frame.stl" in out
-    assert main([str(tmp_path / "nope"), str(tmp_path / "dst2")]) == 2
+    assert (
+        main(["setup", "libero", "--overlay", str(tmp_path / "nope"), "--dest", str(tmp_path / "dst2")]) == 2
+    )
     assert "is not a folder" in capsys.readouterr().err
+    assert main(["setup", "libero", "--overlay", str(src)]) == 2
+    assert "needs --dest DST" in capsys.readouterr().err
 
 
 def test_placeholders_compile_in_mujoco(tmp_path):

@@ -1,11 +1,11 @@
-"""``python -m scenes.robocasa.placeholders DST`` says what the tree holds, on a fresh tree and on a re-run alike
+"""``indgen setup robocasa --placeholders DST`` says what the tree holds, on a fresh tree and on a re-run alike
 (it used to count only the files it wrote, so a re-run reported zeros). Needs the RoboCasa venv."""
 
 import re
 
 import pytest
 
-from scenes.robocasa.placeholders import main
+from indgen_vla.app.cli import main
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 LINE = re.compile(
@@ -14,7 +14,7 @@ LINE = re.compile(
 
 
 def _summary(dst, capsys) -> tuple[int, int, int, str, int]:
-    assert main([str(dst)]) == 0
+    assert main(["setup", "robocasa", "--placeholders", str(dst)]) == 0
     out = capsys.readouterr().out
     m = LINE.search(out)
     assert m, out
