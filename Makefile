@@ -7,7 +7,7 @@ export MUJOCO_GL ?= egl
 export HF_HUB_OFFLINE ?= 1
 export TOKENIZERS_PARALLELISM ?= false
 
-.PHONY: demo test test-all lint clean-venv robocasa libero
+.PHONY: demo test test-all test-cluster lint clean-venv robocasa libero
 
 # Find a Python 3.12 interpreter: pyenv's, then python3.12 on PATH, then a pyenv install dir.
 PYTHON312 := $(shell (command -v pyenv >/dev/null 2>&1 && pyenv which python3.12 2>/dev/null) \
@@ -47,6 +47,11 @@ test: $(STAMP) robocasa
 
 test-all: $(STAMP)
 	@$(PY) -m pytest -q -m ""
+
+# the Ray backend on a real multi-node cluster on this machine (ray.cluster_utils.Cluster; ~6 min): before touching
+# the Ray backend, as the default suite runs none of it
+test-cluster: $(STAMP)
+	@$(PY) -m pytest -q -m "" tests/indgen_vla/app/engine/test_engine_ray_cluster.py
 
 lint: $(STAMP)  # ruff, then the layering contracts of pyproject.toml [tool.importlinter]
 	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check . && $(VENV)/bin/lint-imports

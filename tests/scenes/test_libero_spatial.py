@@ -65,6 +65,7 @@ def test_every_task_builds_and_steps_at_level_0(mini):
             env.close()
 
 
+@pytest.mark.slow  # ~8 s: test_libero's LIBERO-Object twin stays in the default suite
 def test_level0_matches_lerobot_libero_env(mini):
     """Level 0 of the drawer task is LIBERO's own as lerobot runs it: same images and state, same joint layout."""
     from scenes.libero.assets import import_libero

@@ -9,7 +9,6 @@ under other flags is refused in one line instead of mixing two protocols in one 
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import time
@@ -174,31 +173,3 @@ def run_series(
     if not done:
         raise ConfigError(f"no checkpoint found in {', '.join(map(str, roots))}")
     return sorted(done.items())
-
-
-def series_main(args: argparse.Namespace) -> int:
-    """CLI handler: run the series, write its report, print where it is."""
-    from indgen_vla.app.engine.config import config_from_args
-    from indgen_vla.core.reporting.series_report import write_series
-
-    if args.poll <= 0 or args.idle_stop < 0:
-        raise ConfigError("--poll must be > 0 and --idle-stop >= 0 seconds")
-    ns = argparse.Namespace(**vars(args))
-    ns.policy, ns.out = "series", str(Path(args.out) / "runs" / "_")  # replaced per checkpoint
-    base = config_from_args(ns)
-    out = Path(args.out)
-    logged: set[int] = set()
-
-    def report(entries):
-        write_series(entries, out, base.plan.gamma)
-        if args.log:
-            from indgen_vla.app.engine.trackers import log_runs
-
-            logged.update(log_runs(args.log, entries, project=args.log_project, name=out.name, skip=logged))
-
-    entries = run_series(base, args.roots, out, follow=args.follow, poll_s=args.poll, idle_stop_s=args.idle_stop,
-                         after_each=report)  # fmt: skip
-    report(entries)
-    print(f"series: {len(entries)} checkpoint(s); report: {out / 'series.md'}\njson:   {out / 'series.json'}\n"
-          f"plots:  {out / 'plots'}/")  # fmt: skip
-    return 0

@@ -67,6 +67,7 @@ def test_workers_for_other_scenes_are_closed_not_used():
     early.close()  # again: nothing left to close
 
 
+@pytest.mark.slow  # ~9 s: an overlap of two slow starts, timed
 def test_evaluate_builds_the_first_scene_while_the_policy_loads(tmp_path, monkeypatch):
     """A LeRobot checkpoint's cameras are read from its config before it loads; the run takes the early worker
     and its episodes equal those of the same run without a preview (scene built in-process after the load)."""

@@ -104,6 +104,7 @@ class _SeesHistory:
         pass
 
 
+@pytest.mark.slow  # ~5 s: two rendered runs; the history's content stays checked by default
 def test_history_renders_only_when_asked_and_changes_no_outcome(monkeypatch):
     """The extra render does not step the simulator: the same states, actions and records with and without it; a
     policy without history gets none and one render per query, one with history one more per query."""

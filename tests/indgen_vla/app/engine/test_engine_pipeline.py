@@ -116,6 +116,7 @@ class ImageFeedback(StateFeedback):
     )
 
 
+@pytest.mark.slow  # ~7 s: two rendered runs; the pipelined == unpipelined check stays in the default suite
 def test_lazy_render_reads_the_same_observations(monkeypatch):
     """Skipping the renders nobody reads (all but a chunk slice's last step) changes no observation the policy
     sees, no action and no record; it renders once per slice instead of once per step."""

@@ -137,6 +137,7 @@ def test_a_node_removed_mid_run_loses_no_episode_and_videos_reach_the_run_direct
     assert len(entry["episodes_per_node"]) >= 2 and sum(entry["episodes_per_node"].values()) == 8  # spread
 
 
+@pytest.mark.slow  # ~70 s with the cluster's start: the default suite's budget; 'make test-cluster' runs this file
 def test_driver_sigkilled_then_the_same_command_resumes_to_the_uninterrupted_runs_episodes(cluster, tmp_path):
     """``indgen evaluate --backend ray`` with ``RAY_ADDRESS`` set (the documented path, which died in ``ray.init``
     before the first episode), SIGKILLed mid-run and run again: the episodes equal those of one uninterrupted

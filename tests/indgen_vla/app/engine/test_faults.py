@@ -146,6 +146,7 @@ def test_server_restart_mid_run_loses_nothing(tmp_path, capsys):
     assert sorted(df["episode"]) == [0, 1] and (df["status"] == "ok").all()  # none lost, none twice
 
 
+@pytest.mark.slow  # ~6 s: a server gone for the whole patience
 def test_patience_spent_stops_cleanly_with_exit_4(tmp_path, capsys):
     faults = soak.Faults()
     server = soak.OpenpiServer(faults)

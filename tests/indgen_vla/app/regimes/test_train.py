@@ -175,6 +175,7 @@ def test_shipped_checkpoint_is_small_documented_and_loads():
     assert policy.act([_obs(state)]).shape[-1] == 7
 
 
+@pytest.mark.slow  # ~12 s: a second training run and an evaluation
 def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_demos, tmp_path):
     """Trained on pick_y levels 0 and 1: train_info.json and the policy's spec name them, evaluate records them in
     the manifest, and the report marks levels 0 and 1 (not 2) "trained"."""
