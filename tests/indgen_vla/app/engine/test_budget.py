@@ -62,6 +62,7 @@ def test_budget_json_and_no_scene_is_built(smoke):
         assert out["workers"][w]["bound"].startswith(("simulators", "policy", "coordinator"))
 
 
+@pytest.mark.slow  # ~6 s: a locked run, its report and a compare
 def test_the_lock_round_trips_through_evaluate_report_and_compare(tmp_path, capsys):
     lock, run = tmp_path / "plan.lock", tmp_path / "run"
     proto = [*SMALL, "--levels", "0", "--episodes", "2", "--max-steps", "20"]

@@ -45,6 +45,7 @@ def _same_images(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(np.array_equal(a[c], b[c]) for c in a)
 
 
+@pytest.mark.slow  # ~6 s: test_served_vla's RynnVLA test checks the same history by default
 def test_history_is_the_step_before_each_query():
     """Each query's ``history`` is the frame of step t-1 (a by-hand env's render there), whether the slice it ends
     is 3 actions long or 1; none at an episode's first query (not the warm-up's frames: upstream's ``his_img``

@@ -50,7 +50,8 @@ def same_run(a, b) -> None:
     assert not [d for d in differences(fa, fb) if d[3]]  # pairable: compare and gate accept the two runs
 
 
-@pytest.mark.parametrize("kind", [pytest.param("shipped", marks=pytest.mark.slow), "tiny_images"])
+@pytest.mark.slow  # ~8-20 s a kind: test_a_policy_protocol_object_runs_like_its_spec_and_stays_open stays by default
+@pytest.mark.parametrize("kind", ["shipped", "tiny_images"])
 def test_lerobot_object_runs_the_episodes_of_its_checkpoint(tmp_path, kind):
     """The shipped state-only ACT (the episodes run long enough for the policy to act), and a tiny image ACT
     (LIBERO camera names: flipped renders of both cameras)."""

@@ -68,6 +68,7 @@ def test_report_and_contrasts_equal_an_unshared_run(runs):
     assert summaries[0]["axes"] == summaries[1]["axes"]  # levels, n, CIs, k*, vs_t0 alike
 
 
+@pytest.mark.slow  # ~5 s: two runs compared
 def test_compare_axes_says_shared_t0_pairs_check_nothing(runs, tmp_path):
     from indgen_vla.app.cli import main
 

@@ -255,6 +255,7 @@ def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tm
     _assert_same_dataset(_dataset(generated), _dataset(out))
 
 
+@pytest.mark.slow  # ~20 s with its generated dataset
 def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generated, demos, tmp_path):
     from indgen_vla.app.regimes.mimicgen import generate
 

@@ -89,6 +89,7 @@ def test_several_runs_get_a_table_each_and_one_heatmap_with_a_panel_each(tmp_pat
 
 
 @pytest.mark.filterwarnings("ignore")
+@pytest.mark.slow  # ~7 s: a grid of runs; the grid's report is unit-tested by default
 def test_evaluate_runs_a_grid_from_one_range_and_reports_it(tmp_path, capsys):
     """pick_y with distractor held at 0 and 1, from the --axis range: expanded in the manifest, A@B=0 shares T0 with
     pick_y (the same environment) and A@B=1 does not; the report holds the grid and its heatmap."""
