@@ -11,6 +11,7 @@ import sys
 import time
 
 import pyarrow.parquet as pq
+import pytest
 
 from indgen_vla.app.cli import main
 from indgen_vla.app.real.plan import RealRun
@@ -38,6 +39,7 @@ def _png_whole(path) -> bool:
     return data.startswith(b"\x89PNG\r\n\x1a\n") and data[-8:-4] == b"IEND"
 
 
+@pytest.mark.slow  # ~8 s: a recording session read while it runs; test_dry_run covers the real-robot road by default
 def test_report_and_status_while_recording(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "3", "--adaptive", "off",
