@@ -2,6 +2,7 @@
 
 import copy
 import json
+from pathlib import Path
 
 import pytest
 
@@ -113,22 +114,35 @@ def test_compare_refuses_runs_with_different_horizons_and_the_flag_lets_it_throu
     assert "horizon differs (changes outcomes): 2 vs 3" in (tmp_path / "c" / "compare.md").read_text()
 
 
-def test_a_resume_under_another_protocol_is_refused_in_one_line_and_the_flag_records_it(tmp_path, capsys):
-    """A killed run resumed where the simulator differs (here the stored fingerprint names another MuJoCo) would mix
-    two protocols' episodes in one table: refused before any episode runs, nothing on disk lost; with
-    --allow-protocol-mismatch it goes on and the manifest records the change."""
+def _killed_after_one_episode(tmp_path, edit) -> tuple[list[str], Path, dict]:
+    """A 2-episode run whose manifest ``edit`` rewrites (another protocol), cut back to its first episode as a kill
+    leaves it: the evaluate argv that resumes it, its directory, and the manifest as the run first wrote it."""
     import pandas as pd
 
     out = tmp_path / "run"
     args = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
             "--episodes", "2", "--workers", "1", "--max-steps", "2", "--out", str(out)]  # fmt: skip
     assert main(args) == 0
-    manifest = json.loads((out / "manifest.json").read_text())
-    mujoco = manifest["fingerprint"]["simulator"]["mujoco"]
-    manifest["fingerprint"]["simulator"]["mujoco"] = "0.0.1"  # as if started on another machine, then killed
+    first = json.loads((out / "manifest.json").read_text())
+    manifest = copy.deepcopy(first)
+    edit(manifest)
     (out / "manifest.json").write_text(json.dumps(manifest))
     episodes = pd.read_parquet(out / "episodes.parquet")
     episodes[episodes.episode == 0].to_parquet(out / "episodes.parquet", index=False)
+    return args, out, first
+
+
+def test_a_resume_under_another_protocol_is_refused_in_one_line_and_the_flag_records_it(tmp_path, capsys):
+    """A killed run resumed where the simulator differs (here the stored fingerprint names another MuJoCo) would mix
+    two protocols' episodes in one table: refused before any episode runs, nothing on disk lost; with
+    --allow-protocol-mismatch it goes on and the manifest records the change."""
+    import pandas as pd
+
+    def elsewhere(manifest: dict) -> None:  # as if started on another machine, then killed
+        manifest["fingerprint"]["simulator"]["mujoco"] = "0.0.1"
+
+    args, out, manifest = _killed_after_one_episode(tmp_path, elsewhere)
+    mujoco = manifest["fingerprint"]["simulator"]["mujoco"]
     capsys.readouterr()
     assert main(args) != 0
     err = capsys.readouterr().err.strip().splitlines()
@@ -149,16 +163,11 @@ def test_a_resume_under_other_scene_facts_is_refused(tmp_path, capsys):
     manifest's copy, and refuses in the one protocol-mismatch line."""
     import pandas as pd
 
-    out = tmp_path / "run"
-    args = ["evaluate", "--policy", "standin:random", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0",
-            "--episodes", "2", "--workers", "1", "--max-steps", "2", "--out", str(out)]  # fmt: skip
-    assert main(args) == 0
-    manifest = json.loads((out / "manifest.json").read_text())
-    manifest["resolved"]["environment"]["protocol"]["initial_states"] = "an older rule"
-    manifest["fingerprint"]["initial_states"] = "an older rule"
-    (out / "manifest.json").write_text(json.dumps(manifest))
-    episodes = pd.read_parquet(out / "episodes.parquet")
-    episodes[episodes.episode == 0].to_parquet(out / "episodes.parquet", index=False)
+    def older_rule(manifest: dict) -> None:
+        manifest["resolved"]["environment"]["protocol"]["initial_states"] = "an older rule"
+        manifest["fingerprint"]["initial_states"] = "an older rule"
+
+    args, out, _ = _killed_after_one_episode(tmp_path, older_rule)
     capsys.readouterr()
     assert main(args) != 0
     err = capsys.readouterr().err.strip().splitlines()
