@@ -49,6 +49,7 @@ for split in ("pretrain", "target", "all"):
                                                for s in unpack_style_ids(kw["style_ids"])]
         out["splits"][split] = {"kwargs": kw, "pairs": [list(p) for p in pairs]}
 out["registries"] = list(inspect.signature(Kitchen.__init__).parameters["obj_registries"].default)
+out["none_is_all"] = unpack_layout_ids(None) == unpack_layout_ids(-3) and unpack_style_ids(None) == unpack_style_ids(-3)
 out["pretrain300"] = [t for t in sys.argv[1:] if t in PRETRAINING_TASKS["pretrain300"]]
 out["atomic_seen"] = [t for t in sys.argv[1:] if t in TARGET_TASKS["atomic_seen"]]
 print(json.dumps(out))
@@ -83,6 +84,7 @@ def test_each_split_is_what_robocasas_create_env_makes_of_it():
         } == pairs
     assert [len(got["splits"][s]["pairs"]) for s in ("pretrain", "target", "all")] == [2500, 10, 3600]
     assert tuple(got["registries"]) == splits.DEFAULT_REGISTRIES and splits.DEFAULT_SPLIT == "pretrain"
+    assert got["none_is_all"]  # split all draws from the list the worker's layout_ids=None drew from before
     assert got["pretrain300"] == tasks and len(got["atomic_seen"]) == 6
 
 
