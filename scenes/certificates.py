@@ -199,8 +199,10 @@ def certification_root(scene: str | None = None) -> Path:
         from indgen_vla.core.resources import certification_dir
 
         return certification_dir()
-    assets = get_scene(scene).asset_tree()
-    tag = hashlib.sha1(str(assets.resolve() if assets else "none").encode()).hexdigest()[:12]
+    sc = get_scene(scene)
+    assets, scope = sc.asset_tree(), sc.certificate_scope()  # scope "": the folder certificates had before it
+    where = str(assets.resolve() if assets else "none") + (f"\0{scope}" if scope else "")
+    tag = hashlib.sha1(where.encode()).hexdigest()[:12]
     return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser() / "certification" / tag
 
 

@@ -147,6 +147,11 @@ class Scene:
         """The asset tree a per-machine certificate depends on (``committed_certificates = False``), or None."""
         return None
 
+    def certificate_scope(self) -> str:
+        """A user's choice besides the asset tree that changes which initial states a level draws (RoboCasa365's
+        split): per-machine certificates made under another live in another folder ("": none)."""
+        return ""
+
     def placeholder_assets(self) -> bool:
         """True when the assets found are placeholders (boxes): images are then no measurement."""
         return False

@@ -317,6 +317,14 @@ class RoboCasa(Scene):
 
         return find_assets(required=False)
 
+    def certificate_scope(self) -> str:
+        """The split and registries, unless they are the worker's choice before the option (``splits.LEGACY``),
+        whose certificates keep their folder."""
+        from scenes.robocasa.splits import LEGACY, choice
+
+        split, registries = choice()
+        return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
+
     def placeholder_assets(self) -> bool:
         from scenes.robocasa.environment import find_assets, is_placeholder
 
@@ -327,10 +335,15 @@ class RoboCasa(Scene):
         return privileged_state(raw)
 
     def check_ready(self) -> None:
-        from scenes.robocasa.environment import find_assets, find_python
+        """The venv, the asset tree, and a split and registries (``splits.choice``) that tree can serve."""
+        from scenes.robocasa import splits
+        from scenes.robocasa.environment import find_assets, find_python, is_placeholder
 
         find_python()
-        find_assets()
+        assets = find_assets()
+        problem = splits.tree_problem(assets, *splits.choice(), placeholders=is_placeholder(assets))
+        if problem:
+            raise ConfigError(problem)
 
     def needs(self) -> str:
         from scenes.robocasa.environment import find_assets, find_python, is_placeholder, venv_dir
@@ -344,8 +357,11 @@ class RoboCasa(Scene):
         )
         if assets is None:
             return f"{venv}; kitchen assets missing (INDGEN_ROBOCASA_ASSETS)"
+        from scenes.robocasa.splits import choice
+
         kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
-        return f"{venv}; kitchen assets {kind} ({assets})"
+        split, registries = choice()
+        return f"{venv}; kitchen assets {kind} ({assets}); split {split}, object registries {'+'.join(registries)}"
 
     def select_tasks(self, task: str | None, axes: Sequence[AxisRef] = ()) -> list[str]:
         """``all``: the tasks on every axis of the run (appendix B's lists, ``AXIS_TASKS``), None their first; a
@@ -384,13 +400,23 @@ class RoboCasa(Scene):
         the black-box regime (appendix B): T0 is empirical, condition 2 validated post hoc (``indgen reference``
         and the report's monotone test)."""
         from scenes.libero.assets import tree_identity
+        from scenes.robocasa import splits
         from scenes.robocasa.environment import find_assets, is_placeholder
 
         assets = find_assets()
+        split, registries = splits.choice()
+        # the split's kitchens and instances are where T0 comes from; the choice the worker made before the option
+        # (splits.LEGACY) keeps the words runs had then, so they resume and pool with runs under it
+        drawn = "" if (split, registries) == splits.LEGACY else f"; {splits.describe(split, registries)}"
         return {
             **super().protocol_facts(),
             "initial_states": "RoboCasa's own reset from each episode's seed (layout, style, objects); levels "
-            f"replay T0's ep_meta with one field moved; {PICK_T0}",
+            f"replay T0's ep_meta with one field moved; {PICK_T0}{drawn}",
+            "split": {
+                "split": split,
+                "obj_registries": list(registries),
+                "kitchens": splits.SPLIT_WORDS[split],
+            },
             "assets": {
                 "root": str(assets),
                 "placeholders": is_placeholder(assets),
@@ -429,14 +455,24 @@ class RoboCasa(Scene):
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
         from scenes.axes import axis_param, shifts, spec_at_level
+        from scenes.robocasa.splits import SPLIT_ENV, SPLIT_WORDS, choice, in_split
 
         names = [p.axis.name for p in shifts(successor)]
         self._check_task_lists(task, names)
         spec = spec_at_level(self.base(task), successor, level)
         parts = set(names)
         name, kitchen = split_task(task)
+        split, registries = choice()
+        if kitchen is not None and not in_split(split, *kitchen):
+            raise ConfigError(
+                f"task {task}: kitchen {kitchen[0]}-{kitchen[1]} is not in RoboCasa365's {split} split "
+                f"({SPLIT_WORDS[split]}); run {name} without '@', or set {SPLIT_ENV}=pretrain or all"
+            )
         return {
             "task": name,
+            # RoboCasa365's split and RoboCasa's object registries (scenes/robocasa/splits.py, the user's choice)
+            "split": split,
+            "obj_registries": list(registries),
             # a canonical kitchen (KITCHEN_SETS): RoboCasa's layout_ids / style_ids; None: drawn from the seed
             "layout_ids": None if kitchen is None else [kitchen[0]],
             "style_ids": None if kitchen is None else [kitchen[1]],

@@ -48,6 +48,7 @@ oracle_facts = _facts.oracle_facts
 placement = _load_beside("placement_check")  # fixture_x / base_y moves checked after the settle
 window = _load_beside("pick_window")  # pick_x's window on RoboCasa's range in the episode's kitchen
 PICK_JITTER = window.PICK_JITTER
+splits = _load_beside("splits")  # RoboCasa365's split and the object registries: the Kitchen's arguments
 _patches = _load_beside("worker_patches")
 unique_in_order = _patches.unique_in_order  # what counter.py's ``set`` becomes (tests read it here)
 
@@ -121,9 +122,10 @@ def _flat_action(env, action: np.ndarray) -> np.ndarray:
 class RoboCasaLevel:
     """One (task, level) of RoboCasa: built once, reset per episode from the episode's seed.
 
-    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` (T0; on ``pick_x`` with the pick object's
-    centre x drawn in a 2 x ``PICK_JITTER`` window at the low end of the range RoboCasa samples it in, in that
-    kitchen, RoboCasa's footprint rule and robot base kept: ``pick_window``). Its ep_meta and the placements it
+    Episode ``seed`` at level 0 is RoboCasa's own reset from ``seed`` in the run's split (T0; on ``pick_x`` with the
+    pick object's centre x drawn in a 2 x ``PICK_JITTER`` window, or a level's step where narrower, at the low end
+    of the range RoboCasa samples it in, in that kitchen, RoboCasa's footprint rule and robot base kept:
+    ``pick_window``). Its ep_meta and the placements it
     drew are kept per worker; a level k > 0 (or a later reset of the same seed) replays that ep_meta with the level's one field edited,
     every fixture and object placement pinned to T0's except what the edit moves, and the post-load draws
     (``_setup_scene``) from the same stream, so T0 and level k differ in the one field only.
@@ -137,23 +139,31 @@ class RoboCasaLevel:
         self.cfg = config
         self.cameras = tuple(config.get("cameras", ()))
         h, w = config.get("image_size", (256, 256))
-        self.env = robosuite.make(
-            config["task"],
-            robots="PandaOmron",
-            has_renderer=False,
-            has_offscreen_renderer=bool(self.cameras),
-            use_camera_obs=bool(self.cameras),
-            camera_names=list(self.cameras) or "robot0_agentview_left",
-            camera_heights=h,
-            camera_widths=w,
-            ignore_done=True,
-            layout_ids=config.get("layout_ids"),
-            style_ids=config.get("style_ids"),
-            obj_registries=tuple(config.get("obj_registries", ("objaverse", "lightwheel"))),
-            robot_spawn_deviation_pos_x=0.0,  # RoboCasa's 0.15 / 0.05 m jitter off: a documented choice
-            robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/deviations.py SPAWN_JITTER, in the manifest)
-            translucent_robot=False,
+        regs = config.get("obj_registries", splits.DEFAULT_REGISTRIES)
+        kitchen = splits.kitchen_kwargs(
+            config.get("split", "all"), regs, config.get("layout_ids"), config.get("style_ids")
         )
+        self._split = (config.get("split", "all"), regs)
+        with splits.one_line(
+            *self._split
+        ):  # a category with no model in the split: one line naming the choice
+            self.env = robosuite.make(
+                config["task"],
+                robots="PandaOmron",
+                has_renderer=False,
+                has_offscreen_renderer=bool(self.cameras),
+                use_camera_obs=bool(self.cameras),
+                camera_names=list(self.cameras) or "robot0_agentview_left",
+                camera_heights=h,
+                camera_widths=w,
+                ignore_done=True,
+                # the split's kitchens and object instances (a config without one, a test's: "all", RoboCasa's
+                # Kitchen defaults), or the run's one canonical kitchen, and the object registries
+                **kitchen,
+                robot_spawn_deviation_pos_x=0.0,  # RoboCasa's 0.15 / 0.05 m jitter off: a documented choice
+                robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/deviations.py SPAWN_JITTER, in the manifest)
+                translucent_robot=False,
+            )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None
         self.env._indgen_task_fixture = None  # T0's task fixture on a replay (keep_task_fixture)
         self.env._indgen_pick = config.get("pick")  # pick_x: the window's config (pick_window.level_offset)
@@ -202,14 +212,15 @@ class RoboCasaLevel:
         self.env._indgen_pick_range, self.env._indgen_pick_buffer = None, 0.0
         self.env.rng = np.random.default_rng([self._seed, 0])
         try:
-            return self.env.reset()
+            with splits.one_line(*self._split):
+                return self.env.reset()
         finally:
             self.env._indgen_pins = self.env._indgen_made = self.env._indgen_fixture_shift = None
 
     def _t0(self, seed: int) -> tuple[dict, dict | None]:
         """T0 of ``seed`` (cached per worker) and, when this reset made it, its observation."""
         key = (self.cfg["task"], str(self.cfg.get("layout_ids")), str(self.cfg.get("style_ids")), int(seed),
-               bool(self.cfg.get("pick")))  # fmt: skip
+               bool(self.cfg.get("pick")), self.cfg.get("split"), str(self.cfg.get("obj_registries")))  # fmt: skip
         if key in _T0:
             return _T0[key], None
         # RoboCasa's own layout/style draw (kitchen.py _setup_model: rng.choice(layout_and_style_ids)), from seed

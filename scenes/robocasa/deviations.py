@@ -26,13 +26,16 @@ DEVIATIONS: tuple[str, ...] = (
     "levels replay T0's ep_meta with one field moved, skipping RoboCasa's robot-placement collision retry; the "
     "placement check after the settle stands in for it (a fixture_x / base_y move into an obstacle or off its "
     "counter is an infeasible cell, recorded as EpisodeUnavailableError, never a policy failure)",
-    "pick_x: T0 draws the pick object's centre x in a 4 cm window at the low end of the range RoboCasa draws it "
-    "in (its range less the object's buffer at each end), not across that whole range; RoboCasa's buffer, "
+    "pick_x: T0 draws the pick object's centre x in a 4 cm window (one level's step where that is narrower) at the "
+    "low end of the range RoboCasa draws it in (its range less the object's buffer at each end), not across that "
+    "whole range; RoboCasa's buffer, "
     "footprint rule (rotations whose footprint leaves its range are redrawn, so fewer fit at the window's low "
     "end) and robot base (CheesyBread's, from the cheese's range) are its own",
-    "object registries (objaverse, lightwheel), RoboCasa's own default, with every layout, style and object "
-    "instance (what split='all' selects); lerobot evaluates split='all' with lightwheel only, RoboCasa365's openpi "
-    "client the pretrain / target splits",
+    "RoboCasa365 split and object registries are the user's choice (INDGEN_ROBOCASA_SPLIT, "
+    "INDGEN_ROBOCASA_OBJ_REGISTRIES; the protocol facts' split names this run's), by default pretrain with "
+    "objaverse and lightwheel, where RoboCasa365's multi-task and lifelong-learning benchmarks and its openpi client "
+    "evaluate; RoboCasa365 evaluates its foundation-model checkpoints in target, lerobot split='all' with lightwheel "
+    "only",
     "RoboCasa's counter-region order is made first-seen (RoboCasa iterates a set of XML elements, in memory order), "
     "so one seed is one kitchen in every process",
 )

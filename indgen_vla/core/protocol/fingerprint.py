@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -164,7 +165,8 @@ def _readable(node) -> str:
 
 def show_difference(field: str, a: Any, b: Any, width: int = 40) -> tuple[str, str]:
     """Two values of ``field`` as a report prints them: the policy's conventions as the ``key=value`` pairs that
-    differ (a run without conventions reads "none"), anything else ``short``."""
+    differ (a run without conventions reads "none"), two texts from a little before they part (RoboCasa's
+    ``initial_states`` under two splits share 400 characters), anything else ``short``."""
     if field == CONVENTIONS:
         ia, ib = conventions_items(a), conventions_items(b)
         if (ia is not None or a is None) and (ib is not None or b is None) and (ia or ib):
@@ -175,6 +177,10 @@ def show_difference(field: str, a: Any, b: Any, width: int = 40) -> tuple[str, s
                 return ", ".join(f"{k}={items[k]}" for k in keys if k in items) or "none"
 
             return pairs(ia), pairs(ib)
+    if isinstance(a, str) and isinstance(b, str):  # long words alike at first: from just before they part
+        cut = len(os.path.commonprefix([a, b])) - 12
+        if cut > 0:
+            return short("…" + a[cut:], width), short("…" + b[cut:], width)
     return short(a, width), short(b, width)
 
 

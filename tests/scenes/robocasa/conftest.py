@@ -20,11 +20,16 @@ def placeholder_tree(tmp_path_factory):
 
 @pytest.fixture(scope="package")  # torn down when the package's tests end
 def placeholders(placeholder_tree):
-    """The tree, pointed at by INDGEN_ROBOCASA_ASSETS while the RoboCasa tests run."""
-    saved = os.environ.get("INDGEN_ROBOCASA_ASSETS")
-    os.environ["INDGEN_ROBOCASA_ASSETS"] = str(placeholder_tree)
+    """The tree, pointed at by INDGEN_ROBOCASA_ASSETS while the RoboCasa tests run, under RoboCasa365 split "all"
+    with RoboCasa's own registries (``scenes.robocasa.splits.LEGACY``): the kitchens each seed draws, which the
+    tests' seeds and the placeholder results in docs/ were chosen and measured under. test_splits sets its own."""
+    names = ("INDGEN_ROBOCASA_ASSETS", "INDGEN_ROBOCASA_SPLIT", "INDGEN_ROBOCASA_OBJ_REGISTRIES")
+    saved = {k: os.environ.get(k) for k in names}
+    os.environ.update(INDGEN_ROBOCASA_ASSETS=str(placeholder_tree), INDGEN_ROBOCASA_SPLIT="all")
+    os.environ.pop("INDGEN_ROBOCASA_OBJ_REGISTRIES", None)
     yield placeholder_tree
-    if saved is None:
-        os.environ.pop("INDGEN_ROBOCASA_ASSETS", None)
-    else:
-        os.environ["INDGEN_ROBOCASA_ASSETS"] = saved
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v

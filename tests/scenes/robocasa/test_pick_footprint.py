@@ -57,6 +57,25 @@ def test_a_levels_range_ends_where_t0s_does():
     assert -0.575 <= sub._sample_x((0.08, 0.05, 0.03)) <= -0.535
 
 
+def test_a_narrow_kitchens_window_is_a_fifth_of_t0s_centre_range_at_every_level():
+    """PickPlaceSinkToCounter's 0.25 m range and a 6 cm object: 0.19 m for the centre, a level 0.038 m, and so the
+    window (not 4 cm): T0 draws in [lo + 0.03, lo + 0.068], level 1's replay (range moved 0.038 m, T0's high end
+    kept) in the next 0.038 m, from T0's range rather than the replay's."""
+    sink = {**CHEESE, "cfg": "obj", "declared": 0.25}
+    env = SimpleNamespace(_indgen_pick_t0=None)
+    sampler, sub, cfg = _sampler([0.0, 0.25])
+    cfg[0].update(name="obj", placement={"size": (0.25, 0.3)})
+    sampler.samplers = {"obj_Sampler": sub}
+    narrow(env, sampler, cfg, sink)
+    assert sub._sample_x((0.06, 0.06, 0.03)) == np.random.default_rng(7).uniform(high=0.03 + 0.038, low=0.03)
+    env, (sampler, sub, _) = SimpleNamespace(_indgen_pick_t0=(0.0, 0.25)), _sampler([0.038, 0.288])
+    sampler.samplers = {"obj_Sampler": sub}
+    narrow(env, sampler, cfg, sink)
+    assert list(sub.x_range) == [0.038, 0.25]
+    x = sub._sample_x((0.06, 0.06, 0.03))
+    assert x == np.random.default_rng(7).uniform(high=0.068 + 0.038, low=0.068) and x >= 0.068
+
+
 @needs_venv
 def test_the_buffer_and_the_base_offset_are_robocasas_own():
     """The installed RoboCasa computes the buffer and the base offset as ``pick_window`` relies on."""
@@ -130,3 +149,54 @@ def test_the_fingerprint_names_the_window_rule_and_the_manifest_its_one_deviatio
     assert facts["deviations"] == list(DEVIATIONS)
     pick = [d for d in DEVIATIONS if "pick_x" in d or "CheesyBread" in d]
     assert len(pick) == 1 and "4 cm window" in pick[0] and "robot base" in pick[0]
+
+
+_SINK_LEVELS = """
+import importlib.util, json, sys
+spec = importlib.util.spec_from_file_location("backend", sys.argv[1])
+backend = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(backend)
+seed, out = int(sys.argv[3]), {}
+for level in range(5):  # one process: T0 drawn once (the worker's cache), each level replayed from it
+    pick = {"cfg": "obj", "declared": 0.25, "level": level, "top": 4, "step": None, "progressions": 5,
+            "report": True}
+    cfg = {"task": "PickPlaceSinkToCounter", "layout_ids": None, "style_ids": None, "cameras": [],
+           "image_size": (64, 64), "edits": {"pick_x": 0.05 * level}, "assets": sys.argv[2], "pick": pick}
+    built = backend.build(cfg)
+    obs = built.reset(seed)
+    out[level] = {"window": built.ep_meta()["indgen_pick_window"], "param": obs.get("axis_param"),
+                  "x": built.privileged()["obj_pos"].tolist()}
+    built.close()
+print(json.dumps(out))
+"""
+
+
+@needs_venv
+@pytest.mark.slow  # ~25 s CPU, 60 s wall: five levels; test_a_narrow_kitchens_window_... keeps the rule by default
+def test_pick_place_sink_to_counter_runs_every_pick_x_level_on_the_placeholder_tree(placeholders):
+    """Under the 4 cm window every PickPlaceSinkToCounter episode on the placeholder tree was unavailable (its 0.25 m
+    region less a 2.7-3.6 cm buffer at each end: a fifth under 4 cm). Now seed 0 resets at levels 0..4, each window
+    a fifth of the centre range wide, the five tiling it from lo + buffer to hi - buffer, each level's offset its
+    param, and the object one step further along at each level."""
+    from scenes.robocasa import backend
+    from scenes.robocasa.environment import find_python
+
+    out = subprocess.run(
+        [str(find_python()), "-c", _SINK_LEVELS, backend.__file__, str(placeholders), "0"],
+        capture_output=True, text=True, timeout=600, cwd="/",
+        env={"PATH": os.environ["PATH"], "MUJOCO_GL": "egl", "PYTHONNOUSERSITE": "1"},
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = {int(k): v for k, v in json.loads(out.stdout.strip().splitlines()[-1]).items()}
+    (lo, hi), b = got[0]["window"]["range"], got[0]["window"]["buffer"]
+    step = (hi - lo - 2 * b) / 5
+    assert hi - lo == pytest.approx(0.25) and 0.02 < b and step < 2 * PICK_JITTER
+    for k, level in got.items():
+        w = level["window"]
+        assert w["range"] == [lo, hi] and w["offset"] == level["param"] == pytest.approx(k * step)
+        assert w["window"] == pytest.approx([lo + b + k * step, lo + b + (k + 1) * step])
+    assert got[4]["window"]["window"][1] == pytest.approx(hi - b)
+    x = [level["x"] for level in got.values()]  # RoboCasa's same draw in each window: one step apart
+    assert [np.linalg.norm(np.subtract(x[k + 1], x[k])[:2]) for k in range(4)] == pytest.approx(
+        [step] * 4, abs=1e-3
+    )

@@ -1,11 +1,12 @@
 """pick_x's window on the range RoboCasa samples in each kitchen (``scenes/robocasa/pick_window.py``): the levels
-divide that range, and a kitchen that cannot hold them all holds none (hand-computed cases; no simulator)."""
+divide that range, the window is 4 cm or a level's step where that is narrower, and a kitchen that cannot hold
+them all holds none (hand-computed cases; no simulator)."""
 
 from __future__ import annotations
 
 import pytest
 
-from scenes.robocasa.pick_window import LevelUnavailable, level_offset
+from scenes.robocasa.pick_window import LevelUnavailable, level_offset, window_width
 
 
 def pick(level: int, declared: float = 0.5, step: float | None = None, top: int = 4) -> dict:
@@ -28,13 +29,24 @@ def test_a_clipped_kitchen_divides_its_own_range():
 
 
 @pytest.mark.parametrize("level", [0, 2])
-def test_a_kitchen_too_narrow_for_five_windows_holds_no_level(level):
-    """1/5 of 0.20 m is the 4 cm window itself: adjacent levels would touch (condition 2 is strict), so every
-    level of the episode, level 0 included, is unavailable, with the kitchen in one line."""
-    with pytest.raises(LevelUnavailable, match=r"^T seed 6 \(layout 27, style 43\): a 0\.200 m range") as e:
-        level_offset(0.20, pick(level), nominal=level * 0.1, where="T seed 6 (layout 27, style 43)")
+def test_a_kitchen_whose_fifth_is_narrower_than_4_cm_draws_in_windows_a_fifth_wide(level):
+    """1/5 of a 0.20 m range is 4 cm, of 0.15 m 3 cm: the window is that fifth (4 cm is wider than a level there,
+    and windows wider than a step would overlap; RoboCasa's ``rng.uniform`` draws in [low, high), so windows one
+    step wide share no point), and levels 0..4 tile the range; a wider kitchen keeps the 4 cm window."""
+    for width, step in ((0.20, 0.04), (0.15, 0.03), (0.201, 0.0402)):
+        assert window_width(width, pick(level)) == pytest.approx(min(0.04, step))
+        assert level_offset(width, pick(level), nominal=level * 0.1, where="w") == pytest.approx(level * step)
+        # level 4's window ends in the range
+        assert 4 * step + window_width(width, pick(level)) <= width + 1e-12
+    assert window_width(0.5, pick(level)) == 0.04 and window_width(0.30, pick(level, 0.30, step=0.06)) == 0.04
+
+
+def test_a_kitchen_with_no_room_for_the_objects_centre_holds_no_level():
+    """A buffer of half the range leaves the centre no room: every level of the episode, level 0 included, is
+    unavailable, with the kitchen in one line."""
+    with pytest.raises(LevelUnavailable, match=r"^T seed 6 \(layout 27, style 43\): a 0\.060 m range") as e:
+        level_offset(0.06, pick(2), nominal=0.2, where="T seed 6 (layout 27, style 43)", buffer=0.03)
     assert "\n" not in str(e.value) and "not retried" in str(e.value) and e.value.unavailable
-    assert level_offset(0.201, pick(level), nominal=0.0, where="w") == pytest.approx(level * 0.0402)
 
 
 def test_a_users_step_is_metres_and_the_top_level_must_fit():
@@ -55,16 +67,16 @@ def test_the_ladder_divides_the_range_of_the_objects_centre():
     assert 4 * 0.048 + 0.04 <= 0.30 - 2 * 0.03
 
 
-def test_an_object_whose_footprint_leaves_too_little_of_the_range_holds_no_level():
-    """0.25 m less a 3 cm buffer at each end leaves 0.19 m for the centre, whose fifth is narrower than the window;
-    with --step 0.06 a 0.30 m range less 2 cm each end (0.26 m) cannot hold level 4's window at 0.24..0.28 m."""
-    with pytest.raises(
-        LevelUnavailable, match=r"^w: a 0\.250 m range .*, 0\.190 m for the object's centre .*"
-    ) as e:
-        level_offset(0.25, pick(0, 0.25), nominal=0.0, where="w", buffer=0.03)
-    assert "\n" not in str(e.value) and "0.030 m of it inside each end" in str(e.value)
+def test_pick_place_sink_to_counters_footprint_leaves_windows_a_fifth_wide():
+    """0.25 m less a 3 cm buffer at each end leaves 0.19 m for the centre: a level is 0.038 m and so is the window
+    (4 cm would overlap the next level's); with --step 0.06 a 0.30 m range less 2 cm each end (0.26 m) cannot hold
+    level 4's window at 0.24..0.28 m."""
+    got = [level_offset(0.25, pick(k, 0.25), nominal=k * 0.05, where="w", buffer=0.03) for k in range(5)]
+    assert got == pytest.approx([0.0, 0.038, 0.076, 0.114, 0.152])
+    assert window_width(0.25, pick(0, 0.25), buffer=0.03) == pytest.approx(0.038)
     with pytest.raises(
         LevelUnavailable, match=r"0\.260 m for the object's centre.*level 4's window at 0\.240\.\.0\.280"
-    ):
+    ) as e:
         level_offset(0.30, pick(2, 0.30, step=0.06), nominal=0.12, where="w", buffer=0.02)
+    assert "\n" not in str(e.value) and "0.020 m of it inside each end" in str(e.value)
     assert level_offset(0.30, pick(2, 0.30, step=0.06), nominal=0.12, where="w", buffer=0.01) == 0.12

@@ -207,3 +207,15 @@ def test_compare_shows_the_policys_conventions_as_the_key_value_pairs_that_diffe
     line = check_comparable([("A", fa), ("B", fb)], allow=True)[0]
     assert line.endswith("render=256, images=Flip180 + ResizeWithPad(size=224), actions=none, chunk=10, replan=5 "
                          "vs none")  # fmt: skip
+
+
+def test_two_long_texts_are_shown_from_just_before_they_part():
+    """RoboCasa's initial_states under two splits share some 400 characters: cut at 60, both would read the same;
+    shown from 12 characters before they part, the refusal names what changed. Short or unalike texts: as they are."""
+    from indgen_vla.core.protocol.fingerprint import show_difference
+
+    a = "RoboCasa's own reset from each episode's seed " * 8 + "of that range"
+    b = a + "; RoboCasa365 split pretrain (layouts and styles 11..60)"
+    was, now = show_difference("initial_states", a, b, width=60)
+    assert was == "…" + a[-12:] and now.startswith("…" + a[-12:] + "; RoboCasa365 split pretrain")
+    assert show_difference("initial_states", "an older rule", a, width=60)[0] == "an older rule"
