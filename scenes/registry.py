@@ -152,6 +152,11 @@ class Scene:
         split): per-machine certificates made under another live in another folder ("": none)."""
         return ""
 
+    def worker_environment(self) -> dict[str, str]:
+        """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
+        split): a Ray actor on another node gets these, not its node's own ({}: none)."""
+        return {}
+
     def placeholder_assets(self) -> bool:
         """True when the assets found are placeholders (boxes): images are then no measurement."""
         return False

@@ -325,6 +325,13 @@ class RoboCasa(Scene):
         split, registries = choice()
         return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
 
+    def worker_environment(self) -> dict[str, str]:
+        """The split and registries this process resolved (``splits.choice``), for the run's simulators everywhere."""
+        from scenes.robocasa.splits import REGISTRIES_ENV, SPLIT_ENV, choice
+
+        split, registries = choice()
+        return {SPLIT_ENV: split, REGISTRIES_ENV: ",".join(registries)}
+
     def placeholder_assets(self) -> bool:
         from scenes.robocasa.environment import find_assets, is_placeholder
 

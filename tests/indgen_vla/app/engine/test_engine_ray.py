@@ -101,6 +101,20 @@ def test_ray_knobs_are_checked():
         ray_knobs({"INDGEN_RAY_CPUS_PER_SIM": "0"})
 
 
+def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):
+    """What the driver resolved, not a node's own environment: the manifest records the driver's split."""
+    from indgen_vla.app.engine.ray_backend import sim_options
+
+    monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "all")
+    monkeypatch.delenv("INDGEN_ROBOCASA_OBJ_REGISTRIES", raising=False)
+    env = sim_options("robocasa")["runtime_env"]["env_vars"]
+    assert env == {"INDGEN_ROBOCASA_SPLIT": "all", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "objaverse,lightwheel"}
+    monkeypatch.delenv("INDGEN_ROBOCASA_SPLIT")
+    default = sim_options("robocasa")["runtime_env"]["env_vars"]
+    assert default["INDGEN_ROBOCASA_SPLIT"] == "pretrain"
+    assert sim_options("pick_place") == {}  # a scene that reads no choice from the environment
+
+
 ROW = ("task", "axis", "level", "episode", "seed", "success", "steps", "status", "failure")
 
 

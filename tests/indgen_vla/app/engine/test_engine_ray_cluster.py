@@ -328,3 +328,32 @@ def test_forty_oracle_episodes_on_three_nodes_one_removed_halfway(joined, tmp_pa
         assert ray_entry(out)["faults"]["nodes_lost"] == 1
     finally:
         joined.add_node(num_cpus=2)
+
+
+@pytest.mark.slow  # ~15 s: its own two-node cluster; test_engine_ray's sim_options test keeps the options' content
+def test_a_node_whose_environment_names_another_split_builds_the_drivers(tmp_path, monkeypatch):
+    """A worker node started with INDGEN_ROBOCASA_SPLIT=target runs a simulator actor that sees the driver's 'all'."""
+    from ray.cluster_utils import Cluster
+
+    from indgen_vla.app.engine.ray_backend import sim_options
+
+    monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "target")  # the environment the node's raylet starts with
+    c = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False})
+    c.add_node(num_cpus=1)
+    c.wait_for_nodes()
+    try:
+        monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "all")  # the driver's choice
+        ray.init(address=c.address, log_to_driver=False)
+
+        class Probe:
+            def split(self) -> tuple[str, str]:
+                return os.environ.get("INDGEN_ROBOCASA_SPLIT", ""), ray.get_runtime_context().get_node_id()
+
+        plain = ray.remote(num_cpus=1)(Probe).remote()
+        assert ray.get(plain.split.remote())[0] == "target"  # the node's own value, what an actor read before
+        ray.kill(plain)
+        carried = ray.remote(num_cpus=1, **sim_options("robocasa"))(Probe).remote()
+        assert ray.get(carried.split.remote())[0] == "all"
+    finally:
+        ray.shutdown()
+        c.shutdown()
