@@ -81,6 +81,8 @@ class RoboCasaOracle:
         # the press's hand tilt (PRESS_TILT, a button's BUTTON_TILT): raised while the approach stalls short
         self._tilt: float | None = None
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
+        self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
+        self._base_trail: list = []
         self.seed = seed
 
     def close(self) -> None:

@@ -11,11 +11,18 @@ from __future__ import annotations
 import numpy as np
 
 from scenes.privileged import PrivilegedState
+from scenes.robocasa.oracle_base import base_goal, drive
 
 CLOSED = 1.0  # robosuite's gripper action: fingers shut
 MAX_PRESS_TILT = 1.3  # radians: the most a press tips the hand while its reach falls short
 BEHIND = 0.03  # m the grip site stays behind a standing lid's back face before sweeping it shut
 CLOSED_BELOW = 0.3  # how open (RoboCasa's 0..1) a lid may still be when the sweep hands over to the press
+# m in front of the base the base phase brings a lid's hinge between (measured: a hand pointing down sweeps it at
+# 0.37-0.62 m; a tipped one at 0.46-0.48 m, and at 0.35 m its press stalls short of the lid, near the base)
+LID_AHEAD = (0.30, 0.60)
+TIPPED_AHEAD = (0.47, 0.50)
+LID_ROOM = 0.3  # m over a lid's top under which the hand tips from the start (LID_TILT)
+LID_TILT = 1.0  # radians: a hand tipped toward the lid keeps its wrist low and back, under a wall cabinet
 
 
 def hinge_frame(s: PrivilegedState) -> tuple[np.ndarray, np.ndarray, float, float, float]:
@@ -40,6 +47,17 @@ def _reach(o, s: PrivilegedState, target, tol: float) -> bool:
     return False
 
 
+def _start(o, s: PrivilegedState, hinge, top: float) -> None:
+    """The first action's choices: the hand's tilt, ``LID_TILT`` under something hanging less than ``LID_ROOM`` over
+    the lid's top (a wall cabinet: a hand pointing down meets it with its wrist), and where the base drives: the
+    hinge straight ahead, within ``LID_AHEAD`` (``TIPPED_AHEAD`` for a tipped hand) as far as the room allows
+    (``oracle_base.base_goal``)."""
+    low = s.facts.ceiling is not None and s.facts.ceiling - top < LID_ROOM
+    o._base_goal = base_goal(s, hinge, *(TIPPED_AHEAD if low else LID_AHEAD))
+    o._tilt = LID_TILT if low else 0.0
+    o._next("drive" if o._base_goal is not None else "approach")
+
+
 def close_lid(o, s: PrivilegedState) -> np.ndarray:
     """A standing lid: down behind its top edge (hand pointing down, fingers closed; tipped further while the reach
     falls short), swept toward the fixture's front faster than RoboCasa's hold pulls it back open, then pushed down
@@ -49,9 +67,14 @@ def close_lid(o, s: PrivilegedState) -> np.ndarray:
     z = np.array([0.0, 0.0, 1.0])
     behind = hinge - u * (t + BEHIND)
     if o._tilt is None:
-        o._tilt = 0.0
+        _start(o, s, hinge, float(hinge[2]) + length)
+    if o.phase == "drive":
+        a = drive(o, s, o._base_goal, CLOSED)
+        if a is not None:
+            return a
+        o._next("approach")
     if o.phase == "approach":
-        target = behind + z * (length + 0.08)
+        target = behind + z * (length + (0.03 if o._tilt >= LID_TILT else 0.08))
         if _reach(o, s, target, 0.02) or o._count > 150:
             o._next("lower")
         return o._goto(s, target, CLOSED, tilt=o._tilt)

@@ -102,6 +102,9 @@ def privileged_state(raw: dict):
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
     elif "hinge_pos" in raw:  # a lid to swing shut: goal is its hinge, turned the way the fixture faces
         goal, target = hinge_goal(raw), hinge_target(raw)
+        room = raw.get("base_room")
+        facts = SceneFacts(base_room=None if room is None else tuple(float(r) for r in room),
+                           ceiling=raw.get("hinge_ceiling"))  # fmt: skip
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
