@@ -17,10 +17,11 @@ CLOSED = 1.0  # robosuite's gripper action: fingers shut
 MAX_PRESS_TILT = 1.3  # radians: the most a press tips the hand while its reach falls short
 BEHIND = 0.03  # m the grip site stays behind a standing lid's back face before sweeping it shut
 CLOSED_BELOW = 0.3  # how open (RoboCasa's 0..1) a lid may still be when the sweep hands over to the press
-# m in front of the base the base phase brings a lid's hinge between (measured: a hand pointing down sweeps it at
-# 0.37-0.62 m; a tipped one at 0.46-0.48 m, and at 0.35 m its press stalls short of the lid, near the base)
-LID_AHEAD = (0.30, 0.60)
+# m in front of the base the base phase brings a lid's hinge between: a tipped hand (LID_TILT) sweeps it from
+# 0.43-0.48 m (at 0.35 m its press stalled short, near the base; at 0.54 m it did not get behind the lid); a hand
+# pointing down from 0.61 m (nearer, its fingers stalled 4 cm over their mark, or on a coffee machine behind)
 TIPPED_AHEAD = (0.47, 0.50)
+LID_AHEAD = (0.30, 0.65)  # the hand pointing down: where the room keeps the hinge beyond TIPPED_AHEAD
 LID_ROOM = 0.3  # m over a lid's top under which the hand tips from the start (LID_TILT)
 LID_TILT = 1.0  # radians: a hand tipped toward the lid keeps its wrist low and back, under a wall cabinet
 
@@ -48,13 +49,17 @@ def _reach(o, s: PrivilegedState, target, tol: float) -> bool:
 
 
 def _start(o, s: PrivilegedState, hinge, top: float) -> None:
-    """The first action's choices: the hand's tilt, ``LID_TILT`` under something hanging less than ``LID_ROOM`` over
-    the lid's top (a wall cabinet: a hand pointing down meets it with its wrist), and where the base drives: the
-    hinge straight ahead, within ``LID_AHEAD`` (``TIPPED_AHEAD`` for a tipped hand) as far as the room allows
-    (``oracle_base.base_goal``)."""
+    """The first action's choices: where the base drives (``oracle_base.base_goal``: the hinge straight ahead, as far
+    as the room allows) and the hand's tilt: ``LID_TILT`` with the hinge within ``TIPPED_AHEAD`` (2 cm beyond it
+    too) or under something hanging less than ``LID_ROOM`` over the lid's top (a wall cabinet: a hand pointing down
+    meets it with its wrist); else pointing down, the hinge within ``LID_AHEAD``."""
+    o._base_goal, o._tilt = base_goal(s, hinge, *TIPPED_AHEAD), LID_TILT
+    goal = s.robot_base[:2] if o._base_goal is None else o._base_goal
+    yaw = float(s.robot_base[2])
+    ahead = float(np.dot(np.asarray(hinge[:2]) - goal, [np.cos(yaw), np.sin(yaw)]))  # after the drive
     low = s.facts.ceiling is not None and s.facts.ceiling - top < LID_ROOM
-    o._base_goal = base_goal(s, hinge, *(TIPPED_AHEAD if low else LID_AHEAD))
-    o._tilt = LID_TILT if low else 0.0
+    if not low and ahead > TIPPED_AHEAD[1] + 0.02:
+        o._base_goal, o._tilt = base_goal(s, hinge, *LID_AHEAD), 0.0
     o._next("drive" if o._base_goal is not None else "approach")
 
 
