@@ -22,6 +22,9 @@ CLOSED_BELOW = 0.3  # how open (RoboCasa's 0..1) a lid may still be when the swe
 # pointing down from 0.61 m (nearer, its fingers stalled 4 cm over their mark, or on a coffee machine behind)
 TIPPED_AHEAD = (0.47, 0.50)
 LID_AHEAD = (0.30, 0.65)  # the hand pointing down: where the room keeps the hinge beyond TIPPED_AHEAD
+# radians a kettle may be turned from facing the base for the tipped hand (fixture_x level 1 episode 2, turned 57
+# deg: the tipped hand swept past the lid's side; pointing down it closes it)
+FACING = np.pi / 4
 LID_ROOM = 0.3  # m over a lid's top under which the hand tips from the start (LID_TILT)
 LID_TILT = 1.0  # radians: a hand tipped toward the lid keeps its wrist low and back, under a wall cabinet
 
@@ -48,17 +51,19 @@ def _reach(o, s: PrivilegedState, target, tol: float) -> bool:
     return False
 
 
-def _start(o, s: PrivilegedState, hinge, top: float) -> None:
+def _start(o, s: PrivilegedState, hinge, u, top: float) -> None:
     """The first action's choices: where the base drives (``oracle_base.base_goal``: the hinge straight ahead, as far
-    as the room allows) and the hand's tilt: ``LID_TILT`` with the hinge within ``TIPPED_AHEAD`` (2 cm beyond it
-    too) or under something hanging less than ``LID_ROOM`` over the lid's top (a wall cabinet: a hand pointing down
-    meets it with its wrist); else pointing down, the hinge within ``LID_AHEAD``."""
+    as the room allows) and the hand's tilt: ``LID_TILT`` under something hanging less than ``LID_ROOM`` over the
+    lid's top (a wall cabinet: a hand pointing down meets it with its wrist), or with the kettle facing the base
+    (within ``FACING``; the hand tips toward the base's front) and the hinge within ``TIPPED_AHEAD`` (2 cm beyond
+    it too); else pointing down, the hinge within ``LID_AHEAD``."""
     o._base_goal, o._tilt = base_goal(s, hinge, *TIPPED_AHEAD), LID_TILT
     goal = s.robot_base[:2] if o._base_goal is None else o._base_goal
     yaw = float(s.robot_base[2])
-    ahead = float(np.dot(np.asarray(hinge[:2]) - goal, [np.cos(yaw), np.sin(yaw)]))  # after the drive
+    fwd = np.array([np.cos(yaw), np.sin(yaw)])
+    ahead = float(np.dot(np.asarray(hinge[:2]) - goal, fwd))  # after the drive
     low = s.facts.ceiling is not None and s.facts.ceiling - top < LID_ROOM
-    if not low and ahead > TIPPED_AHEAD[1] + 0.02:
+    if not low and (ahead > TIPPED_AHEAD[1] + 0.02 or -float(np.dot(u[:2], fwd)) < np.cos(FACING)):
         o._base_goal, o._tilt = base_goal(s, hinge, *LID_AHEAD), 0.0
     o._next("drive" if o._base_goal is not None else "approach")
 
@@ -72,7 +77,7 @@ def close_lid(o, s: PrivilegedState) -> np.ndarray:
     z = np.array([0.0, 0.0, 1.0])
     behind = hinge - u * (t + BEHIND)
     if o._tilt is None:
-        _start(o, s, hinge, float(hinge[2]) + length)
+        _start(o, s, hinge, u, float(hinge[2]) + length)
     if o.phase == "drive":
         a = drive(o, s, o._base_goal, CLOSED)
         if a is not None:
