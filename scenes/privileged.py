@@ -85,6 +85,8 @@ class SceneFacts:
     fixture_centre: np.ndarray | None = None  # world xy of the fixture the object must leave
     fixture_half: tuple[float, float] | None = None  # its footprint's half extents (x, y)
     button: bool = False  # a press task's part is a button: one touch counts, at its release (RoboCasa)
+    base_room: tuple[float, ...] | None = None  # m a mobile base may drive ahead, back, left, right
+    ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
 
 
 NO_FACTS = SceneFacts()

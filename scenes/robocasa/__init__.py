@@ -218,6 +218,11 @@ def _worker_env() -> dict[str, str]:
     return {"ROBOCASA_ASSETS_PATH": str(find_assets()), "MUJOCO_GL": "egl"}
 
 
+# what backend.py passes robosuite.make: create_env's composite config, whose base part Kitchen makes
+# JOINT_VELOCITY_LEGACY (base_motion in the base's current frame), as RoboCasa's own evaluators drive it
+BASE_CONTROLLER = "RoboCasa's create_env config (base JOINT_VELOCITY_LEGACY)"
+
+
 @register_scene
 class RoboCasa(Scene):
     """RoboCasa365 (rlinf-robocasa365 1.0.1 = upstream RoboCasa v1.0.1), PandaOmron in RoboCasa's kitchens.
@@ -324,6 +329,12 @@ class RoboCasa(Scene):
 
         split, registries = choice()
         return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
+
+    def environment_versions(self) -> dict[str, str]:
+        """The worker venv's versions, and the base controller it builds with (``backend.py``): RoboCasa's
+        ``create_env`` config since issue 41, robosuite's default before, which turns base commands once the base has
+        turned, so runs under the two are neither pooled nor resumed as each other."""
+        return {**super().environment_versions(), "base_controller": BASE_CONTROLLER}
 
     def worker_environment(self) -> dict[str, str]:
         """The split and registries this process resolved (``splits.choice``), for the run's simulators everywhere."""

@@ -134,6 +134,7 @@ class RoboCasaLevel:
     def __init__(self, config: dict):
         import robocasa  # noqa: F401  (registers the kitchen tasks with robosuite)
         import robosuite
+        from robosuite.controllers import load_composite_controller_config
 
         _patches.install_patches(window)
         self.cfg = config
@@ -150,6 +151,10 @@ class RoboCasaLevel:
             self.env = robosuite.make(
                 config["task"],
                 robots="PandaOmron",
+                # as RoboCasa's create_env (robocasa/utils/env_utils.py): given a config, Kitchen.__init__ drives the
+                # base with JOINT_VELOCITY_LEGACY, whose base_motion is in the base's current frame (robosuite's
+                # default JOINT_VELOCITY turns it the other way once the base has turned)
+                controller_configs=load_composite_controller_config(controller=None, robot="PandaOmron"),
                 has_renderer=False,
                 has_offscreen_renderer=bool(self.cameras),
                 use_camera_obs=bool(self.cameras),

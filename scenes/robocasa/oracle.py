@@ -1,10 +1,10 @@
-"""The privileged oracle of RoboCasa365 (``standin:oracle`` on ``--scene robocasa``): PandaOmron's arm, base fixed.
+"""The privileged oracle of RoboCasa365 (``standin:oracle`` on ``--scene robocasa``): PandaOmron's arm and base.
 
 It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.privileged_state``) and emits RoboCasa's
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+control mode -1 (arm), but for the kettle lid's base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
@@ -81,6 +81,8 @@ class RoboCasaOracle:
         # the press's hand tilt (PRESS_TILT, a button's BUTTON_TILT): raised while the approach stalls short
         self._tilt: float | None = None
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
+        self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
+        self._base_trail: list = []
         self.seed = seed
 
     def close(self) -> None:

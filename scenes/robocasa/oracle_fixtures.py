@@ -11,11 +11,22 @@ from __future__ import annotations
 import numpy as np
 
 from scenes.privileged import PrivilegedState
+from scenes.robocasa.oracle_base import base_goal, drive
 
 CLOSED = 1.0  # robosuite's gripper action: fingers shut
 MAX_PRESS_TILT = 1.3  # radians: the most a press tips the hand while its reach falls short
 BEHIND = 0.03  # m the grip site stays behind a standing lid's back face before sweeping it shut
 CLOSED_BELOW = 0.3  # how open (RoboCasa's 0..1) a lid may still be when the sweep hands over to the press
+# m in front of the base the base phase brings a lid's hinge between: a tipped hand (LID_TILT) sweeps it from
+# 0.43-0.48 m (at 0.35 m its press stalled short, near the base; at 0.54 m it did not get behind the lid); a hand
+# pointing down from 0.61 m (nearer, its fingers stalled 4 cm over their mark, or on a coffee machine behind)
+TIPPED_AHEAD = (0.47, 0.50)
+LID_AHEAD = (0.30, 0.65)  # the hand pointing down: where the room keeps the hinge beyond TIPPED_AHEAD
+# radians a kettle may be turned from facing the base for the tipped hand (fixture_x level 1 episode 2, turned 57
+# deg: the tipped hand swept past the lid's side; pointing down it closes it)
+FACING = np.pi / 4
+LID_ROOM = 0.3  # m over a lid's top under which the hand tips from the start (LID_TILT)
+LID_TILT = 1.0  # radians: a hand tipped toward the lid keeps its wrist low and back, under a wall cabinet
 
 
 def hinge_frame(s: PrivilegedState) -> tuple[np.ndarray, np.ndarray, float, float, float]:
@@ -40,6 +51,23 @@ def _reach(o, s: PrivilegedState, target, tol: float) -> bool:
     return False
 
 
+def _start(o, s: PrivilegedState, hinge, u, top: float) -> None:
+    """The first action's choices: where the base drives (``oracle_base.base_goal``: the hinge straight ahead, as far
+    as the room allows) and the hand's tilt: ``LID_TILT`` under something hanging less than ``LID_ROOM`` over the
+    lid's top (a wall cabinet: a hand pointing down meets it with its wrist), or with the kettle facing the base
+    (within ``FACING``; the hand tips toward the base's front) and the hinge within ``TIPPED_AHEAD`` (2 cm beyond
+    it too); else pointing down, the hinge within ``LID_AHEAD``."""
+    o._base_goal, o._tilt = base_goal(s, hinge, *TIPPED_AHEAD), LID_TILT
+    goal = s.robot_base[:2] if o._base_goal is None else o._base_goal
+    yaw = float(s.robot_base[2])
+    fwd = np.array([np.cos(yaw), np.sin(yaw)])
+    ahead = float(np.dot(np.asarray(hinge[:2]) - goal, fwd))  # after the drive
+    low = s.facts.ceiling is not None and s.facts.ceiling - top < LID_ROOM
+    if not low and (ahead > TIPPED_AHEAD[1] + 0.02 or -float(np.dot(u[:2], fwd)) < np.cos(FACING)):
+        o._base_goal, o._tilt = base_goal(s, hinge, *LID_AHEAD), 0.0
+    o._next("drive" if o._base_goal is not None else "approach")
+
+
 def close_lid(o, s: PrivilegedState) -> np.ndarray:
     """A standing lid: down behind its top edge (hand pointing down, fingers closed; tipped further while the reach
     falls short), swept toward the fixture's front faster than RoboCasa's hold pulls it back open, then pushed down
@@ -49,9 +77,14 @@ def close_lid(o, s: PrivilegedState) -> np.ndarray:
     z = np.array([0.0, 0.0, 1.0])
     behind = hinge - u * (t + BEHIND)
     if o._tilt is None:
-        o._tilt = 0.0
+        _start(o, s, hinge, u, float(hinge[2]) + length)
+    if o.phase == "drive":
+        a = drive(o, s, o._base_goal, CLOSED)
+        if a is not None:
+            return a
+        o._next("approach")
     if o.phase == "approach":
-        target = behind + z * (length + 0.08)
+        target = behind + z * (length + (0.03 if o._tilt >= LID_TILT else 0.08))
         if _reach(o, s, target, 0.02) or o._count > 150:
             o._next("lower")
         return o._goto(s, target, CLOSED, tilt=o._tilt)

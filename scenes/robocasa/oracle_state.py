@@ -57,6 +57,12 @@ def unload_target(raw: dict, pick, centre):
     return target, SceneFacts(receptacle_inner=half, fixture_centre=np.asarray(centre[:2]), fixture_half=half)
 
 
+def _room(raw: dict, ceiling: str) -> dict:
+    """The base phase's facts (``oracle_base``): the base's room each way and what hangs over the part."""
+    room = raw.get("base_room")
+    return {"base_room": None if room is None else tuple(float(r) for r in room), "ceiling": raw.get(ceiling)}
+
+
 def privileged_state(raw: dict):
     """The worker's privileged facts (``backend.RoboCasaLevel.privileged``) as a ``PrivilegedState``.
 
@@ -102,6 +108,7 @@ def privileged_state(raw: dict):
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
     elif "hinge_pos" in raw:  # a lid to swing shut: goal is its hinge, turned the way the fixture faces
         goal, target = hinge_goal(raw), hinge_target(raw)
+        facts = SceneFacts(**_room(raw, "hinge_ceiling"))
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

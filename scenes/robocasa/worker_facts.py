@@ -188,11 +188,52 @@ def kettle_facts(env, task: str) -> dict:
     axis = np.asarray(data.xaxis[j], dtype=np.float64)
     across = centre - hinge - axis * float(np.dot(centre - hinge, axis))  # hinge to centre, off the axis
     normal = np.cross(axis, across / max(float(np.linalg.norm(across)), 1e-9))
+    edge = hinge + 2 * across
     return {
-        "hinge_pos": hinge, "hinge_edge": hinge + 2 * across, "hinge_front": front,
+        "hinge_pos": hinge, "hinge_edge": edge, "hinge_front": front,
         "hinge_thick": _part_box(env, f"{kettle.naming_prefix}lid", normal)[1],
         "hinge_state": float(kettle.get_state(env)["lid"]),
+        "hinge_ceiling": _ceiling(env, hinge[:2], max(float(hinge[2]), float(edge[2])), reach=0.1),
+        "base_room": base_room(env),
     }  # fmt: skip
+
+
+def base_room(env) -> list[float]:
+    """How far the mobile base can drive straight ahead, back, left and right before its collision boxes touch a
+    fixture's (``room_ahead`` over ``_boxes``): what the oracle's base phase (``oracle_base.base_goal``) may use."""
+    data, model = env.sim.data, env.sim.model
+    body = model.body_name2id("mobilebase0_base")
+    fwd = np.asarray(data.xmat[body]).reshape(3, 3)[:2, 0]
+    own = [(data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g])
+           for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0))
+           if (model.geom_id2name(g) or "").startswith("mobilebase0")]  # fmt: skip
+    others, origin = list(_boxes(env)), np.asarray(data.xpos[body][:2])
+    left = np.array([-fwd[1], fwd[0]])
+    return [room_ahead(origin, d, own, others) for d in (fwd, -fwd, left, -left)]
+
+
+def room_ahead(origin, forward, own, others) -> float:
+    """The distance along the unit vector ``forward`` (xy) that the boxes ``own`` (centre, world AABB half sizes)
+    can move before one meets a box of ``others`` that overlaps their height and their span across ``forward``
+    (inf when none does); read in the frame of ``forward`` at ``origin``. A box under their bottom (the floor) or
+    over their top (a wall cabinet) is passed."""
+    fwd = np.asarray(forward, dtype=np.float64)[:2]
+    fwd = fwd / np.linalg.norm(fwd)
+    frame = np.stack([fwd, np.array([-fwd[1], fwd[0]])])
+
+    def span(pos, half):
+        c, h = frame @ (np.asarray(pos[:2]) - origin), np.abs(frame) @ np.asarray(half[:2])
+        return c - h, c + h, float(pos[2] - half[2]), float(pos[2] + half[2])
+
+    mine = [span(p, h) for p, h in own]
+    lo_side, hi_side = min(m[0][1] for m in mine), max(m[1][1] for m in mine)
+    front, bottom, top = max(m[1][0] for m in mine), min(m[2] for m in mine), max(m[3] for m in mine)
+    room = np.inf
+    for pos, half in others:
+        lo, hi, b, t = span(pos, half)
+        if t > bottom + 0.01 and b < top and hi[1] > lo_side and lo[1] < hi_side and hi[0] > front:
+            room = min(room, max(0.0, float(lo[0]) - front))
+    return float(room)
 
 
 def object_extent_facts(env) -> dict:

@@ -126,3 +126,20 @@ def test_the_spawn_jitter_robocasa_defaults_to_is_recorded_as_set_to_zero(placeh
     facts = get_scene("robocasa").protocol_facts()
     assert facts["spawn_jitter"] == {**SPAWN_JITTER} and facts["spawn_jitter"]["pos_x"] == 0.0
     assert any(d.startswith("robot spawn jitter 0") for d in facts["deviations"])
+
+
+@needs_venv
+def test_the_base_controller_enters_the_fingerprint(placeholders):
+    """The worker builds with create_env's controller config (robocasa/utils/env_utils.py, be22d659), not
+    robosuite's default, since issue 41: a run made before reads another simulator and is not resumed as this one."""
+    from indgen_vla.core.protocol.fingerprint import build_fingerprint, differences
+    from scenes.registry import get_scene
+    from scenes.robocasa import BASE_CONTROLLER
+
+    env = {"scene": "robocasa", "environment": get_scene("robocasa").environment_versions()}
+    kw = dict(max_steps=None, warmup_steps=0, cameras=(), image_size=(0, 0), render_backend="", policy={})
+    now = build_fingerprint({"environment": env}, {}, **kw)
+    assert now["simulator"]["worker:base_controller"] == BASE_CONTROLLER
+    before = {**env, "environment": {k: v for k, v in env["environment"].items() if k != "base_controller"}}
+    diff = differences(build_fingerprint({"environment": before}, {}, **kw), now)
+    assert [(f, changes) for f, _, _, changes in diff] == [("simulator", True)]

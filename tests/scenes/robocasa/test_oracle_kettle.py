@@ -40,12 +40,15 @@ def test_the_lid_facts_become_its_hinge_and_free_edge():
 def test_the_oracle_goes_behind_the_lid_then_sweeps_it_toward_the_front():
     from scenes.robocasa import privileged_state
     from scenes.robocasa.oracle import RoboCasaOracle
+    from scenes.robocasa.oracle_fixtures import LID_TILT
 
     o = RoboCasaOracle()
+    # no room reported: no drive; the hinge 0.45 m ahead: a tipped hand, beyond the lid, fingers shut
     a = o.action(privileged_state(_raw()))
-    assert (
-        o.phase == "approach" and a[0] > 0 and a[2] > 0 and a[6] > 0
-    )  # beyond and above the lid, fingers shut
+    assert o.phase == "approach" and o._tilt == LID_TILT and a[0] > 0 and a[6] > 0
+    o = RoboCasaOracle()
+    o.action(privileged_state({**_raw(), "hinge_pos": [0.6, 0.0, 1.14], "hinge_edge": [0.6, 0.0, 1.24]}))
+    assert o._tilt == 0.0  # 0.6 m ahead: the hand points down
     o.phase = "sweep"
     a = o.action(privileged_state(_raw(eef=(0.49, 0.0, 1.21))))  # behind the lid's top edge
     assert a[0] < 0 and a[2] < 0  # toward the base (the kettle's front) and down
