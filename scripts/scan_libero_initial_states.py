@@ -72,7 +72,10 @@ def table(out: Path) -> str:
     for (t, a, k), r in sorted(rows.items()):
         p = max(m[0] for m in r["moved"]) * 100
         g = max(m[1] for m in r["moved"]) * 100
+        kept = [i for i in range(r["states"]) if i not in r["thrown"]]
         ids = ", ".join(map(str, r["thrown"])) or "-"
+        if len(kept) < len(r["thrown"]):
+            ids = "all but " + (", ".join(map(str, kept)) or "none")
         lines.append(f"| {t} | {a} | {k:+d} | {len(r['thrown'])}/{r['states']}: {ids} | {p:.1f} / {g:.1f} |")
     return "\n".join(lines)
 

@@ -71,14 +71,27 @@ def _script(name: str):
 
 
 def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
-    """On the complete tree ``evaluate``'s lookup finds the shipped certificate; on another tree (the miniature)
-    it finds none and says so once."""
-    from scenes.certificates import certified_levels, find_certification
+    """On the complete tree ``evaluate``'s lookup finds the shipped certificates (and its plan refuses the failed
+    cream_cheese levels, certified by the oracle version each row records); on another tree (the miniature) it
+    finds none and says so once."""
+    from scenes.certificates import (
+        certified_levels,
+        find_certification,
+        infeasible_levels,
+        row_oracle_version,
+    )
+    from scenes.planning import resolve_scene_plan
 
     os.environ["INDGEN_LIBERO_ASSETS"] = str(real)
     try:
         cert = find_certification(SCENE, "alphabet_soup", "goal_y")
         assert cert is not None and certified_levels(cert) == [-3, -2, -1, 0, 1, 2, 3]
+        cc = find_certification(SCENE, "cream_cheese", "pick_y")
+        assert infeasible_levels(cc) == [-3, -2] and -1 in certified_levels(cc)
+        assert all(row_oracle_version(r, cc) == 2 for r in cc["levels"])  # made by LiberoOracle v2
+        plan = resolve_scene_plan(SCENE, "cream_cheese", ("pick_y",), "-3:-1")  # what evaluate plans
+        assert [c.certificate for c in plan.cells] == ["failed", "failed", "certified"], plan.cells
+        assert [c.evidence.split(" (")[0] for c in plan.cells] == ["0/1", "5/6", "59/59"]
         os.environ["INDGEN_LIBERO_ASSETS"] = str(mini)
         from scenes import certificates as certify_shipped
 
