@@ -180,6 +180,43 @@ def level_status(row: dict) -> str:
     return "insufficient" if row["feasible"] else "failed"
 
 
+# The oracle's version (``scenes.oracle.oracle_identity``): each row records the one that ran it. Feasibility is a
+# property of the level, so a level any version certified stays certified; a level an older (or other) version
+# failed is re-tried by ``certify`` and reported "failed (oracle vN, current vM)" until then. Rows and certificates
+# made before versions were recorded count as version 1.
+UNKNOWN_VERSION = 1
+
+
+def row_oracle_version(row: dict, cert: dict | None = None) -> int:
+    """The oracle version that made ``row``: its own, else its certificate's, else ``UNKNOWN_VERSION``."""
+    if "oracle_version" in row:
+        return int(row["oracle_version"])
+    return int(((cert or {}).get("oracle") or {}).get("version", UNKNOWN_VERSION))
+
+
+def current_oracle_version(scene: str) -> int | None:
+    """The version of ``scene``'s oracle in this checkout (None for a scene this version no longer knows)."""
+    from scenes.oracle import oracle_identity
+
+    try:
+        return oracle_identity(scene)["version"]
+    except Exception:
+        return None
+
+
+def stale_failure(row: dict, cert: dict | None, current: int | None) -> bool:
+    """A failed row made by another oracle version than ``current``: ``certify`` runs it again."""
+    return level_status(row) == "failed" and current is not None and row_oracle_version(row, cert) != current
+
+
+def level_verdict(row: dict, cert: dict | None, current: int | None) -> str:
+    """``level_status``, with "failed (oracle v2, current v3)" for a failure another oracle version made."""
+    status = level_status(row)
+    if stale_failure(row, cert, current):
+        return f"{status} (oracle v{row_oracle_version(row, cert)}, current v{current})"
+    return status
+
+
 def infeasible_levels(cert: dict) -> list[int]:
     """Levels where the oracle failed so that the rule can no longer certify them."""
     return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "failed")

@@ -132,25 +132,29 @@ class Phase(enum.Enum):
 def oracle_for(scene: str | None = None):
     """``standin:oracle``: the privileged oracle of ``scene``'s family (``Scene.oracle``; the tabletop one when no
     scene is named)."""
-    if scene is None:
-        return OraclePolicy()
+    return OraclePolicy() if scene is None else oracle_class(scene)()
+
+
+def oracle_class(scene: str) -> type:
+    """The class of ``scene``'s oracle (``Scene.oracle``), not instantiated."""
     import importlib
 
     from scenes.registry import get_scene
 
     module, _, attr = get_scene(scene).oracle.partition(":")
-    return getattr(importlib.import_module(module), attr)()
+    return getattr(importlib.import_module(module), attr)
+
+
+def oracle_identity(scene: str) -> dict:
+    """What a certificate records of the oracle that made it: its class and its hand-bumped ``version``."""
+    cls = oracle_class(scene)
+    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version)}
 
 
 def oracle_scripts(scene: str, task: str) -> bool:
     """Whether ``scene``'s oracle has a script for ``task`` (a family's oracle class may list its ``tasks``; one
     that lists none scripts every task). A task without one stays uncertified: no certificate, evaluate warns."""
-    import importlib
-
-    from scenes.registry import get_scene
-
-    module, _, attr = get_scene(scene).oracle.partition(":")
-    tasks = getattr(getattr(importlib.import_module(module), attr), "tasks", None)
+    tasks = getattr(oracle_class(scene), "tasks", None)
     return tasks is None or task in tasks
 
 
@@ -170,6 +174,9 @@ class OraclePolicy:
     """Scripted pick-and-place from privileged object poses; one instance per environment (not batched)."""
 
     spec = oracle_spec(ACTION_DIM)
+    # bumped by hand with every change of behaviour (also of this tabletop script, for each subclass), recorded in
+    # each certificate row: a failed level made by another version is re-tried (scenes/certification/README.md)
+    version = 1
 
     advance_on_stall = (
         False  # end approach/lift once the arm stops moving (LIBERO's far levels, at its reach)

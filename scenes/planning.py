@@ -168,7 +168,13 @@ def resolve_scene_plan(
             level then uncertified, and an unreadable certify.json is certify's to replace, not an error).
     """
     from indgen_vla.core.reporting.certification_view import NO_ORACLE
-    from scenes.certificates import certified_levels, find_certification, infeasible_levels, level_status
+    from scenes.certificates import (
+        certified_levels,
+        current_oracle_version,
+        find_certification,
+        infeasible_levels,
+        level_verdict,
+    )
     from scenes.oracle import oracle_scripts
 
     sc = get_scene(scene)  # unknown name: one line suggesting the closest
@@ -200,7 +206,8 @@ def resolve_scene_plan(
             for k in planned[ref.name]:
                 status = FAILED if k in failed else CERTIFIED if k in certified else UNCERTIFIED
                 row = rows.get(k)
-                evidence = f"{row['successes']}/{row['n']} ({level_status(row)})" if row else ""
+                verdict = level_verdict(row, cert, current_oracle_version(scene)) if row else ""
+                evidence = f"{row['successes']}/{row['n']} ({verdict})" if row else ""
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""

@@ -1,7 +1,7 @@
 """The privileged oracle over LIBERO-Object's tasks x axes x levels on the installed asset tree, N episodes a cell.
 
 Each episode gets ``episode_seed(seed, scene, task, axis, level, i)``, the seed ``indgen certify`` gives it, so a
-sweep's episode i is certification's episode i. Rows go to a JSONL file as each cell finishes (a killed sweep
+sweep's episode i is certification's episode i; each row records the oracle's version (``oracle_version``). Rows go to a JSONL file as each cell finishes (a killed sweep
 resumes at the first unfinished cell); ``--videos DIR`` writes an agentview MP4 of every failed episode.
 
     python scripts/sweep_libero_oracle.py --out sweep.jsonl --episodes 10 [--tasks cream_cheese] [--axes pick_y]
@@ -86,7 +86,7 @@ def run_cell(job: tuple) -> dict:
         env.close()
     n_ok = sum(e["success"] for e in eps)
     return {"task": task, "axis": axis, "level": level, "n": len(eps), "successes": n_ok, "episodes": eps,
-            "seed": seed, "wall_s": round(time.time() - t0, 1)}  # fmt: skip
+            "seed": seed, "oracle_version": type(policy).version, "wall_s": round(time.time() - t0, 1)}  # fmt: skip
 
 
 def done_cells(out: Path) -> set[tuple]:

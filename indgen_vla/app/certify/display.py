@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from indgen_vla.app.certify.run import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
-from scenes.certificates import level_status
+from scenes.certificates import current_oracle_version, level_status, level_verdict
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
 
@@ -97,17 +97,20 @@ def print_table(cert: dict) -> None:
     from rich.table import Table
 
     rule = cert.get("rule", {})
+    current = current_oracle_version(cert["scene"])
+    oracle = cert.get("oracle") or {}
     table = Table(
         title=f"certification: {cert['scene']}/{cert['task']}, axis {cert['axis']} (step {cert['step']:g} {cert['unit']})",
         caption=f"privileged oracle; certified when the one-sided {rule.get('confidence', 0.95):.0%} Clopper-Pearson "
-        f"lower bound >= {cert['threshold']:.0%} (at most {cert.get('episodes')} episodes per level)",
+        f"lower bound >= {cert['threshold']:.0%} (at most {cert.get('episodes')} episodes per level); oracle "
+        f"{oracle.get('name', '?').rpartition(':')[2]} v{current}",
     )
     for col in ("level", "param", "successes/n", "rate", "CP lower", "status"):
         table.add_column(col, justify="right")
     for r in cert["levels"]:
-        st = level_status(r)
+        st = level_verdict(r, cert, current)
         table.add_row(
             str(r["level"]), f"{r['param']:g}", f"{r['successes']}/{r['n']}", f"{r['rate']:.0%}",
-            f"{r.get('lower_bound', float('nan')):.3f}", st if st != "failed" else "[red]failed[/red]",
+            f"{r.get('lower_bound', float('nan')):.3f}", st if level_status(r) != "failed" else f"[red]{st}[/red]",
         )  # fmt: skip
     Console().print(table)

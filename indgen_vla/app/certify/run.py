@@ -53,10 +53,12 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
 
 
 def level_row(
-    level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float, unavailable: int = 0
-) -> dict:
+    level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float, unavailable: int = 0,
+    oracle_version: int | None = None,
+) -> dict:  # fmt: skip
     """The certification row of one level from its episodes' (success, steps); ``unavailable``: the seeds skipped
-    because their initial state cannot hold the level (a key only when some were)."""
+    because their initial state cannot hold the level (a key only when some were); ``oracle_version``: the oracle
+    that ran them (``scenes.oracle.oracle_identity``; a failure by another version is re-tried)."""
     n, successes = len(results), sum(ok for ok, _ in results)
     status = rule.status(successes, n)
     return {
@@ -65,6 +67,7 @@ def level_row(
         "certified": status == "certified", "feasible": status == "certified",
         "stopped_early": n < rule.n_max, "mean_steps": sum(s for _, s in results) / n if n else 0.0,
         "wall_s": round(wall_s, 1), **({"unavailable": unavailable} if unavailable else {}),
+        **({} if oracle_version is None else {"oracle_version": int(oracle_version)}),
     }  # fmt: skip
 
 
@@ -78,7 +81,7 @@ def certify_level(
     narrow for pick_x) is skipped and counted. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
     killed run finished under the same ``key`` are reused."""
     from indgen_vla.app.certify.partial import EpisodeLog
-    from scenes.oracle import oracle_for
+    from scenes.oracle import oracle_for, oracle_identity
 
     t0 = time.time()
     scene = builder.scene
@@ -103,7 +106,9 @@ def certify_level(
         param = env.axis_param
     finally:
         env.close()
-    return level_row(level, param, results, rule, time.time() - t0, log.unavailable)
+    return level_row(
+        level, param, results, rule, time.time() - t0, log.unavailable, oracle_identity(scene)["version"]
+    )
 
 
 _EVENTS = None  # in a pool worker: the queue its episodes are reported on (``_init_worker``)
@@ -123,9 +128,11 @@ def _certify_job(args: tuple, report=None) -> dict:
 
 
 def level_line(scene: str, task: str, axis: str, row: dict) -> str:
-    """One finished level, e.g. ``stack/orange_on_blue/stack level 0: 59/59 CP95 lower 0.951 -> certified (80 s)``."""
+    """One finished level, e.g. ``stack/orange_on_blue/stack level 0: 59/59 CP95 lower 0.951 -> certified (oracle
+    v1, 80 s)``."""
+    made = f"oracle v{row['oracle_version']}, " if "oracle_version" in row else ""
     return (f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
-            f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({row['wall_s']:.0f} s)")  # fmt: skip
+            f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({made}{row['wall_s']:.0f} s)")  # fmt: skip
 
 
 def _key(cert: dict) -> tuple:
@@ -213,7 +220,8 @@ def prepare(
     ``out`` already holds, and list the level jobs still to run."""
     from indgen_vla.app.certify.partial import partial_path
     from scenes.axes import successor_steps
-    from scenes.oracle import oracle_scripts
+    from scenes.certificates import row_oracle_version, stale_failure
+    from scenes.oracle import oracle_identity, oracle_scripts
     from scenes.planning import resolve_scene_plan
     from scenes.registry import get_scene
 
@@ -239,7 +247,9 @@ def prepare(
         "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
         "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
         "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
+        "oracle": oracle_identity(scene),
     }  # fmt: skip
+    version = cert["oracle"]["version"]
     stamp = asset_stamp(scene)
     if stamp is not None:
         cert["assets"] = stamp
@@ -254,10 +264,16 @@ def prepare(
             if log:
                 log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
         elif old and _key(old) == _key(cert) and old.get("task") == task:
-            done = {int(r["level"]): r for r in old["levels"] if r.get("status") in ("certified", "failed")
-                    or r["n"] >= rule.n_max}  # fmt: skip
+            # each row keeps the version that made it; a failure by another version is tried again
+            rows = [{**r, "oracle_version": row_oracle_version(r, old)} for r in old["levels"]]
+            done = {int(r["level"]): r for r in rows if not stale_failure(r, None, version)
+                    and (r.get("status") in ("certified", "failed") or r["n"] >= rule.n_max)}  # fmt: skip
             cert["wall_s"] = float(old.get("wall_s", 0.0))
-            cert["levels"] = sorted(old["levels"], key=lambda r: r["level"])
+            cert["levels"] = sorted(rows, key=lambda r: r["level"])
+            retry = sorted(int(r["level"]) for r in rows if stale_failure(r, None, version))
+            if retry and log:
+                log(f"{scene}/{task}/{axis}: levels {retry} failed under an older oracle; trying them again "
+                    f"with oracle v{version}")  # fmt: skip
         elif old and log:
             log(f"{path}: made under other steps/seed/rule; replacing it")
     todo = [k for k in lv if k not in done]
@@ -265,7 +281,7 @@ def prepare(
         log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
     if watch is not None:
         watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)
-    key = json.dumps([*_key(cert), task, (stamp or {}).get("stat_sha256")])
+    key = json.dumps([*_key(cert), task, (stamp or {}).get("stat_sha256"), version])
     jobs = [
         (
             plan.builder,

@@ -69,7 +69,8 @@ def main(args: argparse.Namespace) -> int:
         print(f"certificate: {path}")
         bad = infeasible_levels(cert)
         if bad:
-            print(f"{cert['scene']}/{cert['task']}/{cert['axis']}: levels {bad} failed (the oracle failed; the "
+            v = (cert.get("oracle") or {}).get("version", "?")
+            print(f"{cert['scene']}/{cert['task']}/{cert['axis']}: levels {bad} failed (oracle v{v} failed; the "
                   f"bound cannot reach {cert['threshold']:.0%})")  # fmt: skip
             failed = True
         short = sorted({int(r["level"]) for r in cert["levels"]} - set(bad) - set(certified_levels(cert)))

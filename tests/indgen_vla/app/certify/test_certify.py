@@ -147,7 +147,7 @@ def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
     assert infeasible_levels(cert) == [2]
     summary = write_summary(tmp_path).read_text()
     assert (
-        "| stack | orange_on_blue | stack | 0.25 in | 0: 59/59 1: 20/20? 2: 18/20! | 0 | 1, 2, 3, 4 |"
+        "| stack | orange_on_blue | stack | 0.25 in | 0: 59/59 1: 20/20? 2: 18/20! | 0 | 1, 2, 3, 4 | v1 |"
         in summary
     )
     assert f"0 of {len(default_jobs())} default" in summary
