@@ -319,3 +319,19 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
         SceneError, match=r"^4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range$"
     ):
         certify_run.certify_level(Builder(), "t", "a", 0, 0, None, rule)
+
+
+def test_summary_counts_shipped_triples_outside_the_default_batch_apart(tmp_path):
+    """LIBERO-Object's shipped certificates are not in certify's default batch: counted beside it, never as its."""
+    from indgen_vla.core.runs.records import atomic_write_json
+
+    row = {"n": 59, "successes": 59, "rate": 1.0, "feasible": True, "status": "certified"}
+    for task in ("bbq_sauce", "butter"):
+        d = tmp_path / "libero_object" / task / "goal_y"
+        d.mkdir(parents=True)
+        levels = [{**row, "level": k, "param": 0.0} for k in range(-3, 4) if (task, k) != ("butter", 3)]
+        atomic_write_json(d / "certify.json", {"scene": "libero_object", "task": task, "axis": "goal_y",
+                                               "step": 0.0367, "unit": "m", "levels": levels})  # fmt: skip
+    summary = write_summary(tmp_path).read_text()
+    assert f"0 of {len(default_jobs())} default (scene, task, axis) triples" in summary
+    assert "Besides them, 1 of the 2 other triples shipped have every default level certified." in summary
