@@ -204,9 +204,7 @@ def base_room(env) -> list[float]:
     data, model = env.sim.data, env.sim.model
     body = model.body_name2id("mobilebase0_base")
     fwd = np.asarray(data.xmat[body]).reshape(3, 3)[:2, 0]
-    own = [(data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g])
-           for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0))
-           if (model.geom_id2name(g) or "").startswith("mobilebase0")]  # fmt: skip
+    own = list(_collision_boxes(env, lambda name: name.startswith("mobilebase0")))
     others, origin = list(_boxes(env)), np.asarray(data.xpos[body][:2])
     left = np.array([-fwd[1], fwd[0]])
     return [room_ahead(origin, d, own, others) for d in (fwd, -fwd, left, -left)]
@@ -316,14 +314,19 @@ def drawer_facts(env) -> dict:
     return {"place_pos": np.array([*xy, p0[2]]), "drawer_open": opened, "drawer_gap": max(0.0, end - near)}
 
 
+def _collision_boxes(env, keep):
+    """Each collision box whose geom name ``keep`` accepts: (centre, world AABB half sizes)."""
+    data, model = env.sim.data, env.sim.model
+    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
+        if keep(model.geom_id2name(g) or ""):
+            yield data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
+
+
 def _boxes(env, skip=()):
     """Each collision box of the scene not of the robot, an object or a name in ``skip``: (centre, world AABB
     half sizes)."""
-    data, model = env.sim.data, env.sim.model
     skip = ("robot0", "mobilebase0", "gripper0", *env.objects, *skip)
-    for g in np.flatnonzero((model.geom_type == 6) & (model.geom_contype != 0)):  # mjGEOM_BOX
-        if not (model.geom_id2name(g) or "").startswith(skip):
-            yield data.geom_xpos[g], np.abs(np.asarray(data.geom_xmat[g]).reshape(3, 3)) @ model.geom_size[g]
+    return _collision_boxes(env, lambda name: not name.startswith(skip))
 
 
 def _ceiling(env, xy, z: float, reach: float = 0.05) -> float | None:
