@@ -193,7 +193,7 @@ def resolve_scene_plan(
         planned[name] = tuple(parse_levels(levels, specs[name]))
         for t in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
             sc.check_progression(t, builder.successor(t, name), overridden)
-    cells = []
+    cells, oracle_version = [], current_oracle_version(scene)
     for ref in refs:
         for t in tasks:
             successor = builder.successor(t, ref.name)
@@ -206,7 +206,7 @@ def resolve_scene_plan(
             for k in planned[ref.name]:
                 status = FAILED if k in failed else CERTIFIED if k in certified else UNCERTIFIED
                 row = rows.get(k)
-                verdict = level_verdict(row, cert, current_oracle_version(scene)) if row else ""
+                verdict = level_verdict(row, cert, oracle_version) if row else ""
                 evidence = f"{row['successes']}/{row['n']} ({verdict})" if row else ""
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
