@@ -140,14 +140,11 @@ class RoboCasaLevel:
         self.cfg = config
         self.cameras = tuple(config.get("cameras", ()))
         h, w = config.get("image_size", (256, 256))
-        regs = config.get("obj_registries", splits.DEFAULT_REGISTRIES)
-        kitchen = splits.kitchen_kwargs(
-            config.get("split", "all"), regs, config.get("layout_ids"), config.get("style_ids")
-        )
-        self._split = (config.get("split", "all"), regs)
-        with splits.one_line(
-            *self._split
-        ):  # a category with no model in the split: one line naming the choice
+        # a config without a split (a test's): "all", RoboCasa's Kitchen defaults
+        self._split = (config.get("split", "all"), config.get("obj_registries", splits.DEFAULT_REGISTRIES))
+        kitchen = splits.kitchen_kwargs(*self._split, config.get("layout_ids"), config.get("style_ids"))
+        # a category with no model in the split: one line naming the choice
+        with splits.one_line(*self._split):
             self.env = robosuite.make(
                 config["task"],
                 robots="PandaOmron",
@@ -162,8 +159,8 @@ class RoboCasaLevel:
                 camera_heights=h,
                 camera_widths=w,
                 ignore_done=True,
-                # the split's kitchens and object instances (a config without one, a test's: "all", RoboCasa's
-                # Kitchen defaults), or the run's one canonical kitchen, and the object registries
+                # the split's kitchens and object instances, or the run's one canonical kitchen, and the object
+                # registries
                 **kitchen,
                 robot_spawn_deviation_pos_x=0.0,  # RoboCasa's 0.15 / 0.05 m jitter off: a documented choice
                 robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/deviations.py SPAWN_JITTER, in the manifest)
