@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -20,15 +18,11 @@ def mini(tmp_path_factory):
 def libero_tree(root, cache):
     """While the fixture lasts, indgen reads LIBERO's assets from ``root`` and caches into ``cache`` (and a private
     LIBERO config dir); the variables are restored after."""
-    saved = {k: os.environ.get(k) for k in ("INDGEN_LIBERO_ASSETS", "INDGEN_CACHE", "LIBERO_CONFIG_PATH")}
-    os.environ.update(INDGEN_LIBERO_ASSETS=str(root), INDGEN_CACHE=str(cache))
-    os.environ.pop("LIBERO_CONFIG_PATH", None)
-    yield root
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("INDGEN_LIBERO_ASSETS", str(root))
+        mp.setenv("INDGEN_CACHE", str(cache))
+        mp.delenv("LIBERO_CONFIG_PATH", raising=False)
+        yield root
 
 
 def assert_steps_match(env, ref, action, steps=3):

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-
 import pytest
 
 
@@ -23,13 +21,8 @@ def placeholders(placeholder_tree):
     """The tree, pointed at by INDGEN_ROBOCASA_ASSETS while the RoboCasa tests run, under RoboCasa365 split "all"
     with RoboCasa's own registries (``scenes.robocasa.splits.LEGACY``): the kitchens each seed draws, which the
     tests' seeds and the placeholder results in docs/ were chosen and measured under. test_splits sets its own."""
-    names = ("INDGEN_ROBOCASA_ASSETS", "INDGEN_ROBOCASA_SPLIT", "INDGEN_ROBOCASA_OBJ_REGISTRIES")
-    saved = {k: os.environ.get(k) for k in names}
-    os.environ.update(INDGEN_ROBOCASA_ASSETS=str(placeholder_tree), INDGEN_ROBOCASA_SPLIT="all")
-    os.environ.pop("INDGEN_ROBOCASA_OBJ_REGISTRIES", None)
-    yield placeholder_tree
-    for k, v in saved.items():
-        if v is None:
-            os.environ.pop(k, None)
-        else:
-            os.environ[k] = v
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("INDGEN_ROBOCASA_ASSETS", str(placeholder_tree))
+        mp.setenv("INDGEN_ROBOCASA_SPLIT", "all")
+        mp.delenv("INDGEN_ROBOCASA_OBJ_REGISTRIES", raising=False)
+        yield placeholder_tree
