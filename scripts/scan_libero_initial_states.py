@@ -4,7 +4,10 @@ neighbour, and MuJoCo throws it out during lerobot's settling steps or the first
 For each (task, axis, level) and initial state i (= episode i, the state ``episode % 50``) it resets the level,
 holds the arm still for ``--steps`` no-op steps, and records how far the pick object and the basket ended from
 the poses the level put them at (xy, the largest over the reset and those steps). LIBERO's own states (level 0)
-are at rest: 0.0 mm. Rows go to a JSONL file as each level finishes (a killed scan resumes).
+are at rest: 0.0 mm. A state the env's placement check refuses (``scenes.libero.placement_check``: the level's
+pose more than 5 mm inside a neighbour, or moved more than 1 cm by the settle) is listed as ``unavailable`` with
+the check's reason; its move is the one after the settle. Rows go to a JSONL file as each level finishes (a
+killed scan resumes).
 
     python scripts/scan_libero_initial_states.py --out scan.jsonl --tasks cream_cheese --axes pick_y --levels=-3,-2
     python scripts/scan_libero_initial_states.py --out scan.jsonl --table
@@ -24,12 +27,22 @@ MOVED = 0.01  # a state whose pick object or basket ends this far (m) from its l
 
 def moved(env, episode: int, steps: int) -> list[float]:
     """How far (xy, m) the pick object and the basket got from their level poses: the largest over the reset of
-    ``episode`` and ``steps`` no-op steps after it."""
+    ``episode`` and ``steps`` no-op steps after it (after the reset only, where the placement check refused it)."""
+    return watch(env, episode, steps)[0]
+
+
+def watch(env, episode: int, steps: int) -> tuple[list[float], str]:
+    """``moved``'s distances and the placement check's reason for refusing the state ('' where it holds)."""
     import numpy as np
 
+    from indgen_vla.core.errors import EpisodeUnavailableError
     from scenes.libero.env import DUMMY_ACTION
 
-    env.reset(seed=0, options={"episode": episode})
+    why = ""
+    try:
+        env.reset(seed=0, options={"episode": episode})
+    except EpisodeUnavailableError as e:
+        why, steps = str(e).split(": ", 1)[1], 0  # the env holds the state as the settle left it
     pose = env._level_state(env.init_index)
     bodies = [(1 + env._qpos[env.info.pick], env._pick_body), (1 + env._qpos[env.info.goal], env._goal_body)]
     worst = [0.0, 0.0]
@@ -39,7 +52,7 @@ def moved(env, episode: int, steps: int) -> list[float]:
             worst[k] = max(worst[k], float(np.linalg.norm(xpos[b][:2] - pose[q : q + 2])))
         if t < steps:
             env.step(np.array(DUMMY_ACTION, dtype=np.float32))
-    return [round(w, 4) for w in worst]
+    return [round(w, 4) for w in worst], why
 
 
 def scan_level(task: str, axis: str, level: int, states: int, steps: int) -> dict:
@@ -50,12 +63,14 @@ def scan_level(task: str, axis: str, level: int, states: int, steps: int) -> dic
     plan = resolve_scene_plan(SCENE, task, (axis,), [level])
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(64, 64), max_steps=None)
     try:
-        rows = [moved(env, i, steps) for i in range(states)]
+        seen = [watch(env, i, steps) for i in range(states)]
     finally:
         env.close()
+    rows = [m for m, _ in seen]
     thrown = [i for i, (p, g) in enumerate(rows) if max(p, g) > MOVED]
+    unavailable = {i: why for i, (_, why) in enumerate(seen) if why}
     return {"task": task, "axis": axis, "level": level, "states": states, "steps": steps, "moved": rows,
-            "thrown": thrown, "wall_s": round(time.time() - t0, 1)}  # fmt: skip
+            "thrown": thrown, "unavailable": unavailable, "wall_s": round(time.time() - t0, 1)}  # fmt: skip
 
 
 def table(out: Path) -> str:
@@ -66,8 +81,8 @@ def table(out: Path) -> str:
             r = json.loads(line)
             rows[(r["task"], r["axis"], r["level"])] = r
     lines = [
-        "| task | axis | level | states thrown (> 1 cm) | largest move: pick / basket (cm) |",
-        "|---|---|---|---|---|",
+        "| task | axis | level | states thrown (> 1 cm) | largest move: pick / basket (cm) | unavailable (placement check) |",
+        "|---|---|---|---|---|---|",
     ]
     for (t, a, k), r in sorted(rows.items()):
         p = max(m[0] for m in r["moved"]) * 100
@@ -76,7 +91,11 @@ def table(out: Path) -> str:
         ids = ", ".join(map(str, r["thrown"])) or "-"
         if len(kept) < len(r["thrown"]):
             ids = "all but " + (", ".join(map(str, kept)) or "none")
-        lines.append(f"| {t} | {a} | {k:+d} | {len(r['thrown'])}/{r['states']}: {ids} | {p:.1f} / {g:.1f} |")
+        gone = r.get("unavailable")
+        refused = "not checked" if gone is None else f"{len(gone)}/{r['states']}"
+        lines.append(
+            f"| {t} | {a} | {k:+d} | {len(r['thrown'])}/{r['states']}: {ids} | {p:.1f} / {g:.1f} | {refused} |"
+        )
     return "\n".join(lines)
 
 
@@ -117,8 +136,8 @@ def main(argv=None) -> int:
                 r = scan_level(task, axis, k, a.states, a.steps)
                 with out.open("a") as f:
                     f.write(json.dumps(r) + "\n")
-                print(f"{task} {axis} {k:+d}: {len(r['thrown'])}/{r['states']} thrown {r['thrown']} "
-                      f"({r['wall_s']:.0f} s)", flush=True)  # fmt: skip
+                print(f"{task} {axis} {k:+d}: {len(r['thrown'])}/{r['states']} thrown {r['thrown']}, "
+                      f"{len(r['unavailable'])} unavailable ({r['wall_s']:.0f} s)", flush=True)  # fmt: skip
     return 0
 
 

@@ -136,6 +136,7 @@ class LiberoSuite(Scene):
         return f"LIBERO's assets (found: {assets})"
 
     def protocol_facts(self) -> dict:
+        from scenes.libero import placement_check as placement
         from scenes.libero.assets import find_assets, tree_identity
         from scenes.libero.env import NUM_STEPS_WAIT
 
@@ -143,7 +144,9 @@ class LiberoSuite(Scene):
         return {
             **super().protocol_facts(),
             "settle_steps": NUM_STEPS_WAIT,
-            "initial_states": "LIBERO's fixed initial states of hf-libero's init files, episode % 50",
+            # with the placement check: a moved level's state that does not hold its object is an unavailable
+            # episode, not a policy failure (a run made before the check does not resume or pool under it)
+            "initial_states": f"LIBERO's fixed initial states of hf-libero's init files, episode % 50; {placement.RULE}",
             "assets": {"root": str(assets), "listing_sha256": tree_identity(assets)},
         }
 

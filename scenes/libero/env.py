@@ -17,6 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
+import scenes.libero.placement_check as placement
 import scenes.mujoco_geom as geom
 from indgen_vla.core.errors import SceneError
 from indgen_vla.core.protocol.interface import Observation
@@ -206,6 +207,9 @@ class LiberoSceneEnv(BaseSceneEnv):
         self._other_geoms += [geoms(i, fixtures) for i in fixtures]
         # what the open gripper may land on when it comes down to grasp: every other object, the basket too
         self._neighbour_geoms = [geoms(i) for i in objs if i != self.info.pick]
+        # the placement check's view of the two objects a level moves (or scales), each against every other object
+        self._placed = [placement.body(k, objs, lambda i: sim.model.body_name2id(objs[i].root_body), geoms)
+                        for k in (self.info.pick, self.info.goal)]  # fmt: skip
         hand = sim.model.body_name2id(self._env.robots[0].gripper.root_body)
 
         def under_hand(b: int) -> bool:
@@ -258,14 +262,22 @@ class LiberoSceneEnv(BaseSceneEnv):
         self._render_here()  # the hard reset frees the old render context's GL objects in the current GL context
         self._reset_sim(self.episode_seed)
         self._render_here()
-        raw = self._env.set_init_state(self._level_state(self.init_index))
+        state = self._level_state(self.init_index)
+        raw = self._env.set_init_state(state)
         if self.spec.pick.scale != 1.0:
             raw = self._env.set_init_state(self._rest_scaled_pick(self._level_state(self.init_index)))
+        data = self._env.sim.data._data
+        # the placement check, where the level moved or scaled an object (level 0 is LIBERO's own layout: unchecked)
+        checked = any(self.shift) or self.spec.pick.scale != 1.0
+        overlaps = [placement.overlap(data, b) for b in self._placed] if checked else []
         for i in range(NUM_STEPS_WAIT):
             # only the last settle step's frames are read: the earlier ones stay held, and a lazy step that ended
             # the previous episode (``step(observe=False)``) must not leave the reset's frames held (stale)
             self._observing = i == NUM_STEPS_WAIT - 1
             raw = self._sim_step(DUMMY_ACTION)
+        if checked:
+            where = f"{self.scene}/{self.task} level {self.level}, LIBERO initial state {self.init_index}"
+            placement.check(self._placed, self._qpos, data, state, overlaps, where)
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False

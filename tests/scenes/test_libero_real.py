@@ -34,6 +34,7 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
     """cream_cheese ``pick_y`` -2, episode 1: the box lies 5 mm from the tomato-sauce can, and the open hand came
     down on the can's top and closed above the box (no_contact) before the grasp point moved off centre."""
     from indgen_vla.app.certify.run import run_oracle_episode
+    from indgen_vla.core.errors import EpisodeUnavailableError
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracle import oracle_for
 
@@ -48,9 +49,13 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
         assert dx < -0.02 and abs(dy) < 0.01, (dx, dy)  # along the box, away from the can (at larger x)
         ok, steps = run_oracle_episode(env, oracle_for(SCENE), seed, 1)
         assert ok and steps < 200, steps
-        # episode 5 (the failure left at this level) starts from a thrown box: its moved initial state overlaps a
-        # neighbour and the settling steps throw it 27 cm (docs/results/libero_object_real_assets.md); episode 1's
-        # box stays where the level put it
+        # episode 5 (the failure this level had) would start from a thrown box: its moved initial state overlaps a
+        # neighbour and the settling steps throw it 27 cm (docs/results/libero_object_real_assets.md), so the
+        # placement check makes it unavailable; episode 1's box stays where the level put it
+        with pytest.raises(
+            EpisodeUnavailableError, match=r"state 5: the settling steps moved the cream_cheese_1 2\d\."
+        ):
+            env.reset(seed=seed, options={"episode": 5})
         scan = _script("scan_libero_initial_states")
         assert scan.moved(env, 5, 0)[0] > 0.2 and max(scan.moved(env, 1, 0)) < scan.MOVED
     finally:
@@ -131,3 +136,18 @@ def test_partial_levels_resume_with_the_same_episodes(tmp_path):
     assert len(EpisodeLog(part, "k").results) == 2
     assert EpisodeLog(part, "other key").results == []  # another rule/seed/tree: started afresh
     assert part.read_text().count("\n") == 1
+
+
+@pytest.mark.slow  # ~30 s: a second real-tree build; the default test above keeps the thrown-state check
+def test_a_level_whose_pose_lies_inside_a_neighbour_holds_no_state(real):
+    """cream_cheese ``pick_y`` -3 puts the box 12 mm inside the tomato-sauce can in every one of LIBERO's states:
+    each episode is unavailable (placement check), so certification records the level failed with that reason."""
+    from indgen_vla.core.errors import EpisodeUnavailableError
+
+    env = level_env(SCENE, task="cream_cheese", axis="pick_y", level=-3, cameras=(), image_size=(64, 64))
+    try:
+        for i in (1, 21):  # two states the settle does not throw: the overlap alone refuses them
+            with pytest.raises(EpisodeUnavailableError, match=r"1[12]\.\d mm inside the tomato_sauce_1"):
+                env.reset(seed=0, options={"episode": i})
+    finally:
+        env.close()

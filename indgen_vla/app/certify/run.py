@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError, SceneError
+from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.seeding import episode_seed
 from scenes.certificates import (
@@ -54,19 +54,21 @@ def run_oracle_episode(env, policy, seed: int, episode: int | None = None) -> tu
 
 def level_row(
     level: int, param: float, results: list[tuple[bool, int]], rule: Rule, wall_s: float, unavailable: int = 0,
-    oracle_version: int | None = None,
+    oracle_version: int | None = None, infeasible: str = "",
 ) -> dict:  # fmt: skip
     """The certification row of one level from its episodes' (success, steps); ``unavailable``: the seeds skipped
     because their initial state cannot hold the level (a key only when some were); ``oracle_version``: the oracle
-    that ran them (``scenes.oracle.oracle_identity``; a failure by another version is re-tried)."""
+    that ran them (``scenes.oracle.oracle_identity``; a failure by another version is re-tried); ``infeasible``: why
+    too few seeds hold the level to certify it (the level is then ``failed`` whatever its episodes gave)."""
     n, successes = len(results), sum(ok for ok, _ in results)
-    status = rule.status(successes, n)
+    status = "failed" if infeasible else rule.status(successes, n)
     return {
         "level": level, "param": param, "n": n, "successes": successes, "rate": successes / n if n else 0.0,
         "lower_bound": round(lower_bound(successes, n, rule.confidence), 6), "status": status,
         "certified": status == "certified", "feasible": status == "certified",
         "stopped_early": n < rule.n_max, "mean_steps": sum(s for _, s in results) / n if n else 0.0,
         "wall_s": round(wall_s, 1), **({"unavailable": unavailable} if unavailable else {}),
+        **({"infeasible": infeasible} if infeasible else {}),
         **({} if oracle_version is None else {"oracle_version": int(oracle_version)}),
     }  # fmt: skip
 
@@ -78,7 +80,8 @@ def certify_level(
     """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility), its env built by
     the plan's ``builder`` as ``evaluate`` builds it; ``on_episode(level, successes, n)`` hears of each finished
     episode. A seed whose initial state cannot hold the level (``EpisodeUnavailableError``: a RoboCasa kitchen too
-    narrow for pick_x) is skipped and counted. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
+    narrow for pick_x, a LIBERO state that throws its moved object) is skipped and counted; more such seeds than
+    the rule's ``n_max`` make the level ``failed``, with the reason in its row's ``infeasible``. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
     killed run finished under the same ``key`` are reused."""
     from indgen_vla.app.certify.partial import EpisodeLog
     from scenes.oracle import oracle_for, oracle_identity
@@ -86,20 +89,18 @@ def certify_level(
     t0 = time.time()
     scene = builder.scene
     log = EpisodeLog(partial, key)
-    results = log.results
+    results, infeasible = log.results, ""
     env = builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
     try:
         policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
-        while not rule.stop(sum(ok for ok, _ in results), len(results)):
+        while not infeasible and not rule.stop(sum(ok for ok, _ in results), len(results)):
             i = len(results) + log.unavailable
             try:
                 log.add(*run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i))
             except EpisodeUnavailableError as e:
                 log.add(None)
                 if log.unavailable > rule.n_max:
-                    raise SceneError(
-                        f"{log.unavailable} of {i + 1} seeds cannot hold this level, e.g. {e}"
-                    ) from None
+                    infeasible = f"{log.unavailable} of {i + 1} seeds cannot hold this level, e.g. {e}"
                 continue
             if on_episode is not None:
                 on_episode(level, sum(ok for ok, _ in results), len(results))
@@ -107,7 +108,14 @@ def certify_level(
     finally:
         env.close()
     return level_row(
-        level, param, results, rule, time.time() - t0, log.unavailable, oracle_identity(scene)["version"]
+        level,
+        param,
+        results,
+        rule,
+        time.time() - t0,
+        log.unavailable,
+        oracle_identity(scene)["version"],
+        infeasible,
     )
 
 
@@ -131,8 +139,9 @@ def level_line(scene: str, task: str, axis: str, row: dict) -> str:
     """One finished level, e.g. ``stack/orange_on_blue/stack level 0: 59/59 CP95 lower 0.951 -> certified (oracle
     v1, 80 s)``."""
     made = f"oracle v{row['oracle_version']}, " if "oracle_version" in row else ""
+    why = f"; infeasible: {row['infeasible']}" if row.get("infeasible") else ""
     return (f"{scene}/{task}/{axis} level {row['level']}: {row['successes']}/{row['n']} "
-            f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({made}{row['wall_s']:.0f} s)")  # fmt: skip
+            f"CP95 lower {row['lower_bound']:.3f} -> {row['status']} ({made}{row['wall_s']:.0f} s){why}")  # fmt: skip
 
 
 def _key(cert: dict) -> tuple:

@@ -149,13 +149,16 @@ def _param(p: float | None) -> str:
 
 
 def error_warnings(label: str, axis_summary: dict, limit: float = 0.10) -> list[str]:
-    """One line per level whose error rate exceeds ``limit``: errors that grow with the level bias the curve."""
-    out = []
+    """One line per level whose error rate exceeds ``limit``: errors that grow with the level bias the curve. An
+    infeasible cell (the summary's ``infeasible``: the seed rules the level out) is no such error: a re-run repeats it,
+    and its own caveat names it."""
+    out, infeasible = [], axis_summary.get("infeasible") or {}
     for r in axis_summary["levels"]:
         total = r["n"] + r["errors"]
-        if total and r["errors"] / total > limit:
-            out.append(f"**Warning** ({label}): level {r['level']} has {r['errors']} error episode(s) of {total} "
-                       f"({100 * r['errors'] / total:.0f} % > {100 * limit:.0f} %); errors that grow with the level "
+        errors = r["errors"] - sum(int(v.get(str(r["level"]), 0)) for v in infeasible.values())
+        if total and errors / total > limit:
+            out.append(f"**Warning** ({label}): level {r['level']} has {errors} error episode(s) of {total} "
+                       f"({100 * errors / total:.0f} % > {100 * limit:.0f} %); errors that grow with the level "
                        "bias the curve: re-run the same evaluate command to retry them.")  # fmt: skip
     return out
 

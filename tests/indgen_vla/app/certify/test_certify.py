@@ -4,6 +4,7 @@ lookup, resuming, the SUMMARY table, and the up-front strictly-harder checks (co
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -284,10 +285,11 @@ def test_certify_builds_its_levels_through_the_plan(tmp_path):
 
 def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
-    certification goes on with the next seed index and the row counts it; a level no seed holds is one line."""
+    certification goes on with the next seed index and the row counts it; a level too few seeds hold is ``failed``,
+    with the reason in its row (a batch goes on to its next level)."""
     import scenes.oracle
     from indgen_vla.app.certify import run as certify_run
-    from indgen_vla.core.errors import EpisodeUnavailableError, SceneError
+    from indgen_vla.core.errors import EpisodeUnavailableError
 
     class Env:
         axis_param, calls, out = 0.0, [], {1}
@@ -315,10 +317,14 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     assert (row["n"], row["unavailable"], len(Env.calls), len(set(Env.calls))) == (3, 1, 4, 4)
     assert "unavailable" not in certify_run.level_row(0, 0.0, [(True, 9)], rule, 1.0)
     Env.calls, Env.out = [], set(range(10))
-    with pytest.raises(
-        SceneError, match=r"^4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range$"
-    ):
-        certify_run.certify_level(Builder(), "t", "a", 0, 0, None, rule)
+    row = certify_run.certify_level(
+        Builder(), "t", "a", 0, 0, None, rule
+    )  # no seed holds it: failed, with why
+    assert (row["status"], row["feasible"], row["n"], row["unavailable"]) == ("failed", False, 0, 4)
+    assert re.fullmatch(
+        r"4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range", row["infeasible"]
+    )
+    assert certify_run.level_line("s", "t", "a", row).endswith("; infeasible: " + row["infeasible"])
 
 
 def test_summary_counts_shipped_triples_outside_the_default_batch_apart(tmp_path):

@@ -270,3 +270,17 @@ def test_write_reports_returns_each_runs_summary_and_prints_nothing(tmp_path, ca
     assert results[1][1] == json.loads((b.path / "summary.json").read_text())
     assert results[1][1]["gamma"] == 0.3 and (tmp_path / "o" / "report.md").is_file()
     assert capsys.readouterr().out == ""
+
+
+def test_infeasible_cells_are_not_errors_a_rerun_could_retry():
+    """An episode whose seed rules the level out (placement check) repeats on every re-run: the error warning leaves
+    it out (its own caveat names it), and still counts the other errors of that level."""
+    from indgen_vla.core.reporting.report import error_warnings
+
+    level = {"level": -2, "n": 6, "errors": 2}
+    axis = {"levels": [level], "infeasible": {"cream_cheese": {"-2": 1}}}
+    assert error_warnings("x", axis) == ["**Warning** (x): level -2 has 1 error episode(s) of 8 (12 % > 10 %); "
+                                         "errors that grow with the level bias the curve: re-run the same "
+                                         "evaluate command to retry them."]  # fmt: skip
+    axis["infeasible"]["milk"] = {"-2": 1}  # pooled over tasks: both are the seed's
+    assert error_warnings("x", axis) == []
