@@ -208,6 +208,10 @@ def resolve_scene_plan(
                 row = rows.get(k)
                 verdict = level_verdict(row, cert, oracle_version) if row else ""
                 evidence = f"{row['successes']}/{row['n']} ({verdict})" if row else ""
+                if row and row.get("infeasible"):  # too few initial states hold the level (a placement check)
+                    evidence = (
+                        f"{row['successes']}/{row['n']} ({verdict}: {row['unavailable']} seeds unavailable)"
+                    )
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""

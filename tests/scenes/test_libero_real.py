@@ -77,7 +77,7 @@ def _script(name: str):
 
 def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
     """On the complete tree ``evaluate``'s lookup finds the shipped certificates (and its plan refuses the failed
-    cream_cheese levels, certified by the oracle version each row records); on another tree (the miniature) it
+    cream_cheese level, certified by the oracle version each row records); on another tree (the miniature) it
     finds none and says so once."""
     from scenes.certificates import (
         certified_levels,
@@ -92,11 +92,14 @@ def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
         cert = find_certification(SCENE, "alphabet_soup", "goal_y")
         assert cert is not None and certified_levels(cert) == [-3, -2, -1, 0, 1, 2, 3]
         cc = find_certification(SCENE, "cream_cheese", "pick_y")
-        assert infeasible_levels(cc) == [-3, -2] and certified_levels(cc) == [-1, 0, 1, 2, 3]
+        assert infeasible_levels(cc) == [-3] and certified_levels(cc) == [-2, -1, 0, 1, 2, 3]
         assert all(row_oracle_version(r, cc) == 2 for r in cc["levels"])  # made by LiberoOracle v2
+        # -3: no LIBERO state holds the level (placement check); -2 with its thrown states left out
+        assert "60 of 60 seeds cannot hold this level" in cc["levels"][0]["infeasible"]
         plan = resolve_scene_plan(SCENE, "cream_cheese", ("pick_y",), "-3:-1")  # what evaluate plans
-        assert [c.certificate for c in plan.cells] == ["failed", "failed", "certified"], plan.cells
-        assert [c.evidence.split(" (")[0] for c in plan.cells] == ["0/1", "5/6", "59/59"]
+        assert [c.certificate for c in plan.cells] == ["failed", "certified", "certified"], plan.cells
+        assert [c.evidence.split(" (")[0] for c in plan.cells] == ["0/0", "59/59", "59/59"]
+        assert plan.cells[0].evidence == "0/0 (failed: 60 seeds unavailable)"
         os.environ["INDGEN_LIBERO_ASSETS"] = str(mini)
         from scenes import certificates as certify_shipped
 
