@@ -22,7 +22,7 @@ from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
 from indgen_vla.core.protocol.progression import parse_levels
 from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
-from scenes.registry import get_scene
+from scenes.registry import configure_scene, get_scene
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
@@ -41,39 +41,46 @@ class SceneLevels:
     successors: Mapping[str, Successor] = field(default_factory=dict)
     # axis -> task -> successor, for an axis whose family resolves its step per task (RoboCasa365's pick_x)
     task_successors: Mapping[str, Mapping[str, Successor]] = field(default_factory=dict)
+    # the family's options as the command resolved them (RoboCasa365's split, registries): the workers build with these
+    options: tuple[tuple[str, str], ...] = ()
+
+    def family(self) -> Scene:
+        """The scene family under the plan's options (``Scene.configured``), in the driver and in every worker."""
+        sc = get_scene(self.scene)
+        return sc.configured(dict(self.options)) if self.options else sc
 
     @property
     def preload(self) -> tuple[str, ...]:
-        return tuple(get_scene(self.scene).preload)
+        return tuple(self.family().preload)
 
     @property
     def env_spec(self):
         """The family's observation/action contract (``indgen_vla.core.protocol.interface.EnvSpec``): cameras, state, action."""
-        return get_scene(self.scene).env_spec
+        return self.family().env_spec
 
     @property
     def placeholder_assets(self) -> bool:
         """The family simulates placeholder assets (boxes): an image policy's rate there is not a measurement."""
-        return bool(get_scene(self.scene).placeholder_assets())
+        return bool(self.family().placeholder_assets())
 
     @property
     def action_dim(self) -> int:
         """The family's action size (``EnvSpec.action_dim``: 7 on the tabletop families, 12 on RoboCasa365)."""
-        return int(get_scene(self.scene).env_spec.action_dim)
+        return int(self.family().env_spec.action_dim)
 
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
     ) -> BaseSceneEnv:  # fmt: skip
-        return get_scene(self.scene).make_env(task, self.successor(task, axis), level, cameras=cameras,
-                                              image_size=image_size, max_steps=max_steps)  # fmt: skip
+        return self.family().make_env(task, self.successor(task, axis), level, cameras=cameras,
+                                      image_size=image_size, max_steps=max_steps)  # fmt: skip
 
     def successor(self, task: str, axis: str) -> Successor:
         """The successor ``axis`` moves ``task`` along (the task's own where the family's steps differ by task)."""
         return self.task_successors.get(axis, {}).get(task, self.successors[axis])
 
     def describe(self) -> dict[str, Any]:
-        sc = get_scene(self.scene)
+        sc = self.family()
         return {
             "scene": self.scene,
             "family": f"{type(sc).__module__}.{type(sc).__qualname__}",
@@ -91,6 +98,11 @@ class SceneLevels:
         if per_task:
             return {"type": type(successor).__name__, "task_steps": task_steps(per_task)}
         return {"type": type(successor).__name__, "steps": successor_steps(successor)}
+
+    def worker_environment(self) -> dict[str, str]:
+        """The plan's choices as the environment variables the family reads (``Scene.worker_environment``), for
+        simulator actors on nodes whose own environment says otherwise."""
+        return self.family().worker_environment()
 
     def render_backend(self) -> str:
         """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""
@@ -123,7 +135,8 @@ def scene_levels(
     tasks: Sequence[str] = (),
 ) -> SceneLevels:  # fmt: skip
     """A builder for ``axes`` of ``scene`` without a full plan (T0 builds, benchmarks, tests that drive workers
-    directly); with ``tasks``, each task's own successor where the family's steps differ by task."""
+    directly); with ``tasks``, each task's own successor where the family's steps differ by task; the family's
+    options as the command configured them (``configure_scene``), else as the environment gives them."""
     sc = get_scene(scene)
     overrides = load_preset(preset) if preset else None
     return _levels(sc, [AxisRef.parse(a) for a in axes], tasks, step, overrides)
@@ -143,7 +156,7 @@ def _levels(
         successors[ref.name] = by_task[tasks[0]]
         if any(s != shared for s in by_task.values()):
             per_task[ref.name] = by_task
-    return SceneLevels(sc.name, successors, per_task)
+    return SceneLevels(sc.name, successors, per_task, tuple(sorted(sc.options().items())))
 
 
 def resolve_scene_plan(
@@ -154,6 +167,7 @@ def resolve_scene_plan(
     step: float | None = None,
     preset: str | None = None,
     certificates: bool = True,
+    options: Mapping[str, Any] | None = None,
 ) -> ScenePlan:
     """Resolve a run's scene side once (one-line errors for unknown names, bad levels, condition 2).
 
@@ -166,7 +180,19 @@ def resolve_scene_plan(
         preset: ``--axes-preset``, a configs/axes name or YAML path (steps and ranges).
         certificates: look up each level's certificate; False for ``indgen certify``, which makes them (every
             level then uncertified, and an unreadable certify.json is certify's to replace, not an error).
+        options: the family's options (``Scene.scene_options``: RoboCasa365's ``split``, ``obj_registries``; None
+            or absent: the family's default), resolved here once; the certificates looked up and the builder's
+            workers use the same.
     """
+    with configure_scene(scene, options):  # unknown name: one line suggesting the closest
+        return _resolve(scene, task, axes, levels, step, preset, certificates)
+
+
+def _resolve(
+    scene: str, task: str | None, axes: Sequence[str | AxisRef], levels: str | Sequence[int] | None,
+    step: float | None, preset: str | None, certificates: bool,
+) -> ScenePlan:  # fmt: skip
+    """``resolve_scene_plan``'s work, with the family configured."""
     from indgen_vla.core.reporting.certification_view import NO_ORACLE
     from scenes.certificates import (
         certified_levels,
@@ -177,7 +203,7 @@ def resolve_scene_plan(
     )
     from scenes.oracle import oracle_scripts
 
-    sc = get_scene(scene)  # unknown name: one line suggesting the closest
+    sc = get_scene(scene)
     sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
     refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups
     for ref in refs:  # every component one of the scene's axes, before select_tasks reads the axes

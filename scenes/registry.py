@@ -10,7 +10,8 @@ Importing this is cheap (no simulator); ``make_env`` imports the simulator backe
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import contextlib
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
 DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
 
 _SCENES: dict[str, Scene] = {}
+_CONFIGURED: dict[str, Scene] = {}  # the families a running command configured (``configure_scene``)
 
 
 class Scene:
@@ -65,6 +67,8 @@ class Scene:
             mimicgen's from them, would start from the evaluation's initial states).
         env_from_spec: True when the env a level builds depends on its successor only through the level's
             ``SceneSpec`` (``level_identity`` is then that spec: axes with one level-0 spec share their T0 runs).
+        scene_options: the options a command may set for the family (RoboCasa365: ``split``, ``obj_registries``,
+            flags ``--split``, ``--obj-registries``); ``configured`` applies them, a plan's builder carries them.
     """
 
     name: ClassVar[str]
@@ -87,6 +91,7 @@ class Scene:
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
     fixed_initial_states: ClassVar[str] = ""
     env_from_spec: ClassVar[bool] = False
+    scene_options: ClassVar[tuple[str, ...]] = ()
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
@@ -155,6 +160,27 @@ class Scene:
     def worker_environment(self) -> dict[str, str]:
         """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
         split): a Ray actor on another node gets these, not its node's own ({}: none)."""
+        return {}
+
+    def check_options(self, given: Mapping[str, Any]) -> None:
+        """One line for an option given (not None) that the family has not (``scene_options``) or a value it
+        refuses; a frozen config's ``__post_init__`` calls it, before anything runs."""
+        extra = [k for k, v in given.items() if v is not None and k not in self.scene_options]
+        if extra:
+            flag = "--" + extra[0].replace("_", "-")
+            takers = [s.name for s in _SCENES.values() if extra[0] in s.scene_options]
+            raise ConfigError(
+                f"scene {self.name} takes no {flag} (only {', '.join(takers) or 'no scene'} does); leave it out"
+            )
+
+    def configured(self, given: Mapping[str, Any]) -> Scene:
+        """The family under the options ``given`` (None: not given, the family's default), resolved once: what a
+        command runs with (``configure_scene``) and a plan's builder carries to workers (``options``)."""
+        self.check_options(given)
+        return self
+
+    def options(self) -> dict[str, str]:
+        """The family's options as this instance resolved them ({}: none), for a builder to carry."""
         return {}
 
     def placeholder_assets(self) -> bool:
@@ -288,11 +314,30 @@ def register_scene[T: type[Scene]](cls: T) -> T:
 
 
 def get_scene(name: str) -> Scene:
-    """The registered scene ``name``; an unknown name is one line suggesting the closest ones."""
+    """The registered scene ``name`` (as the running command configured it, ``configure_scene``); an unknown name
+    is one line suggesting the closest ones."""
     try:
-        return _SCENES[name]
+        configured = _CONFIGURED.get(name)
+        return configured if configured is not None else _SCENES[name]
     except (KeyError, TypeError):
         raise UnknownNameError("scene", str(name), list(_SCENES)) from None
+
+
+@contextlib.contextmanager
+def configure_scene(name: str, given: Mapping[str, Any] | None = None) -> Iterator[Scene]:
+    """Within the block ``get_scene(name)`` is the family under the command's options ``given`` (None: not given),
+    resolved once here (RoboCasa365: the flags, else the environment, else the defaults), so the plan, the
+    certificates and the manifest read one choice; the plan's builder carries it to workers and Ray actors."""
+    sc = get_scene(name).configured(dict(given or {}))
+    before = _CONFIGURED.get(name)
+    _CONFIGURED[name] = sc
+    try:
+        yield sc
+    finally:
+        if before is None:
+            _CONFIGURED.pop(name, None)
+        else:
+            _CONFIGURED[name] = before
 
 
 def registered_scenes() -> list[Scene]:

@@ -123,17 +123,24 @@ def certify(
     threshold: float = 0.95,
     axes_preset: str | None = None,
     out: PathLike | None = None,
+    split: str | None = None,
+    obj_registries: str | None = None,
 ) -> dict[str, Any]:
     """``indgen certify`` for one task (default: the scene's first): the privileged oracle on each level until the
     59/59 rule decides it, written where ``evaluate`` looks (or to ``out``/certify.json) and resumed from there;
-    returns the certificate (per level: n, successes, lower bound, status certified | failed | insufficient)."""
+    returns the certificate (per level: n, successes, lower bound, status certified | failed | insufficient).
+    ``split`` / ``obj_registries``: RoboCasa365's (``--split`` / ``--obj-registries``)."""
     from indgen_vla.app.certify.run import certify as run_certify
     from scenes.certificates import cert_path
+    from scenes.registry import configure_scene
 
-    path = (
-        Path(os.fspath(out)) / "certify.json"
-        if out is not None
-        else cert_path(scene, task, axis, step, axes_preset)
-    )
-    return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                       max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path)  # fmt: skip
+    options = {"split": split, "obj_registries": obj_registries}
+    with configure_scene(scene, options):  # the certificates' folder follows the choice
+        path = (
+            Path(os.fspath(out)) / "certify.json"
+            if out is not None
+            else cert_path(scene, task, axis, step, axes_preset)
+        )
+        return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                           max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path,
+                           options=options)  # fmt: skip

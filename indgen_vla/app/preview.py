@@ -40,8 +40,13 @@ class PreviewRequest:
     size: int = 256
     episode: int = 0
     seed: int = 0
+    split: str | None = None  # RoboCasa365's split and object registries (--split, --obj-registries)
+    obj_registries: str | None = None
 
     def __post_init__(self) -> None:
+        get_scene(self.scene).check_options(
+            self.scene_options()
+        )  # a family without them, a bad value: one line
         if not self.axes:
             raise ConfigError("--axis is empty; name an axis, e.g. --axis pick_y (see 'indgen axes')")
         if not 8 <= self.size <= 2048:
@@ -55,6 +60,10 @@ class PreviewRequest:
                 f"--out {self.out}: the sheet is written as {', '.join(FORMATS[:-1])} or {FORMATS[-1]}; end the "
                 f"name with one of them, e.g. --out {self.out.with_suffix('.png')}"
             )
+
+    def scene_options(self) -> dict[str, str | None]:
+        """The scene family's options the preview sets (None: the family's default)."""
+        return {"split": self.split, "obj_registries": self.obj_registries}
 
 
 @dataclass(frozen=True)
@@ -109,7 +118,8 @@ def preview_tiles(req: PreviewRequest) -> tuple[ScenePlan, list[Tile]]:
     """Resolve the request as ``evaluate`` would and render every level of every axis, in level order."""
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan(req.scene, req.task, req.axes, req.levels, req.step, req.preset)
+    plan = resolve_scene_plan(req.scene, req.task, req.axes, req.levels, req.step, req.preset,
+                              options=req.scene_options())  # fmt: skip
     cameras = plan.builder.env_spec.cameras
     camera = check_env_args((req.camera or cameras[0],), None, cameras)[0]
     task = plan.tasks[0]

@@ -18,6 +18,7 @@ from scenes.registry import Scene, register_scene
 from scenes.robocasa.deviations import DEVIATIONS, PICK_T0, SPAWN_JITTER
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
+from scenes.robocasa.split_option import SplitOption
 from scenes.runtime import ExternalRuntime
 
 if TYPE_CHECKING:
@@ -224,7 +225,7 @@ BASE_CONTROLLER = "RoboCasa's create_env config (base JOINT_VELOCITY_LEGACY)"
 
 
 @register_scene
-class RoboCasa(Scene):
+class RoboCasa(SplitOption, Scene):
     """RoboCasa365 (rlinf-robocasa365 1.0.1 = upstream RoboCasa v1.0.1), PandaOmron in RoboCasa's kitchens.
 
     **Task Description:**
@@ -322,26 +323,11 @@ class RoboCasa(Scene):
 
         return find_assets(required=False)
 
-    def certificate_scope(self) -> str:
-        """The split and registries, unless they are the worker's choice before the option (``splits.LEGACY``),
-        whose certificates keep their folder."""
-        from scenes.robocasa.splits import LEGACY, choice
-
-        split, registries = choice()
-        return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
-
     def environment_versions(self) -> dict[str, str]:
         """The worker venv's versions, and the base controller it builds with (``backend.py``): RoboCasa's
         ``create_env`` config since issue 41, robosuite's default before, which turns base commands once the base has
         turned, so runs under the two are neither pooled nor resumed as each other."""
         return {**super().environment_versions(), "base_controller": BASE_CONTROLLER}
-
-    def worker_environment(self) -> dict[str, str]:
-        """The split and registries this process resolved (``splits.choice``), for the run's simulators everywhere."""
-        from scenes.robocasa.splits import REGISTRIES_ENV, SPLIT_ENV, choice
-
-        split, registries = choice()
-        return {SPLIT_ENV: split, REGISTRIES_ENV: ",".join(registries)}
 
     def placeholder_assets(self) -> bool:
         from scenes.robocasa.environment import find_assets, is_placeholder
@@ -359,7 +345,7 @@ class RoboCasa(Scene):
 
         find_python()
         assets = find_assets()
-        problem = splits.tree_problem(assets, *splits.choice(), placeholders=is_placeholder(assets))
+        problem = splits.tree_problem(assets, *self.split_choice(), placeholders=is_placeholder(assets))
         if problem:
             raise ConfigError(problem)
 
@@ -375,10 +361,8 @@ class RoboCasa(Scene):
         )
         if assets is None:
             return f"{venv}; kitchen assets missing (INDGEN_ROBOCASA_ASSETS)"
-        from scenes.robocasa.splits import choice
-
         kind = "placeholders, smoke runs only" if is_placeholder(assets) else "found"
-        split, registries = choice()
+        split, registries = self.split_choice()
         return f"{venv}; kitchen assets {kind} ({assets}); split {split}, object registries {'+'.join(registries)}"
 
     def select_tasks(self, task: str | None, axes: Sequence[AxisRef] = ()) -> list[str]:
@@ -422,7 +406,7 @@ class RoboCasa(Scene):
         from scenes.robocasa.environment import find_assets, is_placeholder
 
         assets = find_assets()
-        split, registries = splits.choice()
+        split, registries = self.split_choice()
         # the split's kitchens and instances are where T0 comes from; the choice the worker made before the option
         # (splits.LEGACY) keeps the words runs had then, so they resume and pool with runs under it
         drawn = "" if (split, registries) == splits.LEGACY else f"; {splits.describe(split, registries)}"
@@ -473,18 +457,18 @@ class RoboCasa(Scene):
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
         from scenes.axes import axis_param, shifts, spec_at_level
-        from scenes.robocasa.splits import SPLIT_ENV, SPLIT_WORDS, choice, in_split
+        from scenes.robocasa.splits import SPLIT_WORDS, in_split
 
         names = [p.axis.name for p in shifts(successor)]
         self._check_task_lists(task, names)
         spec = spec_at_level(self.base(task), successor, level)
         parts = set(names)
         name, kitchen = split_task(task)
-        split, registries = choice()
+        split, registries = self.split_choice()
         if kitchen is not None and not in_split(split, *kitchen):
             raise ConfigError(
                 f"task {task}: kitchen {kitchen[0]}-{kitchen[1]} is not in RoboCasa365's {split} split "
-                f"({SPLIT_WORDS[split]}); run {name} without '@', or set {SPLIT_ENV}=pretrain or all"
+                f"({SPLIT_WORDS[split]}); run {name} without '@', or pass --split pretrain or all"
             )
         return {
             "task": name,

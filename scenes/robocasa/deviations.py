@@ -31,8 +31,9 @@ DEVIATIONS: tuple[str, ...] = (
     "whole range; RoboCasa's buffer, "
     "footprint rule (rotations whose footprint leaves its range are redrawn, so fewer fit at the window's low "
     "end) and robot base (CheesyBread's, from the cheese's range) are its own",
-    "RoboCasa365 split and object registries are the user's choice (INDGEN_ROBOCASA_SPLIT, "
-    "INDGEN_ROBOCASA_OBJ_REGISTRIES; the protocol facts' split names this run's), by default pretrain with "
+    "RoboCasa365 split and object registries are the user's choice (--split, --obj-registries, else "
+    "INDGEN_ROBOCASA_SPLIT, INDGEN_ROBOCASA_OBJ_REGISTRIES; the protocol facts' split names this run's), by default "
+    "pretrain with "
     "objaverse and lightwheel, where RoboCasa365's multi-task and lifelong-learning benchmarks and its openpi client "
     "evaluate; RoboCasa365 evaluates its foundation-model checkpoints in target, lerobot split='all' with lightwheel "
     "only",

@@ -1,5 +1,6 @@
 """Which kitchens and object instances T0 is drawn from: RoboCasa365's evaluation split and RoboCasa's object
-registries, chosen once per machine or shell (``INDGEN_ROBOCASA_SPLIT``, ``INDGEN_ROBOCASA_OBJ_REGISTRIES``).
+registries, chosen once per command: ``--split`` / ``--obj-registries`` (the API's ``split`` / ``obj_registries``),
+else ``INDGEN_ROBOCASA_SPLIT`` / ``INDGEN_ROBOCASA_OBJ_REGISTRIES``, else the defaults; the flag wins.
 
 RoboCasa's ``create_env`` (``robocasa/utils/env_utils.py``, be22d659 = the pinned rlinf-robocasa365 1.0.1) turns a
 split into ``Kitchen`` arguments: ``pretrain`` the 50 x 50 kitchens of layouts and styles 11..60 and each object
@@ -25,6 +26,8 @@ from pathlib import Path
 
 SPLIT_ENV = "INDGEN_ROBOCASA_SPLIT"
 REGISTRIES_ENV = "INDGEN_ROBOCASA_OBJ_REGISTRIES"
+# how a bad value is named: the commands' flags (the API's split, obj_registries), which win, or the environment's
+FLAGS, ENVIRON = ("--split ", "--obj-registries "), (f"${SPLIT_ENV}=", f"${REGISTRIES_ENV}=")
 # RoboCasa365's multi-task and lifelong-learning evaluation split, its openpi client's default
 DEFAULT_SPLIT = "pretrain"
 DEFAULT_REGISTRIES = ("objaverse", "lightwheel")  # RoboCasa's Kitchen default (obj_registries)
@@ -63,30 +66,46 @@ def in_split(split: str, layout: int, style: int) -> bool:
     return low <= layout <= 60 and low <= style <= 60
 
 
-def choice(environ=None) -> tuple[str, tuple[str, ...]]:
-    """The split and registries ``$INDGEN_ROBOCASA_SPLIT`` and ``$INDGEN_ROBOCASA_OBJ_REGISTRIES`` (a comma list)
-    name, else the defaults; a value RoboCasa has not is one line listing the valid ones (``ConfigError``)."""
+def check(split: str | None = None, registries: str | None = None, where: tuple[str, str] = FLAGS) -> None:
+    """One line listing the valid values (``ConfigError``) when ``split`` or ``registries`` (a comma list) is not
+    RoboCasa's; None is "not given". ``where`` names them in the line (the flags, or the environment variables)."""
     from indgen_vla.core.errors import ConfigError
 
-    environ = os.environ if environ is None else environ
-    split = environ.get(SPLIT_ENV, "").strip() or DEFAULT_SPLIT
-    if split not in SPLITS:
+    if split is not None and split not in SPLITS:
         valid = "; ".join(
             f"{k}{' (default)' if k == DEFAULT_SPLIT else ''}: {v}" for k, v in SPLIT_WORDS.items()
         )
-        raise ConfigError(
-            f"${SPLIT_ENV}={split!r} is not one of RoboCasa365's splits; set it to one of {valid}"
-        )
-    raw = environ.get(REGISTRIES_ENV, "").strip()
-    registries = tuple(r.strip() for r in raw.split(",")) if raw else DEFAULT_REGISTRIES
-    bad = [r for r in registries if r not in REGISTRY_FOLDERS]
-    if bad or len(set(registries)) != len(registries):
+        raise ConfigError(f"{where[0]}{split!r} is not one of RoboCasa365's splits; use one of {valid}")
+    if registries is None:
+        return
+    if not isinstance(registries, str):
+        name = where[1].strip(" =")
+        raise ConfigError(f"{name} must be a comma list such as 'objaverse,lightwheel', got {registries!r}")
+    names = [r.strip() for r in registries.split(",")]
+    bad = [r for r in names if r not in REGISTRY_FOLDERS]
+    if bad or len(set(names)) != len(names):
         what = f"names {bad[0]!r}" if bad else "repeats a registry"
         raise ConfigError(
-            f"${REGISTRIES_ENV}={raw!r} {what}; set it to a comma list of RoboCasa's object registries "
+            f"{where[1]}{registries!r} {what}; use a comma list of RoboCasa's object registries "
             f"{', '.join(REGISTRY_FOLDERS)} (default {','.join(DEFAULT_REGISTRIES)}; lerobot uses lightwheel)"
         )
-    return split, registries
+
+
+def choice(
+    environ=None, split: str | None = None, registries: str | None = None
+) -> tuple[str, tuple[str, ...]]:
+    """The split and registries: ``split`` / ``registries`` (the flags' values, a comma list) where given, else
+    ``$INDGEN_ROBOCASA_SPLIT`` and ``$INDGEN_ROBOCASA_OBJ_REGISTRIES``, else the defaults; a value RoboCasa has
+    not is one line listing the valid ones (``ConfigError``)."""
+    environ = os.environ if environ is None else environ
+    check(split, registries)
+    env_split = environ.get(SPLIT_ENV, "").strip() or None
+    env_regs = environ.get(REGISTRIES_ENV, "").strip() or None
+    if split is None or registries is None:  # only what the flags leave to the environment is read from it
+        check(None if split else env_split, None if registries else env_regs, ENVIRON)
+    split = split or env_split or DEFAULT_SPLIT
+    raw = registries or env_regs
+    return split, tuple(r.strip() for r in raw.split(",")) if raw else DEFAULT_REGISTRIES
 
 
 def tree_problem(assets: Path, split: str, registries: tuple[str, ...], placeholders: bool) -> str | None:
@@ -101,15 +120,15 @@ def tree_problem(assets: Path, split: str, registries: tuple[str, ...], placehol
             and next(folder.glob("*/*/*/model.xml"), None) is None
         ):
             return (
-                f"RoboCasa's object registry {reg!r} has no model under {folder}: set {REGISTRIES_ENV} to the "
-                "registries the tree holds (e.g. lightwheel, as lerobot does) or download it with RoboCasa's "
+                f"RoboCasa's object registry {reg!r} has no model under {folder}: pass --obj-registries (or set "
+                f"{REGISTRIES_ENV}) with the registries the tree holds (e.g. lightwheel, as lerobot does) or download it with RoboCasa's "
                 "download_kitchen_assets"
             )
     if split == "target" and placeholders:
         return (
             f"{assets} is the placeholder tree, one model per object category, and RoboCasa's target split keeps "
-            f"only a category's models after the first max(n - 5, ceil(n / 2)), none of one: set {SPLIT_ENV}="
-            "pretrain or all, or use RoboCasa's real assets"
+            "only a category's models after the first max(n - 5, ceil(n / 2)), none of one: pass --split pretrain "
+            f"or all (or set {SPLIT_ENV}), or use RoboCasa's real assets"
         )
     return None
 
@@ -125,8 +144,8 @@ def one_line(split: str, registries):
             raise
         raise ValueError(
             f"RoboCasa drew an object category with no model under split {split} in registries "
-            f"{', '.join(registries)} ({e}): the asset tree lacks that split's instances; set {SPLIT_ENV} and "
-            f"{REGISTRIES_ENV} to what it holds"
+            f"{', '.join(registries)} ({e}): the asset tree lacks that split's instances; pass --split and "
+            f"--obj-registries (or {SPLIT_ENV}, {REGISTRIES_ENV}) naming what it holds"
         ) from None
 
 

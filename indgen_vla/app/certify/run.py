@@ -14,7 +14,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
@@ -31,6 +31,8 @@ from scenes.certificates import (
 from scenes.privileged import with_privileged
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from indgen_vla.core.protocol.plan import LevelBuilder
 
 
@@ -202,22 +204,27 @@ def certify(
     out: str | Path | None = None,
     log=None,
     watch=None,
+    options: Mapping[str, Any] | None = None,
 ) -> dict:
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
     levels already certified there under the same steps/seed/rule, and the finished episodes of a level a killed
     run left half done, and write after every level. ``log`` gets a line per event; ``watch``
     (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to run, each episode and
-    each finished level instead of the per-level lines."""
+    each finished level instead of the per-level lines. ``options``: the family's (``--split``,
+    ``--obj-registries``; ``scenes.registry.configure_scene``), which its level jobs' builder carries."""
+    from scenes.registry import configure_scene
+
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
-    p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch)  # fmt: skip
-    if workers == 1 or len(p.jobs) <= 1:
-        for j in p.jobs:
-            p.merge(_certify_job(j, None if watch is None else watch.episode))
-    else:
-        _run_pool(p.jobs, min(workers, len(p.jobs)), p.merge, watch)
-    return p.result()
+    with configure_scene(scene, options):
+        p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                    max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch)  # fmt: skip
+        if workers == 1 or len(p.jobs) <= 1:
+            for j in p.jobs:
+                p.merge(_certify_job(j, None if watch is None else watch.episode))
+        else:
+            _run_pool(p.jobs, min(workers, len(p.jobs)), p.merge, watch)
+        return p.result()
 
 
 def prepare(

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from indgen_vla.app.cli.options import add_level_options
+from indgen_vla.app.cli.options import add_level_options, add_scene_options
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -24,6 +24,7 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
     p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
     p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
+    add_scene_options(p)
     p.add_argument(
         "--out", default=None, help="folder for certify.json (default: where evaluate looks; resumes there)"
     )
@@ -31,17 +32,26 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Write certify.json per task (resuming what is there); exit 1 if a level failed."""
+    from indgen_vla.core.protocol.axis_ref import AxisRef
+    from scenes.registry import configure_scene
+
+    axis = AxisRef.parse(args.axis)  # a malformed name: one line, before any scene lookup
+    options = {"split": args.split, "obj_registries": args.obj_registries}  # a bad value: one line, here
+    with configure_scene(args.scene, options):  # one choice for the certificates' folder and every level
+        return _certify_tasks(args, axis)
+
+
+def _certify_tasks(args: argparse.Namespace, axis) -> int:
+    """Each task of ``args`` in turn, the scene configured."""
     from pathlib import Path
 
     from indgen_vla.app.certify.display import CertifyDisplay, print_table
     from indgen_vla.app.certify.run import certify
     from indgen_vla.core.errors import RunDirError
-    from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.certificates import cert_path, certified_levels, infeasible_levels
     from scenes.oracle import oracle_scripts
     from scenes.registry import get_scene
 
-    axis = AxisRef.parse(args.axis)  # a malformed name: one line, before any scene lookup
     tasks = get_scene(args.scene).select_tasks(args.task, (axis,))
     preset = args.axes_preset
     failed = False

@@ -13,7 +13,7 @@ FLAGS_BEFORE_CONFIG = ("policy", "scene", "task", "axes", "levels", "step", "axe
                        "adaptive_delta", "adaptive_alpha", "round_size", "workers", "device", "precision", "compile",
                        "pipeline", "share_t0", "backend", "seed", "max_steps", "replan_steps", "image_size", "video",
                        "video_per_level", "data_regime", "gamma", "allow_infeasible", "smoke", "trust_remote_code",
-                       "allow_protocol_mismatch", "server_patience")  # fmt: skip
+                       "allow_protocol_mismatch", "server_patience", "split", "obj_registries")  # fmt: skip
 FLAGS_AFTER_CONFIG = ("preregistered", "out")
 
 

@@ -58,6 +58,11 @@ def add_level_options(p: argparse.ArgumentParser, levels_default: str = LEVELS_D
     add_config_flags(p, ("levels", "step", "axes_preset"), levels_default)
 
 
+def add_scene_options(p: argparse.ArgumentParser) -> None:
+    """--split and --obj-registries: RoboCasa365's split and object registries (evaluate's, certify's, preview's)."""
+    add_config_flags(p, ("split", "obj_registries"))
+
+
 def add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
     """A subcommand whose handler parses the rest of the command line itself (``args.rest``)."""
     sp.add_parser(name, help=help_, add_help=False)

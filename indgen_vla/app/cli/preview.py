@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from indgen_vla.app.cli.options import add_level_options
+from indgen_vla.app.cli.options import add_level_options, add_scene_options
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -25,6 +25,7 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p.add_argument("--size", type=int, default=256, help="image side in pixels (default 256)")
     p.add_argument("--episode", type=int, default=0, help="episode whose initial state to show (default 0)")
     p.add_argument("--seed", type=int, default=0, help="run seed, as evaluate's --seed (default 0)")
+    add_scene_options(p)
     p.add_argument("--out", required=True, help="image file: .png, .pdf, .svg or .jpg")
 
 
@@ -38,7 +39,7 @@ def main(args: argparse.Namespace) -> int:
     req = PreviewRequest(
         scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),
         task=args.task, levels=args.levels, step=args.step, preset=args.axes_preset, camera=args.camera,
-        size=args.size, episode=args.episode, seed=args.seed,
+        size=args.size, episode=args.episode, seed=args.seed, split=args.split, obj_registries=args.obj_registries,
     )  # fmt: skip
     path, tiles = write_preview(req)
     print(f"{path}: {len(tiles)} level(s) of {req.scene}, episode {req.episode}")

@@ -24,6 +24,11 @@ from indgen_vla.core.protocol.progression import expand_axes
 from indgen_vla.core.resources import config_dir
 
 DEFAULT_EPISODES = 50
+# the scene options' help lines (evaluate's flags, and certify's and preview's: cli/options.add_scene_options)
+SPLIT_HELP = ("RoboCasa365's split T0 is drawn from: pretrain (default; layouts and styles 11..60), target (its ten "
+              "kitchens), all; wins over $INDGEN_ROBOCASA_SPLIT")  # fmt: skip
+REGISTRIES_HELP = ("RoboCasa's object registries, a comma list of objaverse, aigen, lightwheel (default "
+                   "objaverse,lightwheel); wins over $INDGEN_ROBOCASA_OBJ_REGISTRIES")  # fmt: skip
 PRESET_DIR = config_dir("paper")
 ADAPTIVE_MODES = ("kstar", "curve", "until-failure")  # core.stats.sprt.MODES (a test keeps them equal)
 
@@ -82,6 +87,9 @@ class PlanConfig:
                             "--adaptive too)", action=argparse.BooleanOptionalAction)  # fmt: skip
     preregistered: str | None = option(None, "a plan.lock written by 'indgen budget --write': refuse to run anything "
                                        "that deviates from it", metavar="LOCK")  # fmt: skip
+    # the scene family's options (Scene.scene_options), resolved once per command (scenes.registry.configure_scene)
+    split: str | None = option(None, SPLIT_HELP, metavar="{pretrain,target,all}")
+    obj_registries: str | None = option(None, REGISTRIES_HELP, metavar="A,B")
 
     def __post_init__(self) -> None:
         if not self.scene:
@@ -101,6 +109,14 @@ class PlanConfig:
             load_axes_preset(self.axes_preset)
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
+        if any(v is not None for v in self.scene_options().values()):
+            from scenes import get_scene
+
+            get_scene(self.scene).check_options(self.scene_options())
+
+    def scene_options(self) -> dict[str, str | None]:
+        """The scene family's options the run sets (None: the family's default; ``Scene.scene_options``)."""
+        return {"split": self.split, "obj_registries": self.obj_registries}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -261,7 +277,8 @@ RECORD_ORDER = ("policy", "scene", "axes", "out", "task", "levels", "step", "axe
                 "backend", "pipeline", "seed", "max_steps", "replan_steps", "warmup_steps", "image_size", "video",
                 "video_per_level", "data_regime", "gamma", "allow_infeasible", "smoke", "trust_remote_code",
                 "allow_protocol_mismatch", "max_retries", "device", "precision", "compile", "server_patience",
-                "adaptive", "adaptive_delta", "adaptive_alpha", "round_size", "share_t0", "preregistered")  # fmt: skip
+                "adaptive", "adaptive_delta", "adaptive_alpha", "round_size", "share_t0", "preregistered", "split",
+                "obj_registries")  # fmt: skip
 FLAT_DEFAULTS = {n: o.field.default for n, o in OPTIONS.items()}
 
 

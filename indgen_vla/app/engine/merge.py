@@ -37,7 +37,7 @@ from indgen_vla.core.runs.shards import (
 RESUME_FLAGS = ("policy", "scene", "task", "axes", "levels", "step", "axes_preset", "episodes", "seed", "max_steps",
                 "replan_steps", "warmup_steps", "image_size", "video", "video_per_level", "data_regime", "gamma",
                 "allow_infeasible", "smoke", "trust_remote_code", "device", "precision", "compile", "adaptive",
-                "adaptive_delta", "adaptive_alpha", "round_size", "share_t0")  # fmt: skip
+                "adaptive_delta", "adaptive_alpha", "round_size", "share_t0", "split", "obj_registries")  # fmt: skip
 
 
 def resume_command(cfg: EvalConfig) -> str:

@@ -309,12 +309,11 @@ def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
                    **extra)  # fmt: skip
 
 
-def sim_options(scene: str) -> dict:
-    """A simulator actor's ``runtime_env``: the driver's choices the scene reads from the environment
-    (``Scene.worker_environment``), so an actor on a node that sets them otherwise builds what the manifest records."""
-    from scenes import get_scene
-
-    env = get_scene(scene).worker_environment()
+def sim_options(levels) -> dict:
+    """A simulator actor's ``runtime_env``: the plan's choices its scene would otherwise read from the environment
+    (the builder's ``worker_environment``: RoboCasa365's split), so an actor on a node that sets them otherwise
+    builds, and says, what the manifest records (the builder it is handed carries the same choice)."""
+    env = levels.worker_environment() if hasattr(levels, "worker_environment") else {}
     return {"runtime_env": {"env_vars": env}} if env else {}
 
 
@@ -370,7 +369,7 @@ def run_ray(
     settings = Settings(
         meta=meta, replan=replan, max_retries=cfg.run.max_retries, patience_s=cfg.policy.server_patience,
         workers=workers, need=need, files=route,
-        sim_cls=ray.remote(num_cpus=need.cpus_per_sim, **sim_options(runner_cfg.scene))(_SimActor),
+        sim_cls=ray.remote(num_cpus=need.cpus_per_sim, **sim_options(runner_cfg.levels))(_SimActor),
         sim_args=(runner_cfg, max(1, int(need.cpus_per_sim)), route),
         policy_cls=ray.remote(max_concurrency=most, num_cpus=need.cpus_per_policy, **policy_opts)(_PolicyActor),
         policy_args=(factory, knobs["INDGEN_RAY_MAX_BATCH"], knobs["INDGEN_RAY_BATCH_WAIT_MS"] / 1000.0),

@@ -56,7 +56,8 @@ class LevelBuilder(Protocol):
 
     # also read by the engine, where a builder has them: ``env_spec`` (the family's ``EnvSpec``: a policy whose
     # cameras or action size it lacks is refused before any episode), ``placeholder_assets`` (bool: an image
-    # policy runs there only with --smoke) and ``action_dim``
+    # policy runs there only with --smoke), ``action_dim`` and ``worker_environment`` (the plan's choices as the
+    # environment variables a Ray simulator actor gets: RoboCasa365's split)
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
-"""RoboCasa365's split and RoboCasa's object registries, chosen once (``INDGEN_ROBOCASA_SPLIT``,
-``INDGEN_ROBOCASA_OBJ_REGISTRIES``; ``scenes/robocasa/splits.py``): what RoboCasa makes of them, where the choice
-goes (the worker's config, the fingerprint, the certificates' folder) and the one-line refusals.
+"""RoboCasa365's split and RoboCasa's object registries, chosen once per command (``--split``, ``--obj-registries``,
+else ``INDGEN_ROBOCASA_SPLIT``, ``INDGEN_ROBOCASA_OBJ_REGISTRIES``; ``scenes/robocasa/splits.py``): what RoboCasa
+makes of them, where the choice goes (the worker's config, the fingerprint, the certificates' folder) and the
+one-line refusals.
 
 Upstream: robocasa/robocasa be22d659 (= the pinned rlinf-robocasa365 1.0.1, read from the installed copy):
 ``robocasa/utils/env_utils.py`` ``create_env`` (split -> Kitchen arguments), ``robocasa/models/scenes/
@@ -113,6 +114,13 @@ def test_a_bad_split_or_registry_is_one_line_listing_the_valid_ones():
         "all",
         ("lightwheel",),
     )
+    # the flags win, and what they set is not read from the environment (even a bad value there)
+    env = {splits.SPLIT_ENV: "tset", splits.REGISTRIES_ENV: "lightwheel"}
+    assert splits.choice(env, split="all") == ("all", ("lightwheel",))
+    assert splits.choice({splits.SPLIT_ENV: "target"}, "all", "aigen,lightwheel") == (
+        "all",
+        ("aigen", "lightwheel"),
+    )
     for environ, names in (
         ({splits.SPLIT_ENV: "test"}, ("pretrain (default)", "target", "all")),
         ({splits.REGISTRIES_ENV: "lightwheel,objverse"}, ("'objverse'", "objaverse, aigen, lightwheel")),
@@ -121,6 +129,10 @@ def test_a_bad_split_or_registry_is_one_line_listing_the_valid_ones():
         with pytest.raises(ConfigError) as e:
             splits.choice(environ)
         assert "\n" not in str(e.value) and all(n in str(e.value) for n in names), str(e.value)
+        flags = {"split" if k == splits.SPLIT_ENV else "registries": v for k, v in environ.items()}
+        with pytest.raises(ConfigError) as e:
+            splits.choice({}, **flags)
+        assert str(e.value).startswith("--") and all(n in str(e.value) for n in names), str(e.value)
 
 
 def test_a_tree_without_a_registrys_models_is_refused_in_one_line(tmp_path):
@@ -181,23 +193,83 @@ def test_a_choice_the_placeholder_tree_or_the_kitchen_cannot_serve_is_refused_in
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.registry import get_scene
 
-    monkeypatch.setenv(splits.SPLIT_ENV, "target")
     out = tmp_path / "run"
-    code = main(["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "PickPlaceCounterToCabinet",
-                 "--axis", "base_y", "--levels", "0:1", "--episodes", "1", "--out", str(out)])  # fmt: skip
-    err = capsys.readouterr().err.strip()
-    assert (
-        code == 2 and len(err.splitlines()) == 1 and "placeholder tree" in err and "=pretrain or all" in err
-    )
-    assert not out.exists()
+    args = ["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "PickPlaceCounterToCabinet",
+            "--axis", "base_y", "--levels", "0:1", "--episodes", "1", "--out", str(out)]  # fmt: skip
+    for environ, flag in (
+        ("target", []),
+        ("all", ["--split", "target"]),
+    ):  # the variable, or the flag over it
+        monkeypatch.setenv(splits.SPLIT_ENV, environ)
+        code = main([*args, *flag])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and len(err.splitlines()) == 1 and "placeholder tree" in err, err
+        assert "--split pretrain or all" in err
+        assert not out.exists()
     sc, task = get_scene("robocasa"), "PickPlaceCounterToCabinet@11-34"
     base_y = sc.successor(AxisRef.parse("base_y"))
     with pytest.raises(
-        ConfigError, match=r"kitchen 11-34 is not in RoboCasa365's target split .* without '@'"
+        ConfigError, match=r"kitchen 11-34 is not in RoboCasa365's target split .* --split pretrain or all"
     ):
-        sc.level_config(task, base_y, 0, (), (64, 64))
-    monkeypatch.setenv(splits.SPLIT_ENV, "pretrain")
-    assert sc.level_config(task, base_y, 0, (), (64, 64))["layout_ids"] == [11]
+        sc.configured({"split": "target"}).level_config(task, base_y, 0, (), (64, 64))
+    assert sc.configured({"split": "pretrain"}).level_config(task, base_y, 0, (), (64, 64))["layout_ids"] == [
+        11
+    ]
+
+
+@needs_venv
+def test_the_flag_beats_the_variable_and_the_plans_builder_carries_it_to_the_worker(
+    placeholders, monkeypatch
+):
+    """``--split pretrain --obj-registries lightwheel`` under ``INDGEN_ROBOCASA_SPLIT=all``: the plan resolves it
+    once, and its builder (what workers and Ray actors are handed, pickled) builds each level with it, says it in
+    the manifest's protocol facts and in a simulator actor's environment, after the command's scope has ended;
+    the family outside the command still reads the variable."""
+    import pickle
+
+    from scenes.planning import resolve_scene_plan
+    from scenes.registry import get_scene
+
+    monkeypatch.setenv(splits.SPLIT_ENV, "all")
+    flags = {"split": "pretrain", "obj_registries": "lightwheel"}
+    plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:1", options=flags)
+    builder = pickle.loads(pickle.dumps(plan.builder))  # as a worker process receives it
+    successor = builder.successor("PickPlaceCounterToCabinet", "base_y")
+    # what ExternalSceneEnv sends the RoboCasa worker's build (backend.py reads split and obj_registries from it)
+    sent = builder.family().level_config("PickPlaceCounterToCabinet", successor, 1, (), (64, 64))
+    assert (sent["split"], sent["obj_registries"]) == ("pretrain", ["lightwheel"])
+    facts = builder.family().protocol_facts()  # the manifest's protocol entry (SceneLevels.describe)
+    assert facts["split"] == {"split": "pretrain", "obj_registries": ["lightwheel"],
+                              "kitchens": splits.SPLIT_WORDS["pretrain"]}  # fmt: skip
+    assert "split pretrain" in facts["initial_states"]
+    assert builder.worker_environment() == {splits.SPLIT_ENV: "pretrain", splits.REGISTRIES_ENV: "lightwheel"}
+    assert get_scene("robocasa").split_choice() == ("all", splits.DEFAULT_REGISTRIES)
+    env_plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:1")
+    assert (
+        dict(env_plan.builder.options)["split"] == "all"
+    )  # no flag: the variable, resolved once all the same
+    assert (
+        env_plan.cell("PickPlaceCounterToCabinet", "base_y", 0).env_key
+        != plan.cell("PickPlaceCounterToCabinet", "base_y", 0).env_key
+    )  # the level's identity names the split: runs under the two share no T0
+
+
+def test_a_scene_without_the_option_refuses_it_in_one_line(tmp_path, capsys):
+    """``--split`` / ``--obj-registries`` on another family (evaluate, certify, preview): one line, exit 2."""
+    from indgen_vla.app.cli import main
+
+    for cmd in (
+        ["evaluate", "--policy", "standin:noop", "--scene", "pick_place", "--axis", "pick_y", "--split", "all",
+         "--out", str(tmp_path / "run")],
+        ["certify", "--scene", "pick_place", "--axis", "pick_y", "--obj-registries", "lightwheel"],
+        ["preview", "--scene", "pick_place", "--axis", "pick_y", "--split", "all", "--out", str(tmp_path / "p.png")],
+        ["certify", "--scene", "robocasa", "--axis", "base_y", "--split", "tset"],
+    ):  # fmt: skip
+        assert main(cmd) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        assert "takes no --" in err or "pretrain (default)" in err, err
+    assert not any(tmp_path.iterdir())
 
 
 _T0S = """
@@ -254,8 +326,9 @@ def test_the_worker_draws_t0_from_the_split_and_says_in_one_line_when_the_tree_h
 def test_a_run_killed_under_split_all_is_not_resumed_under_pretrain(
     placeholders, tmp_path, monkeypatch, capsys
 ):
-    """Episode 0 ran under split all; the resume under the default pretrain would add an episode from other
-    kitchens to its table: refused before any episode, in one line naming initial_states; under all it resumes."""
+    """Episode 0 ran under split all; the resume under pretrain (the variable's, then the flag's over a variable
+    saying all) would add an episode from other kitchens to its table: refused before any episode, in one line
+    naming initial_states; under all it resumes."""
     import pandas as pd
 
     from indgen_vla.app.cli import main
@@ -267,11 +340,12 @@ def test_a_run_killed_under_split_all_is_not_resumed_under_pretrain(
     assert main(args) == 0
     episodes = pd.read_parquet(out / "episodes.parquet")
     episodes[episodes.episode == 0].to_parquet(out / "episodes.parquet", index=False)  # as a kill leaves it
-    monkeypatch.setenv(splits.SPLIT_ENV, "pretrain")
-    capsys.readouterr()
-    assert main(args) == 2
-    err = [ln for ln in capsys.readouterr().err.strip().splitlines() if ln.startswith("error:")]
-    assert len(err) == 1 and "initial_states was" in err[0] and "split pretrain" in err[0], err
-    assert len(pd.read_parquet(out / "episodes.parquet")) == 1
+    for environ, flag in (("pretrain", []), ("all", ["--split", "pretrain"])):
+        monkeypatch.setenv(splits.SPLIT_ENV, environ)
+        capsys.readouterr()
+        assert main([*args, *flag]) == 2
+        err = [ln for ln in capsys.readouterr().err.strip().splitlines() if ln.startswith("error:")]
+        assert len(err) == 1 and "initial_states was" in err[0] and "split pretrain" in err[0], err
+        assert len(pd.read_parquet(out / "episodes.parquet")) == 1
     monkeypatch.setenv(splits.SPLIT_ENV, "all")
     assert main(args) == 0 and sorted(pd.read_parquet(out / "episodes.parquet").episode) == [0, 1]

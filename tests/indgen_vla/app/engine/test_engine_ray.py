@@ -102,17 +102,25 @@ def test_ray_knobs_are_checked():
 
 
 def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):
-    """What the driver resolved, not a node's own environment: the manifest records the driver's split."""
+    """What the plan resolved (the driver's variable, or --split over it), not a node's own environment: the
+    manifest records the driver's split."""
     from indgen_vla.app.engine.ray_backend import sim_options
+    from scenes.planning import scene_levels
+    from scenes.registry import configure_scene
 
     monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "all")
     monkeypatch.delenv("INDGEN_ROBOCASA_OBJ_REGISTRIES", raising=False)
-    env = sim_options("robocasa")["runtime_env"]["env_vars"]
+    env = sim_options(scene_levels("robocasa", ["base_y"]))["runtime_env"]["env_vars"]
     assert env == {"INDGEN_ROBOCASA_SPLIT": "all", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "objaverse,lightwheel"}
+    with configure_scene("robocasa", {"split": "target", "obj_registries": "lightwheel"}):
+        flagged = scene_levels("robocasa", ["base_y"])
+    assert sim_options(flagged)["runtime_env"]["env_vars"] == {
+        "INDGEN_ROBOCASA_SPLIT": "target", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "lightwheel"
+    }  # fmt: skip
     monkeypatch.delenv("INDGEN_ROBOCASA_SPLIT")
-    default = sim_options("robocasa")["runtime_env"]["env_vars"]
+    default = sim_options(scene_levels("robocasa", ["base_y"]))["runtime_env"]["env_vars"]
     assert default["INDGEN_ROBOCASA_SPLIT"] == "pretrain"
-    assert sim_options("pick_place") == {}  # a scene that reads no choice from the environment
+    assert sim_options(scene_levels("pick_place", ["pick_y"])) == {}  # a scene that reads no such choice
 
 
 ROW = ("task", "axis", "level", "episode", "seed", "success", "steps", "status", "failure")

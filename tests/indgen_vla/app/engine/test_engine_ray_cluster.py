@@ -336,6 +336,7 @@ def test_a_node_whose_environment_names_another_split_builds_the_drivers(tmp_pat
     from ray.cluster_utils import Cluster
 
     from indgen_vla.app.engine.ray_backend import sim_options
+    from scenes.planning import scene_levels
 
     monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "target")  # the environment the node's raylet starts with
     c = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False})
@@ -352,7 +353,7 @@ def test_a_node_whose_environment_names_another_split_builds_the_drivers(tmp_pat
         plain = ray.remote(num_cpus=1)(Probe).remote()
         assert ray.get(plain.split.remote())[0] == "target"  # the node's own value, what an actor read before
         ray.kill(plain)
-        carried = ray.remote(num_cpus=1, **sim_options("robocasa"))(Probe).remote()
+        carried = ray.remote(num_cpus=1, **sim_options(scene_levels("robocasa", ["base_y"])))(Probe).remote()
         assert ray.get(carried.split.remote())[0] == "all"
     finally:
         ray.shutdown()
