@@ -25,7 +25,9 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
+from scenes.robocasa.oracle_base import base_goal, drive
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
+from scenes.robocasa.oracle_lift import open_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
@@ -52,7 +54,7 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 1  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
@@ -63,7 +65,9 @@ class RoboCasaOracle:
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
+        "OpenStandMixerHead",
         "TurnOnBlender",
+        "OpenElectricKettleLid",
         "CloseElectricKettleLid",
     )
 
@@ -166,8 +170,8 @@ class RoboCasaOracle:
         press = s.target.floor_z is None  # a fixture part to push: no receptacle floor to put anything on
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
-        if press and s.goal is not None:  # a hinged lid standing open (its hinge the goal)
-            return close_lid(self, s)
+        if press and s.goal is not None:  # a hinged part (its hinge the goal): a standing lid, a head to lift
+            return open_hinge(self, s) if s.facts.lift else close_lid(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:
@@ -185,6 +189,14 @@ class RoboCasaOracle:
         above = press + np.array([0.0, 0.0, 0.10])
         if self._tilt is None:
             self._tilt = BUTTON_TILT if s.facts.button else PRESS_TILT
+            if s.facts.base_room is not None:  # the mixer's head: sideways until the press point is ahead
+                self._base_goal = base_goal(s, press, 0.0, np.inf)
+                self._next("drive" if self._base_goal is not None else "approach")
+        if self.phase == "drive":
+            a = drive(self, s, self._base_goal, CLOSED)
+            if a is not None:
+                return a
+            self._next("approach")
         if self.phase == "approach":
             if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")

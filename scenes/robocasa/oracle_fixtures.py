@@ -1,5 +1,5 @@
 """The RoboCasa oracle's script for a hinged lid standing open (CloseElectricKettleLid), from the hinge facts of
-``worker_facts.kettle_facts`` (``oracle_state.hinge_goal``); kept apart from ``oracle.py`` for its length.
+``worker_facts.hinged_facts`` (``oracle_state.hinge_goal``); kept apart from ``oracle.py`` for its length.
 
 Opening the kettle's lid and pressing its switch were tried and left out (docs/results/robocasa_oracle.md): both
 need a hand held level (the lid overhangs the kettle's front by 1.4 cm; a hand pointing down onto the low switch
