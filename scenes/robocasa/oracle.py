@@ -4,14 +4,16 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm), but for the kettle lid's base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+control mode -1 (arm), but for the fixture tasks' base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
-time on placeholder assets), a press: the stand mixer's head (pushed down at its free end, the hand tipped
-further while the reach falls short) or the blender's power button (touched, then left straight up), and the
-electric kettle's standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``). ``tasks``
+time on placeholder assets), a press: the stand mixer's head (pushed down near its free end, the hand tipped
+further while the reach falls short) or a button (the blender's power button, the kettle's lid button: pressed,
+then left straight up), the electric kettle's standing lid, swept shut from behind and pressed down
+(``oracle_fixtures.close_lid``), and the stand mixer's head lifted open from under its front edge
+(``oracle_lift.open_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
