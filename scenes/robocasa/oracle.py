@@ -58,7 +58,7 @@ class RoboCasaOracle:
     spec = oracle_spec(ACTION_DIM)
     version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and the toaster oven's door are left out: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",

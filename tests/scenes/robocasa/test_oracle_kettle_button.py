@@ -88,6 +88,6 @@ def test_certify_scripts_opening_the_kettle_lid():
 
 
 @needs_venv
-@pytest.mark.slow  # ~30 s: a cold worker and an oracle episode; the default tests above keep the script's steps
+@pytest.mark.slow  # 8 s: a cold worker and a ~40-step episode; the default tests above keep the script's steps
 def test_the_oracle_opens_the_kettle_lid(placeholders):
     assert _oracle_episodes("OpenElectricKettleLid", "fixture_x", 0, (0,), None) == [True]

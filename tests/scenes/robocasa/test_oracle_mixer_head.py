@@ -89,13 +89,13 @@ def test_certify_scripts_opening_the_mixer_head():
 
 
 @needs_venv
-@pytest.mark.slow  # ~30 s: a cold worker and an 87-step episode; the default tests above keep the script's steps
+@pytest.mark.slow  # 25 s: a cold worker and a ~90-step episode; the default tests above keep the script's steps
 def test_the_oracle_opens_the_mixer_head(placeholders):
     assert _oracle_episodes("OpenStandMixerHead", "fixture_x", 0, (0,), None) == [True]
 
 
 @needs_venv
-@pytest.mark.slow  # ~40 s; test_the_oracle_drives_then_goes_under_the_heads_free_edge_and_lifts_it keeps the drive
+@pytest.mark.slow  # 24 s; test_the_oracle_drives_then_goes_under_the_heads_free_edge_and_lifts_it keeps the drive
 def test_the_oracle_opens_the_mixer_head_slid_away(placeholders):
     """fixture_x level 3 episode 0: the mixer slid 0.375 m along the counter; the base phase brings its edge back."""
     assert _oracle_episodes("OpenStandMixerHead", "fixture_x", 3, (0,), None) == [True]
