@@ -87,6 +87,7 @@ class SceneFacts:
     button: bool = False  # a press task's part is a button: one touch counts, at its release (RoboCasa)
     base_room: tuple[float, ...] | None = None  # m a mobile base may drive ahead, back, left, right
     ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
+    lift: bool = False  # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut
 
 
 NO_FACTS = SceneFacts()

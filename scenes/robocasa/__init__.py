@@ -260,7 +260,7 @@ class RoboCasa(SplitOption, Scene):
     )
     preload: ClassVar[tuple[str, ...]] = ()
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
-    oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron's arm, base fixed
+    oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron: arm, some tasks base
 
     def successor(self, axis: AxisRef, step=None, overrides=None, task: str | None = None):
         """pick_x's step is ``task``'s own (``pick_step``: its region / 5, appendix B) unless --step (a single axis)

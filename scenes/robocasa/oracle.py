@@ -4,14 +4,16 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm), but for the kettle lid's base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+control mode -1 (arm), but for the fixture tasks' base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
-time on placeholder assets), a press: the stand mixer's head (pushed down at its free end, the hand tipped
-further while the reach falls short) or the blender's power button (touched, then left straight up), and the
-electric kettle's standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``). ``tasks``
+time on placeholder assets), a press: the stand mixer's head (pushed down near its free end, the hand tipped
+further while the reach falls short) or a button (the blender's power button, the kettle's lid button: pressed,
+then left straight up), the electric kettle's standing lid, swept shut from behind and pressed down
+(``oracle_fixtures.close_lid``), and the stand mixer's head lifted open from under its front edge
+(``oracle_lift.open_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -25,7 +27,9 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
+from scenes.robocasa.oracle_base import base_goal, drive
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
+from scenes.robocasa.oracle_lift import open_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
@@ -52,9 +56,9 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 1  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and the toaster oven's door are left out: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -63,7 +67,9 @@ class RoboCasaOracle:
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
         "CloseStandMixerHead",
+        "OpenStandMixerHead",
         "TurnOnBlender",
+        "OpenElectricKettleLid",
         "CloseElectricKettleLid",
     )
 
@@ -166,8 +172,8 @@ class RoboCasaOracle:
         press = s.target.floor_z is None  # a fixture part to push: no receptacle floor to put anything on
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
-        if press and s.goal is not None:  # a hinged lid standing open (its hinge the goal)
-            return close_lid(self, s)
+        if press and s.goal is not None:  # a hinged part (its hinge the goal): a standing lid, a head to lift
+            return open_hinge(self, s) if s.facts.lift else close_lid(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:
@@ -185,6 +191,14 @@ class RoboCasaOracle:
         above = press + np.array([0.0, 0.0, 0.10])
         if self._tilt is None:
             self._tilt = BUTTON_TILT if s.facts.button else PRESS_TILT
+            if s.facts.base_room is not None:  # the mixer's head: sideways until the press point is ahead
+                self._base_goal = base_goal(s, press, 0.0, np.inf)
+                self._next("drive" if self._base_goal is not None else "approach")
+        if self.phase == "drive":
+            a = drive(self, s, self._base_goal, CLOSED)
+            if a is not None:
+                return a
+            self._next("approach")
         if self.phase == "approach":
             if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")

@@ -1,10 +1,10 @@
 """The RoboCasa oracle's script for a hinged lid standing open (CloseElectricKettleLid), from the hinge facts of
-``worker_facts.kettle_facts`` (``oracle_state.hinge_goal``); kept apart from ``oracle.py`` for its length.
+``worker_facts.hinged_facts`` (``oracle_state.hinge_goal``); kept apart from ``oracle.py`` for its length.
 
-Opening the kettle's lid and pressing its switch were tried and left out (docs/results/robocasa_oracle.md): both
-need a hand held level (the lid overhangs the kettle's front by 1.4 cm; a hand pointing down onto the low switch
-meets the lid with its palm), and the base-fixed arm held level stayed 0.13 m or more above its target (at 1.29-1.33
-m under the lid's edge at 1.13 m; 1.13-1.33 m over the switch at 1.0 m) in every episode tried."""
+Pressing the kettle's switch was tried and left out (docs/results/robocasa_oracle.md): a hand pointing down onto the
+low switch meets the lid with its palm, and the base-fixed arm held level stayed 0.13 m or more above it (1.13-1.33
+m over the switch at 1.0 m). Opening the lid is the lid button's press (placeholder tree 6), lifting the stand
+mixer's head ``oracle_lift.py``."""
 
 from __future__ import annotations
 

@@ -24,7 +24,9 @@ import zlib
 from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
-VERSION = 5  # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main
+# 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main; 6: the stand mixer's
+# head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back
+VERSION = 6
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -102,12 +104,15 @@ class Model:
         )
 
     def part(self, name: str, joint: str | None, pos, half, kind="hinge", axis=(1, 0, 0), rng=(0.0, 1.57),
-             sites=(), geom_names=(), children="", collide=True, pivot=(0, 0, 0), friction=0.2) -> None:  # fmt: skip
+             sites=(), geom_names=(), children="", collide=True, pivot=(0, 0, 0), friction=0.2,
+             spring: tuple[float, float] | None = None) -> None:  # fmt: skip
         """A child body at ``pos`` (in a free slab, never inside a collider) with one joint (at ``pivot`` in its
-        frame) and a small box of its own; ``collide=False`` for parts no task touches (racks, knobs)."""
+        frame) and a small box of its own; ``collide=False`` for parts no task touches (racks, knobs); ``spring``
+        (stiffness, rest position) for a button that springs back."""
+        k = "" if spring is None else f' stiffness="{spring[0]:g}" springref="{spring[1]:g}"'
         j = (
             f'<joint name="{joint}" type="{kind}" pos="{fmt(*pivot)}" axis="{fmt(*axis)}" range="{fmt(*rng)}" '
-            f'limited="true" damping="2" armature="0.01" frictionloss="{friction:g}"/>'
+            f'limited="true" damping="2" armature="0.01" frictionloss="{friction:g}"{k}/>'
             if joint
             else ""
         )
@@ -180,10 +185,11 @@ def fixture_model(kind: str, name: str) -> str:
     elif kind == "stand_mixer":
         m.region("bowl", (0, -hy * 0.3, -hz * 0.5), (hx * 0.6, hy * 0.4, hz * 0.3))
         # the head lies in the top slab, hinged at its rear edge: opening (qpos up to 0.8) lifts its front; the
-        # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0)
-        d = hy * 0.5
-        m.part("head", "head_joint", (0, hy - d, top), (hx * 0.6, d, t), axis=(-1, 0, 0), rng=(0.0, 0.8),
-               pivot=(0, d, 0), friction=1.0)  # fmt: skip
+        # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0). As a tilt-head
+        # mixer's head, it reaches over the front (since version 6): its front edge overhangs the free front slab,
+        # so a finger can get under it and lift it (OpenStandMixerHead); before, it lay on the collider's top
+        m.part("head", "head_joint", (0, 0, top), (hx * 0.6, hy, t), axis=(-1, 0, 0), rng=(0.0, 0.8),
+               pivot=(0, hy, 0), friction=1.0)  # fmt: skip
         m.part(
             "bowl_b",
             "bowl_joint",
@@ -200,8 +206,16 @@ def fixture_model(kind: str, name: str) -> str:
         m.part("lid", "lid_joint", (0, 0, top), (hx * 0.7, hy * 0.7, t), axis=(-1, 0, 0), rng=(0.0, 1.57),
                pivot=(0, hy * 0.7, 0), friction=0.5)  # fmt: skip
         m.part("switch", "switch_joint", (0, front, -hz * 0.6), small, axis=(1, 0, 0), rng=(0.0, 0.3))
-        m.part("button_lid", "button_lid_joint", (hx * 0.6, front, hz * 0.5), small, kind="slide", axis=(0, 1, 0),
-               rng=(-0.01, 0.0), collide=False)  # fmt: skip
+        # the lid's release button (ElectricKettle.update_state opens the shut lid once it reads > 0.1 of its
+        # range): since version 6 a collider on the top beside the lid (where a kettle's handle carries it), pushed
+        # down 1 cm to its stop and sprung back up (its spring at rest 1 cm over the top stop), away from where
+        # CloseElectricKettleLid's oracle sweeps and presses the lid; before, it collided with nothing. Its top
+        # stands 4 mm over the lid's (a finger on both counts the press before it meets the lid) and its bottom,
+        # pushed down, 4 mm over the collider
+        xb, top_b, bottom_b = (hx + hx * 0.7) / 2, hz - 0.001, hz - m.slab + 0.014
+        m.part("button_lid", "button_lid_joint", (xb, 0, (top_b + bottom_b) / 2),
+               ((hx * 0.3) / 2 - 0.002, 0.015, (top_b - bottom_b) / 2), kind="slide", axis=(0, 0, 1),
+               rng=(-0.01, 0.0), friction=0.02, spring=(20.0, 0.01))  # fmt: skip
     elif kind == "microwave":
         m.region("int", (0, 0, 0), (hx * 0.8, hy * 0.8, hz * 0.8))
         m.part("door", "microjoint", (0, front, 0), (hx * 0.9, t, hz * 0.8), axis=(0, 0, 1), rng=(-1.57, 0.0),

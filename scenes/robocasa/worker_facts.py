@@ -112,20 +112,23 @@ def check_kitchen(config: dict) -> None:
 def oracle_facts(env, task: str) -> dict:
     """The facts only ``scenes.robocasa.oracle`` reads (kept apart from ``privileged``'s shared ones)."""
     return {
-        **fixture_part_facts(env), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
-        **button_facts(env, task), **kettle_facts(env, task),
+        **fixture_part_facts(env, task), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
+        **button_facts(env, task), **hinged_facts(env, task),
     }  # fmt: skip
 
 
-def fixture_part_facts(env) -> dict:
+def fixture_part_facts(env, task: str = "") -> dict:
     """Where the fixture oracles push (``scenes.robocasa.oracle``): the stand mixer head's hinge anchor (world), so
-    the press lands on the head's free end (most lever; pushing on the hinge closes nothing)."""
+    the press lands on the head's free end (most lever; pushing on the hinge closes nothing); for
+    CloseStandMixerHead also the base's room (its base phase)."""
     data, model = env.sim.data, env.sim.model
     out: dict = {}
     mixer = getattr(env, "stand_mixer", None)
     jn = getattr(mixer, "_joint_names", {}).get("head") if mixer is not None else None
     if jn and jn in model.joint_names:
         out["mixer_hinge_pos"] = np.array(data.xanchor[model.joint_name2id(jn)], dtype=np.float64)
+        if task == "CloseStandMixerHead":
+            out["base_room"] = base_room(env)
     return out
 
 
@@ -133,7 +136,10 @@ def button_facts(env, task: str) -> dict:
     """TurnOnBlender's power button (``Blender.update_state``: a press is the gripper's contact with
     ``<blender>_power_button_main``, counted at its release): ``button_pos``, a point of its top face
     ``BUTTON_EDGE`` in from its front edge (a finger pressing its middle touches the blender's face first), and
-    ``button_touched``, that contact now; empty for the other tasks or a blender without that geom."""
+    ``button_touched``, that contact now; OpenElectricKettleLid's lid button: ``kettle_button_facts``; empty for
+    the other tasks or a blender without that geom."""
+    if task == "OpenElectricKettleLid":
+        return kettle_button_facts(env)
     blender = getattr(env, "blender", None)
     name = f"{getattr(blender, 'name', '')}_power_button_main"
     model, data = env.sim.model, env.sim.data
@@ -147,6 +153,21 @@ def button_facts(env, task: str) -> dict:
         "button_pos": top + out * max(0.0, float(size[1]) - BUTTON_EDGE),
         "button_touched": bool(env.check_contact(env.robots[0].gripper["right"], name)),
     }
+
+
+def kettle_button_facts(env) -> dict:
+    """OpenElectricKettleLid's lid button (``ElectricKettle._joint_names["lid_button"]``, its body
+    ``<prefix>button_lid``): ``button_pos``, the middle of its top; ``button_touched``, that RoboCasa counts the
+    press (``update_state`` opens the shut lid once the button reads > 0.1) or the lid has begun to open; and the
+    base's room (the press's base phase)."""
+    kettle = getattr(env, "electric_kettle", None)
+    if kettle is None:
+        return {}
+    centre, half = _part_box(env, f"{kettle.naming_prefix}button_lid")
+    state = kettle.get_state(env)
+    pressed = float(state.get("lid_button") or 0.0) > 0.1 or float(state.get("lid") or 0.0) > 0.01
+    return {"button_pos": centre + np.array([0.0, 0.0, half[2]]), "button_touched": pressed,
+            "base_room": base_room(env)}  # fmt: skip
 
 
 def _front(env, fixture) -> np.ndarray:
@@ -172,27 +193,38 @@ def _part_box(env, body: str, along=None):
     return (lo + hi) / 2, ext if along is not None else (hi - lo) / 2
 
 
-def kettle_facts(env, task: str) -> dict:
-    """CloseElectricKettleLid's lid (``ElectricKettle._joint_names["lid"]``), which the oracle swings shut: its
-    hinge (``hinge_pos``, world anchor), its free edge's middle (``hinge_edge``: the hinge mirrored through the
-    lid's centre), its half thickness, how open RoboCasa reads it (``hinge_state``, 0..1) and the way the kettle
-    faces (``hinge_front``); empty for other tasks."""
-    kettle = getattr(env, "electric_kettle", None)
-    if kettle is None or task != "CloseElectricKettleLid":
-        return {}
+def hinged_facts(env, task: str) -> dict:
+    """The hinged part a fixture task swings (``hinge_facts``): CloseElectricKettleLid's lid
+    (``ElectricKettle._joint_names["lid"]``), shut by the oracle, and OpenStandMixerHead's head
+    (``StandMixer._joint_names["head"]``), lifted open from under its free edge (``hinge_lift``); empty for other tasks."""
+    if task == "CloseElectricKettleLid" and getattr(env, "electric_kettle", None) is not None:
+        kettle = env.electric_kettle
+        return hinge_facts(env, kettle, "lid", float(kettle.get_state(env)["lid"]))
+    if task == "OpenStandMixerHead" and getattr(env, "stand_mixer", None) is not None:
+        mixer = env.stand_mixer
+        mixer.update_state(env)  # get_state reads the values update_state synced from the joint
+        return {**hinge_facts(env, mixer, "head", float(mixer.get_state(env)["head"])), "hinge_lift": True}
+    return {}
+
+
+def hinge_facts(env, fixture, part: str, state: float) -> dict:
+    """``fixture``'s hinged ``part`` (its joint ``_joint_names[part]``, its body ``<prefix><part>``): the hinge
+    (``hinge_pos``, world anchor), the free edge's middle (``hinge_edge``: the hinge mirrored through the part's
+    centre), its half thickness, how open RoboCasa reads it (``hinge_state``, 0..1), the way the fixture faces
+    (``hinge_front``), what hangs over it and the base's room."""
     model, data = env.sim.model, env.sim.data
-    front = _front(env, kettle)
-    j = model.joint_name2id(kettle._joint_names["lid"])
+    front = _front(env, fixture)
+    j = model.joint_name2id(fixture._joint_names[part])
     hinge = np.array(data.xanchor[j], dtype=np.float64)
-    centre, _ = _part_box(env, f"{kettle.naming_prefix}lid")
+    body = f"{fixture.naming_prefix}{part}"
+    centre, _ = _part_box(env, body)
     axis = np.asarray(data.xaxis[j], dtype=np.float64)
     across = centre - hinge - axis * float(np.dot(centre - hinge, axis))  # hinge to centre, off the axis
     normal = np.cross(axis, across / max(float(np.linalg.norm(across)), 1e-9))
     edge = hinge + 2 * across
     return {
         "hinge_pos": hinge, "hinge_edge": edge, "hinge_front": front,
-        "hinge_thick": _part_box(env, f"{kettle.naming_prefix}lid", normal)[1],
-        "hinge_state": float(kettle.get_state(env)["lid"]),
+        "hinge_thick": _part_box(env, body, normal)[1], "hinge_state": state,
         "hinge_ceiling": _ceiling(env, hinge[:2], max(float(hinge[2]), float(edge[2])), reach=0.1),
         "base_room": base_room(env),
     }  # fmt: skip

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 
 def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders):
-    """OpenStandMixerHead has no oracle script: its cells say so, summary.json's certification files its levels
+    """TurnOnElectricKettle has no oracle script: its cells say so, summary.json's certification files its levels
     under ``no_oracle`` and report.md's caveat says certify cannot help; a scripted task's are ``uncertified``."""
     import dataclasses
 
@@ -19,7 +19,8 @@ def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders
     plan = resolve_scene_plan("robocasa", "all", ("fixture_x",), "0:1", None, None)
     by_task = {c.task: c for c in plan.cells if c.level == 1}
     assert (
-        by_task["OpenStandMixerHead"].evidence == NO_ORACLE and by_task["TurnOnBlender"].evidence != NO_ORACLE
+        by_task["TurnOnElectricKettle"].evidence == NO_ORACLE
+        and by_task["TurnOnBlender"].evidence != NO_ORACLE
     )
     manifest = {"plan": {"tasks": list(plan.tasks), "levels": {"fixture_x": [0, 1]}, "episodes": 1},
                 "resolved": {"cells": [dataclasses.asdict(c) for c in plan.cells]}}  # fmt: skip
@@ -27,14 +28,14 @@ def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders
                                   "steps"])  # fmt: skip
     summary = summarize(empty, manifest)
     cert = summary["axes"]["fixture_x"]["certification"]
-    assert cert["OpenStandMixerHead"] == {"no_oracle": [0, 1]} and cert["TurnOnBlender"] == {
+    assert cert["TurnOnElectricKettle"] == {"no_oracle": [0, 1]} and cert["TurnOnBlender"] == {
         "uncertified": [0, 1]
     }
     lines = report_caveats([("run", summary)])
     (none,) = [x for x in lines if "no oracle" in x]
-    assert "OpenStandMixerHead: 0, +1" in none and "TurnOnBlender" not in none and "cannot help" in none
+    assert "TurnOnElectricKettle: 0, +1" in none and "TurnOnBlender" not in none and "cannot help" in none
     (short,) = [x for x in lines if "**uncertified**" in x]
-    assert "TurnOnBlender: 0, +1" in short and "OpenStandMixerHead" not in short
+    assert "TurnOnBlender: 0, +1" in short and "TurnOnElectricKettle" not in short
 
 
 def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(placeholders, tmp_path):
@@ -46,10 +47,10 @@ def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(placehold
                      episodes=1, out=str(tmp_path / "run"))  # fmt: skip
     lines = check_feasible(cfg, build_plan(cfg))
     (none,) = [x for x in lines if "no script" in x]
-    assert "OpenStandMixerHead: levels 0, +1" in none and "indgen certify refuses" in none
+    assert "TurnOnElectricKettle: levels 0, +1" in none and "indgen certify refuses" in none
     assert "TurnOnBlender" not in none and "'indgen certify" not in none
     (short,) = [x for x in lines if "'indgen certify" in x]
-    assert "TurnOnBlender" in short and "OpenStandMixerHead" not in short
+    assert "TurnOnBlender" in short and "TurnOnElectricKettle" not in short
 
 
 def test_summary_files_failed_and_certified_levels_per_task():

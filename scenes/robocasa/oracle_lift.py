@@ -1,0 +1,98 @@
+"""The RoboCasa oracle's script for a hinged part to swing open from under its free edge (OpenStandMixerHead: the
+stand mixer's tilt head), from the hinge facts of ``worker_facts.hinged_facts``; kept apart from ``oracle.py``.
+
+The hand, fingers shut and held nearly level, points into the fixture's front (``hinge_front`` reversed) so only
+its fingers go under the head's overhanging front edge (placeholder tree version 6), then follows the edge up
+along its arc, sliding toward the hinge as the head rises, past the joint's limit until RoboCasa reads the head open (``head`` > 0.99); the joint's
+frictionloss holds it there. A base phase first brings the edge to where level 0's kitchens have it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from indgen_vla.core.protocol.interface import ROT_SCALE
+from scenes.oracle import R_DOWN, _axis_angle
+from scenes.privileged import PrivilegedState
+from scenes.robocasa.oracle_base import base_goal, drive
+from scenes.robocasa.oracle_fixtures import CLOSED, hinge_frame
+
+LIFT_TILT = 1.35  # radians from pointing down: the fingers point 12 deg below level, into the fixture's front
+INSET = 0.025  # m from the free edge the fingertips push (the overhang is 4.6 cm deep on the placeholders)
+BELOW = 0.012  # m the grip site stays under the part's underside going under it (a finger's half width)
+OUT = 0.10  # m in front of the edge the hand lines up before going under it
+AHEAD = (0.28, 0.34)  # m ahead of the base the drive brings the free edge (level 0's kitchens: 0.30-0.32)
+LEFT = 0.0  # m to the base's side the base phase brings the point under the edge (straight ahead)
+STEP = 0.3  # radians ahead of the part's angle the lift aims along the edge's arc
+# m inward (toward the hinge) per radian the part has risen that the lift slides its push: nearer the hinge the push
+# rises less (level 2's episode 1: the head's 0.36 m edge would end 0.26 m over its hinge, at 1.52 m; the hand
+# stalled at 1.43 m with the head at 0.86 of open)
+SLIDE = 0.6
+
+
+def _rz(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _orient(direction, tilt: float) -> np.ndarray:
+    """The grip site pointing down, tipped ``tilt`` toward the horizontal ``direction`` (fingers opening across)."""
+    c, sn = np.cos(-tilt), np.sin(-tilt)
+    pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
+    return _rz(float(np.arctan2(direction[1], direction[0]))) @ pitch @ R_DOWN
+
+
+def _goto(o, s: PrivilegedState, target, direction, speed: float = 1.0) -> np.ndarray:
+    """One arm action toward ``target`` with the hand tipped ``LIFT_TILT`` toward ``direction`` (base frame)."""
+    base = _rz(float(s.robot_base[2]))
+    a = np.zeros(12)
+    a[:3] = np.clip(o.gain * (base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)), -speed, speed)
+    rot = _axis_angle(_orient(direction, LIFT_TILT) @ s.eef_mat.T)
+    a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
+    a[6], a[11] = CLOSED, -1.0
+    return a
+
+
+def under_edge(hinge, u, length: float, thick: float, angle: float, below: float, inset: float = INSET):
+    """The point ``inset`` in from the free edge of a part hinged at ``hinge`` (``length`` long, half ``thick``,
+    lying toward the fixture's front ``u`` when shut) turned up by ``angle``, ``below`` under its underside."""
+    z = np.array([0.0, 0.0, 1.0])
+    along, normal = u * np.cos(angle) + z * np.sin(angle), -u * np.sin(angle) + z * np.cos(angle)
+    return hinge + (length - inset) * along - (thick + below) * normal
+
+
+def open_hinge(o, s: PrivilegedState) -> np.ndarray:
+    """Under the free edge from the fixture's front (fingers shut), then up along the edge's arc until RoboCasa
+    reads the part open, then back out; ``o`` is the ``RoboCasaOracle`` (phase, counters)."""
+    hinge, u, length, thick, angle = hinge_frame(s)
+    into = -u[:2]
+    if o._tilt is None:  # first action: where the base drives (the edge straight ahead, AHEAD out)
+        o._tilt = LIFT_TILT
+        point = under_edge(hinge, u, length, thick, 0.0, 0.0)
+        yaw = float(s.robot_base[2])
+        left = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        o._base_goal = base_goal(s, point - left * LEFT, *AHEAD)
+        o._next("drive" if o._base_goal is not None else "approach")
+    if o.phase == "drive":
+        a = drive(o, s, o._base_goal, CLOSED)
+        if a is not None:
+            return a
+        o._next("approach")
+    out = np.array([*(-into * OUT), 0.0])
+    if o.phase == "approach":  # in front of the edge, under its height
+        target = under_edge(hinge, u, length, thick, angle, BELOW + 0.01) + out
+        if o._near(s, target, 0.015) or o._count > 120:
+            o._next("under")
+        return _goto(o, s, target, into)
+    if o.phase == "under":
+        target = under_edge(hinge, u, length, thick, angle, BELOW)
+        if o._near(s, target, 0.01) or o._count > 60:
+            o._next("lift")
+        return _goto(o, s, target, into, speed=0.5)
+    if o.phase == "lift":  # up along the arc, ahead of the edge, until RoboCasa reads it open
+        if s.bddl_success or o._count > 200:
+            o._next("retreat")
+        inset = INSET + SLIDE * length * max(0.0, angle)  # slid toward the hinge as the part rises
+        return _goto(o, s, under_edge(hinge, u, length, thick, angle + STEP, 0.0, inset), into, speed=0.6)
+    if o._hold_release is None:
+        o._hold_release = s.eef_pos.copy()
+    return _goto(o, s, o._hold_release + out - np.array([0.0, 0.0, 0.05]), into, speed=0.5)
