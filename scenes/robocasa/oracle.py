@@ -62,6 +62,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToDrawer",
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
+        "PickPlaceFridgeDrawerToShelf",
         "CloseStandMixerHead",
         "TurnOnBlender",
         "CloseElectricKettleLid",

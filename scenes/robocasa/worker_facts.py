@@ -278,7 +278,27 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
         top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
         return {"place_pos": _floor_centre(env.blender), "place_clear": top}
+    if task == "PickPlaceFridgeDrawerToShelf":
+        return shelf_facts(env)
     return {}
+
+
+SHELF_IN = 0.04  # m between a fridge shelf's front edge and the put-down object's front face
+
+
+def shelf_facts(env) -> dict:
+    """PickPlaceFridgeDrawerToShelf: the lowest fridge shelf among those its ``_check_success`` reads
+    (``Fridge.check_rack_contact`` over ``get_reset_regions(compartment="fridge", reg_type=("shelf"))``), at the
+    middle of its width, the object's front face ``SHELF_IN`` behind the shelf's front edge (its back holds the
+    task's distractor, sampled at ``pos=(0.0, 0.5)``)."""
+    fridge, obj = env.fridge, env.objects["obj"]
+    names = fridge.get_reset_regions(env, compartment="fridge", reg_type=("shelf"))
+    sites = fridge.get_int_sites(relative=False)
+    p0, px, py, _ = min((np.asarray(v, dtype=np.float64) for v in (sites[n] for n in names)),
+                        key=lambda v: float(v[0][2]))  # fmt: skip
+    inward = (py - p0) / max(float(np.linalg.norm(py - p0)), 1e-9)
+    xy = ((p0 + px) / 2 + inward * (SHELF_IN + float(np.max(obj.size[:2])) / 2))[:2]
+    return {"place_pos": np.array([*xy, p0[2]])}
 
 
 def _floor_centre(fixture) -> np.ndarray:
