@@ -63,6 +63,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
         "PickPlaceFridgeDrawerToShelf",
+        "PickPlaceCounterToStandMixer",
         "CloseStandMixerHead",
         "TurnOnBlender",
         "CloseElectricKettleLid",

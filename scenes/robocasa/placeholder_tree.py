@@ -39,7 +39,8 @@ SIZES = {
     "wall_accessory": (0.08, 0.02, 0.12), "handle": (0.02, 0.03, 0.2), "panel": (0.5, 0.02, 0.7),
 }  # fmt: skip
 DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
-HOLLOW = ("sink", "blender")  # fixtures built open at the top (Model.hollow), not as one solid box
+# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer), not as one solid box
+HOLLOW = ("sink", "blender", "fridge", "stand_mixer")
 
 
 def fmt(*v: float) -> str:
@@ -152,7 +153,7 @@ def fixture_model(kind: str, name: str) -> str:
     w, d, h = SIZES.get(kind, DEFAULT_SIZE)
     if kind.startswith("fridge"):
         kind = "fridge"
-    m = Model(name, (w, d, h), solid=kind not in (*HOLLOW, "fridge"))
+    m = Model(name, (w, d, h), solid=kind not in HOLLOW)
     hx, hy, hz = m.hx, m.hy, m.hz
     front, top, t = m.front, m.top, m.slab / 2 - 0.005  # slab mid-planes; a part's half-thickness in its slab
     small = (0.015, t * 0.6, 0.015)
@@ -179,7 +180,7 @@ def fixture_model(kind: str, name: str) -> str:
             'conaffinity="0"/></body></body></body>'
         )
     elif kind == "stand_mixer":
-        m.region("bowl", (0, -hy * 0.3, -hz * 0.5), (hx * 0.6, hy * 0.4, hz * 0.3))
+        mixer_bowl(m)
         # the head lies in the top slab, hinged at its rear edge: opening (qpos up to 0.8) lifts its front; the
         # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0)
         d = hy * 0.5
@@ -310,6 +311,29 @@ def fridge(m: Model, t: float) -> None:
            axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
     m.part("freezer_door", "freezer_door_joint", (0, m.front, z(FREEZER_TOP / 2)), (hx * 0.9, t, FREEZER_TOP / 2 - 0.01),
            axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+
+
+# m, the stand mixer's bowl at nominal size: its floor's height over the mixer's bottom, its walls' thickness, its
+# depth (the rim over its floor) and the height of reg_bowl over its floor
+BOWL_FLOOR, BOWL_WALL, BOWL_DEPTH, BOWL_REGION = 0.03, 0.01, 0.08, 0.2
+
+
+def mixer_bowl(m: Model) -> None:
+    """The stand mixer under its head (the top slab): a foot, a column at the back and, in front of it, an open bowl
+    (floor and four walls, ``BOWL_DEPTH`` deep) holding ``reg_bowl``, the one region ``StandMixer`` reads
+    (``get_reset_region_names``); ``check_item_in_bowl`` wants every corner of the object in that region's lower
+    half, so the region runs ``BOWL_REGION`` up from the bowl's floor (a solid mixer held it inside its collider)."""
+    hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
+    floor, w = -hz + BOWL_FLOOR, BOWL_WALL
+    y0, y1 = -hy + w, hy * 0.25  # the bowl's inside, from its front wall to the column
+    ix, iy, yc = hx - 2 * w, (y1 - y0) / 2 - w, (y0 + y1) / 2
+    m.box("foot", (0, 0, (floor - hz) / 2), (hx, hy, BOWL_FLOOR / 2))
+    m.box("column", (0, (y1 + hy) / 2, (floor + hz - s) / 2), (hx, (hy - y1) / 2, (hz - s - floor) / 2))
+    zc, hd = floor + BOWL_DEPTH / 2, BOWL_DEPTH / 2
+    for side, tag in ((-1, "neg"), (1, "pos")):
+        m.box(f"bowl_x{tag}", (side * (ix + w / 2), yc, zc), (w / 2, iy + w, hd))
+        m.box(f"bowl_y{tag}", (0, yc + side * (iy + w / 2), zc), (ix, w / 2, hd))
+    m.region("bowl", (0, yc, floor + BOWL_REGION / 2), (ix, iy, BOWL_REGION / 2))
 
 
 def simple_model(name: str, size: tuple[float, float, float]) -> str:
