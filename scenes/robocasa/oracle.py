@@ -25,6 +25,7 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
+from scenes.robocasa.oracle_base import base_goal, drive
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
@@ -34,6 +35,9 @@ OPEN = -1.0  # robosuite's gripper action (CLOSED, 1.0, comes with the lid scrip
 # the fingers into the appliance's face above it
 BUTTON_TILT = 0.25
 CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
+# m ahead of the base a carry's place point may lie: farther (the fridge's shelf from a base moved back along
+# base_y), the base drives nearer first, where the worker reports its room (facts.base_room)
+CARRY_REACH = 0.6
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
@@ -52,7 +56,7 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 1  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
@@ -86,6 +90,7 @@ class RoboCasaOracle:
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
+        self._drove = False  # the carry's base phase was planned (run or not needed)
         self.seed = seed
 
     def close(self) -> None:
@@ -344,6 +349,17 @@ class RoboCasaOracle:
         tilt = UNDER_TILT if low else 0.0
         if self.phase == "lift":
             tilt = min(tilt, 0.03 * self._count)
+        # the place point beyond CARRY_REACH: the base drives nearer first (oracle_base)
+        if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
+            self._drove = True
+            self._base_goal = base_goal(s, [*t.place_xy, 0.0], 0.0, CARRY_REACH)
+            if self._base_goal is not None:
+                self._next("drive")
+        if self.phase == "drive":
+            a = drive(self, s, self._base_goal, OPEN)
+            if a is not None:
+                return a
+            self._next("approach")
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:

@@ -310,7 +310,8 @@ def shelf_facts(env) -> dict:
     """PickPlaceFridgeDrawerToShelf: the lowest fridge shelf among those its ``_check_success`` reads
     (``Fridge.check_rack_contact`` over ``get_reset_regions(compartment="fridge", reg_type=("shelf"))``), at the
     middle of its width, the object's front face ``SHELF_IN`` behind the shelf's front edge (its back holds the
-    task's distractor, sampled at ``pos=(0.0, 0.5)``)."""
+    task's distractor, sampled at ``pos=(0.0, 0.5)``); ``base_room``: how far the base may drive nearer
+    (base_y moves it back)."""
     fridge, obj = env.fridge, env.objects["obj"]
     names = fridge.get_reset_regions(env, compartment="fridge", reg_type=("shelf"))
     sites = fridge.get_int_sites(relative=False)
@@ -318,7 +319,7 @@ def shelf_facts(env) -> dict:
                         key=lambda v: float(v[0][2]))  # fmt: skip
     inward = (py - p0) / max(float(np.linalg.norm(py - p0)), 1e-9)
     xy = ((p0 + px) / 2 + inward * (SHELF_IN + float(np.max(obj.size[:2])) / 2))[:2]
-    return {"place_pos": np.array([*xy, p0[2]])}
+    return {"place_pos": np.array([*xy, p0[2]]), "base_room": base_room(env)}
 
 
 def _floor_centre(fixture) -> np.ndarray:
