@@ -56,7 +56,7 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
     tasks = (
@@ -114,16 +114,25 @@ class RoboCasaOracle:
 
     def _grasp_twist(self, s: PrivilegedState) -> float:
         """The twist that closes the fingers (the grip site's x axis: robosuite's panda_gripper.xml fingers slide
-        along it) across the object's narrower horizontal side; 0 where the scene gives no extents."""
+        along it) across the object's narrower horizontal side, or across either side of a square one (the
+        smaller turn: a 6 cm square turned 45 deg is 8.5 cm across the hand's axis, past the Panda's 8 cm opening,
+        and the fingers landed on its top); 0 where the scene gives no extents."""
         ext = s.pick.half_extents
-        if ext is None or abs(float(ext[0]) - float(ext[1])) < 0.005:
+        if ext is None:
             return 0.0
         w, x, y, z = (float(q) for q in s.pick.quat_wxyz)
         axis_x = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + w * z)])  # the object's x axis, world xy
-        narrow = axis_x if ext[0] < ext[1] else np.array([-axis_x[1], axis_x[0]])
-        narrow = narrow / max(np.linalg.norm(narrow), 1e-9)
+        axis_x = axis_x / max(np.linalg.norm(axis_x), 1e-9)
+        axis_y = np.array([-axis_x[1], axis_x[0]])
         grid = np.linspace(-np.pi / 2, np.pi / 2, 181)
-        return float(max(grid, key=lambda g: (abs(self._hand(s, 0.0, g)[:2, 0] @ narrow), -abs(g))))
+        if (
+            abs(float(ext[0]) - float(ext[1])) < 0.005
+        ):  # square: either side, rounded so the smaller turn wins
+            across = lambda g: round(max(abs(self._hand(s, 0.0, g)[:2, 0] @ a) for a in (axis_x, axis_y)), 3)  # noqa: E731
+        else:
+            narrow = axis_x if ext[0] < ext[1] else axis_y
+            across = lambda g: abs(self._hand(s, 0.0, g)[:2, 0] @ narrow)  # noqa: E731
+        return float(max(grid, key=lambda g: (across(g), -abs(g))))
 
     def _goto(
         self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0
