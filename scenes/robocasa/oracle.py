@@ -9,8 +9,8 @@ back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the obj
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
-lies beyond ``CARRY_REACH``; counter to stand mixer: over the bowl's rim onto its floor; also run, not listed, on
-CoffeeSetupMug, which it solved only half the time on placeholder assets), a press: the stand mixer's head (pushed down at its free end, the hand tipped
+lies beyond ``CARRY_REACH``; also run, not listed, on counter to stand mixer, over the bowl's rim onto its floor,
+where the arm meets the raised head on the way to the object, and on CoffeeSetupMug), a press: the stand mixer's head (pushed down at its free end, the hand tipped
 further while the reach falls short) or the blender's power button (touched, then left straight up), and the
 electric kettle's standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
@@ -59,7 +59,8 @@ class RoboCasaOracle:
     spec = oracle_spec(ACTION_DIM)
     version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and opening its lid were tried and left out: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and opening its lid were tried and left out, the carry into the stand mixer's bowl fails
+    # on the raised head: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -68,7 +69,6 @@ class RoboCasaOracle:
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
         "PickPlaceFridgeDrawerToShelf",
-        "PickPlaceCounterToStandMixer",
         "CloseStandMixerHead",
         "TurnOnBlender",
         "CloseElectricKettleLid",
