@@ -9,8 +9,8 @@ back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the obj
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
-lies beyond ``CARRY_REACH``; also run, not listed, on counter to stand mixer, over the bowl's rim onto its floor,
-where the arm meets the raised head on the way to the object, and on CoffeeSetupMug), a press: the stand mixer's head (pushed down at its free end, the hand tipped
+lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also run, not listed, on counter to stand
+mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press: the stand mixer's head (pushed down at its free end, the hand tipped
 further while the reach falls short) or the blender's power button (touched, then left straight up), and the
 electric kettle's standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
@@ -69,6 +69,7 @@ class RoboCasaOracle:
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
         "PickPlaceFridgeDrawerToShelf",
+        "CoffeeSetupMug",
         "CloseStandMixerHead",
         "TurnOnBlender",
         "CloseElectricKettleLid",

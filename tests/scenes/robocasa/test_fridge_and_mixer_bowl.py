@@ -1,5 +1,6 @@
 """The placeholder fridge and stand mixer bowl (placeholder tree version 6), read as RoboCasa reads them, and the
-carry oracle on the two tasks they open: PickPlaceFridgeDrawerToShelf and PickPlaceCounterToStandMixer.
+carry oracle on the tasks they open (PickPlaceFridgeDrawerToShelf, PickPlaceCounterToStandMixer) and its square grasp
+(which made CoffeeSetupMug robust).
 
 Upstream (robocasa/robocasa be22d659, the pinned rlinf-robocasa365 1.0.1): ``robocasa/models/fixtures/fridge.py``
 (``Fridge.__init__`` sorts joints named with ``drawer`` into drawers, with ``door`` and ``fridge`` into the fridge's
@@ -164,3 +165,11 @@ def test_certify_scripts_the_fridge_and_not_the_mixer_bowl():
 
     assert oracle_scripts("robocasa", "PickPlaceFridgeDrawerToShelf")
     assert not oracle_scripts("robocasa", "PickPlaceCounterToStandMixer")
+
+
+@needs_venv
+@pytest.mark.slow  # ~35 s: one oracle episode; test_fingers_close_across_a_square_objects_side_whatever_its_turn keeps the grasp
+def test_the_oracle_puts_the_turned_mug_under_the_coffee_machine(placeholders):
+    """CoffeeSetupMug's pick_x level 0 episode 4: RoboCasa turns the mug 45-90 deg (kitchen_coffee.py); the untwisted
+    hand stopped on its top 1.14 m up and the episode failed before the square grasp (oracle v3)."""
+    assert _oracle_episodes("CoffeeSetupMug", "pick_x", 0, (4,), None) == [True]
