@@ -8,12 +8,13 @@ control mode -1 (arm), but for the fixture tasks' base phase first (``oracle_bas
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
-blender: over the jar's rim onto its floor; also run, not listed, on CoffeeSetupMug, which it solves only half the
-time on placeholder assets), a press: the stand mixer's head (pushed down near its free end, the hand tipped
-further while the reach falls short) or a button (the blender's power button, the kettle's lid button: pressed,
-then left straight up), the electric kettle's standing lid, swept shut from behind and pressed down
-(``oracle_fixtures.close_lid``), and the stand mixer's head lifted open from under its front edge
-(``oracle_lift.open_hinge``). ``tasks``
+blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
+lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also run, not listed, on counter to stand
+mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press:
+the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
+button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
+standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), and the stand mixer's head
+lifted open from under its front edge (``oracle_lift.open_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -38,6 +39,9 @@ OPEN = -1.0  # robosuite's gripper action (CLOSED, 1.0, comes with the lid scrip
 # the fingers into the appliance's face above it
 BUTTON_TILT = 0.25
 CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two surfaces by (the carry script)
+# m ahead of the base a carry's place point may lie: farther (the fridge's shelf from a base moved back along
+# base_y), the base drives nearer first, where the worker reports its room (facts.base_room)
+CARRY_REACH = 0.6
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
@@ -56,9 +60,10 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 2  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and the toaster oven's door are left out: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and the toaster oven's door are left out, the carry into the stand mixer's bowl fails on
+    # the raised head: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -66,6 +71,8 @@ class RoboCasaOracle:
         "PickPlaceCounterToDrawer",
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
+        "PickPlaceFridgeDrawerToShelf",
+        "CoffeeSetupMug",
         "CloseStandMixerHead",
         "OpenStandMixerHead",
         "TurnOnBlender",
@@ -90,6 +97,7 @@ class RoboCasaOracle:
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
+        self._drove = False  # the carry's base phase was planned (run or not needed)
         self.seed = seed
 
     def close(self) -> None:
@@ -113,16 +121,25 @@ class RoboCasaOracle:
 
     def _grasp_twist(self, s: PrivilegedState) -> float:
         """The twist that closes the fingers (the grip site's x axis: robosuite's panda_gripper.xml fingers slide
-        along it) across the object's narrower horizontal side; 0 where the scene gives no extents."""
+        along it) across the object's narrower horizontal side, or across either side of a square one (the
+        smaller turn: a 6 cm square turned 45 deg is 8.5 cm across the hand's axis, past the Panda's 8 cm opening,
+        and the fingers landed on its top); 0 where the scene gives no extents."""
         ext = s.pick.half_extents
-        if ext is None or abs(float(ext[0]) - float(ext[1])) < 0.005:
+        if ext is None:
             return 0.0
         w, x, y, z = (float(q) for q in s.pick.quat_wxyz)
         axis_x = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + w * z)])  # the object's x axis, world xy
-        narrow = axis_x if ext[0] < ext[1] else np.array([-axis_x[1], axis_x[0]])
-        narrow = narrow / max(np.linalg.norm(narrow), 1e-9)
+        axis_x = axis_x / max(np.linalg.norm(axis_x), 1e-9)
+        axis_y = np.array([-axis_x[1], axis_x[0]])
         grid = np.linspace(-np.pi / 2, np.pi / 2, 181)
-        return float(max(grid, key=lambda g: (abs(self._hand(s, 0.0, g)[:2, 0] @ narrow), -abs(g))))
+        if (
+            abs(float(ext[0]) - float(ext[1])) < 0.005
+        ):  # square: either side, rounded so the smaller turn wins
+            across = lambda g: round(max(abs(self._hand(s, 0.0, g)[:2, 0] @ a) for a in (axis_x, axis_y)), 3)  # noqa: E731
+        else:
+            narrow = axis_x if ext[0] < ext[1] else axis_y
+            across = lambda g: abs(self._hand(s, 0.0, g)[:2, 0] @ narrow)  # noqa: E731
+        return float(max(grid, key=lambda g: (across(g), -abs(g))))
 
     def _goto(
         self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0
@@ -356,6 +373,17 @@ class RoboCasaOracle:
         tilt = UNDER_TILT if low else 0.0
         if self.phase == "lift":
             tilt = min(tilt, 0.03 * self._count)
+        # the place point beyond CARRY_REACH: the base drives nearer first (oracle_base)
+        if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
+            self._drove = True
+            self._base_goal = base_goal(s, [*t.place_xy, 0.0], 0.0, CARRY_REACH)
+            if self._base_goal is not None:
+                self._next("drive")
+        if self.phase == "drive":
+            a = drive(self, s, self._base_goal, OPEN)
+            if a is not None:
+                return a
+            self._next("approach")
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:

@@ -25,7 +25,8 @@ from pathlib import Path
 
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
 # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main; 6: the stand mixer's
-# head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back
+# head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back, the fridge has
+# its drawer and an open shelf, the stand mixer's bowl is open
 VERSION = 6
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
@@ -41,7 +42,8 @@ SIZES = {
     "wall_accessory": (0.08, 0.02, 0.12), "handle": (0.02, 0.03, 0.2), "panel": (0.5, 0.02, 0.7),
 }  # fmt: skip
 DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
-HOLLOW = ("sink", "blender")  # fixtures built open at the top (Model.hollow), not as one solid box
+# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer), not as one solid box
+HOLLOW = ("sink", "blender", "fridge", "stand_mixer")
 
 
 def fmt(*v: float) -> str:
@@ -80,18 +82,19 @@ class Model:
             self.box(f"wall_x{tag}", (side * (ox + ix) / 2, y0, zc), ((ox - ix) / 2, oy, h))
             self.box(f"wall_y{tag}", (0, y0 + side * (oy + iy) / 2, zc), (ix, (oy - iy) / 2, h))
 
-    def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1") -> None:
-        self.geoms.append(
+    def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1", into: list | None = None) -> None:
+        geoms = self.geoms if into is None else into  # ``into``: a child body's geoms (the fridge's drawer)
+        geoms.append(
             f'<geom name="{name}" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="{rgba}" group="0" '
             'density="100"/>'
         )
-        self.geoms.append(
+        geoms.append(
             f'<geom name="{name}_visual" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="{rgba}" group="1" '
             'contype="0" conaffinity="0" density="0"/>'
         )
 
-    def region(self, name: str, pos, half) -> None:
-        self.geoms.append(
+    def region(self, name: str, pos, half, into: list | None = None) -> None:
+        (self.geoms if into is None else into).append(
             f'<geom name="reg_{name}" type="box" pos="{fmt(*pos)}" size="{fmt(*half)}" rgba="0 1 0 0" group="1" '
             'contype="0" conaffinity="0" density="0"/>'
         )
@@ -183,7 +186,7 @@ def fixture_model(kind: str, name: str) -> str:
             'conaffinity="0"/></body></body></body>'
         )
     elif kind == "stand_mixer":
-        m.region("bowl", (0, -hy * 0.3, -hz * 0.5), (hx * 0.6, hy * 0.4, hz * 0.3))
+        mixer_bowl(m)
         # the head lies in the top slab, hinged at its rear edge: opening (qpos up to 0.8) lifts its front; the
         # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0). As a tilt-head
         # mixer's head, it reaches over the front (since version 6): its front edge overhangs the free front slab,
@@ -238,12 +241,7 @@ def fixture_model(kind: str, name: str) -> str:
             m.part(f"knob_{k}", f"knob_{k}_joint", (hx * 0.85, front, hz * (0.6 - 0.3 * i)), small, axis=(0, 1, 0),
                    rng=(0.0, 3.14), collide=False)  # fmt: skip
     elif kind == "fridge":
-        m.region("fridge_shelf0", (0, 0, hz * 0.4), (hx * 0.8, hy * 0.8, hz * 0.2))
-        m.region("freezer_shelf0", (0, 0, -hz * 0.5), (hx * 0.8, hy * 0.8, hz * 0.2))
-        m.part("fridge_door", "fridge_door_joint", (0, front, hz * 0.4), (hx * 0.9, t, hz * 0.45),
-               axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
-        m.part("freezer_door", "freezer_door_joint", (0, front, -hz * 0.5), (hx * 0.9, t, hz * 0.4),
-               axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+        fridge(m, t)
     elif kind in ("stove", "stove_wide", "stovetop"):
         for i, loc in enumerate(("front_left", "front_right", "rear_left", "rear_right", "center")):
             x = (-0.5 if "left" in loc else 0.5 if "right" in loc else 0.0) * hx
@@ -277,6 +275,80 @@ def fixture_model(kind: str, name: str) -> str:
     elif kind in ("dish_rack", "fruit_bowl", "tiered_basket", "utensil_set", "knife_block"):
         m.region("int", (0, 0, hz), (hx * 0.8, hy * 0.8, 0.02))
     return m.xml()
+
+
+# the fridge (heights over its floor, m): a solid freezer under an open compartment whose crisper drawer (RoboCasa's
+# reg_type "drawer", opened 0.8 of its travel by PickPlaceFridgeDrawerToShelf) slides out under a shelf set back
+# from the front, so a hand over the opened drawer's object has the room above it
+FREEZER_TOP, DRAWER_WALL, SHELF_Z, SHELF_BACK = 0.86, 0.1, 1.08, 0.13  # SHELF_BACK: behind the door slab
+DRAWER_DEPTH, DRAWER_TRAVEL, WALL = 0.3, 0.25, 0.04
+
+
+def fridge(m: Model, t: float) -> None:
+    """RoboCasa's fridge fixture (``robocasa/models/fixtures/fridge.py``) reads its regions and joints by name:
+    ``fridge``/``freezer`` in a region's name is its compartment, ``drawer`` in it a drawer (any other a shelf,
+    which ``get_reset_regions`` keeps at 0.2 m tall or more with its floor 0.5-1.5 m up), and a joint named with
+    ``drawer`` slides one out; ``update_state`` moves a drawer's region with its geom, so the region lies in the
+    drawer's body (at the model's origin, as the XML ``pos`` RoboCasa reads is that body's)."""
+    hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
+    z = lambda h: h - hz  # noqa: E731  (a height over the floor in the model's frame)
+    y0, y1, ix = -hy + s, hy - WALL, hx - WALL  # the compartment: behind the door slab, to the back wall
+    m.box("freezer", (0, s / 2, (z(0) + z(FREEZER_TOP)) / 2), (hx, hy - s / 2, FREEZER_TOP / 2))
+    zc, hc = (z(FREEZER_TOP) + hz) / 2, (hz - z(FREEZER_TOP)) / 2
+    m.box("wall_back", (0, (y1 + hy) / 2, zc), (hx, WALL / 2, hc))
+    for side, tag in ((-1, "neg"), (1, "pos")):
+        m.box(f"wall_x{tag}", (side * (ix + hx) / 2, (y0 + y1) / 2, zc), (WALL / 2, (y1 - y0) / 2, hc))
+    m.box("ceiling", (0, (y0 + y1) / 2, hz - WALL / 2), (ix, (y1 - y0) / 2, WALL / 2))
+    ys, sz = y0 + SHELF_BACK, z(SHELF_Z)
+    m.box("shelf", (0, (ys + y1) / 2, sz - 0.01), (ix, (y1 - ys) / 2, 0.01))
+    m.region("fridge_shelf0", (0, (ys + y1) / 2, sz + 0.25), (ix - 0.01, (y1 - ys) / 2 - 0.01, 0.25))
+    m.region("freezer_shelf0", (0, s / 2, z(FREEZER_TOP / 2)), (hx * 0.8, hy * 0.7, 0.18))
+    # the drawer: a tray (floor and four walls) 5 mm over the freezer's top, its front just behind the door slab
+    dx, d0, fz = ix - 0.01, y0 + 0.005, z(FREEZER_TOP) + 0.005
+    d1, top = d0 + DRAWER_DEPTH, fz + 0.02 + DRAWER_WALL
+    tray: list[str] = []
+    m.box("drawer_floor", (0, (d0 + d1) / 2, fz + 0.01), (dx, DRAWER_DEPTH / 2, 0.01), into=tray)
+    for y, tag in ((d0 + 0.005, "front"), (d1 - 0.005, "back")):
+        m.box(f"drawer_{tag}", (0, y, (fz + 0.02 + top) / 2), (dx, 0.005, DRAWER_WALL / 2), into=tray)
+    for side, tag in ((-1, "neg"), (1, "pos")):
+        m.box(f"drawer_x{tag}", (side * (dx - 0.005), (d0 + d1) / 2, (fz + 0.02 + top) / 2),
+              (0.005, DRAWER_DEPTH / 2 - 0.01, DRAWER_WALL / 2), into=tray)  # fmt: skip
+    m.region("fridge_drawer0", (0, (d0 + d1) / 2, (fz + 0.02 + top) / 2),
+             (dx - 0.01, DRAWER_DEPTH / 2 - 0.01, DRAWER_WALL / 2), into=tray)  # fmt: skip
+    m.bodies.append(
+        '<body name="fridge_drawer0" pos="0 0 0"><joint name="fridge_drawer0_joint" type="slide" axis="0 -1 0" '
+        f'range="0 {DRAWER_TRAVEL:g}" limited="true" damping="2" armature="0.01" frictionloss="1"/>'
+        + "".join(tray)
+        + "</body>"
+    )
+    door = (hz - z(FREEZER_TOP)) / 2 - 0.005
+    m.part("fridge_door", "fridge_door_joint", (0, m.front, hz - door - 0.005), (hx * 0.9, t, door),
+           axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+    m.part("freezer_door", "freezer_door_joint", (0, m.front, z(FREEZER_TOP / 2)), (hx * 0.9, t, FREEZER_TOP / 2 - 0.01),
+           axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+
+
+# m, the stand mixer's bowl at nominal size: its floor's height over the mixer's bottom, its walls' thickness, its
+# depth (the rim over its floor) and the height of reg_bowl over its floor
+BOWL_FLOOR, BOWL_WALL, BOWL_DEPTH, BOWL_REGION = 0.03, 0.01, 0.08, 0.2
+
+
+def mixer_bowl(m: Model) -> None:
+    """The stand mixer under its head (the top slab): a foot, a column at the back and, in front of it, an open bowl
+    (floor and four walls, ``BOWL_DEPTH`` deep) holding ``reg_bowl``, the one region ``StandMixer`` reads
+    (``get_reset_region_names``); ``check_item_in_bowl`` wants every corner of the object in that region's lower
+    half, so the region runs ``BOWL_REGION`` up from the bowl's floor (a solid mixer held it inside its collider)."""
+    hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
+    floor, w = -hz + BOWL_FLOOR, BOWL_WALL
+    y0, y1 = -hy + w, hy * 0.25  # the bowl's inside, from its front wall to the column
+    ix, iy, yc = hx - 2 * w, (y1 - y0) / 2 - w, (y0 + y1) / 2
+    m.box("foot", (0, 0, (floor - hz) / 2), (hx, hy, BOWL_FLOOR / 2))
+    m.box("column", (0, (y1 + hy) / 2, (floor + hz - s) / 2), (hx, (hy - y1) / 2, (hz - s - floor) / 2))
+    zc, hd = floor + BOWL_DEPTH / 2, BOWL_DEPTH / 2
+    for side, tag in ((-1, "neg"), (1, "pos")):
+        m.box(f"bowl_x{tag}", (side * (ix + w / 2), yc, zc), (w / 2, iy + w, hd))
+        m.box(f"bowl_y{tag}", (0, yc + side * (iy + w / 2), zc), (ix, w / 2, hd))
+    m.region("bowl", (0, yc, floor + BOWL_REGION / 2), (ix, iy, BOWL_REGION / 2))
 
 
 def simple_model(name: str, size: tuple[float, float, float]) -> str:

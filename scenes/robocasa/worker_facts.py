@@ -310,7 +310,48 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
         top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
         return {"place_pos": _floor_centre(env.blender), "place_clear": top}
+    if task == "PickPlaceFridgeDrawerToShelf":
+        return shelf_facts(env)
+    if task == "PickPlaceCounterToStandMixer":  # into the bowl: over its rim, onto its floor
+        return {"place_pos": _floor_centre(env.stand_mixer), "place_clear": _rim(env, env.stand_mixer)}
     return {}
+
+
+def _rim(env, fixture) -> float:
+    """The top of the highest collision geom of ``fixture``'s own body (not a moving part's: the mixer's raised
+    head) over its first interior region's footprint: the rim of the mixer's bowl."""
+    model, data = env.sim.model, env.sim.data
+    p0, px, py, _ = (
+        np.asarray(v, dtype=np.float64) for v in next(iter(fixture.get_int_sites(relative=False).values()))
+    )
+    lo, hi = np.minimum.reduce([p0, px, py]), np.maximum.reduce([p0, px, py])
+    top = float(p0[2])
+    for g in np.flatnonzero((model.geom_bodyid == model.body_name2id(f"{fixture.naming_prefix}main"))
+                            & (model.geom_contype != 0)):  # fmt: skip
+        mat = np.asarray(data.geom_xmat[g]).reshape(3, 3)
+        c, h = data.geom_xpos[g] + mat @ model.geom_aabb[g][:3], np.abs(mat) @ model.geom_aabb[g][3:]
+        if np.all(c[:2] - h[:2] < hi[:2]) and np.all(c[:2] + h[:2] > lo[:2]):
+            top = max(top, float(c[2] + h[2]))
+    return top
+
+
+SHELF_IN = 0.04  # m between a fridge shelf's front edge and the put-down object's front face
+
+
+def shelf_facts(env) -> dict:
+    """PickPlaceFridgeDrawerToShelf: the lowest fridge shelf among those its ``_check_success`` reads
+    (``Fridge.check_rack_contact`` over ``get_reset_regions(compartment="fridge", reg_type=("shelf"))``), at the
+    middle of its width, the object's front face ``SHELF_IN`` behind the shelf's front edge (its back holds the
+    task's distractor, sampled at ``pos=(0.0, 0.5)``); ``base_room``: how far the base may drive nearer
+    (base_y moves it back)."""
+    fridge, obj = env.fridge, env.objects["obj"]
+    names = fridge.get_reset_regions(env, compartment="fridge", reg_type=("shelf"))
+    sites = fridge.get_int_sites(relative=False)
+    p0, px, py, _ = min((np.asarray(v, dtype=np.float64) for v in (sites[n] for n in names)),
+                        key=lambda v: float(v[0][2]))  # fmt: skip
+    inward = (py - p0) / max(float(np.linalg.norm(py - p0)), 1e-9)
+    xy = ((p0 + px) / 2 + inward * (SHELF_IN + float(np.max(obj.size[:2])) / 2))[:2]
+    return {"place_pos": np.array([*xy, p0[2]]), "base_room": base_room(env)}
 
 
 def _floor_centre(fixture) -> np.ndarray:

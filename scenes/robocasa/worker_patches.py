@@ -1,5 +1,5 @@
 """The RoboCasa worker's patches of RoboCasa (``install_patches``): counter tops deduplicated in first-seen order,
-placement samplers that honour a level's pinned placements and pick_x's window, the exact objects T0 drew, and
+objects in a drawer moved out with it on a replay too, placement samplers that honour a level's pinned placements and pick_x's window, the exact objects T0 drew, and
 RoboCasa's style YAML parsed once. Runs in RoboCasa's venv, loaded by ``backend.py`` by path; imports only the
 standard library and numpy at module level (RoboCasa inside the functions)."""
 
@@ -51,6 +51,30 @@ def _dedupe_counter_geoms_in_order() -> None:
     counter.set = unique_in_order
 
 
+def _slide_replayed_objects() -> None:
+    """RoboCasa's ``Kitchen._update_sliding_fxtr_obj_placement`` (robocasa/environments/kitchen/kitchen.py) moves an
+    object placed in a drawer (a fridge's too) out with the drawer ``_setup_scene`` opened, but finds that drawer
+    with ``fixture_is_type`` on the config's placement fixture: on a reset from ep_meta that is the fixture's name,
+    so a replayed level left the object where the closed drawer held it (PickPlaceFridgeDrawerToShelf's base_y
+    levels: behind the opened drawer, on the freezer's top). The names stand for the env's fixtures during it."""
+    from robocasa.environments.kitchen.kitchen import Kitchen
+
+    original = Kitchen._update_sliding_fxtr_obj_placement
+
+    def update(self):
+        placements = [c.get("placement", {}) for c in self.object_cfgs]
+        named = [p for p in placements if isinstance(p.get("fixture"), str) and p["fixture"] in self.fixtures]
+        for placement in named:
+            placement["fixture"] = self.fixtures[placement["fixture"]]
+        try:
+            original(self)
+        finally:
+            for placement in named:
+                placement["fixture"] = placement["fixture"].name
+
+    Kitchen._update_sliding_fxtr_obj_placement = update
+
+
 def install_patches(window) -> None:
     """Worker-wide: counter regions in first-seen order; placement samplers honour ``env._indgen_pins`` and
     pick_x's window (``env._indgen_pick``: ``window.narrow``, ``window`` the worker's ``pick_window``); RoboCasa's
@@ -65,6 +89,7 @@ def install_patches(window) -> None:
     if getattr(env_utils, "_indgen_patched", False):
         return
     _dedupe_counter_geoms_in_order()
+    _slide_replayed_objects()
     original = env_utils._get_placement_initializer
 
     def placement_initializer(env, cfg_list, z_offset=0.01):

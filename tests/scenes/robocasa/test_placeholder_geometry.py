@@ -14,6 +14,21 @@ import pytest
 
 from tests.scenes.robocasa.test_robocasa import _box, needs_venv
 
+# RoboCasa's Fridge and StandMixer on the tree (what test_fridge_and_mixer_bowl checks): the fridge's drawer joint,
+# its highest drawer region (PickPlaceFridgeDrawerToShelf's rack_index=-1), its shelf (standing on the floor, as a
+# layout places it) and the mixer's bowl; the fixture is named 'fr': robosuite leaves a name that already starts
+# with the prefix unprefixed, and Fridge strips the prefix to find "fridge" in its joints and regions
+FRIDGE_AND_MIXER = (
+    "from robocasa.models.fixtures.fridge import Fridge\n"
+    "from robocasa.models.fixtures.stand_mixer import StandMixer\n"
+    "f = Fridge(xml=root + '/fixtures/fridges/Refrigerator064', name='fr')\n"
+    "f.set_pos([0.0, 0.0, f.height / 2])\n"
+    "m = StandMixer(xml=root + '/fixtures/stand_mixers/StandMixer003', name='mixer')\n"
+    "print([j[len('fr_'):] for j in f._drawer_joint_names],\n"
+    "      sorted(f.get_reset_regions(None, compartment='fridge', reg_type='drawer', rack_index=-1)),\n"
+    "      sorted(f.get_reset_regions(None, compartment='fridge', reg_type='shelf')), sorted(m.get_int_sites()))\n"
+)
+
 
 def _model(placeholders, folder: str) -> ET.Element:
     return ET.parse(next((placeholders / "fixtures" / folder).glob("*/model.xml"))).getroot()
@@ -92,13 +107,18 @@ def test_robocasa_reads_the_regions_the_lid_anchor_and_the_button(placeholders):
         "b = Blender(xml=root + '/fixtures/blenders/Blender001', name='blender')\n"
         "names = [g.get('name') for g in b.worldbody.iter('geom')]\n"
         "print(sorted(s.get_int_sites()), sorted(b.get_int_sites()), b.anchor_offset is not None,\n"
-        "      'blender_power_button_main' in names)\n"
+        "      'blender_power_button_main' in names)\n" + FRIDGE_AND_MIXER
     )
     r = subprocess.run([str(find_python()), "-c", code], capture_output=True, text=True,
                        env={"ROBOCASA_ASSETS_PATH": str(placeholders), "MUJOCO_GL": "egl", "PATH": "/usr/bin:/bin",
                             "HOME": str(Path.home())})  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
-    assert r.stdout.strip().splitlines()[-1] == "['basin'] ['int'] True True"
+    assert r.stdout.strip().splitlines()[-2] == "['basin'] ['int'] True True"
+    # test_fridge_and_mixer_bowl's reads, in this one interpreter (RoboCasa's import is most of the test's time)
+    assert (
+        r.stdout.strip().splitlines()[-1]
+        == "['fridge_drawer0_joint'] ['fridge_drawer0'] ['fridge_shelf0'] ['bowl']"
+    )
 
 
 def test_a_placeholder_tree_of_an_older_generator_is_refused_in_one_line(tmp_path, monkeypatch):
