@@ -17,7 +17,8 @@ def test_the_mixer_head_is_the_joint_robocasa_reads_and_overhangs_the_front(plac
     reads the head at ``f"{prefix}head_joint"``; ``OpenStandMixerHead._check_success`` (atomic/
     kitchen_stand_mixer.py) wants its normalised value over 0.99, which ``Fixture.get_joint_state`` takes as 0 at the
     range's low end for a range from 0: the head is shut at qpos 0 and opens upward. Its front edge overhangs the
-    body's collider with nothing colliding under it (the version-5 head lay on the collider: nothing to lift)."""
+    mixer's column and open bowl with nothing colliding under it (the version-5 head lay on the collider: nothing to
+    lift)."""
     from scenes.robocasa.environment import venv_dir
 
     (src,) = venv_dir().glob("lib/python*/site-packages/robocasa/models/fixtures/stand_mixer.py")
@@ -35,12 +36,14 @@ def test_the_mixer_head_is_the_joint_robocasa_reads_and_overhangs_the_front(plac
     front = hc - [0, hh[1], 0] - pivot
     assert np.cross(axis, front)[2] > 0
     colliders = [_box(g) for g in obj.findall("geom") if g.get("contype") != "0" and g.get("type") == "box"]
-    body_front = min(c[1] - h[1] for c, h in colliders)
-    overhang = body_front - (hc[1] - hh[1])
+    # what rises to within 10 cm of the head's underside (the column; the open bowl's walls stay lower) lies well
+    # behind its front edge, and nothing collides in the 10 cm under that edge: room for a finger under it
+    under = hc[2] - hh[2]
+    tall = [(c, h) for c, h in colliders if c[2] + h[2] > under - 0.10]
+    overhang = min(c[1] - h[1] for c, h in tall) - (hc[1] - hh[1])
     assert overhang > 0.04  # a closed Panda finger is ~2 cm across
-    below = hc - [0, hh[1] - overhang / 2, 0]  # under the overhang's middle, all the way down
-    bottom = -float(root.find(".//site[@name='top_site']").get("pos").split()[2])
-    for z in np.linspace(hc[2] - hh[2] - 0.005, bottom, 9):
+    below = hc - [0, hh[1] - 0.02, 0]  # 2 cm in from the front edge
+    for z in np.linspace(under - 0.005, under - 0.10, 9):
         point = np.array([below[0], below[1], z])
         assert not any(np.all(np.abs(point - c) <= h) for c, h in colliders), z
 
