@@ -112,9 +112,14 @@ def test_the_oracle_moves_the_object_from_the_fridge_drawer_to_the_shelf(placeho
 
 @needs_venv
 @pytest.mark.slow  # ~45 s: one oracle episode; test_the_mixer_bowl_is_open_and_its_lower_half_holds_an_object keeps the bowl
+@pytest.mark.xfail(
+    strict=True, reason="tree v6's long tilt head (OpenStandMixerHead) blocks this arm path too"
+)
 def test_the_oracle_puts_the_object_in_the_stand_mixer_bowl(placeholders):
-    """Over the bowl's rim (``worker_facts._rim``), onto its floor, under the raised head: level 0 episode 0, where
-    the arm's path is clear (the script is not listed: other episodes meet the head, docs/results)."""
+    """Over the bowl's rim (``worker_facts._rim``), onto its floor, under the raised head: level 0 episode 0, whose
+    arm path was clear under the shorter head the bowl was made with. With the head that reaches over the mixer's
+    front (merged beside it) this episode meets the head too, as the others did (the script is not listed,
+    docs/results); strict: the day a new approach solves it, this test says so."""
     assert _oracle_episodes("PickPlaceCounterToStandMixer", "pick_x", 0, (0,), None) == [True]
 
 
