@@ -28,7 +28,7 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
-from scenes.robocasa.oracle_base import base_goal, drive
+from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 from scenes.robocasa.oracle_lift import open_hinge
 
@@ -49,11 +49,6 @@ TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertica
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
 # coffee machine's face 5.1 cm from the mug's centre
 UNDER_TILT = 0.35
-
-
-def _rz(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 class RoboCasaOracle:
@@ -117,7 +112,7 @@ class RoboCasaOracle:
         its own approach axis by ``twist``."""
         c, sn = np.cos(-tilt), np.sin(-tilt)
         pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
-        return _rz(float(s.robot_base[2])) @ pitch @ R_DOWN @ _rz(twist)
+        return rz(float(s.robot_base[2])) @ pitch @ R_DOWN @ rz(twist)
 
     def _grasp_twist(self, s: PrivilegedState) -> float:
         """The twist that closes the fingers (the grip site's x axis: robosuite's panda_gripper.xml fingers slide
@@ -147,7 +142,7 @@ class RoboCasaOracle:
         """One action toward the world point ``target``, gripper pointing down (tipped forward, toward the base's
         +x, by ``tilt`` radians; turned by the episode's grasp twist about its approach axis), in the base's
         frame."""
-        base = _rz(float(s.robot_base[2]))
+        base = rz(float(s.robot_base[2]))
         a = np.zeros(ACTION_DIM)
         err = base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)
         a[:3] = np.clip(self.gain * err, -speed, speed)
@@ -211,11 +206,8 @@ class RoboCasaOracle:
             if s.facts.base_room is not None:  # the mixer's head: sideways until the press point is ahead
                 self._base_goal = base_goal(s, press, 0.0, np.inf)
                 self._next("drive" if self._base_goal is not None else "approach")
-        if self.phase == "drive":
-            a = drive(self, s, self._base_goal, CLOSED)
-            if a is not None:
-                return a
-            self._next("approach")
+        if (a := drive_phase(self, s, CLOSED)) is not None:
+            return a
         if self.phase == "approach":
             if np.linalg.norm(above - s.eef_pos) < 0.02 or self._count > 150:
                 self._next("press")
@@ -379,11 +371,8 @@ class RoboCasaOracle:
             self._base_goal = base_goal(s, [*t.place_xy, 0.0], 0.0, CARRY_REACH)
             if self._base_goal is not None:
                 self._next("drive")
-        if self.phase == "drive":
-            a = drive(self, s, self._base_goal, OPEN)
-            if a is not None:
-                return a
-            self._next("approach")
+        if (a := drive_phase(self, s, OPEN)) is not None:
+            return a
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:

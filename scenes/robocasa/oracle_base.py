@@ -28,6 +28,12 @@ MARGIN = 0.03  # m left between the base's front and the nearest fixture ahead (
 MAX_STEPS = 60  # a drive's limit (3 s at 20 Hz; 0.5 m takes about 20 steps)
 
 
+def rz(yaw: float) -> np.ndarray:
+    """The rotation by ``yaw`` about z (the base's heading; shared by the oracle's arm scripts)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def to_base(s: PrivilegedState, point) -> np.ndarray:
     """World ``point``'s xy in the base's frame (forward, left)."""
     yaw = float(s.robot_base[2])
@@ -69,4 +75,15 @@ def drive(o, s: PrivilegedState, goal, grip: float) -> np.ndarray | None:
         return None
     a = np.zeros(12)
     a[BASE], a[6], a[MODE] = base_command(err), grip, 1.0
+    return a
+
+
+def drive_phase(o, s: PrivilegedState, grip: float) -> np.ndarray | None:
+    """In the ``drive`` phase, ``drive``'s action toward ``o._base_goal``; once it gives none, on to ``approach``.
+    None outside the phase or on arrival: the script's next phase acts this step."""
+    if o.phase != "drive":
+        return None
+    a = drive(o, s, o._base_goal, grip)
+    if a is None:
+        o._next("approach")
     return a

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from scenes.privileged import PrivilegedState
-from scenes.robocasa.oracle_base import base_goal, drive
+from scenes.robocasa.oracle_base import base_goal, drive_phase
 
 CLOSED = 1.0  # robosuite's gripper action: fingers shut
 MAX_PRESS_TILT = 1.3  # radians: the most a press tips the hand while its reach falls short
@@ -78,11 +78,8 @@ def close_lid(o, s: PrivilegedState) -> np.ndarray:
     behind = hinge - u * (t + BEHIND)
     if o._tilt is None:
         _start(o, s, hinge, u, float(hinge[2]) + length)
-    if o.phase == "drive":
-        a = drive(o, s, o._base_goal, CLOSED)
-        if a is not None:
-            return a
-        o._next("approach")
+    if (a := drive_phase(o, s, CLOSED)) is not None:
+        return a
     if o.phase == "approach":
         target = behind + z * (length + (0.03 if o._tilt >= LID_TILT else 0.08))
         if _reach(o, s, target, 0.02) or o._count > 150:

@@ -13,7 +13,7 @@ import numpy as np
 from indgen_vla.core.protocol.interface import ROT_SCALE
 from scenes.oracle import R_DOWN, _axis_angle
 from scenes.privileged import PrivilegedState
-from scenes.robocasa.oracle_base import base_goal, drive
+from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, hinge_frame
 
 LIFT_TILT = 1.35  # radians from pointing down: the fingers point 12 deg below level, into the fixture's front
@@ -29,21 +29,16 @@ STEP = 0.3  # radians ahead of the part's angle the lift aims along the edge's a
 SLIDE = 0.6
 
 
-def _rz(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def _orient(direction, tilt: float) -> np.ndarray:
     """The grip site pointing down, tipped ``tilt`` toward the horizontal ``direction`` (fingers opening across)."""
     c, sn = np.cos(-tilt), np.sin(-tilt)
     pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
-    return _rz(float(np.arctan2(direction[1], direction[0]))) @ pitch @ R_DOWN
+    return rz(float(np.arctan2(direction[1], direction[0]))) @ pitch @ R_DOWN
 
 
 def _goto(o, s: PrivilegedState, target, direction, speed: float = 1.0) -> np.ndarray:
     """One arm action toward ``target`` with the hand tipped ``LIFT_TILT`` toward ``direction`` (base frame)."""
-    base = _rz(float(s.robot_base[2]))
+    base = rz(float(s.robot_base[2]))
     a = np.zeros(12)
     a[:3] = np.clip(o.gain * (base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)), -speed, speed)
     rot = _axis_angle(_orient(direction, LIFT_TILT) @ s.eef_mat.T)
@@ -72,11 +67,8 @@ def open_hinge(o, s: PrivilegedState) -> np.ndarray:
         left = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
         o._base_goal = base_goal(s, point - left * LEFT, *AHEAD)
         o._next("drive" if o._base_goal is not None else "approach")
-    if o.phase == "drive":
-        a = drive(o, s, o._base_goal, CLOSED)
-        if a is not None:
-            return a
-        o._next("approach")
+    if (a := drive_phase(o, s, CLOSED)) is not None:
+        return a
     out = np.array([*(-into * OUT), 0.0])
     if o.phase == "approach":  # in front of the edge, under its height
         target = under_edge(hinge, u, length, thick, angle, BELOW + 0.01) + out
