@@ -321,9 +321,7 @@ def _rim(env, fixture) -> float:
     """The top of the highest collision geom of ``fixture``'s own body (not a moving part's: the mixer's raised
     head) over its first interior region's footprint: the rim of the mixer's bowl."""
     model, data = env.sim.model, env.sim.data
-    p0, px, py, _ = (
-        np.asarray(v, dtype=np.float64) for v in next(iter(fixture.get_int_sites(relative=False).values()))
-    )
+    p0, px, py, _ = _int_sites(fixture)
     lo, hi = np.minimum.reduce([p0, px, py]), np.maximum.reduce([p0, px, py])
     top = float(p0[2])
     for g in np.flatnonzero((model.geom_bodyid == model.body_name2id(f"{fixture.naming_prefix}main"))
@@ -354,11 +352,16 @@ def shelf_facts(env) -> dict:
     return {"place_pos": np.array([*xy, p0[2]]), "base_room": base_room(env)}
 
 
-def _floor_centre(fixture) -> np.ndarray:
-    """The middle of the floor of ``fixture``'s first interior region (world): where an object put in it rests."""
-    p0, px, py, _ = (
+def _int_sites(fixture) -> tuple[np.ndarray, ...]:
+    """The corner sites (p0, px, py, pz; world) of ``fixture``'s first interior region."""
+    return tuple(
         np.asarray(v, dtype=np.float64) for v in next(iter(fixture.get_int_sites(relative=False).values()))
     )
+
+
+def _floor_centre(fixture) -> np.ndarray:
+    """The middle of the floor of ``fixture``'s first interior region (world): where an object put in it rests."""
+    p0, px, py, _ = _int_sites(fixture)
     return np.array([*((px[:2] + py[:2]) / 2), p0[2]])
 
 
@@ -367,9 +370,7 @@ def drawer_facts(env) -> dict:
     from the interior's front back to where the opening ends or a counter top above it begins (an island's top
     overhangs its cabinets by ~15 cm), whichever is nearer; ``drawer_gap``: that width."""
     data, drawer = env.sim.data, env.drawer
-    p0, px, py, pz = (
-        np.asarray(v, dtype=np.float64) for v in next(iter(drawer.get_int_sites(relative=False).values()))
-    )
+    p0, px, py, pz = _int_sites(drawer)
     joints = [j for j in env.sim.model.joint_names if j.startswith(drawer.naming_prefix) and "slide" in j]
     opened = abs(float(data.get_joint_qpos(joints[0]))) if joints else 0.0
     corners = [p0[:2], px[:2], py[:2], (px + py - p0)[:2]]
