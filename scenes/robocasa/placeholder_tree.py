@@ -75,12 +75,18 @@ class Model:
         """A container open at the top (a sink's basin, a blender's jar): a floor box over the ``outer`` half
         footprint (x, y) from the model's bottom up to height ``floor`` and four walls from there up to ``rim``
         around the ``inner`` half footprint, both centred at y ``y0``; the interior is free space."""
-        (ox, oy), (ix, iy), hz = outer, inner, self.hz
+        (ox, oy), hz = outer, self.hz
         self.box("floor", (0, y0, (floor - hz) / 2), (ox, oy, (floor + hz) / 2))
+        self.walls(outer, inner, floor, rim, y0)
+
+    def walls(self, outer, inner, floor: float, rim: float, y0: float = 0.0, name: str = "wall") -> None:
+        """Four walls from height ``floor`` up to ``rim`` between the ``inner`` and ``outer`` half footprints (x, y),
+        centred at y ``y0``: ``<name>_x{neg,pos}`` along y, ``<name>_y{neg,pos}`` along x."""
+        (ox, oy), (ix, iy) = outer, inner
         h, zc = (rim - floor) / 2, (rim + floor) / 2
         for side, tag in ((-1, "neg"), (1, "pos")):
-            self.box(f"wall_x{tag}", (side * (ox + ix) / 2, y0, zc), ((ox - ix) / 2, oy, h))
-            self.box(f"wall_y{tag}", (0, y0 + side * (oy + iy) / 2, zc), (ix, (oy - iy) / 2, h))
+            self.box(f"{name}_x{tag}", (side * (ox + ix) / 2, y0, zc), ((ox - ix) / 2, oy, h))
+            self.box(f"{name}_y{tag}", (0, y0 + side * (oy + iy) / 2, zc), (ix, (oy - iy) / 2, h))
 
     def box(self, name: str, pos, half, rgba="0.7 0.7 0.72 1", into: list | None = None) -> None:
         geoms = self.geoms if into is None else into  # ``into``: a child body's geoms (the fridge's drawer)
@@ -344,10 +350,7 @@ def mixer_bowl(m: Model) -> None:
     ix, iy, yc = hx - 2 * w, (y1 - y0) / 2 - w, (y0 + y1) / 2
     m.box("foot", (0, 0, (floor - hz) / 2), (hx, hy, BOWL_FLOOR / 2))
     m.box("column", (0, (y1 + hy) / 2, (floor + hz - s) / 2), (hx, (hy - y1) / 2, (hz - s - floor) / 2))
-    zc, hd = floor + BOWL_DEPTH / 2, BOWL_DEPTH / 2
-    for side, tag in ((-1, "neg"), (1, "pos")):
-        m.box(f"bowl_x{tag}", (side * (ix + w / 2), yc, zc), (w / 2, iy + w, hd))
-        m.box(f"bowl_y{tag}", (0, yc + side * (iy + w / 2), zc), (ix, w / 2, hd))
+    m.walls((ix + w, iy + w), (ix, iy), floor, floor + BOWL_DEPTH, yc, name="bowl")
     m.region("bowl", (0, yc, floor + BOWL_REGION / 2), (ix, iy, BOWL_REGION / 2))
 
 
