@@ -137,7 +137,7 @@ def _run_group(cmd: list[str]) -> subprocess.CompletedProcess:
 
 
 # ---- assets -------------------------------------------------------------------------------------------------
-PLACEHOLDER_MARKER = "INDGEN_PLACEHOLDER_TREE"  # written by placeholder_tree.py at the tree's root
+PLACEHOLDER_MARKER = "INDGEN_PLACEHOLDER_TREE"  # written by placeholder_tree at the tree's root
 
 
 def default_assets() -> Path:

@@ -1,4 +1,4 @@
-"""The placeholder sink and blender are containers open at the top (``placeholder_tree.Model.hollow``): RoboCasa's
+"""The placeholder sink and blender are containers open at the top (``placeholder_tree.model.Model.hollow``): RoboCasa's
 checks want an object inside their regions (``reg_basin``, ``reg_int``), which a solid box made unreachable; the
 blender carries the ``anchor_site`` RoboCasa places its lid at and the ``power_button_main`` geom
 ``Blender.update_state`` counts a press on. Needs the RoboCasa venv (the tree is written from RoboCasa's registry)."""

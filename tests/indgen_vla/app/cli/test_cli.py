@@ -272,7 +272,7 @@ def test_every_command_is_one_cli_module_holding_its_parser_and_handler():
 
 
 # scripts our code starts in a scene family's own interpreter with one path argument (RoboCasa's venv): no user runs them
-FOREIGN_ENTRY_POINTS = {"scenes/external_worker.py", "scenes/robocasa/placeholder_tree.py"}
+FOREIGN_ENTRY_POINTS = {"scenes/external_worker.py", "scenes/robocasa/placeholder_tree/__main__.py"}
 
 
 def test_no_library_package_parses_arguments():
