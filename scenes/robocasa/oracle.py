@@ -14,7 +14,8 @@ mixer, over the bowl's rim onto its floor, where the arm meets the raised head o
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
 standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), and the stand mixer's head
-lifted open from under its front edge (``oracle_lift.open_hinge``). ``tasks``
+lifted open from under its front edge, or the toaster oven's open door lifted shut from under its free edge
+(``oracle_lift.lift_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -30,7 +31,7 @@ from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
-from scenes.robocasa.oracle_lift import open_hinge
+from scenes.robocasa.oracle_lift import lift_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
@@ -55,10 +56,10 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and the toaster oven's door are left out, the carry into the stand mixer's bowl fails on
-    # the raised head: docs/results/robocasa_oracle.md)
+    # (the kettle's switch is left out, the carry into the stand mixer's bowl fails on the raised head:
+    # docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -73,6 +74,7 @@ class RoboCasaOracle:
         "TurnOnBlender",
         "OpenElectricKettleLid",
         "CloseElectricKettleLid",
+        "CloseToasterOvenDoor",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -92,6 +94,7 @@ class RoboCasaOracle:
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
+        self._lift_shuts: bool | None = None  # oracle_lift: lifting the hinged part shuts it (a door)
         self._drove = False  # the carry's base phase was planned (run or not needed)
         self.seed = seed
 
@@ -185,7 +188,7 @@ class RoboCasaOracle:
         if self._twist is None:
             self._twist = 0.0 if press else self._grasp_twist(s)
         if press and s.goal is not None:  # a hinged part (its hinge the goal): a standing lid, a head to lift
-            return open_hinge(self, s) if s.facts.lift else close_lid(self, s)
+            return lift_hinge(self, s) if s.facts.lift else close_lid(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:

@@ -1,10 +1,14 @@
-"""The RoboCasa oracle's script for a hinged part to swing open from under its free edge (OpenStandMixerHead: the
-stand mixer's tilt head), from the hinge facts of ``worker_facts.hinged_facts``; kept apart from ``oracle.py``.
+"""The RoboCasa oracle's scripts for a hinged part lifted from under its free edge, from the hinge facts of
+``worker_facts.hinged_facts``: the stand mixer's tilt head swung open (OpenStandMixerHead, ``open_hinge``) and the
+toaster oven's door, lying open toward the base, swung up shut (CloseToasterOvenDoor, ``shut_door``); kept apart
+from ``oracle.py``.
 
 The hand, fingers shut and held nearly level, points into the fixture's front (``hinge_front`` reversed) so only
-its fingers go under the head's overhanging front edge (placeholder tree version 6), then follows the edge up
-along its arc, sliding toward the hinge as the head rises, past the joint's limit until RoboCasa reads the head open (``head`` > 0.99); the joint's
-frictionloss holds it there. A base phase first brings the edge to where level 0's kitchens have it."""
+its fingers go under the part's free edge (the head's overhang, placeholder tree version 6; the open door's, tree
+7), then follows the edge up along its arc. The head: sliding toward the hinge as it rises, past the joint's limit
+until RoboCasa reads it open (``head`` > 0.99); the joint's frictionloss holds it there. The door: up to upright
+and on against the oven's face until RoboCasa reads it shut (``ToasterOven.update_state`` then holds it at 0). A
+base phase first brings the edge to where the arm reaches it."""
 
 from __future__ import annotations
 
@@ -27,6 +31,15 @@ STEP = 0.3  # radians ahead of the part's angle the lift aims along the edge's a
 # rises less (level 2's episode 1: the head's 0.36 m edge would end 0.26 m over its hinge, at 1.52 m; the hand
 # stalled at 1.43 m with the head at 0.86 of open)
 SLIDE = 0.6
+# the toaster oven's door, its free edge ~6 cm over the counter (tree 7): m ahead of the base the drive brings the
+# point under the edge (at level 0 RoboCasa's base stands 0.19 m from it); the hand's tilt (a hand tipped 0.9 rad
+# or more stalled 7-13 cm over the edge at 0.42-0.6 m; tipped 0.6 it reached 0.93 m, 5 cm under the door), how far
+# in from the edge and how far under its underside the fingertips go under it (tipped 0.6 rad, a finger's top rises
+# 1.4 cm a cm back out toward the hand), and radians past upright the push aims (RoboCasa reads the door shut
+# within 0.0157 rad of upright: 0.01 of its range)
+DOOR_AHEAD = (0.45, 0.50)
+DOOR_TILT, DOOR_INSET, DOOR_BELOW = 0.6, 0.01, 0.025
+PAST_UPRIGHT = 0.3
 
 
 def _orient(direction, tilt: float) -> np.ndarray:
@@ -36,12 +49,14 @@ def _orient(direction, tilt: float) -> np.ndarray:
     return rz(float(np.arctan2(direction[1], direction[0]))) @ pitch @ R_DOWN
 
 
-def _goto(o, s: PrivilegedState, target, direction, speed: float = 1.0) -> np.ndarray:
-    """One arm action toward ``target`` with the hand tipped ``LIFT_TILT`` toward ``direction`` (base frame)."""
+def _goto(
+    o, s: PrivilegedState, target, direction, speed: float = 1.0, tilt: float = LIFT_TILT
+) -> np.ndarray:
+    """One arm action toward ``target`` with the hand tipped ``tilt`` toward ``direction`` (base frame)."""
     base = rz(float(s.robot_base[2]))
     a = np.zeros(12)
     a[:3] = np.clip(o.gain * (base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)), -speed, speed)
-    rot = _axis_angle(_orient(direction, LIFT_TILT) @ s.eef_mat.T)
+    rot = _axis_angle(_orient(direction, tilt) @ s.eef_mat.T)
     a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
     a[6], a[11] = CLOSED, -1.0
     return a
@@ -55,18 +70,63 @@ def under_edge(hinge, u, length: float, thick: float, angle: float, below: float
     return hinge + (length - inset) * along - (thick + below) * normal
 
 
+def lift_hinge(o, s: PrivilegedState) -> np.ndarray:
+    """``shut_door`` where RoboCasa reads the part open at the first action (lifting it shuts it: the toaster
+    oven's door), else ``open_hinge``."""
+    if o._lift_shuts is None:
+        o._lift_shuts = bool(s.target.clear_z > 0.5)
+    return shut_door(o, s) if o._lift_shuts else open_hinge(o, s)
+
+
+def _drive_under(o, s: PrivilegedState, hinge, u, length: float, thick: float, ahead) -> None:
+    """The first action: the base drives so the point under the free edge (the part lying flat, angle 0) stands
+    straight ahead, ``ahead`` (near, far) m out."""
+    o._tilt = LIFT_TILT
+    point = under_edge(hinge, u, length, thick, 0.0, 0.0)
+    yaw = float(s.robot_base[2])
+    left = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+    o._base_goal = base_goal(s, point - left * LEFT, *ahead)
+    o._next("drive" if o._base_goal is not None else "approach")
+
+
+def shut_door(o, s: PrivilegedState) -> np.ndarray:
+    """A door lying open toward the base (hinged at its bottom edge): under its free edge from the front (fingers
+    shut, the hand tipped ``DOOR_TILT``), then up along the edge's arc, aiming ``STEP`` ahead of the door's angle and
+    at most ``PAST_UPRIGHT`` past upright, until RoboCasa reads it shut, then back out; ``o`` is the
+    ``RoboCasaOracle``."""
+    hinge, u, length, thick, angle = hinge_frame(s)
+    into = -u[:2]
+    if o._tilt is None:
+        _drive_under(o, s, hinge, u, length, thick, DOOR_AHEAD)
+    if (a := drive_phase(o, s, CLOSED)) is not None:
+        return a
+    out = np.array([*(-into * OUT), 0.0])
+    under = under_edge(hinge, u, length, thick, angle, DOOR_BELOW, DOOR_INSET)
+    if o.phase == "approach":  # in front of the edge, under its height
+        if o._near(s, under + out, 0.015) or o._count > 120:
+            o._next("under")
+        return _goto(o, s, under + out, into, tilt=DOOR_TILT)
+    if o.phase == "under":
+        if o._near(s, under, 0.01) or o._count > 60:
+            o._next("lift")
+        return _goto(o, s, under, into, speed=0.5, tilt=DOOR_TILT)
+    if o.phase == "lift":  # up along the arc and on against the oven until RoboCasa reads the door shut
+        if s.bddl_success or o._count > 300:
+            o._next("retreat")
+        aim = min(angle + STEP, np.pi / 2 + PAST_UPRIGHT)
+        return _goto(o, s, under_edge(hinge, u, length, thick, aim, 0.0), into, speed=0.6, tilt=DOOR_TILT)
+    if o._hold_release is None:
+        o._hold_release = s.eef_pos.copy()
+    return _goto(o, s, o._hold_release + out, into, speed=0.5, tilt=DOOR_TILT)
+
+
 def open_hinge(o, s: PrivilegedState) -> np.ndarray:
     """Under the free edge from the fixture's front (fingers shut), then up along the edge's arc until RoboCasa
     reads the part open, then back out; ``o`` is the ``RoboCasaOracle`` (phase, counters)."""
     hinge, u, length, thick, angle = hinge_frame(s)
     into = -u[:2]
     if o._tilt is None:  # first action: where the base drives (the edge straight ahead, AHEAD out)
-        o._tilt = LIFT_TILT
-        point = under_edge(hinge, u, length, thick, 0.0, 0.0)
-        yaw = float(s.robot_base[2])
-        left = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-        o._base_goal = base_goal(s, point - left * LEFT, *AHEAD)
-        o._next("drive" if o._base_goal is not None else "approach")
+        _drive_under(o, s, hinge, u, length, thick, AHEAD)
     if (a := drive_phase(o, s, CLOSED)) is not None:
         return a
     out = np.array([*(-into * OUT), 0.0])

@@ -19,5 +19,6 @@ and the writer), ``write`` (the registry walk that writes the tree), ``__main__`
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
 # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main; 6: the stand mixer's
 # head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back, the fridge has
-# its drawer and an open shelf, the stand mixer's bowl is open
-VERSION = 6
+# its drawer and an open shelf, the stand mixer's bowl is open; 7: the toaster oven's door is hinged higher and
+# thinner (CloseToasterOvenDoor: a finger gets under its open free edge)
+VERSION = 7

@@ -41,9 +41,10 @@ def microwave(m: Model) -> None:
     m.box("stop_button", (hx * 0.9, front, -hz * 0.3), (0.01, t * 0.5, 0.01))
 
 
-def racked_door(m: Model, knobs: tuple[str, ...], tray: bool = False) -> None:
+def racked_door(m: Model, knobs: tuple[str, ...], tray: bool = False, door: bool = True) -> None:
     """An oven-like box: two racks (a toaster oven's tray under them with ``tray``), a door hinged at its bottom
-    edge (opening swings it down toward the front) and a knob per name in ``knobs`` on the front."""
+    edge (opening swings it down toward the front; ``door=False``: the caller hinges its own) and a knob per name in
+    ``knobs`` on the front."""
     hx, hy, hz, front, t, small = m.hx, m.hy, m.hz, m.front, m.thin, m.small
     for i, z in enumerate((-0.3, 0.3)):  # racks and trays: inside the box, touched by no task here
         m.region(f"rack{i}", (0, 0, hz * z), (hx * 0.8, hy * 0.8, hz * 0.15))
@@ -53,8 +54,9 @@ def racked_door(m: Model, knobs: tuple[str, ...], tray: bool = False) -> None:
         m.region("tray0", (0, 0, -hz * 0.6), (hx * 0.8, hy * 0.8, hz * 0.1))
         m.part("tray0", "tray0_joint", (0, 0, -hz * 0.6), (hx * 0.5, 0.005, 0.005), kind="slide",
                axis=(0, -1, 0), rng=(0.0, 0.3), collide=False)  # fmt: skip
-    m.part("door", "door_joint", (0, front, 0), (hx * 0.7, t, hz * 0.8), axis=(1, 0, 0), rng=(0.0, 1.57),
-           pivot=(0, 0, -hz * 0.8))  # fmt: skip
+    if door:
+        m.part("door", "door_joint", (0, front, 0), (hx * 0.7, t, hz * 0.8), axis=(1, 0, 0), rng=(0.0, 1.57),
+               pivot=(0, 0, -hz * 0.8))  # fmt: skip
     for i, k in enumerate(knobs):
         m.part(f"knob_{k}", f"knob_{k}_joint", (hx * 0.85, front, hz * (0.6 - 0.3 * i)), small, axis=(0, 1, 0),
                rng=(0.0, 3.14), collide=False)  # fmt: skip

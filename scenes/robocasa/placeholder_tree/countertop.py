@@ -83,9 +83,22 @@ def toaster(m: Model) -> None:
     m.box("button_cancel", (0, front, -hz * 0.5), (0.01, t * 0.5, 0.01))
 
 
+# the toaster oven's door (since version 7): its hinge's height over the oven's bottom (a fraction of the oven's
+# height) and its half thickness (m, nominal size). A toaster oven's door starts above its feet and the base under
+# its cavity, and a glass door in its frame is about 2 cm thick; RoboCasa opens it flat (CloseToasterOvenDoor), so
+# its free edge stands ~6 cm over the counter (nominal) and a finger gets under it. Before, hinged 3 cm up and
+# 4 cm thick, the open door lay 8 mm over the counter at its stop: nothing could get under it
+DOOR_HINGE, DOOR_HALF = 0.25, 0.01
+
+
 def toaster_oven(m: Model) -> None:
-    """Racks and a tray, the door hinged at its bottom edge and four knobs (``built_in.racked_door``)."""
-    racked_door(m, ("doneness", "function", "temp", "time"), tray=True)
+    """Racks and a tray and four knobs (``built_in.racked_door``), the door hinged at its bottom edge
+    ``DOOR_HINGE`` of the height up, up to where the oven's door always ended (0.8 of the half height)."""
+    racked_door(m, ("doneness", "function", "temp", "time"), tray=True, door=False)
+    bottom, top = -m.hz + DOOR_HINGE * 2 * m.hz, m.hz * 0.8
+    half = (top - bottom) / 2
+    m.part("door", "door_joint", (0, m.front, (top + bottom) / 2), (m.hx * 0.7, DOOR_HALF, half), axis=(1, 0, 0),
+           rng=(0.0, 1.57), pivot=(0, 0, -half))  # fmt: skip
 
 
 def open_top(m: Model) -> None:
