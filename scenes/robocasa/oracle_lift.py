@@ -32,8 +32,9 @@ STEP = 0.3  # radians ahead of the part's angle the lift aims along the edge's a
 # stalled at 1.43 m with the head at 0.86 of open)
 SLIDE = 0.6
 # the toaster oven's door, its free edge ~6 cm over the counter (tree 7): m ahead of the base the drive brings the
-# point under the edge (at level 0 RoboCasa's base stands 0.19 m from it); the hand's tilt (a hand tipped 0.9 rad
-# or more stalled 7-13 cm over the edge at 0.42-0.6 m; tipped 0.6 it reached 0.93 m, 5 cm under the door), how far
+# point under the edge (at level 0 RoboCasa's base stands 0.19 m from it); the hand's tilt (sent to 0.925 m in front
+# of the edge 0.42 m out, tipped 0.9 and 1.2 rad the hand stopped at 1.00 and 1.055 m, tipped 0.6 it got there; tipped
+# LIFT_TILT it stalled 8-14 cm over its mark under the edge 0.40-0.60 m out, touching nothing), how far
 # in from the edge and how far under its underside the fingertips go under it (tipped 0.6 rad, a finger's top rises
 # 1.4 cm a cm back out toward the hand), and radians past upright the push aims (RoboCasa reads the door shut
 # within 0.0157 rad of upright: 0.01 of its range)
@@ -80,7 +81,7 @@ def lift_hinge(o, s: PrivilegedState) -> np.ndarray:
 
 def _drive_under(o, s: PrivilegedState, hinge, u, length: float, thick: float, ahead) -> None:
     """The first action: the base drives so the point under the free edge (the part lying flat, angle 0) stands
-    straight ahead, ``ahead`` (near, far) m out."""
+    straight ahead, ``ahead`` (near, far) m out; ``o._tilt`` set marks the plan made."""
     o._tilt = LIFT_TILT
     point = under_edge(hinge, u, length, thick, 0.0, 0.0)
     yaw = float(s.robot_base[2])
