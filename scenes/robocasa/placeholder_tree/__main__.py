@@ -5,8 +5,9 @@ import json
 import sys
 from pathlib import Path
 
-# run as a folder, Python puts the folder itself on the path: its parent makes it the package ``placeholder_tree``
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+# run as a folder, Python puts the folder itself first on the path (its modules would import as top-level names,
+# ``model``, ``files``...): its parent instead makes it the package ``placeholder_tree``
+sys.path[0] = str(Path(__file__).resolve().parent.parent)
 
 from placeholder_tree.write import write_tree  # noqa: E402
 
