@@ -13,8 +13,9 @@ lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also 
 mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
-standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), and the stand mixer's head
-lifted open from under its front edge (``oracle_lift.open_hinge``). ``tasks``
+standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), its power lever pressed down
+at its free end (``oracle_lever.press_lever``), and the stand mixer's head lifted open from under its front edge
+(``oracle_lift.open_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -30,6 +31,7 @@ from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
+from scenes.robocasa.oracle_lever import press_lever
 from scenes.robocasa.oracle_lift import open_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
@@ -55,10 +57,10 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and the toaster oven's door are left out, the carry into the stand mixer's bowl fails on
-    # the raised head: docs/results/robocasa_oracle.md)
+    # (the toaster oven's door is left out, the carry into the stand mixer's bowl fails on the raised head:
+    # docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -73,6 +75,7 @@ class RoboCasaOracle:
         "TurnOnBlender",
         "OpenElectricKettleLid",
         "CloseElectricKettleLid",
+        "TurnOnElectricKettle",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -186,6 +189,8 @@ class RoboCasaOracle:
             self._twist = 0.0 if press else self._grasp_twist(s)
         if press and s.goal is not None:  # a hinged part (its hinge the goal): a standing lid, a head to lift
             return open_hinge(self, s) if s.facts.lift else close_lid(self, s)
+        if press and s.facts.lever:  # the kettle's power lever, low beside it
+            return press_lever(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:

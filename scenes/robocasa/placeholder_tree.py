@@ -26,8 +26,9 @@ from pathlib import Path
 MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the tree
 # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main; 6: the stand mixer's
 # head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back, the fridge has
-# its drawer and an open shelf, the stand mixer's bowl is open
-VERSION = 6
+# its drawer and an open shelf, the stand mixer's bowl is open; 8: the kettle's switch is RoboCasa's lever, low on
+# its side, hinged at its inner end and pressed down at its free end (7: the toaster oven, another branch)
+VERSION = 8
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -42,8 +43,9 @@ SIZES = {
     "wall_accessory": (0.08, 0.02, 0.12), "handle": (0.02, 0.03, 0.2), "panel": (0.5, 0.02, 0.7),
 }  # fmt: skip
 DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
-# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer), not as one solid box
-HOLLOW = ("sink", "blender", "fridge", "stand_mixer")
+# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer; the kettle, its lever
+# slab free), not as one solid box
+HOLLOW = ("sink", "blender", "fridge", "stand_mixer", "electric_kettle")
 
 
 def fmt(*v: float) -> str:
@@ -214,7 +216,7 @@ def fixture_model(kind: str, name: str) -> str:
     elif kind == "electric_kettle":
         m.part("lid", "lid_joint", (0, 0, top), (hx * 0.7, hy * 0.7, t), axis=(-1, 0, 0), rng=(0.0, 1.57),
                pivot=(0, hy * 0.7, 0), friction=0.5)  # fmt: skip
-        m.part("switch", "switch_joint", (0, front, -hz * 0.6), small, axis=(1, 0, 0), rng=(0.0, 0.3))
+        kettle_switch(m)
         # the lid's release button (ElectricKettle.update_state opens the shut lid once it reads > 0.1 of its
         # range): since version 6 a collider on the top beside the lid (where a kettle's handle carries it), pushed
         # down 1 cm to its stop and sprung back up (its spring at rest 1 cm over the top stop), away from where
@@ -337,6 +339,21 @@ def fridge(m: Model, t: float) -> None:
 # m, the stand mixer's bowl at nominal size: its floor's height over the mixer's bottom, its walls' thickness, its
 # depth (the rim over its floor) and the height of reg_bowl over its floor
 BOWL_FLOOR, BOWL_WALL, BOWL_DEPTH, BOWL_REGION = 0.03, 0.01, 0.08, 0.2
+
+
+def kettle_switch(m: Model) -> None:
+    """The kettle's collider with a free slab on its +x side, and in it, low, the power lever (``switch_joint``):
+    RoboCasa's kettles carry it at the foot of the handle, on their +x side under the lid button, a plate sticking
+    out about 4 cm over the counter and pressed down at its free end (ElectricKettle003's ``Lever001_joint`` slides
+    12 mm down; 011, 021 and 028 hinge it at its inner end about +y, 0.26-0.52 rad; robocasa/robocasa 0e206dd1), and
+    ``ElectricKettle.update_state`` turns the kettle on once it reads >= 0.95. Here it is hinged at its inner end
+    about +y (0..0.26 rad, its free end down), 4 cm up, the slab over it free up to the lid button (since version 8:
+    before, a 3 cm plate on the kettle's front rocking about its own middle)."""
+    hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
+    m.box("body", (-s / 2, s / 2, -s / 2), (hx - s / 2, hy - s / 2, hz - s / 2))
+    length = s - 0.006  # 3 mm off the collider's side and inside the footprint's edge
+    m.part("switch", "switch_joint", (hx - s / 2, 0, -hz + 0.04), (length / 2, 0.0125, 0.003), axis=(0, 1, 0),
+           rng=(0.0, 0.26), pivot=(-length / 2, 0, 0), friction=0.05)  # fmt: skip
 
 
 def mixer_bowl(m: Model) -> None:

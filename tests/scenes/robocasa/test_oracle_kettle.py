@@ -56,14 +56,12 @@ def test_the_oracle_goes_behind_the_lid_then_sweeps_it_toward_the_front():
     assert o.phase == "press"  # nearly shut: pressed down the rest of the way
 
 
-def test_certify_scripts_closing_the_lid_not_the_switch():
-    """The switch needs a level hand the fixed arm does not reach, the toaster oven's door lies flat on its stop
-    (docs/results): unscripted."""
+def test_certify_scripts_closing_the_lid_not_the_toaster_oven_door():
+    """The toaster oven's door lies flat on its stop (docs/results): unscripted."""
     from scenes.oracle import oracle_scripts
 
     assert oracle_scripts("robocasa", "CloseElectricKettleLid")
-    for task in ("TurnOnElectricKettle", "CloseToasterOvenDoor"):
-        assert not oracle_scripts("robocasa", task), task
+    assert not oracle_scripts("robocasa", "CloseToasterOvenDoor")
 
 
 @needs_venv

@@ -434,11 +434,11 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path):
     from scenes.oracle import oracle_scripts
 
     assert oracle_scripts("robocasa", "CloseStandMixerHead") and not oracle_scripts(
-        "robocasa", "TurnOnElectricKettle"
+        "robocasa", "CloseToasterOvenDoor"
     )
     assert oracle_scripts("pick_place", "bread")  # an oracle that lists no tasks scripts every task
-    with pytest.raises(NoOracleError, match="robocasa/TurnOnElectricKettle: standin:oracle has no script"):
-        certify("robocasa", "fixture_x", task="TurnOnElectricKettle", out=tmp_path / "certify.json")
+    with pytest.raises(NoOracleError, match="robocasa/CloseToasterOvenDoor: standin:oracle has no script"):
+        certify("robocasa", "base_y", task="CloseToasterOvenDoor", out=tmp_path / "certify.json")
     assert not (tmp_path / "certify.json").exists()
 
 
