@@ -88,6 +88,7 @@ class SceneFacts:
     base_room: tuple[float, ...] | None = None  # m a mobile base may drive ahead, back, left, right
     ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
     lift: bool = False  # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut
+    lever: bool = False  # the part is a lever beside the fixture, pressed down at its free end (RoboCasa)
 
 
 NO_FACTS = SceneFacts()

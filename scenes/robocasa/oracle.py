@@ -13,9 +13,9 @@ lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also 
 mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
-standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), and the stand mixer's head
-lifted open from under its front edge, or the toaster oven's open door lifted shut from under its free edge
-(``oracle_lift.lift_hinge``). ``tasks``
+standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), its power lever pressed down
+at its free end (``oracle_lever.press_lever``), and the stand mixer's head lifted open from under its front edge,
+or the toaster oven's open door lifted shut from under its free edge (``oracle_lift.lift_hinge``). ``tasks``
 lists the tasks certify may certify; it refuses the others. Fingers close across the object's narrower side. Deterministic given the episode; one instance per environment.
 """
 
@@ -31,6 +31,7 @@ from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
+from scenes.robocasa.oracle_lever import press_lever
 from scenes.robocasa.oracle_lift import lift_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
@@ -58,7 +59,7 @@ class RoboCasaOracle:
     spec = oracle_spec(ACTION_DIM)
     version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch is left out, the carry into the stand mixer's bowl fails on the raised head:
+    # (the carry into the stand mixer's bowl fails on the raised head:
     # docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
@@ -75,6 +76,7 @@ class RoboCasaOracle:
         "OpenElectricKettleLid",
         "CloseElectricKettleLid",
         "CloseToasterOvenDoor",
+        "TurnOnElectricKettle",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -189,6 +191,8 @@ class RoboCasaOracle:
             self._twist = 0.0 if press else self._grasp_twist(s)
         if press and s.goal is not None:  # a hinged part (its hinge the goal): a standing lid, a head to lift
             return lift_hinge(self, s) if s.facts.lift else close_lid(self, s)
+        if press and s.facts.lever:  # the kettle's power lever, low beside it
+            return press_lever(self, s)
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:

@@ -1,10 +1,8 @@
 """The RoboCasa oracle's script for a hinged lid standing open (CloseElectricKettleLid), from the hinge facts of
 ``worker_facts.hinged_facts`` (``oracle_state.hinge_goal``); kept apart from ``oracle.py`` for its length.
 
-Pressing the kettle's switch was tried and left out (docs/results/robocasa_oracle.md): a hand pointing down onto the
-low switch meets the lid with its palm, and the base-fixed arm held level stayed 0.13 m or more above it (1.13-1.33
-m over the switch at 1.0 m). Opening the lid is the lid button's press (placeholder tree 6), lifting the stand
-mixer's head ``oracle_lift.py``."""
+Opening the lid is the lid button's press (placeholder tree 6), turning the kettle on its lever's
+(``oracle_lever.py``), lifting the stand mixer's head ``oracle_lift.py``."""
 
 from __future__ import annotations
 

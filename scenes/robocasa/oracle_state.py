@@ -94,7 +94,8 @@ def privileged_state(raw: dict):
         part = raw.get("button_pos", raw.get("mixer_head_pos", raw.get("fixture_pos")))
         part = raw.get("hinge_edge", raw["eef_pos"] if part is None else part)
         pos, touched = f64(part), bool(raw.get("button_touched", False))
-        pick = PickState(pos, f64([1.0, 0, 0, 0]), np.zeros(3), float(pos[2]), float(pos[2]), 0.0, touched)
+        quat = f64(raw.get("button_quat", [1.0, 0, 0, 0]))  # the kettle's lever: its heading
+        pick = PickState(pos, quat, np.zeros(3), float(pos[2]), float(pos[2]), 0.0, touched)
     goal, facts = None, SceneFacts()
     if "goal_centre" in raw:
         c = f64(raw["goal_centre"])
@@ -119,7 +120,7 @@ def privileged_state(raw: dict):
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))
-        facts = SceneFacts(button="button_pos" in raw, **_room(raw, "ceiling"))
+        facts = SceneFacts(button="button_pos" in raw, lever="button_quat" in raw, **_room(raw, "ceiling"))
     return PrivilegedState(
         eef_pos=f64(raw["eef_pos"]), eef_mat=f64(raw["eef_mat"]), gripper_qpos=f64(raw["gripper_qpos"]),
         pick=pick, goal=goal, target=target, facts=facts, bddl_success=bool(raw["success"]),

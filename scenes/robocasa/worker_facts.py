@@ -140,6 +140,8 @@ def button_facts(env, task: str) -> dict:
     the other tasks or a blender without that geom."""
     if task == "OpenElectricKettleLid":
         return kettle_button_facts(env)
+    if task == "TurnOnElectricKettle":
+        return kettle_switch_facts(env)
     blender = getattr(env, "blender", None)
     name = f"{getattr(blender, 'name', '')}_power_button_main"
     model, data = env.sim.model, env.sim.data
@@ -168,6 +170,31 @@ def kettle_button_facts(env) -> dict:
     pressed = float(state.get("lid_button") or 0.0) > 0.1 or float(state.get("lid") or 0.0) > 0.01
     return {"button_pos": centre + np.array([0.0, 0.0, half[2]]), "button_touched": pressed,
             "base_room": base_room(env)}  # fmt: skip
+
+
+LEVER_IN = 0.01  # m in from the kettle's lever's free end its press lands (a finger's half thickness)
+
+
+def kettle_switch_facts(env) -> dict:
+    """TurnOnElectricKettle's power lever (``ElectricKettle._joint_names["switch"]``, pressed down at its free end;
+    ``update_state`` turns the kettle on once it reads >= 0.95): ``button_pos``, its top ``LEVER_IN`` in from the
+    free end (the hinge mirrored through the lever's middle); ``button_quat``, the lever's heading (about z, from
+    its hinge to its free end); ``button_touched``, that RoboCasa reads it turned on; and the base's room."""
+    kettle = getattr(env, "electric_kettle", None)
+    jn = getattr(kettle, "_joint_names", {}).get("switch") if kettle is not None else None
+    model, data = env.sim.model, env.sim.data
+    if not jn or jn not in model.joint_names:
+        return {}
+    j = model.joint_name2id(jn)
+    centre, half = _part_box(env, model.body_id2name(int(model.jnt_bodyid[j])))
+    across = centre - np.asarray(data.xanchor[j], dtype=np.float64)
+    across[2] = 0.0
+    half_length = float(np.linalg.norm(across))
+    out = across / max(half_length, 1e-9)
+    yaw = float(np.arctan2(out[1], out[0]))
+    top = centre + out * max(0.0, half_length - LEVER_IN) + np.array([0.0, 0.0, half[2]])
+    return {"button_pos": top, "button_quat": np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]),
+            "button_touched": bool(kettle.get_state(env)["turned_on"]), "base_room": base_room(env)}  # fmt: skip
 
 
 def _front(env, fixture) -> np.ndarray:

@@ -20,5 +20,6 @@ MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the t
 # 5: the sink and the blender are hollow; the blender has anchor_site, power_button_main; 6: the stand mixer's
 # head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back, the fridge has
 # its drawer and an open shelf, the stand mixer's bowl is open; 7: the toaster oven's door is hinged higher and
-# thinner (CloseToasterOvenDoor: a finger gets under its open free edge)
-VERSION = 7
+# thinner (CloseToasterOvenDoor: a finger gets under its open free edge); 8: the kettle's switch is RoboCasa's
+# lever, low on its side, hinged at its inner end and pressed down at its free end
+VERSION = 8

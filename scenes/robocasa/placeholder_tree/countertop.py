@@ -33,11 +33,11 @@ def stand_mixer(m: Model) -> None:
 
 
 def electric_kettle(m: Model) -> None:
-    """The lid hinged at its rear edge, the power switch and the lid's release button."""
-    hx, hy, hz, front, top, t, small = m.hx, m.hy, m.hz, m.front, m.top, m.thin, m.small
+    """The lid hinged at its rear edge, the power lever (``kettle_switch``) and the lid's release button."""
+    hx, hy, hz, top, t = m.hx, m.hy, m.hz, m.top, m.thin
     m.part("lid", "lid_joint", (0, 0, top), (hx * 0.7, hy * 0.7, t), axis=(-1, 0, 0), rng=(0.0, 1.57),
            pivot=(0, hy * 0.7, 0), friction=0.5)  # fmt: skip
-    m.part("switch", "switch_joint", (0, front, -hz * 0.6), small, axis=(1, 0, 0), rng=(0.0, 0.3))
+    kettle_switch(m)
     # the lid's release button (ElectricKettle.update_state opens the shut lid once it reads > 0.1 of its
     # range): since version 6 a collider on the top beside the lid (where a kettle's handle carries it), pushed
     # down 1 cm to its stop and sprung back up (its spring at rest 1 cm over the top stop), away from where
@@ -48,6 +48,21 @@ def electric_kettle(m: Model) -> None:
     m.part("button_lid", "button_lid_joint", (xb, 0, (top_b + bottom_b) / 2),
            ((hx * 0.3) / 2 - 0.002, 0.015, (top_b - bottom_b) / 2), kind="slide", axis=(0, 0, 1),
            rng=(-0.01, 0.0), friction=0.02, spring=(20.0, 0.01))  # fmt: skip
+
+
+def kettle_switch(m: Model) -> None:
+    """The kettle's collider with a free slab on its +x side, and in it, low, the power lever (``switch_joint``):
+    RoboCasa's kettles carry it at the foot of the handle, on their +x side under the lid button, a plate sticking
+    out about 4 cm over the counter and pressed down at its free end (ElectricKettle003's ``Lever001_joint`` slides
+    12 mm down; 011, 021 and 028 hinge it at its inner end about +y, 0.26-0.52 rad; robocasa/robocasa 0e206dd1), and
+    ``ElectricKettle.update_state`` turns the kettle on once it reads >= 0.95. Here it is hinged at its inner end
+    about +y (0..0.26 rad, its free end down), 4 cm up, the slab over it free up to the lid button (since version 8:
+    before, a 3 cm plate on the kettle's front rocking about its own middle)."""
+    hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
+    m.box("body", (-s / 2, s / 2, -s / 2), (hx - s / 2, hy - s / 2, hz - s / 2))
+    length = s - 0.006  # 3 mm off the collider's side and inside the footprint's edge
+    m.part("switch", "switch_joint", (hx - s / 2, 0, -hz + 0.04), (length / 2, 0.0125, 0.003), axis=(0, 1, 0),
+           rng=(0.0, 0.26), pivot=(-length / 2, 0, 0), friction=0.05)  # fmt: skip
 
 
 def coffee_machine(m: Model) -> None:

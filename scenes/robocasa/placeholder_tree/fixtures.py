@@ -5,8 +5,9 @@ from __future__ import annotations
 from . import built_in, countertop
 from .model import DEFAULT_SIZE, SIZES, Model
 
-# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer), not as one solid box
-HOLLOW = ("sink", "blender", "fridge", "stand_mixer")
+# fixtures built of several colliders (open at the top: Model.hollow; the fridge, the mixer; the kettle, its lever
+# slab free), not as one solid box
+HOLLOW = ("sink", "blender", "fridge", "stand_mixer", "electric_kettle")
 
 BUILDERS = {
     "sink": built_in.sink, "microwave": built_in.microwave, "oven": built_in.oven,

@@ -3,9 +3,21 @@ levels of which task are certified, uncertified, without any oracle, or failed (
 
 from __future__ import annotations
 
+import pytest
 
-def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders):
-    """TurnOnElectricKettle has no oracle script: its cells say so, summary.json's certification files its levels
+
+@pytest.fixture
+def unscripted_toaster(monkeypatch):
+    """CloseToasterOvenDoor (a base_y task) taken off the RoboCasa oracle's list: every base_y task has a script
+    since oracle v4, and these tests need one without (the path a task RoboCasa adds later would take)."""
+    from scenes.robocasa.oracle import RoboCasaOracle
+
+    kept = tuple(t for t in RoboCasaOracle.tasks if t != "CloseToasterOvenDoor")
+    monkeypatch.setattr(RoboCasaOracle, "tasks", kept)
+
+
+def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders, unscripted_toaster):
+    """CloseToasterOvenDoor without an oracle script: its cells say so, summary.json's certification files its levels
     under ``no_oracle`` and report.md's caveat says certify cannot help; a scripted task's are ``uncertified``."""
     import dataclasses
 
@@ -16,41 +28,47 @@ def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders
     from indgen_vla.core.reporting.summary import summarize
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("robocasa", "all", ("fixture_x",), "0:1", None, None)
+    plan = resolve_scene_plan("robocasa", "all", ("base_y",), "0:1", None, None)
     by_task = {c.task: c for c in plan.cells if c.level == 1}
     assert (
-        by_task["TurnOnElectricKettle"].evidence == NO_ORACLE
-        and by_task["TurnOnBlender"].evidence != NO_ORACLE
+        by_task["CloseToasterOvenDoor"].evidence == NO_ORACLE
+        and by_task["PickPlaceCounterToSink"].evidence != NO_ORACLE
     )
-    manifest = {"plan": {"tasks": list(plan.tasks), "levels": {"fixture_x": [0, 1]}, "episodes": 1},
+    manifest = {"plan": {"tasks": list(plan.tasks), "levels": {"base_y": [0, 1]}, "episodes": 1},
                 "resolved": {"cells": [dataclasses.asdict(c) for c in plan.cells]}}  # fmt: skip
     empty = pd.DataFrame(columns=["task", "axis", "level", "episode", "seed", "param", "success", "status",
                                   "steps"])  # fmt: skip
     summary = summarize(empty, manifest)
-    cert = summary["axes"]["fixture_x"]["certification"]
-    assert cert["TurnOnElectricKettle"] == {"no_oracle": [0, 1]} and cert["TurnOnBlender"] == {
+    cert = summary["axes"]["base_y"]["certification"]
+    assert cert["CloseToasterOvenDoor"] == {"no_oracle": [0, 1]} and cert["PickPlaceCounterToSink"] == {
         "uncertified": [0, 1]
     }
     lines = report_caveats([("run", summary)])
     (none,) = [x for x in lines if "no oracle" in x]
-    assert "TurnOnElectricKettle: 0, +1" in none and "TurnOnBlender" not in none and "cannot help" in none
+    assert (
+        "CloseToasterOvenDoor: 0, +1" in none
+        and "PickPlaceCounterToSink" not in none
+        and "cannot help" in none
+    )
     (short,) = [x for x in lines if "**uncertified**" in x]
-    assert "TurnOnBlender: 0, +1" in short and "TurnOnElectricKettle" not in short
+    assert "PickPlaceCounterToSink: 0, +1" in short and "CloseToasterOvenDoor" not in short
 
 
-def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(placeholders, tmp_path):
+def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(
+    placeholders, unscripted_toaster, tmp_path
+):
     """The warning names the unscripted task's levels and stops advising ``indgen certify`` (which refuses it)."""
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import build_plan, check_feasible
 
-    cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task="all", axes=("fixture_x",), levels="0:1",
+    cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task="all", axes=("base_y",), levels="0:1",
                      episodes=1, out=str(tmp_path / "run"))  # fmt: skip
     lines = check_feasible(cfg, build_plan(cfg))
     (none,) = [x for x in lines if "no script" in x]
-    assert "TurnOnElectricKettle: levels 0, +1" in none and "indgen certify refuses" in none
-    assert "TurnOnBlender" not in none and "'indgen certify" not in none
+    assert "CloseToasterOvenDoor: levels 0, +1" in none and "indgen certify refuses" in none
+    assert "PickPlaceCounterToSink" not in none and "'indgen certify" not in none
     (short,) = [x for x in lines if "'indgen certify" in x]
-    assert "TurnOnBlender" in short and "TurnOnElectricKettle" not in short
+    assert "PickPlaceCounterToSink" in short and "CloseToasterOvenDoor" not in short
 
 
 def test_summary_files_failed_and_certified_levels_per_task():

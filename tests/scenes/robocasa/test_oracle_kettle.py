@@ -56,12 +56,12 @@ def test_the_oracle_goes_behind_the_lid_then_sweeps_it_toward_the_front():
     assert o.phase == "press"  # nearly shut: pressed down the rest of the way
 
 
-def test_certify_scripts_closing_the_lid_not_the_switch():
-    """The switch needs a level hand the fixed arm does not reach (docs/results): unscripted."""
+def test_certify_scripts_the_kettle_lid_and_lever():
+    """Both kettle parts have scripts (the lid's sweep, the lever's press: docs/results)."""
     from scenes.oracle import oracle_scripts
 
     assert oracle_scripts("robocasa", "CloseElectricKettleLid")
-    assert not oracle_scripts("robocasa", "TurnOnElectricKettle")
+    assert oracle_scripts("robocasa", "TurnOnElectricKettle")
 
 
 @needs_venv
