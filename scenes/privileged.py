@@ -88,6 +88,8 @@ class SceneFacts:
     base_room: tuple[float, ...] | None = None  # m a mobile base may drive ahead, back, left, right
     ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
     lift: bool = False  # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut
+    # a carry drives the mobile base twice: the pick object, then (held) the place point, straight ahead (RoboCasa)
+    carry_drives: bool = False
 
 
 NO_FACTS = SceneFacts()
