@@ -9,8 +9,9 @@ back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the obj
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
-lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also run, not listed, on counter to stand
-mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press:
+lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
+the base drives to the object, then holding it to the place point; run, not listed: the cheese onto the bread
+(CheesyBread) and counter to stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
 standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), and the stand mixer's head
@@ -68,8 +69,8 @@ class RoboCasaOracle:
     spec = oracle_spec(ACTION_DIM)
     version = 3  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the kettle's switch and the toaster oven's door are left out, the carry into the stand mixer's bowl fails on
-    # the raised head: docs/results/robocasa_oracle.md)
+    # (the kettle's switch and the toaster oven's door are left out; the carries that drive twice, into the stand
+    # mixer's bowl and the cheese onto the bread, fail their first levels: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -171,10 +172,9 @@ class RoboCasaOracle:
             return True
         return self._count > 12 and bool(np.linalg.norm(s.eef_pos - self._trail[-10]) < 0.002)
 
-    def _descend(self, s: PrivilegedState, p, tilt: float, low: bool = False) -> np.ndarray:
-        """Straight down to the pick object's grasp height, fingers open (both pick-and-place scripts); ``low``:
-        2 cm over its bottom (a tipped hand's palm then stays off its top)."""
-        target = np.array([p.pos[0], p.pos[1], p.bottom + 0.02 if low else max(p.bottom + 0.02, p.pos[2])])
+    def _descend(self, s: PrivilegedState, p, tilt: float) -> np.ndarray:
+        """Straight down to the pick object's grasp height, fingers open (both pick-and-place scripts)."""
+        target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
         if self._near(s, target, 0.012) or self._count > 50:
             self._next("grasp")
         return self._goto(s, target, OPEN, speed=0.5, tilt=tilt)
