@@ -50,9 +50,10 @@ TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertica
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
 # coffee machine's face 5.1 cm from the mug's centre
 UNDER_TILT = 0.35
-# m between the place point and what hangs over it under which the carry tips the hand TILT, as into a cabinet:
-# the bread under a wall cabinet (CheesyBread, 0.23 m; UNDER_TILT left the wrist on the cabinet's bottom), not the
-# coffee machine's button (27-31 cm over the counter)
+# m between the place point and what hangs over it under which a carry that drives twice (carry_drives) grasps
+# tipped, as into a cabinet: the bread under a wall cabinet (CheesyBread, 0.23 m; UNDER_TILT left the wrist on the
+# cabinet's bottom); the coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x
+# levels 0 and 4), but that carry does not drive and keeps UNDER_TILT
 CRAMPED = 0.25
 # radians the hand tips there: at TILT the wrist met the wall cabinet's door 0.16 m in front of the bread (its
 # grip site stalled 2.8 cm short of the bread's centre, the cheese let go on its near edge fell off)
@@ -378,7 +379,7 @@ class RoboCasaOracle:
         # wall cabinet, it grasps tipped already, fingers across the base's heading (untwisted: R_DOWN slides them
         # along the base's y), so the object stays level and rests flat where it is put down
         room = np.inf if s.goal is None else s.goal.top - t.place_bottom
-        cramped, low = room < CRAMPED, room < HAND_ROOM
+        cramped, low = s.facts.carry_drives and room < CRAMPED, room < HAND_ROOM
         tilt = CRAMPED_TILT if cramped else UNDER_TILT if low else 0.0
         grip_tilt = tilt if cramped else 0.0
         if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
