@@ -111,7 +111,7 @@ def test_the_oracle_moves_the_object_from_the_fridge_drawer_to_the_shelf(placeho
 
 
 @needs_venv
-@pytest.mark.slow  # ~70 s: one oracle episode; test_the_mixer_bowl_is_open_and_its_lower_half_holds_an_object keeps the bowl
+@pytest.mark.slow  # ~40 s: one oracle episode; test_the_mixer_bowl_is_open_and_its_lower_half_holds_an_object keeps the bowl
 def test_the_oracle_puts_the_object_in_the_stand_mixer_bowl(placeholders):
     """Over the bowl's rim (``worker_facts._rim``), onto its floor, under the raised head: level 0 episode 0, the object
     0.34 m to the base's left. The hand starts under the head (the long head of tree v6, which reaches over the

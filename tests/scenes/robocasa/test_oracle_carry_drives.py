@@ -94,7 +94,7 @@ def test_the_worker_names_cheesy_breads_pick_object_as_the_pick_x_regions_do():
 
 
 @needs_venv
-@pytest.mark.slow  # ~2 min: T0 and one oracle episode; test_the_carry_drives_to_the_pick_object_then_with_it_to_the_place_point keeps the drives
+@pytest.mark.slow  # ~45 s: one oracle episode; test_the_carry_drives_to_the_pick_object_then_with_it_to_the_place_point keeps the drives
 def test_the_oracle_puts_the_cheese_on_the_bread(placeholders):
     """pick_x level 1 episode 0 (a success of the certification run in docs/results, 303 steps): both drives, the
     bread under a wall cabinet. The script is not listed (level 0's episode 0 fails: docs/results)."""
