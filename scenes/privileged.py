@@ -89,6 +89,8 @@ class SceneFacts:
     ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
     lift: bool = False  # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut
     lever: bool = False  # the part is a lever beside the fixture, pressed down at its free end (RoboCasa)
+    # a carry drives the mobile base twice: the pick object, then (held) the place point, straight ahead (RoboCasa)
+    carry_drives: bool = False
 
 
 NO_FACTS = SceneFacts()

@@ -367,8 +367,9 @@ class RoboCasaLevel:
             "base_pos": np.array(data.get_body_xpos("mobilebase0_base"), dtype=np.float64),
             "base_yaw": float(_yaw(bq)),
         }
-        if "obj" in getattr(env, "objects", {}):
-            obj, bid = env.objects["obj"], env.obj_body_id["obj"]
+        name = _facts.pick_name(env)  # "obj", CheesyBread's "cheese"
+        if name in getattr(env, "objects", {}):
+            obj, bid = env.objects[name], env.obj_body_id[name]
             pos = np.array(data.body_xpos[bid])
             out.update(
                 obj_pos=pos, obj_quat=np.array(data.body_xquat[bid]),

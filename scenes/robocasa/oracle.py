@@ -9,8 +9,9 @@ back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the obj
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
-lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; also run, not listed, on counter to stand
-mixer, over the bowl's rim onto its floor, where the arm meets the raised head on the way to the object), a press:
+lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
+the base drives to the object, then holding it to the place point; run, not listed: the cheese onto the bread
+(CheesyBread) and counter to stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
 standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), its power lever pressed down
@@ -51,6 +52,18 @@ TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertica
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
 # coffee machine's face 5.1 cm from the mug's centre
 UNDER_TILT = 0.35
+# m between the place point and what hangs over it under which a carry that drives twice (carry_drives) grasps
+# tipped, as into a cabinet: the bread under a wall cabinet (CheesyBread, 0.23 m; UNDER_TILT left the wrist on the
+# cabinet's bottom); the coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x
+# levels 0 and 4), but that carry does not drive and keeps UNDER_TILT
+CRAMPED = 0.25
+# radians the hand tips there: at TILT the wrist met the wall cabinet's door 0.16 m in front of the bread (its
+# grip site stalled 2.8 cm short of the bread's centre, the cheese let go on its near edge fell off)
+CRAMPED_TILT = 1.0
+# m ahead of the base the tipped hand grasps from (nearer, the base backs off first: at 0.26 m the hand stalled
+# 23 cm over the cheese) and puts down at most (the drive forward, as far as the room allows)
+CRAMPED_REACH = (0.4, 0.45)
+HELD_DRIVE = 0.5  # of full scale: the base's speed while the carry holds the object (over the deadband, 0.25)
 
 
 class RoboCasaOracle:
@@ -59,8 +72,8 @@ class RoboCasaOracle:
     spec = oracle_spec(ACTION_DIM)
     version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the carry into the stand mixer's bowl fails on the raised head:
-    # docs/results/robocasa_oracle.md)
+    # (the carries that drive twice, into the stand mixer's bowl and the cheese onto the bread, fail their first
+    # levels: docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -337,10 +350,12 @@ class RoboCasaOracle:
 
     # ---- release, rise, back out (every pick-and-place script) ----------------------------------
     def _let_go(
-        self, s: PrivilegedState, tilt: float, rise: float, tol: float, limit: int, back_up: float = 0.0
-    ) -> np.ndarray:
+        self, s: PrivilegedState, tilt: float, rise: float, tol: float, limit: int, back_up: float = 0.0,
+        along: bool = False,
+    ) -> np.ndarray:  # fmt: skip
         """Open where the hand stopped, rise ``rise`` straight up (fingers off the object first: backing out low
-        drags it along), then back 0.4 m away from the base's heading (past ``gripper_obj_far``'s 0.25 m),
+        drags it along), or ``along`` the tipped hand's own axis (under a wall cabinet, where straight up the
+        wrist meets its bottom), then back 0.4 m away from the base's heading (past ``gripper_obj_far``'s 0.25 m),
         ``back_up`` higher."""
         yaw = float(s.robot_base[2])
         fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
@@ -350,7 +365,10 @@ class RoboCasaOracle:
             if self._count > 12:
                 self._next("rise")
             return self._goto(s, self._hold_release, OPEN, tilt=tilt)
-        up = self._hold_release + np.array([0.0, 0.0, rise])
+        way = np.array([0.0, 0.0, 1.0])
+        if along:  # back up the hand's own axis (it points down, tipped toward the base's heading)
+            way = way * np.cos(tilt) - fwd * np.sin(tilt)
+        up = self._hold_release + way * rise
         if self.phase == "rise":
             if self._near(s, up, tol) or self._count > limit:
                 self._next("retreat")
@@ -363,32 +381,43 @@ class RoboCasaOracle:
         ``CLEARANCE``, over the place point (``target``), down until it rests there (a stall), then ``_let_go``
         high enough to clear a drawer's walls."""
         p, t = s.pick, s.target
+        # something low over the place point (the coffee machine's button): once grasped, the hand tips toward it
+        # (gradually, while lifting), so the wrist stays back from under it (as into a cabinet); cramped under a
+        # wall cabinet, it grasps tipped already, fingers across the base's heading (untwisted: R_DOWN slides them
+        # along the base's y), so the object stays level and rests flat where it is put down
+        room = np.inf if s.goal is None else s.goal.top - t.place_bottom
+        cramped, low = s.facts.carry_drives and room < CRAMPED, room < HAND_ROOM
+        tilt = CRAMPED_TILT if cramped else UNDER_TILT if low else 0.0
+        grip_tilt = tilt if cramped else 0.0
         if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
             self._carry_z = t.clear_z + CLEARANCE
+            self._twist = 0.0 if cramped else self._twist
         carry_z = self._carry_z + self._offset
-        # something low over the place point (the coffee machine's button): once grasped, the hand tips toward it
-        # (gradually, while lifting), so the wrist stays back from under it (as into a cabinet)
-        low = s.goal is not None and s.goal.top - t.place_bottom < HAND_ROOM
-        tilt = UNDER_TILT if low else 0.0
-        if self.phase == "lift":
+        if self.phase == "lift" and not cramped:
             tilt = min(tilt, 0.03 * self._count)
-        # the place point beyond CARRY_REACH: the base drives nearer first (oracle_base)
+        # the place point beyond CARRY_REACH: the base drives nearer first (oracle_base); a carry that drives twice
+        # first puts the pick object straight ahead (the arm clear of what stands beside it: the mixer's raised head)
         if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
             self._drove = True
-            self._base_goal = base_goal(s, [*t.place_xy, 0.0], 0.0, CARRY_REACH)
+            first = p.pos if s.facts.carry_drives else [*t.place_xy, 0.0]
+            near = CRAMPED_REACH[0] if cramped and s.facts.carry_drives else 0.0
+            self._base_goal = base_goal(s, first, near, CARRY_REACH)
             if self._base_goal is not None:
                 self._next("drive")
         if (a := drive_phase(self, s, OPEN)) is not None:
+            return a
+        # holding the object: at HELD_DRIVE of full speed (at full speed a cheese grasped near its top slipped out)
+        if (a := drive_phase(self, s, CLOSED, "drive_place", "transport", HELD_DRIVE)) is not None:
             return a
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:
                 self._next("descend")
-            return self._goto(s, target, OPEN)
+            return self._goto(s, target, OPEN, tilt=grip_tilt)
         if self.phase == "descend":
-            return self._descend(s, p, 0.0)
+            return self._descend(s, p, grip_tilt)
         if self.phase == "grasp":
-            a, closed = self._grasp(s, p, 0.0)
+            a, closed = self._grasp(s, p, grip_tilt)
             if closed:
                 self._next("lift")
             return a
@@ -396,6 +425,12 @@ class RoboCasaOracle:
             target = np.array([self._hold[0], self._hold[1], carry_z])
             if (self._near(s, target, 0.02) and (not low or self._count > 25)) or self._count > 80:
                 self._next("transport")
+                # held at the carry height: the base drives until the place point is straight ahead (the bread)
+                if s.facts.carry_drives:
+                    far = CRAMPED_REACH[1] if cramped else CARRY_REACH
+                    self._base_goal, self._base_trail = base_goal(s, [*t.place_xy, 0.0], 0.0, far), []
+                    if self._base_goal is not None:
+                        self._next("drive_place")
             return self._goto(s, target, CLOSED, tilt=tilt)
         if self.phase == "transport":
             target = np.array([*t.place_xy, carry_z])
@@ -411,4 +446,4 @@ class RoboCasaOracle:
             if (self._near(s, target, 0.01) and self._count > 10) or self._count > 100:
                 self._next("release")
             return self._goto(s, target, CLOSED, speed=0.3, tilt=tilt)
-        return self._let_go(s, tilt, rise=0.2, tol=0.015, limit=60, back_up=0.05)
+        return self._let_go(s, tilt, rise=0.2, tol=0.015, limit=60, back_up=0.05, along=room < CRAMPED)

@@ -65,25 +65,28 @@ def base_command(err) -> np.ndarray:
     return np.where(np.abs(err) < TOL, 0.0, cmd)
 
 
-def drive(o, s: PrivilegedState, goal, grip: float) -> np.ndarray | None:
-    """One base-mode action toward the world xy ``goal`` (arm held, gripper ``grip``, no turn); None once there,
-    stalled (moved < 3 mm in 5 steps: a fixture in the way) or out of steps. ``o`` is the ``RoboCasaOracle``."""
+def drive(o, s: PrivilegedState, goal, grip: float, cap: float = 1.0) -> np.ndarray | None:
+    """One base-mode action toward the world xy ``goal`` (arm held, gripper ``grip``, no turn, at most ``cap`` of
+    full scale); None once there, stalled (moved < 3 mm in 5 steps: a fixture in the way) or out of steps. ``o`` is
+    the ``RoboCasaOracle``."""
     err = to_base(s, [*goal, 0.0])
     o._base_trail = [*o._base_trail[-5:], s.robot_base[:2].copy()]
     stalled = len(o._base_trail) > 5 and np.linalg.norm(o._base_trail[-1] - o._base_trail[0]) < 0.003
     if np.all(np.abs(err) < TOL) or stalled or o._count > MAX_STEPS:
         return None
     a = np.zeros(12)
-    a[BASE], a[6], a[MODE] = base_command(err), grip, 1.0
+    a[BASE], a[6], a[MODE] = np.clip(base_command(err), -cap, cap), grip, 1.0
     return a
 
 
-def drive_phase(o, s: PrivilegedState, grip: float) -> np.ndarray | None:
-    """In the ``drive`` phase, ``drive``'s action toward ``o._base_goal``; once it gives none, on to ``approach``.
-    None outside the phase or on arrival: the script's next phase acts this step."""
-    if o.phase != "drive":
+def drive_phase(
+    o, s: PrivilegedState, grip: float, phase: str = "drive", then: str = "approach", cap: float = 1.0
+) -> np.ndarray | None:
+    """In the phase ``phase``, ``drive``'s action toward ``o._base_goal`` (at most ``cap``); once it gives none, on
+    to ``then``. None outside the phase or on arrival: the script's next phase acts this step."""
+    if o.phase != phase:
         return None
-    a = drive(o, s, o._base_goal, grip)
+    a = drive(o, s, o._base_goal, grip, cap)
     if a is None:
-        o._next("approach")
+        o._next(then)
     return a

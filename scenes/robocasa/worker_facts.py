@@ -54,6 +54,13 @@ def versions() -> dict:
 
 
 GRIPPER_INDEX = 6  # the gripper's entry of the 12-d action (convert_action: action[6:7] is "gripper_close")
+# a task's pick object where its config is not named "obj" (kitchen_pick_place.py's CheesyBread: "cheese")
+PICK_OBJECT = {"CheesyBread": "cheese"}
+
+
+def pick_name(env) -> str:
+    """The name of the pick object's config in ``env``'s task (its class name is the task's)."""
+    return PICK_OBJECT.get(type(env).__name__, "obj")
 
 
 def failure_facts(env, action=None) -> dict:
@@ -63,14 +70,15 @@ def failure_facts(env, action=None) -> dict:
     MuJoCo's contact list); ``bottom``: the object's lowest z; ``placed``: RoboCasa's own success predicate with
     ``OU.gripper_obj_far`` taken as true (the object is where the task wants it, whether or not the gripper has
     let go); ``gripper_closed``: the last action commanded the gripper closed (> 0, robosuite's convention).
-    Empty when the task has no pick object named "obj" (fixture tasks, CheesyBread): its failures are then
-    ``unknown`` and its progress missing, never a guessed class.
+    Empty when the task has no pick object (``pick_name``: fixture tasks): its failures are then ``unknown`` and
+    its progress missing, never a guessed class.
     """
-    if "obj" not in getattr(env, "objects", {}):
+    name = pick_name(env)
+    if name not in getattr(env, "objects", {}):
         return {}
     import robocasa.utils.object_utils as OU
 
-    obj, robot = env.objects["obj"], env.robots[0]
+    obj, robot = env.objects[name], env.robots[0]
     far = OU.gripper_obj_far
     OU.gripper_obj_far = lambda *a, **k: (
         True
@@ -81,7 +89,7 @@ def failure_facts(env, action=None) -> dict:
         OU.gripper_obj_far = far
     out = {
         "touching": bool(env.check_contact(robot.gripper["right"], obj)),
-        "bottom": float(env.sim.data.body_xpos[env.obj_body_id["obj"]][2] + obj.bottom_offset[2]),
+        "bottom": float(env.sim.data.body_xpos[env.obj_body_id[name]][2] + obj.bottom_offset[2]),
         "placed": placed,
     }
     if action is not None:
@@ -302,7 +310,7 @@ def room_ahead(origin, forward, own, others) -> float:
 def object_extent_facts(env) -> dict:
     """The pick object's half sizes along its own axes (its ``reg_bbox``, ``MJCFObject.size``): the oracle closes
     the fingers across the narrower side."""
-    obj = getattr(env, "objects", {}).get("obj")
+    obj = getattr(env, "objects", {}).get(pick_name(env))
     return {} if obj is None else {"obj_half_extents": np.asarray(obj.size, dtype=np.float64) / 2}
 
 
@@ -325,7 +333,9 @@ def place_facts(env, task: str) -> dict:
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
     ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
     sink basin's floor at its middle; onto the blender jar's floor, carried over its rim (``place_clear``, the
-    height the carried object's bottom must clear); empty for the other tasks."""
+    height the carried object's bottom must clear); into the stand mixer's bowl over its rim and CheesyBread's
+    cheese onto the bread's top, each with the base's room and ``carry_drives`` (the carry drives the base to the
+    object, then with it to the place point); empty for the other tasks."""
     data, model = env.sim.data, env.sim.model
     if task == "PickPlaceSinkToCounter" and "container" in env.objects:
         pos = np.array(data.body_xpos[env.obj_body_id["container"]], dtype=np.float64)
@@ -346,7 +356,13 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceFridgeDrawerToShelf":
         return shelf_facts(env)
     if task == "PickPlaceCounterToStandMixer":  # into the bowl: over its rim, onto its floor
-        return {"place_pos": _floor_centre(env.stand_mixer), "place_clear": _rim(env, env.stand_mixer)}
+        return {"place_pos": _floor_centre(env.stand_mixer), "place_clear": _rim(env, env.stand_mixer),
+                "base_room": base_room(env), "carry_drives": True}  # fmt: skip
+    if task == "CheesyBread":  # the cheese onto the bread's top, its centre (_check_success: their contact)
+        bread = np.array(data.body_xpos[env.obj_body_id["bread"]], dtype=np.float64)
+        top = bread + np.array([0.0, 0.0, env.objects["bread"].top_offset[2]])
+        return {"place_pos": top, "place_ceiling": _ceiling(env, top[:2], float(top[2])),
+                "base_room": base_room(env), "carry_drives": True}  # fmt: skip
     return {}
 
 
