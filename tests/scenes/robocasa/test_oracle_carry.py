@@ -9,10 +9,6 @@ import pytest
 
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
-# the sink's 0.25 m region less RoboCasa's buffer (2.7-3.6 cm each end on the placeholder tree) is too narrow for the
-# task's own five 4 cm windows (docs/results/robocasa_pick_regions.md): its episodes run at a --step that fits
-SINK_STEP = 0.03
-
 
 def _raw(obj_z: float = 0.91, eef=(0.0, 0.0, 1.2)) -> dict:
     """Worker facts of a sink-to-counter episode: object in the sink at (0.4, 0), container top 1.03 m at
@@ -80,18 +76,18 @@ def test_certify_scripts_the_carry_tasks():
 @needs_venv  # ~15 s: the carry script's episode of the smoke group (251 steps)
 @pytest.mark.slow  # ~13 s: one simulated episode (the unit tests above cover the script's targets)
 def test_the_carry_script_puts_an_object_on_the_container(placeholders):
-    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 0, (4,), 300, step=SINK_STEP) == [True]
+    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 0, (4,), 300) == [True]
 
 
 @needs_venv
 @pytest.mark.slow  # ~1.5 min: four certification episodes
 def test_the_oracle_puts_the_object_from_the_sink_on_the_container(placeholders):
     """Certification episodes of sink to counter: level 0, and pick_x level 3 (the object 3 steps along the sink)."""
-    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 0, (0, 2), 400, step=SINK_STEP) == [
+    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 0, (0, 2), 400) == [
         True,
         True,
     ]
-    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 3, (0, 2), 400, step=SINK_STEP) == [
+    assert _oracle_episodes("PickPlaceSinkToCounter", "pick_x", 3, (0, 2), 400) == [
         True,
         True,
     ]
