@@ -155,16 +155,17 @@ class RoboCasaOracle:
         return float(max(grid, key=lambda g: (across(g), -abs(g))))
 
     def _goto(
-        self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0
+        self, s: PrivilegedState, target, grip: float, speed: float = 1.0, tilt: float = 0.0, hand=None
     ) -> np.ndarray:
         """One action toward the world point ``target``, gripper pointing down (tipped forward, toward the base's
         +x, by ``tilt`` radians; turned by the episode's grasp twist about its approach axis), in the base's
-        frame."""
+        frame; ``hand``, a world orientation, replaces that one (the lift's and the lever's scripts)."""
         base = rz(float(s.robot_base[2]))
         a = np.zeros(ACTION_DIM)
         err = base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)
         a[:3] = np.clip(self.gain * err, -speed, speed)
-        rot = _axis_angle(self._hand(s, tilt, self._twist or 0.0) @ s.eef_mat.T)  # world frame
+        hand = self._hand(s, tilt, self._twist or 0.0) if hand is None else hand
+        rot = _axis_angle(hand @ s.eef_mat.T)  # world frame
         a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
         a[GRIPPER], a[MODE] = grip, -1.0
         return a

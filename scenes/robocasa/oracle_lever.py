@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from indgen_vla.core.protocol.interface import ROT_SCALE
 from scenes.oracle import R_DOWN, _axis_angle
 from scenes.privileged import PrivilegedState
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
@@ -43,10 +42,7 @@ def lever_hand(s: PrivilegedState, tilt: float) -> np.ndarray:
 
 def _act(o, s: PrivilegedState, target, speed: float) -> np.ndarray:
     """``o._goto``'s move toward ``target`` (fingers closed), with the lever's hand (``lever_hand``)."""
-    a = o._goto(s, target, CLOSED, speed=speed)
-    rot = _axis_angle(lever_hand(s, o._tilt) @ s.eef_mat.T)
-    a[3:6] = np.clip(rz(float(s.robot_base[2])).T @ rot / ROT_SCALE, -1.0, 1.0)
-    return a
+    return o._goto(s, target, CLOSED, speed=speed, hand=lever_hand(s, o._tilt))
 
 
 def press_lever(o, s: PrivilegedState) -> np.ndarray:

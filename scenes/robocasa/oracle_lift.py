@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from indgen_vla.core.protocol.interface import ROT_SCALE
-from scenes.oracle import R_DOWN, _axis_angle
+from scenes.oracle import R_DOWN
 from scenes.privileged import PrivilegedState
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, hinge_frame
@@ -53,14 +52,8 @@ def _orient(direction, tilt: float) -> np.ndarray:
 def _goto(
     o, s: PrivilegedState, target, direction, speed: float = 1.0, tilt: float = LIFT_TILT
 ) -> np.ndarray:
-    """One arm action toward ``target`` with the hand tipped ``tilt`` toward ``direction`` (base frame)."""
-    base = rz(float(s.robot_base[2]))
-    a = np.zeros(12)
-    a[:3] = np.clip(o.gain * (base.T @ (np.asarray(target, dtype=np.float64) - s.eef_pos)), -speed, speed)
-    rot = _axis_angle(_orient(direction, tilt) @ s.eef_mat.T)
-    a[3:6] = np.clip(base.T @ rot / ROT_SCALE, -1.0, 1.0)
-    a[6], a[11] = CLOSED, -1.0
-    return a
+    """One arm action toward ``target`` (fingers shut) with the hand tipped ``tilt`` toward ``direction``."""
+    return o._goto(s, target, CLOSED, speed=speed, hand=_orient(direction, tilt))
 
 
 def under_edge(hinge, u, length: float, thick: float, angle: float, below: float, inset: float = INSET):
