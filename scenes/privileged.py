@@ -87,10 +87,18 @@ class SceneFacts:
     button: bool = False  # a press task's part is a button: one touch counts, at its release (RoboCasa)
     base_room: tuple[float, ...] | None = None  # m a mobile base may drive ahead, back, left, right
     ceiling: float | None = None  # z of the underside of what hangs over a fixture part to push (RoboCasa)
-    lift: bool = False  # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut
+    # the hinged part (goal: its hinge) is lifted from under its free edge, not swept shut: "opens" (the mixer's
+    # head) or "shuts" (the toaster oven's door, lying open toward the robot); None: swept shut (a kettle's lid)
+    lift: str | None = None
     lever: bool = False  # the part is a lever beside the fixture, pressed down at its free end (RoboCasa)
     # a carry drives the mobile base twice: the pick object, then (held) the place point, straight ahead (RoboCasa)
     carry_drives: bool = False
+
+    def __post_init__(self) -> None:
+        if self.lift not in (None, "opens", "shuts"):
+            raise ValueError(
+                f"SceneFacts.lift is {self.lift!r}: give 'opens', 'shuts' or None (swept, not lifted)"
+            )
 
 
 NO_FACTS = SceneFacts()

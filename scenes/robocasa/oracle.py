@@ -109,7 +109,6 @@ class RoboCasaOracle:
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
-        self._lift_shuts: bool | None = None  # oracle_lift: lifting the hinged part shuts it (a door)
         self._drove = False  # the carry's base phase was planned (run or not needed)
         self.seed = seed
 

@@ -65,11 +65,9 @@ def under_edge(hinge, u, length: float, thick: float, angle: float, below: float
 
 
 def lift_hinge(o, s: PrivilegedState) -> np.ndarray:
-    """``shut_door`` where RoboCasa reads the part open at the first action (lifting it shuts it: the toaster
-    oven's door), else ``open_hinge``."""
-    if o._lift_shuts is None:
-        o._lift_shuts = bool(s.target.clear_z > 0.5)
-    return shut_door(o, s) if o._lift_shuts else open_hinge(o, s)
+    """``shut_door`` where the worker says lifting the part shuts it (``SceneFacts.lift`` "shuts": the toaster
+    oven's door), else ``open_hinge`` (the mixer's head)."""
+    return shut_door(o, s) if s.facts.lift == "shuts" else open_hinge(o, s)
 
 
 def _drive_under(o, s: PrivilegedState, hinge, u, length: float, thick: float, ahead) -> None:

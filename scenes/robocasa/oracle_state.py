@@ -117,7 +117,7 @@ def privileged_state(raw: dict):
                                carry_drives=bool(raw.get("carry_drives", False)))  # fmt: skip
     elif "hinge_pos" in raw:  # a part to swing shut (or open): goal is its hinge, turned the way it faces
         goal, target = hinge_goal(raw), hinge_target(raw)
-        facts = SceneFacts(**_room(raw, "hinge_ceiling"), lift=bool(raw.get("hinge_lift", False)))
+        facts = SceneFacts(**_room(raw, "hinge_ceiling"), lift=raw.get("hinge_lift"))
     else:
         press = press_point(raw, pick.pos)
         target = Targets(press[:2].copy(), float(press[2]), float(press[2]), float(press[2]))

@@ -231,8 +231,8 @@ def _part_box(env, body: str, along=None):
 def hinged_facts(env, task: str) -> dict:
     """The hinged part a fixture task swings (``hinge_facts``): CloseElectricKettleLid's lid
     (``ElectricKettle._joint_names["lid"]``), shut by the oracle, OpenStandMixerHead's head
-    (``StandMixer._joint_names["head"]``), lifted open from under its free edge (``hinge_lift``), and
-    CloseToasterOvenDoor's door (``ToasterOven._joint_names["door"]``), lifted shut the same way; empty for other
+    (``StandMixer._joint_names["head"]``), lifted open from under its free edge (``hinge_lift`` "opens"), and
+    CloseToasterOvenDoor's door (``ToasterOven._joint_names["door"]``), lifted shut the same way ("shuts"); empty for other
     tasks."""
     if task == "CloseElectricKettleLid" and getattr(env, "electric_kettle", None) is not None:
         kettle = env.electric_kettle
@@ -240,11 +240,11 @@ def hinged_facts(env, task: str) -> dict:
     if task == "CloseToasterOvenDoor" and getattr(env, "toaster_oven", None) is not None:
         oven = env.toaster_oven  # its door opens down toward the front: lifting its free edge shuts it
         oven.update_state(env)  # get_state reads the values update_state synced from the joint
-        return {**hinge_facts(env, oven, "door", float(oven.get_state()["door"])), "hinge_lift": True}
+        return {**hinge_facts(env, oven, "door", float(oven.get_state()["door"])), "hinge_lift": "shuts"}
     if task == "OpenStandMixerHead" and getattr(env, "stand_mixer", None) is not None:
         mixer = env.stand_mixer
         mixer.update_state(env)  # get_state reads the values update_state synced from the joint
-        return {**hinge_facts(env, mixer, "head", float(mixer.get_state(env)["head"])), "hinge_lift": True}
+        return {**hinge_facts(env, mixer, "head", float(mixer.get_state(env)["head"])), "hinge_lift": "opens"}
     return {}
 
 

@@ -58,7 +58,7 @@ def _raw(state: float = 0.0, eef=(0.25, 0.0, 1.29)) -> dict:
         "base_pos": [0.0, 0.0, 0.0], "base_yaw": 0.0, "fixture_pos": [0.3, 0.0, 1.08],
         "mixer_head_pos": [0.3, 0.0, 1.23], "mixer_hinge_pos": [0.3, -0.165, 1.23],
         "hinge_pos": [0.3, -0.165, 1.23], "hinge_edge": edge, "hinge_front": [0.0, 1.0, 0.0], "hinge_thick": 0.018,
-        "hinge_state": state, "hinge_lift": True, "base_room": [0.06, 3.5, 0.68, 2.8], "success": state > 0.99,
+        "hinge_state": state, "hinge_lift": "opens", "base_room": [0.06, 3.5, 0.68, 2.8], "success": state > 0.99,
     }  # fmt: skip
 
 

@@ -73,7 +73,7 @@ def _raw(angle: float = 0.0, eef=(0.24, 0.0, 1.31)) -> dict:
         "eef_pos": list(eef), "eef_mat": np.diag([1.0, -1.0, -1.0]), "gripper_qpos": [0.0, 0.0],
         "base_pos": [0.0, 0.0, 0.0], "base_yaw": 0.0, "fixture_pos": [0.55, 0.0, 1.07],
         "hinge_pos": list(HINGE), "hinge_edge": list(edge), "hinge_front": [-1.0, 0.0, 0.0], "hinge_thick": 0.01,
-        "hinge_state": 1.0 - angle / (np.pi / 2), "hinge_lift": True, "base_room": [0.03, 0.95, 2.99, 1.55],
+        "hinge_state": 1.0 - angle / (np.pi / 2), "hinge_lift": "shuts", "base_room": [0.03, 0.95, 2.99, 1.55],
         "success": angle > np.pi / 2 - 0.01,
     }  # fmt: skip
 
@@ -84,12 +84,12 @@ def test_the_oracle_backs_off_goes_under_the_doors_free_edge_and_lifts_it_shut()
     from scenes.robocasa.oracle_lift import DOOR_AHEAD, DOOR_BELOW, DOOR_INSET, INSET, under_edge
 
     s = privileged_state(_raw())
-    assert s.facts.lift and s.target.clear_z == 1.0
+    assert s.facts.lift == "shuts" and s.target.clear_z == 1.0
     o = RoboCasaOracle()
     a = o.action(s)
     # the point under the edge (INSET in: x 0.215) is nearer than DOOR_AHEAD's 0.45: the base backs off 0.235 m at
-    # full speed (base mode, the arm held, the fingers shut); RoboCasa reads the door open, so lifting shuts it
-    assert o._lift_shuts and o.phase == "drive" and a[7] == -1.0 and a[11] == 1.0 and a[6] > 0
+    # full speed (base mode, the arm held, the fingers shut); the worker says lifting the door shuts it
+    assert o.phase == "drive" and a[7] == -1.0 and a[11] == 1.0 and a[6] > 0
     assert np.allclose(o._base_goal, [0.215 - DOOR_AHEAD[0], 0.0])
     # under the edge: DOOR_INSET in from it (x 0.20), DOOR_BELOW under its underside (0.995 - 0.01 - 0.025)
     under = under_edge(HINGE, np.array([-1.0, 0.0, 0.0]), 0.19, 0.01, 0.0, DOOR_BELOW, DOOR_INSET)
@@ -109,14 +109,19 @@ def test_the_oracle_backs_off_goes_under_the_doors_free_edge_and_lifts_it_shut()
 
 
 def test_the_mixer_head_is_still_lifted_open():
-    """A part RoboCasa reads shut at the first action (the mixer's head) is lifted open (``open_hinge``)."""
+    """A part the worker says lifting opens (the mixer's head) is lifted open (``open_hinge``), however open it
+    reads; a lift that is neither "opens" nor "shuts" is refused."""
     from scenes.robocasa import privileged_state
     from scenes.robocasa.oracle import RoboCasaOracle
     from tests.scenes.robocasa.test_oracle_mixer_head import _raw as head_raw
 
-    o = RoboCasaOracle()
+    o, door = RoboCasaOracle(), RoboCasaOracle()
     o.action(privileged_state(head_raw()))
-    assert o._lift_shuts is False and o.phase == "drive"
+    door.action(privileged_state({**head_raw(), "hinge_lift": "shuts"}))  # the same part, read as a door
+    # both drive first; the head's plan stands the edge AHEAD out, the door's DOOR_AHEAD (farther)
+    assert o.phase == door.phase == "drive" and o._base_goal[0] > door._base_goal[0] + 0.05
+    with pytest.raises(ValueError, match="SceneFacts.lift"):
+        privileged_state({**head_raw(), "hinge_lift": True})
 
 
 def test_certify_scripts_closing_the_toaster_oven_door():
