@@ -6,13 +6,25 @@ import pytest
 
 
 @pytest.fixture(scope="session")
-def placeholder_tree(tmp_path_factory):
-    """The tree, written once per process: pytest-xdist's ``--dist loadfile`` interleaves this package's files with
-    others', so a package-scoped tree was torn down and written again between them (about 6 s each time)."""
+def placeholder_tree(request, tmp_path_factory):
+    """The tree, written once per test run: pytest-xdist's ``--dist loadfile`` interleaves this package's files with
+    others', so a package-scoped tree was torn down and written again between them (about 6 s each time), and each
+    worker process wrote its own; under xdist the workers share one, written by whichever asks first (a file lock in
+    the run's temporary folder, which the workers' own folders sit in)."""
+    from filelock import FileLock
+
     from scenes.robocasa.placeholders import write_placeholders
 
-    root = tmp_path_factory.mktemp("robocasa_assets")
-    write_placeholders(root)
+    if getattr(request.config, "workerinput", None) is None:  # one process: its own tree
+        root = tmp_path_factory.mktemp("robocasa_assets")
+        write_placeholders(root)
+        return root
+    run = tmp_path_factory.getbasetemp().parent  # this run's folder, shared by its workers
+    root, done = run / "robocasa_assets", run / "robocasa_assets.written"
+    with FileLock(str(run / "robocasa_assets.lock")):
+        if not done.exists():
+            write_placeholders(root)
+            done.touch()
     return root
 
 
