@@ -89,14 +89,13 @@ def test_a_noop_episode_on_turn_on_blender_runs_300_steps(placeholders, tmp_path
 @pytest.mark.slow  # ~30 s of CPU (900 RoboCasa steps); the 300-step episode above runs by default
 def test_a_noop_episode_on_pick_place_sink_to_counter_runs_900_steps(placeholders):
     """robocasa/utils/dataset_registry.py registers PickPlaceSinkToCounter's horizon as 900 (the old flat 500
-    cut it 400 steps short). Its env at a 3 cm step: on the placeholder tree the sink's region less RoboCasa's buffer
-    holds neither the task's own five 4 cm windows nor a step the plan accepts (over 4 cm), so ``evaluate`` runs no
-    episode of it (docs/results/robocasa_pick_regions.md)."""
+    cut it 400 steps short). Level 0 at the task's own step: a narrow sink kitchen narrows its own window, so the
+    plan accepts it (a 3 cm step is refused: level 1's window would overlap level 0's)."""
     import numpy as np
 
     from tests.fixtures.levels import level_env
 
-    env = level_env("robocasa", task="PickPlaceSinkToCounter", axis="pick_x", step=0.03, cameras=())
+    env = level_env("robocasa", task="PickPlaceSinkToCounter", axis="pick_x", cameras=())
     try:
         env.reset(seed=0)
         steps, done = 0, False
