@@ -10,8 +10,9 @@ pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
 lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
-the base drives to the object, then holding it to the place point; run, not listed: the cheese onto the bread
-(CheesyBread) and counter to stand mixer over the bowl's rim), a press:
+the base drives to the object, then holding it to the place point: the cheese onto the bread (CheesyBread, over
+what stands between them, ``oracle_carry`` keeping the hand off the bread), and, run but not listed, counter to
+stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
 standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), its power lever pressed down
@@ -62,8 +63,9 @@ CRAMPED = 0.25
 # grip site stalled 2.8 cm short of the bread's centre, the cheese let go on its near edge fell off)
 CRAMPED_TILT = 1.0
 # m ahead of the base the tipped hand grasps from (nearer, the base backs off first: at 0.26 m the hand stalled
-# 23 cm over the cheese, at 0.40 m 3 cm over its centre, holding it by its top edge, and lost it in 2 of 17
-# episodes; at 0.50 m it closes 2.3 cm over it) and puts down at most (the drive forward, as far as the room allows)
+# 23 cm over the cheese, at 0.40 m 3 cm over its centre, holding it by its top edge, and lost it in 2 of 18
+# certification episodes; at 0.50 m it closes 2.3 cm over it) and puts down at most (the drive forward, as far as
+# the room allows)
 CRAMPED_REACH = (0.5, 0.45)
 HELD_DRIVE = 0.5  # of full scale: the base's speed while the carry holds the object (over the deadband, 0.25)
 
@@ -72,10 +74,10 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 5  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the carries that drive twice, into the stand mixer's bowl and the cheese onto the bread, fail their first
-    # levels: docs/results/robocasa_oracle.md)
+    # (the carry into the stand mixer's bowl, which drives twice as CheesyBread's does, fails its first levels:
+    # docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -92,6 +94,7 @@ class RoboCasaOracle:
         "CloseElectricKettleLid",
         "CloseToasterOvenDoor",
         "TurnOnElectricKettle",
+        "CheesyBread",
     )
 
     def __init__(self, gain: float = 10.0):

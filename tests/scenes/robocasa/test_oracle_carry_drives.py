@@ -188,8 +188,8 @@ def test_the_worker_names_cheesy_breads_pick_object_as_the_pick_x_regions_do():
 @needs_venv
 @pytest.mark.slow  # ~45 s: one oracle episode; test_the_carry_drives_to_the_pick_object_then_with_it_to_the_place_point keeps the drives
 def test_the_oracle_puts_the_cheese_on_the_bread(placeholders):
-    """pick_x level 1 episode 0 (a success of the certification run in docs/results, 303 steps): both drives, the
-    bread under a wall cabinet. The script is not listed (level 0's episode 0 fails: docs/results)."""
+    """pick_x level 1 episode 0 (a success of the certification runs in docs/results, 303 steps): both drives, the
+    bread under a wall cabinet."""
     assert _oracle_episodes("CheesyBread", "pick_x", 1, (0,), None) == [True]
 
 
@@ -205,10 +205,11 @@ def test_the_oracle_puts_the_cheese_on_the_bread_past_the_coffee_machine_and_bes
     assert _oracle_episodes("CheesyBread", "pick_x", 3, (0,), None) == [True]
 
 
-def test_certify_scripts_neither_carry_that_drives_twice():
-    """CheesyBread and PickPlaceCounterToStandMixer fail certification's first level (docs/results): their levels
-    stay no_oracle rather than failed."""
+def test_certify_scripts_the_cheese_and_not_the_mixer_bowl():
+    """CheesyBread is listed since oracle v5 (25 of 28 episodes under ``certify --episodes 8``, each failure explained
+    in docs/results); PickPlaceCounterToStandMixer fails its first levels, so they stay no_oracle, not failed."""
     from scenes.oracle import oracle_scripts
+    from scenes.robocasa.oracle import RoboCasaOracle
 
-    assert not oracle_scripts("robocasa", "CheesyBread")
+    assert oracle_scripts("robocasa", "CheesyBread") and RoboCasaOracle.version >= 5
     assert not oracle_scripts("robocasa", "PickPlaceCounterToStandMixer")
