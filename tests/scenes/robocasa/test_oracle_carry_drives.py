@@ -194,7 +194,7 @@ def test_the_oracle_puts_the_cheese_on_the_bread(placeholders):
 
 
 @needs_venv
-@pytest.mark.slow  # ~4 min: four oracle episodes; the three default tests above keep each fix
+@pytest.mark.slow  # ~3 min: four oracle episodes; the default tests above keep each fix
 def test_the_oracle_puts_the_cheese_on_the_bread_past_the_coffee_machine_and_beside_it(placeholders):
     """The certification episodes the 2026-11-28 run failed (docs/results): pick_x level 0 episode 0 (the coffee
     machine between the cheese and the bread), level 2 episode 0 (the bread beside the cheese: the sideways tip),
