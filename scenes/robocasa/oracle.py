@@ -56,9 +56,10 @@ TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertica
 UNDER_TILT = 0.35
 # m between the place point and what hangs over it under which a carry that drives twice (carry_drives) grasps
 # tipped, as into a cabinet: the bread under a wall cabinet (CheesyBread, 0.23 m; UNDER_TILT left the wrist on the
-# cabinet's bottom); the coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x
-# levels 0 and 4), but that carry does not drive and keeps UNDER_TILT
-CRAMPED = 0.25
+# cabinet's bottom; at 0.277 m, over 0.25, the hand pointing down stalled 16 cm short of a bread 0.60 m out); the
+# coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x levels 0 and 4), but
+# that carry does not drive and keeps UNDER_TILT
+CRAMPED = 0.3
 # radians the hand tips there: at TILT the wrist met the wall cabinet's door 0.16 m in front of the bread (its
 # grip site stalled 2.8 cm short of the bread's centre, the cheese let go on its near edge fell off)
 CRAMPED_TILT = 1.0

@@ -66,9 +66,9 @@ def test_under_a_low_wall_cabinet_the_hand_grasps_tipped_with_the_fingers_across
     and ``UNDER_TILT`` after the grasp only: its carry does not drive."""
     from scenes.oracle import R_DOWN
     from scenes.robocasa import privileged_state
-    from scenes.robocasa.oracle import CRAMPED, CRAMPED_TILT, HAND_ROOM, RoboCasaOracle
+    from scenes.robocasa.oracle import CRAMPED, CRAMPED_REACH, CRAMPED_TILT, HAND_ROOM, RoboCasaOracle
 
-    assert 0.23 < CRAMPED < HAND_ROOM
+    assert 0.277 < CRAMPED < HAND_ROOM
     assert np.allclose(R_DOWN[:, 0], [0.0, 1.0, 0.0])  # the untwisted fingers slide along the base's y
     o = RoboCasaOracle()
     s = privileged_state({**_cheesy(), "obj_quat": [np.cos(0.3), 0, 0, np.sin(0.3)]})
@@ -76,6 +76,10 @@ def test_under_a_low_wall_cabinet_the_hand_grasps_tipped_with_the_fingers_across
     assert o.phase == "drive" and o._twist == 0.0
     fingers = o._hand(s, CRAMPED_TILT, o._twist)[:, 0]
     assert abs(fingers[2]) < 1e-9  # level while tipped
+    # pick_x level 4 episode 6: a cabinet 0.277 m over the bread, pointing down the hand stalled 16 cm short of it
+    higher = RoboCasaOracle()
+    higher.action(privileged_state({**_cheesy(), "place_ceiling": 1.148 + 0.277}))
+    assert higher._twist == 0.0 and np.allclose(higher._base_goal, [0.25 - CRAMPED_REACH[0], 0.4])
     # as low over the counter (0.235 m at some seeds), but a carry that does not drive
     coffee = RoboCasaOracle()
     c = privileged_state({**_cheesy(), "place_ceiling": 1.148 + 0.235, "obj_quat": s.pick.quat_wxyz,
