@@ -10,8 +10,9 @@ pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
 lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
-the base drives to the object, then holding it to the place point; run, not listed: the cheese onto the bread
-(CheesyBread) and counter to stand mixer over the bowl's rim), a press:
+the base drives to the object, then holding it to the place point: the cheese onto the bread (CheesyBread, over
+what stands between them, ``oracle_carry`` keeping the hand off the bread), and, run but not listed, counter to
+stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
 button (the blender's power button, the kettle's lid button: pressed, then left straight up), the electric kettle's
 standing lid, swept shut from behind and pressed down (``oracle_fixtures.close_lid``), its power lever pressed down
@@ -31,6 +32,7 @@ from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
+from scenes.robocasa.oracle_carry import clear_twist, side_turn
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 from scenes.robocasa.oracle_lever import press_lever
 from scenes.robocasa.oracle_lift import lift_hinge
@@ -54,15 +56,18 @@ TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertica
 UNDER_TILT = 0.35
 # m between the place point and what hangs over it under which a carry that drives twice (carry_drives) grasps
 # tipped, as into a cabinet: the bread under a wall cabinet (CheesyBread, 0.23 m; UNDER_TILT left the wrist on the
-# cabinet's bottom); the coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x
-# levels 0 and 4), but that carry does not drive and keeps UNDER_TILT
-CRAMPED = 0.25
+# cabinet's bottom; at 0.277 m, over 0.25, the hand pointing down stalled 16 cm short of a bread 0.60 m out); the
+# coffee machine's button is as low (0.235-0.313 m over the counter, CoffeeSetupMug pick_x levels 0 and 4), but
+# that carry does not drive and keeps UNDER_TILT
+CRAMPED = 0.3
 # radians the hand tips there: at TILT the wrist met the wall cabinet's door 0.16 m in front of the bread (its
 # grip site stalled 2.8 cm short of the bread's centre, the cheese let go on its near edge fell off)
 CRAMPED_TILT = 1.0
 # m ahead of the base the tipped hand grasps from (nearer, the base backs off first: at 0.26 m the hand stalled
-# 23 cm over the cheese) and puts down at most (the drive forward, as far as the room allows)
-CRAMPED_REACH = (0.4, 0.45)
+# 23 cm over the cheese, at 0.40 m 3 cm over its centre, holding it by its top edge, and lost it in 2 of 18
+# certification episodes; at 0.50 m it closes 2.3 cm over it) and puts down at most (the drive forward, as far as
+# the room allows)
+CRAMPED_REACH = (0.5, 0.45)
 HELD_DRIVE = 0.5  # of full scale: the base's speed while the carry holds the object (over the deadband, 0.25)
 
 
@@ -70,10 +75,10 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 4  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 5  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
-    # (the carries that drive twice, into the stand mixer's bowl and the cheese onto the bread, fail their first
-    # levels: docs/results/robocasa_oracle.md)
+    # (the carry into the stand mixer's bowl, which drives twice as CheesyBread's does, fails its first levels:
+    # docs/results/robocasa_oracle.md)
     tasks = (
         "PickPlaceCounterToCabinet",
         "PickPlaceCabinetToCounter",
@@ -90,6 +95,7 @@ class RoboCasaOracle:
         "CloseElectricKettleLid",
         "CloseToasterOvenDoor",
         "TurnOnElectricKettle",
+        "CheesyBread",
     )
 
     def __init__(self, gain: float = 10.0):
@@ -110,6 +116,7 @@ class RoboCasaOracle:
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
         self._drove = False  # the carry's base phase was planned (run or not needed)
+        self._turn = 0.0  # the cramped grasp's sideways tip (oracle_carry.side_turn), back to 0 once lifted
         self.seed = seed
 
     def close(self) -> None:
@@ -124,12 +131,12 @@ class RoboCasaOracle:
         return self.action(s)[None, None, :].astype(np.float32)
 
     # ---- motion ------------------------------------------------------------------------------
-    def _hand(self, s: PrivilegedState, tilt: float, twist: float = 0.0) -> np.ndarray:
-        """The grip site's world orientation: pointing down, tipped toward the base's +x by ``tilt``, turned about
-        its own approach axis by ``twist``."""
+    def _hand(self, s: PrivilegedState, tilt: float, twist: float = 0.0, turn: float = 0.0) -> np.ndarray:
+        """The grip site's world orientation: pointing down, tipped by ``tilt`` toward the base's +x turned by
+        ``turn`` about the vertical, turned about its own approach axis by ``twist``."""
         c, sn = np.cos(-tilt), np.sin(-tilt)
         pitch = np.array([[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]])
-        return rz(float(s.robot_base[2])) @ pitch @ R_DOWN @ rz(twist)
+        return rz(float(s.robot_base[2]) + turn) @ pitch @ R_DOWN @ rz(twist)
 
     def _grasp_twist(self, s: PrivilegedState) -> float:
         """The twist that closes the fingers (the grip site's x axis: robosuite's panda_gripper.xml fingers slide
@@ -178,14 +185,14 @@ class RoboCasaOracle:
             return True
         return self._count > 12 and bool(np.linalg.norm(s.eef_pos - self._trail[-10]) < 0.002)
 
-    def _descend(self, s: PrivilegedState, p, tilt: float) -> np.ndarray:
+    def _descend(self, s: PrivilegedState, p, tilt: float, hand=None) -> np.ndarray:
         """Straight down to the pick object's grasp height, fingers open (both pick-and-place scripts)."""
         target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
         if self._near(s, target, 0.012) or self._count > 50:
             self._next("grasp")
-        return self._goto(s, target, OPEN, speed=0.5, tilt=tilt)
+        return self._goto(s, target, OPEN, speed=0.5, tilt=tilt, hand=hand)
 
-    def _grasp(self, s: PrivilegedState, p, tilt: float) -> tuple[np.ndarray, bool]:
+    def _grasp(self, s: PrivilegedState, p, tilt: float, hand=None) -> tuple[np.ndarray, bool]:
         """Close the fingers where the hand stopped; True once closed (the hand's height over the object's
         bottom is kept in ``_offset`` for the carry)."""
         if self._hold is None:
@@ -193,7 +200,7 @@ class RoboCasaOracle:
         closed = self._count > 15
         if closed:
             self._offset = float(s.eef_pos[2] - p.bottom)
-        return self._goto(s, self._hold, CLOSED, tilt=tilt), closed
+        return self._goto(s, self._hold, CLOSED, tilt=tilt, hand=hand), closed
 
     def action(self, s: PrivilegedState) -> np.ndarray:
         """One action from the privileged state ``s`` (advances the phase machine)."""
@@ -392,6 +399,9 @@ class RoboCasaOracle:
         if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
             self._carry_z = t.clear_z + CLEARANCE
             self._twist = 0.0 if cramped else self._twist
+            self._turn = side_turn(s) if cramped else 0.0
+            if s.facts.carry_drives and not cramped:
+                self._twist = clear_twist(self, s)
         carry_z = self._carry_z + self._offset
         if self.phase == "lift" and not cramped:
             tilt = min(tilt, 0.03 * self._count)
@@ -409,20 +419,30 @@ class RoboCasaOracle:
         # holding the object: at HELD_DRIVE of full speed (at full speed a cheese grasped near its top slipped out)
         if (a := drive_phase(self, s, CLOSED, "drive_place", "transport", HELD_DRIVE)) is not None:
             return a
+        turned = self._hand(s, grip_tilt, self._twist or 0.0, self._turn)
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:
                 self._next("descend")
-            return self._goto(s, target, OPEN, tilt=grip_tilt)
+            return self._goto(s, target, OPEN, tilt=grip_tilt, hand=turned)
         if self.phase == "descend":
-            return self._descend(s, p, grip_tilt)
+            return self._descend(s, p, grip_tilt, hand=turned)
         if self.phase == "grasp":
-            a, closed = self._grasp(s, p, grip_tilt)
+            a, closed = self._grasp(s, p, grip_tilt, hand=turned)
             if closed:
                 self._next("lift")
             return a
+        if self.phase == "turn":  # lifted, a sideways tip turns back to the heading (the object stays level)
+            self._turn -= np.sign(self._turn) * min(abs(self._turn), 0.05)
+            if self._turn == 0.0 and self._count > 5:
+                self._next("lift")
+            hand = self._hand(s, tilt, 0.0, self._turn)
+            return self._goto(s, [*self._hold[:2], carry_z], CLOSED, hand=hand)
         if self.phase == "lift":
             target = np.array([self._hold[0], self._hold[1], carry_z])
+            if self._turn and self._near(s, target, 0.02) and self._count > 10:
+                self._next("turn")
+                return self._goto(s, target, CLOSED, hand=turned)
             if (self._near(s, target, 0.02) and (not low or self._count > 25)) or self._count > 80:
                 self._next("transport")
                 # held at the carry height: the base drives until the place point is straight ahead (the bread)
@@ -431,9 +451,13 @@ class RoboCasaOracle:
                     self._base_goal, self._base_trail = base_goal(s, [*t.place_xy, 0.0], 0.0, far), []
                     if self._base_goal is not None:
                         self._next("drive_place")
-            return self._goto(s, target, CLOSED, tilt=tilt)
+            return self._goto(s, target, CLOSED, hand=self._hand(s, tilt, self._twist or 0.0, self._turn))
+        # a carry that drives twice sets the object's centre, not the grip site, on the place point: tipped, the
+        # hand holds the cheese 2.5 cm past its centre (set down that far short, it fell off the bread's near edge)
+        held = s.facts.carry_drives and p.touching_gripper
+        aim = t.place_xy + (s.eef_pos[:2] - p.pos[:2] if held else 0.0)
         if self.phase == "transport":
-            target = np.array([*t.place_xy, carry_z])
+            target = np.array([*aim, carry_z])
             if (
                 np.linalg.norm(target - s.eef_pos) < 0.012
                 or (self._near(s, target) and self._count > 60)
@@ -442,7 +466,7 @@ class RoboCasaOracle:
                 self._next("lower")
             return self._goto(s, target, CLOSED, speed=0.6, tilt=tilt)
         if self.phase == "lower":  # the stall (the object resting on the surface) ends it
-            target = np.array([*t.place_xy, t.place_bottom + 0.005 + self._offset])
+            target = np.array([*aim, t.place_bottom + 0.005 + self._offset])
             if (self._near(s, target, 0.01) and self._count > 10) or self._count > 100:
                 self._next("release")
             return self._goto(s, target, CLOSED, speed=0.3, tilt=tilt)

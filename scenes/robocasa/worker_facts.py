@@ -361,8 +361,12 @@ def place_facts(env, task: str) -> dict:
     if task == "CheesyBread":  # the cheese onto the bread's top, its centre (_check_success: their contact)
         bread = np.array(data.body_xpos[env.obj_body_id["bread"]], dtype=np.float64)
         top = bread + np.array([0.0, 0.0, env.objects["bread"].top_offset[2]])
+        cheese = data.body_xpos[env.obj_body_id["cheese"]][:2]
+        skip = ("robot0", "mobilebase0", "gripper0", "cheese")  # the bread and its board stay: they stand too
+        boxes = _collision_boxes(env, lambda name: not name.startswith(skip))
+        over = standing_top(boxes, cheese, top[:2], float(top[2]), env.objects["cheese"].horizontal_radius)
         return {"place_pos": top, "place_ceiling": _ceiling(env, top[:2], float(top[2])),
-                "base_room": base_room(env), "carry_drives": True}  # fmt: skip
+                "place_clear": max(float(top[2]), over), "base_room": base_room(env), "carry_drives": True}  # fmt: skip
     return {}
 
 
@@ -458,6 +462,17 @@ def _ceiling(env, xy, z: float, reach: float = 0.05) -> float | None:
     under = [pos[2] - half[2] for pos, half in _boxes(env)
              if np.all(np.abs(pos[:2] - xy) <= half[:2] + reach) and pos[2] - half[2] > z + 0.02]  # fmt: skip
     return float(min(under)) if under else None
+
+
+def standing_top(boxes, a, b, below: float, reach: float) -> float:
+    """The top of the highest of ``boxes`` (centre, world AABB half sizes) standing on the counter (its bottom under
+    ``below``) over the xy rectangle between ``a`` and ``b``, grown by ``reach`` and 3 cm: what the carry that
+    drives twice takes the object over (CheesyBread's coffee machine between the cheese and the bread); -inf when
+    nothing is."""
+    lo, hi = np.minimum(a, b) - reach - 0.03, np.maximum(a, b) + reach + 0.03
+    tops = [pos[2] + half[2] for pos, half in boxes
+            if pos[2] - half[2] < below and np.all(pos[:2] + half[:2] > lo) and np.all(pos[:2] - half[:2] < hi)]  # fmt: skip
+    return float(max(tops, default=-np.inf))
 
 
 def _covered_from(env, z: float, centre, fwd, near: float) -> float:

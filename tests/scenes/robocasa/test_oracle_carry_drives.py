@@ -66,9 +66,9 @@ def test_under_a_low_wall_cabinet_the_hand_grasps_tipped_with_the_fingers_across
     and ``UNDER_TILT`` after the grasp only: its carry does not drive."""
     from scenes.oracle import R_DOWN
     from scenes.robocasa import privileged_state
-    from scenes.robocasa.oracle import CRAMPED, CRAMPED_TILT, HAND_ROOM, RoboCasaOracle
+    from scenes.robocasa.oracle import CRAMPED, CRAMPED_REACH, CRAMPED_TILT, HAND_ROOM, RoboCasaOracle
 
-    assert 0.23 < CRAMPED < HAND_ROOM
+    assert 0.277 < CRAMPED < HAND_ROOM
     assert np.allclose(R_DOWN[:, 0], [0.0, 1.0, 0.0])  # the untwisted fingers slide along the base's y
     o = RoboCasaOracle()
     s = privileged_state({**_cheesy(), "obj_quat": [np.cos(0.3), 0, 0, np.sin(0.3)]})
@@ -76,12 +76,108 @@ def test_under_a_low_wall_cabinet_the_hand_grasps_tipped_with_the_fingers_across
     assert o.phase == "drive" and o._twist == 0.0
     fingers = o._hand(s, CRAMPED_TILT, o._twist)[:, 0]
     assert abs(fingers[2]) < 1e-9  # level while tipped
+    # pick_x level 4 episode 6: a cabinet 0.277 m over the bread, pointing down the hand stalled 16 cm short of it
+    higher = RoboCasaOracle()
+    higher.action(privileged_state({**_cheesy(), "place_ceiling": 1.148 + 0.277}))
+    assert higher._twist == 0.0 and np.allclose(higher._base_goal, [0.25 - CRAMPED_REACH[0], 0.4])
     # as low over the counter (0.235 m at some seeds), but a carry that does not drive
     coffee = RoboCasaOracle()
     c = privileged_state({**_cheesy(), "place_ceiling": 1.148 + 0.235, "obj_quat": s.pick.quat_wxyz,
                           "base_room": None, "carry_drives": False})  # fmt: skip
     coffee.action(c)
     assert coffee._twist != 0.0  # the square grasp's twist (the turned cheese), not the cramped one
+
+
+def test_the_carry_takes_the_cheese_over_what_stands_between_it_and_the_bread():
+    """pick_x level 0 episode 0 (boxes as the worker read them, rounded): the placeholder coffee machine (top 1.238
+    m) stands between the cheese and the bread; carried 6 cm over the bread's top only, the cheese met the machine's
+    front during the held drive and fell (both the tipped grasp and the back-off failed so). ``standing_top`` counts
+    what stands in the rectangle the cheese crosses, not the wall cabinet over it (its bottom above the bread's
+    top) nor what stands beside it; the carry clears that height by ``CLEARANCE``."""
+    from scenes.robocasa import privileged_state
+    from scenes.robocasa.oracle import CLEARANCE, RoboCasaOracle
+    from scenes.robocasa.worker_facts import standing_top
+
+    cheese, bread = np.array([0.514, -2.621]), np.array([0.392, -2.254, 1.148])
+    machine = (np.array([0.326, -2.427, 1.08]), np.array([0.135, 0.113, 0.157]))  # top 1.237
+    cabinet = (np.array([0.185, -2.188, 1.395]), np.array([0.185, 0.4, 0.015]))  # bottom 1.38, over the bread
+    board = (np.array([0.39, -2.256, 0.974]), np.array([0.049, 0.049, 0.054]))
+    aside = (np.array([0.326, -1.8, 1.2]), np.array([0.1, 0.1, 0.28]))  # 0.45 m past the bread: not crossed
+    top = standing_top([machine, cabinet, board, aside], cheese, bread[:2], bread[2], 0.037)
+    assert top == pytest.approx(1.237)
+    assert standing_top([cabinet, board], cheese, bread[:2], bread[2], 0.037) == pytest.approx(1.028)
+    assert standing_top([], cheese, bread[:2], bread[2], 0.037) == -np.inf
+    o = RoboCasaOracle()
+    o.action(privileged_state(_cheesy(place_clear=top)))
+    assert o._carry_z == pytest.approx(top + CLEARANCE)  # the object's bottom over the machine, not the bread
+
+
+def test_the_cramped_grasp_tips_sideways_away_from_a_bread_beside_it():
+    """pick_x level 2 episode 0: the bread 6 cm nearer the base than the cheese and 9 cm to its left; tipped
+    forward (or pointing down) the hand came down on the bread 14 cm over the cheese and pushed it away. The hand
+    tips a quarter turn toward the left instead (its body to the right of the cheese, the fingers level), then,
+    lifted, turns back to the heading a step at a time; a bread far ahead (level 0 episode 2's) keeps the forward
+    tip, and one to the right turns the hand the other way."""
+    from scenes.robocasa import privileged_state
+    from scenes.robocasa.oracle import CRAMPED_TILT, RoboCasaOracle
+    from scenes.robocasa.oracle_carry import side_turn
+
+    beside = _cheesy(obj_pos=[0.37, 0.069, 0.954], place_pos=[0.314, 0.159, 1.148])
+    assert side_turn(privileged_state(_cheesy())) == 0.0
+    assert side_turn(privileged_state(beside)) == pytest.approx(np.pi / 2)
+    mirrored = _cheesy(obj_pos=[0.37, -0.069, 0.954], place_pos=[0.314, -0.159, 1.148])
+    assert side_turn(privileged_state(mirrored)) == pytest.approx(-np.pi / 2)
+    o = RoboCasaOracle()
+    s = privileged_state(beside)
+    o.action(s)
+    hand = o._hand(s, CRAMPED_TILT, o._twist, o._turn)
+    assert o._turn == pytest.approx(np.pi / 2) and abs(hand[2, 0]) < 1e-9  # the fingers level
+    assert hand[1, 2] > 0.8 and abs(hand[0, 2]) < 1e-9  # pointing down and to the left, not forward
+    # lifted to the carry height: the turn phase, then back to lift, the hand tipped along the heading again
+    o.phase, o._count, o._hold, o._offset = "lift", 20, np.array([0.37, 0.069, 0.97]), 0.04
+    up = privileged_state({**beside, "eef_pos": [0.37, 0.069, o._carry_z + 0.04]})
+    o._trail = [up.eef_pos] * 10
+    o.action(up)
+    assert o.phase == "turn"
+    for _ in range(40):
+        o.action(up)
+    assert o.phase == "lift" and o._turn == 0.0
+
+
+def test_pointing_down_the_fingers_close_along_the_line_to_a_bread_beside_the_cheese():
+    """pick_x level 4 episode 2 (no wall cabinet: the hand points down): the bread 6 cm farther and 10 cm to the left
+    of the cheese; the square grasp's smaller twist spread the fingers across the line to it and the hand stalled on
+    the bread's top 15 cm over the cheese. ``clear_twist`` grasps the square cheese across its other sides, the
+    fingers along that line; a bread far away keeps the square grasp's twist."""
+    from scenes.robocasa import privileged_state
+    from scenes.robocasa.oracle import RoboCasaOracle
+
+    beside = _cheesy(obj_pos=[0.247, -0.236, 0.954], place_pos=[0.308, -0.138, 1.148], place_ceiling=None,
+                     obj_quat=[0.155, 0, 0, 0.988], obj_half_extents=[0.026, 0.026, 0.034])  # fmt: skip
+    o = RoboCasaOracle()
+    s = privileged_state(beside)
+    square = o._grasp_twist(s)
+    o.action(s)
+    fingers = o._hand(s, 0.0, o._twist)[:2, 0]
+    assert abs(abs(o._twist - square) - np.pi / 2) < 1e-9 and abs(fingers[0]) > 0.9  # along the heading
+    far = RoboCasaOracle()
+    far.action(privileged_state({**beside, "place_pos": [0.6, 0.0, 1.148]}))
+    assert far._twist == square
+
+
+def test_a_carry_that_drives_sets_the_objects_centre_on_the_place_point():
+    """pick_x level 3 episode 0: the tipped hand holds the cheese 2.5 cm past its centre; aiming the grip site at
+    the bread's centre set the cheese 3 cm short, 4 mm inside the bread's near edge, and it fell off as the hand
+    backed out. The carry that drives aims the object's centre there; one that does not aims the grip site."""
+    from scenes.robocasa import privileged_state
+    from scenes.robocasa.oracle import RoboCasaOracle
+
+    held = {**_cheesy(), "eef_pos": [0.55, 0.0, 1.28], "obj_pos": [0.525, 0.0, 1.25], "obj_touching": True}
+    for drives, aim in ((True, [0.625, 0.0]), (False, [0.6, 0.0])):
+        o = RoboCasaOracle()
+        o.phase, o._carry_z, o._offset, o._twist = "transport", 1.208, 0.06, 0.0
+        a = o.action(privileged_state({**held, "carry_drives": drives}))
+        assert np.allclose(a[:2], np.clip(o.gain * (np.array(aim) - [0.55, 0.0]), -0.6, 0.6))
 
 
 def test_the_worker_names_cheesy_breads_pick_object_as_the_pick_x_regions_do():
@@ -96,15 +192,28 @@ def test_the_worker_names_cheesy_breads_pick_object_as_the_pick_x_regions_do():
 @needs_venv
 @pytest.mark.slow  # ~45 s: one oracle episode; test_the_carry_drives_to_the_pick_object_then_with_it_to_the_place_point keeps the drives
 def test_the_oracle_puts_the_cheese_on_the_bread(placeholders):
-    """pick_x level 1 episode 0 (a success of the certification run in docs/results, 303 steps): both drives, the
-    bread under a wall cabinet. The script is not listed (level 0's episode 0 fails: docs/results)."""
+    """pick_x level 1 episode 0 (a success of the certification runs in docs/results, 303 steps): both drives, the
+    bread under a wall cabinet."""
     assert _oracle_episodes("CheesyBread", "pick_x", 1, (0,), None) == [True]
 
 
-def test_certify_scripts_neither_carry_that_drives_twice():
-    """CheesyBread and PickPlaceCounterToStandMixer fail certification's first level (docs/results): their levels
-    stay no_oracle rather than failed."""
-    from scenes.oracle import oracle_scripts
+@needs_venv
+@pytest.mark.slow  # ~3 min: four oracle episodes; the default tests above keep each fix
+def test_the_oracle_puts_the_cheese_on_the_bread_past_the_coffee_machine_and_beside_it(placeholders):
+    """The certification episodes the 2026-11-28 run failed (docs/results): pick_x level 0 episode 0 (the coffee
+    machine between the cheese and the bread), level 2 episode 0 (the bread beside the cheese: the sideways tip),
+    level 3 episode 0 (the cheese's centre on the bread's), and level 0 episode 2 (the bread 0.6 m ahead under the
+    wall cabinet), which the tipped grasp already solved."""
+    assert _oracle_episodes("CheesyBread", "pick_x", 0, (0, 2), None) == [True, True]
+    assert _oracle_episodes("CheesyBread", "pick_x", 2, (0,), None) == [True]
+    assert _oracle_episodes("CheesyBread", "pick_x", 3, (0,), None) == [True]
 
-    assert not oracle_scripts("robocasa", "CheesyBread")
+
+def test_certify_scripts_the_cheese_and_not_the_mixer_bowl():
+    """CheesyBread is listed since oracle v5 (25 of 28 episodes under ``certify --episodes 8``, each failure explained
+    in docs/results); PickPlaceCounterToStandMixer fails its first levels, so they stay no_oracle, not failed."""
+    from scenes.oracle import oracle_scripts
+    from scenes.robocasa.oracle import RoboCasaOracle
+
+    assert oracle_scripts("robocasa", "CheesyBread") and RoboCasaOracle.version >= 5
     assert not oracle_scripts("robocasa", "PickPlaceCounterToStandMixer")

@@ -128,7 +128,7 @@ def test_certify_scripts_closing_the_toaster_oven_door():
     from scenes.oracle import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
-    assert oracle_scripts("robocasa", "CloseToasterOvenDoor") and RoboCasaOracle.version == 4
+    assert oracle_scripts("robocasa", "CloseToasterOvenDoor") and RoboCasaOracle.version >= 4  # listed in v4
 
 
 @needs_venv
