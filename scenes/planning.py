@@ -68,6 +68,11 @@ class SceneLevels:
         """The family's action size (``EnvSpec.action_dim``: 7 on the tabletop families, 12 on RoboCasa365)."""
         return int(self.family().env_spec.action_dim)
 
+    def check_ready(self) -> None:
+        """Raise the family's one-line missing-install or missing-assets ``SceneError`` (e.g. LIBERO's asset tree)
+        before any environment is built; resolving names, axes and levels never needs it."""
+        self.family().check_ready()
+
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
@@ -203,8 +208,8 @@ def _resolve(
     )
     from scenes.oracle import oracle_scripts
 
+    # names, axes and levels only: no assets needed (building an env does: SceneLevels.check_ready)
     sc = get_scene(scene)
-    sc.check_ready()  # e.g. LIBERO's assets: one line saying how to get them
     refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups
     for ref in refs:  # every component one of the scene's axes, before select_tasks reads the axes
         sc.check_axis(ref)

@@ -31,3 +31,53 @@ def pytest_runtest_setup(item):
         gc.collect()
         gc.freeze()
         _frozen_at = len(sys.modules)
+
+
+REAL_ASSETS_SKIP = (
+    "LIBERO's complete asset tree is not installed: run 'make libero' or 'indgen setup libero' ('make test' does)"
+)
+
+
+def complete_libero_tree():
+    """Where ``indgen setup libero`` installed LIBERO's complete tree (its listing is the wheels'), else None: the
+    tree every ``real_assets`` test runs on."""
+    from scenes.libero.assets import tree_identity
+    from scenes.libero.setup import COMPLETE_TREE, default_dest
+
+    root = default_dest()
+    return root if root.is_dir() and tree_identity(root) == COMPLETE_TREE else None
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test on LIBERO's complete tree (it takes the ``real`` fixture) is a ``real_assets`` test wherever it lives."""
+    import pytest
+
+    for item in items:
+        if "real" in getattr(item, "fixturenames", ()) and not item.get_closest_marker("real_assets"):
+            item.add_marker(pytest.mark.real_assets)
+
+
+_real_assets: dict[str, str] = {}  # nodeid -> outcome, in the process that prints the summary (xdist's controller)
+
+
+def pytest_runtest_logreport(report):
+    """Collect the outcome of every ``real_assets`` test (workers' reports reach the controller too)."""
+    if "real_assets" not in report.keywords:
+        return
+    if report.when == "call" or (report.when == "setup" and not report.passed):
+        _real_assets[report.nodeid] = "skipped" if report.skipped else report.outcome
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Say how many tests ran on LIBERO's complete tree, and where that tree was: a fresh machine's ``make test``
+    installs it under its own home, so the line shows which tree the tests used."""
+    if not _real_assets:
+        return
+    ran = sum(v != "skipped" for v in _real_assets.values())
+    failed = sum(v == "failed" for v in _real_assets.values())
+    tree = complete_libero_tree()
+    where = f" on {tree}" if tree is not None else ""
+    line = f"LIBERO real-asset tests: {ran} ran{where} ({failed} failed), {len(_real_assets) - ran} skipped"
+    if ran < len(_real_assets):
+        line += f" ({REAL_ASSETS_SKIP})"
+    terminalreporter.write_line(line)

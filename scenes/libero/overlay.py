@@ -86,3 +86,10 @@ def collision_suspects(filled: list[str]) -> list[str]:
     """Filled meshes that are not named as visual-only (LIBERO keeps visuals in ``visual/`` or ``*_vis.*``)."""
     meshes = [p for p in filled if Path(p).suffix.lower() in (".msh", ".stl", ".obj")]
     return [p for p in meshes if "/visual/" not in f"/{p}" and "_vis." not in Path(p).name]
+
+
+# a command moved into `indgen setup`: say so, never exit 0 having written nothing
+if __name__ == "__main__":
+    raise SystemExit(
+        "error: 'python -m scenes.libero.overlay' was moved; run 'indgen setup libero --overlay SRC --dest DST'"
+    )

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -54,7 +55,7 @@ def find_python(required: bool = True) -> Path | None:
             return p
         if required:
             raise SceneError(
-                f"${PYTHON_ENV}={explicit} is not an interpreter; unset it or run 'indgen setup robocasa'"
+                f"${PYTHON_ENV}={explicit} is not an interpreter; run 'indgen setup robocasa' and unset it"
             )
         return None
     v = venv_dir()
@@ -69,19 +70,33 @@ def find_python(required: bool = True) -> Path | None:
     return None
 
 
-def find_python312() -> str:
-    """A Python 3.12 interpreter, found as the Makefile finds it: pyenv's, python3.12 on PATH, a pyenv install."""
+PROBE_312 = "import sys; assert sys.version_info[:2] == (3, 12); print(sys._base_executable)"
+
+
+def python312_candidates() -> list[str]:
+    """Where a Python 3.12 may be, in the Makefile's order (``scripts/find_python312.sh``)."""
+    out = []
     if shutil.which("pyenv"):
         r = subprocess.run(["pyenv", "which", "python3.12"], capture_output=True, text=True)
+        out.append(r.stdout.strip() if r.returncode == 0 else "")
+    out.append(shutil.which("python3.12") or "")
+    for root in (os.environ.get("PYENV_ROOT"), "~/.pyenv"):
+        if root:
+            found = Path(root).expanduser().glob("versions/3.12*/bin/python3.12")
+            out += [str(p) for p in sorted(found, key=lambda p: [int(x) for x in re.findall(r"\d+", p.parts[-3])],
+                                           reverse=True)]  # fmt: skip
+    return [*out, "/usr/local/bin/python3.12", "/usr/bin/python3.12", sys.executable]
+
+
+def find_python312() -> str:
+    """A Python 3.12 interpreter that runs: each candidate is tried, so a pyenv shim whose global version is not
+    3.12 is passed over, and the real executable (not a shim or a venv's link) is returned."""
+    for cand in python312_candidates():
+        if not cand or not Path(cand).is_file():
+            continue
+        r = subprocess.run([cand, "-c", PROBE_312], capture_output=True, text=True)
         if r.returncode == 0 and r.stdout.strip():
             return r.stdout.strip()
-    if shutil.which("python3.12"):
-        return shutil.which("python3.12")
-    found = sorted(Path("~/.pyenv/versions").expanduser().glob("3.12*/bin/python3.12"))
-    if found:
-        return str(found[-1])
-    if sys.version_info[:2] == (3, 12):
-        return sys.executable
     raise ConfigError(
         "Python 3.12 not found; install it (e.g. 'pyenv install 3.12') and re-run 'indgen setup robocasa'"
     )
@@ -227,8 +242,8 @@ def _missing(p: Path) -> str:
 
 def _hint() -> str:
     return (
-        f"download them with RoboCasa's own script in the RoboCasa venv ('{venv_dir() / 'bin' / 'python'} -m "
-        f"robocasa.scripts.download_kitchen_assets'; it writes into {venv_assets()}, where indgen finds them, or set "
-        f"{ASSETS_ENV}=DIR for a tree elsewhere), or for smoke runs write placeholders with "
-        f"'indgen setup robocasa --placeholders {default_assets()}'"
+        f"for smoke runs write placeholders with 'indgen setup robocasa --placeholders {default_assets()}'; for "
+        f"the real kitchens run 'indgen setup robocasa' and then RoboCasa's own download in that venv ('"
+        f"{venv_dir() / 'bin' / 'python'} -m robocasa.scripts.download_kitchen_assets'; it writes into "
+        f"{venv_assets()}, where indgen finds them), or set {ASSETS_ENV}=DIR for a tree elsewhere"
     )

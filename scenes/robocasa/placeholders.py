@@ -38,3 +38,10 @@ def summary(counts: dict) -> str:
     written, present = sum(counts["written"].values()), sum(counts["present"].values())
     return (f"{counts['total']} files: {written} placeholders written, {present} already there ({detail}), "
             f"{counts['package']} from RoboCasa's package")  # fmt: skip
+
+
+# a command moved into `indgen setup`: say so, never exit 0 having written nothing
+if __name__ == "__main__":
+    raise SystemExit(
+        "error: 'python -m scenes.robocasa.placeholders' was moved; run 'indgen setup robocasa --placeholders DIR'"
+    )

@@ -15,6 +15,18 @@ def mini(tmp_path_factory):
     yield from libero_tree(root, tmp_path_factory.mktemp("indgen_cache"))
 
 
+@pytest.fixture(scope="module")
+def real(tmp_path_factory):
+    """Point indgen at LIBERO's complete tree where ``indgen setup libero`` installs it (the wheels' listing), or skip
+    with the reason; a test that takes this fixture is a ``real_assets`` test (tests/conftest.py counts them)."""
+    from tests.conftest import REAL_ASSETS_SKIP, complete_libero_tree
+
+    root = complete_libero_tree()
+    if root is None:
+        pytest.skip(REAL_ASSETS_SKIP)
+    yield from libero_tree(root, tmp_path_factory.mktemp("cache"))
+
+
 def libero_tree(root, cache):
     """While the fixture lasts, indgen reads LIBERO's assets from ``root`` and caches into ``cache`` (and a private
     LIBERO config dir); the variables are restored after."""

@@ -10,24 +10,11 @@ import os
 import pytest
 
 from tests.fixtures.levels import level_env
-from tests.scenes.conftest import libero_tree
 
 pytest.importorskip("libero")
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 SCENE = "libero_object"
-
-
-@pytest.fixture(scope="module")
-def real(tmp_path_factory):
-    """Point indgen at the installed complete tree (the wheels' listing), or skip."""
-    from scenes.libero.assets import tree_identity
-    from scenes.libero.setup import COMPLETE_TREE, default_dest
-
-    root = default_dest()
-    if not root.is_dir() or tree_identity(root) != COMPLETE_TREE:
-        pytest.skip("LIBERO's complete asset tree is not installed ('make libero' / 'indgen setup libero')")
-    yield from libero_tree(root, tmp_path_factory.mktemp("cache"))
 
 
 def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
@@ -73,6 +60,20 @@ def _script(name: str):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+def test_real_assets_level0_and_oracle(real):
+    """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""
+    from indgen_vla.app.certify.run import certify
+
+    env = level_env(SCENE, axis="pick_y", level=0, cameras=("agentview", "wrist"), image_size=(128, 128))
+    try:
+        obs, _ = env.reset(seed=0, options={"episode": 0})
+        assert obs.images["agentview"].std() > 5 and obs.state.shape == (8,)
+    finally:
+        env.close()
+    cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=2)
+    assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
 
 
 def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):

@@ -257,6 +257,7 @@ def prepare(
     rule = Rule(threshold=threshold, n_max=episodes or 0)
     # the family's (and task's) own steps, the levels' range and condition 2, before any episode runs
     plan = resolve_scene_plan(scene, task, (ref,), levels, step, preset, certificates=False)
+    plan.builder.check_ready()
     successor = plan.builder.successor(task, axis)
     spec, lv = successor.axis, list(plan.levels[axis])
     cert = {

@@ -206,6 +206,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         check_object_run(cfg)
     console = Console(stderr=True, quiet=quiet)
     plan = build_plan(cfg)
+    plan.builder.check_ready()  # what building an env needs (LIBERO's assets), after the names and levels
     if (
         cfg.plan.preregistered
     ):  # before anything loads or is written: the lock refuses a deviation in one line

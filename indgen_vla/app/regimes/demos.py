@@ -141,6 +141,7 @@ def plan_cells(
         )
 
     plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.preset)
+    plan.builder.check_ready()
     axis = next(iter(plan.axes))
     failed = [c for c in plan.cells if c.certificate == FAILED]
     if failed:

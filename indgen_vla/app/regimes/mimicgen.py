@@ -185,6 +185,7 @@ def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, 
         axis = where["axis"]
         plan = resolve_scene_plan(scene, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
         builder = plan.builder
+    builder.check_ready()
     return builder.make_env(task, axis, level, cameras=cams, image_size=size, max_steps=None)
 
 

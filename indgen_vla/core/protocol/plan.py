@@ -39,6 +39,10 @@ class LevelBuilder(Protocol):
         """Modules a worker process may import ahead of its first env (a forkserver's preload list)."""
         ...
 
+    def check_ready(self) -> None:
+        """Raise one line naming what building an env here lacks (an asset tree, a venv) and its set-up command."""
+        ...
+
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,

@@ -290,3 +290,19 @@ def test_no_library_package_parses_arguments():
             if "argparse" in names or ("sys.argv" in path.read_text() and rel not in FOREIGN_ENTRY_POINTS):
                 found.append(rel)
     assert found == []
+
+
+@pytest.mark.parametrize(
+    ("module", "command"),
+    [
+        ("scenes.robocasa.placeholders", "indgen setup robocasa --placeholders DIR"),
+        ("scenes.libero.overlay", "indgen setup libero --overlay SRC --dest DST"),
+    ],
+)
+def test_a_moved_command_module_fails_naming_its_new_command(tmp_path, module, command):
+    """Modules that were commands before the asset tools became ``indgen setup`` options exit non-zero with one line
+    naming the command (they exited 0 having written nothing), and write nothing."""
+    r = subprocess.run([sys.executable, "-m", module, str(tmp_path / "dst")], capture_output=True, text=True,
+                       cwd=Path(__file__).resolve().parents[4], timeout=120)  # fmt: skip
+    assert r.returncode != 0 and r.stderr.strip().splitlines()[-1].endswith(f"run '{command}'"), r.stderr
+    assert not (tmp_path / "dst").exists()
