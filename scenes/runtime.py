@@ -18,6 +18,7 @@ from typing import Any
 from indgen_vla.core.errors import EpisodeUnavailableError, SceneError
 
 WORKER = Path(__file__).with_name("external_worker.py")
+EXIT_WAIT_S = 10.0  # how long a worker may take to exit (its simulator's close) before it is killed
 
 
 @dataclass(frozen=True)
@@ -55,17 +56,15 @@ class WorkerProcess:
     def request(self, op: str, arg: Any = None) -> Any:
         """Send one request and return its value; ``SceneError`` carries the worker's one-line error
         (``EpisodeUnavailableError`` when the worker says the episode's seed rules the level out)."""
-        data = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
         try:
-            self.proc.stdin.write(struct.pack("<I", len(data)) + data)
-            self.proc.stdin.flush()
+            self._send(op, arg)
             head = self.proc.stdout.read(4)
             if len(head) < 4:
                 raise EOFError
             (n,) = struct.unpack("<I", head)
             status, value = pickle.loads(self.proc.stdout.read(n))
         except (BrokenPipeError, EOFError, OSError):
-            self.proc.wait(timeout=10)
+            self._reap()
             raise WorkerDied(
                 f"the {self.runtime.name} worker (pid {self.proc.pid}) died with exit code {self.proc.returncode}"
                 f"{self._last_log_line()}"
@@ -84,17 +83,27 @@ class WorkerProcess:
             return ""
         return f" (last output: {lines[-1].strip()[:200]})" if lines else ""
 
+    def _send(self, op: str, arg: Any = None) -> None:
+        data = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
+        self.proc.stdin.write(struct.pack("<I", len(data)) + data)
+        self.proc.stdin.flush()
+
+    def _reap(self) -> None:
+        """Wait for the worker to exit; one slower than ``EXIT_WAIT_S`` (a simulator slow to close) is killed."""
+        try:
+            self.proc.wait(timeout=EXIT_WAIT_S)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
     def close(self) -> None:
+        """Ask the worker to exit and reap it, whatever state it is in: never raises for a slow or dead worker."""
         if self.alive:
             try:
-                self.request("close")
-            except SceneError:
+                self._send("close")  # the worker exits without a reply
+            except OSError:
                 pass
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+            self._reap()
         for s in (self.proc.stdin, self.proc.stdout):
             try:
                 s.close()

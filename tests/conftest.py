@@ -33,9 +33,7 @@ def pytest_runtest_setup(item):
         _frozen_at = len(sys.modules)
 
 
-REAL_ASSETS_SKIP = (
-    "LIBERO's complete asset tree is not installed: run 'make libero' or 'indgen setup libero' ('make test' does)"
-)
+REAL_ASSETS_SKIP = "LIBERO's complete asset tree is not installed: run 'make libero' or 'indgen setup libero' ('make test' does)"
 
 
 def complete_libero_tree():
@@ -57,7 +55,9 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.real_assets)
 
 
-_real_assets: dict[str, str] = {}  # nodeid -> outcome, in the process that prints the summary (xdist's controller)
+_real_assets: dict[
+    str, str
+] = {}  # nodeid -> outcome, in the process that prints the summary (xdist's controller)
 
 
 def pytest_runtest_logreport(report):

@@ -38,10 +38,13 @@ class PolicyError(IndgenError):
 
 
 # Exit codes of ``indgen evaluate`` (docs/cli.md "Exit codes"): 0 every planned episode ok, 2 bad input,
-# EXIT_EPISODE_ERRORS the run finished but some episodes ended ``error``, EXIT_STOPPED the run stopped early
-# (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130).
+# EXIT_EPISODE_ERRORS the run finished but some episodes ended ``error`` (a re-run retries them), EXIT_STOPPED the run
+# stopped early (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130),
+# EXIT_UNAVAILABLE every episode that could run finished, and some were ruled out by their level (``unavailable``:
+# their initial state cannot hold it; nothing to retry).
 EXIT_EPISODE_ERRORS = 3
 EXIT_STOPPED = 4
+EXIT_UNAVAILABLE = 6
 EXIT_SIGTERM = 143  # 128 + SIGTERM, as a shell reports a process that SIGTERM ended
 
 

@@ -155,3 +155,34 @@ def test_a_level_whose_pose_lies_inside_a_neighbour_holds_no_state(real):
                 env.reset(seed=0, options={"episode": i})
     finally:
         env.close()
+
+
+def test_a_run_whose_other_episodes_are_ruled_out_exits_6_and_resumes_nothing(real, tmp_path, capsys):
+    """cream_cheese ``pick_y`` -3 puts the box 12 mm inside the can in every LIBERO state, so the placement check rules
+    each episode out: rows ``unavailable`` (out of n, in report.md's infeasible cells), exit 6 (not 3: nothing to
+    retry), and the same command again runs none of them."""
+    import pandas as pd
+
+    from indgen_vla.app.cli import main
+    from indgen_vla.core.errors import EXIT_UNAVAILABLE
+
+    out = tmp_path / "run"
+    args = ["evaluate", "--policy", "standin:oracle", "--scene", SCENE, "--task", "cream_cheese", "--axis", "pick_y",
+            "--levels=-3", "--episodes", "1", "--allow-infeasible", "--out", str(out)]  # fmt: skip
+    assert main(args) == EXIT_UNAVAILABLE == 6
+    eps = pd.read_parquet(out / "episodes.parquet")
+    assert list(eps["status"]) == ["unavailable"] and eps["error"][0].startswith(
+        "attempt 1: EpisodeUnavailableError"
+    )
+    assert "nothing to retry" in capsys.readouterr().err
+    report = (out / "report.md").read_text()
+    assert (
+        "**Infeasible cells**" in report
+        and "cream_cheese: level -3 × 1" in report
+        and "ruled out by the level" in report
+    )
+    journal = (out / "episodes.jsonl").read_bytes() if (out / "episodes.jsonl").exists() else b""
+    assert main(args) == 6  # resumed: the ruled-out episode is finished, not run again
+    assert len(pd.read_parquet(out / "episodes.parquet")) == 1
+    if journal:
+        assert (out / "episodes.jsonl").read_bytes() == journal

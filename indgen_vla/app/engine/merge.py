@@ -28,6 +28,7 @@ from indgen_vla.core.runs.shards import (
     merged_manifest,
     merged_plan,
     merged_rows,
+    numerics_notes,
     open_shards,
     sharing_setting,
 )
@@ -190,7 +191,7 @@ def merge(
         missing = write_merged(out, manifest, rows, shards)
         run = RunDir.open(out)
     summary = write_run_report(run, float(manifest["config"].get("gamma", 0.2)))
-    return run, summary, _lines(manifest, rows, counts, missing)
+    return run, summary, [*numerics_notes(shards), *_lines(manifest, rows, counts, missing)]
 
 
 def _merged_already(out: Path, shards: Sequence[Shard]) -> RunDir | None:

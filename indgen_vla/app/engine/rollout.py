@@ -256,13 +256,16 @@ def _describe(e: BaseException) -> str:
 def make_record(
     meta: RunMeta, job: EpisodeJob, t: Transition, status: str = "ok", error: str = ""
 ) -> EpisodeRecord:
+    """The episode's row; an error its seed decides (``Transition.final``) is recorded as ``unavailable``."""
+    if status == "error" and t.final:
+        status = "unavailable"
     return EpisodeRecord(
         run_id=meta.run_id, policy=meta.policy, data_regime=meta.data_regime, scene=meta.scene, task=job.task,
         axis=job.axis, level=job.level, param=job.param if t.param is None else float(t.param),
         episode=job.episode, seed=job.seed,
         success=bool(t.success) and status == "ok", steps=int(t.steps), status=status, error=error,
-        wall_s=float(t.wall_s), video=t.video, failure="error" if status == "error" else t.failure,
-        progress=None if status == "error" else t.progress,
+        wall_s=float(t.wall_s), video=t.video, failure=status if status != "ok" else t.failure,
+        progress=None if status != "ok" else t.progress,
     )  # fmt: skip
 
 

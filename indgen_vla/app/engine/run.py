@@ -400,11 +400,25 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
     its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
     go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
-    from indgen_vla.core.protocol.fingerprint import ProtocolMismatchError, differences, show_difference
+    from indgen_vla.core.protocol.fingerprint import (
+        NUMERICS,
+        ProtocolMismatchError,
+        differences,
+        numerics_warning,
+        show_difference,
+    )
 
+    was_numerics = run.manifest["fingerprint"].get(NUMERICS)
+    warning = numerics_warning(was_numerics, now.get(NUMERICS), "resumed")
+    notes = []
+    if warning:  # informational: recorded, so the report of a mixed run can say so
+        changes = run.manifest.get("numerics_changes", [])
+        if not changes or changes[-1].get("now") != now.get(NUMERICS):
+            run.update_manifest(numerics_changes=[*changes, {"was": was_numerics, "now": now.get(NUMERICS)}])
+        notes.append(warning)
     bad = [d for d in differences(run.manifest["fingerprint"], now) if d[3]]
     if not bad:
-        return []
+        return notes
     field, was, is_now, _ = bad[0]
     if not allow:
         more = f" (and {len(bad) - 1} more field(s))" if len(bad) > 1 else ""
@@ -416,7 +430,7 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
         )
     changes = [{"field": f, "was": a, "now": b} for f, a, b, _ in bad]
     run.update_manifest(protocol_changes=[*run.manifest.get("protocol_changes", []), *changes])
-    lines = []
+    lines = notes
     for f, a, b, _ in bad:
         was_text, now_text = show_difference(f, a, b)
         lines.append(f"resumed under another protocol: {f} was {was_text}, now {now_text}")
@@ -426,14 +440,20 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
 def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
     """The run's protocol fingerprint (``indgen_vla.core.protocol.fingerprint``); the render backend is probed only when a
     camera is read."""
-    from indgen_vla.core.protocol.fingerprint import build_fingerprint, policy_conventions
+    from indgen_vla.core.protocol.fingerprint import (
+        NUMERICS,
+        build_fingerprint,
+        numeric_builds,
+        policy_conventions,
+    )
 
     cams = tuple(runner_cfg.cameras)
-    return build_fingerprint(
+    fp = build_fingerprint(
         resolved, package_versions(), max_steps=cfg.plan.max_steps, warmup_steps=cfg.policy.warmup_steps,
         cameras=cams, image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
         policy=policy_conventions(policy.spec, policy),
     )  # fmt: skip
+    return {**fp, NUMERICS: numeric_builds()}
 
 
 def _run_with_progress(

@@ -76,7 +76,7 @@ def fill_copies(plan: EvalPlan, run: RunDir) -> int:
         rec = EpisodeRecord(**row)
         for c in copies(plan, rec, set()):
             have = rows.get(c.key)
-            if have is None or (have["status"] == "error" and rec.status == "ok"):
+            if have is None or (have["status"] == "error" and rec.status != "error"):
                 new.append(c)
     run.append(new)
     return len(new)

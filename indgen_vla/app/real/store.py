@@ -24,7 +24,7 @@ from indgen_vla.core.runs.records import EpisodeRecord, RunDir
 JOURNAL = "journal.jsonl"
 LOCK = ".record.lock"
 KINDS = ("success", "failure", "void", "undo")
-OPERATOR_FAILURES = tuple(m for m in FAILURE_MODES if m not in ("none", "error", "unknown"))
+OPERATOR_FAILURES = tuple(m for m in FAILURE_MODES if m not in ("none", "error", "unknown", "unavailable"))
 FAILURE_HELP = {
     "no_contact": "the gripper never touched the object",
     "no_grasp": "touched the object but never lifted it",

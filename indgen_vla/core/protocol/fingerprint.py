@@ -24,7 +24,10 @@ SIMULATOR_PACKAGES = ("robosuite", "mujoco", "hf-libero", "numpy")
 OUTCOME_FIELDS = ("scene", "family", "simulator", "assets", "horizon", "settle_steps", "initial_states", "cameras",
                   "image_size", "render_backend")  # fmt: skip
 POLICY_FIELD = "policy"
-INFO_FIELDS = ("certificates", "plan_sha256")
+# "numerics": the CPU and builds floating point depends on (``numeric_builds``): outcomes of a neural policy run in
+# this process are bit-equal only where they match (docs/run-directory.md "What is bit-equal across machines")
+INFO_FIELDS = ("certificates", "plan_sha256", "numerics")
+NUMERICS = "numerics"
 NO_RENDER = "none (the policy reads no camera)"
 
 
@@ -76,6 +79,69 @@ def build_fingerprint(
         },
         "plan_sha256": resolved.get("jobs_sha256"),
     }
+
+
+def cpu_isa(flags: set[str] | None = None) -> str:
+    """The instruction set torch's CPU kernels dispatch to on this machine, as ``torch.backends.cpu.
+    get_cpu_capability()`` names it (lower case), read from the CPU's flags so that recording it imports nothing:
+    ATen's rule (``ATEN_CPU_CAPABILITY`` overrides; AVX512 needs avx512vl, bw, dq and fma; AVX2 avx2 and fma)."""
+    import os
+
+    override = os.environ.get("ATEN_CPU_CAPABILITY", "").strip().lower()
+    if override:
+        return override
+    if flags is None:
+        flags = set()
+        try:
+            with open("/proc/cpuinfo") as f:
+                line = next((ln for ln in f if ln.startswith("flags")), "")
+            flags = set(line.split(":", 1)[1].split()) if ":" in line else set()
+        except OSError:
+            return "unknown"
+    if {"avx512vl", "avx512bw", "avx512dq", "fma"} <= flags:
+        return "avx512"
+    if {"avx2", "fma"} <= flags:
+        return "avx2"
+    return "default"
+
+
+def numeric_builds() -> dict[str, Any]:
+    """The machine and builds a run's floating point depends on: the CPU, the instruction set torch's kernels
+    dispatch to there (AVX2, AVX512: a network's last bits differ between them) and torch's build."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
+    except OSError:
+        pass
+    out: dict[str, Any] = {
+        "machine": platform.machine(),
+        "cpu": cpu or platform.processor(),
+        "cpu_isa": cpu_isa(),
+    }
+    try:
+        out["torch"] = version("torch")
+    except PackageNotFoundError:
+        pass
+    return out
+
+
+def numerics_warning(was: Mapping[str, Any] | None, now: Mapping[str, Any] | None, what: str) -> str | None:
+    """One line when two runs' (or a run and its resume's) ``numerics`` differ where a neural policy's outcomes can:
+    the instruction set, torch's build or the machine (another CPU model alone is no warning); None otherwise."""
+    if not was or not now:
+        return None
+    keys = [k for k in ("cpu_isa", "torch", "machine", "cpu") if was.get(k) != now.get(k)]
+    if not set(keys) - {"cpu"}:
+        return None
+    diff = "; ".join(f"{k} {was.get(k)} vs {now.get(k)}" for k in keys)
+    return (
+        f"{what} on other numerics ({diff}): a neural policy's episodes may differ in their last bits and an "
+        "adaptive rule's decisions with them (docs/run-directory.md, 'What is bit-equal across machines')"
+    )
 
 
 def policy_conventions(spec, policy) -> dict[str, Any]:

@@ -39,6 +39,7 @@ FAILURE_MODES = (
     "timeout_holding",
     "unknown",
     "error",
+    "unavailable",  # the initial state could not hold the level (status "unavailable"): no policy failure
 )
 
 

@@ -56,12 +56,19 @@ UNAVAILABLE = (
 )
 
 
+def unavailable_rows(episodes):
+    """Which rows are ruled out by their level: status ``unavailable``, or (runs written before that status) an
+    ``error`` row whose message is an ``EpisodeUnavailableError``."""
+    legacy = (episodes["status"] == "error") & episodes["error"].fillna("").str.contains(UNAVAILABLE)
+    return (episodes["status"] == "unavailable") | legacy
+
+
 def infeasible_entry(episodes) -> dict[str, dict[str, int]]:
     """summary.json's ``infeasible`` of one axis's episodes: {task: {level: episodes whose initial state cannot hold
     the level}} (a RoboCasa placement check or pick window: infeasible cells, excluded from n like every error)."""
     if not len(episodes) or "error" not in episodes:
         return {}
-    bad = episodes[(episodes["status"] == "error") & episodes["error"].fillna("").str.contains(UNAVAILABLE)]
+    bad = episodes[unavailable_rows(episodes)]
     out: dict[str, dict[str, int]] = {}
     for (task, level), n in bad.groupby(["task", "level"]).size().items():
         out.setdefault(str(task), {})[str(int(level))] = int(n)

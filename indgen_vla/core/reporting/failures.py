@@ -13,6 +13,7 @@ UNCLASSIFIED = "unclassified"  # rows of run directories written before the fail
 MODES = (*FAILURE_MODES, UNCLASSIFIED)
 COLOURS = {"none": "#4caf50", "no_contact": "#9e9e9e", "no_grasp": "#ff9800", "dropped": "#e53935",
            "misplaced": "#8e24aa", "timeout_holding": "#1e88e5", "unknown": "#bdbdbd", "error": "#212121",
+           "unavailable": "#f5f5f5",
            UNCLASSIFIED: "#e0e0e0"}  # fmt: skip
 
 

@@ -250,6 +250,11 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
         of = f" of {planned}" if planned else ""
         if planned and planned < MIN_N and hole["n"] >= planned:  # the level is done; the design is too small
             fix = f"every planned episode ran, and under {MIN_N} never give a k*: run --episodes {MIN_N} or more"
+        elif planned and hole["n"] + hole.get("errors", 0) >= planned:  # recorded, some without an outcome
+            fix = (
+                "every planned episode is recorded; a re-run retries those that ended in error, but one ruled out "
+                "by the level (an infeasible cell) stays so: only more --episodes add to n"
+            )
         else:
             fix = "finish it (re-run the same evaluate command: it runs what is missing and retries errors)"
         return f"undetermined: level {signed_level(hole['level'])} has too little data (n = {hole['n']}{of}); {fix}"

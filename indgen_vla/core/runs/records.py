@@ -37,6 +37,12 @@ FLUSH_SHARE = 0.05
 JOURNAL = ".episodes.journal"
 
 
+# an episode's status: "ok" finished (success or failure), "error" a fault a re-run retries, "unavailable" its initial
+# state cannot hold the level (a placement check or pick window rules the seed out: never retried, out of n)
+STATUSES = ("ok", "error", "unavailable")
+FINISHED = ("ok", "unavailable")  # statuses a resume does not run again
+
+
 @dataclass(frozen=True)
 class EpisodeRecord:
     """One finished episode, exactly one row of ``episodes.parquet``."""
@@ -57,15 +63,16 @@ class EpisodeRecord:
     error: str = ""
     wall_s: float = 0.0
     video: str = ""
-    failure: str = ""  # scenes.failure mode ("none" on success, "error" for error rows; "" = not classified)
+    # scenes.failure mode ("none" on success, "error"/"unavailable" for such rows; "" = not classified)
+    failure: str = ""
     # scenes.failure progress 0..5 (indgen_vla.core.reporting.partial_credit.STAGES); None = not scored (stored as missing, never 0)
     progress: int | None = None
     # "" = rolled out for its own axis; else the axis whose level-0 rollout this row copies (T0 run once, plan.shared)
     shared_from: str = ""
 
     def __post_init__(self) -> None:
-        if self.status not in ("ok", "error"):
-            raise ValueError(f"episode status must be 'ok' or 'error', got {self.status!r}")
+        if self.status not in STATUSES:
+            raise ValueError(f"episode status must be one of {', '.join(STATUSES)}, got {self.status!r}")
         if self.progress is not None and (isinstance(self.progress, bool) or self.progress not in range(6)):
             raise ValueError(f"episode progress must be an integer 0..5 or None, got {self.progress!r}")
 
@@ -334,8 +341,9 @@ class RunDir:
         return [dict(r) for r in self._load().values()]
 
     def done_keys(self, include_errors: bool = False) -> set[tuple[str, str, int, int]]:
-        """Keys ``(task, axis, level, episode)`` already finished; error rows are retried unless asked."""
-        return {k for k, r in self._load().items() if include_errors or r["status"] == "ok"}
+        """Keys ``(task, axis, level, episode)`` already finished (``ok`` or ``unavailable``, which its seed decides);
+        error rows are retried unless asked."""
+        return {k for k, r in self._load().items() if include_errors or r["status"] in FINISHED}
 
     def append(self, records: Iterable[EpisodeRecord]) -> None:
         """Add finished episodes (an error row for the same key is replaced) and persist atomically."""
@@ -345,7 +353,7 @@ class RunDir:
             return
         for rec in new:
             old = rows.get(rec.key)
-            if old is not None and old["status"] == "ok":
+            if old is not None and old["status"] in FINISHED:
                 raise RunDirError(
                     f"episode {rec.key} is already recorded in {self.path}; refusing to duplicate it"
                 )

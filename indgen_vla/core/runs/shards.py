@@ -19,7 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError, RunDirError
-from indgen_vla.core.protocol.fingerprint import differences, short, show_difference
+from indgen_vla.core.protocol.fingerprint import (
+    NUMERICS,
+    differences,
+    numerics_warning,
+    short,
+    show_difference,
+)
 from indgen_vla.core.protocol.interface import declared_reads
 from indgen_vla.core.protocol.plan import SHARING_OFF, jobs_sha256, plan_jobs, shared_t0_of, sharing_summary
 from indgen_vla.core.runs.records import KEY, RunDir
@@ -45,7 +51,8 @@ class Shard:
         m, ok = self.manifest, sum(r["status"] == "ok" for r in self.rows)
         return {"path": str(self.path.resolve()), "run_id": m.get("run_id"), "episodes": len(self.rows), "ok": ok,
                 "errors": len(self.rows) - ok, "kept": kept, "tasks": m["plan"]["tasks"], "axes": m["plan"]["axes"],
-                "created": m.get("created"), "git_sha": m.get("git_sha"), "command": m.get("command")}  # fmt: skip
+                "created": m.get("created"), "git_sha": m.get("git_sha"), "command": m.get("command"),
+                "numerics": (m.get("fingerprint") or {}).get(NUMERICS)}  # fmt: skip
 
 
 def open_shards(paths: Sequence[str]) -> list[Shard]:
@@ -130,6 +137,18 @@ def merged_cells(shards: Sequence[Shard], plan: Mapping[str, Any]) -> list[dict[
                                   f"every axis as one run does: evaluate it (--task {task} --axis {axis}, the shards' "
                                   "other flags) and merge again, or merge the shards of that axis alone")  # fmt: skip
     return [cells[(t, a, k)][0] for a in plan["axes"] for t in plan["tasks"] for k in plan["levels"][a]]
+
+
+def numerics_notes(shards: Sequence[Shard]) -> list[str]:
+    """A line per shard that ran on other numerics than the first (``fingerprint.numerics_warning``): informational,
+    as a merge of such shards is allowed; each shard's numerics stay in the merged manifest's ``merged_from``."""
+    first = (shards[0].manifest.get("fingerprint") or {}).get(NUMERICS)
+    lines = []
+    for s in shards[1:]:
+        w = numerics_warning(first, (s.manifest.get("fingerprint") or {}).get(NUMERICS), f"{s.path} ran")
+        if w:
+            lines.append(f"warning: {w}")
+    return lines
 
 
 def check_protocol(shards: Sequence[Shard]) -> None:
@@ -218,9 +237,9 @@ def merged_rows(shards: Sequence[Shard]) -> tuple[list[dict[str, Any]], dict[str
                 kept[key] = (row, i)
                 continue
             old, by = kept[key]
-            if old["status"] != row["status"]:  # an error row is a retry's placeholder: the ok row wins
+            if old["status"] != row["status"]:  # an error row is a retry's placeholder: the finished row wins
                 counts["retried_errors"] += 1
-                if row["status"] == "ok":
+                if row["status"] != "error":
                     kept[key] = (row, i)
             elif old["status"] == "error":
                 counts["retried_errors"] += 1

@@ -210,7 +210,7 @@ def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(pl
     and 0.356 m of it for the object's centre (RoboCasa's buffer, 2.4 cm at each end). At the task's own step level
     1 records a fifth of that, 0.0875, 0.0904 and 0.0711 m (1 and 2 workers alike), and pools to no one parameter;
     at --step 0.09 episode 2's kitchen cannot hold level 4's window (0.36..0.40 m): one error row per level, not
-    retried, and the run exits 3 (finished with error episodes)."""
+    retried, and the run exits 6 (finished; only unavailable episodes besides ok ones)."""
     import pandas as pd
 
     from indgen_vla.app.cli import main
@@ -232,13 +232,11 @@ def test_a_run_records_each_kitchens_offset_and_its_unavailable_episodes_once(pl
     assert own[cols].values.tolist() == two[cols].values.tolist()  # the seed decides, not the worker
     summary = (runs["own"][1] / "summary.json").read_text()
     assert '"param": null' in summary  # level 1: each kitchen's own offset, no one parameter
-    assert (
-        "2 episode(s) ended with errors (see the 'error' column), 2 of them unavailable"
-        in capsys.readouterr().err
-    )
+    err = capsys.readouterr().err
+    assert "note: 2 episode(s) are unavailable" in err and "ended with errors" not in err
     step = pd.read_parquet(runs["step"][1] / "episodes.parquet").sort_values(["level", "episode"])
-    assert runs["step"][0] == 3 and list(step["status"]) == ["ok", "ok", "error"] * 2
-    bad = step[step["status"] == "error"]["error"]
+    assert runs["step"][0] == 6 and list(step["status"]) == ["ok", "ok", "unavailable"] * 2
+    bad = step[step["status"] == "unavailable"]["error"]
     assert (
         bad.str.startswith("attempt 1: EpisodeUnavailableError").all()
         and bad.str.contains("0.404 m range").all()

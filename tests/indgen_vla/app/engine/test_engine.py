@@ -14,6 +14,7 @@ from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
+from indgen_vla.core.runs.records import RunDir
 from scenes.planning import scene_levels
 from tests.fixtures.kill import kill_midway
 
@@ -236,8 +237,9 @@ class _UnavailableLevels:
         return self.inner.describe()
 
 
-def test_an_unavailable_episode_is_one_error_row_and_a_backends_own_param_is_recorded(tmp_path):
-    """An EpisodeUnavailableError at reset is recorded once (no retry: its seed decides it), with its line; an
+def test_an_unavailable_episode_is_one_unavailable_row_and_a_backends_own_param_is_recorded(tmp_path):
+    """An EpisodeUnavailableError at reset is recorded once as ``unavailable`` (no retry: its seed decides it), with
+    its line, and a resume does not run it again; an
     episode whose env reports ``episode_param`` records that, not the plan's parameter. Both loops: the local
     scheduler and the reference ``run_episode`` (Ray)."""
     from indgen_vla.app.engine.rollout import EnvRunner, run_episode
@@ -252,16 +254,22 @@ def test_an_unavailable_episode_is_one_error_row_and_a_backends_own_param_is_rec
     run_local(jobs, rc, _Zeros, RunMeta("r", "test:zeros", "", "pick_place"), records.append,
               workers=1, replan_steps=4, max_retries=2)  # fmt: skip
     by_ep = {r.episode: r for r in records}
-    assert by_ep[1].status == "error" and by_ep[1].error.startswith(
+    assert by_ep[1].status == "unavailable" and by_ep[1].error.startswith(
         "attempt 1: EpisodeUnavailableError: seed"
     )
+    assert by_ep[1].failure == "unavailable" and by_ep[1].progress is None and not by_ep[1].success
+    run = RunDir.create_or_resume(tmp_path / "run", {"run_id": "r", "plan": {}})
+    run.append(records)
+    assert RunDir.open(tmp_path / "run").done_keys() == {
+        r.key for r in records
+    }  # a resume re-runs none of them
     assert resets.count(out) == 1 and by_ep[1].param == 0.0  # not retried; no parameter of its own
     assert len(resets) == 3  # the others ran once each
     for e in (0, 2):
         assert by_ep[e].status == "ok" and by_ep[e].param == 0.5 + jobs[e].seed % 7 / 100
     resets.clear()
     rec = run_episode(EnvRunner(rc), _Zeros(), jobs[1], RunMeta("r", "test:zeros", "", "pick_place"), 4, 2)
-    assert rec.status == "error" and resets == [out] and "attempt 1:" in rec.error
+    assert rec.status == "unavailable" and resets == [out] and "attempt 1:" in rec.error
 
 
 def test_warmup_steps_render_only_the_last_and_change_no_image(monkeypatch):

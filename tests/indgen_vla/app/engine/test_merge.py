@@ -312,3 +312,18 @@ def test_a_merge_stopped_before_its_report_is_finished_by_running_it_again(runs,
     assert "exists and is not empty" in refusal(
         capsys, "merge", shards[0], str(runs / "whole"), "--out", str(out)
     )
+
+
+def test_shards_on_other_numerics_merge_with_a_warning_and_keep_each_shards_numerics(runs, tmp_path, capsys):
+    """A shard run where torch dispatched to another instruction set is the same protocol (merged), but the merge says
+    so in a line and the merged manifest keeps each shard's numerics."""
+
+    def avx2(m: dict) -> None:
+        m["fingerprint"]["numerics"] = {**m["fingerprint"]["numerics"], "cpu_isa": "avx2"}
+
+    other = copy_shard(runs / "scale", tmp_path / "scale_avx2", manifest=avx2)
+    assert main(["merge", str(runs / "pick_y"), str(other), "--out", str(tmp_path / "merged")]) == 0
+    printed = capsys.readouterr().out
+    assert f"warning: {other} ran on other numerics (cpu_isa " in printed and "vs avx2" in printed
+    entries = read(tmp_path / "merged", "manifest.json")["merged_from"]["shards"]
+    assert entries[1]["numerics"]["cpu_isa"] == "avx2" != entries[0]["numerics"]["cpu_isa"]

@@ -219,3 +219,51 @@ def test_two_long_texts_are_shown_from_just_before_they_part():
     was, now = show_difference("initial_states", a, b, width=60)
     assert was == "…" + a[-12:] and now.startswith("…" + a[-12:] + "; RoboCasa365 split pretrain")
     assert show_difference("initial_states", "an older rule", a, width=60)[0] == "an older rule"
+
+
+def test_numerics_warn_where_a_neural_policys_bits_can_differ():
+    """Another instruction set or torch build is a warning; another CPU model alone is none (equal kernels); equal
+    numerics, or a run made before they were recorded, none."""
+    from indgen_vla.core.protocol.fingerprint import numerics_warning
+
+    avx512 = {"machine": "x86_64", "cpu": "AMD EPYC", "cpu_isa": "avx512", "torch": "2.11.0"}
+    avx2 = {**avx512, "cpu": "Intel Xeon", "cpu_isa": "avx2"}
+    line = numerics_warning(avx512, avx2, "resumed")
+    assert line.startswith("resumed on other numerics (cpu_isa avx512 vs avx2; cpu AMD EPYC vs Intel Xeon)")
+    assert "\n" not in line and "What is bit-equal across machines" in line
+    assert numerics_warning(avx512, dict(avx512), "resumed") is None
+    assert numerics_warning(avx512, {**avx512, "cpu": "AMD EPYC 9654"}, "resumed") is None
+    assert numerics_warning(None, avx2, "resumed") is None
+
+
+def test_cpu_isa_is_the_capability_torch_dispatches_to(monkeypatch):
+    """Read from the CPU's flags without importing torch, it names what torch itself reports on this machine, and
+    follows ATen's rule on other flag sets and its override variable."""
+    import torch
+
+    from indgen_vla.core.protocol.fingerprint import cpu_isa
+
+    assert cpu_isa() == torch.backends.cpu.get_cpu_capability().lower()
+    assert cpu_isa({"avx2", "fma", "avx512f"}) == "avx2"  # AVX512 needs vl, bw and dq too
+    assert cpu_isa({"avx2", "fma", "avx512f", "avx512vl", "avx512bw", "avx512dq"}) == "avx512"
+    assert cpu_isa({"sse4_2"}) == "default"
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "AVX2")
+    assert cpu_isa() == "avx2"
+
+
+def test_a_resume_on_other_numerics_warns_and_records_it(tmp_path, capsys):
+    """A killed run resumed where torch dispatches to another instruction set goes on (the simulator's protocol is
+    the same) but says so in one line and records the change in the manifest."""
+
+    def elsewhere(manifest: dict) -> None:  # as if started on an AVX2 machine, then killed
+        manifest["fingerprint"]["numerics"] = {**manifest["fingerprint"]["numerics"], "cpu_isa": "avx2"}
+
+    args, out, first = _killed_after_one_episode(tmp_path, elsewhere)
+    numerics = first["fingerprint"]["numerics"]
+    assert {"machine", "cpu", "cpu_isa", "torch"} <= set(numerics)
+    capsys.readouterr()
+    assert main(args) == 0
+    assert f"resumed on other numerics (cpu_isa avx2 vs {numerics['cpu_isa']}" in capsys.readouterr().err
+    manifest = json.loads((out / "manifest.json").read_text())
+    (change,) = manifest["numerics_changes"]
+    assert change["was"]["cpu_isa"] == "avx2" and change["now"] == numerics

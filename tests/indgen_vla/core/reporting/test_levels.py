@@ -55,6 +55,14 @@ def test_no_break_and_a_hole_before_the_break():
         "undetermined: level +1 has too little data (n = 1 of 10); finish it (re-run the same evaluate command: "
         "it runs what is missing and retries errors)"
     )
+    recorded = [
+        row(0, 10, 10, "intact"),
+        {**row(1, 0, 1, "undetermined", planned=2, insufficient=True), "errors": 1},
+    ]
+    assert direction_verdict(recorded, "undetermined", 0.2).endswith(
+        "every planned episode is recorded; a re-run retries those that ended in error, but one ruled out by the "
+        "level (an infeasible cell) stays so: only more --episodes add to n"
+    )
     smoke = [
         row(0, 2, 2, "undetermined", planned=2, insufficient=True)
     ]  # --episodes 2: done, yet below the floor
