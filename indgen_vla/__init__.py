@@ -1,6 +1,7 @@
 """indgen-vla: measure inductive generalization of robot manipulation policies.
 
-The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md). Importing this package is
+The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md), and the types a policy of
+your own implements (``Policy``, ``PolicySpec``, ``Observation``: docs/extending.md). Importing this package is
 cheap: each name loads its module on first use, and torch, robosuite and lerobot load only inside what needs them.
 """
 
@@ -24,6 +25,11 @@ _LAZY = {
     "PolicyConfig": "indgen_vla.app.engine.config:PolicyConfig",
     "RunConfig": "indgen_vla.app.engine.config:RunConfig",
     "AdaptiveConfig": "indgen_vla.app.engine.config:AdaptiveConfig",
+    # the extension point of a policy of your own (docs/extending.md): what it sees, declares and returns
+    "Policy": "indgen_vla.core.protocol.interface:Policy",
+    "PolicySpec": "indgen_vla.core.protocol.interface:PolicySpec",
+    "Observation": "indgen_vla.core.protocol.interface:Observation",
+    "EnvSpec": "indgen_vla.core.protocol.interface:EnvSpec",
     "IndgenError": "indgen_vla.core.errors:IndgenError",
     "ConfigError": "indgen_vla.core.errors:ConfigError",
 }
