@@ -168,7 +168,10 @@ def import_lerobot_eval(cfg: ImportConfig) -> Path:
     manifest = {
         "run_id": digest, "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"), "policy": policy,
         "data_regime": cfg.data_regime, "scene": scenes[0], "seed": plan["seed"], "plan": plan,
-        "axes": _axes(cells), "config": {"import": "lerobot-eval", **dataclasses.asdict(cfg)},
+        "axes": _axes(cells),
+        # what indgen series' finished() and the run index read: every imported episode is planned and finished
+        "resolved": {"episodes": sum(len(c.rows) for c in cells)},
+        "config": {"import": "lerobot-eval", **dataclasses.asdict(cfg)},
         IMPORTED: {"from": "lerobot-eval", "sources": [c.source for c in cells], "unknown": list(UNKNOWN)
                    + ([] if cfg.policy else ["policy: eval_info.json does not name it (pass --policy)"]),
                    "pairing": "episodes pair by seed: gate and compare pair two runs only where every level holds the "
