@@ -157,3 +157,22 @@ def test_older_per_episode_format_and_other_envs(lerobot_eval_out, tmp_path, cap
     legacy_rows = pd.read_parquet(tmp_path / "l2" / "episodes.parquet").sort_values("episode")
     assert list(legacy_rows["seed"]) == list(rows["seed"]) and list(legacy_rows["success"]) == ok
     shutil.rmtree(tmp_path / "o")
+
+
+def test_series_reads_imported_runs(lerobot_eval_out, tmp_path, capsys):
+    """An imported run at S/runs/<step> counts as that checkpoint's evaluation: series skips it and reports it."""
+    from tests.fixtures.lerobot_runs import CHECKPOINT
+
+    ckpt = tmp_path / "train" / "checkpoints" / "000002"
+    ckpt.mkdir(parents=True)
+    (ckpt / "pretrained_model").symlink_to(CHECKPOINT)
+    series = tmp_path / "S"
+    assert _import(capsys, str(lerobot_eval_out), "--out", str(series / "runs" / "000000002"))[0] == 0
+    argv = ["series", str(tmp_path / "train"), "--out", str(series), "--scene", "pick_place", "--axis", AXIS,
+            "--levels", f"{LEVEL}:{LEVEL}", "--episodes", str(EPISODES)]  # fmt: skip
+    assert main(argv) == 0
+    assert "already evaluated" in capsys.readouterr().out
+    got = json.loads((series / "series.json").read_text())
+    assert got["steps"] == [2] and (series / "series.md").is_file()
+    (row,) = got["axes"][AXIS]["levels"][str(LEVEL)]
+    assert (row["n"], row["successes"]) == (EPISODES, sum(successes(lerobot_eval_out)))
