@@ -35,16 +35,13 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Import, write the report, print the tables and where things are."""
-    from indgen_vla.app.api import report
-    from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig, import_lerobot_eval
+    from indgen_vla.app.api import import_lerobot_eval
     from indgen_vla.core.reporting.report import print_tables, run_label
     from indgen_vla.core.reporting.summary import summarize
     from indgen_vla.core.runs.records import EPISODES, REPORT, RunDir
 
-    cfg = ImportConfig(sources=tuple(args.sources), out=args.out, axis=args.axis, level=args.level, seed=args.seed,
-                       policy=args.policy, data_regime=args.data_regime)  # fmt: skip
-    out = import_lerobot_eval(cfg)
-    report(out, gamma=args.gamma)
+    out = import_lerobot_eval(args.sources, out=args.out, axis=args.axis, level=args.level, seed=args.seed,
+                              policy=args.policy, data_regime=args.data_regime, gamma=args.gamma).path  # fmt: skip
     run = RunDir.open(out)
     print_tables([(run_label(run), summarize(run.episodes(), run.manifest, args.gamma))])
     for line in run.manifest["imported"]["unknown"]:
