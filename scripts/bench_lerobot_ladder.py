@@ -48,7 +48,11 @@ def lerobot_eval(out: Path, level: int, episodes: int, video: bool) -> dict:
     cmd = [sys.executable, "-m", "lerobot.scripts.lerobot_eval", f"--policy.path={CHECKPOINT}", "--policy.device=cpu",
            "--env.type=indgen", "--env.scene=pick_place", "--env.axis=pick_y", f"--env.level={level}",
            f"--eval.n_episodes={episodes}", f"--output_dir={out}"]  # fmt: skip
-    cmd += [] if video else [f"--eval.batch_size={episodes}", "--eval.use_async_envs=false", "--eval.recording=true"]
+    cmd += (
+        []
+        if video
+        else [f"--eval.batch_size={episodes}", "--eval.use_async_envs=false", "--eval.recording=true"]
+    )
     wall = _run(cmd)
     rollout = json.loads((out / "eval_info.json").read_text())["overall"]["eval_s"]
     return {"level": level, "video": video, "wall_s": wall, "rollout_s": rollout, "startup_s": wall - rollout}
