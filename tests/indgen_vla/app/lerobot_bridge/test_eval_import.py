@@ -57,6 +57,12 @@ def test_import_pairs_with_indgen_evaluate(lerobot_eval_out, indgen_run, tmp_pat
         and gate["levels"][0]["pairs"] == EPISODES
         and gate["levels"][0]["discordant"] == [0, 0]
     )
+    assert main(["compare", str(indgen_run), str(tmp_path / "imp"), "--out", str(tmp_path / "cmp")]) == 0
+    cmp = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    assert cmp["paired"] and cmp["test"] == "mcnemar_exact"
+    capsys.readouterr()
+    code, _, err = _import(capsys, str(lerobot_eval_out), "--out", str(indgen_run))  # never over a real run
+    assert code == 2 and "was not imported" in err
 
 
 def test_gate_of_two_imports_pairs_by_seed_and_refuses_unpaired(lerobot_eval_out, tmp_path, capsys):
