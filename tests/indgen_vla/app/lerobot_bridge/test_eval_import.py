@@ -87,6 +87,12 @@ def test_gate_of_two_imports_pairs_by_seed_and_refuses_unpaired(lerobot_eval_out
     assert _import(capsys, str(lerobot_eval_out), "--out", str(tmp_path / "other"), "--seed", "2000")[0] == 0
     assert main(["gate", str(a), str(tmp_path / "other")]) == 2
     assert "no partner" in capsys.readouterr().err
+    # reset seed 2000 + i is indgen's episode 1000 + i (first_seed 1000), started from indgen's seed for it
+    from indgen_vla.core.protocol.seeding import evaluation_seed
+
+    rows = pd.read_parquet(tmp_path / "other" / "episodes.parquet").sort_values("episode")
+    assert list(rows["episode"]) == [1000 + i for i in range(EPISODES)]
+    assert list(rows["seed"]) == [evaluation_seed(0, "pick_place", "milk", 1000 + i) for i in range(EPISODES)]
 
 
 def _truncate(src: Path, dst: Path) -> Path:
