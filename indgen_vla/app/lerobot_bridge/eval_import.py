@@ -3,8 +3,8 @@
 came from and what the file does not say (docs/lerobot.md).
 
 Each (task_group, task_id) of each eval_info.json becomes one (task, axis, level) cell. A group that
-``--env.type=indgen`` wrote (``indgen@scene@task@axis@level@seedR@firstF``) names its level itself: its episodes get
-indgen's episode index (reset seed - first_seed) and evaluation seed, so they pair with ``indgen evaluate``'s. Any
+``--env.type=indgen`` wrote (``level_env.group_name``) names its level and parameter itself: its episodes get indgen's
+episode index (reset seed - first_seed) and evaluation seed, so they pair with ``indgen evaluate``'s. Any
 other env's group is the level ``--axis A --level K`` says, episode i keeping its lerobot reset seed.
 """
 
@@ -100,7 +100,7 @@ def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_i
         if cfg.axis is not None and (cfg.axis, cfg.level) != (ours["axis"], ours["level"]):
             raise ConfigError(f"{info.path}: task group {t.group} is indgen's {ours['axis']} level {ours['level']}, "
                               f"not --axis {cfg.axis} --level {cfg.level}; drop --axis/--level for it")  # fmt: skip
-        param, spec = _indgen_level(ours)
+        param, spec = ours["param"], _axis_spec(ours)
         episodes = [s - ours["first_seed"] for s in resets]
         if min(episodes) < 0:
             raise RunDirError(f"{info.path}: reset seeds start at {min(resets)}, below the env's first_seed "
@@ -122,19 +122,19 @@ def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_i
     return _Cell(scene, task, axis, level, param, rows, source, spec)
 
 
-def _indgen_level(level: dict) -> tuple[float, dict]:
-    """The level's axis parameter and axis spec, resolved as ``indgen evaluate`` resolves them."""
+def _axis_spec(level: dict) -> dict:
+    """The axis's spec as ``indgen evaluate`` resolves it by default, where that gives the group's parameter (else the
+    env ran another step or preset, which the group does not name: only the axis's name is recorded)."""
     from indgen_vla.app.lerobot_bridge.level_env import resolve_levels
 
     try:
         setups, _ = resolve_levels(scene=level["scene"], task=level["task"], axis=level["axis"],
                                    level=level["level"], run_seed=level["run_seed"], allow_infeasible=True)  # fmt: skip
-    except IndgenError as e:
-        raise RunDirError(
-            f"task group of {level['scene']}/{level['task']} {level['axis']} L{level['level']:+d} "
-            f"does not resolve here ({e}); import it where that scene is installed"
-        ) from None
-    return float(setups[0].param), dataclasses.asdict(setups[0].axis_spec)
+    except IndgenError:  # a scene or axis this machine cannot resolve: the episodes still import
+        return {"name": level["axis"]}
+    if abs(setups[0].param - level["param"]) > 1e-9 * (1 + abs(level["param"])):
+        return {"name": level["axis"]}
+    return dataclasses.asdict(setups[0].axis_spec)
 
 
 def import_lerobot_eval(cfg: ImportConfig) -> Path:

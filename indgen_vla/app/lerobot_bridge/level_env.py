@@ -31,7 +31,7 @@ from indgen_vla.core.protocol.seeding import evaluation_seed
 FIRST_SEED = (
     1000  # lerobot-eval's and lerobot-train's default --seed: the reset seed that is indgen's episode 0
 )
-GROUP_PREFIX = "indgen@"  # lerobot-eval's task_group of a level: indgen@scene@task@axis@level@seedR@firstF
+GROUP_PREFIX = "indgen@"  # lerobot-eval's task_group of a level (group_name)
 POLICY_LABEL = "lerobot-eval"  # the plan's policy field; nothing loads it (LeRobot brings its own policy)
 
 
@@ -60,7 +60,9 @@ class LevelSetup:
     @property
     def group(self) -> str:
         """lerobot-eval's task_group for this level: what ``indgen import lerobot-eval`` reads the level back from."""
-        return group_name(self.scene, self.task, self.axis, self.level, self.run_seed, self.first_seed)
+        return group_name(
+            self.scene, self.task, self.axis, self.level, self.param, self.run_seed, self.first_seed
+        )
 
     def episode_of(self, reset_seed: int) -> int:
         """indgen's episode index of a lerobot reset seed."""
@@ -78,9 +80,13 @@ class LevelSetup:
         return EpisodeJob(self.task, self.axis, self.level, episode, seed, self.param)
 
 
-def group_name(scene: str, task: str, axis: str, level: int, run_seed: int, first_seed: int) -> str:
-    """``indgen@scene@task@axis@level@seedR@firstF`` (``parse_group`` reads it back)."""
-    return f"{GROUP_PREFIX}{scene}@{task}@{axis}@{int(level)}@seed{int(run_seed)}@first{int(first_seed)}"
+def group_name(
+    scene: str, task: str, axis: str, level: int, param: float, run_seed: int, first_seed: int
+) -> str:
+    """``indgen@scene@task@axis@level@pPARAM@seedR@firstF`` (``parse_group`` reads it back; the parameter carries
+    what --env.step, --env.axes_preset or a preset made of the level)."""
+    return (f"{GROUP_PREFIX}{scene}@{task}@{axis}@{int(level)}@p{float(param)!r}@seed{int(run_seed)}"
+            f"@first{int(first_seed)}")  # fmt: skip
 
 
 def parse_group(group: str) -> dict[str, Any] | None:
@@ -88,11 +94,12 @@ def parse_group(group: str) -> dict[str, Any] | None:
     if not group.startswith(GROUP_PREFIX):
         return None
     parts = group[len(GROUP_PREFIX) :].split("@")
-    if len(parts) != 6 or not parts[4].startswith("seed") or not parts[5].startswith("first"):
+    if len(parts) != 7 or [p[:1] for p in parts[4:]] != ["p", "s", "f"]:
         return None
     try:
         return {"scene": parts[0], "task": parts[1], "axis": parts[2], "level": int(parts[3]),
-                "run_seed": int(parts[4][4:]), "first_seed": int(parts[5][5:])}  # fmt: skip
+                "param": float(parts[4][1:]), "run_seed": int(parts[5].removeprefix("seed")),
+                "first_seed": int(parts[6].removeprefix("first"))}  # fmt: skip
     except ValueError:
         return None
 

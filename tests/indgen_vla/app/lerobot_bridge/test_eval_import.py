@@ -43,7 +43,7 @@ def test_import_pairs_with_indgen_evaluate(lerobot_eval_out, indgen_run, tmp_pat
     manifest = json.loads((tmp_path / "imp" / "manifest.json").read_text())
     (src,) = manifest["imported"]["sources"]
     assert (
-        src["task_group"].startswith("indgen@pick_place@milk@pick_y@-1@")
+        src["task_group"].startswith("indgen@pick_place@milk@pick_y@-1@p-0.155@seed0@first1000")
         and "1000 + episode_ix" in src["reset_seeds"]
     )
     assert "Imported episodes" in (tmp_path / "imp" / "report.md").read_text()

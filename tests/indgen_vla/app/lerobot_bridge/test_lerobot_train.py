@@ -32,6 +32,6 @@ def test_lerobot_train_evaluates_an_indgen_level(tmp_path):
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0, log[-3000:]
     assert "Eval policy at step 2" in log
-    group = f"indgen@{SCENE}@milk@{AXIS}@1@seed0@first1000"
+    group = f"indgen@{SCENE}@milk@{AXIS}@1@p-0.105@seed0@first1000"
     m = re.search(rf"Suite per_group aggregated: \{{'{re.escape(group)}': \{{[^}}]*'n_episodes': (\d+)", log)
     assert m and int(m.group(1)) == 2, log[-3000:]

@@ -29,9 +29,9 @@ def test_reset_seed_is_indgen_episode_and_seed():
 
 
 def test_group_names_the_level():
-    g = group_name("pick_place", "milk", "pick_y", -2, 3, 1000)
-    assert parse_group(g) == {"scene": "pick_place", "task": "milk", "axis": "pick_y", "level": -2, "run_seed": 3,
-                              "first_seed": 1000}  # fmt: skip
+    g = group_name("pick_place", "milk", "pick_y", -2, -0.18, 3, 1000)
+    assert parse_group(g) == {"scene": "pick_place", "task": "milk", "axis": "pick_y", "level": -2, "param": -0.18,
+                              "run_seed": 3, "first_seed": 1000}  # fmt: skip
     assert parse_group("libero_object") is None
     assert parse_group("indgen@a@b") is None
 
@@ -52,7 +52,9 @@ def test_plugin_registers_env_type():
     register_third_party_plugins()
     cfg = EnvConfig.get_choice_class("indgen")(scene=SCENE, axis=AXIS, level=1)
     assert cfg.type == "indgen" and cfg.features_map["agent_pos"] == "observation.state"
-    assert [s.group for s in cfg.levels] == [group_name(SCENE, "milk", AXIS, 1, 0, FIRST_SEED)]
+    assert [s.group for s in cfg.levels] == [
+        group_name(SCENE, "milk", AXIS, 1, cfg.levels[0].param, 0, FIRST_SEED)
+    ]
 
 
 @needs_plugin
