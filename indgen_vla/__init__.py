@@ -18,6 +18,7 @@ _LAZY = {
     "report": "indgen_vla.app.api:report",
     "compare": "indgen_vla.app.api:compare",
     "certify": "indgen_vla.app.api:certify",
+    "import_lerobot_eval": "indgen_vla.app.api:import_lerobot_eval",
     "Run": "indgen_vla.core.runs.result:Run",
     "KStar": "indgen_vla.core.runs.result:KStar",
     "EvalConfig": "indgen_vla.app.engine.config:EvalConfig",

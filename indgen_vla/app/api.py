@@ -144,3 +144,26 @@ def certify(
         return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
                            max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path,
                            options=options)  # fmt: skip
+
+
+def import_lerobot_eval(
+    sources: PathLike | Iterable[PathLike],
+    *,
+    out: PathLike,
+    axis: str | None = None,
+    level: int | None = None,
+    seed: int | None = None,
+    policy: str | None = None,
+    data_regime: str = "",
+    gamma: float = 0.2,
+) -> Run:
+    """``indgen import lerobot-eval DIR... --out RUN``: lerobot-eval output directories as one run directory, its
+    report written (docs/lerobot.md); ``axis``/``level`` place another env's run, ``seed`` is lerobot-eval's --seed
+    where eval_info.json records none (default 1000)."""
+    from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
+    from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
+
+    paths = [sources] if isinstance(sources, str | os.PathLike) else list(sources)
+    cfg = ImportConfig(sources=tuple(os.fspath(p) for p in paths), out=os.fspath(out), axis=axis, level=level,
+                       seed=seed, policy=policy, data_regime=data_regime)  # fmt: skip
+    return report(write_import(cfg), gamma=gamma)[0]

@@ -41,6 +41,7 @@ HANDLERS: dict[str, str] = {
     "real": "indgen_vla.app.cli.real:main",
     "budget": "indgen_vla.app.cli.budget:main",
     "gate": "indgen_vla.app.cli.gate:main",
+    "import": "indgen_vla.app.cli.import_runs:main",
     "series": "indgen_vla.app.cli.series:main",
     "view": "indgen_vla.app.cli.view:main",
 }
@@ -49,8 +50,8 @@ HANDLERS: dict[str, str] = {
 # module level (its handler imports what it runs)
 PARSERS: tuple[str, ...] = tuple(
     f"indgen_vla.app.cli.{name}"
-    for name in ("evaluate", "certify", "preview", "report", "merge", "compare", "reference", "gate", "series", "serve",
-                 "catalog", "setup", "blockenv", "demos", "mimicgen", "train", "real", "budget", "view")
+    for name in ("evaluate", "certify", "preview", "report", "merge", "compare", "reference", "gate", "import_runs",
+                 "series", "serve", "catalog", "setup", "blockenv", "demos", "mimicgen", "train", "real", "budget", "view")
 )  # fmt: skip
 
 PASSTHROUGH = {"blockenv", "demos", "mimicgen", "train", "real"}  # subcommands that parse their own arguments

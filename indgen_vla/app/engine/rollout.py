@@ -94,6 +94,11 @@ class EnvRunner:
         self._prepared: tuple[EpisodeJob, Transition, float] | None = None
         self._clock = [0.0, 0.0, 0.0, 0]  # this episode's seconds: stepping, reset, build; builds
 
+    @property
+    def env(self) -> Any:
+        """The current level's scene env (None before the first reset and once closed): its horizon, video frames."""
+        return self._env
+
     def _env_for(self, job: EpisodeJob):
         key = (job.task, job.axis, job.level)
         if key != self._env_key:
