@@ -19,10 +19,12 @@ $(PY):
 	@echo "creating $(VENV) with $(PYTHON312)"
 	@$(PYTHON312) -m venv $(VENV)
 
-$(STAMP): $(PY) pyproject.toml
+$(STAMP): $(PY) pyproject.toml plugins/lerobot_env_indgen/pyproject.toml
 	@echo "installing indgen-vla and its stack into $(VENV) (first time: several minutes)"
 	@$(PY) -m pip install -q --upgrade pip
 	@$(PY) -m pip install -q -e ".[dev,ray,trackio]"
+	@# lerobot-eval/-train's --env.type=indgen: LeRobot imports installed lerobot_env_* distributions (docs/lerobot.md)
+	@$(PY) -m pip install -q --no-deps -e plugins/lerobot_env_indgen
 	@touch $(STAMP)
 
 demo: $(STAMP)
