@@ -4,6 +4,10 @@
 from __future__ import annotations
 
 import argparse
+import shlex
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 from indgen_vla.app.cli.options import IndgenParser, add_passthrough
 
@@ -16,7 +20,6 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """The handler: its own parser over ``args.rest``, then the library call."""
     import json
-    from pathlib import Path
 
     from indgen_vla.app.regimes.train import (
         DEFAULT_REPO_ID,
@@ -25,7 +28,6 @@ def main(args: argparse.Namespace) -> int:
         TrainConfig,
         train_policy,
     )
-    from indgen_vla.app.regimes.train_eval import add_eval_options, eval_hook
     from indgen_vla.core.protocol.training_support import cells_from_json, support_text
 
     p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
@@ -75,3 +77,54 @@ def main(args: argparse.Namespace) -> int:
             f"training levels (train_info.json, read by evaluate): {support_text(cells_from_json(info['levels']))}"
         )
     return 0
+
+
+def add_eval_options(p: argparse.ArgumentParser) -> None:
+    """--eval-every, --eval and --eval-out of ``indgen train``."""
+    p.add_argument("--eval-every", type=int, default=None, metavar="N",
+                   help="evaluate the weights in memory every N updates (and after the last), with --eval's flags")  # fmt: skip
+    p.add_argument("--eval", default=None, metavar="FLAGS",
+                   help="evaluate's protocol flags for --eval-every, quoted after =, e.g. --eval='--scene pick_place --axis pick_y "
+                   "--levels -2:2 --episodes 10' (or --config PRESET)")  # fmt: skip
+    p.add_argument("--eval-out", default=None, help="where the runs and series.md go (default: OUT_evals)")
+
+
+def eval_config(flags: str, out: Path):
+    """The ``EvalConfig`` of ``--eval FLAGS`` (evaluate's own parser and config resolution; ``--policy`` and
+    ``--out`` are set per step)."""
+    from indgen_vla.app.cli import build_parser
+    from indgen_vla.app.engine.config import config_from_args
+    from indgen_vla.core.errors import ConfigError
+
+    words = shlex.split(flags)
+    bad = [w for w in words if w.split("=")[0] in ("--policy", "--out", "--backend")]
+    if bad:
+        raise ConfigError(f"--eval {bad[0]}: the trained policy and the run directories are set per step (local "
+                          "backend); leave it out")  # fmt: skip
+    try:
+        ns = build_parser().parse_args(["evaluate", *words])
+    except SystemExit:
+        raise ConfigError(
+            f"--eval {flags!r}: not valid evaluate flags (see 'indgen evaluate --help')"
+        ) from None
+    ns.policy, ns.out = "object:indgen-train", str(out / "_")
+    return config_from_args(ns)
+
+
+def eval_hook(args: argparse.Namespace, out: Path) -> Callable[[int, Any], None] | None:
+    """The ``after_step`` of ``train_policy`` for ``--eval-every``/``--eval`` (None without them)."""
+    every, flags = getattr(args, "eval_every", None), getattr(args, "eval", None)
+    if every is None and flags is None:
+        return None
+    from indgen_vla.app.regimes.train_eval import make_hook
+    from indgen_vla.core.errors import ConfigError
+
+    if every is None or flags is None:
+        raise ConfigError("--eval-every N and --eval 'FLAGS' go together, e.g. --eval-every 500 --eval='--scene "
+                          "pick_place --axis pick_y --levels -2:2 --episodes 10'")  # fmt: skip
+    if every < 1:
+        raise ConfigError(f"--eval-every must be >= 1 update, got {every}")
+    root = Path(args.eval_out) if args.eval_out else out.parent / f"{out.name}_evals"
+    base = eval_config(flags, root)
+    steps = getattr(args, "steps", None)
+    return make_hook(base, root, every, last=steps)

@@ -8,8 +8,9 @@ import json
 import pytest
 
 from indgen_vla.app.cli import main
+from indgen_vla.app.cli.train import eval_config
 from indgen_vla.app.regimes.train import train_policy
-from indgen_vla.app.regimes.train_eval import eval_config, make_hook
+from indgen_vla.app.regimes.train_eval import make_hook
 from indgen_vla.core.runs.records import RunDir
 from tests.indgen_vla.app.regimes.test_train import TINY, _same_checkpoint
 
