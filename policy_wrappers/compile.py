@@ -5,7 +5,7 @@ object. For the flow-matching VLAs (pi0, pi0.5, SmolVLA) that is one denoising s
 Euler loop calls ``num_inference_steps`` times per ``act``: lerobot's own ``compile_model`` wraps the whole
 ``sample_actions`` instead, and dynamo unrolls that loop, so its graph holds the prefix pass plus ten copies of the
 action expert (reduced pi0.5 on CPU: 3,094 traced calls and 110 s against 279 calls and 44 s for one step; the
-real-size pi0.5's whole-``sample_actions`` compile outran 4 min on the H100 box, docs/benchmarks.md). The step
+real-size pi0.5's whole-``sample_actions`` compile outran 4 min on the H100 box, docs/results/benchmarks/compile.md). The step
 graph is compiled once and reused by every step; the prefix (SigLIP + Gemma over the prompt) stays eager: at the
 batch sizes the engine runs it is compute-bound, while the action expert's many small kernels are launch-bound.
 The first call at a batch size pays the compile;

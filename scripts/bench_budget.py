@@ -1,7 +1,7 @@
 """``indgen budget``'s projection against reality: run a smoke, budget a larger protocol from it, run that protocol
 at each worker count, and time each whole command as a user does (a fresh interpreter, start-up and exit included).
 Prints one JSON line per worker count (projected low/expected/high, measured, the relative error) and the load
-average at each run's start (docs/benchmarks.md, "indgen budget").
+average at each run's start (docs/results/benchmarks/budget.md).
 
     .venv/bin/python scripts/bench_budget.py [--policy standin:oracle] [--workers 1,2] [--levels 0:2] [--episodes 6]
         [--max-steps 80] [--smoke-episodes 2] [--smoke-steps 30]

@@ -1,7 +1,7 @@
 """Benchmark the rollout engine against a bare ``env.step`` + policy loop, 1 vs 2 workers (with their start
 costs and CPU seconds per process), batched vs per-env inference of a tiny in-process policy, pipelined vs
 unpipelined with a LeRobot ACT whose forward costs about one control step, lazy vs per-step renders, and thread
-overlap of physics and inference (the GIL). Prints one JSON object on its last line (docs/benchmarks.md).
+overlap of physics and inference (the GIL). Prints one JSON object on its last line (docs/results/benchmarks/engine.md).
 
     .venv/bin/python scripts/bench_engine.py [--quick] [--only engine|pipeline|render|gil]
 

@@ -2,7 +2,7 @@
 simulators either way (local: 2 worker processes, the policy in the main process; Ray: a local Ray instance, 2
 simulator actors and 1 policy actor), reporting Ray's start, each run's wall time with and without its start, the
 episodes per second once every simulator has finished one episode, and one policy call's round trip through a
-policy actor. The records of both must be equal. Prints one JSON object on its last line (docs/benchmarks.md).
+policy actor. The records of both must be equal. Prints one JSON object on its last line (docs/results/benchmarks/ray.md).
 
     .venv/bin/python scripts/bench_ray.py [--episodes 12] [--max-steps 60] [--calls 300]
 """

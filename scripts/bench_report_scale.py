@@ -14,7 +14,7 @@ common random numbers per (task, episode, level), so run B (``--shift``) pairs w
 two checkpoints evaluated with the same seeds; 1 % of the episodes are error rows, failures carry a failure mode
 and a progress score consistent with it. Its Parquet schema and manifest keys are those of a real
 ``indgen evaluate --policy standin:random --config pick_place_libero_object_style --task all --max-steps 1`` run
-(checked when this script was written, docs/benchmarks.md); tests/scripts/test_bench_report_scale.py checks that
+(checked when this script was written, docs/results/benchmarks/report_scale.md); tests/scripts/test_bench_report_scale.py checks that
 report, compare and a resume read it as a real run.
 
 Each command runs in its own process under ``/usr/bin/time -v`` (wall time, peak RSS): ``report A``, ``report A B``

@@ -4,7 +4,7 @@ worker pipe's overhead per step against a bare RoboCasa loop in the same venv (s
     INDGEN_ROBOCASA_ASSETS=DIR python scripts/bench_robocasa.py [--steps 200] [--task PickPlaceCounterToCabinet]
         [--split all]
 
-Prints one markdown table for docs/benchmarks.md. The bare loop runs ``scenes/robocasa/backend.py`` in the RoboCasa
+Prints one markdown table for docs/results/benchmarks/robocasa.md. The bare loop runs ``scenes/robocasa/backend.py`` in the RoboCasa
 venv's interpreter; the proxy loop drives the same backend through ``scenes.external`` (one worker); both build from
 the same split (``--split``, default all: the kitchens every earlier figure was measured in). Besides wall-clock
 steps/s the bare loop reports steps per CPU second of its process, and the load average is printed before and after:

@@ -6,7 +6,7 @@ seconds: a part nested in another counts only in the inner one), plus the interp
 the parent sees them. A scene built by a worker process (started while the policy loads, when its files say which
 cameras it reads: ``local.EarlyWorkers``) is not timed here; the wait for it is ``early_wait`` plus the first
 reset's reply (in ``rollout_other``). The machine is shared, so it reports the min and the median over ``--repeats`` runs and the
-1-minute load average at each run's start. Prints one JSON object on its last line (docs/benchmarks.md, "Start-up").
+1-minute load average at each run's start. Prints one JSON object on its last line (docs/results/benchmarks/startup.md).
 
     .venv/bin/python scripts/bench_startup.py [--repeats 5] [--policy SPEC] [--workers N]
 """

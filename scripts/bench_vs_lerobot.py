@@ -14,7 +14,7 @@ with ``eval_policy_all(max_episodes_rendered=0)``, nothing else changed.
 Per run: episodes/min and env steps/s end to end (start to exit), the rollout window (first to last ``mj_step``:
 its env steps/s, and startup = wall - rollout), a 280-step projection for shorter --max-steps, and per control
 step the wall ms inside MuJoCo's render and physics calls. Paired ratios (indgen / lerobot) come with a 95 %
-t-interval over the repeats. Results in docs/benchmarks.md ("indgen vs lerobot-eval").
+t-interval over the repeats. Results in docs/results/benchmarks/vs_lerobot.md.
 """
 
 from __future__ import annotations

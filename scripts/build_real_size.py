@@ -10,7 +10,7 @@ The tokenizers are local stand-ins (a word-level vocabulary written here): pi0.5
 made the ids. pi0.5's saved preprocessor names the upstream tokenizer (``google/paligemma-3b-pt-224``) as a Hub
 checkpoint does; the printed spec points the wrapper's ``tokenizer=`` option at the local one. ``--reduced``:
 the same code paths at a few layers and tiny widths (``policy_wrappers/lerobot_variants.py``), for CPU tests.
-Speeds of the real-size models: ``scripts/bench_engine.py --only model`` and docs/benchmarks.md.
+Speeds of the real-size models: ``scripts/bench_engine.py --only model`` and docs/results/benchmarks/gpu.md.
 """
 
 from __future__ import annotations

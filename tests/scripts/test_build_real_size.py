@@ -75,7 +75,7 @@ def test_real_size_pi05_acts_on_cuda(tmp_path):
         pytest.skip("needs a CUDA device")
     spec = build.build_pi05(tmp_path / "pi05", device="cuda")
     meta = (tmp_path / "pi05" / "indgen_build.json").read_text()
-    assert '"parameters": 41' in meta  # 4.14 B with embeddings (docs/benchmarks.md)
+    assert '"parameters": 41' in meta  # 4.14 B with embeddings (docs/results/benchmarks/gpu.md)
     _act_and_pad(spec + "&precision=bf16", device="cuda")
 
 

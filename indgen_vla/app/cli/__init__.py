@@ -85,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if argv is None:  # the console script: the interpreter exits next
             # its shutdown would garbage-collect every object torch/lerobot/transformers made, several times
-            # (seconds after a LeRobot policy, docs/benchmarks.md "Start-up"). Frozen, they are left to the OS;
+            # (seconds after a LeRobot policy, docs/results/benchmarks/startup.md). Frozen, they are left to the OS;
             # atexit handlers still run, and every file of the run is closed by now.
             gc.freeze()
 

@@ -15,9 +15,7 @@ from indgen_vla.core.errors import ConfigError
 
 POWER = 0.8  # the power the pairs are sized for
 DEFAULT_DROP = 0.2
-DEFAULT_STARTUP_S = (
-    10.0  # --steps-per-s without a smoke: start-up, report and exit assumed (docs/benchmarks.md)
-)
+DEFAULT_STARTUP_S = 10.0  # no smoke: start-up, report and exit assumed (docs/results/benchmarks/startup.md)
 
 
 @dataclass(frozen=True)

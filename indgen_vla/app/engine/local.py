@@ -2,7 +2,7 @@
 serves one batched forward per round across every environment that is waiting for actions.
 
 With ``pipeline=True`` every worker owns two environments (lanes) and the policy computes one lane's chunk while
-the worker steps the other's, so simulation and inference overlap (docs/benchmarks.md, "Pipelining").
+the worker steps the other's, so simulation and inference overlap (docs/results/benchmarks/engine.md, "Pipelining").
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ def init_worker_process(render_threads: int, egl_device: int | None = None, env:
     if egl_device is not None:  # several GPUs: workers render round-robin on them (read at context creation)
         os.environ.setdefault("MUJOCO_EGL_DEVICE_ID", str(egl_device))
     # llvmpipe starts one render thread per core in every process: W workers would oversubscribe the cores
-    # (pixels do not depend on the thread count; docs/benchmarks.md "Where a CPU frame goes")
+    # (pixels do not depend on the thread count; docs/results/benchmarks/render.md)
     os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
     logging.getLogger("robosuite").setLevel(logging.ERROR)
 
@@ -167,7 +167,7 @@ class _ProcessWorker:
 
 
 # Each worker is one single-threaded simulator: BLAS/OpenMP pools sized to the whole machine in each of W
-# processes oversubscribe the cores (16 workers on 16 cores: +45 % worker CPU per step, docs/benchmarks.md).
+# processes oversubscribe the cores (16 workers on 16 cores: +45 % worker CPU per step, docs/results/benchmarks/gpu.md).
 WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 # what a worker keeps of the fork server's own environment when the coordinator's lacks it (``_adopt_environment``)
 FORKSERVER_OWN_ENV = (*WORKER_THREAD_ENV, "MUJOCO_GL", "PYOPENGL_PLATFORM")

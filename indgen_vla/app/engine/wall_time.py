@@ -2,7 +2,7 @@
 (the manifest's ``timing``) and the engine's model of a round: W workers step their chunk slice (r control steps
 at c seconds each, slower when W workers and the coordinator outnumber the cores), then the coordinator acts once
 for the round (a(W) seconds: one batched forward, or the per-environment calls) and spends o seconds per reply
-(engine/scheduler.py ``coordinate``, engine/batching.py; docs/benchmarks.md "Projection"). Pure functions."""
+(engine/scheduler.py ``coordinate``, engine/batching.py; docs/results/benchmarks/gpu.md "Projection"). Pure functions."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from indgen_vla.core.errors import ConfigError
 
-EXIT_S = 1.0  # the process's exit after evaluate returns (tables printed, gc.freeze: docs/benchmarks.md "Start-up")
+EXIT_S = 1.0  # the process's exit after evaluate returns (tables printed, gc.freeze: docs/results/benchmarks/startup.md)
 # the interval around the expected wall time: boxes of one kind differ 10-20 % and this 2-core VM's speed moved 2x
 # with its neighbours' load (docs/benchmarks.md); on a box busier than its cores during the smoke it widens by
 # sqrt(load / cores) more (docs/budget.md). Widened, never tuned, when the projection-vs-reality test misses

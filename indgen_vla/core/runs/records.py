@@ -30,7 +30,7 @@ OPTIONAL = {"failure": "", "progress": None, "shared_from": ""}
 KEY = ("task", "axis", "level", "episode")
 # episodes.parquet is rewritten whole per append up to FLUSH_EVERY_ROWS rows; past that (the cost grows with the
 # run: 150 ms CPU per rewrite at 20,000 rows) at most FLUSH_SHARE of the wall time goes into rewriting it, so a
-# long run's coordinator is not spent on Parquet (docs/benchmarks.md, issue 28). Every appended row first goes to
+# long run's coordinator is not spent on Parquet (docs/results/benchmarks/gpu.md, issue 28). Every appended row first goes to
 # JOURNAL (one JSON line, O(1)), which a flush empties: a SIGKILL between rewrites loses no finished episode.
 FLUSH_EVERY_ROWS = 256
 FLUSH_SHARE = 0.05

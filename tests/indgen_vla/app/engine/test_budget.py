@@ -1,5 +1,5 @@
 """``indgen budget`` end to end: its JSON, no scene built, the lock round trip through evaluate, report and compare,
-and the projection against a real run's wall time on this machine (docs/benchmarks.md "indgen budget")."""
+and the projection against a real run's wall time on this machine (docs/results/benchmarks/budget.md)."""
 
 import json
 import os
