@@ -4,7 +4,7 @@ head, training budget and data; MAML's head; TRM's tokens), at reduced scale, pe
 Each ablation is a list of variants of one method; a variant changes training (``extra`` options, updates,
 demos per level) or only inference (``infer``: attributes set on the trained model, e.g. Ind's gate), and
 variants that train alike share their trained models. Results land in a JSON file and in the section of
-docs/blockenv.md between the ablation markers, so the document is regenerated from this script.
+docs/results/blockenv_ablations.md between the ablation markers, so the document is regenerated from this script.
 """
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ class ReproduceConfig:
     # Variant options (models.base.OPTIONS) per method where Table 1 departs from the model's default. Ind's
     # legality head reads the current grid cell by cell (a shared 3x3 convolution): the paper's head "learns
     # the local invariant grasping rule" and its gate "structurally" prevents blocked grasps, which a linear
-    # read-out of the trunk's global embedding does not do even in distribution (docs/blockenv.md, ind_gate).
+    # read-out of the trunk's global embedding does not do even in distribution (docs/results/blockenv_ablations.md, ind_gate).
     # MAML's memoryless net scores (r, c, θ) jointly: factored heads mix the two chain tips into a blocked grasp.
     # TRM reads 2x2-cell patch tokens, the nearest to the original one token per cell that fits the budget: its
     # patch size is our deviation, and 3x3 or 4x4 patches extrapolate further than a per-cell model (trm_patch).

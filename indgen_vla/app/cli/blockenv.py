@@ -96,13 +96,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--resume", action="store_true", help="keep finished jobs in OUT/jobs and reuse them")
     r.add_argument("--out", required=True, help="folder for table1.json, table1.md, table1.png (and jobs/)")
-    ab = sp.add_parser("ablate", help="the reduced-scale ablations of docs/blockenv.md")
+    ab = sp.add_parser("ablate", help="the reduced-scale ablations of docs/results/blockenv_ablations.md")
     ab.add_argument(
         "--name", action="append", default=None, help="ablation to run (repeatable; default: all)"
     )
     ab.add_argument("--seeds", type=int, default=3, help="training seeds per ablation (default 3)")
     ab.add_argument("--results", default="docs/results/blockenv_ablations.json", help="JSON merged into")
-    ab.add_argument("--doc", default="docs/blockenv.md", help="markdown whose ablation section is rewritten")
+    ab.add_argument(
+        "--doc",
+        default="docs/results/blockenv_ablations.md",
+        help="markdown whose ablation section is rewritten",
+    )
     return p
 
 

@@ -423,7 +423,7 @@ def test_a_checkpoint_save_cut_short_never_loads_as_another(tmp_path):
 
 
 def test_ablation_doc_and_results_survive_a_write_cut_short(tmp_path):
-    """docs/blockenv.md and the results JSON hold every ablation run so far: a rewrite cut short keeps the old file."""
+    """docs/results/blockenv_ablations.md and the results JSON hold every ablation run so far: a rewrite cut short keeps the old file."""
     from indgen_vla.app.blockenv.ablate import BEGIN, END, replace_section
     from tests.fixtures.kill import writes_cut_short_after
 
