@@ -29,12 +29,23 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         "baseline", metavar="BASELINE", help="run directory of the reference (e.g. the stored main run)"
     )
     p.add_argument("candidate", metavar="CANDIDATE", nargs="?", help="run directory of the run under test")
-    p.add_argument("--plan", action="store_true",
-                   help="size the smoke from BASELINE's per-level rates instead of gating (no CANDIDATE)")
-    p.add_argument("--power", type=float, default=0.8,
-                   help="with --plan: the chance that two equal policies pass (default 0.8)")
-    p.add_argument("--pairing", choices=["independent", "most-discordant"], default="independent",
-                   help="with --plan: how a candidate's outcomes pair with the baseline's (default independent)")
+    p.add_argument(
+        "--plan",
+        action="store_true",
+        help="size the smoke from BASELINE's per-level rates instead of gating (no CANDIDATE)",
+    )
+    p.add_argument(
+        "--power",
+        type=float,
+        default=0.8,
+        help="with --plan: the chance that two equal policies pass (default 0.8)",
+    )
+    p.add_argument(
+        "--pairing",
+        choices=["independent", "most-discordant"],
+        default="independent",
+        help="with --plan: how a candidate's outcomes pair with the baseline's (default independent)",
+    )
     p.add_argument(
         "--margin", type=float, default=DEFAULT_MARGIN, metavar="M",
         help=f"largest drop in success per level that still passes, as a rate (default {DEFAULT_MARGIN}: 10 points)",
@@ -67,7 +78,9 @@ def main(args: argparse.Namespace) -> int:
     if args.plan:
         return _plan(args)
     if args.candidate is None:
-        raise ConfigError("indgen gate needs BASELINE and CANDIDATE run directories (or --plan BASELINE to size them)")
+        raise ConfigError(
+            "indgen gate needs BASELINE and CANDIDATE run directories (or --plan BASELINE to size them)"
+        )
     cfg = GateConfig(
         baseline=args.baseline, candidate=args.candidate, margin=args.margin, alpha=args.alpha, gamma=args.gamma,
         test=args.test, allow_protocol_mismatch=args.allow_protocol_mismatch,
@@ -88,7 +101,9 @@ def _plan(args: argparse.Namespace) -> int:
 
     if args.candidate is not None:
         raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
-    GateConfig(args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma)  # validates
+    GateConfig(
+        args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
+    )  # validates
     levels = baseline_rates(args.baseline, args.gamma)
     plan = plan_episodes([p for _, _, p in levels], args.margin, args.alpha, args.power, args.pairing)
     print(json.dumps(plan, indent=2) if args.json else "\n".join(plan_lines(args.baseline, plan, levels)))

@@ -25,9 +25,9 @@ from indgen_vla.core.reporting.levels import usable_levels
 from indgen_vla.core.reporting.report import run_label
 from indgen_vla.core.reporting.summary import summarize
 from indgen_vla.core.runs.records import RunDir
+from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.contrasts import check_margin, paired_difference_ci, pp
 from indgen_vla.core.stats.metrics import MIN_N, difference_ci, holm, wilson_ci
-from indgen_vla.core.stats import noninferiority as ni
 
 # exit codes of `indgen gate` (2: bad input, as everywhere)
 EXIT_PASS, EXIT_WORSE, EXIT_UNDERPOWERED = 0, 1, 5
@@ -263,7 +263,9 @@ def basis_text(res: dict) -> str:
     if res["paired"]:
         kind = "non-inferiority: exact unconditional test on Tango's score; worse: paired exact McNemar"
     else:
-        kind = f"non-inferiority: MOVER interval of Wilson intervals; worse: unpaired {res['test'].capitalize()}"
+        kind = (
+            f"non-inferiority: MOVER interval of Wilson intervals; worse: unpaired {res['test'].capitalize()}"
+        )
         kind += f" ({res['unpaired_reason']})" if res.get("unpaired_reason") else ""
     return f"{kind}, Holm over {res['holm_over']} level(s) tested"
 

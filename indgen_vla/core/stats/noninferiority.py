@@ -17,7 +17,9 @@ import numpy as np
 
 from indgen_vla.core.errors import ConfigError
 
-N_EXACT = 600  # pairs up to which the test is exact (about 0.3 s a new n); beyond, Tango's asymptotic score test
+N_EXACT = (
+    600  # pairs up to which the test is exact (about 0.3 s a new n); beyond, Tango's asymptotic score test
+)
 GRID = 160  # nuisance values on the boundary Δ = −M over which the tail's supremum is taken
 
 
@@ -135,6 +137,7 @@ def power(n: int, q_x: float, q_y: float, margin: float, alpha: float) -> float:
 
 def _tables_sparse(n: int, q_x: float, q_y: float):
     """The tables carrying all but ~1e-12 of the mass past ``N_EXACT`` (a window of ±9 sd around the means)."""
+
     def window(q: float) -> np.ndarray:
         sd = math.sqrt(max(n * q * (1 - q), 1.0))
         return np.arange(max(0, int(n * q - 9 * sd)), min(n, int(n * q + 9 * sd)) + 1)

@@ -148,3 +148,38 @@ def pairs_for_power(p0: float, p1: float, alpha: float, power: float = 0.8, mode
     if not 0 < power < 1:
         raise ConfigError(f"power must be in (0, 1), got {power}")
     return next((n for n in range(1, cap + 1) if paired_power(p0, p1, n, alpha, model) >= power), None)
+
+
+def verdict_error(n: int, gamma: float, ci: str = "wilson", verdict: str = "broken") -> float:
+    """The exact chance that the report calls a level ``verdict`` ("broken" or "intact") with n episodes when that
+    call is wrong at its least wrong (S = γ): its real one-sided error, nominally 2.5 % for a 95 % interval (the
+    chance is monotone in S, so this is its supremum over the null)."""
+    from scipy.stats import binom
+
+    intact, broken = verdict_counts(n, gamma, ci)
+    if verdict == "broken":
+        return 0.0 if broken is None else float(binom.cdf(broken, n, gamma))
+    if verdict == "intact":
+        return 0.0 if intact is None else float(binom.sf(intact - 1, n, gamma))
+    raise ConfigError(f"verdict must be broken or intact, got {verdict!r}")
+
+
+def more_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson", power: float = 0.8,
+                   cap: int = MAX_EPISODES) -> int | None:  # fmt: skip
+    """Extra episodes after which a level at ``successes`` of n is called broken with chance ≥ ``power`` if its
+    observed rate is the true one: the kept successes plus Bin(extra, rate) at or below the most the report calls
+    broken at n + extra (exact; found by doubling then bisection, so the number returned always reaches ``power``);
+    None when no number up to ``cap`` does."""
+    from scipy.stats import binom
+
+    from indgen_vla.core.stats.noninferiority import first_extra
+
+    rate = successes / n if n else 0.0
+
+    def decides(extra: int) -> bool:
+        broken = verdict_counts(n + extra, gamma, ci)[1]
+        return (
+            broken is not None and broken >= successes and binom.cdf(broken - successes, extra, rate) >= power
+        )
+
+    return first_extra(decides, cap)

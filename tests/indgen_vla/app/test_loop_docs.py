@@ -82,7 +82,9 @@ def test_the_workflow_fails_on_an_undecided_gate_and_runs_the_planned_episodes()
     steps = yaml.safe_load(workflow)["jobs"]["gate"]["steps"]
     gate_step = next(s["run"] for s in steps if "indgen gate" in s.get("run", ""))
     last = gate_step.strip().splitlines()[-1].strip()
-    assert last.startswith("indgen gate ") and "||" not in last and ";" not in last and "exit" not in gate_step
+    assert (
+        last.startswith("indgen gate ") and "||" not in last and ";" not in last and "exit" not in gate_step
+    )
     episodes = int(re.search(r"--episodes (\d+)", workflow).group(1))
     assert episodes == plan_episodes([0.95, 0.9, 0.9], 0.1)["episodes"]
     assert f"says **{episodes} episodes a level**" in DOC
