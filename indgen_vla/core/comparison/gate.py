@@ -28,6 +28,7 @@ from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.contrasts import check_margin, paired_difference_ci, pp
 from indgen_vla.core.stats.metrics import MIN_N, difference_ci, holm, wilson_ci
+from indgen_vla.core.stats.sample_size import first_extra
 
 # exit codes of `indgen gate` (2: bad input, as everywhere)
 EXIT_PASS, EXIT_WORSE, EXIT_UNDERPOWERED = 0, 1, 5
@@ -134,7 +135,7 @@ def _project_paired(r: dict, margin: float, alpha: float, family: int) -> tuple[
                           ni.conditional_power_worse(x, y, extra, qx, qy, alpha / family))  # fmt: skip
         return max(chances[extra]) >= POWER
 
-    extra = ni.first_extra(decides, MAX_MORE)
+    extra = first_extra(decides, MAX_MORE)
     if extra is None:
         return None
     p_ni, p_worse = chances[extra]
@@ -157,7 +158,7 @@ def _project_unpaired(r: dict, margin: float, alpha: float, family: int) -> tupl
                                                        alpha, alpha / family)  # fmt: skip
         return max(chances[extra]) >= POWER
 
-    extra = ni.first_extra(decides, MAX_MORE)
+    extra = first_extra(decides, MAX_MORE)
     if extra is None:
         return None
     p_ni, p_worse = chances[extra]

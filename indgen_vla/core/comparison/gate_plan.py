@@ -17,6 +17,7 @@ from typing import Any
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.metrics import MIN_N
+from indgen_vla.core.stats.sample_size import first_extra
 
 MAX_PLAN = 5000
 
@@ -45,7 +46,7 @@ def plan_episodes(rates: Sequence[float], margin: float, alpha: float = 0.05, po
     def ok(n: int) -> bool:
         return n >= MIN_N and pass_chance(rates, n, margin, alpha, model) >= power
 
-    n = ni.first_extra(ok, MAX_PLAN)
+    n = first_extra(ok, MAX_PLAN)
     if n is None:
         return {"episodes": None, "rates": list(rates), "model": model, "power": power}
     worst = max(range(len(rates)), key=lambda i: pass_chance(rates, n, margin, alpha, model, 2 * margin, i))

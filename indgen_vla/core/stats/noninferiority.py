@@ -16,6 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.stats.sample_size import paired_power
 
 N_EXACT = (
     600  # pairs up to which the test is exact (about 0.3 s a new n); beyond, Tango's asymptotic score test
@@ -186,20 +187,6 @@ def conditional_power_worse(x: int, y: int, extra: int, q_x: float, q_y: float, 
     return float(min(1.0, trinomial_pmf_any(extra, ex, ey, q_x, q_y)[rej].sum()))
 
 
-def first_extra(decides, cap: int) -> int | None:
-    """The least extra in 1..cap where ``decides(extra)`` holds, by doubling then bisection (chances that are not
-    quite monotone in n can make a smaller one also hold; the one returned always does); None when cap does not."""
-    lo, hi = 0, 1
-    while not decides(hi):
-        if hi >= cap:
-            return None
-        lo, hi = hi, min(cap, 2 * hi)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        lo, hi = (lo, mid) if decides(mid) else (mid, hi)
-    return hi
-
-
 def pair_model(p_a: float, p_b: float, model: str = "independent") -> tuple[float, float]:
     """(A-only, B-only) probabilities of a pair with marginal rates p_a, p_b: ``independent`` outcomes, or the
     ``most-discordant`` coupling (the fewest concordant pairs the rates allow: the least power at Δ = 0)."""
@@ -215,8 +202,6 @@ def smallest_visible_drop(n: int, p_a: float, alpha_worse: float, power_target: 
                           model: str = "independent") -> float | None:  # fmt: skip
     """The smallest drop d (B at p_a − d) the gate's "worse" test (two-sided exact McNemar at ``alpha_worse``) calls
     worse with chance ≥ ``power_target`` with n pairs at A's rate ``p_a``; None when no drop to 0 reaches it."""
-    from indgen_vla.core.stats.sample_size import paired_power
-
     m = "nested" if model == "nested" else "independent"
     lo, hi = 0.0, p_a
     if paired_power(p_a, 0.0, n, alpha_worse, m) < power_target:

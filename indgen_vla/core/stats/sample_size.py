@@ -172,8 +172,6 @@ def more_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson", pow
     None when no number up to ``cap`` does."""
     from scipy.stats import binom
 
-    from indgen_vla.core.stats.noninferiority import first_extra
-
     rate = successes / n if n else 0.0
 
     def decides(extra: int) -> bool:
@@ -183,3 +181,17 @@ def more_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson", pow
         )
 
     return first_extra(decides, cap)
+
+
+def first_extra(decides, cap: int) -> int | None:
+    """The least extra in 1..cap where ``decides(extra)`` holds, by doubling then bisection (chances that are not
+    quite monotone in n can make a smaller one also hold; the one returned always does); None when cap does not."""
+    lo, hi = 0, 1
+    while not decides(hi):
+        if hi >= cap:
+            return None
+        lo, hi = hi, min(cap, 2 * hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if decides(mid) else (mid, hi)
+    return hi
