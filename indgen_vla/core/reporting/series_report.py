@@ -213,7 +213,7 @@ def render_markdown(series: dict, title: str = "Checkpoint series") -> str:
             )
         tr = ax["trend"]
         holm_n = next((t["holm_over"] for t in tr.values() if t and "holm_over" in t), 0)
-        lines += ["", f"| trend over steps | z | p (rise) | p (fall) | Holm p (rise) | Holm p (fall) |",
+        lines += ["", "| trend over steps | z | p (rise) | p (fall) | Holm p (rise) | Holm p (fall) |",
                   "|---|---|---|---|---|---|"]  # fmt: skip
         for key in levels:
             t = tr.get(key)
