@@ -12,7 +12,7 @@ from indgen_vla.core.stats.breakpoint import verdict_from_ci
 from indgen_vla.core.stats.metrics import CI_METHODS, mcnemar_exact
 
 MAX_EPISODES = 5000  # search cap: a design past it is answered "not reachable", never searched forever
-PAIR_MODELS = ("independent", "nested")
+PAIR_MODELS = ("independent", "nested", "most-discordant")
 
 
 def _check_rate(name: str, p: float) -> None:
@@ -96,14 +96,18 @@ def fixed_design(gamma: float, delta: float, alpha: float, ci: str = "wilson") -
 
 def pair_probabilities(p0: float, p1: float, model: str) -> tuple[float, float]:
     """(P T0 succeeds and level k fails, P T0 fails and level k succeeds) for one seed's pair. ``independent``:
-    the two outcomes of a seed are independent (most discordant pairs); ``nested``: level k succeeds only on seeds
-    where T0 does (fewest discordant pairs for the same rates, the McNemar test's best case)."""
+    the two outcomes of a seed are independent; ``nested``: level k succeeds only on seeds where T0 does (fewest
+    discordant pairs for the same rates, the McNemar test's best case); ``most-discordant``: the fewest concordant
+    pairs the rates allow (the most discordant pairs, the test's worst case; independence lies between)."""
     _check_rate("T0 rate", p0)
     _check_rate("level rate", p1)
     if model == "independent":
         return p0 * (1 - p1), (1 - p0) * p1
     if model == "nested":
         return max(0.0, p0 - p1), max(0.0, p1 - p0)
+    if model == "most-discordant":
+        both = max(0.0, p0 + p1 - 1)
+        return p0 - both, p1 - both
     raise ConfigError(f"pairing model must be one of {', '.join(PAIR_MODELS)}, got {model!r}")
 
 
@@ -195,3 +199,16 @@ def first_extra(decides, cap: int) -> int | None:
         mid = (lo + hi) // 2
         lo, hi = (lo, mid) if decides(mid) else (mid, hi)
     return hi
+
+
+def stable_episodes(design: FixedDesign, span: float = 1.5) -> tuple[int | None, list[int]]:
+    """(the least n from which every n through ``span`` × the first passing n meets both error targets, the n between
+    the first and that one which fail again): the chances are not monotone in n, so the first passing n can fail
+    again one episode later."""
+    if design.episodes is None:
+        return None, []
+    first = design.episodes
+    top = int(span * first) + 1
+    fails = [n for n in range(first, top + 1)
+             if max(decided_rates(n, design.gamma, design.delta, design.ci)) > design.alpha]  # fmt: skip
+    return (fails[-1] + 1 if fails else first), fails

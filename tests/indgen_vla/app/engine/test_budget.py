@@ -54,6 +54,14 @@ def test_budget_json_and_no_scene_is_built(smoke):
     assert done.returncode == 0, done.stderr[-2000:]
     out = json.loads(done.stdout)
     assert out["episodes_fixed"]["per_level"] == 274  # γ 0.2 ± 0.1, α 0.025, Wilson (test_sample_size)
+    # 275-277, 280, 281 and 284 fail again; every n from 285 passes (exact, test_sample_size)
+    assert out["episodes_fixed"]["stable_per_level"] == 285 and out["episodes_fixed"]["fail_again"][0] == 275
+    pw = out["power"]
+    assert (
+        pw["most-discordant"]["at_episodes"]
+        <= pw["independent"]["at_episodes"]
+        <= pw["nested"]["at_episodes"]
+    )
     ad = out["episodes_adaptive"]
     assert ad["mode"] == "kstar" and ad["p5"] <= ad["expected"] <= ad["p95"] <= 60
     for w in ("1", "2"):
