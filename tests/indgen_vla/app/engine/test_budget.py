@@ -58,9 +58,8 @@ def test_budget_json_and_no_scene_is_built(smoke):
     assert out["episodes_fixed"]["stable_per_level"] == 285 and out["episodes_fixed"]["fail_again"][0] == 275
     pw = out["power"]
     assert (
-        pw["most-discordant"]["at_episodes"]
-        <= pw["independent"]["at_episodes"]
-        <= pw["nested"]["at_episodes"]
+        max(pw["most-discordant"]["at_episodes"], pw["independent"]["at_episodes"])
+        < pw["nested"]["at_episodes"]
     )
     ad = out["episodes_adaptive"]
     assert ad["mode"] == "kstar" and ad["p5"] <= ad["expected"] <= ad["p95"] <= 60
