@@ -97,8 +97,8 @@ def fixed_design(gamma: float, delta: float, alpha: float, ci: str = "wilson") -
 def pair_probabilities(p0: float, p1: float, model: str) -> tuple[float, float]:
     """(P T0 succeeds and level k fails, P T0 fails and level k succeeds) for one seed's pair. ``independent``:
     the two outcomes of a seed are independent; ``nested``: level k succeeds only on seeds where T0 does (fewest
-    discordant pairs for the same rates, the McNemar test's best case); ``most-discordant``: the fewest concordant
-    pairs the rates allow (the most discordant pairs, the test's worst case; independence lies between)."""
+    discordant pairs for the same rates); ``most-discordant``: the fewest concordant pairs the rates allow (the most
+    discordant pairs). No coupling gives the least power at every n: the exact test is discrete."""
     _check_rate("T0 rate", p0)
     _check_rate("level rate", p1)
     if model == "independent":
