@@ -80,11 +80,13 @@ def test_the_lock_round_trips_through_evaluate_report_and_compare(tmp_path, caps
     assert main(["evaluate", *proto, "--workers", "1", "--out", str(run), "--preregistered", str(lock)]) == 0
     capsys.readouterr()
     assert main(["report", str(run)]) == 0
-    assert f"{run}: pre-registered: yes ({digest[:12]})" in capsys.readouterr().out
+    assert f"{run}: locked, hash {digest[:12]}, followed; not shown to precede" in capsys.readouterr().out
+    assert main(["report", str(run), "--lock-published", "https://example.org/lock"]) == 0
+    assert f"hash {digest[:12]}, followed; published https://example.org/lock" in capsys.readouterr().out
     assert main(["report", str(run), "--gamma", "0.3"]) == 0
     assert "deviation(s): gamma is 0.3, locked 0.2" in capsys.readouterr().out
     assert main(["compare", str(run), str(run), "--out", str(tmp_path / "cmp")]) == 0
-    assert capsys.readouterr().out.count(f"pre-registered: yes ({digest[:12]})") == 2
+    assert capsys.readouterr().out.count(f"locked, hash {digest[:12]}, followed") == 2
 
 
 @pytest.mark.slow  # ~11 s, and a timing claim: benchmarks hold those
