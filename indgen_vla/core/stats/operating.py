@@ -13,7 +13,9 @@ from scipy.stats import binom, norm
 from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.sample_size import verdict_counts
 
-CHECK_GRID = 400  # boundary points the measured size is taken over: finer than, and apart from, the test's own grid
+CHECK_GRID = (
+    400  # boundary points the measured size is taken over: finer than, and apart from, the test's own grid
+)
 
 
 # ------------------------------------------------------------------------------------------------ the gate's tests
@@ -53,14 +55,22 @@ def _quadrinomial(n: int, p11: float, p10: float, p01: float):
         x, y = x[keep], y[keep]
         nei = n - both - x - y
         p00 = max(0.0, 1 - p11 - p10 - p01)
-        lg = (math.lgamma(n + 1) - ni._lgam(both + 1) - ni._lgam(x + 1) - ni._lgam(y + 1) - ni._lgam(nei + 1))
+        lg = math.lgamma(n + 1) - ni._lgam(both + 1) - ni._lgam(x + 1) - ni._lgam(y + 1) - ni._lgam(nei + 1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            lp = lg + ni._xlog(np.full_like(x, both), p11) + ni._xlog(x, p10) + ni._xlog(y, p01) + ni._xlog(nei, p00)
+            lp = (
+                lg
+                + ni._xlog(np.full_like(x, both), p11)
+                + ni._xlog(x, p10)
+                + ni._xlog(y, p01)
+                + ni._xlog(nei, p00)
+            )
         out.append((np.full_like(x, both), x, y, nei, np.exp(lp)))
     return tuple(np.concatenate(c) for c in zip(*out, strict=True))
 
 
-def newcombe_size(n: int, margin: float, alpha: float, rates: Sequence[float] = (0.3, 0.5, 0.55, 0.7, 0.9)) -> dict:
+def newcombe_size(
+    n: int, margin: float, alpha: float, rates: Sequence[float] = (0.3, 0.5, 0.55, 0.7, 0.9)
+) -> dict:
     """Largest P(Newcombe's (1 − 2α) lower end > −M) at Δ = −M over baseline rates ``rates`` and every coupling of
     the pair (A-only probability from M to its largest), by exact enumeration of the four-cell tables."""
     worst = (0.0, None)
@@ -120,7 +130,9 @@ def kstar_wrong(rates: Sequence[float], n: int, gamma: float, ci: str) -> dict:
     k* is determined at the true break, determined at a wrong level, or left undetermined."""
     i_min = [verdict_counts(n, gamma, ci)[0]] * len(rates)
     b_max = verdict_counts(n, gamma, ci)[1]
-    p_int = [float(binom.sf(i - 1, n, p)) if i is not None else 0.0 for i, p in zip(i_min, rates, strict=True)]
+    p_int = [
+        float(binom.sf(i - 1, n, p)) if i is not None else 0.0 for i, p in zip(i_min, rates, strict=True)
+    ]
     p_brk = [float(binom.cdf(b_max, n, p)) if b_max is not None else 0.0 for p in rates]
     true_k = next((k for k, p in enumerate(rates) if p < gamma), None)
     right = wrong = 0.0
@@ -198,7 +210,9 @@ def series_fwer(levels: Sequence[float], n: int, steps: int, draws: int, seed: i
     return hits / draws
 
 
-def pooled_ood_size(levels: Sequence[float], n: int, steps: int, draws: int, seed: int, checkpoint_sd: float) -> float:
+def pooled_ood_size(
+    levels: Sequence[float], n: int, steps: int, draws: int, seed: int, checkpoint_sd: float
+) -> float:
     """Seeded simulation: the size of the pooled OOD Cochran–Armitage trend (levels ≠ 0 summed, two one-sided tests
     at 2.5 % each) when a checkpoint effect on the logit is shared by the levels and nothing trends."""
     from indgen_vla.core.stats.metrics import cochran_armitage
