@@ -269,6 +269,15 @@ def _fmt_s(s: float) -> str:
     return f"{s / 3600:.2f} h" if s >= 5400 else f"{s / 60:.1f} min" if s >= 120 else f"{s:.0f} s"
 
 
+def _coverage() -> str:
+    """The interval's measured coverage on held-out runs, as it is printed beside the interval."""
+    from indgen_vla.app.engine.wall_time import HELDOUT
+
+    h = HELDOUT
+    return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs, {h['covered_unwidened']} unwidened "
+            f"by load: {h['where']}")  # fmt: skip
+
+
 def render(out: dict) -> list[str]:
     """The terminal text of a budget."""
     p, f = out["protocol"], out["episodes_fixed"]
@@ -311,7 +320,7 @@ def render(out: dict) -> list[str]:
             else ""
         )
         lines.append(f"--workers {w}: wall {_fmt_s(ws['expected'])} (interval {_fmt_s(ws['low'])}-"
-                     f"{_fmt_s(ws['high'])}, the whole evaluate command){gpu}; bound: {v['bound']}; "
+                     f"{_fmt_s(ws['high'])}, the whole evaluate command; {_coverage()}){gpu}; bound: {v['bound']}; "
                      f"{v['steps_per_s']:.0f} steps/s in rounds; act {v['act']}")  # fmt: skip
     lines += [f"note: {n}" for n in out.get("notes", [])]
     if out.get("lock"):

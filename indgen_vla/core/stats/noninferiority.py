@@ -18,9 +18,8 @@ import numpy as np
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.sample_size import paired_power
 
-N_EXACT = (
-    600  # pairs up to which the test is exact (about 0.3 s a new n); beyond, Tango's asymptotic score test
-)
+# pairs up to which the test is exact (about 1-3 s for a new n of 1000); beyond, Tango's asymptotic score test
+N_EXACT = 1000
 GRID = 160  # nuisance values on the boundary Δ = −M over which the tail's supremum is taken
 
 

@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -124,3 +125,18 @@ def test_a_pilot_run_is_the_curve_and_must_cover_every_level(smoke, capsys):
         f"error: --pilot {smoke} has no finished episode of pick_y level 1: pilot every level of the protocol, "
         "or use --assume"
     )
+
+
+def test_the_printed_coverage_is_the_committed_held_out_runs():
+    """The coverage budget prints beside the wall-time interval counts the held-out rows of
+    docs/results/wall_time_heldout.jsonl (scripts/bench_budget.py runs made after the factors were set)."""
+    from indgen_vla.app.engine.wall_time import HELDOUT, HIGH, LOW
+
+    path = Path(__file__).resolve().parents[4] / "docs" / "results" / "wall_time_heldout.jsonl"
+    rows = [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+    inside = sum(r["projected_s"]["low"] <= r["measured_s"] <= r["projected_s"]["high"] for r in rows)
+    plain = sum(
+        LOW * r["projected_s"]["expected"] <= r["measured_s"] <= HIGH * r["projected_s"]["expected"]
+        for r in rows
+    )
+    assert (HELDOUT["runs"], HELDOUT["covered"], HELDOUT["covered_unwidened"]) == (len(rows), inside, plain)
