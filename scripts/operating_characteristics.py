@@ -52,6 +52,14 @@ def gate_section(lines: list[str]) -> None:
             tag, claim = ("", "5 %") if exact else (" (asymptotic)", "about 5 %")
             lines.append(f"| {n}{tag} | {m:g} | {claim} | **{pct(size, 2)}** | {pct(asym, 2)} | "
                          f"{pct(newc, 1) if newc is not None else 'not enumerated'} |")  # fmt: skip
+    lines += ["", "Unpaired runs (other seeds or plans): the exact unconditional test ordered by the lower end of the "
+              "(1 − 2α) MOVER interval of Wilson intervals, against that interval alone (the gate before). Two runs "
+              "of n episodes, the largest chance over 400 baseline rates on the boundary p_B = p_A − M:", "",
+              "| n a run | M | claimed | measured (this test) | MOVER interval alone (before) |", "|---|---|---|---|---|"]  # fmt: skip
+    for m in (0.05, 0.1, 0.2):
+        for n in (10, 25, 50, 100, 200):
+            lines.append(f"| {n} | {m:g} | 5 % | **{pct(oc.unpaired_size(n, m, ALPHA, True), 2)}** | "
+                         f"{pct(oc.unpaired_size(n, m, ALPHA, False), 2)} |")  # fmt: skip
     lines += ["", "Power at Δ = 0 (equal policies, outcomes independent pair by pair), M = 0.1, exact:", "",
               "| n pairs | rate 0.5 | rate 0.8 | rate 0.9 | rate 0.95 | rate 1.0 |", "|---|---|---|---|---|---|"]  # fmt: skip
     for n in (25, 50, 100, 200, 400):

@@ -20,6 +20,7 @@ from indgen_vla.core.stats.sample_size import paired_power
 
 # pairs up to which the test is exact (about 1-3 s for a new n of 1000); beyond, Tango's asymptotic score test
 N_EXACT = 1000
+TIE = 1e-12  # statistics closer than this are one value: the test compares with this tolerance
 GRID = 160  # nuisance values on the boundary Δ = −M over which the tail's supremum is taken
 
 
@@ -102,7 +103,7 @@ def critical_z(n: int, margin: float, alpha: float) -> float:
     for q in _nuisance(margin):
         np.maximum(sup, np.cumsum(trinomial_pmf(n, q, q - margin)[order]), out=sup)
     # a cut must not split tied statistics: the tail at index i counts every table with z ≥ zs[i]
-    last_of_tie = np.r_[zs[1:] != zs[:-1], True]
+    last_of_tie = np.r_[zs[:-1] - zs[1:] > TIE, True]
     ok = (sup <= alpha) & last_of_tie
     if not ok.any():
         return math.inf
@@ -118,20 +119,20 @@ def p_value(x: int, y: int, n: int, margin: float) -> float:
 
         return float(norm.sf(z0))
     xs, ys, _ = _tables(n)
-    tail = tango_z(xs, ys, n, margin) >= z0 - 1e-12
+    tail = tango_z(xs, ys, n, margin) >= z0 - TIE
     return float(min(1.0, max(trinomial_pmf(n, q, q - margin)[tail].sum() for q in _nuisance(margin))))
 
 
 def non_inferior(x: int, y: int, n: int, margin: float, alpha: float) -> bool:
     """Whether the pairs show B no worse than A by more than ``margin`` at one-sided level ``alpha``."""
-    return bool(tango_z(x, y, n, margin) >= critical_z(n, margin, alpha) - 1e-12)
+    return bool(tango_z(x, y, n, margin) >= critical_z(n, margin, alpha) - TIE)
 
 
 def power(n: int, q_x: float, q_y: float, margin: float, alpha: float) -> float:
     """P(non-inferiority shown) with n pairs whose A-only and B-only probabilities are ``q_x``, ``q_y``."""
     crit = critical_z(n, margin, alpha)
     x, y, _ = _tables(n) if n <= N_EXACT else _tables_sparse(n, q_x, q_y)
-    rej = tango_z(x, y, n, margin) >= crit - 1e-12
+    rej = tango_z(x, y, n, margin) >= crit - TIE
     return float(min(1.0, trinomial_pmf_any(n, x, y, q_x, q_y)[rej].sum()))
 
 
@@ -168,7 +169,7 @@ def conditional_power(x: int, y: int, n: int, extra: int, q_x: float, q_y: float
     total = n + extra
     crit = critical_z(total, margin, alpha)
     ex, ey = _tables_for(extra, q_x, q_y)
-    rej = tango_z(x + ex, y + ey, total, margin) >= crit - 1e-12
+    rej = tango_z(x + ex, y + ey, total, margin) >= crit - TIE
     return float(min(1.0, trinomial_pmf_any(extra, ex, ey, q_x, q_y)[rej].sum()))
 
 
@@ -225,8 +226,8 @@ def _wilson(s: np.ndarray, n: int, conf: float) -> tuple[np.ndarray, np.ndarray]
 
 def unpaired_conditional_power(sa: int, na: int, sb: int, nb: int, extra: int, margin: float, alpha: float,
                                alpha_worse: float) -> tuple[float, float]:  # fmt: skip
-    """(P the MOVER interval at 1 − 2α clears −margin, P the one at 1 − α_worse lies below 0) after ``extra`` more
-    episodes in each run, drawn at the observed rates, the first ones kept: exact sums over the two binomials."""
+    """(P the unpaired non-inferiority test passes, P the MOVER interval at 1 − α_worse lies below 0) after ``extra``
+    more episodes in each run, drawn at the observed rates, the first ones kept: exact sums over the two binomials."""
     from scipy.stats import binom
 
     pa, pb = sa / na, sb / nb
@@ -241,14 +242,51 @@ def unpaired_conditional_power(sa: int, na: int, sb: int, nb: int, extra: int, m
     w = binom.pmf(xa, extra, pa) * binom.pmf(xb, extra, pb)
     ta, tb = na + extra, nb + extra
     ra, rb = (sa + xa) / ta, (sb + xb) / tb
-    out = []
-    for conf, lower in ((1 - 2 * alpha, True), (1 - alpha_worse, False)):
-        la, ua = _wilson(sa + xa, ta, conf)
-        lb, ub = _wilson(sb + xb, tb, conf)
-        d = rb - ra
-        if lower:
-            ok = d - np.hypot(rb - lb, ua - ra) > -margin
-        else:
-            ok = d + np.hypot(ub - rb, ra - la) < 0
-        out.append(float(min(1.0, w[ok].sum())))
-    return out[0], out[1]
+    ni_ok = (
+        mover_lower(sa + xa, ta, sb + xb, tb, 1 - 2 * alpha) >= unpaired_critical(ta, tb, margin, alpha) - TIE
+    )
+    la, _ = _wilson(sa + xa, ta, 1 - alpha_worse)
+    _, ub = _wilson(sb + xb, tb, 1 - alpha_worse)
+    worse = (rb - ra) + np.hypot(ub - rb, ra - la) < 0
+    return float(min(1.0, w[ni_ok].sum())), float(min(1.0, w[worse].sum()))
+
+
+# ------------------------------------------------------------------------------------------ unpaired runs (MOVER)
+def mover_lower(sa, na: int, sb, nb: int, conf: float):
+    """Lower end of the MOVER interval of Δ = p_B − p_A from the two Wilson intervals (``metrics.difference_ci``),
+    vectorised: the unpaired test's statistic."""
+    sa, sb = np.asarray(sa, dtype=float), np.asarray(sb, dtype=float)
+    _, ua = _wilson(sa, na, conf)
+    lb, _ = _wilson(sb, nb, conf)
+    ra, rb = sa / na, sb / nb
+    return (rb - ra) - np.hypot(rb - lb, ua - ra)
+
+
+@lru_cache(maxsize=256)
+def unpaired_critical(na: int, nb: int, margin: float, alpha: float) -> float:
+    """The least MOVER lower end c with sup over the boundary (p_B = p_A − M) of P(lower end ≥ c) ≤ α, by exact
+    sums over the two binomials: the unpaired non-inferiority test, whose size holds where the interval's alone
+    did not (7.2 % at 25 episodes a run, docs/statistics.md)."""
+    from scipy.stats import binom
+
+    _check(min(na, nb), margin, alpha)
+    sa, sb = np.meshgrid(np.arange(na + 1), np.arange(nb + 1), indexing="ij")
+    t = mover_lower(sa, na, sb, nb, 1 - 2 * alpha).ravel()
+    order = np.argsort(-t, kind="stable")
+    ts = t[order]
+    sup = np.zeros(len(ts))
+    for pa in margin + (1 - margin) * (1 - np.cos(np.linspace(0, math.pi, GRID))) / 2:
+        w = np.outer(
+            binom.pmf(np.arange(na + 1), na, pa), binom.pmf(np.arange(nb + 1), nb, pa - margin)
+        ).ravel()
+        np.maximum(sup, np.cumsum(w[order]), out=sup)
+    ok = (sup <= alpha) & np.r_[
+        ts[:-1] - ts[1:] > TIE, True
+    ]  # ties within TIE: one cut, as the test reads them
+    return float(ts[np.flatnonzero(ok)[-1]]) if ok.any() else math.inf
+
+
+def unpaired_non_inferior(sa: int, na: int, sb: int, nb: int, margin: float, alpha: float) -> bool:
+    """Whether independent runs show B no worse than A by more than ``margin`` at one-sided level ``alpha``."""
+    t = float(mover_lower(sa, na, sb, nb, 1 - 2 * alpha))
+    return t >= unpaired_critical(na, nb, margin, alpha) - TIE

@@ -95,11 +95,22 @@ def exact_size(n: int, margin: float, alpha: float, grid: int = CHECK_GRID) -> d
     qs = np.linspace(margin, (1 + margin) / 2, grid)
     for q in qs:
         x, y = ni._tables_for(n, q, q - margin)
-        rej = ni.tango_z(x, y, n, margin) >= crit - 1e-12
+        rej = ni.tango_z(x, y, n, margin) >= crit - ni.TIE
         s = float(ni.trinomial_pmf_any(n, x, y, q, q - margin)[rej].sum())
         if s > worst:
             worst, at = s, float(q)
     return {"size": worst, "at_a_only": at}
+
+
+def unpaired_size(n: int, margin: float, alpha: float, exact: bool, grid: int = CHECK_GRID) -> float:
+    """Largest P(non-inferiority shown) at p_B = p_A − M over ``grid`` values of p_A, two runs of n episodes:
+    the gate's exact test (``exact``) or the MOVER interval alone (the gate before), exact sums."""
+    s = np.arange(n + 1)
+    sa, sb = np.meshgrid(s, s, indexing="ij")
+    t = ni.mover_lower(sa, n, sb, n, 1 - 2 * alpha)
+    rej = t >= ni.unpaired_critical(n, n, margin, alpha) - ni.TIE if exact else t > -margin
+    return max(float(np.outer(binom.pmf(s, n, pa), binom.pmf(s, n, pa - margin))[rej].sum())
+               for pa in np.linspace(margin, 1, grid))  # fmt: skip
 
 
 def asymptotic_size(n: int, margin: float, alpha: float, grid: int = 100) -> float:
@@ -255,7 +266,7 @@ def recipe_pass(rates: Sequence[float], n: int, margin: float, alpha: float, dro
             if old:
                 pvals.append(mcnemar_exact(x, y))
                 deltas.append(y - x)
-            elif ni.tango_z(x, y, n, margin) < crit - 1e-12:
+            elif ni.tango_z(x, y, n, margin) < crit - ni.TIE:
                 ok = False
                 break
         if old:

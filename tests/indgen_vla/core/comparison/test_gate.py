@@ -7,8 +7,9 @@ import pytest
 from scipy.stats import binom, binomtest
 
 from indgen_vla.app.cli import main
-from indgen_vla.core.comparison.gate import GateConfig, _unpaired_ci, gate
+from indgen_vla.core.comparison.gate import GateConfig, gate
 from indgen_vla.core.runs.records import RunDir
+from indgen_vla.core.stats import noninferiority as ni
 from tests.indgen_vla.core.reporting.test_report import make_run
 from tests.indgen_vla.core.runs.test_records import rec
 
@@ -76,11 +77,11 @@ def test_unpaired_runs_use_boschloo_and_project_both_sides(tmp_path, capsys):
     extra = res["levels"][0]["more_episodes"]
     assert "with 80% chance if the observed rates are the true ones" in out
 
-    # the projection's claim, summed here over the candidate's extra successes with the gate's own interval: with that
+    # the projection's claim, summed here over the candidate's extra successes with the gate's own test: with that
     # many more episodes drawn at the observed rates (30/30 stays perfect) the level passes with chance >= 80 %
     def chance(more: int) -> float:
         return sum(binom.pmf(k, more, 0.95) for k in range(more + 1)
-                   if _unpaired_ci(30 + more, 30 + more, 19 + k, 20 + more, 0.9)[0] > -0.15)  # fmt: skip
+                   if ni.unpaired_non_inferior(30 + more, 30 + more, 19 + k, 20 + more, 0.15, 0.05))  # fmt: skip
 
     assert chance(extra) >= 0.8 > chance(extra - 1)
 

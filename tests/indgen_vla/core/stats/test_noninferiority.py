@@ -75,3 +75,12 @@ def test_power_and_conditional_power_are_the_sums_they_say():
                if ni.non_inferior(2 + ex, 1 + ey, 40, m, a))  # fmt: skip
     assert ni.conditional_power(2, 1, 20, 20, 0.1, 0.05, m, a) == pytest.approx(want)
     assert ni.critical_z(ni.N_EXACT + 1, m, a) == pytest.approx(norm.isf(a))
+
+
+@pytest.mark.parametrize("n,m", [(10, 0.1), (25, 0.1), (50, 0.2), (40, 0.05)])
+def test_the_unpaired_size_holds_where_the_interval_alone_did_not(n, m):
+    from indgen_vla.core.stats.operating import unpaired_size
+
+    assert unpaired_size(n, m, 0.05, exact=True, grid=200) <= 0.05 + 0.001
+    if (n, m) == (25, 0.1):
+        assert unpaired_size(n, m, 0.05, exact=False, grid=200) > 0.07  # the MOVER interval alone: 7.2 %
