@@ -152,3 +152,17 @@ def test_gate_on_evaluated_runs(evaluated, capsys):
     assert "about 8 more episodes per level in each run would decide every one" in out
     assert main(["gate", str(r["o10a"]), str(r["o10b"]), "--margin", "0.3"]) == 0
     assert "PASS (exit 0)" in capsys.readouterr().out
+
+
+def test_plan_sizes_the_smoke_from_the_baseline(tmp_path, capsys):
+    """A pilot at 90, 95, 90 % on three levels: 168 episodes a level pass equal policies with chance >= 80 % (the
+    docs/loop.md recipe's number); the drop of 2M is named with its chance; a CANDIDATE with --plan is refused."""
+    a = make_run(tmp_path / "a", {-1: (18, 20), 0: (19, 20), 1: (18, 20)}, regime="a")
+    assert main(["gate", "--plan", str(a.path), "--margin", "0.1"]) == 0
+    out = capsys.readouterr().out
+    assert "--episodes 168" in out and "two equal policies pass with chance 80.8%" in out
+    assert "a drop of 20 pp at one level" in out
+    assert main(["gate", "--plan", str(a.path), str(a.path)]) == 2
+    assert "--plan takes one run directory" in capsys.readouterr().err
+    assert main(["gate", str(a.path)]) == 2
+    assert "needs BASELINE and CANDIDATE" in capsys.readouterr().err
