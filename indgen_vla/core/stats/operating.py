@@ -102,6 +102,29 @@ def exact_size(n: int, margin: float, alpha: float, grid: int = CHECK_GRID) -> d
     return {"size": worst, "at_a_only": at}
 
 
+def equivalence_size(n: int, margin: float, alpha: float, exact: bool, rates=(0.3, 0.5, 0.7, 0.9)) -> float:
+    """Largest P("within ±M" shown) at Δ = −M (by symmetry, +M) over baseline ``rates`` and 15 couplings each: the
+    report's paired equivalence test (``exact``: two exact one-sided tests; else Newcombe's 1 − 2α interval inside
+    ±M, the test before), exact sums over the four-cell tables."""
+    worst = 0.0
+    for pa in rates:
+        for qx in np.linspace(margin, min(pa, 1 - pa + margin), 15):
+            qy, p11 = qx - margin, pa - qx
+            if p11 < 0 or qy < 0:
+                continue
+            both, x, y, nei, w = _quadrinomial(n, p11, qx, qy)
+            if exact:
+                xs, ys = (np.asarray(v, dtype=float) for v in (x, y))
+                crit = ni.critical_z(n, margin, alpha) - ni.TIE
+                ok = (ni.tango_z(xs, ys, n, margin) >= crit) & (ni.tango_z(ys, xs, n, margin) >= crit)
+            else:
+                lo = newcombe_lower_cells(both, x, y, nei, 1 - 2 * alpha)
+                hi = -newcombe_lower_cells(both, y, x, nei, 1 - 2 * alpha)
+                ok = (lo > -margin) & (hi < margin)
+            worst = max(worst, float(w[ok].sum()))
+    return worst
+
+
 def unpaired_size(n: int, margin: float, alpha: float, exact: bool, grid: int = CHECK_GRID) -> float:
     """Largest P(non-inferiority shown) at p_B = p_A − M over ``grid`` values of p_A, two runs of n episodes:
     the gate's exact test (``exact``) or the MOVER interval alone (the gate before), exact sums."""

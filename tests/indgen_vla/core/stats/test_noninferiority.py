@@ -84,3 +84,10 @@ def test_the_unpaired_size_holds_where_the_interval_alone_did_not(n, m):
     assert unpaired_size(n, m, 0.05, exact=True, grid=200) <= 0.05 + 0.001
     if (n, m) == (25, 0.1):
         assert unpaired_size(n, m, 0.05, exact=False, grid=200) > 0.07  # the MOVER interval alone: 7.2 %
+
+
+def test_the_reports_equivalence_holds_its_size_where_newcombes_did_not():
+    from indgen_vla.core.stats.operating import equivalence_size
+
+    assert equivalence_size(50, 0.2, 0.05, exact=True, rates=(0.5, 0.7)) <= 0.05 + 0.001
+    assert equivalence_size(25, 0.1, 0.05, exact=False) > 0.07  # Newcombe inside ±M: 7.2 %
