@@ -19,10 +19,10 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         "(exit 0), worse somewhere (1), or undecided (5, a failure); --plan BASELINE sizes the smoke",
         description="Compare two runs of one protocol level by level. Paired runs (same seeds and plan): "
         "non-inferiority by the exact unconditional test on Tango's score statistic, worse by exact McNemar; unpaired: "
-        "the MOVER interval and Boschloo; Holm over every level and axis tested for worse. Exit 0: the candidate is "
+        "an exact test on the MOVER bound and Boschloo; Holm over every level and axis tested for worse. Exit 0: the candidate is "
         "shown non-inferior within the margin at every level; 1: significantly worse at a level; 5: neither, a "
-        "failure (the output says how many more episodes per level would decide it with 80%% chance); 2: bad input. "
-        "With --plan, only BASELINE: the episodes a level with which equal policies pass with 80%% chance "
+        "failure (the output says how many more episodes per level would decide it with 80% chance); 2: bad input. "
+        "With --plan, only BASELINE: the episodes a level with which equal policies pass with 80% chance "
         "(docs/statistics.md).",
     )
     p.add_argument(
