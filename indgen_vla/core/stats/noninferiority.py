@@ -206,7 +206,7 @@ def smallest_visible_drop(n: int, p_a: float, alpha_worse: float, power_target: 
     lo, hi = 0.0, p_a
     if paired_power(p_a, 0.0, n, alpha_worse, m) < power_target:
         return None
-    for _ in range(30):
+    for _ in range(16):  # to 1e-5 of a rate
         mid = (lo + hi) / 2
         lo, hi = (lo, mid) if paired_power(p_a, p_a - mid, n, alpha_worse, m) >= power_target else (mid, hi)
     return hi

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.breakpoint import verdict_from_ci
@@ -131,6 +132,7 @@ def paired_power(p0: float, p1: float, pairs: int, alpha: float, model: str = "i
     return min(1.0, power)
 
 
+@lru_cache(maxsize=65536)
 def _reject_from(m: int, alpha: float) -> int | None:
     """The fewest T0-only pairs among m discordant ones at which the exact McNemar test rejects towards a drop
     (its p-value falls as the split grows more lopsided); None when even m of m does not reach ``alpha``."""
