@@ -129,21 +129,8 @@ def _project_paired(r: dict, margin: float, alpha: float, family: int) -> tuple[
     if not n:
         return None
     _, x, y, _ = _cells(r)
-    qx, qy = x / n, y / n
-    chances = {}
-
-    def decides(extra: int) -> bool:
-        if extra + n < MIN_N:
-            return False
-        chances[extra] = (ni.conditional_power(x, y, n, extra, qx, qy, margin, alpha),
-                          ni.conditional_power_worse(x, y, extra, qx, qy, alpha / family))  # fmt: skip
-        return max(chances[extra]) >= POWER
-
-    extra = first_extra(decides, MAX_MORE)
-    if extra is None:
-        return None
-    p_ni, p_worse = chances[extra]
-    return extra, NON_INFERIOR if p_ni >= p_worse else WORSE
+    got = ni.project_pairs(x, y, n, margin, alpha, alpha / family, POWER, MAX_MORE, MIN_N)
+    return None if got is None else (got[0], NON_INFERIOR if got[1] else WORSE)
 
 
 def _project_unpaired(r: dict, margin: float, alpha: float, family: int) -> tuple[int, str] | None:

@@ -187,6 +187,31 @@ def conditional_power_worse(x: int, y: int, extra: int, q_x: float, q_y: float, 
     return float(min(1.0, trinomial_pmf_any(extra, ex, ey, q_x, q_y)[rej].sum()))
 
 
+def project_pairs(x: int, y: int, n: int, margin: float, alpha: float, alpha_worse: float, power: float, cap: int,
+                  floor: int = 1) -> tuple[int, bool, float] | None:  # fmt: skip
+    """The gate's "N more pairs would decide it": the fewest extra pairs (doubling, then bisection) after which,
+    if the observed pair frequencies are the true ones, the level is shown non-inferior or worse (two-sided exact
+    McNemar at ``alpha_worse``) with chance ≥ ``power``, the first n pairs kept: (extra, non-inferior is the likelier,
+    that chance); None when no number up to ``cap`` does."""
+    from indgen_vla.core.stats.sample_size import first_extra
+
+    qx, qy = x / n, y / n
+    chances: dict[int, tuple[float, float]] = {}
+
+    def decides(extra: int) -> bool:
+        if extra + n < floor:
+            return False
+        chances[extra] = (conditional_power(x, y, n, extra, qx, qy, margin, alpha),
+                          conditional_power_worse(x, y, extra, qx, qy, alpha_worse))  # fmt: skip
+        return max(chances[extra]) >= power
+
+    extra = first_extra(decides, cap)
+    if extra is None:
+        return None
+    p_ni, p_worse = chances[extra]
+    return extra, p_ni >= p_worse, max(p_ni, p_worse)
+
+
 def pair_model(p_a: float, p_b: float, model: str = "independent") -> tuple[float, float]:
     """(A-only, B-only) probabilities of a pair with marginal rates p_a, p_b: ``independent`` outcomes, or the
     ``most-discordant`` coupling (the fewest concordant pairs the rates allow: the least power at Δ = 0)."""

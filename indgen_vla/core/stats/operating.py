@@ -303,3 +303,34 @@ def recipe_pass(rates: Sequence[float], n: int, margin: float, alpha: float, dro
 
         out["exact"] = pass_chance(rates, n, margin, alpha, model, drop, at)
     return out
+
+
+def gate_projection(n: int, p: float, margin: float, alpha: float, power: float = 0.8, model: str = "independent",
+                    cap: int = 5000) -> dict:  # fmt: skip
+    """Over the first stages of n pairs of two equal policies at rate p that leave a one-level gate undecided, the
+    chance the projected extra pairs decide it (non-inferior, or worse by exact McNemar) when p is the truth, and
+    the least chance the projection claimed at the observed frequencies (exact sums over both stages)."""
+    from indgen_vla.core.stats.metrics import mcnemar_exact
+
+    qx, qy = ni.pair_model(p, p, model)
+    xs, ys, _ = ni._tables(n)
+    w = ni.trinomial_pmf(n, qx, qy)
+    mass = decided = 0.0
+    claim = 1.0
+    for x, y, wt in zip(xs, ys, w, strict=True):
+        x, y = int(x), int(y)
+        if wt < 1e-6 or ni.non_inferior(x, y, n, margin, alpha) or (x > y and mcnemar_exact(x, y) < alpha):
+            continue
+        got = ni.project_pairs(x, y, n, margin, alpha, alpha, power, cap)
+        if got is None:
+            continue
+        extra, _, chance = got
+        ex, ey = ni._tables_for(extra, qx, qy)
+        pe = ni.trinomial_pmf_any(extra, ex, ey, qx, qy)
+        a, b, total = x + ex, y + ey, n + extra
+        shown = ni.tango_z(a, b, total, margin) >= ni.critical_z(total, margin, alpha) - ni.TIE
+        worse = (a > b) & (np.minimum(1.0, 2 * binom.cdf(np.minimum(a, b), a + b, 0.5)) < alpha)
+        mass += wt
+        decided += wt * float(pe[shown | worse].sum())
+        claim = min(claim, chance)
+    return {"printed": mass, "decided": decided / mass if mass else math.nan, "claim_at_observed": claim}
