@@ -91,3 +91,11 @@ def test_the_reports_equivalence_holds_its_size_where_newcombes_did_not():
 
     assert equivalence_size(50, 0.2, 0.05, exact=True, rates=(0.5, 0.7)) <= 0.05 + 0.001
     assert equivalence_size(25, 0.1, 0.05, exact=False) > 0.07  # Newcombe inside ±M: 7.2 %
+
+
+def test_the_projection_reaches_the_chance_it_prints():
+    """20 pairs, 1 A-only and 1 B-only: the extra pairs printed decide the level with chance >= 80 % at the observed
+    frequencies (the chance returned is the exact sum over the extra pairs' tables)."""
+    extra, ni_likelier, chance = ni.project_pairs(1, 1, 20, 0.1, 0.05, 0.05, 0.8, 5000)
+    assert ni_likelier and chance >= 0.8
+    assert chance == pytest.approx(ni.conditional_power(1, 1, 20, extra, 0.05, 0.05, 0.1, 0.05))
