@@ -84,7 +84,7 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.core.protocol.plan_lock import run_status
     from indgen_vla.core.runs.records import RunDir
 
-    for path in (args.run_a, args.run_b):  # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
+    for path in (args.run_a, args.run_b):  # "locked, hash H, followed" or its deviations (docs/budget.md)
         run = RunDir(path)
         if line := run_status(run.manifest, len(run.episodes()), gamma=args.gamma, alpha=args.alpha):
             print(f"{run.path}: {line}")

@@ -16,16 +16,36 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p = sp.add_parser(
         "gate",
         help="regression gate for CI: is CANDIDATE no worse than BASELINE within --margin at every level "
-        "(exit 0), worse somewhere (1), or undecided (5)",
-        description="Compare two runs of one protocol level by level (exact McNemar on episode pairs when seeds and "
-        "plan match, else Boschloo; Holm over every level and axis tested). Exit 0: the candidate is shown "
-        "non-inferior within the margin at every level; 1: significantly worse at a level; 5: neither (the output "
-        "says how many more episodes per level would decide it); 2: bad input.",
+        "(exit 0), worse somewhere (1), or undecided (5, a failure); --plan BASELINE sizes the smoke",
+        description="Compare two runs of one protocol level by level. Paired runs (same seeds and plan): "
+        "non-inferiority by the exact unconditional test on Tango's score statistic, worse by exact McNemar; unpaired: "
+        "an exact test on the MOVER bound and Boschloo; Holm over every level and axis tested for worse. Exit 0: the candidate is "
+        "shown non-inferior within the margin at every level; 1: significantly worse at a level; 5: neither, a "
+        "failure (the output says how many more episodes per level would decide it with 80% chance); 2: bad input. "
+        "With --plan, only BASELINE: the episodes a level with which equal policies pass with 80% chance "
+        "(docs/statistics.md).",
     )
     p.add_argument(
         "baseline", metavar="BASELINE", help="run directory of the reference (e.g. the stored main run)"
     )
-    p.add_argument("candidate", metavar="CANDIDATE", help="run directory of the run under test")
+    p.add_argument("candidate", metavar="CANDIDATE", nargs="?", help="run directory of the run under test")
+    p.add_argument(
+        "--plan",
+        action="store_true",
+        help="size the smoke from BASELINE's per-level rates instead of gating (no CANDIDATE)",
+    )
+    p.add_argument(
+        "--power",
+        type=float,
+        default=0.8,
+        help="with --plan: the chance that two equal policies pass (default 0.8)",
+    )
+    p.add_argument(
+        "--pairing",
+        choices=["independent", "most-discordant"],
+        default="independent",
+        help="with --plan: how a candidate's outcomes pair with the baseline's (default independent)",
+    )
     p.add_argument(
         "--margin", type=float, default=DEFAULT_MARGIN, metavar="M",
         help=f"largest drop in success per level that still passes, as a rate (default {DEFAULT_MARGIN}: 10 points)",
@@ -53,7 +73,14 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """CLI handler: print the verdicts (or JSON) and return the gate's exit code."""
     from indgen_vla.core.comparison.gate import GateConfig, gate
+    from indgen_vla.core.errors import ConfigError
 
+    if args.plan:
+        return _plan(args)
+    if args.candidate is None:
+        raise ConfigError(
+            "indgen gate needs BASELINE and CANDIDATE run directories (or --plan BASELINE to size them)"
+        )
     if args.test in ("auto", "mcnemar"):  # imported runs (indgen import) pair by seed or are refused
         _check_imported(args.baseline, args.candidate)
     cfg = GateConfig(
@@ -77,6 +104,23 @@ def _check_imported(baseline: str, candidate: str) -> None:
     if any(IMPORTED in r.manifest for r in runs):
         check_paired_by_seed((runs[0].manifest, runs[1].manifest), (runs[0].episodes(), runs[1].episodes()),
                              (baseline, candidate))  # fmt: skip
+
+
+def _plan(args: argparse.Namespace) -> int:
+    """``gate --plan``: print the smoke's episodes a level (JSON with --json)."""
+    from indgen_vla.core.comparison.gate import GateConfig
+    from indgen_vla.core.comparison.gate_plan import baseline_rates, plan_episodes, plan_lines
+    from indgen_vla.core.errors import ConfigError
+
+    if args.candidate is not None:
+        raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
+    GateConfig(
+        args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
+    )  # validates
+    levels = baseline_rates(args.baseline, args.gamma)
+    plan = plan_episodes([p for _, _, p in levels], args.margin, args.alpha, args.power, args.pairing)
+    print(json.dumps(plan, indent=2) if args.json else "\n".join(plan_lines(args.baseline, plan, levels)))
+    return 0
 
 
 def _plain(x):

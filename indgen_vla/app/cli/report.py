@@ -25,6 +25,10 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--out", default=None, help="where to put the multi-run overlay (default: FIRST_RUN/overlay)"
     )
+    p.add_argument(
+        "--lock-published", default=None, metavar="WHERE",
+        help="where the plan.lock's hash was published before the run (a URL, a commit); printed beside the hash",
+    )  # fmt: skip
 
 
 def main(args: argparse.Namespace) -> int:
@@ -37,8 +41,9 @@ def main(args: argparse.Namespace) -> int:
     for path in args.runs:
         run = RunDir(path)
         print(f"{run.path}: wrote {SUMMARY}, {REPORT}, report.html, plots/")
-        # "pre-registered: yes (hash)" or its deviations (docs/budget.md)
-        if line := run_status(run.manifest, len(run.episodes()), gamma=args.gamma, ci=args.ci):
+        # "locked, hash H, followed (published WHERE)" or its deviations (docs/budget.md)
+        published = args.lock_published
+        if line := run_status(run.manifest, len(run.episodes()), published, gamma=args.gamma, ci=args.ci):
             print(f"{run.path}: {line}")
     if len(args.runs) > 1:
         out = overlay_dir(args.runs[0], args.out)

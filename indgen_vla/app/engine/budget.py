@@ -136,7 +136,13 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     from indgen_vla.app.engine.run import build_plan
     from indgen_vla.core.stats.adaptive_cost import assumed_curve, simulate_protocol
     from indgen_vla.core.stats.contrasts import ALPHA
-    from indgen_vla.core.stats.sample_size import decided_rates, fixed_design, paired_power, pairs_for_power
+    from indgen_vla.core.stats.sample_size import (
+        decided_rates,
+        fixed_design,
+        paired_power,
+        pairs_for_power,
+        stable_episodes,
+    )
     from indgen_vla.core.stats.sprt import make_rule
 
     cfg = req.cfg
@@ -155,7 +161,9 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     delta, alpha = cfg.adaptive.delta, cfg.adaptive.alpha
     fixed = fixed_design(gamma, delta, alpha, req.ci)
     miss = decided_rates(episodes, gamma, delta, req.ci)
-    out["episodes_fixed"] = {**fixed.as_dict(), "protocol": fixed.episodes * cells if fixed.episodes else None,
+    stable, fail_again = stable_episodes(fixed)
+    out["episodes_fixed"] = {**fixed.as_dict(), "stable_per_level": stable, "fail_again": fail_again,
+                             "protocol": fixed.episodes * cells if fixed.episodes else None,
                              "at_episodes": {"episodes": episodes, "miss_intact": miss[0], "miss_broken": miss[1]}}  # fmt: skip
     curve = None
     if req.assume is not None:
@@ -169,7 +177,7 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
                     "test": f"exact McNemar, paired on seeds, at α/{tested} (Holm's first step over {tested} levels)",
                     **{m: {"at_episodes": paired_power(p0, max(0.0, p0 - req.drop), episodes, a_level, m),
                            "pairs_for_80": pairs_for_power(p0, max(0.0, p0 - req.drop), a_level, POWER, m)}
-                       for m in ("independent", "nested")}}  # fmt: skip
+                       for m in ("independent", "nested", "most-discordant")}}  # fmt: skip
     if not mode and not curve:
         out["episodes_adaptive"] = None
     elif curve is None:
@@ -259,6 +267,15 @@ def _fmt_s(s: float) -> str:
     return f"{s / 3600:.2f} h" if s >= 5400 else f"{s / 60:.1f} min" if s >= 120 else f"{s:.0f} s"
 
 
+def _coverage() -> str:
+    """The interval's measured coverage on held-out runs, as it is printed beside the interval."""
+    from indgen_vla.app.engine.wall_time import HELDOUT
+
+    h = HELDOUT
+    return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs, {h['covered_unwidened']} unwidened "
+            f"by load: {h['where']}")  # fmt: skip
+
+
 def render(out: dict) -> list[str]:
     """The terminal text of a budget."""
     p, f = out["protocol"], out["episodes_fixed"]
@@ -266,8 +283,12 @@ def render(out: dict) -> list[str]:
              f"{p['cells']} level cells rolled out, {p['episodes_per_level']} episodes a level "
              f"({p['rollouts_planned']} rollouts; adaptive: {p['adaptive'] or 'off'}); policy {p['policy']}"]  # fmt: skip
     at = f["at_episodes"]
+    stable = ""
+    if f.get("stable_per_level") and f["stable_per_level"] != f["per_level"]:
+        stable = (f" (the first n that does; {len(f['fail_again'])} n above it fail again, every n from "
+                  f"{f['stable_per_level']} through {int(1.5 * f['per_level']) + 1} passes)")  # fmt: skip
     lines.append(
-        f"fixed design: {f['per_level'] or 'more than 5000'} episodes a level decide each level at γ = "
+        f"fixed design: {f['per_level'] or 'more than 5000'} episodes a level{stable} decide each level at γ = "
         f"{f['gamma']:g} ± δ = {f['delta']:g} with error ≤ {f['alpha']:g} ({f['ci']}; {f['protocol']} rollouts for "
         f"the protocol); with this protocol's {at['episodes']} a level, a level at S = {f['gamma'] + f['delta']:g} is "
         f"not called intact with chance {at['miss_intact']:.1%}, one at {f['gamma'] - f['delta']:g} not called broken "
@@ -276,8 +297,10 @@ def render(out: dict) -> list[str]:
     pw = out["power"]
     lines.append(
         f"power vs T0 ({pw['test']}): a drop of {pw['drop']:g} from T0 = {pw['t0_rate']:g} with {at['episodes']} "
-        f"pairs: {pw['independent']['at_episodes']:.0%} (independent outcomes) to {pw['nested']['at_episodes']:.0%} "
-        f"(nested); {POWER:.0%} power needs {pw['independent']['pairs_for_80']} / {pw['nested']['pairs_for_80']} pairs"
+        f"pairs: {pw['most-discordant']['at_episodes']:.0%} (most discordant pairs) / "
+        f"{pw['independent']['at_episodes']:.0%} (independent outcomes) / {pw['nested']['at_episodes']:.0%} (nested, "
+        f"fewest discordant); {POWER:.0%} power needs {pw['most-discordant']['pairs_for_80']} / "
+        f"{pw['independent']['pairs_for_80']} / {pw['nested']['pairs_for_80']} pairs"
     )
     ad = out.get("episodes_adaptive")
     if ad:
@@ -295,7 +318,7 @@ def render(out: dict) -> list[str]:
             else ""
         )
         lines.append(f"--workers {w}: wall {_fmt_s(ws['expected'])} (interval {_fmt_s(ws['low'])}-"
-                     f"{_fmt_s(ws['high'])}, the whole evaluate command){gpu}; bound: {v['bound']}; "
+                     f"{_fmt_s(ws['high'])}, the whole evaluate command; {_coverage()}){gpu}; bound: {v['bound']}; "
                      f"{v['steps_per_s']:.0f} steps/s in rounds; act {v['act']}")  # fmt: skip
     lines += [f"note: {n}" for n in out.get("notes", [])]
     if out.get("lock"):

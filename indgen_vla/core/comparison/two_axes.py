@@ -80,7 +80,7 @@ def contrast_rows(pairs: AxisPairs, margin: float, alpha: float = ALPHA, same_t0
 
 
 def equivalence_sentence(rows: list[dict], margin: float, alpha: float = ALPHA) -> str:
-    """Where "no difference" may be said: the levels whose 90 % interval of Δ lies inside ±margin."""
+    """Where "no difference" may be said: the levels whose paired equivalence test (two exact one-sided tests) passes."""
     rows = [r for r in rows if r["pairs"] and r["level"] != 0]
     shown = [str(r["level"]) for r in rows if r["equivalence"]["equivalent"]]
     head = f"Equivalence within ±{100 * margin:.0f} pp (paired TOST, α = {alpha:g}, per level)"

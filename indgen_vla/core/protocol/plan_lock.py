@@ -1,7 +1,11 @@
 """A pre-registered design: ``indgen budget --write plan.lock`` stores the protocol (the plan a resume matches, the
 episodes' hash, the fingerprint fields that change outcomes and are known before a policy loads), the stopping
 rule, γ/δ/α, the episode budget and the analysis to report; ``evaluate --preregistered`` refuses any deviation in
-one line and ``report``/``compare`` say "pre-registered: yes (hash)" or list the deviations (docs/budget.md)."""
+one line and ``report``/``compare`` say "locked, hash H" or list the deviations (docs/budget.md).
+
+The hash proves that the run followed the lock, not that the lock came first: anyone can write a lock after a run.
+It shows pre-registration only where it was published (or signed or timestamped by something the user controls)
+before the run; ``report --lock-published WHERE`` prints where, and without it the line says it is not shown."""
 
 from __future__ import annotations
 
@@ -111,19 +115,30 @@ def run_deviations(manifest: Mapping[str, Any], planned: int, recorded: int) -> 
     return out
 
 
-def status_line(manifest: Mapping[str, Any], deviations: list[str] | None) -> str | None:
-    """ "pre-registered: yes (hash)" or the deviations, for report and compare; None without a lock."""
+UNPUBLISHED = ("not shown to precede the run: a lock's hash proves that only where it was published before the run "
+               "(report --lock-published WHERE)")  # fmt: skip
+
+
+def status_line(
+    manifest: Mapping[str, Any], deviations: list[str] | None, published: str | None = None
+) -> str | None:
+    """ "locked, hash H, followed; published WHERE" or the deviations, for report and compare; None without a lock."""
     if deviations is None:
         return None
     short = manifest["preregistered"]["hash"][:12]
+    where = f"published {published}" if published else UNPUBLISHED
     if not deviations:
-        return f"pre-registered: yes ({short})"
-    return f"pre-registered ({short}), with {len(deviations)} deviation(s): " + "; ".join(deviations)
+        return f"locked, hash {short}, followed; {where}"
+    return (
+        f"locked, hash {short}, with {len(deviations)} deviation(s): " + "; ".join(deviations) + f"; {where}"
+    )
 
 
-def run_status(manifest: Mapping[str, Any], recorded: int, **analysis: Any) -> str | None:
-    """``report``/``compare``'s line for one run: "pre-registered: yes (hash)", its deviations (the run's, and
-    the analysis asked now against the locked one), or None for a run made without a lock."""
+def run_status(
+    manifest: Mapping[str, Any], recorded: int, published: str | None = None, **analysis: Any
+) -> str | None:
+    """``report``/``compare``'s line for one run: "locked, hash H, followed (where it was published)", its deviations
+    (the run's, and the analysis asked now against the locked one), or None for a run made without a lock."""
     plan = manifest.get("plan", {})
     planned = (
         len(plan.get("tasks", []))
@@ -133,4 +148,6 @@ def run_status(manifest: Mapping[str, Any], recorded: int, **analysis: Any) -> s
     found = run_deviations(manifest, planned, recorded)
     if found is None:
         return None
-    return status_line(manifest, found + analysis_deviations(manifest["preregistered"]["lock"], **analysis))
+    return status_line(
+        manifest, found + analysis_deviations(manifest["preregistered"]["lock"], **analysis), published
+    )

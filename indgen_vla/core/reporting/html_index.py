@@ -73,21 +73,27 @@ def _mtime(*paths: Path) -> float:
 
 
 def _kstar_of(b: dict, verdict: dict, d: str) -> str:
+    """A summary written before k* statuses existed: its point k* ("none": no break in range)."""
     if str(verdict.get(d, "")).startswith("not evaluated"):  # no level on that side was run
-        return "—"
+        return "not evaluated"
     k = b.get(d)
     return "none" if k is None else (k if isinstance(k, str) else f"L{k}")
 
 
 def kstar_cell(summary: dict) -> str:
-    """k* per axis and direction from summary.json, e.g. "pick_y +L2 −none"; "" before the first report."""
+    """k* per axis and direction in the report's words and with its status (summary.json ``kstar_status``), e.g.
+    "pick_y +: k* = +2, determined; −: k* ∈ [−1, −3]"; "" before the first report."""
     parts = []
     for axis, a in (summary.get("axes") or {}).items():
+        status = a.get("kstar_status") or {}
         b, verdict = a.get("break_level") or {}, a.get("verdict") or {}
-        dirs = " ".join(f"{sign}{_kstar_of(b, verdict, d)}" for d, sign in (("pos", "+"), ("neg", "−")))
-        dirs = dirs if a.get("signed") else _kstar_of(b, verdict, "pos")
-        parts.append(f"{axis} {dirs}")
-    return "; ".join(parts)
+        sides = (("pos", "+"), ("neg", "−")) if a.get("signed") else (("pos", ""),)
+        words = [
+            f"{sign}: {status[d]['text']}" if d in status else f"{sign}: {_kstar_of(b, verdict, d)}"
+            for d, sign in sides
+        ]
+        parts.append(f"{axis} {'; '.join(words)}" if a.get("signed") else f"{axis} {words[0][2:]}")
+    return " | ".join(parts)
 
 
 def run_status(run: Path, n: int, planned: int | None, now: float) -> str:

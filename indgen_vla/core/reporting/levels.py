@@ -222,15 +222,23 @@ def pool_ladders(pooled: list[dict], tasks: dict[str, dict]) -> None:
 
 
 MAX_MORE = 5000  # beyond this many extra episodes a level is called "not decidable at this rate"
+DECIDE_POWER = 0.8  # the chance with which "N more episodes would decide it" decides it, if the rate holds
 
 
 def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson") -> int | None:
-    """How many more episodes at the observed rate make the CI's upper bound fall below γ (None: > MAX_MORE)."""
-    rate = successes / n if n else 0.0
-    for total in range(max(n, 1) + 1, n + MAX_MORE + 1):
-        if success_rate(round(rate * total), total, method=ci).ci_high < gamma:
-            return total - n
-    return None
+    """How many more episodes make the CI's upper bound fall below γ with chance ≥ 80 % if the observed rate is the
+    true one (exact binomial sums, the episodes so far kept; None: > MAX_MORE)."""
+    from indgen_vla.core.stats.sample_size import more_to_decide
+
+    return more_to_decide(successes, n, gamma, ci, DECIDE_POWER, MAX_MORE)
+
+
+def _error_text(n: int, gamma: float, ci: str, verdict: str) -> str:
+    """The real error of a level's verdict at its n, as computed exactly (nominal 2.5 % a side for a 95 % CI)."""
+    from indgen_vla.core.stats.sample_size import verdict_error
+
+    name = "Wilson" if ci == "wilson" else "Clopper–Pearson"
+    return f"{name} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
 
 
 def _rate(r: dict) -> str:
@@ -263,8 +271,12 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
         open_ = [
             signed_level(r["level"]) for r in rows if r.get("decision") != "intact" and not r["insufficient"]
         ]
+        if not open_ and any(r.get("sequential") for r in rows):
+            return f"no break through {last}: every level is decided at or above γ = {gamma:g} by the sequential rule"
         if not open_:
-            return f"no break through {last}: every level is significantly at or above γ = {gamma:g}"
+            n = min(r["n"] for r in rows)
+            return (f"no break through {last}: every level is significantly at or above γ = {gamma:g} "
+                    f"({_error_text(n, gamma, ci, 'intact')} at the smallest level)")  # fmt: skip
         return (
             f"no level below γ = {gamma:g} through {last} ({', '.join(open_)} not yet significantly above it)"
         )
@@ -275,8 +287,10 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
                else f"the CI reaches {100 * r['ci_high']:.0f} % ≥ γ")  # fmt: skip
         return (f"observed break at {head}: the paper's until-failure design stopped at the first level below "
                 f"γ = {gamma:g}; observed, not statistically decided ({why})")  # fmt: skip
+    if r.get("decision") == "broken" and r.get("sequential") is not None:
+        return f"breaks at {head}, decided below γ = {gamma:g} by the sequential rule"
     if r.get("decision") == "broken":
-        return f"breaks at {head}, significantly below γ = {gamma:g}"
+        return f"breaks at {head}, significantly below γ = {gamma:g} ({_error_text(r['n'], gamma, ci, 'broken')})"
     seq = r.get("sequential")
     if seq is not None:  # an adaptive run: the sequential rule says when it looks next
         if r["planned"] and r["planned"] > r["n"]:
@@ -285,7 +299,8 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
     more = episodes_to_decide(r["successes"], r["n"], gamma, ci)
     if more is None:
         return f"first level below γ: {head}; not significant, and no feasible number of episodes at this rate decides it"
-    return f"first level below γ: {head}; not yet significant: about {more} more episodes at {signed_level(k)} would decide it if the rate holds"
+    return (f"first level below γ: {head}; not yet significant: about {more} more episodes at {signed_level(k)} "
+            f"would decide it with {DECIDE_POWER:.0%} chance if the rate holds")  # fmt: skip
 
 
 def axis_verdicts(

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.breakpoint import verdict_from_ci
 from indgen_vla.core.stats.metrics import CI_METHODS, mcnemar_exact
 
 MAX_EPISODES = 5000  # search cap: a design past it is answered "not reachable", never searched forever
-PAIR_MODELS = ("independent", "nested")
+PAIR_MODELS = ("independent", "nested", "most-discordant")
 
 
 def _check_rate(name: str, p: float) -> None:
@@ -96,14 +97,18 @@ def fixed_design(gamma: float, delta: float, alpha: float, ci: str = "wilson") -
 
 def pair_probabilities(p0: float, p1: float, model: str) -> tuple[float, float]:
     """(P T0 succeeds and level k fails, P T0 fails and level k succeeds) for one seed's pair. ``independent``:
-    the two outcomes of a seed are independent (most discordant pairs); ``nested``: level k succeeds only on seeds
-    where T0 does (fewest discordant pairs for the same rates, the McNemar test's best case)."""
+    the two outcomes of a seed are independent; ``nested``: level k succeeds only on seeds where T0 does (fewest
+    discordant pairs for the same rates); ``most-discordant``: the fewest concordant pairs the rates allow (the most
+    discordant pairs). No coupling gives the least power at every n: the exact test is discrete."""
     _check_rate("T0 rate", p0)
     _check_rate("level rate", p1)
     if model == "independent":
         return p0 * (1 - p1), (1 - p0) * p1
     if model == "nested":
         return max(0.0, p0 - p1), max(0.0, p1 - p0)
+    if model == "most-discordant":
+        both = max(0.0, p0 + p1 - 1)
+        return p0 - both, p1 - both
     raise ConfigError(f"pairing model must be one of {', '.join(PAIR_MODELS)}, got {model!r}")
 
 
@@ -127,6 +132,7 @@ def paired_power(p0: float, p1: float, pairs: int, alpha: float, model: str = "i
     return min(1.0, power)
 
 
+@lru_cache(maxsize=65536)
 def _reject_from(m: int, alpha: float) -> int | None:
     """The fewest T0-only pairs among m discordant ones at which the exact McNemar test rejects towards a drop
     (its p-value falls as the split grows more lopsided); None when even m of m does not reach ``alpha``."""
@@ -148,3 +154,63 @@ def pairs_for_power(p0: float, p1: float, alpha: float, power: float = 0.8, mode
     if not 0 < power < 1:
         raise ConfigError(f"power must be in (0, 1), got {power}")
     return next((n for n in range(1, cap + 1) if paired_power(p0, p1, n, alpha, model) >= power), None)
+
+
+def verdict_error(n: int, gamma: float, ci: str = "wilson", verdict: str = "broken") -> float:
+    """The exact chance that the report calls a level ``verdict`` ("broken" or "intact") with n episodes when that
+    call is wrong at its least wrong (S = γ): its real one-sided error, nominally 2.5 % for a 95 % interval (the
+    chance is monotone in S, so this is its supremum over the null)."""
+    from scipy.stats import binom
+
+    intact, broken = verdict_counts(n, gamma, ci)
+    if verdict == "broken":
+        return 0.0 if broken is None else float(binom.cdf(broken, n, gamma))
+    if verdict == "intact":
+        return 0.0 if intact is None else float(binom.sf(intact - 1, n, gamma))
+    raise ConfigError(f"verdict must be broken or intact, got {verdict!r}")
+
+
+def more_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson", power: float = 0.8,
+                   cap: int = MAX_EPISODES) -> int | None:  # fmt: skip
+    """Extra episodes after which a level at ``successes`` of n is called broken with chance ≥ ``power`` if its
+    observed rate is the true one: the kept successes plus Bin(extra, rate) at or below the most the report calls
+    broken at n + extra (exact; found by doubling then bisection, so the number returned always reaches ``power``);
+    None when no number up to ``cap`` does."""
+    from scipy.stats import binom
+
+    rate = successes / n if n else 0.0
+
+    def decides(extra: int) -> bool:
+        broken = verdict_counts(n + extra, gamma, ci)[1]
+        return (
+            broken is not None and broken >= successes and binom.cdf(broken - successes, extra, rate) >= power
+        )
+
+    return first_extra(decides, cap)
+
+
+def first_extra(decides, cap: int) -> int | None:
+    """The least extra in 1..cap where ``decides(extra)`` holds, by doubling then bisection (chances that are not
+    quite monotone in n can make a smaller one also hold; the one returned always does); None when cap does not."""
+    lo, hi = 0, 1
+    while not decides(hi):
+        if hi >= cap:
+            return None
+        lo, hi = hi, min(cap, 2 * hi)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if decides(mid) else (mid, hi)
+    return hi
+
+
+def stable_episodes(design: FixedDesign, span: float = 1.5) -> tuple[int | None, list[int]]:
+    """(the least n from which every n through ``span`` × the first passing n meets both error targets, the n between
+    the first and that one which fail again): the chances are not monotone in n, so the first passing n can fail
+    again one episode later."""
+    if design.episodes is None:
+        return None, []
+    first = design.episodes
+    top = int(span * first) + 1
+    fails = [n for n in range(first, top + 1)
+             if max(decided_rates(n, design.gamma, design.delta, design.ci)) > design.alpha]  # fmt: skip
+    return (fails[-1] + 1 if fails else first), fails

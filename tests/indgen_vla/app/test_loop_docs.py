@@ -65,9 +65,26 @@ def test_the_workflow_runs_valid_indgen_commands():
     (workflow,) = [b for b in blocks("yaml") if "indgen gate" in b]
     steps = yaml.safe_load(workflow)["jobs"]["gate"]["steps"]
     commands = [line.strip() for s in steps for line in s.get("run", "").splitlines() if "indgen " in line]
-    commands = [c.split(" > ")[0] for c in commands if c.startswith("indgen ")]
+    commands = [re.split(r" > | \|\| ", c)[0] for c in commands if c.startswith("indgen ")]
     assert {c.split()[1] for c in commands} == {"evaluate", "gate"}
     parser = build_parser()
     for c in commands:
         args = parser.parse_args(c.split()[1:])
         assert args.command in ("evaluate", "gate")
+
+
+def test_the_workflow_fails_on_an_undecided_gate_and_runs_the_planned_episodes():
+    """The gate step's last command is the gate itself (its exit code, 5 included, is the step's), and the smoke runs
+    the episodes ``gate --plan`` gives for the rates the text names (95 %, 90 %, 90 %, margin 0.1)."""
+    from indgen_vla.core.comparison.gate_plan import plan_episodes
+
+    (workflow,) = [b for b in blocks("yaml") if "indgen gate" in b]
+    steps = yaml.safe_load(workflow)["jobs"]["gate"]["steps"]
+    gate_step = next(s["run"] for s in steps if "indgen gate" in s.get("run", ""))
+    last = gate_step.strip().splitlines()[-1].strip()
+    assert (
+        last.startswith("indgen gate ") and "||" not in last and ";" not in last and "exit" not in gate_step
+    )
+    episodes = int(re.search(r"--episodes (\d+)", workflow).group(1))
+    assert episodes == plan_episodes([0.95, 0.9, 0.9], 0.1)["episodes"]
+    assert f"says **{episodes} episodes a level**" in DOC

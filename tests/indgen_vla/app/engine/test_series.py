@@ -54,18 +54,22 @@ def test_series_of_two_shipped_checkpoints_writes_its_report_and_resumes(tmp_pat
 
 
 def test_series_report_trend_and_kstar_from_runs(tmp_path):
-    """Three checkpoints whose level 1 rises 1/10 → 6/10 → 10/10: Cochran–Armitage over the steps shows the rise; k*
-    moves from +1 to none in range (Kendall τ > 0)."""
+    """Three checkpoints whose level 1 rises 1/10 → 6/10 → 10/10: Cochran–Armitage over the steps shows the rise, Holm
+    over the table's 4 one-sided tests too; the pooled OOD success gets no test (one training run); k* moves from +1
+    to none in range (Kendall τ > 0)."""
     runs = [(s, make_run(tmp_path / str(s), {0: (10, 10), 1: (k, 10)}, regime=str(s)).path)
             for s, k in ((1000, 1), (2000, 6), (3000, 10))]  # fmt: skip
     series = write_series(runs, tmp_path / "out")
     ax = series["axes"]["pick_y"]
-    assert ax["trend"]["1"]["p_rising"] < 0.001 and ax["trend"]["ood"]["p_rising"] < 0.001
+    t = ax["trend"]["1"]
+    assert t["p_rising"] < 0.001 and t["holm_over"] == 4  # a rise and a fall at levels 0 and 1
+    assert t["p_rising_holm"] == pytest.approx(min(1, 4 * t["p_rising"])) and ax["trend"]["ood"] is None
     assert [x["k"] for x in ax["kstar"]["pos"]] == [1, None, None]
     assert ax["trend"]["kstar_pos"]["tau"] > 0
     md = (tmp_path / "out" / "series.md").read_text()
     assert "| 1000 | 10/10 = 100% [72, 100] | 1/10 = 10% [2, 40] |" in md
     assert "k* (+ side) by step: 1000: +1, 2000: none in range, 3000: none in range" in md
+    assert "Holm over the 4 one-sided tests above" in md and "| OOD success | no trend test" in md
     assert "step 1000 → 2000 (paired), `pick_y`: no level differs" in md
 
 

@@ -6,6 +6,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan_lock import (
+    UNPUBLISHED,
     analysis_deviations,
     make_lock,
     protocol_deviations,
@@ -45,11 +46,15 @@ def test_deviations_name_the_field():
     assert analysis_deviations(lock, gamma=0.3, ci="wilson") == ["gamma is 0.3, locked 0.2"]
 
 
-def test_run_status_says_yes_or_lists_deviations():
+def test_run_status_says_locked_and_where_published_or_lists_deviations():
     lock = _lock()
     manifest = {"plan": PLAN, "resolved": {"jobs_sha256": "abc"}, "fingerprint": FP,
                 "preregistered": {"hash": lock["hash"], "lock": lock}}  # fmt: skip
-    assert run_status(manifest, 10, gamma=0.2) == f"pre-registered: yes ({lock['hash'][:12]})"
+    assert run_status(manifest, 10, gamma=0.2) == f"locked, hash {lock['hash'][:12]}, followed; {UNPUBLISHED}"
+    assert UNPUBLISHED.startswith("not shown to precede the run")
+    assert run_status(manifest, 10, "https://osf.io/x", gamma=0.2).endswith(
+        "followed; published https://osf.io/x"
+    )
     line = run_status(manifest, 7, gamma=0.25)
     assert "2 deviation(s)" in line and "stopped early: 7 of 10" in line and "gamma is 0.25" in line
     assert run_status({"plan": PLAN}, 10) is None

@@ -142,7 +142,12 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
     live.append([rec(0, i) for i in range(3)])
     rows = {r.run: r for r in find_rows(tmp_path / "runs")}
     assert set(rows) == {"done", "deep/live"} and rows["deep/live"].status == "running"
-    assert rows["deep/live"].n == "3 of 10" and rows["done"].kstar == "pick_y +— −—"
+    assert rows["deep/live"].n == "3 of 10"
+    # the report's words and status for k*, never a bare dash (level 0 alone: neither side evaluated)
+    assert rows["done"].kstar == (
+        "pick_y +: not evaluated (no level on this side of 0 was run); −: not evaluated (no level on this side of 0 "
+        "was run)"
+    )
     assert rows["done"].date == "2026-01-01 00:00 UTC" and rows["done"].kind == "run"
     later = {r.run: r for r in find_rows(tmp_path / "runs", now=__import__("time").time() + LIVE_S + 1)}
     assert later["deep/live"].status.startswith("stopped") and later["done"].status == "finished"
@@ -183,3 +188,17 @@ def test_a_page_escapes_what_runs_write(tmp_path):
     text = (run.path / "report.html").read_text()
     assert "<script>alert" not in text and "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     assert "<b>x</b>" not in text
+
+
+def test_the_index_says_kstar_in_the_reports_words(tmp_path):
+    """A determined k*, an interval and no break: the index cell holds summary.json's kstar_status texts, as the
+    report's k* row prints them, not "+L2 −none"."""
+    from indgen_vla.core.reporting.html_index import kstar_cell
+    from indgen_vla.core.reporting.summary import summarize
+
+    run = make_run(tmp_path / "r", {-2: (0, 20), -1: (5, 20), 0: (20, 20), 1: (19, 20), 2: (0, 20)})
+    s = summarize(run.episodes(), run.manifest, 0.2)
+    a = s["axes"]["pick_y"]
+    cell = kstar_cell(s)
+    assert cell == f"pick_y +: {a['kstar_status']['pos']['text']}; −: {a['kstar_status']['neg']['text']}"
+    assert "+: k* = +2, determined" in cell and "−: k* ∈ [-2, -1]" in cell

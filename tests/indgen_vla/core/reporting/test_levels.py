@@ -1,6 +1,7 @@
 """Verdict sentences and the episodes a level still needs, against hand-computed values."""
 
 import pytest
+from scipy.stats import binom
 
 from indgen_vla.core.reporting.levels import (
     axis_verdicts,
@@ -18,12 +19,15 @@ def row(level, successes, n, decision, planned=None, insufficient=False, **extra
             "ci_high": r.ci_high, "decision": decision, "planned": planned, "insufficient": insufficient, **extra}  # fmt: skip
 
 
-def test_episodes_to_decide_matches_the_wilson_bound_by_hand():
-    # 0/N: Wilson's upper bound is z^2 / (N + z^2) < 0.2  <=>  N > 4 z^2 = 15.37, so N = 16: 6 more after 10
+def test_episodes_to_decide_reaches_80_percent_by_hand():
+    # 0/N: Wilson's upper bound is z^2 / (N + z^2) < 0.2  <=>  N > 4 z^2 = 15.37, so N = 16: 6 more after 10 (at an
+    # observed rate of 0 the extra episodes fail for sure)
     assert episodes_to_decide(0, 10, 0.2) == 6
-    # 1/10 held at 10 %: the first total whose upper bound falls below 0.2 is 54 (upper(5/54) = 0.199)
-    assert episodes_to_decide(1, 10, 0.2) == 44
-    assert success_rate(5, 54).ci_high < 0.2 <= success_rate(5, 53).ci_high
+    # 1/10 held at 10 %: the old projection (106 episodes' worth of the rounded rate) decided only about half the
+    # time; 96 more decide it with chance >= 80 %: the kept success plus Bin(96, 0.1) at most the broken count of 106
+    more = episodes_to_decide(1, 10, 0.2)
+    broken = max(s for s in range(11 + more) if success_rate(s, 10 + more).ci_high < 0.2)
+    assert more == 96 and binom.cdf(broken - 1, more, 0.1) >= 0.8
     assert episodes_to_decide(19, 100, 0.2) is None  # 19 % is too close to γ for any feasible run
 
 
@@ -31,12 +35,13 @@ def test_a_significant_break_and_an_open_one_read_differently():
     rows = [row(0, 10, 10, "intact"), row(1, 0, 10, "broken")]
     assert (
         direction_verdict(rows, 1, 0.2)
-        == "breaks at +1 (0 %, n = 10, 95 % CI [0, 28]), significantly below γ = 0.2"
+        == "breaks at +1 (0 %, n = 10, 95 % CI [0, 28]), significantly below γ = 0.2 (Wilson 95 % CI; chance of this "
+        "call at S = γ with n = 10: 0.0 %)"
     )
     rows = [row(0, 10, 10, "intact"), row(1, 1, 10, "undetermined")]
     assert direction_verdict(rows, 1, 0.2) == (
-        "first level below γ: +1 (10 %, n = 10, 95 % CI [2, 40]); not yet significant: about 44 more episodes at +1 "
-        "would decide it if the rate holds"
+        "first level below γ: +1 (10 %, n = 10, 95 % CI [2, 40]); not yet significant: about 96 more episodes at +1 "
+        "would decide it with 80% chance if the rate holds"
     )
 
 
@@ -48,7 +53,8 @@ def test_no_break_and_a_hole_before_the_break():
     )
     assert (
         direction_verdict(rows[:1], None, 0.2)
-        == "no break through 0: every level is significantly at or above γ = 0.2"
+        == "no break through 0: every level is significantly at or above γ = 0.2 (Wilson 95 % CI; chance of this "
+        "call at S = γ with n = 10: 3.3 % at the smallest level)"
     )
     hole = [row(0, 10, 10, "intact"), row(1, 0, 1, "undetermined", planned=10, insufficient=True)]
     assert direction_verdict(hole, "undetermined", 0.2) == (

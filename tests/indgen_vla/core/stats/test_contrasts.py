@@ -66,11 +66,11 @@ def test_newcombe_interval_matches_the_published_example():
     # 59 both, 6 first only, 16 second only, 80 neither; Newcombe square-and-add −0.0621 (95% CI −0.1186 to −0.0046)
     lo, hi = paired_difference_ci(both=59, a_only=16, b_only=6, neither=80)
     assert (lo, hi) == (pytest.approx(-0.1186, abs=5e-5), pytest.approx(-0.0046, abs=5e-5))
-    # equivalence is the 1 − 2α interval inside the margin: at α = 0.025 that interval is the published one
-    assert (
-        paired_equivalence(59, 16, 6, 80, margin=0.12, alpha=0.025)["equivalent"] is True
-    )  # −0.1186 > −0.12
-    assert paired_equivalence(59, 16, 6, 80, margin=0.11, alpha=0.025)["equivalent"] is False
+    # equivalence is two exact one-sided tests at α (the interval inside the margin erred 11 % at 50 pairs): at
+    # α = 0.025 the published interval lies inside ±0.12, yet the exact test needs ±0.13 (its p at 0.12: 3.5 %)
+    eq = paired_equivalence(59, 16, 6, 80, margin=0.12, alpha=0.025)
+    assert eq["ci"][0] == pytest.approx(-0.1186, abs=5e-5) and eq["equivalent"] is False
+    assert paired_equivalence(59, 16, 6, 80, margin=0.13, alpha=0.025)["equivalent"] is True
     assert all(math.isnan(x) for x in paired_difference_ci(0, 0, 0, 0))
 
 

@@ -4,6 +4,7 @@ import itertools
 import math
 
 import pytest
+from scipy.stats import binom
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.breakpoint import verdict_from_ci
@@ -11,9 +12,12 @@ from indgen_vla.core.stats.metrics import CI_METHODS, mcnemar_exact, wilson_ci
 from indgen_vla.core.stats.sample_size import (
     decided_rates,
     fixed_design,
+    pair_probabilities,
     paired_power,
     pairs_for_power,
+    stable_episodes,
     verdict_counts,
+    verdict_error,
 )
 
 
@@ -83,3 +87,31 @@ def test_bad_inputs_are_one_line_errors():
         fixed_design(0.1, 0.2, 0.05)
     with pytest.raises(ConfigError, match="pairing model"):
         paired_power(0.9, 0.5, 10, 0.05, "copula")
+
+
+def test_the_first_passing_n_is_not_stable_and_the_stable_one_is():
+    """γ 0.2 ± 0.1, α 0.025, Wilson: 274 is the first n meeting both targets, 275-277, 280, 281, 284 miss again,
+    and every n from 285 through 1.5 × 274 meets them (checked here one by one)."""
+    design = fixed_design(0.2, 0.1, 0.025)
+    stable, fails = stable_episodes(design)
+    assert (design.episodes, stable, fails) == (274, 285, [275, 276, 277, 280, 281, 284])
+    assert all(max(decided_rates(n, 0.2, 0.1)) <= 0.025 for n in range(285, 412))
+
+
+def test_the_most_discordant_coupling_is_the_least_power():
+    """T0 at 0.95 and level k at 0.75: the most discordant pairs (both succeed only where they must: 0.7) give less
+    power than independent outcomes at 50 pairs, which give less than nested ones (the exact test's discreteness can
+    swap the first two at other n: budget prints all three)."""
+    assert pair_probabilities(0.95, 0.75, "most-discordant") == pytest.approx((0.25, 0.05))
+    powers = [paired_power(0.95, 0.75, 50, 0.05 / 6, m) for m in ("most-discordant", "independent", "nested")]
+    assert powers == sorted(powers) and powers[0] < powers[2]
+
+
+def test_verdict_error_is_the_exact_tail_at_gamma():
+    """Wilson at n = 10, γ = 0.2: 5/10 has lower end 0.237 ≥ 0.2 (intact) and 4/10 0.168: P(S ≥ 5 | 0.2) = 3.28 %,
+    above the nominal 2.5 %; Clopper–Pearson stays below it at every n up to 300."""
+    assert verdict_error(10, 0.2, "wilson", "intact") == pytest.approx(1 - binom.cdf(4, 10, 0.2))
+    assert verdict_error(10, 0.2, "wilson", "intact") > 0.025
+    for n in range(5, 301, 7):
+        assert verdict_error(n, 0.2, "clopper-pearson", "intact") <= 0.025
+        assert verdict_error(n, 0.2, "clopper-pearson", "broken") <= 0.025

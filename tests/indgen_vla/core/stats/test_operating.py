@@ -1,0 +1,53 @@
+"""Calibration of the decisions docs/statistics.md lists, asserted in the default suite (seconds): the verdicts at γ
+by exact enumeration, the printed real error of a Wilson verdict, the "N more episodes" claim, the CI recipe's pass
+chances, and the series table's family-wise error (seeded simulation). The gate's size: test_noninferiority."""
+
+import pytest
+
+from indgen_vla.core.comparison.gate_plan import pass_chance, plan_episodes
+from indgen_vla.core.reporting.levels import direction_verdict
+from indgen_vla.core.stats import operating as oc
+from indgen_vla.core.stats.sample_size import verdict_error
+
+
+@pytest.mark.parametrize("gamma", [0.1, 0.2, 0.5])
+def test_clopper_pearson_verdicts_hold_their_level_at_every_n(gamma):
+    v = oc.verdict_sizes(gamma, "clopper-pearson", range(5, 301))
+    assert v["broken"][0] <= 0.025 and v["intact"][0] <= 0.025
+
+
+def test_wilson_verdicts_err_above_their_level_and_say_so():
+    """Wilson's "intact" at γ = 0.2 errs 5.8 % at n = 5 and 3.3 % at n = 10 (nominal 2.5 %): the verdict line prints
+    that chance, computed at its own n."""
+    v = oc.verdict_sizes(0.2, "wilson", range(5, 301))
+    assert v["intact"] == (pytest.approx(0.05792), 5)
+    rows = [{"level": 0, "n": 10, "successes": 10, "rate": 1.0, "ci_low": 0.72, "ci_high": 1.0,
+             "insufficient": False, "decision": "intact"}]  # fmt: skip
+    line = direction_verdict(rows, None, 0.2)
+    assert f"n = 10: {100 * verdict_error(10, 0.2, 'wilson', 'intact'):.1f} %" in line and "3.3 %" in line
+
+
+@pytest.mark.parametrize("n", [10, 20, 50])
+def test_more_episodes_decide_with_the_stated_chance_at_the_observed_rate(n):
+    """Every "about N more episodes would decide it" the report prints (γ = 0.2, Wilson) decides the level with
+    chance ≥ 80 % if the observed rate is the true one (exact)."""
+    for p in (0.05, 0.1, 0.15):
+        r = oc.report_projection(p, n, 0.2, "wilson", 0.8)
+        assert r["claim_at_observed"] >= 0.8
+
+
+def test_the_ci_recipe_passes_equal_policies_and_fails_a_20_point_drop():
+    """docs/loop.md's recipe (3 levels at 95, 90, 90 %, M = 0.1, the planned episodes, exit 5 a failure): exact."""
+    rates = (0.95, 0.9, 0.9)
+    n = plan_episodes(rates, 0.1)["episodes"]
+    assert pass_chance(rates, n, 0.1, 0.05) >= 0.8
+    for at in range(3):
+        assert pass_chance(rates, n, 0.1, 0.05, drop=0.2, at=at) <= 0.2
+
+
+def test_the_series_table_is_holm_corrected():
+    """A null series of 5 checkpoints × 7 levels (seeded, 300 series): uncorrected one-sided tests flagged a trend in
+    about half of them; Holm keeps the family-wise error near 5 % (300 draws: ±2.5 points)."""
+    levels = (0.95, 0.9, 0.8, 0.6, 0.4, 0.3, 0.2)
+    assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=False) > 0.35
+    assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=True) <= 0.075
