@@ -60,8 +60,8 @@ def main(args: argparse.Namespace) -> int:
 
         log_runs(args.log, [(None, out)], project=args.log_project, name=out.name)
     print_tables([(run_label(run), json.loads((out / SUMMARY).read_text()))])
-    print(f"report: {out / 'report.md'} (in a browser: {out / 'report.html'})\nplots:  {out / 'plots'}/\n"
-          f"episodes: {out / 'episodes.parquet'}")  # fmt: skip
+    print(f"report: {out / 'report.md'} (in a browser: {out / 'report.html'})\nplots:  {out / 'plots'}/ (success "
+          f"curves; 'indgen report {out}' draws every plot)\nepisodes: {out / 'episodes.parquet'}")  # fmt: skip
     errors = run.episodes().query("status == 'error'")["error"]
     if len(errors):
         # an EpisodeUnavailableError is the seed's (e.g. a RoboCasa kitchen too narrow for pick_x): a re-run repeats it
