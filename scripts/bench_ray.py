@@ -3,7 +3,8 @@ simulators either way (local: 2 worker processes, the policy in the main process
 simulator actors and 1 policy actor), reporting Ray's start, each run's wall time, the episodes per second once every
 simulator has finished one episode, and one policy call's round trip through a policy actor. The records of both must
 be equal. Runs take turns (local, Ray, local, Ray ...; one Ray instance, its start timed apart), so each pair sees
-the same load: the ratio's median and [min, max] over ``--repeats`` pairs. ``--forward-ms`` adds a forward of that
+the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each local run starts its own fork server
+(stopped after each run), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms`` adds a forward of that
 many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy.
 ``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy
 actor and a simulator each), all on this machine. Prints one JSON object on its last line (docs/benchmarks.md).
@@ -131,6 +132,7 @@ def _ratio(xs: list[float]) -> dict:
 def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     """Local and Ray in turn, ``args.repeats`` pairs, one policy: walls, steady rates and their ratios."""
     from functools import partial
+    from multiprocessing import forkserver
 
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.ray_backend import run_ray
@@ -142,6 +144,7 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
         for name in ("local", "ray"):
             if name == "local":
                 r = _timed(lambda rec: run_local(jobs, rc, make, meta, rec, workers=2, replan_steps=replan))
+                forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
             else:
                 r = _timed(lambda rec: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
             got = r.pop("rows")
