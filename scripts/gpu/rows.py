@@ -90,7 +90,7 @@ SIZES = {
     "scaling_1k": ("--workers 8,16 --episodes 1000 --max-steps 20 --seconds 1",
                    "--workers 1,2 --episodes 6 --max-steps 5 --seconds 0.2"),
     "vs_lerobot_paired": ("--cores 8 --episodes 8 --repeats 3 --sizes 256 --tools indgen,lerobot-eval-novideo",
-                          "--cores 2 --episodes 2 --repeats 3 --max-steps 12 --sizes 64 "
+                          "--cores 1 --episodes 1 --repeats 2 --max-steps 8 --sizes 64 "
                           "--tools indgen,lerobot-eval-novideo"),
     "pi05_model16": ("--precision bf16 --batches 16 --seconds 3", "--batches 2 --seconds 0.2"),
     "pi05_compile16": ("--precision bf16 --compile reduce-overhead --batches 16 --seconds 3",
