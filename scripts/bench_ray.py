@@ -1,10 +1,17 @@
 """Benchmark the Ray backend against the local one on this machine: the same oracle episodes of ``pick_place`` with 2
 simulators either way (local: 2 worker processes, the policy in the main process; Ray: a local Ray instance, 2
-simulator actors and 1 policy actor), reporting Ray's start, each run's wall time with and without its start, the
-episodes per second once every simulator has finished one episode, and one policy call's round trip through a
-policy actor. The records of both must be equal. Prints one JSON object on its last line (docs/results/benchmarks/ray.md).
+simulator actors and 1 policy actor), reporting Ray's start, each run's wall time, the episodes per second once every
+simulator has finished one episode, and one policy call's round trip through a policy actor. The records of both must
+be equal. Runs take turns (local, Ray, local, Ray ...; one Ray instance, its start timed apart), so each pair sees
+the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each local run starts its own fork server
+(stopped after each run), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms`` adds a forward of that
+many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy.
+``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy
+actor and a simulator each), all on this machine. Prints one JSON object on its last line
+(docs/results/benchmarks/speed.md).
 
-    .venv/bin/python scripts/bench_ray.py [--episodes 12] [--max-steps 60] [--calls 300]
+    .venv/bin/python scripts/bench_ray.py [--episodes 8] [--max-steps 40] [--repeats 3] [--forward-ms 0,50]
+                                          [--calls 300] [--nodes 1,2,3]
 """
 
 from __future__ import annotations
@@ -85,22 +92,133 @@ def round_trip_ms(calls: int) -> dict:
         lambda: load_policy("standin:random"), 32, 0.005
     )
     spec = ray.get(actor.hello.remote())
+    ray.get(actor.set_clients.remote(1))  # as the supervisor tells it: one simulator
     times = ray.get(Caller.remote().time_calls.remote(actor, spec, calls))
     return {"in_process_ms": round(in_process, 3), "through_actor_median_ms": round(statistics.median(times), 3),
             "through_actor_p90_ms": round(sorted(times)[int(0.9 * len(times))], 3), "calls": calls}  # fmt: skip
 
 
+class SlowOracle:
+    """The oracle with a forward of ``forward_s`` seconds per call (a sleep, as a GPU's forward leaves the CPU
+    free); the same decisions, so records stay equal across backends."""
+
+    def __init__(self, forward_s: float = 0.0):
+        from scenes.oracle import OraclePolicy
+
+        self.inner, self.forward_s = OraclePolicy(), forward_s
+        self.spec = self.inner.spec
+
+    def reset(self, instruction: str, seed: int | None = None) -> None:
+        self.inner.reset(instruction, seed=seed)
+
+    def act(self, observations):
+        if self.forward_s:
+            time.sleep(self.forward_s)
+        return self.inner.act(observations)
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+def _ratio(xs: list[float]) -> dict:
+    xs = sorted(xs)
+    return {
+        "median": round(statistics.median(xs), 3),
+        "min": round(xs[0], 3),
+        "max": round(xs[-1], 3),
+        "n": len(xs),
+    }
+
+
+def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
+    """Local and Ray in turn, ``args.repeats`` pairs, one policy: walls, steady rates and their ratios."""
+    from functools import partial
+    from multiprocessing import forkserver
+
+    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.ray_backend import run_ray
+
+    make = partial(SlowOracle, forward_ms / 1000.0)
+    runs: dict[str, list[dict]] = {"local": [], "ray": []}
+    rows = None
+    for _ in range(args.repeats):
+        for name in ("local", "ray"):
+            if name == "local":
+                r = _timed(lambda rec: run_local(jobs, rc, make, meta, rec, workers=2, replan_steps=replan))
+                forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
+            else:
+                r = _timed(lambda rec: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
+            got = r.pop("rows")
+            assert rows is None or got == rows, "the Ray backend recorded other outcomes than the local one"
+            rows = got
+            r["load_1min"] = round(os.getloadavg()[0], 2)
+            runs[name].append(r)
+    pairs = list(zip(runs["local"], runs["ray"], strict=True))
+    return {"forward_ms": forward_ms, "local": runs["local"], "ray": runs["ray"],
+            "wall_ratio_ray_over_local": _ratio([b["wall_s"] / a["wall_s"] for a, b in pairs]),
+            "steady_ratio_local_over_ray": _ratio([a["episodes_per_s"] / b["episodes_per_s"] for a, b in pairs])}  # fmt: skip
+
+
+def node_curve(args, jobs, rc, cfg, meta, replan, nodes: list[int], forward_ms: float) -> list[dict]:
+    """Episodes/s on a cluster of 1..N nodes of 2 CPUs (head with none), ``--workers auto``: a simulator and a
+    policy actor per node, all on this machine (what a node adds when the policy, not the CPU, bounds a simulator)."""
+    import dataclasses
+    from functools import partial
+
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from indgen_vla.app.engine.ray_backend import run_ray
+
+    make = partial(SlowOracle, forward_ms / 1000.0)
+    auto = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, workers="auto"))
+    c = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False})
+    out = []
+    try:
+        os.environ["RAY_ADDRESS"] = c.address
+        for n in range(1, max(nodes) + 1):
+            c.add_node(num_cpus=2)
+            c.wait_for_nodes()
+            if n not in nodes:
+                continue
+            stats: dict = {}
+            r = _timed(
+                lambda rec, s=stats: run_ray(jobs, rc, auto, meta, rec, replan, make_policy=make, stats=s)
+            )
+            r.pop("rows")
+            out.append({"nodes": n, **r, "policy_actors": stats.get("policy_actors"),
+                        "episodes_per_node": stats.get("episodes_per_node"),
+                        "load_1min": round(os.getloadavg()[0], 2)})  # fmt: skip
+            if ray.is_initialized():
+                ray.shutdown()
+    finally:
+        os.environ.pop("RAY_ADDRESS", None)
+        if ray.is_initialized():
+            ray.shutdown()
+        c.shutdown()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=12)
-    ap.add_argument("--max-steps", type=int, default=60)
+    ap.add_argument("--episodes", type=int, default=8)
+    ap.add_argument("--max-steps", type=int, default=40)
     ap.add_argument("--calls", type=int, default=300)
+    ap.add_argument("--repeats", type=int, default=3, help="pairs (local, Ray) run in turn")
+    ap.add_argument(
+        "--forward-ms", default="0,50", help="comma list: a forward of this many ms per policy call"
+    )
+    ap.add_argument(
+        "--nodes", default="", help="comma list of node counts for the cluster curve (e.g. 1,2,3)"
+    )
+    ap.add_argument(
+        "--nodes-forward-ms", type=float, default=50.0, help="the policy's forward in the node curve"
+    )
+    ap.add_argument("--nodes-episodes", type=int, default=12, help="episodes of each node-curve run")
     args = ap.parse_args()
 
     import ray
 
-    from indgen_vla.app.engine.local import run_local
-    from indgen_vla.app.engine.ray_backend import run_ray
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from scenes.oracle import OraclePolicy
     from scenes.planning import scene_levels
@@ -110,26 +228,26 @@ def main() -> None:
                       max_steps=args.max_steps, privileged=True)  # fmt: skip
     meta = RunMeta("bench", "standin:oracle", "", "pick_place")
     replan = OraclePolicy.spec.replan_steps
-    local = _timed(lambda rec: run_local(jobs, rc, OraclePolicy, meta, rec, workers=2, replan_steps=replan))
-    t0 = time.perf_counter()
-    ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
-    ray_start = time.perf_counter() - t0
-    try:
-        on_ray = _timed(lambda rec: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=OraclePolicy))
-        trip = round_trip_ms(args.calls)
-    finally:
-        ray.shutdown()
-    assert local.pop("rows") == on_ray.pop("rows"), (
-        "the Ray backend recorded other outcomes than the local one"
-    )
-    chunks = sum(-(-args.max_steps // replan) for _ in jobs)  # upper bound of policy calls of the run
-    result = {
-        "machine": f"{platform.machine()} {os.cpu_count()} cores", "load_1min": round(os.getloadavg()[0], 2),
-        "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "episodes": len(jobs),
-        "max_steps": args.max_steps, "replan_steps": replan, "local": local, "ray": on_ray,
-        "ray_init_s": round(ray_start, 2), "policy_round_trip": trip, "policy_calls_at_most": chunks,
-        "steady_ratio_local_over_ray": round(local["episodes_per_s"] / on_ray["episodes_per_s"], 3),
-    }  # fmt: skip
+    result = {"machine": f"{platform.machine()} {os.cpu_count()} cores",
+              "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "episodes": len(jobs),
+              "max_steps": args.max_steps, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
+    forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
+    if forwards:
+        t0 = time.perf_counter()
+        ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
+        result["ray_init_s"] = round(time.perf_counter() - t0, 2)
+        try:
+            result["policies"] = [paired(args, jobs, rc, cfg, meta, replan, f) for f in forwards]
+            result["policy_round_trip"] = round_trip_ms(args.calls)
+        finally:
+            ray.shutdown()
+    if args.nodes:
+        _, curve_jobs = _jobs(args.nodes_episodes)
+        nodes = [int(x) for x in args.nodes.split(",")]
+        result["node_curve"] = node_curve(
+            args, curve_jobs, rc, cfg, meta, replan, nodes, args.nodes_forward_ms
+        )
+    result["load_1min_end"] = round(os.getloadavg()[0], 2)
     print(json.dumps(result))
 
 

@@ -56,6 +56,7 @@ PARTS = (
     ("records", "indgen_vla.core.runs.records", "RunDir.append"),
     ("rollout_other", "indgen_vla.app.engine.local", "run_local"),
     ("report", "indgen_vla.core.reporting.report", "write_run_report"),
+    ("report", "indgen_vla.report", "write_run_report"),  # before the two-layer layout (--compare 944c1c4)
     ("tables", "indgen_vla.core.reporting.report", "print_tables"),
 )
 
@@ -83,15 +84,21 @@ def wrap(name, fn):
     return timed
 
 t = time.perf_counter()
-import indgen_vla.app.cli as cli
-import indgen_vla.app.engine  # what cli._resolve imports first
-import indgen_vla.app.cli.evaluate
+def here(module):  # in this checkout (the venv's editable install would find another's modules this one lacks)
+    base = os.path.join(os.getcwd(), *module.split("."))
+    return os.path.isfile(base + ".py") or os.path.isfile(os.path.join(base, "__init__.py"))
+
+if here("indgen_vla.app.cli"):
+    import indgen_vla.app.cli as cli
+    import indgen_vla.app.engine  # what cli._resolve imports first
+    import indgen_vla.app.cli.evaluate
+else:  # a checkout from before the two-layer layout (--compare 944c1c4)
+    import indgen_vla.cli as cli
 parts["cli_import"] = time.perf_counter() - t
 for name, module, attr in json.loads(os.environ["BENCH_PARTS"]):
-    try:
-        mod = importlib.import_module(module)
-    except ImportError:
+    if not here(module):  # e.g. a module an older checkout lacks (--compare)
         continue
+    mod = importlib.import_module(module)
     owner, _, leaf = attr.rpartition(".")
     obj = getattr(mod, owner, None) if owner else mod
     if obj is None:  # a class an older checkout lacks (--compare)
@@ -113,7 +120,7 @@ sys.stdout.flush()
 """
 
 
-def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path) -> dict:
+def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path, max_steps: int = 1) -> dict:
     """One evaluate of checkout ``root`` in a fresh interpreter: {part: seconds} with interpreter start, exit
     and total, and CPU seconds (``cpu_*``)."""
     out_dir.mkdir(parents=True)
@@ -121,8 +128,8 @@ def one_run(root: Path, policy: str, workers: int, episodes: int, out_dir: Path)
            "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep),
            "BENCH_PARTS": json.dumps(PARTS), "BENCH_OUT": str(out_dir / "parts.json")}  # fmt: skip
     cmd = [sys.executable, "-c", CHILD, "evaluate", "--policy", policy, "--scene", "pick_place", "--axis", "pick_y",
-           "--levels", "0", "--episodes", str(episodes), "--max-steps", "1", "--workers", str(workers),
-           "--out", str(out_dir / "run")]  # fmt: skip
+           "--levels", "0", "--episodes", str(episodes), "--workers", str(workers), "--out", str(out_dir / "run"),
+           *(["--max-steps", str(max_steps)] if max_steps else [])]  # fmt: skip
     load = os.getloadavg()[0]
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu_before = usage.ru_utime + usage.ru_stime
@@ -159,12 +166,28 @@ def summarize(runs: list[dict]) -> dict:
     }
 
 
+def paired(this: list[dict], other: list[dict]) -> dict:
+    """This ÷ other per pair of runs made in turn (same load): median and [min, max] of the wall and CPU ratios."""
+    out = {"n_pairs": len(this)}
+    for key, name in (("total", "wall"), ("cpu_reaped_children", "cpu")):
+        r = sorted(a[key] / b[key] for a, b in zip(this, other, strict=True))
+        out[name] = {"median": round(statistics.median(r), 3), "min": round(r[0], 3), "max": round(r[-1], 3)}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--policy", default=None, help="policy spec (default: the checkout's shipped tiny ACT)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--episodes", type=int, default=1)
+    ap.add_argument(
+        "--max-steps",
+        type=int,
+        default=1,
+        help="steps per episode (0: the scene's own limit, whole "
+        "episodes: the end-to-end run of issue 56 is --episodes 6 --workers 2 --max-steps 0)",
+    )
     ap.add_argument("--compare", metavar="CHECKOUT", default=None,
                     help="another checkout (e.g. a worktree of the previous commit): runs alternate between the "
                     "two, so both see the same load")  # fmt: skip
@@ -173,20 +196,33 @@ def main() -> None:
     runs: dict[str, list[dict]] = {name: [] for name in roots}
     with tempfile.TemporaryDirectory() as tmp:
         for name, root in roots.items():  # caches, .pyc, page cache
-            one_run(root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"warmup-{name}")
+            one_run(
+                root,
+                a.policy or shipped(root),
+                a.workers,
+                a.episodes,
+                Path(tmp) / f"warmup-{name}",
+                a.max_steps,
+            )
         for i in range(a.repeats):
             for name, root in roots.items():
                 row = one_run(
-                    root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / f"{name}{i}"
+                    root,
+                    a.policy or shipped(root),
+                    a.workers,
+                    a.episodes,
+                    Path(tmp) / f"{name}{i}",
+                    a.max_steps,
                 )
                 runs[name].append(row)
                 print(json.dumps({"checkout": name, **row}), flush=True)
     out = {
         "bench": "startup", "machine": f"{platform.node()} {platform.machine()} {os.cpu_count()} cores",
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "policy": a.policy or "shipped tiny ACT",
-        "workers": a.workers, "episodes": a.episodes, "repeats": a.repeats,
+        "workers": a.workers, "episodes": a.episodes, "max_steps": a.max_steps, "repeats": a.repeats,
         **summarize(runs["this"]),
         **({"other": {"checkout": str(roots["other"]), **summarize(runs["other"])}} if a.compare else {}),
+        **({"paired": paired(runs["this"], runs["other"])} if a.compare else {}),
     }  # fmt: skip
     print(json.dumps(out))
 

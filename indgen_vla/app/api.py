@@ -83,7 +83,7 @@ def report(
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        write_run_report(run, gamma, ci, episodes, margin)
+        write_run_report(run, gamma, ci, episodes, margin, plots=True)
         done.append(Run(run.path))
     return done
 

@@ -8,6 +8,8 @@ first, which fills the git-ignored ``.whl/`` and ``.gl/``)::
     python3 scripts/gpu/rows.py a --budget 360   # carry [".whl", ".gl"]; env, scaling, vs lerobot-eval, pinned
     python3 scripts/gpu/rows.py b --budget 540   # env, real-size pi0.5: build, alone eager and compiled,
                                                  # compiled and eager in the engine (b0: 2026-11-26's call b)
+    python3 scripts/gpu/rows.py i56 --budget 500 # issue 56 in one call: 1,000 episodes at 8 and 16 workers,
+                                                 # 3 pairs vs lerobot-eval, pi0.5 eager vs compiled (GPU busy %)
 
 Rows run in the order given and each gets the smaller of its cap and what ``--budget`` leaves (a row that would
 start with under 20 s is skipped and says so), so the most wanted rows come first in each group; docs/benchmarks.md
@@ -84,6 +86,15 @@ SIZES = {
     "pi05_compiled_scaling": ("--precision bf16 --compile reduce-overhead --workers 16 --episodes 32 "
                               "--max-steps 50 --seconds 3",
                               "--workers 2 --episodes 2 --max-steps 10 --seconds 0.2"),
+    # issue 56: one call under 10 minutes
+    "scaling_1k": ("--workers 8,16 --episodes 1000 --max-steps 20 --seconds 1",
+                   "--workers 1,2 --episodes 6 --max-steps 5 --seconds 0.2"),
+    "vs_lerobot_paired": ("--cores 8 --episodes 8 --repeats 3 --sizes 256 --tools indgen,lerobot-eval-novideo",
+                          "--cores 1 --episodes 1 --repeats 2 --max-steps 8 --sizes 64 "
+                          "--tools indgen,lerobot-eval-novideo"),
+    "pi05_model16": ("--precision bf16 --batches 16 --seconds 3", "--batches 2 --seconds 0.2"),
+    "pi05_compile16": ("--precision bf16 --compile reduce-overhead --batches 16 --seconds 3",
+                       "--batches 2 --seconds 0.2"),
 }  # fmt: skip
 
 
@@ -116,10 +127,12 @@ def _scaling(ctx: Ctx, *extra: str) -> list[str]:
     return _bench_engine(ctx, "--only", "scaling", *_sizes(ctx, "scaling"), *extra)
 
 
-def _vs_lerobot(ctx: Ctx) -> list[str]:
-    out = str(ctx.work / "vs_lerobot.json")
-    return [ctx.python, "scripts/bench_vs_lerobot.py", "--device", ctx.device, "--miniature", "--repeats", "1",
-            "--json", out, *_sizes(ctx, "vs_lerobot")]  # fmt: skip
+def _vs_lerobot(ctx: Ctx, row: str = "vs_lerobot") -> list[str]:
+    out = str(ctx.work / f"{row}.json")
+    sizes = _sizes(ctx, row)
+    repeats = [] if "--repeats" in sizes else ["--repeats", "1"]
+    return [ctx.python, "scripts/bench_vs_lerobot.py", "--device", ctx.device, "--miniature", *repeats,
+            "--json", out, *sizes]  # fmt: skip
 
 
 def _pi05_build(ctx: Ctx) -> list[str]:
@@ -164,6 +177,14 @@ ROWS = {
             "--compile reduce-overhead (CUDA graphs on one flow step) on pi0.5; first_call_s holds the compile"),
         Row("pi05_compiled_scaling", 200, lambda c: _pi05(c, "scaling", "pi05_compiled_scaling"),
             "pi0.5 compiled in the engine at 16 workers (the batch-16 compile cached by pi05_compile): GPU busy"),
+        Row("scaling_1k", 150, lambda c: _bench_engine(c, "--only", "scaling", *_sizes(c, "scaling_1k")),
+            "engine steps/s at 8 and 16 workers on a 1,000-episode run, start included (steps_per_s)"),
+        Row("vs_lerobot_paired", 230, lambda c: _vs_lerobot(c, "vs_lerobot_paired"),
+            "indgen / lerobot-eval episodes/min, 3 interleaved pairs: geometric mean with its 95 % t-interval"),
+        Row("pi05_model16", 90, lambda c: _pi05(c, "model", "pi05_model16"),
+            "pi0.5 alone, eager, batch 16: forward ms and GPU busy % (the compiled row's baseline)"),
+        Row("pi05_compile16", 200, lambda c: _pi05(c, "model", "pi05_compile16"),
+            "pi0.5 alone, --compile reduce-overhead, batch 16: forward ms and GPU busy %, first_call_s the compile"),
     ]
 }  # fmt: skip
 GROUPS = {
@@ -178,6 +199,9 @@ GROUPS = {
         "pi05_scaling",
     ],
     "b0": ["env", "pi05_build", "pi05_scaling", "pi05_pipeline", "pi05_compile"],  # 2026-11-26's call b
+    # issue 56 in one call of < 10 minutes (--budget 500): the engine at scale, the paired comparison with a CI,
+    # pi0.5 compiled against eager with GPU busy %
+    "i56": ["env", "scaling_1k", "vs_lerobot_paired", "pi05_build", "pi05_model16", "pi05_compile16"],
     "all": list(ROWS),
 }
 

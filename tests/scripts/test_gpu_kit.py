@@ -79,6 +79,28 @@ def test_pi05_rows_take_the_built_spec_and_wait_for_it(tmp_path):
     )
 
 
+def test_issue_56_call_measures_what_it_promises_within_its_budget(tmp_path):
+    # one call: 1,000 episodes at 8 and 16 workers, 3 interleaved pairs against lerobot-eval (a CI needs n >= 3),
+    # pi0.5 at batch 16 eager and compiled; --budget 500 cuts the last rows, not the first
+    gpu = rows.Ctx("python3", "cuda", False, tmp_path, {"pi05_build": {"spec": "lerobot:/m/pi05"}})
+    argv = {name: rows.ROWS[name].argv(gpu) for name in rows.GROUPS["i56"]}
+    scaling = argv["scaling_1k"]
+    assert (
+        scaling[scaling.index("--workers") + 1] == "8,16"
+        and int(scaling[scaling.index("--episodes") + 1]) >= 1000
+    )
+    paired = argv["vs_lerobot_paired"]
+    assert paired.count("--repeats") == 1 and int(paired[paired.index("--repeats") + 1]) >= 3
+    assert "--compile" not in argv["pi05_model16"] and "reduce-overhead" in argv["pi05_compile16"]
+    assert all(a is not None for a in argv.values())
+    engine = [
+        n for n in rows.GROUPS["i56"] if not n.startswith("pi05")
+    ]  # at their caps, pi0.5 still has time
+    assert sum(rows.ROWS[n].cap_s for n in engine) <= 500 and rows.GROUPS["i56"][: len(engine)] == engine
+    rehearsal = rows.ROWS["vs_lerobot_paired"].argv(_ctx(tmp_path))
+    assert rehearsal.count("--repeats") == 1 and "--max-steps" in rehearsal
+
+
 def test_unknown_row_is_one_line_and_exit_2(tmp_path, capsys):
     assert rows.main(["scalling", "--rehearsal", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

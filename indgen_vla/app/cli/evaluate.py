@@ -62,8 +62,8 @@ def main(args: argparse.Namespace) -> int:
 
         log_runs(args.log, [(None, out)], project=args.log_project, name=out.name)
     print_tables([(run_label(run), json.loads((out / SUMMARY).read_text()))])
-    print(f"report: {out / 'report.md'} (in a browser: {out / 'report.html'})\nplots:  {out / 'plots'}/\n"
-          f"episodes: {out / 'episodes.parquet'}")  # fmt: skip
+    print(f"report: {out / 'report.md'} (in a browser: {out / 'report.html'})\nplots:  {out / 'plots'}/ (success "
+          f"curves; 'indgen report {out}' draws every plot)\nepisodes: {out / 'episodes.parquet'}")  # fmt: skip
     eps = run.episodes()
     ruled_out = unavailable_rows(eps) if len(eps) else eps["status"].astype(bool)
     # an unavailable episode is its seed's (a RoboCasa kitchen too narrow for pick_x, a LIBERO state that does not

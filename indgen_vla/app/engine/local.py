@@ -181,7 +181,9 @@ def _context(levels, task: str | None = None):
     (``WARM_CELL_ENV``: a family may warm its caches with it; callers name one only when two or more workers
     will share what the fork server warmed)."""
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["indgen_vla.app.engine.local", *levels.preload])
+    ctx.set_forkserver_preload(
+        ["indgen_vla.app.engine.local", *levels.preload, "indgen_vla.app.engine.forkserver_exit"]
+    )
     from multiprocessing import forkserver
 
     if (

@@ -79,15 +79,18 @@ class Batcher:
             int(max_batch),
             float(max_wait_s),
         )
-        self.pad(pad_to)
+        self.pad_to = min(int(pad_to), self.max_batch)
+        self.clients: int | None = None  # simulators served, once the supervisor says (``pad``)
         self._queue: queue.Queue = queue.Queue()
         self.batch_sizes: list[int] = []  # what was served (benchmarks and tests read it)
         self._thread = threading.Thread(target=self._loop, name="indgen-batcher", daemon=True)
         self._thread.start()
 
     def pad(self, rows: int) -> None:
-        """Pad every batch to ``rows`` (at most ``max_batch``): the number of simulators this batcher serves."""
+        """Pad every batch to ``rows`` (at most ``max_batch``): the number of simulators this batcher serves, each with
+        at most one request in flight, so a batch holding that many is served at once."""
         self.pad_to = min(int(rows), self.max_batch)
+        self.clients = int(rows)
 
     def act(self, obs):
         """One observation's (T, 7) chunk, computed in a batch with whatever else arrived meanwhile."""
@@ -104,7 +107,11 @@ class Batcher:
 
         while (item := self._queue.get()) is not None:
             batch, deadline = [item], time.monotonic() + self.max_wait_s
-            while len(batch) < self.max_batch:
+            # every simulator served has a request in: none can come, so waiting out max_wait_s is lost time
+            # (5 ms a call, an oracle's every control step); requests already queued are still taken
+            while len(batch) < self.max_batch and (
+                self.clients is None or len(batch) < self.clients or not self._queue.empty()
+            ):
                 try:
                     nxt = self._queue.get(timeout=max(0.0, deadline - time.monotonic()))
                 except queue.Empty:

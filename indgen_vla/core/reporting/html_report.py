@@ -88,13 +88,17 @@ def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: S
 
 
 def plots_section(plots: Path, missing: str = "no plots yet") -> Section:
-    """Every PNG under ``plots``, the all-axes overview first, inlined."""
-    files = (
-        sorted(Path(plots).glob("*.png"), key=lambda p: (p.name != AXES_PLOT, p.name))
-        if plots.is_dir()
-        else []
-    )
+    """Every PNG under ``plots``, the all-axes overview first, inlined; an axis's SVG headline curve where its PNG is
+    not drawn (a run's own report: ``indgen report RUN`` draws the rest)."""
+    plots = Path(plots)
+    pngs = list(plots.glob("*.png")) if plots.is_dir() else []
+    drawn = {p.stem for p in pngs}
+    svgs = [p for p in plots.glob("*.svg") if p.stem not in drawn] if plots.is_dir() else []
+    files = sorted(pngs + svgs, key=lambda p: (p.name != AXES_PLOT, p.name))
     figs = "".join(image_html(p, p.stem) for p in files)
+    if svgs:
+        figs += (f'<p class="note">The success curve only; <code>indgen report {esc(plots.parent)}</code> draws every '
+                 "plot (failure modes, stage shares, all axes, grids) as PNG.</p>")  # fmt: skip
     return Section("plots", "Plots", figs or f'<p class="note">{esc(missing)}</p>')
 
 

@@ -21,6 +21,7 @@ from indgen_vla.core.reporting.grid import grid_lines, plot_grids
 from indgen_vla.core.reporting.levels import fmt_condition2, verdict_line
 from indgen_vla.core.reporting.partial_credit import plot_progress, render_levels
 from indgen_vla.core.reporting.summary import summarize
+from indgen_vla.core.reporting.svg_plot import write_axis_svg
 from indgen_vla.core.runs.records import (
     REPORT,
     SECTIONS,
@@ -285,10 +286,13 @@ def render_markdown(
 
 
 def write_run_report(
-    run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None, margin: float | None = None
-) -> dict:
-    """Write summary.json, report.md and plots/*.png inside one run directory; return the summary
-    (``episodes``: ``run.episodes()`` when the caller has it already)."""
+    run: RunDir, gamma: float = DEFAULT_GAMMA, ci: str = "wilson", episodes=None, margin: float | None = None,
+    plots: bool | None = None,
+) -> dict:  # fmt: skip
+    """Write summary.json, report.md, report.html and plots/<axis>.svg (the headline curve, no matplotlib) inside one
+    run directory, and with ``plots`` the PNG set (``draw_run_plots``, ~2 s: ``indgen report``); ``None``: the PNGs
+    only where an earlier report drew them (kept current, never stale); return the summary (``episodes``:
+    ``run.episodes()`` when the caller has it already)."""
     episodes = run.episodes() if episodes is None else episodes
     summary = summarize(episodes, run.manifest, gamma, ci, margin)
     atomic_write_json(run.path / SUMMARY, summary)
@@ -298,17 +302,33 @@ def write_run_report(
     text = render_markdown([(label, summary)], f"Report: {label}", order)
     atomic_write_text(run.path / REPORT, "\n".join([text, *extra]))
     for axis, a in summary["axes"].items():
-        plot_axis([(label, a)], axis, gamma, run.path / "plots" / f"{_safe(axis)}.png", summary["ci"])
-        plot_failures([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_failures.png")
-        plot_progress([(label, a)], axis, run.path / "plots" / f"{_safe(axis)}_progress.png")
-    plot_axes([(label, summary)], gamma, run.path / "plots" / AXES_PLOT, order, axis_specs([run.manifest]))
-    plot_grids([(label, summary)], gamma, run.path / "plots")
+        write_axis_svg(label, a, axis, gamma, run.path / "plots" / f"{_safe(axis)}.svg", summary["ci"])
+    if plots or (plots is None and pngs_drawn(run.path / "plots")):
+        draw_run_plots(run.path / "plots", label, summary, gamma, order, run.manifest)
     from indgen_vla.core.reporting.html_report import (
         write_run_html,  # report.html beside report.md, plots inlined
     )
 
     write_run_html(run.path, run.manifest, summary, episodes, "\n".join([text, *extra]), label, order)
     return summary
+
+
+def draw_run_plots(
+    plots: Path, label: str, summary: dict, gamma: float, order: Sequence[str], manifest: dict
+) -> None:
+    """One run's PNGs (matplotlib): per axis success vs level, failure modes and stage shares, the all-axes figure
+    and the grids."""
+    for axis, a in summary["axes"].items():
+        plot_axis([(label, a)], axis, gamma, plots / f"{_safe(axis)}.png", summary["ci"])
+        plot_failures([(label, a)], axis, plots / f"{_safe(axis)}_failures.png")
+        plot_progress([(label, a)], axis, plots / f"{_safe(axis)}_progress.png")
+    plot_axes([(label, summary)], gamma, plots / AXES_PLOT, order, axis_specs([manifest]))
+    plot_grids([(label, summary)], gamma, plots)
+
+
+def pngs_drawn(plots: Path) -> bool:
+    """Whether a report has drawn PNGs in ``plots`` (``indgen report``): later reports of the run redraw them."""
+    return plots.is_dir() and any(plots.glob("*.png"))
 
 
 def _safe(name: str) -> str:
@@ -337,7 +357,7 @@ def write_reports(
             raise RunDirError(
                 f"{run.path} has no finished episodes yet; run or resume 'indgen evaluate' first"
             )
-        results.append((run_label(run), write_run_report(run, gamma, ci, episodes, margin)))
+        results.append((run_label(run), write_run_report(run, gamma, ci, episodes, margin, plots=True)))
     if len(runs) > 1:
         labels = [lbl for lbl, _ in results]
         if len(set(labels)) < len(labels):  # disambiguate identical labels by folder name

@@ -53,7 +53,7 @@ def test_two_level_run_writes_run_dir(tmp_path):
     assert report[2].startswith(
         "**Cannot answer** (standin:random): the policy declares it reads no observation"
     )
-    assert any(line.startswith("| 0 |") for line in report) and (out / "plots" / "pick_y.png").exists()
+    assert any(line.startswith("| 0 |") for line in report) and (out / "plots" / "pick_y.svg").exists()
 
 
 def test_video_episodes_land_whole_and_named_by_outcome(tmp_path):

@@ -2,6 +2,7 @@
 
 import importlib.util
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -69,6 +70,20 @@ def test_batcher_pads_every_call_to_its_client_count():
     finally:
         batcher.close()
     assert Batcher(policy, "p", max_batch=2, max_wait_s=0.0, pad_to=5).pad_to == 2  # never above max_batch
+
+
+def test_batcher_serves_a_full_house_without_waiting():
+    """Once it knows its simulators (``pad``), a batch holding one request of each goes at once, not after the wait."""
+    policy = _Sizes()
+    batcher = Batcher(policy, "test:feedback", max_batch=8, max_wait_s=5.0)
+    batcher.pad(1)
+    try:
+        t0 = time.perf_counter()
+        for k in range(3):
+            np.testing.assert_array_equal(batcher.act(_obs(k)), policy.inner.act([_obs(k)])[0])
+        assert time.perf_counter() - t0 < 4.0 and batcher.batch_sizes == [1, 1, 1]  # 3 waits would be 15 s
+    finally:
+        batcher.close()
 
 
 def test_policy_actor_replies_errors_as_the_local_engine_describes_them():

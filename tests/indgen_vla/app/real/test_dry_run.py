@@ -73,4 +73,4 @@ def test_plan_record_report_against_a_simulated_robot(tmp_path, capsys, robot):
     assert (
         "standin:oracle" in report and "insufficient data (n = 2 of 2)" in report
     )  # 2 episodes < the data floor
-    assert (run / "plots" / "stack.png").is_file()
+    assert (run / "plots" / "stack.svg").is_file()

@@ -39,7 +39,7 @@ def test_summary_report_and_plot(tmp_path):
     lv = {r["level"]: r for r in s["axes"]["pick_y"]["levels"]}
     assert lv[0]["failures"] == {"none": 5, "no_grasp": 1}
     assert lv[1]["failures"] == {"none": 1, "no_contact": 1, "dropped": 2, "misplaced": 1, "error": 1}
-    write_run_report(run)
+    write_run_report(run, plots=True)
     md = (tmp_path / "r" / "report.md").read_text()
     assert "| level | none | no_contact | no_grasp | dropped | misplaced | error |" in md
     assert "| 1 | 1 | 1 | 0 | 2 | 1 | 1 |" in md

@@ -50,6 +50,36 @@ def test_report_cli_writes_outputs(tmp_path, capsys):
     assert not math.isnan(b_sum["axes"]["pick_y"]["levels"][0]["rate"])
 
 
+def test_run_report_draws_the_svg_headline_and_leaves_pngs_to_indgen_report(tmp_path):
+    # a run's own report (evaluate's end) writes the success curve as SVG without matplotlib and inlines it in
+    # report.html; indgen report adds the PNGs, which every later report of the run then redraws (never stale)
+    from xml.etree import ElementTree
+
+    from indgen_vla.core.reporting.report import write_run_report
+
+    run = make_run(tmp_path / "r", {0: (9, 10), 1: (5, 10), 2: (1, 10), -1: (8, 10)})
+    write_run_report(run)
+    plots = run.path / "plots"
+    assert sorted(p.name for p in plots.iterdir()) == ["pick_y.svg"]
+    svg = ElementTree.parse(plots / "pick_y.svg").getroot()  # well-formed XML
+    ns = "{http://www.w3.org/2000/svg}"
+    assert len(svg.findall(f"{ns}circle")) == 4 + 1  # a point per level and k* (+2) ringed
+    texts = "".join(t.text or "" for t in svg.iter(f"{ns}text"))
+    assert "n = 10 per level" in texts and "γ = 0.2" in texts and "level k along pick_y" in texts
+    html = (run.path / "report.html").read_text()
+    assert html.count("data:image/svg+xml;base64,") == 1 and "draws every plot" in html
+    assert main(["report", str(run.path)]) == 0
+    assert sorted(p.name for p in plots.iterdir()) == ["pick_y.png", "pick_y.svg"]  # no failure modes, stages
+    html = (run.path / "report.html").read_text()
+    assert "data:image/svg+xml" not in html and html.count("data:image/png;base64,") == 1
+    before = (plots / "pick_y.png").stat().st_mtime_ns
+    run.append([rec(3, i, success=False) for i in range(10)])  # resumed: PNGs once drawn are kept current
+    write_run_report(run)
+    assert (plots / "pick_y.png").stat().st_mtime_ns > before
+    assert (run.path / "report.html").read_text().count("data:image/png;base64,") == 1
+    assert write_run_report(run, plots=False)["axes"]["pick_y"]["levels"][-1]["level"] == 3
+
+
 def test_report_bad_inputs(tmp_path, capsys):
     assert main(["report", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
