@@ -6,7 +6,7 @@ Two real run directories are made first by ``indgen evaluate --policy standin:ra
 --max-steps 1``: 6 episodes at level 0 (the shape of the end-to-end benchmark, ``bench_startup.py``) and 6 episodes at
 each of levels -2..2. Each child imports the reporting module (not timed: the evaluate process has it), then times
 one call ("cold": its lazy imports included, as at the end of ``indgen evaluate``) and a second call ("warm": as in a
-test process that has reported before). Prints one JSON object on its last line (docs/benchmarks.md).
+test process that has reported before). Prints one JSON object on its last line (docs/results/benchmarks/speed.md).
 
     .venv/bin/python scripts/bench_report.py [--repeats 5]
 """
