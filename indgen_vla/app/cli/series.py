@@ -44,8 +44,8 @@ def main(args: argparse.Namespace) -> int:
 
     from indgen_vla.app.engine.config import config_from_args
     from indgen_vla.app.engine.series import run_series
+    from indgen_vla.core.comparison.series_report import write_series
     from indgen_vla.core.errors import ConfigError
-    from indgen_vla.core.reporting.series_report import write_series
 
     if args.poll <= 0 or args.idle_stop < 0:
         raise ConfigError("--poll must be > 0 and --idle-stop >= 0 seconds")

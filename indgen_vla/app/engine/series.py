@@ -1,5 +1,5 @@
 """``indgen series``: one evaluate run per checkpoint of a training output, resumable, optionally following a training
-that is still writing checkpoints; the series report comes from ``indgen_vla.core.reporting.series_report``.
+that is still writing checkpoints; the series report comes from ``indgen_vla.core.comparison.series_report``.
 
 A run per checkpoint lives in ``OUT/runs/<step>``; a checkpoint whose run finished is skipped on a re-run (its
 manifest and summary are there and no planned episode is missing), a killed one resumes where it stopped (evaluate's

@@ -1,5 +1,5 @@
 """``indgen train --eval-every N --eval "EVALUATE FLAGS"``: evaluate the weights in memory every N updates, one run
-per step in ``--eval-out`` (default ``OUT_evals``), and keep that directory's series report (``indgen_vla.core.reporting.series_report``)
+per step in ``--eval-out`` (default ``OUT_evals``), and keep that directory's series report (``indgen_vla.core.comparison.series_report``)
 current. The runs are the training loop recipe of docs/loop.md: same plan and seeds at every step (paired), and the
 training itself is not changed by them (the checkpoint equals one trained without ``--eval-every``). The flags and their
 parsing into an ``EvalConfig`` are the CLI's (``indgen_vla.app.cli.train``); this module takes the config."""
@@ -14,7 +14,7 @@ def make_hook(base, root: Path, every: int, last: int | None = None, say: Callab
     """``after_step(step, model)``: at every ``every``-th step (and ``last``) evaluate ``model`` in memory into
     ``root/runs/<step>`` and rewrite ``root``'s series report."""
     from indgen_vla.app.engine.run import evaluate
-    from indgen_vla.core.reporting.series_report import write_series
+    from indgen_vla.core.comparison.series_report import write_series
 
     done: list[tuple[int, Path]] = sorted(
         (int(p.name), p) for p in (root / "runs").glob("*") if p.name.isdigit()

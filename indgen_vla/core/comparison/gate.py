@@ -22,13 +22,12 @@ from indgen_vla.core.comparison.two_runs import compare_summaries, tasks_text
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.fingerprint import check_comparable
 from indgen_vla.core.reporting.caveats import blind_caveat, rate_text
-from indgen_vla.core.reporting.levels import usable_levels
 from indgen_vla.core.reporting.report import run_label
 from indgen_vla.core.reporting.summary import summarize
 from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.contrasts import check_margin, paired_difference_ci, pp
-from indgen_vla.core.stats.metrics import MIN_N, difference_ci, holm, wilson_ci
+from indgen_vla.core.stats.metrics import MIN_N, difference_ci, holm, usable_levels, wilson_ci
 from indgen_vla.core.stats.sample_size import first_extra
 
 # exit codes of `indgen gate` (2: bad input, as everywhere)

@@ -15,22 +15,11 @@ from collections.abc import Sequence
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.stats import noninferiority as ni
 from indgen_vla.core.stats.metrics import MIN_N
+from indgen_vla.core.stats.noninferiority import pass_chance
 from indgen_vla.core.stats.sample_size import first_extra
 
 MAX_PLAN = 5000
-
-
-def pass_chance(rates: Sequence[float], n: int, margin: float, alpha: float, model: str = "independent",
-                drop: float = 0.0, at: int | None = None) -> float:  # fmt: skip
-    """P(the gate passes) with n pairs a level when the baseline's levels succeed at ``rates`` and the candidate
-    equals it except for ``drop`` at level index ``at`` (None: no drop anywhere)."""
-    out = 1.0
-    for i, p in enumerate(rates):
-        pb = max(0.0, p - drop) if i == at else p
-        out *= ni.power(n, *ni.pair_model(p, pb, model), margin, alpha)
-    return out
 
 
 def plan_episodes(rates: Sequence[float], margin: float, alpha: float = 0.05, power: float = 0.8,

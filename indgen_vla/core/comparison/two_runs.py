@@ -14,7 +14,6 @@ from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_sect
 from indgen_vla.core.reporting.caveats import compare_caveats, rate_text
 from indgen_vla.core.reporting.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.core.reporting.figures import plot_axis
-from indgen_vla.core.reporting.levels import usable_levels
 from indgen_vla.core.reporting.partial_credit import compare_progress, plot_progress, render_compare
 from indgen_vla.core.reporting.report import _safe, run_label
 from indgen_vla.core.reporting.summary import summarize
@@ -26,6 +25,7 @@ from indgen_vla.core.stats.metrics import (
     difference_ci,
     pooled_text,
     success_rate,
+    usable_levels,
 )
 from indgen_vla.core.stats.pairing import pair_episodes
 

@@ -99,11 +99,6 @@ def usable_rates(rows: list[dict]) -> dict[int, float]:
     return {r["level"]: float("nan") if r["insufficient"] else r["rate"] for r in rows}
 
 
-def usable_levels(rows: list[dict]) -> set[int]:
-    """The levels above the data floor: the only ones a printed result (rate, k*, break point) may come from."""
-    return {r["level"] for r in rows if not r["insufficient"]}
-
-
 def decide(rows: list[dict], gamma: float) -> None:
     """Each level's three-way verdict from its CI (broken / intact / undetermined; below the floor: undetermined)."""
     from indgen_vla.core.stats.breakpoint import verdict_from_ci

@@ -20,7 +20,6 @@ from indgen_vla.core.reporting.levels import (
     run_regime,
     sequential,
     task_entry,
-    usable_levels,
     usable_rates,
 )
 from indgen_vla.core.stats.contrasts import add_vs_t0
@@ -30,6 +29,7 @@ from indgen_vla.core.stats.metrics import (
     break_levels,
     cochran_armitage,
     monotone_decreasing_test,
+    usable_levels,
 )
 
 

@@ -17,8 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from indgen_vla.core.errors import ConfigError, RunDirError
-from indgen_vla.core.reporting.levels import usable_levels
-from indgen_vla.core.stats.metrics import compare_paired_levels, pooled_text, wilson_ci
+from indgen_vla.core.stats.metrics import compare_paired_levels, pooled_text, usable_levels, wilson_ci
 
 ALPHA = 0.05  # the level of the report's Δ-vs-T0 verdicts (Holm) and of its equivalence tests
 EPISODE_KEY = ("scene", "task", "episode")  # what pairs two levels of one axis; "level" too between two axes

@@ -503,3 +503,8 @@ def rollouts_needed(half_width: float, p: float = 0.5, conf: float = 0.95, max_n
         else:
             lo = mid + 1
     return lo
+
+
+def usable_levels(rows: list[dict]) -> set[int]:
+    """The levels above the data floor: the only ones a printed result (rate, k*, break point) may come from."""
+    return {r["level"] for r in rows if not r["insufficient"]}

@@ -11,6 +11,7 @@ the same page lists. Power and the "more pairs would decide it" projections are 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
@@ -315,3 +316,14 @@ def unpaired_non_inferior(sa: int, na: int, sb: int, nb: int, margin: float, alp
     """Whether independent runs show B no worse than A by more than ``margin`` at one-sided level ``alpha``."""
     t = float(mover_lower(sa, na, sb, nb, 1 - 2 * alpha))
     return t >= unpaired_critical(na, nb, margin, alpha) - TIE
+
+
+def pass_chance(rates: Sequence[float], n: int, margin: float, alpha: float, model: str = "independent",
+                drop: float = 0.0, at: int | None = None) -> float:  # fmt: skip
+    """P(the gate passes) with n pairs a level when the baseline's levels succeed at ``rates`` and the candidate
+    equals it except for ``drop`` at level index ``at`` (None: no drop anywhere)."""
+    out = 1.0
+    for i, p in enumerate(rates):
+        pb = max(0.0, p - drop) if i == at else p
+        out *= power(n, *pair_model(p, pb, model), margin, alpha)
+    return out

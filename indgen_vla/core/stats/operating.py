@@ -299,9 +299,7 @@ def recipe_pass(rates: Sequence[float], n: int, margin: float, alpha: float, dro
     lo, hi = wilson_ci(passes, draws)
     out = {"simulated": passes / draws, "ci": (lo, hi), "draws": draws}
     if not old:
-        from indgen_vla.core.comparison.gate_plan import pass_chance
-
-        out["exact"] = pass_chance(rates, n, margin, alpha, model, drop, at)
+        out["exact"] = ni.pass_chance(rates, n, margin, alpha, model, drop, at)
     return out
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from indgen_vla.app.cli import main
 from indgen_vla.app.engine.series import find_checkpoints
-from indgen_vla.core.reporting.series_report import write_series
+from indgen_vla.core.comparison.series_report import write_series
 from tests.indgen_vla.core.reporting.test_report import make_run
 
 pytestmark = pytest.mark.filterwarnings("ignore")

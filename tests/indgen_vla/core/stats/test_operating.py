@@ -4,9 +4,10 @@ chances, and the series table's family-wise error (seeded simulation). The gate'
 
 import pytest
 
-from indgen_vla.core.comparison.gate_plan import pass_chance, plan_episodes
+from indgen_vla.core.comparison.gate_plan import plan_episodes
 from indgen_vla.core.reporting.levels import direction_verdict
 from indgen_vla.core.stats import operating as oc
+from indgen_vla.core.stats.noninferiority import pass_chance
 from indgen_vla.core.stats.sample_size import verdict_error
 
 
