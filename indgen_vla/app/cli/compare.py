@@ -80,6 +80,13 @@ def main(args: argparse.Namespace) -> int:
         raise ConfigError(
             "compare needs two run directories (RUN_A RUN_B) or two groups (--a RUN... --b RUN...)"
         )
+    if args.test in (
+        "auto",
+        "mcnemar",
+    ):  # imported runs (indgen import) pair by seed or are refused, as in gate
+        from indgen_vla.core.runs.imported import refuse_unpaired_imports
+
+        refuse_unpaired_imports(args.run_a, args.run_b)
     result = two_runs.compare_runs(args.run_a, args.run_b, test=args.test, **common)
     from indgen_vla.core.protocol.plan_lock import run_status
     from indgen_vla.core.runs.records import RunDir

@@ -82,7 +82,9 @@ def main(args: argparse.Namespace) -> int:
             "indgen gate needs BASELINE and CANDIDATE run directories (or --plan BASELINE to size them)"
         )
     if args.test in ("auto", "mcnemar"):  # imported runs (indgen import) pair by seed or are refused
-        _check_imported(args.baseline, args.candidate)
+        from indgen_vla.core.runs.imported import refuse_unpaired_imports
+
+        refuse_unpaired_imports(args.baseline, args.candidate)
     cfg = GateConfig(
         baseline=args.baseline, candidate=args.candidate, margin=args.margin, alpha=args.alpha, gamma=args.gamma,
         test=args.test, allow_protocol_mismatch=args.allow_protocol_mismatch,
@@ -93,17 +95,6 @@ def main(args: argparse.Namespace) -> int:
     else:
         print("\n".join(res["lines"]))
     return int(res["exit_code"])
-
-
-def _check_imported(baseline: str, candidate: str) -> None:
-    """Refuse, in one line, an imported run whose episodes do not pair by seed with the other run's."""
-    from indgen_vla.core.runs.imported import IMPORTED, check_paired_by_seed
-    from indgen_vla.core.runs.records import RunDir
-
-    runs = (RunDir.open(baseline), RunDir.open(candidate))
-    if any(IMPORTED in r.manifest for r in runs):
-        check_paired_by_seed((runs[0].manifest, runs[1].manifest), (runs[0].episodes(), runs[1].episodes()),
-                             (baseline, candidate))  # fmt: skip
 
 
 def _plan(args: argparse.Namespace) -> int:

@@ -259,7 +259,7 @@ def check_comparable(
     for label, fp in runs:
         if fp is None:
             lines.append(
-                f"{label}: no protocol fingerprint (a real-robot run, or one made before fingerprints were recorded); "
+                f"{label}: no protocol fingerprint (a real-robot run, an imported one, or one made before fingerprints were recorded); "
                 "comparability not checked"
             )
     for label, fp in runs[1:]:

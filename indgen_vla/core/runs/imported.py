@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.core.errors import RunDirError
+from indgen_vla.core.runs.records import RunDir
 
 EVAL_INFO = "eval_info.json"
 IMPORTED = "imported"  # the manifest entry of an imported run: where its episodes came from, what is unknown
@@ -198,6 +199,14 @@ def check_paired_by_seed(
                 f"(seeds {_few(only_b)}) have no partner; run lerobot-eval with the same --seed and "
                 "--eval.n_episodes for both, or pass --test boschloo to compare them unpaired"
             )
+
+
+def refuse_unpaired_imports(path_a: str, path_b: str) -> None:
+    """``check_paired_by_seed`` of two run directories, for the commands that pair episodes (gate, compare)."""
+    runs = (RunDir.open(path_a), RunDir.open(path_b))
+    if any(IMPORTED in r.manifest for r in runs):
+        check_paired_by_seed((runs[0].manifest, runs[1].manifest), (runs[0].episodes(), runs[1].episodes()),
+                             (path_a, path_b))  # fmt: skip
 
 
 def _few(seeds: list[int]) -> str:

@@ -83,6 +83,8 @@ def test_gate_of_two_imports_pairs_by_seed_and_refuses_unpaired(lerobot_eval_out
     assert main(["gate", str(a), str(tmp_path / "short")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "pair episodes by seed" in err and "no partner" in err
+    assert main(["compare", str(a), str(tmp_path / "short"), "--out", str(tmp_path / "c")]) == 2  # as compare
+    assert "no partner" in capsys.readouterr().err and not (tmp_path / "c").exists()
     # another --seed: the same episode indices, other initial states
     assert _import(capsys, str(lerobot_eval_out), "--out", str(tmp_path / "other"), "--seed", "2000")[0] == 0
     assert main(["gate", str(a), str(tmp_path / "other")]) == 2

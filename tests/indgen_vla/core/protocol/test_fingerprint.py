@@ -81,7 +81,7 @@ def test_certificates_and_plan_are_shown_but_never_refuse():
         "plan_sha256 differs (informational)",
     ]
     assert check_comparable([("A", base()), ("B", None)]) == [
-        "B: no protocol fingerprint (a real-robot run, or one made before fingerprints were recorded); "
+        "B: no protocol fingerprint (a real-robot run, an imported one, or one made before fingerprints were recorded); "
         "comparability not checked"
     ]
 
