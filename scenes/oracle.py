@@ -146,9 +146,13 @@ def oracle_class(scene: str) -> type:
 
 
 def oracle_identity(scene: str) -> dict:
-    """What a certificate records of the oracle that made it: its class and its hand-bumped ``version``."""
+    """What a certificate records of the oracle that made it: its class, its hand-bumped ``version`` and
+    a hash of its source (``scenes.heldout.oracle_code_hash``)."""
+    from scenes.heldout import oracle_code_hash
+
     cls = oracle_class(scene)
-    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version)}
+    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version),
+            "code_hash": oracle_code_hash(cls)}  # fmt: skip
 
 
 def oracle_scripts(scene: str, task: str) -> bool:

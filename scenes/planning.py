@@ -201,6 +201,7 @@ def _resolve(
         infeasible_levels,
         level_verdict,
     )
+    from scenes.heldout import basis
     from scenes.oracle import oracle_scripts
 
     sc = get_scene(scene)
@@ -241,7 +242,8 @@ def _resolve(
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
-                cells.append(Cell(t, ref.name, k, param, status, evidence, key))
+                made = basis(row) if status == CERTIFIED else ""
+                cells.append(Cell(t, ref.name, k, param, status, evidence, key, made))
     steps = {a: task_steps(by_task) for a, by_task in builder.task_successors.items()}
     return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,
                      refs={r.name: r for r in refs})  # fmt: skip

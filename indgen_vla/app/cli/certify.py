@@ -21,7 +21,15 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
     )
-    p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
+    p.add_argument(
+        "--seed", type=int, default=1,
+        help="first seed block an attempt may draw (default 1; block 0 is burnt, and each attempt takes a block the "
+        "level never used: scenes/certification/README.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--held-out", action="store_true",
+        help="also re-run, on a fresh seed block, the levels certified only in-sample (tuned)",
+    )  # fmt: skip
     p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
     p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
     add_scene_options(p)
@@ -71,7 +79,7 @@ def _certify_tasks(args: argparse.Namespace, axis) -> int:
                     args.scene, axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
                     seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
                     threshold=args.threshold or 0.95, preset=preset, out=path,
-                    log=display.log, watch=display,
+                    log=display.log, watch=display, retest=args.held_out,
                 )  # fmt: skip
         except OSError as e:
             raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
