@@ -14,11 +14,6 @@ attempts are made (``false_certification``, computed by exact binomial enumerati
 
 from __future__ import annotations
 
-import functools
-import hashlib
-import inspect
-from pathlib import Path
-
 from scipy.stats import binom
 
 ALPHA = 0.05  # the error the rule spends over every attempt on a level
@@ -150,23 +145,3 @@ def burn_block(cert: dict, level: int, block: int, why: str) -> dict:
     if int(block) not in {int(b["block"]) for b in burnt}:
         burnt.append({"block": int(block), "why": why})
     return cert
-
-
-# ---- the oracle's code ----
-
-
-@functools.cache
-def oracle_code_hash(cls: type) -> str:
-    """SHA-256 (first 16 hex) of the source of every ``scenes`` module in the oracle class's hierarchy and the
-    ``*oracle*.py``/``grasp*.py`` beside its own module: a behaviour change without a version bump shows here."""
-    files: set[Path] = set()
-    for k in cls.__mro__:
-        mod = inspect.getmodule(k)
-        if mod is not None and mod.__name__.startswith("scenes") and getattr(mod, "__file__", None):
-            files.add(Path(mod.__file__))
-    own = Path(inspect.getfile(cls)).parent
-    files |= {*own.glob("*oracle*.py"), *own.glob("grasp*.py")}
-    h = hashlib.sha256()
-    for f in sorted(files, key=lambda f: f.name):
-        h.update(f.name.encode() + b"\0" + f.read_bytes())
-    return h.hexdigest()[:16]

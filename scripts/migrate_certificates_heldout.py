@@ -54,7 +54,7 @@ SEEN_FAILING = {
     ): "sweep v1 9/10 (timeout_holding, episode 3 traced with v2)",
     ("libero_object", "alphabet_soup", "scale", 3): "sweep v2 0/10 (no_grasp)",
 }
-# the files that make up each family's oracle, as ``scenes.heldout.oracle_code_hash`` reads them today
+# the files that make up each family's oracle, as ``scenes.oracle.oracle_code_hash`` reads them today
 ORACLE_FILES = {
     "scenes.oracle:OraclePolicy": ["scenes/oracle.py"],
     "scenes.libero.oracle:LiberoOracle": [
@@ -72,14 +72,14 @@ def git(*args: str) -> str:
 def code_hash_at(commit: str, oracle: str) -> str | None:
     """``oracle_code_hash`` of ``oracle``'s files as they were at ``commit`` (None when none existed there)."""
     h, found = hashlib.sha256(), 0
-    for path in sorted(ORACLE_FILES[oracle], key=lambda p: Path(p).name):
+    for name, path in sorted((f"{Path(p).parent.name}/{Path(p).name}", p) for p in ORACLE_FILES[oracle]):
         try:
             blob = subprocess.run(
                 ["git", "show", f"{commit}:{path}"], cwd=ROOT, capture_output=True, check=True
             )
         except subprocess.CalledProcessError:
             continue
-        h.update(Path(path).name.encode() + b"\0" + blob.stdout)
+        h.update(name.encode() + b"\0" + blob.stdout)
         found += 1
     return h.hexdigest()[:16] if found else None
 
