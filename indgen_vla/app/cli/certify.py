@@ -34,6 +34,13 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         "--episodes each (default 20), and say whether each still holds; writes --out/audit.json if --out",
     )  # fmt: skip
     p.add_argument(
+        "--evaluation-states", action="store_true",
+        help="with --run DIR: play the oracle on the exact initial states of that evaluate run's episodes "
+        "(--episodes n: episodes 0..n-1) and write DIR/oracle_states.json; 'indgen report DIR' then splits the "
+        "policy's failures by whether the oracle solved the state",
+    )  # fmt: skip
+    p.add_argument("--run", default=None, help="an evaluate run directory (--evaluation-states)")
+    p.add_argument(
         "--held-out", action="store_true",
         help="also re-run, on a fresh seed block, the levels certified only in-sample (tuned)",
     )  # fmt: skip
@@ -53,6 +60,18 @@ def main(args: argparse.Namespace) -> int:
 
     if args.audit is not None:
         return _audit(args)
+    if args.evaluation_states:
+        if not args.run:
+            raise ConfigError(
+                "--evaluation-states needs --run DIR, the evaluate run whose initial states to play"
+            )
+        from indgen_vla.app.certify.states import certify_evaluation_states
+
+        out = certify_evaluation_states(args.run, episodes=args.episodes)
+        solved = [s["solved"] for s in out["states"]]
+        print(f"the oracle solved {sum(s is True for s in solved)} of {sum(s is not None for s in solved)} "
+              f"evaluated states of {args.run}; run 'indgen report {args.run}' to split the policy's failures")  # fmt: skip
+        return 0
     if not args.scene or not args.axis:
         raise ConfigError(
             "indgen certify needs --scene and --axis (or --audit N to check shipped certificates)"
