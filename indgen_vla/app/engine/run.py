@@ -130,17 +130,6 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
     return warnings
 
 
-def certificate_lines(plan: EvalPlan) -> list[str]:
-    """One line per axis on how its certified levels were certified: on held-out states or in-sample (tuned)."""
-    import dataclasses
-
-    from indgen_vla.core.reporting.certification_view import basis_entry, basis_lines
-
-    manifest = {"resolved": {"cells": [dataclasses.asdict(c) for c in plan.scene_plan.cells]}}
-    return [line for name in plan.axes for line in basis_lines(plan.scene_plan.scene, name,
-                                                               basis_entry(manifest, name))]  # fmt: skip
-
-
 def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
     """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
     certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
@@ -225,7 +214,10 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
-    for line in certificate_lines(plan):
+    from indgen_vla.core.reporting.certification_view import plan_basis_lines
+
+    cells = [dataclasses.asdict(c) for c in plan.scene_plan.cells]
+    for line in plan_basis_lines(plan.scene_plan.scene, list(plan.axes), cells):
         console.print(line.replace("**", "").replace("`", ""), markup=False, highlight=False)
     out = Path(cfg.run.out)
     existing = RunDir(out)

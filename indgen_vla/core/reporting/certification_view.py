@@ -83,6 +83,12 @@ def basis_lines(label: str, axis: str, entry: Mapping[str, Mapping[str, Sequence
     return [f"**Certificates** ({label}, `{axis}`): {'; '.join(parts)}{tail}."]
 
 
+def plan_basis_lines(scene: str, axes: Sequence[str], cells: Sequence[Mapping[str, Any]]) -> list[str]:
+    """``evaluate``'s lines before its episodes: per axis, how its certified levels were certified."""
+    manifest = {"resolved": {"cells": list(cells)}}
+    return [line for a in axes for line in basis_lines(scene, a, basis_entry(manifest, a))]
+
+
 UNAVAILABLE = (
     "EpisodeUnavailableError"  # an error row whose seed rules the level out (placement check, pick window)
 )

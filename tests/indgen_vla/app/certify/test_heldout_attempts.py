@@ -4,9 +4,11 @@ per level how it was certified."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 from indgen_vla.app.certify.run import certify, prepare
+from indgen_vla.core.reporting.certification_view import plan_basis_lines
 from scenes.certificates import cert_path, load_certification
 from scenes.heldout import HELD_OUT, IN_SAMPLE
 
@@ -48,6 +50,11 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
 
     plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
     assert [c.basis for c in plan.cells] == [IN_SAMPLE, HELD_OUT]
+    (line,) = plan_basis_lines(
+        "stack", ["stack"], [dataclasses.asdict(c) for c in plan.cells]
+    )  # evaluate prints it
+    assert line.startswith("**Certificates** (stack, `stack`): certified on held-out states at orange_on_blue: +1; "
+                           "**certified in-sample (tuned)** at orange_on_blue: 0 (in-sample:")  # fmt: skip
 
     logs = []
     cert = certify("stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, retest=True,
