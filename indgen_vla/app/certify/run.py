@@ -341,7 +341,7 @@ def prepare(
         elif old and log:
             log(f"{path}: made under other steps/rule/episode length; replacing it")
     todo = [k for k in lv if k not in done]
-    if log and done:
+    if log and set(done) & set(lv):
         log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
     if watch is not None:
         watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)

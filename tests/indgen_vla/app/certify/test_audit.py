@@ -39,3 +39,7 @@ def test_audit_reruns_shipped_pick_place_levels_on_fresh_blocks(tmp_path, capsys
 def test_audit_refuses_a_scene_with_no_shipped_level(capsys):
     assert main(["certify", "--audit", "1", "--scene", "no_such_scene"]) == 2
     assert "no shipped certified level" in capsys.readouterr().err
+    assert main(["certify", "--axis", "pick_y"]) == 2  # neither --scene nor --audit: one line
+    assert "needs --scene and --axis (or --audit N" in capsys.readouterr().err
+    assert main(["certify", "--evaluation-states"]) == 2
+    assert "--evaluation-states needs --run DIR" in capsys.readouterr().err
