@@ -348,24 +348,42 @@ def prepare(
     jobs, attempts = [], {}
     for k in todo:  # each attempt on its own never-used block, at its own share of the error (scenes.heldout)
         row = old_rows.get(k)
-        block = next_block(row, burnt_blocks(cert, k), seed)
+        part = None if path is None else partial_path(path, k)
         j = spent_attempts(row) + 1
         level_rule = Rule(threshold=threshold, confidence=attempt_confidence(j), n_max=episodes or 0)
         needed = Rule(threshold=threshold, confidence=attempt_confidence(j)).n_max
-        earlier = list((row or {}).get("attempts", ()))
-        attempts[k] = (earlier, {
+        head = [*_key(cert), task, (stamp or {}).get("stat_sha256"), version]
+        block = next_block(row, burnt_blocks(cert, k), seed)
+        if _burn_stale_partial(cert, k, part, json.dumps([*head, block, level_rule.n_max])):
+            block = next_block(row, burnt_blocks(cert, k), seed)
+        key = json.dumps([*head, block, level_rule.n_max])  # a killed attempt resumes on its own block
+        attempts[k] = (list((row or {}).get("attempts", ())), {
             "attempt": j, "block": block, "held_out": True, "alpha": attempt_alpha(j) if level_rule.n_max >= needed
             else 0.0, "confidence": level_rule.confidence, "n_max": level_rule.n_max, "oracle": cert["oracle"],
         })  # fmt: skip
-        key = json.dumps(
-            [*_key(cert), task, (stamp or {}).get("stat_sha256"), version, block, level_rule.n_max]
-        )
-        part = None if path is None else partial_path(path, k)
         jobs.append((plan.builder, task, axis, k, block, max_steps, level_rule, part, key))
         if log and j > 1:
             log(f"{scene}/{task}/{axis} level {k}: held-out attempt {j} on seed block {block} (confidence "
                 f"{level_rule.confidence:.5f}: {needed}/{needed} certifies)")  # fmt: skip
     return Pending(cert, path, lv, jobs, log, watch, attempts)
+
+
+def _burn_stale_partial(cert: dict, level: int, part: Path | None, key: str) -> bool:
+    """A killed attempt's episodes under another key (oracle, rule: not reused) were still looked at: burn their
+    block so no attempt draws it again; True when it did."""
+    from scenes.heldout import burn_block
+
+    if part is None or not part.is_file():
+        return False
+    try:
+        old = json.loads(part.read_text().splitlines()[0])["key"]
+        block = json.loads(old)[-2]
+    except (ValueError, KeyError, IndexError, TypeError):
+        return False
+    if old == key or not isinstance(block, int):
+        return False
+    burn_block(cert, level, block, "a killed attempt's episodes (another oracle or rule) looked at it")
+    return True
 
 
 def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:

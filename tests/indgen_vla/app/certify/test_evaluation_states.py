@@ -30,6 +30,8 @@ def test_the_oracle_replays_an_oracle_runs_states_exactly(tmp_path, capsys):
     } == mine
     assert main(["report", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
+    # every planned level's certificate basis (the shipped pick_place milk pick_y 0 and 1: held-out)
+    assert summary["axes"]["pick_y"]["certification_basis"] == {"milk": {"held-out": [0, 1]}}
     entry = summary["axes"]["pick_y"]["oracle_states"]
     solved = sum(e["oracle_solved"] for lv in entry.values() for e in lv.values())
     assert solved == int(run["success"].sum())  # and the policy (the oracle itself) failed no solved state

@@ -66,3 +66,19 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
     assert load_certification(out)["levels"][0] == row
     plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
     assert [(c.certificate, c.basis) for c in plan.cells] == [("failed", ""), ("certified", HELD_OUT)]
+
+
+def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_it(tmp_path, monkeypatch):
+    """The same attempt resumes its block; a killed attempt of another oracle version had looked at its block's
+    first episodes, so the next attempt burns it and draws the next block."""
+    from indgen_vla.app.certify.partial import EpisodeLog
+    from scenes.oracle import OraclePolicy
+
+    out = tmp_path / "certify.json"
+    (job,) = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs
+    EpisodeLog(job[-2], job[-1]).add(True, 50)  # one episode of block 1, then killed
+    (same,) = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs
+    assert (same[4], same[-1]) == (1, job[-1])  # resumes there
+    monkeypatch.setattr(OraclePolicy, "version", OraclePolicy.version + 1)
+    p = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out)
+    assert p.jobs[0][4] == 2 and [b["block"] for b in p.cert["burnt"]["0"]] == [1]
