@@ -169,7 +169,8 @@ def oracle_code_hash(cls: type) -> str:
     own = Path(inspect.getfile(cls)).parent
     files |= {*own.glob("*oracle*.py"), *own.glob("grasp*.py")}
     h = hashlib.sha256()
-    for name, f in sorted((f"{f.parent.name}/{f.name}", f) for f in files):  # e.g. scenes/oracle.py, libero/oracle.py
+    # keyed by folder/name: scenes/oracle.py and libero/oracle.py
+    for name, f in sorted((f"{f.parent.name}/{f.name}", f) for f in files):
         h.update(name.encode() + b"\0" + f.read_bytes())
     return h.hexdigest()[:16]
 
