@@ -27,7 +27,9 @@ SPENDING = (
 )
 HELD_OUT = "held-out"
 IN_SAMPLE = "in-sample (tuned)"
-LABELS = {HELD_OUT: "certified on held-out states", IN_SAMPLE: "certified in-sample (tuned)"}
+EXHAUSTIVE = "exhaustive"  # a family with a finite set of initial states (LIBERO: 50), every one solved
+LABELS = {HELD_OUT: "certified on held-out states", IN_SAMPLE: "certified in-sample (tuned)",
+          EXHAUSTIVE: "certified on every fixed initial state"}  # fmt: skip
 
 
 def attempt_alpha(j: int) -> float:
@@ -129,9 +131,30 @@ def next_block(row: dict | None, burnt: list | None = None, first: int = FIRST_B
 
 
 def basis(row: dict | None) -> str:
-    """How a certified row was made: ``HELD_OUT`` or ``IN_SAMPLE`` (a row without a recorded basis, e.g. a
-    certificate made before this rule on the user's machine, has an unknown history: in-sample)."""
-    return HELD_OUT if (row or {}).get("certified_on") == HELD_OUT else IN_SAMPLE
+    """How a certified row was made: ``HELD_OUT``, ``EXHAUSTIVE`` or ``IN_SAMPLE`` (a row without a recorded
+    basis, e.g. a certificate made before this rule on the user's machine, has an unknown history: in-sample)."""
+    made = (row or {}).get("certified_on")
+    return made if made in (HELD_OUT, EXHAUSTIVE) else IN_SAMPLE
+
+
+def covers_every_state(row: dict, states: int) -> bool:
+    """Did the row's last attempt play every one of a family's ``states`` fixed initial states (episode i starts
+    from state i % states; unavailable ones count as played: the placement check ruled them out of the level)?"""
+    return states > 0 and int(row["n"]) + int(row.get("unavailable", 0)) >= states
+
+
+def fixed_states_basis(row: dict, states: int) -> dict:
+    """``row`` of a family with ``states`` fixed initial states (LIBERO): a seed block repeats them (episode i is
+    state i % states whatever the block, and the simulation is deterministic), so no attempt is held-out and none
+    spends error; a certified row that played every state is ``EXHAUSTIVE`` (the oracle solves each state the
+    level holds: no sampling error, and exactly the states ``evaluate`` runs), else ``IN_SAMPLE``."""
+    out = {**row, "attempts": [{**a, "held_out": False, "alpha": 0.0, "attempt": None,
+                                "fixed_states": f"{states}: every seed block repeats them"}
+                               for a in row.get("attempts", ())]}  # fmt: skip
+    out.pop("certified_on", None)
+    if row.get("status") == "certified":
+        out["certified_on"] = EXHAUSTIVE if covers_every_state(row, states) else IN_SAMPLE
+    return out
 
 
 def burnt_blocks(cert: dict, level: int) -> list:

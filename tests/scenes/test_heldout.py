@@ -14,6 +14,7 @@ from indgen_vla.core.resources import certification_dir
 from scenes.certificates import episodes_needed, load_certification
 from scenes.heldout import (
     ALPHA,
+    EXHAUSTIVE,
     IN_SAMPLE,
     attempt_alpha,
     attempt_confidence,
@@ -21,6 +22,7 @@ from scenes.heldout import (
     burn_block,
     burnt_blocks,
     false_certification,
+    fixed_states_basis,
     naive_false_certification,
     next_block,
     spent_attempts,
@@ -72,10 +74,24 @@ def test_blocks_are_never_reused_and_burnt_ones_skipped():
     assert basis({"status": "certified"}) == IN_SAMPLE  # no record of how: unknown history, in-sample
 
 
+def test_a_fixed_state_family_is_exhaustive_never_held_out():
+    """LIBERO: every block repeats its 50 states, so no attempt is held-out or spends error; a certified row that
+    played all 50 (unavailable ones included) is exhaustive, one that did not is in-sample."""
+    row = {"n": 59, "successes": 59, "status": "certified", "unavailable": 4, "certified_on": "held-out",
+           "attempts": [{"attempt": 1, "block": 1, "held_out": True, "alpha": 0.0485}]}  # fmt: skip
+    out = fixed_states_basis(row, 50)
+    assert (
+        out["certified_on"] == EXHAUSTIVE and spent_attempts(out) == 0 and not out["attempts"][0]["held_out"]
+    )
+    assert fixed_states_basis({**row, "n": 40, "unavailable": 0}, 50)["certified_on"] == IN_SAMPLE
+    assert "certified_on" not in fixed_states_basis({**row, "status": "failed"}, 50)
+
+
 def test_every_shipped_certificate_records_its_ledger():
-    """Oracle (class, version), seed block, attempts with outcomes and the asset tree, on every shipped row; the
-    one level certified after a failure on its own seeds (cream_cheese pick_y -2) is in-sample."""
-    in_sample = []
+    """Oracle (class, version), seed block, attempts with outcomes and the asset tree, on every shipped row; no
+    level is in-sample: the one certified after a failure on its own seeds (LIBERO cream_cheese pick_y -2) is, like
+    every LIBERO level, certified on all 50 fixed initial states, and its block-1 re-run reproduced it."""
+    in_sample, libero = [], set()
     paths = sorted(certification_dir().glob("*/*/*/certify.json"))
     assert len(paths) > 100
     for path in paths:
@@ -91,7 +107,15 @@ def test_every_shipped_certificate_records_its_ledger():
             )
             assert "code_hash" in last["oracle"] and "version" in last["oracle"]
             if row["status"] == "certified":
-                assert row["certified_on"] in ("held-out", IN_SAMPLE)
+                assert row["certified_on"] in ("held-out", EXHAUSTIVE, IN_SAMPLE)
                 if row["certified_on"] == IN_SAMPLE:
                     in_sample.append((*path.parent.relative_to(certification_dir()).parts, row["level"]))
-    assert in_sample == [("libero_object", "cream_cheese", "pick_y", -2)]
+                if cert["scene"].startswith("libero"):
+                    libero.add(row["certified_on"])
+    assert in_sample == [] and libero == {EXHAUSTIVE}
+    row = load_certification(certification_dir() / "libero_object/cream_cheese/pick_y")["levels"][1]
+    assert [(a["block"], a["n"], a["successes"]) for a in row["attempts"]] == [
+        (0, 6, 5),
+        (0, 59, 59),
+        (1, 59, 59),
+    ]

@@ -29,8 +29,9 @@ from scenes.certificates import (
     same_assets,
     write_json_atomic,
 )
-from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING
+from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING, fixed_states_basis
 from scenes.privileged import with_privileged
+from scenes.registry import get_scene
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -175,6 +176,9 @@ class Pending:
         cert = self.cert
         if int(row["level"]) in self.attempts:
             row = with_attempt(row, *self.attempts[int(row["level"])])
+            states = get_scene(cert["scene"]).fixed_state_count
+            if states:  # LIBERO: blocks repeat its fixed states; a full pass is exhaustive (scenes.heldout)
+                row = fixed_states_basis(row, states)
         rows = {int(r["level"]): r for r in cert["levels"]}
         rows[int(row["level"])] = row
         cert["levels"] = [rows[k] for k in sorted(rows)]

@@ -19,7 +19,7 @@ from scenes.certificates import (
     row_oracle_version,
     stale_failure,
 )
-from scenes.heldout import HELD_OUT, IN_SAMPLE, basis
+from scenes.heldout import EXHAUSTIVE, HELD_OUT, IN_SAMPLE, basis
 from scenes.oracle import oracle_scripts
 from scenes.registry import registered_scenes
 
@@ -74,13 +74,14 @@ def write_summary(out_dir: str | Path) -> Path:
         "`oracle`: the class and the version(s) that made the rows (v1: made before versions were recorded).",
         "`~` certified in-sample (tuned): the oracle was tuned or re-tried on the level's seeds, or its history is",
         "unknown (`indgen certify --held-out` re-runs it on a fresh seed block); every other certified level was",
-        'certified on held-out states (README.md, "Held-out attempts"). Each row\'s attempts, seed blocks and oracle',
+        "certified on held-out states or, on LIBERO, on every one of its 50 fixed initial states (README.md,",
+        '"Held-out attempts"). Each row\'s attempts, seed blocks and oracle',
         "code hash are in its certify.json.",
         "",
     ]
     have = {p.parent.relative_to(out_dir).parts for p in out_dir.glob("*/*/*/certify.json")}
     default = {(j[0], j[1], j[2]) for j in jobs}
-    bases = {HELD_OUT: 0, IN_SAMPLE: 0}  # certified levels by how they were certified
+    bases = {HELD_OUT: 0, EXHAUSTIVE: 0, IN_SAMPLE: 0}  # certified levels by how they were certified
     complete, others = 0, [0, 0]  # others: [triples outside the default batch, of them complete]
     rows = [
         "| scene | task | axis | step | levels (s/n) | certified | not certified | oracle |",
@@ -126,7 +127,8 @@ def write_summary(out_dir: str | Path) -> Path:
            "certified." if others[0] else "")
     )  # fmt: skip
     lines.append(
-        f"Certified levels: {bases[HELD_OUT]} on held-out states, {bases[IN_SAMPLE]} in-sample (tuned)."
+        f"Certified levels: {bases[HELD_OUT]} on held-out states, {bases[EXHAUSTIVE]} on every fixed initial state "
+        f"(LIBERO's 50), {bases[IN_SAMPLE]} in-sample (tuned)."
     )
     lines += ["", *rows, ""]
     lines += audit_lines(out_dir)
