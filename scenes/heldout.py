@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from scipy.stats import binom
 
+from indgen_vla.core.errors import ConfigError
+
 ALPHA = 0.05  # the error the rule spends over every attempt on a level
 FIRST_ALPHA = 0.0485  # attempt 1: 59/59 certifies (0.95**59 = 0.04849 <= 0.0485)
 LEGACY_BLOCK = 0  # the certificates before this rule, the sweeps and their replays: burnt everywhere
@@ -35,9 +37,9 @@ LABELS = {HELD_OUT: "certified on held-out states", IN_SAMPLE: "certified in-sam
 def attempt_alpha(j: int) -> float:
     """The error attempt ``j`` (1-based) may spend: 0.0485, then halving what is left of 0.05 (sum < 0.05)."""
     if j < 1:
-        raise ValueError(f"attempts are numbered from 1, got {j}")
+        raise ConfigError(f"attempts are numbered from 1, got {j}")
     if j > MAX_ATTEMPTS:  # 1 - alpha_j would round to 1.0 soon after: no episode count could certify
-        raise ValueError(f"a level gets at most {MAX_ATTEMPTS} held-out attempts (this would be attempt {j}); "
+        raise ConfigError(f"a level gets at most {MAX_ATTEMPTS} held-out attempts (this would be attempt {j}); "
                          "record it as failed")  # fmt: skip
     return FIRST_ALPHA if j == 1 else (ALPHA - FIRST_ALPHA) / 2 ** (j - 1)
 
