@@ -15,7 +15,7 @@ from indgen_vla.core.reporting.oracle_states import states_entry, states_lines
 
 def test_the_oracle_replays_an_oracle_runs_states_exactly(tmp_path, capsys):
     out = tmp_path / "run"
-    evaluate(policy="standin:oracle", scene="pick_place", axis="pick_y", levels="0:1", episodes=2, out=out,
+    evaluate(policy="standin:oracle", scene="pick_place", axis="pick_y", levels="0:1", episodes=1, out=out,
              quiet=True, workers=1)  # fmt: skip
     assert main(["certify", "--evaluation-states", "--run", str(out)]) == 0
     assert "evaluated states of" in capsys.readouterr().out
