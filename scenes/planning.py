@@ -201,7 +201,7 @@ def _resolve(
         infeasible_levels,
         level_verdict,
     )
-    from scenes.heldout import basis
+    from scenes.heldout import EXHAUSTIVE, basis, covers_every_state
     from scenes.oracle import oracle_scripts
 
     sc = get_scene(scene)
@@ -243,6 +243,8 @@ def _resolve(
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
                 made = basis(row) if status == CERTIFIED else ""
+                if made and sc.fixed_state_count and covers_every_state(row, sc.fixed_state_count):
+                    made = EXHAUSTIVE  # LIBERO: a row that played all its fixed states, ledger or not
                 cells.append(Cell(t, ref.name, k, param, status, evidence, key, made))
     steps = {a: task_steps(by_task) for a, by_task in builder.task_successors.items()}
     return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,

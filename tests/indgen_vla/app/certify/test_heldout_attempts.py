@@ -82,3 +82,24 @@ def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_i
     monkeypatch.setattr(OraclePolicy, "version", OraclePolicy.version + 1)
     p = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out)
     assert p.jobs[0][4] == 2 and [b["block"] for b in p.cert["burnt"]["0"]] == [1]
+
+
+def test_a_fixed_state_family_reports_exhaustive_certificates(tmp_path, monkeypatch):
+    """A family with a finite set of initial states (LIBERO's 50; here stack given 50): a certified row that
+    played all of them is reported "exhaustive", with or without a ledger (a user's older LIBERO certificate)."""
+    from scenes.heldout import EXHAUSTIVE
+    from scenes.planning import resolve_scene_plan
+    from scenes.registry import get_scene
+
+    out = _in_sample(tmp_path)
+    monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
+    monkeypatch.setattr(type(get_scene("stack")), "fixed_state_count", 50)
+    cert = json.loads(out.read_text())
+    for r in cert["levels"]:
+        r.pop("attempts"), r.pop("certified_on")  # as made before ledgers
+    out.write_text(json.dumps(cert))
+    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    assert [c.basis for c in plan.cells] == [EXHAUSTIVE, EXHAUSTIVE]
+    monkeypatch.setattr(type(get_scene("stack")), "fixed_state_count", 60)  # 59 episodes do not cover 60
+    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    assert [c.basis for c in plan.cells] == [IN_SAMPLE, IN_SAMPLE]
