@@ -8,7 +8,11 @@ is a ``Phase`` member whose method emits one action and decides when the next ph
 from __future__ import annotations
 
 import enum
+import functools
+import hashlib
+import inspect
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -146,9 +150,29 @@ def oracle_class(scene: str) -> type:
 
 
 def oracle_identity(scene: str) -> dict:
-    """What a certificate records of the oracle that made it: its class and its hand-bumped ``version``."""
+    """What a certificate records of the oracle that made it: its class, its hand-bumped ``version`` and
+    a hash of its source (``oracle_code_hash``)."""
     cls = oracle_class(scene)
-    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version)}
+    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version),
+            "code_hash": oracle_code_hash(cls)}  # fmt: skip
+
+
+@functools.cache
+def oracle_code_hash(cls: type) -> str:
+    """SHA-256 (first 16 hex) of the source of every ``scenes`` module in the oracle class's hierarchy and the
+    ``*oracle*.py``/``grasp*.py`` beside its own module: a behaviour change without a version bump shows here."""
+    files: set[Path] = set()
+    for k in cls.__mro__:
+        mod = inspect.getmodule(k)
+        if mod is not None and mod.__name__.startswith("scenes") and getattr(mod, "__file__", None):
+            files.add(Path(mod.__file__))
+    own = Path(inspect.getfile(cls)).parent
+    files |= {*own.glob("*oracle*.py"), *own.glob("grasp*.py")}
+    h = hashlib.sha256()
+    # keyed by folder/name: scenes/oracle.py and libero/oracle.py
+    for name, f in sorted((f"{f.parent.name}/{f.name}", f) for f in files):
+        h.update(name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
 
 
 def oracle_scripts(scene: str, task: str) -> bool:

@@ -206,6 +206,7 @@ def _resolve(
         infeasible_levels,
         level_verdict,
     )
+    from scenes.heldout import EXHAUSTIVE, basis, covers_every_state
     from scenes.oracle import oracle_scripts
 
     # names, axes and levels only: no assets needed (building an env does: SceneLevels.check_ready)
@@ -246,7 +247,10 @@ def _resolve(
                 evidence = evidence if scripted else NO_ORACLE  # certify refuses such a task: say so
                 param = axis_param(spec_at_level(base, successor, k), successor, k)
                 key = env_key(sc.level_identity(t, successor, k)) if k == 0 else ""
-                cells.append(Cell(t, ref.name, k, param, status, evidence, key))
+                made = basis(row) if status == CERTIFIED else ""
+                if made and sc.fixed_state_count and covers_every_state(row, sc.fixed_state_count):
+                    made = EXHAUSTIVE  # LIBERO: a row that played all its fixed states, ledger or not
+                cells.append(Cell(t, ref.name, k, param, status, evidence, key, made))
     steps = {a: task_steps(by_task) for a, by_task in builder.task_successors.items()}
     return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,
                      refs={r.name: r for r in refs})  # fmt: skip

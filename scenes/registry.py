@@ -90,6 +90,7 @@ class Scene:
     )
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
     fixed_initial_states: ClassVar[str] = ""
+    fixed_state_count: ClassVar[int] = 0  # how many (LIBERO: 50); certificates over them are exhaustive
     env_from_spec: ClassVar[bool] = False
     scene_options: ClassVar[tuple[str, ...]] = ()
 

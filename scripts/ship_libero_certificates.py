@@ -19,7 +19,9 @@ from pathlib import Path
 def main(argv=None) -> int:
     from indgen_vla.app.certify.suite import write_summary
     from indgen_vla.core.resources import certification_dir
+    from scenes.heldout import fixed_states_basis
     from scenes.libero.setup import COMPLETE_TREE, FILES
+    from scenes.registry import get_scene
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("src", help="a certify_many root holding libero_object/<task>/<axis>/certify.json")
@@ -40,6 +42,13 @@ def main(argv=None) -> int:
                 "files": made.get("files"),
                 "how": a.how,
             }
+        c.pop("shipped_assets", None)
+        states = get_scene(
+            c["scene"]
+        ).fixed_state_count  # blocks repeat LIBERO's fixed states (scenes.heldout)
+        c["levels"] = [
+            fixed_states_basis(r, states) if states and "attempts" in r else r for r in c["levels"]
+        ]
         out = dst / p.relative_to(a.src)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(c, indent=1) + "\n")

@@ -64,6 +64,7 @@ class LiberoSuite(Scene):
     success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
     committed_certificates = False  # certificates depend on the user's LIBERO asset tree
     fixed_initial_states = "LIBERO's 50 fixed initial states (episode % 50)"
+    fixed_state_count = 50  # a certificate of 59 episodes plays every one: exhaustive (scenes.heldout)
     oracle = (
         "scenes.libero.oracle:LiberoOracle"  # grasps clear of neighbours, stops waiting at the arm's reach
     )

@@ -23,11 +23,12 @@ def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
 
 def certify_many(
     scene: str, pairs: list[tuple[str, str]], *, levels: str | list[int] | None = None,
-    episodes: int | None = None, seed: int = 0, workers: int = 1, root: str | Path | None = None,
-    deadline_s: float | None = None, log=print,
+    episodes: int | None = None, seed: int = 1, workers: int = 1, root: str | Path | None = None,
+    deadline_s: float | None = None, log=print, retest: bool = False,
 ) -> list[dict]:  # fmt: skip
     """Certify (or resume) ``levels`` of every (task, axis) in ``pairs`` under ``root`` (default: where evaluate
-    looks, ``scenes.certificates.cert_path``); with ``deadline_s`` no new level starts after that many seconds (those
+    looks, ``scenes.certificates.cert_path``; ``seed``: the first seed block, ``retest``: re-run the levels certified
+    only in-sample on a fresh block, ``scenes.heldout``); with ``deadline_s`` no new level starts after that many seconds (those
     running finish), so a time-boxed chunk ends with whole levels. Returns the certificates as they stand."""
     import multiprocessing as mp
 
@@ -47,6 +48,7 @@ def certify_many(
             seed=seed,
             out=cert_path(scene, task, axis, root=root),
             log=log,
+            retest=retest,
         )  # fmt: skip
         for task, axis in pairs
     ]

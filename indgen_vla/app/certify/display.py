@@ -11,6 +11,7 @@ from __future__ import annotations
 from indgen_vla.app.certify.run import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from scenes.certificates import current_oracle_version, level_status, level_verdict
+from scenes.heldout import basis
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
 
@@ -109,6 +110,8 @@ def print_table(cert: dict) -> None:
         table.add_column(col, justify="right")
     for r in cert["levels"]:
         st = level_verdict(r, cert, current)
+        if level_status(r) == "certified":
+            st += f" ({basis(r)}, block {r.get('block', '?')})"
         table.add_row(
             str(r["level"]), f"{r['param']:g}", f"{r['successes']}/{r['n']}", f"{r['rate']:.0%}",
             f"{r.get('lower_bound', float('nan')):.3f}", st if level_status(r) != "failed" else f"[red]{st}[/red]",

@@ -5,7 +5,8 @@ Clopper–Pearson lower bound of the oracle's success rate is >= the threshold (
 Episodes run one after another up to ``n_max`` and stop as soon as a failure makes certification
 unreachable even if every remaining episode succeeded (scenes/certification/README.md). Certification is
 per (scene, task, axis, component steps), physics only, resumable, and deterministic: episode i of level
-k always gets ``episode_seed(seed, scene, task, axis, level, i)``.
+k's attempt on seed block b gets ``episode_seed(b, scene, task, axis, level, i)``. Each attempt draws a block the
+level never used and spends its share of the error (``scenes.heldout``), so retrying never certifies by luck.
 """
 
 from __future__ import annotations
@@ -28,7 +29,9 @@ from scenes.certificates import (
     same_assets,
     write_json_atomic,
 )
+from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING, fixed_states_basis
 from scenes.privileged import with_privileged
+from scenes.registry import get_scene
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -147,10 +150,11 @@ def level_line(scene: str, task: str, axis: str, row: dict) -> str:
 
 
 def _key(cert: dict) -> tuple:
-    """What must match for a stored level to be reused: component steps, seed, rule and episode length."""
+    """What must match for a stored level to be reused: component steps, the rule's threshold and the episode
+    length (each attempt's block and confidence are its row's own, ``scenes.heldout``)."""
     return (
-        json.dumps(cert.get("steps"), sort_keys=True), cert.get("seed"),
-        json.dumps(cert.get("rule"), sort_keys=True), cert.get("max_steps"),
+        json.dumps(cert.get("steps"), sort_keys=True), float(cert.get("threshold", THRESHOLD)),
+        cert.get("max_steps"),
     )  # fmt: skip
 
 
@@ -165,9 +169,16 @@ class Pending:
     jobs: list[tuple]
     log: object = None
     watch: object = None
+    # level -> (earlier attempts, this attempt's header): the ledger each finished row carries (``scenes.heldout``)
+    attempts: dict = dataclasses.field(default_factory=dict)
 
     def merge(self, row: dict) -> None:
         cert = self.cert
+        if int(row["level"]) in self.attempts:
+            row = with_attempt(row, *self.attempts[int(row["level"])])
+            states = get_scene(cert["scene"]).fixed_state_count
+            if states:  # LIBERO: blocks repeat its fixed states; a full pass is exhaustive (scenes.heldout)
+                row = fixed_states_basis(row, states)
         rows = {int(r["level"]): r for r in cert["levels"]}
         rows[int(row["level"])] = row
         cert["levels"] = [rows[k] for k in sorted(rows)]
@@ -188,6 +199,29 @@ class Pending:
         return out
 
 
+def builtin_assets() -> dict:
+    """What a built-in scene's certificate records of its asset tree: robosuite's own models, at its version."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version("robosuite")
+    except PackageNotFoundError:
+        v = "unknown"
+    return {"tree": "robosuite's bundled models (built-in scene)", "robosuite": v}
+
+
+def with_attempt(row: dict, earlier: list[dict], attempt: dict) -> dict:
+    """``row`` with its seed block, its attempts (the earlier ones and this one, with its outcome) and, when
+    certified, ``certified_on``: held-out when this attempt drew a block nothing had used and spent its share of
+    the error (``scenes.heldout``)."""
+    done = {**attempt, "n": row["n"], "successes": row["successes"], "status": row["status"]}
+    out = {**row, "block": attempt["block"], "attempts": [*earlier, done]}
+    out.pop("certified_on", None)
+    if row["status"] == "certified":
+        out["certified_on"] = HELD_OUT if attempt["held_out"] and attempt["alpha"] > 0 else IN_SAMPLE
+    return out
+
+
 def certify(
     scene: str,
     axis: str | AxisRef,
@@ -196,7 +230,7 @@ def certify(
     levels: str | list[int] | None = None,
     step: float | None = None,
     episodes: int | None = None,
-    seed: int = 0,
+    seed: int = FIRST_BLOCK,
     max_steps: int | None = None,
     workers: int = 1,
     threshold: float = THRESHOLD,
@@ -205,9 +239,11 @@ def certify(
     log=None,
     watch=None,
     options: Mapping[str, Any] | None = None,
+    retest: bool = False,
 ) -> dict:
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
-    levels already certified there under the same steps/seed/rule, and the finished episodes of a level a killed
+    levels already decided there under the same steps/rule (with ``retest``, re-run on a fresh block the levels
+    certified only in-sample), and the finished episodes of a level a killed
     run left half done, and write after every level. ``log`` gets a line per event; ``watch``
     (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to run, each episode and
     each finished level instead of the per-level lines. ``options``: the family's (``--split``,
@@ -218,7 +254,8 @@ def certify(
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     with configure_scene(scene, options):
         p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                    max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch)  # fmt: skip
+                    max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch,
+                    retest=retest)  # fmt: skip
         if workers == 1 or len(p.jobs) <= 1:
             for j in p.jobs:
                 p.merge(_certify_job(j, None if watch is None else watch.episode))
@@ -229,14 +266,24 @@ def certify(
 
 def prepare(
     scene: str, axis: str | AxisRef, *, task: str | None = None, levels: str | list[int] | None = None,
-    step: float | None = None, episodes: int | None = None, seed: int = 0, max_steps: int | None = None,
+    step: float | None = None, episodes: int | None = None, seed: int = FIRST_BLOCK, max_steps: int | None = None,
     threshold: float = THRESHOLD, preset: str | None = None, out: str | Path | None = None, log=None, watch=None,
+    retest: bool = False,
 ) -> Pending:  # fmt: skip
     """Check the request (resolved as ``evaluate`` resolves it: ``scenes.planning.resolve_scene_plan``), read what
     ``out`` already holds, and list the level jobs still to run."""
     from indgen_vla.app.certify.partial import partial_path
     from scenes.axes import successor_steps
     from scenes.certificates import row_oracle_version, stale_failure
+    from scenes.heldout import (
+        attempt_alpha,
+        attempt_confidence,
+        basis,
+        burnt_blocks,
+        ledger,
+        next_block,
+        spent_attempts,
+    )  # fmt: skip
     from scenes.oracle import oracle_identity, oracle_scripts
     from scenes.planning import resolve_scene_plan
     from scenes.registry import get_scene
@@ -254,7 +301,7 @@ def prepare(
         )
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
-    rule = Rule(threshold=threshold, n_max=episodes or 0)
+    rule = Rule(threshold=threshold, confidence=attempt_confidence(1), n_max=episodes or 0)
     # the family's (and task's) own steps, the levels' range and condition 2, before any episode runs
     plan = resolve_scene_plan(scene, task, (ref,), levels, step, preset, certificates=False)
     plan.builder.check_ready()
@@ -262,16 +309,17 @@ def prepare(
     spec, lv = successor.axis, list(plan.levels[axis])
     cert = {
         "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
-        "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps, "rule": rule.as_dict(),
+        "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps,
+        "rule": {**rule.as_dict(), "name": RULE, "alpha": ALPHA, "spending": SPENDING},
         "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
         "oracle": oracle_identity(scene),
     }  # fmt: skip
     version = cert["oracle"]["version"]
     stamp = asset_stamp(scene)
-    if stamp is not None:
-        cert["assets"] = stamp
+    cert["assets"] = stamp if stamp is not None else builtin_assets()
     path = Path(out) if out is not None else None
     done: dict[int, dict] = {}
+    old_rows: dict[int, dict] = {}
     if path is not None and path.is_file():
         try:
             old = load_certification(path)
@@ -282,38 +330,65 @@ def prepare(
                 log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
         elif old and _key(old) == _key(cert) and old.get("task") == task:
             # each row keeps the version that made it; a failure by another version is tried again
-            rows = [{**r, "oracle_version": row_oracle_version(r, old)} for r in old["levels"]]
+            rows = [{**r, "oracle_version": row_oracle_version(r, old), "attempts": ledger(r, old)}
+                    for r in old["levels"]]  # fmt: skip
+            old_rows = {int(r["level"]): r for r in rows}
+            cert["burnt"] = old.get("burnt") or {}
             done = {int(r["level"]): r for r in rows if not stale_failure(r, None, version)
-                    and (r.get("status") in ("certified", "failed") or r["n"] >= rule.n_max)}  # fmt: skip
+                    and (r.get("status") in ("certified", "failed") or r["n"] >= rule.n_max)
+                    and not (retest and r.get("status") == "certified" and basis(r) == IN_SAMPLE)}  # fmt: skip
             cert["wall_s"] = float(old.get("wall_s", 0.0))
             cert["levels"] = sorted(rows, key=lambda r: r["level"])
             retry = sorted(int(r["level"]) for r in rows if stale_failure(r, None, version))
             if retry and log:
                 log(f"{scene}/{task}/{axis}: levels {retry} failed under an older oracle; trying them again "
-                    f"with oracle v{version}")  # fmt: skip
+                    f"with oracle v{version} on held-out seed blocks")  # fmt: skip
         elif old and log:
-            log(f"{path}: made under other steps/seed/rule; replacing it")
+            log(f"{path}: made under other steps/rule/episode length; replacing it")
     todo = [k for k in lv if k not in done]
-    if log and done:
+    if log and set(done) & set(lv):
         log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
     if watch is not None:
         watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)
-    key = json.dumps([*_key(cert), task, (stamp or {}).get("stat_sha256"), version])
-    jobs = [
-        (
-            plan.builder,
-            task,
-            axis,
-            k,
-            seed,
-            max_steps,
-            rule,
-            None if path is None else partial_path(path, k),
-            key,
-        )
-        for k in todo
-    ]
-    return Pending(cert, path, lv, jobs, log, watch)
+    jobs, attempts = [], {}
+    for k in todo:  # each attempt on its own never-used block, at its own share of the error (scenes.heldout)
+        row = old_rows.get(k)
+        part = None if path is None else partial_path(path, k)
+        j = spent_attempts(row) + 1
+        level_rule = Rule(threshold=threshold, confidence=attempt_confidence(j), n_max=episodes or 0)
+        needed = Rule(threshold=threshold, confidence=attempt_confidence(j)).n_max
+        head = [*_key(cert), task, (stamp or {}).get("stat_sha256"), version]
+        block = next_block(row, burnt_blocks(cert, k), seed)
+        if _burn_stale_partial(cert, k, part, json.dumps([*head, block, level_rule.n_max])):
+            block = next_block(row, burnt_blocks(cert, k), seed)
+        key = json.dumps([*head, block, level_rule.n_max])  # a killed attempt resumes on its own block
+        attempts[k] = (list((row or {}).get("attempts", ())), {
+            "attempt": j, "block": block, "held_out": True, "alpha": attempt_alpha(j) if level_rule.n_max >= needed
+            else 0.0, "confidence": level_rule.confidence, "n_max": level_rule.n_max, "oracle": cert["oracle"],
+        })  # fmt: skip
+        jobs.append((plan.builder, task, axis, k, block, max_steps, level_rule, part, key))
+        if log and j > 1:
+            log(f"{scene}/{task}/{axis} level {k}: held-out attempt {j} on seed block {block} (confidence "
+                f"{level_rule.confidence:.5f}: {needed}/{needed} certifies)")  # fmt: skip
+    return Pending(cert, path, lv, jobs, log, watch, attempts)
+
+
+def _burn_stale_partial(cert: dict, level: int, part: Path | None, key: str) -> bool:
+    """A killed attempt's episodes under another key (oracle, rule: not reused) were still looked at: burn their
+    block so no attempt draws it again; True when it did."""
+    from scenes.heldout import burn_block
+
+    if part is None or not part.is_file():
+        return False
+    try:
+        old = json.loads(part.read_text().splitlines()[0])["key"]
+        block = json.loads(old)[-2]
+    except (ValueError, KeyError, IndexError, TypeError):
+        return False
+    if old == key or not isinstance(block, int):
+        return False
+    burn_block(cert, level, block, "a killed attempt's episodes (another oracle or rule) looked at it")
+    return True
 
 
 def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:

@@ -19,6 +19,7 @@ from scenes.certificates import (
     row_oracle_version,
     stale_failure,
 )
+from scenes.heldout import EXHAUSTIVE, HELD_OUT, IN_SAMPLE, basis
 from scenes.oracle import oracle_scripts
 from scenes.registry import registered_scenes
 
@@ -37,7 +38,7 @@ def default_jobs(scene_names: list[str] | None = None) -> list[tuple[str, str, s
 
 
 def certify_all(
-    out_dir: str | Path | None = None, episodes: int | None = None, workers: int = 1, seed: int = 0,
+    out_dir: str | Path | None = None, episodes: int | None = None, workers: int = 1, seed: int = 1,
     scene_names: list[str] | None = None, log=print,
 ) -> list[dict]:  # fmt: skip
     """Certify (or resume) every default level of every (scene, task, axis) in priority order, rewriting
@@ -71,10 +72,16 @@ def write_summary(out_dir: str | Path) -> Path:
         "is >= the threshold (see README.md). `s/n` per level; `!` failed, `?` not enough evidence yet;",
         "`!vN` failed under oracle version vN, older than the current one (`indgen certify` tries it again).",
         "`oracle`: the class and the version(s) that made the rows (v1: made before versions were recorded).",
+        "`~` certified in-sample (tuned): the oracle was tuned or re-tried on the level's seeds, or its history is",
+        "unknown (`indgen certify --held-out` re-runs it on a fresh seed block); every other certified level was",
+        "certified on held-out states or, on LIBERO, on every one of its 50 fixed initial states (README.md,",
+        '"Held-out attempts"). Each row\'s attempts, seed blocks and oracle',
+        "code hash are in its certify.json.",
         "",
     ]
     have = {p.parent.relative_to(out_dir).parts for p in out_dir.glob("*/*/*/certify.json")}
     default = {(j[0], j[1], j[2]) for j in jobs}
+    bases = {HELD_OUT: 0, EXHAUSTIVE: 0, IN_SAMPLE: 0}  # certified levels by how they were certified
     complete, others = 0, [0, 0]  # others: [triples outside the default batch, of them complete]
     rows = [
         "| scene | task | axis | step | levels (s/n) | certified | not certified | oracle |",
@@ -87,8 +94,12 @@ def write_summary(out_dir: str | Path) -> Path:
             f"{r['level']}: {r['successes']}/{r['n']}"
             + {"failed": "!", "insufficient": "?"}.get(level_status(r), "")
             + (f"v{row_oracle_version(r, c)}" if stale_failure(r, c, current) else "")
+            + ("~" if level_status(r) == "certified" and basis(r) == IN_SAMPLE else "")
             for r in c["levels"]
         )
+        for r in c["levels"]:
+            if level_status(r) == "certified":
+                bases[basis(r)] += 1
         name = (c.get("oracle") or {}).get("name", "").rpartition(":")[2]
         made = ", ".join(f"v{v}" for v in sorted({row_oracle_version(r, c) for r in c["levels"]}))
         oracle = f"{name} {made}".strip() or "-"
@@ -115,9 +126,37 @@ def write_summary(out_dir: str | Path) -> Path:
         + (f" Besides them, {others[1]} of the {others[0]} other triples shipped have every default level "
            "certified." if others[0] else "")
     )  # fmt: skip
+    lines.append(
+        f"Certified levels: {bases[HELD_OUT]} on held-out states, {bases[EXHAUSTIVE]} on every fixed initial state "
+        f"(LIBERO's 50), {bases[IN_SAMPLE]} in-sample (tuned)."
+    )
     lines += ["", *rows, ""]
+    lines += audit_lines(out_dir)
     target = out_dir / "SUMMARY.md"
     tmp = target.with_name(f".SUMMARY.md.{os.getpid()}.tmp")
     tmp.write_text("\n".join(lines))
     os.replace(tmp, target)
     return target
+
+
+def audit_lines(out_dir: Path) -> list[str]:
+    """SUMMARY.md's audit section from ``audit.json`` beside it (``indgen_vla.app.certify.audit``), if any."""
+    import json
+
+    path = Path(out_dir) / "audit.json"
+    if not path.is_file():
+        return []
+    audit = json.loads(path.read_text())
+    rows = audit.get("levels", [])
+    held = sum(r["holds"] for r in rows)
+    out = ["## Audit", "",
+           f"{audit.get('date', '?')}, {audit.get('machine', '?')}: {len(rows)} shipped certified levels drawn at random "
+           f"(seed {audit.get('seed')}), {audit.get('episodes')} held-out episodes each on a seed block no attempt "
+           f"used (a LIBERO level replays its 50 fixed states: a reproduction on this machine and tree); {held} of "
+           f"{len(rows)} still hold (the exact one-sided binomial test of rate >= 0.95 does not reject at 5 %: 17/20 "
+           "or more).", "",
+           "| scene | task | axis | level | certified | block | solved | holds |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for r in rows:
+        out.append(f"| {r['scene']} | {r['task']} | {r['axis']} | {r['level']} | {r['basis']} | {r['block']} | "
+                   f"{r['successes']}/{r['n']} | {'yes' if r['holds'] else '**no**'} |")  # fmt: skip
+    return [*out, ""]

@@ -11,9 +11,11 @@ from indgen_vla.app.cli.options import add_level_options, add_scene_options
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The certify subcommand: scene, task, axis, levels, the rule's episodes and threshold, seed, workers, folder."""
     p = sp.add_parser("certify", help="certify every level of an axis with the privileged oracle")
-    p.add_argument("--scene", required=True, help="scene to certify (see 'indgen scenes')")
+    p.add_argument(
+        "--scene", default=None, help="scene to certify (see 'indgen scenes'); with --audit, a filter"
+    )
     p.add_argument("--task", default=None, help="task of the scene, or 'all' (default: the first task)")
-    p.add_argument("--axis", required=True, help="axis or composition, e.g. pick_y or pick_y+distractor")
+    p.add_argument("--axis", default=None, help="axis or composition, e.g. pick_y or pick_y+distractor")
     add_level_options(p)
     p.add_argument(
         "--episodes", type=int, default=None, help="most episodes per level (default: the 59 the rule needs)"
@@ -21,7 +23,27 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--threshold", type=float, default=None, help="oracle success rate to certify (default 0.95)"
     )
-    p.add_argument("--seed", type=int, default=0, help="certification seed (default 0)")
+    p.add_argument(
+        "--seed", type=int, default=1,
+        help="first seed block an attempt may draw (default 1; block 0 is burnt, and each attempt takes a block the "
+        "level never used: scenes/certification/README.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--audit", type=int, default=None, metavar="N",
+        help="re-run N shipped certified levels drawn at random (--seed draws them) on fresh held-out seeds, "
+        "--episodes each (default 20), and say whether each still holds; writes --out/audit.json if --out",
+    )  # fmt: skip
+    p.add_argument(
+        "--evaluation-states", action="store_true",
+        help="with --run DIR: play the oracle on the exact initial states of that evaluate run's episodes "
+        "(--episodes n: episodes 0..n-1) and write DIR/oracle_states.json; 'indgen report DIR' then splits the "
+        "policy's failures by whether the oracle solved the state",
+    )  # fmt: skip
+    p.add_argument("--run", default=None, help="an evaluate run directory (--evaluation-states)")
+    p.add_argument(
+        "--held-out", action="store_true",
+        help="also re-run, on a fresh seed block, the levels certified only in-sample (tuned)",
+    )  # fmt: skip
     p.add_argument("--max-steps", type=int, default=None, help="override the scene's episode length")
     p.add_argument("--workers", type=int, default=1, help="processes, one level each (physics only)")
     add_scene_options(p)
@@ -32,9 +54,28 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Write certify.json per task (resuming what is there); exit 1 if a level failed."""
+    from indgen_vla.core.errors import ConfigError
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.registry import configure_scene
 
+    if args.audit is not None:
+        return _audit(args)
+    if args.evaluation_states:
+        if not args.run:
+            raise ConfigError(
+                "--evaluation-states needs --run DIR, the evaluate run whose initial states to play"
+            )
+        from indgen_vla.app.certify.states import certify_evaluation_states
+
+        out = certify_evaluation_states(args.run, episodes=args.episodes)
+        solved = [s["solved"] for s in out["states"]]
+        print(f"the oracle solved {sum(s is True for s in solved)} of {sum(s is not None for s in solved)} "
+              f"evaluated states of {args.run}; run 'indgen report {args.run}' to split the policy's failures")  # fmt: skip
+        return 0
+    if not args.scene or not args.axis:
+        raise ConfigError(
+            "indgen certify needs --scene and --axis (or --audit N to check shipped certificates)"
+        )
     axis = AxisRef.parse(args.axis)  # a malformed name: one line, before any scene lookup
     options = {"split": args.split, "obj_registries": args.obj_registries}  # a bad value: one line, here
     with configure_scene(args.scene, options):  # one choice for the certificates' folder and every level
@@ -71,7 +112,7 @@ def _certify_tasks(args: argparse.Namespace, axis) -> int:
                     args.scene, axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
                     seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
                     threshold=args.threshold or 0.95, preset=preset, out=path,
-                    log=display.log, watch=display,
+                    log=display.log, watch=display, retest=args.held_out,
                 )  # fmt: skip
         except OSError as e:
             raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
@@ -95,3 +136,21 @@ def _needed(cert: dict) -> int:
 
     rule = cert.get("rule", {})
     return episodes_needed(cert["threshold"], rule.get("confidence", 0.95))
+
+
+def _audit(args: argparse.Namespace) -> int:
+    """``--audit N``: exit 1 when a drawn level no longer holds."""
+    from pathlib import Path
+
+    from indgen_vla.app.certify.audit import audit
+
+    scenes = args.scene.split(",") if args.scene else None
+    out = Path(args.out) / "audit.json" if args.out else None
+    result = audit(args.audit, scenes=scenes, episodes=args.episodes or 20, seed=args.seed,
+                   workers=args.workers or 1, out=out)  # fmt: skip
+    rows = result["levels"]
+    broken = [r for r in rows if not r["holds"]]
+    print(f"audit: {len(rows) - len(broken)} of {len(rows)} levels hold ({result['episodes']} held-out episodes "
+          f"each; a level is broken when the one-sided binomial test of rate >= 0.95 rejects at 5 %)"
+          + (f"; audit.json: {out}" if out else ""))  # fmt: skip
+    return 1 if broken else 0

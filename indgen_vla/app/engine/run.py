@@ -215,6 +215,11 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
+    from indgen_vla.core.reporting.certification_view import plan_basis_lines
+
+    cells = [dataclasses.asdict(c) for c in plan.scene_plan.cells]
+    for line in plan_basis_lines(plan.scene_plan.scene, list(plan.axes), cells):
+        console.print(line.replace("**", "").replace("`", ""), markup=False, highlight=False)
     out = Path(cfg.run.out)
     existing = RunDir(out)
     run_id = (

@@ -77,6 +77,9 @@ class Cell:
     # level 0 only: a hash of what the scene layer builds for it (``Scene.level_identity``), the axis's name left out;
     # equal keys of one task's axes mean one environment, so evaluate runs that T0 once. "" = unknown: never shared
     env_key: str = ""
+    # a certified level's basis (scenes.heldout): "held-out" (a fresh seed block, its share of the error) or
+    # "in-sample (tuned)" (seeds an earlier attempt, sweep or tuning had used, or an unknown history); else ""
+    basis: str = ""
 
 
 @dataclass(frozen=True)

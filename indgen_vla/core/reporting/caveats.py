@@ -6,7 +6,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from indgen_vla.core.reporting.certification_view import certification_caveats, infeasible_caveats
+from indgen_vla.core.reporting.certification_view import (
+    basis_lines,
+    certification_caveats,
+    infeasible_caveats,
+)
+from indgen_vla.core.reporting.oracle_states import states_lines
 from indgen_vla.core.stats.metrics import (
     MIN_N,
     exact_2x2,
@@ -134,6 +139,8 @@ def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
             out.append(blind_caveat(label))
         for axis, a in s["axes"].items():
             out += certification_caveats(label, axis, a.get("certification") or {})
+            out += basis_lines(label, axis, a.get("certification_basis") or {})
+            out += states_lines(label, axis, a.get("oracle_states") or {})
             out += infeasible_caveats(label, axis, a.get("infeasible") or {})
             out += axis_caveats(label, axis, a, s["gamma"], s.get("ci", "wilson"))
     return out

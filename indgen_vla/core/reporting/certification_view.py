@@ -51,6 +51,48 @@ def certification_caveats(
     return out
 
 
+# how a certified level's certificate was made (``scenes.heldout``; the cell's ``basis``)
+BASES = {"held-out": "certified on held-out states", "exhaustive": "certified on every fixed initial state",
+         "in-sample (tuned)": "certified in-sample (tuned)"}  # fmt: skip
+
+
+def basis_entry(manifest: Mapping[str, Any], axis: str) -> dict[str, dict[str, list[int]]]:
+    """summary.json's ``certification_basis`` of ``axis``: {task: {"held-out" | "in-sample (tuned)": [levels]}} of
+    its certified levels ({} when the manifest predates the record of bases)."""
+    out: dict[str, dict[str, list[int]]] = {}
+    for c in (manifest.get("resolved") or {}).get("cells", ()):
+        if c.get("axis") == axis and c.get("certificate") == "certified" and c.get("basis") in BASES:
+            out.setdefault(str(c["task"]), {}).setdefault(str(c["basis"]), []).append(int(c["level"]))
+    return {t: {k: sorted(v[k]) for k in BASES if k in v} for t, v in sorted(out.items())}
+
+
+def basis_lines(label: str, axis: str, entry: Mapping[str, Mapping[str, Sequence[int]]]) -> list[str]:
+    """report.md's and evaluate's line on how ``axis``'s certified levels were certified, per task and level:
+    on held-out states (a seed block no earlier attempt, replay or tuning used; the 5 % error spent over the
+    attempts), on every fixed initial state (LIBERO's 50: exhaustive, the very states evaluate runs) or in-sample
+    (tuned) (the oracle was re-tried or tuned on those seeds, or the history is unknown:
+    no error guarantee; ``indgen certify --held-out`` re-runs them)."""
+    parts = []
+    for kind, text in BASES.items():
+        where = [f"{t}: {_levels(v[kind])}" for t, v in entry.items() if v.get(kind)]
+        if where:
+            parts.append(
+                f"{'**' + text + '**' if kind == 'in-sample (tuned)' else text} at {'; '.join(where)}"
+            )
+    if not parts:
+        return []
+    tail = (" (in-sample: the oracle was tuned or re-tried on those seeds, or their history is unknown, so the 5 % "
+            "error is not guaranteed; `indgen certify --held-out` re-runs them on fresh seeds)"
+            if any(v.get("in-sample (tuned)") for v in entry.values()) else "")  # fmt: skip
+    return [f"**Certificates** ({label}, `{axis}`): {'; '.join(parts)}{tail}."]
+
+
+def plan_basis_lines(scene: str, axes: Sequence[str], cells: Sequence[Mapping[str, Any]]) -> list[str]:
+    """``evaluate``'s lines before its episodes: per axis, how its certified levels were certified."""
+    manifest = {"resolved": {"cells": list(cells)}}
+    return [line for a in axes for line in basis_lines(scene, a, basis_entry(manifest, a))]
+
+
 UNAVAILABLE = (
     "EpisodeUnavailableError"  # an error row whose seed rules the level out (placement check, pick window)
 )

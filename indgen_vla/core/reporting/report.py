@@ -19,6 +19,7 @@ from indgen_vla.core.reporting.figures import (
 )
 from indgen_vla.core.reporting.grid import grid_lines, plot_grids
 from indgen_vla.core.reporting.levels import fmt_condition2, verdict_line
+from indgen_vla.core.reporting.oracle_states import attach_oracle_states
 from indgen_vla.core.reporting.partial_credit import plot_progress, render_levels
 from indgen_vla.core.reporting.summary import summarize
 from indgen_vla.core.reporting.svg_plot import write_axis_svg
@@ -295,6 +296,7 @@ def write_run_report(
     ``run.episodes()`` when the caller has it already)."""
     episodes = run.episodes() if episodes is None else episodes
     summary = summarize(episodes, run.manifest, gamma, ci, margin)
+    attach_oracle_states(summary, run.path, episodes)  # indgen certify --evaluation-states, when it ran
     atomic_write_json(run.path / SUMMARY, summary)
     label = run_label(run)
     extra = [p.read_text() for p in sorted((run.path / SECTIONS).glob("*.md"))]  # e.g. indgen real's voids

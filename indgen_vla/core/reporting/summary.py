@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from indgen_vla.core.protocol.training_support import cells_from_json, trained_levels
-from indgen_vla.core.reporting.certification_view import certification_entry, infeasible_entry
+from indgen_vla.core.reporting.certification_view import basis_entry, certification_entry, infeasible_entry
 from indgen_vla.core.reporting.levels import (
     axis_verdicts,
     by_task,
@@ -89,6 +89,9 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         }
         a = out["axes"][axis]
         a["certification"] = certification_entry(manifest, axis)  # per task: certified / uncertified / failed
+        a["certification_basis"] = basis_entry(
+            manifest, axis
+        )  # per task: held-out / in-sample (tuned) levels
         a["infeasible"] = infeasible_entry(
             df
         )  # per task and level: episodes whose initial state cannot hold it

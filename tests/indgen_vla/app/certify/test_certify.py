@@ -28,6 +28,7 @@ from scenes.certificates import (
     lower_bound,
     write_json_atomic,
 )
+from scenes.heldout import SPENDING
 from scenes.planning import resolve_scene_plan
 from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
@@ -84,11 +85,23 @@ def test_failing_level_stops_after_one_episode_and_is_refused(tmp_path):
     )
     assert row["stopped_early"] and row["lower_bound"] == 0.0 and infeasible_levels(cert) == [0]
     assert cert["rule"] == {
-        "name": "clopper-pearson-sequential",
+        "name": "clopper-pearson-sequential-held-out",
         "threshold": 0.95,
-        "confidence": 0.95,
+        "confidence": 0.9515,  # attempt 1 spends 0.0485 of the 0.05 (scenes.heldout): still 59/59
         "n_max": 59,
+        "alpha": 0.05,
+        "spending": SPENDING,
     }
+    # the first attempt draws block 1 (block 0 is burnt) and records itself, with its outcome and oracle
+    (attempt,) = row["attempts"]
+    assert row["block"] == attempt["block"] == 1 and attempt["attempt"] == 1 and attempt["held_out"]
+    assert (attempt["n"], attempt["successes"], attempt["status"], attempt["alpha"]) == (
+        1,
+        0,
+        "failed",
+        0.0485,
+    )
+    assert attempt["oracle"]["code_hash"] == cert["oracle"]["code_hash"] and "certified_on" not in row
     assert load_certification(out)["levels"] == cert["levels"]
 
 
@@ -118,11 +131,11 @@ def test_certify_is_per_task_resumable_and_atomic(tmp_path):
         levels="0",
         episodes=1,
         seed=1,
-        max_steps=5,
+        max_steps=6,
         out=a,
         log=logs.append,
     )
-    assert any("replacing" in m for m in logs)  # another seed does not reuse
+    assert any("replacing" in m for m in logs)  # another episode length does not reuse
 
 
 def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
@@ -148,7 +161,7 @@ def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
     assert infeasible_levels(cert) == [2]
     summary = write_summary(tmp_path).read_text()
     assert (
-        "| stack | orange_on_blue | stack | 0.25 in | 0: 59/59 1: 20/20? 2: 18/20! | 0 | 1, 2, 3, 4 | v1 |"
+        "| stack | orange_on_blue | stack | 0.25 in | 0: 59/59~ 1: 20/20? 2: 18/20! | 0 | 1, 2, 3, 4 | v1 |"
         in summary
     )
     assert f"0 of {len(default_jobs())} default" in summary
