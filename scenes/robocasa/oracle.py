@@ -47,6 +47,14 @@ CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two s
 # m ahead of the base a carry's place point may lie: farther (the fridge's shelf from a base moved back along
 # base_y), the base drives nearer first, where the worker reports its room (facts.base_room)
 CARRY_REACH = 0.6
+# m ahead of the base the counter-to-cabinet script puts the cabinet's place point at most: farther (a base moved
+# back along base_y), the base drives straight nearer first, as far as the room allows (base_y level 2 episode 1
+# of the pretrain split: at 0.85 m the held object stalled at the cabinet's front and fell)
+CABINET_REACH = 0.75
+# m the counter-to-cabinet script raises the grip site over the object's top once it let go, before backing out:
+# the fingertips reach 1.5 cm under the grip site, and a flat 2.5 cm rise left them on the sides of a 10.5 cm tall
+# object held 2.4 cm under its top, which they dragged back out of the cabinet (base_y level 2 episode 1, pretrain)
+FINGERTIP = 0.03
 GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
@@ -75,7 +83,7 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 5  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 6  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the carry into the stand mixer's bowl, which drives twice as CheesyBread's does, fails its first levels:
     # docs/results/robocasa_oracle.md)
@@ -110,6 +118,7 @@ class RoboCasaOracle:
         self._carry_z: float | None = None  # the carry script's height for the object's bottom
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
+        self._rise: float | None = None  # how far the counter-to-cabinet script rises once it let go
         # the press's hand tilt (PRESS_TILT, a button's BUTTON_TILT): raised while the approach stalls short
         self._tilt: float | None = None
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
@@ -274,6 +283,14 @@ class RoboCasaOracle:
             under = float(np.dot(p.pos, fwd)) + p.half_width + 0.08 > front
             self._grasp_tilt = GRASP_TILT if under else 0.0
         gt = self._grasp_tilt
+        if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
+            self._drove = True  # straight ahead only: the place point's distance, not its side
+            ahead = float(np.dot(np.array([*t.place_xy, 0.0]) - [*s.robot_base[:2], 0.0], fwd))
+            self._base_goal = base_goal(s, [*(s.robot_base[:2] + ahead * fwd[:2]), 0.0], 0.0, CABINET_REACH)
+            if self._base_goal is not None:
+                self._next("drive")
+        if (a := drive_phase(self, s, OPEN)) is not None:
+            return a
         if self.phase == "approach":
             target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:
@@ -287,9 +304,11 @@ class RoboCasaOracle:
                 self._next("pull")
             return a
         if self.phase == "pull":  # out from under the cabinet, toward the robot, before lifting
-            out = min(0.0, front - 0.05 - p.half_width - float(np.dot(p.pos, fwd)))
-            target = self._hold + fwd * out + np.array([0.0, 0.0, 0.01])
-            self._clear = target
+            # fixed at the grasp: read live, the pull ended where the object came only halfway out
+            if self._count == 1:
+                out = min(0.0, front - 0.05 - p.half_width - float(np.dot(p.pos, fwd)))
+                self._clear = self._hold + fwd * out + np.array([0.0, 0.0, 0.01])
+            target = self._clear
             if self._near(s, target, 0.012) or self._count > 60:
                 self._next("lift")
             return self._goto(s, target, CLOSED, speed=0.5, tilt=gt)
@@ -308,7 +327,9 @@ class RoboCasaOracle:
             if self._near(s, target, 0.015) or self._count > 40:
                 self._next("release")
             return self._goto(s, target, CLOSED, speed=0.3, tilt=TILT)
-        return self._let_go(s, TILT, rise=0.025, tol=0.008, limit=20)
+        if self.phase == "rise" and self._rise is None:  # once: the grip site FINGERTIP over the object's top
+            self._rise = max(0.025, p.top + FINGERTIP - float(self._hold_release[2]))
+        return self._let_go(s, TILT, rise=self._rise or 0.025, tol=0.008, limit=20)
 
     # ---- out of a cabinet, onto the counter below ------------------------------------------------
     def _unload(self, s: PrivilegedState) -> np.ndarray:
