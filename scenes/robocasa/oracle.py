@@ -10,7 +10,8 @@ pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
 lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
-the base drives to the object, then holding it to the place point: the cheese onto the bread (CheesyBread, over
+(or ``reach_drives`` and the object lies beyond ``PICK_REACH``: counter to sink) the base drives to the object,
+then holding it to the place point: the cheese onto the bread (CheesyBread, over
 what stands between them, ``oracle_carry`` keeping the hand off the bread), and, run but not listed, counter to
 stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
@@ -31,7 +32,7 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
-from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
+from scenes.robocasa.oracle_base import base_goal, drive_phase, rz, to_base
 from scenes.robocasa.oracle_carry import clear_twist, side_turn
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 from scenes.robocasa.oracle_lever import press_lever
@@ -76,6 +77,11 @@ CRAMPED_TILT = 1.0
 # certification episodes; at 0.50 m it closes 2.3 cm over it) and puts down at most (the drive forward, as far as
 # the room allows)
 CRAMPED_REACH = (0.5, 0.45)
+# m from the base (its centre, in the floor plane) beyond which a carry's pick object is out of the arm's reach where
+# the worker sets reach_drives (PickPlaceCounterToSink): the carry then drives twice, as a carry_drives one does
+# (horizon level 0 episode 0, pretrain: 0.75 m out, 0.64 m to the side, the hand stalled 4.8 cm over its grasp
+# height and the fingers closed on the object's top edge)
+PICK_REACH = 0.65
 HELD_DRIVE = 0.5  # of full scale: the base's speed while the carry holds the object (over the deadband, 0.25)
 
 
@@ -125,6 +131,7 @@ class RoboCasaOracle:
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
         self._drove = False  # the carry's base phase was planned (run or not needed)
+        self._drives: bool | None = None  # the carry drives twice (to the object, then to the place point)
         self._turn = 0.0  # the cramped grasp's sideways tip (oracle_carry.side_turn), back to 0 once lifted
         self.seed = seed
 
@@ -414,14 +421,18 @@ class RoboCasaOracle:
         # wall cabinet, it grasps tipped already, fingers across the base's heading (untwisted: R_DOWN slides them
         # along the base's y), so the object stays level and rests flat where it is put down
         room = np.inf if s.goal is None else s.goal.top - t.place_bottom
-        cramped, low = s.facts.carry_drives and room < CRAMPED, room < HAND_ROOM
+        if self._drives is None:  # where the worker says so, or (reach_drives) the object is beyond reach
+            far = s.facts.reach_drives and np.linalg.norm(to_base(s, p.pos)) > PICK_REACH
+            self._drives = bool(s.facts.carry_drives or far)
+        drives = self._drives
+        cramped, low = drives and room < CRAMPED, room < HAND_ROOM
         tilt = CRAMPED_TILT if cramped else UNDER_TILT if low else 0.0
         grip_tilt = tilt if cramped else 0.0
         if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
             self._carry_z = t.clear_z + CLEARANCE
             self._twist = 0.0 if cramped else self._twist
             self._turn = side_turn(s) if cramped else 0.0
-            if s.facts.carry_drives and not cramped:
+            if drives and not cramped:
                 self._twist = clear_twist(self, s)
         carry_z = self._carry_z + self._offset
         if self.phase == "lift" and not cramped:
@@ -430,8 +441,8 @@ class RoboCasaOracle:
         # first puts the pick object straight ahead (the arm clear of what stands beside it: the mixer's raised head)
         if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
             self._drove = True
-            first = p.pos if s.facts.carry_drives else [*t.place_xy, 0.0]
-            near = CRAMPED_REACH[0] if cramped and s.facts.carry_drives else 0.0
+            first = p.pos if drives else [*t.place_xy, 0.0]
+            near = CRAMPED_REACH[0] if cramped and drives else 0.0
             self._base_goal = base_goal(s, first, near, CARRY_REACH)
             if self._base_goal is not None:
                 self._next("drive")
@@ -467,7 +478,7 @@ class RoboCasaOracle:
             if (self._near(s, target, 0.02) and (not low or self._count > 25)) or self._count > 80:
                 self._next("transport")
                 # held at the carry height: the base drives until the place point is straight ahead (the bread)
-                if s.facts.carry_drives:
+                if drives:
                     far = CRAMPED_REACH[1] if cramped else CARRY_REACH
                     self._base_goal, self._base_trail = base_goal(s, [*t.place_xy, 0.0], 0.0, far), []
                     if self._base_goal is not None:
@@ -475,7 +486,7 @@ class RoboCasaOracle:
             return self._goto(s, target, CLOSED, hand=self._hand(s, tilt, self._twist or 0.0, self._turn))
         # a carry that drives twice sets the object's centre, not the grip site, on the place point: tipped, the
         # hand holds the cheese 2.5 cm past its centre (set down that far short, it fell off the bread's near edge)
-        held = s.facts.carry_drives and p.touching_gripper
+        held = drives and p.touching_gripper
         aim = t.place_xy + (s.eef_pos[:2] - p.pos[:2] if held else 0.0)
         if self.phase == "transport":
             target = np.array([*aim, carry_z])

@@ -116,7 +116,8 @@ def privileged_state(raw: dict):
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
         if raw.get("base_room") is not None:  # the carry may drive the base (the fridge's shelf, the bread)
             facts = SceneFacts(base_room=tuple(float(r) for r in raw["base_room"]),
-                               carry_drives=bool(raw.get("carry_drives", False)))  # fmt: skip
+                               carry_drives=bool(raw.get("carry_drives", False)),
+                               reach_drives=bool(raw.get("reach_drives", False)))  # fmt: skip
     elif "hinge_pos" in raw:  # a part to swing shut (or open): goal is its hinge, turned the way it faces
         goal, target = hinge_goal(raw), hinge_target(raw)
         facts = SceneFacts(**_room(raw, "hinge_ceiling"), lift=raw.get("hinge_lift"))

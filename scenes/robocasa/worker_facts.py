@@ -351,7 +351,7 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
     if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
-        return {"place_pos": _floor_centre(env.sink)}
+        return {"place_pos": _floor_centre(env.sink), "base_room": base_room(env), "reach_drives": True}
     if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
         top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
         return {"place_pos": _floor_centre(env.blender), "place_clear": top}
