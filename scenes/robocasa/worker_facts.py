@@ -334,7 +334,8 @@ def place_facts(env, task: str) -> dict:
     world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
     ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
-    sink basin's floor at its middle; onto the blender jar's floor, carried over its rim (``place_clear``, the
+    sink basin's floor at its middle (with the base's room and ``reach_drives``: the carry drives to an object out
+    of the arm's reach); onto the blender jar's floor, carried over its rim (``place_clear``, the
     height the carried object's bottom must clear); into the stand mixer's bowl over its rim and CheesyBread's
     cheese onto the bread's top, each with the base's room and ``carry_drives`` (the carry drives the base to the
     object, then with it to the place point); empty for the other tasks."""
