@@ -93,6 +93,7 @@ class SceneFacts:
     lever: bool = False  # the part is a lever beside the fixture, pressed down at its free end (RoboCasa)
     # a carry drives the mobile base twice: the pick object, then (held) the place point, straight ahead (RoboCasa)
     carry_drives: bool = False
+    reach_drives: bool = False  # ... only where the pick object lies beyond the arm's reach (RoboCasa)
 
     def __post_init__(self) -> None:
         if self.lift not in (None, "opens", "shuts"):

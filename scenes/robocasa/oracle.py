@@ -4,13 +4,14 @@ It reads the ``PrivilegedState`` the worker's facts become (``scenes.robocasa.pr
 12-d action (``convert_action`` order: eef pos 3 + eef rot 3 + gripper 1 + base motion 4 + control mode 1). The arm's
 OSC_POSE takes deltas in the mobile base's frame (robosuite's ``default_pandaomron.json``: ``input_ref_frame:
 base``, 0.05 m and 0.5 rad per unit), so world errors are rotated by the base's yaw; base motion stays 0 and the
-control mode -1 (arm), but for the fixture tasks' base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (lift to the cabinet floor, slide in, set down, release,
+control mode -1 (arm), but for the fixture tasks' base phase first (``oracle_base``: base mode, the base driven). Five scripts: counter to cabinet (``oracle_cabinet``: lift to the cabinet floor, slide in, set down, release,
 back out past ``gripper_obj_far``'s 0.25 m), cabinet to counter (in over the object at the cabinet's mouth, grasp,
 pull out, lower onto the counter), a carry onto the worker's ``place_pos`` (sink to counter: onto the container;
 counter to drawer: into the open drawer's uncovered part; counter to sink: onto the basin's floor; counter to
 blender: over the jar's rim onto its floor; fridge drawer to shelf, the base first driven nearer where the shelf
 lies beyond ``CARRY_REACH``; the mug under the coffee machine's pour site; where the worker sets ``carry_drives``
-the base drives to the object, then holding it to the place point: the cheese onto the bread (CheesyBread, over
+(or ``reach_drives`` and the object lies beyond ``PICK_REACH``: counter to sink) the base drives to the object,
+then holding it to the place point: the cheese onto the bread (CheesyBread, over
 what stands between them, ``oracle_carry`` keeping the hand off the bread), and, run but not listed, counter to
 stand mixer over the bowl's rim), a press:
 the stand mixer's head (pushed down near its free end, the hand tipped further while the reach falls short) or a
@@ -31,7 +32,8 @@ from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
 from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
-from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
+from scenes.robocasa.oracle_base import base_goal, drive_phase, rz, to_base
+from scenes.robocasa.oracle_cabinet import OPEN, pick_place, unload
 from scenes.robocasa.oracle_carry import clear_twist, side_turn
 from scenes.robocasa.oracle_fixtures import CLOSED, MAX_PRESS_TILT, close_lid
 from scenes.robocasa.oracle_lever import press_lever
@@ -39,7 +41,6 @@ from scenes.robocasa.oracle_lift import lift_hinge
 
 ACTION_DIM = 12  # RoboCasa365's PandaOmron action (scenes.robocasa.PANDA_OMRON)
 GRIPPER, MODE = 6, 11
-OPEN = -1.0  # robosuite's gripper action (CLOSED, 1.0, comes with the lid script's module)
 # radians the hand tips forward to press a button low on an appliance's front (the blender's): PRESS_TILT swings
 # the fingers into the appliance's face above it
 BUTTON_TILT = 0.25
@@ -47,10 +48,8 @@ CLEARANCE = 0.06  # m the carried object's bottom clears the higher of its two s
 # m ahead of the base a carry's place point may lie: farther (the fridge's shelf from a base moved back along
 # base_y), the base drives nearer first, where the worker reports its room (facts.base_room)
 CARRY_REACH = 0.6
-GRASP_TILT = 0.45  # radians the hand tips toward the cabinet to grasp an object under its front
 HAND_ROOM = 0.4  # m over a surface a vertical hand holding an object needs (the carry tips it under less)
 PRESS_TILT = 0.5  # radians the hand tips forward to press: a tipped hand reaches farther over a far appliance
-TILT = 0.7  # radians the hand tips toward the cabinet while carrying: a vertical hand and wrist do not fit in
 # radians the carry tips the hand under something low: TILT swings the object's far edge 4.9 cm forward, into the
 # coffee machine's face 5.1 cm from the mug's centre
 UNDER_TILT = 0.35
@@ -68,6 +67,11 @@ CRAMPED_TILT = 1.0
 # certification episodes; at 0.50 m it closes 2.3 cm over it) and puts down at most (the drive forward, as far as
 # the room allows)
 CRAMPED_REACH = (0.5, 0.45)
+# m from the base (its centre, in the floor plane) beyond which a carry's pick object is out of the arm's reach where
+# the worker sets reach_drives (PickPlaceCounterToSink): the carry then drives twice, as a carry_drives one does
+# (horizon level 0 episode 0, pretrain: 0.75 m out, 0.64 m to the side, the hand stalled 4.8 cm over its grasp
+# height and the fingers closed on the object's top edge)
+PICK_REACH = 0.65
 HELD_DRIVE = 0.5  # of full scale: the base's speed while the carry holds the object (over the deadband, 0.25)
 
 
@@ -75,7 +79,7 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 5  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
+    version = 6  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
     # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the carry into the stand mixer's bowl, which drives twice as CheesyBread's does, fails its first levels:
     # docs/results/robocasa_oracle.md)
@@ -110,12 +114,15 @@ class RoboCasaOracle:
         self._carry_z: float | None = None  # the carry script's height for the object's bottom
         self._grasp_tilt: float | None = None
         self._hold_release: np.ndarray | None = None
+        self._rise: float | None = None  # how far the counter-to-cabinet script rises once it let go
         # the press's hand tilt (PRESS_TILT, a button's BUTTON_TILT): raised while the approach stalls short
         self._tilt: float | None = None
         self._twist: float | None = None  # fixed at the first action from the object's pose (_grasp_twist)
         self._base_goal: np.ndarray | None = None  # world xy the base phase drives to (oracle_base)
         self._base_trail: list = []
         self._drove = False  # the carry's base phase was planned (run or not needed)
+        self._rim = False  # the carry's hand starts under a container's rim: it rises over it first
+        self._drives: bool | None = None  # the carry drives twice (to the object, then to the place point)
         self._turn = 0.0  # the cramped grasp's sideways tip (oracle_carry.side_turn), back to 0 once lifted
         self.seed = seed
 
@@ -185,10 +192,10 @@ class RoboCasaOracle:
             return True
         return self._count > 12 and bool(np.linalg.norm(s.eef_pos - self._trail[-10]) < 0.002)
 
-    def _descend(self, s: PrivilegedState, p, tilt: float, hand=None) -> np.ndarray:
+    def _descend(self, s: PrivilegedState, p, tilt: float, hand=None, limit: int = 50) -> np.ndarray:
         """Straight down to the pick object's grasp height, fingers open (both pick-and-place scripts)."""
         target = np.array([p.pos[0], p.pos[1], max(p.bottom + 0.02, p.pos[2])])
-        if self._near(s, target, 0.012) or self._count > 50:
+        if self._near(s, target, 0.012) or self._count > limit:
             self._next("grasp")
         return self._goto(s, target, OPEN, speed=0.5, tilt=tilt, hand=hand)
 
@@ -216,10 +223,10 @@ class RoboCasaOracle:
         if press:
             return self._press(s)
         if s.facts.fixture_centre is not None:
-            return self._unload(s)
+            return unload(self, s)
         if s.facts.receptacle_inner is None:  # no cabinet interior: a put-down onto place_pos
             return self._carry(s)
-        return self._pick_place(s)
+        return pick_place(self, s)
 
     # ---- press: the stand mixer's head down, the blender's button ------------------------------
     def _press(self, s: PrivilegedState) -> np.ndarray:
@@ -259,102 +266,6 @@ class RoboCasaOracle:
             )
         return self._goto(s, s.pick.pos + np.array([0.0, 0.0, 0.25]), CLOSED, speed=0.5)
 
-    # ---- pick and place into a cabinet ---------------------------------------------------------
-    def _pick_place(self, s: PrivilegedState) -> np.ndarray:
-        p, t = s.pick, s.target
-        yaw = float(s.robot_base[2])
-        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])  # the base faces the cabinet
-        front = float(np.dot(s.goal.pos, fwd)) - float(
-            s.facts.receptacle_inner[1]
-        )  # the cabinet's front face
-        carry_z = t.place_bottom + 0.025 + self._offset  # the object's bottom 2.5 cm above the cabinet floor
-        if (
-            self._grasp_tilt is None
-        ):  # under the cabinet's front: tip the hand so the wrist stays out from under
-            under = float(np.dot(p.pos, fwd)) + p.half_width + 0.08 > front
-            self._grasp_tilt = GRASP_TILT if under else 0.0
-        gt = self._grasp_tilt
-        if self.phase == "approach":
-            target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
-            if self._near(s, target, 0.015) or self._count > 120:
-                self._next("descend")
-            return self._goto(s, target, OPEN, tilt=gt)
-        if self.phase == "descend":
-            return self._descend(s, p, gt)
-        if self.phase == "grasp":
-            a, closed = self._grasp(s, p, gt)
-            if closed:
-                self._next("pull")
-            return a
-        if self.phase == "pull":  # out from under the cabinet, toward the robot, before lifting
-            out = min(0.0, front - 0.05 - p.half_width - float(np.dot(p.pos, fwd)))
-            target = self._hold + fwd * out + np.array([0.0, 0.0, 0.01])
-            self._clear = target
-            if self._near(s, target, 0.012) or self._count > 60:
-                self._next("lift")
-            return self._goto(s, target, CLOSED, speed=0.5, tilt=gt)
-        if self.phase == "lift":  # up to the carry height, tipping the hand toward the cabinet on the way
-            target = np.array([self._clear[0], self._clear[1], carry_z])
-            if (self._near(s, target, 0.03) and self._count > 20) or self._count > 120:
-                self._next("transport")
-            return self._goto(s, target, CLOSED, tilt=min(TILT, gt + 0.03 * self._count))
-        inside = np.array([t.place_xy[0], t.place_xy[1], carry_z])
-        if self.phase == "transport":  # slide in at the carry height
-            if self._near(s, inside, 0.03) or self._count > 150:
-                self._next("lower")
-            return self._goto(s, inside, CLOSED, speed=0.6, tilt=TILT)
-        if self.phase == "lower":
-            target = np.array([s.eef_pos[0], s.eef_pos[1], t.place_bottom + 0.005 + self._offset])
-            if self._near(s, target, 0.015) or self._count > 40:
-                self._next("release")
-            return self._goto(s, target, CLOSED, speed=0.3, tilt=TILT)
-        return self._let_go(s, TILT, rise=0.025, tol=0.008, limit=20)
-
-    # ---- out of a cabinet, onto the counter below ------------------------------------------------
-    def _unload(self, s: PrivilegedState) -> np.ndarray:
-        """Hand tipped toward the cabinet: in over the object at the cabinet's mouth, down, grasp, lift 2 cm, pull
-        straight back out past the face, lower onto the counter (``target``), release, rise, back out."""
-        p, t = s.pick, s.target
-        yaw = float(s.robot_base[2])
-        fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
-        front = float(np.dot(s.goal.pos, fwd)) - float(s.facts.receptacle_inner[1])
-        over = min(p.top + 0.04, s.goal.top - 0.05)  # above the object, under the cabinet's ceiling
-        if self.phase == "approach":  # at the mouth, the object's lateral position, above its top
-            target = p.pos + fwd * (front - 0.08 - float(np.dot(p.pos, fwd)))
-            target[2] = over
-            if self._near(s, target, 0.015) or self._count > 120:
-                self._next("enter")
-            return self._goto(s, target, OPEN, tilt=TILT)
-        if self.phase == "enter":
-            target = np.array([p.pos[0], p.pos[1], over])
-            if self._near(s, target, 0.012) or self._count > 80:
-                self._next("descend")
-            return self._goto(s, target, OPEN, speed=0.5, tilt=TILT)
-        if self.phase == "descend":
-            return self._descend(s, p, TILT)
-        if self.phase == "grasp":
-            a, closed = self._grasp(s, p, TILT)
-            if closed:
-                self._clear = np.array([*t.place_xy, self._hold[2] + 0.02])  # out past the face, same height
-                self._next("lift")
-            return a
-        if self.phase == "lift":  # off the cabinet floor before pulling: dragging tips it over
-            target = self._hold + np.array([0.0, 0.0, 0.02])
-            if self._near(s, target, 0.008) or self._count > 20:
-                self._next("pull")
-            return self._goto(s, target, CLOSED, speed=0.4, tilt=TILT)
-        if self.phase == "pull":
-            if self._near(s, self._clear, 0.015) or self._count > 120:
-                self._next("lower")
-            return self._goto(s, self._clear, CLOSED, speed=0.5, tilt=TILT)
-        if self.phase == "lower":  # onto the counter: the stall (the object on the counter) ends it
-            target = np.array([*self._clear[:2], t.place_bottom + 0.005 + self._offset])
-            if (self._near(s, target, 0.01) and self._count > 25) or self._count > 120:
-                self._next("release")
-            # out of the cabinet: the hand straightens (a tipped hand this close to the base hits a joint limit)
-            return self._goto(s, target, CLOSED, speed=0.5, tilt=max(0.0, TILT - 0.03 * self._count))
-        return self._let_go(s, 0.0, rise=0.06, tol=0.01, limit=25, back_up=0.05)
-
     # ---- release, rise, back out (every pick-and-place script) ----------------------------------
     def _let_go(
         self, s: PrivilegedState, tilt: float, rise: float, tol: float, limit: int, back_up: float = 0.0,
@@ -393,14 +304,18 @@ class RoboCasaOracle:
         # wall cabinet, it grasps tipped already, fingers across the base's heading (untwisted: R_DOWN slides them
         # along the base's y), so the object stays level and rests flat where it is put down
         room = np.inf if s.goal is None else s.goal.top - t.place_bottom
-        cramped, low = s.facts.carry_drives and room < CRAMPED, room < HAND_ROOM
+        if self._drives is None:  # where the worker says so, or (reach_drives) the object is beyond reach
+            far = s.facts.reach_drives and np.linalg.norm(to_base(s, p.pos)) > PICK_REACH
+            self._drives = bool(s.facts.carry_drives or far)
+        drives = self._drives
+        cramped, low = drives and room < CRAMPED, room < HAND_ROOM
         tilt = CRAMPED_TILT if cramped else UNDER_TILT if low else 0.0
         grip_tilt = tilt if cramped else 0.0
         if self._carry_z is None:  # fixed first: the object's bottom (in clear_z) rises once held
             self._carry_z = t.clear_z + CLEARANCE
             self._twist = 0.0 if cramped else self._twist
             self._turn = side_turn(s) if cramped else 0.0
-            if s.facts.carry_drives and not cramped:
+            if drives and not cramped:
                 self._twist = clear_twist(self, s)
         carry_z = self._carry_z + self._offset
         if self.phase == "lift" and not cramped:
@@ -409,9 +324,12 @@ class RoboCasaOracle:
         # first puts the pick object straight ahead (the arm clear of what stands beside it: the mixer's raised head)
         if self.phase == "approach" and not self._drove and s.facts.base_room is not None:
             self._drove = True
-            first = p.pos if s.facts.carry_drives else [*t.place_xy, 0.0]
-            near = CRAMPED_REACH[0] if cramped and s.facts.carry_drives else 0.0
-            self._base_goal = base_goal(s, first, near, CARRY_REACH)
+            first = p.pos if drives else [*t.place_xy, 0.0]
+            near = CRAMPED_REACH[0] if cramped and drives else 0.0
+            # reach_drives: the base drives only to a far object (drawn 2.5 cm nearer the sink, horizon level 1
+            # episode 1's grasp of an object within reach missed)
+            far = drives or not s.facts.reach_drives
+            self._base_goal = base_goal(s, first, near, CARRY_REACH) if far else None
             if self._base_goal is not None:
                 self._next("drive")
         if (a := drive_phase(self, s, OPEN)) is not None:
@@ -420,13 +338,27 @@ class RoboCasaOracle:
         if (a := drive_phase(self, s, CLOSED, "drive_place", "transport", HELD_DRIVE)) is not None:
             return a
         turned = self._hand(s, grip_tilt, self._twist or 0.0, self._turn)
+        # a container's rim over both surfaces (the blender's jar) that the hand starts under: straight up over it
+        # first, then over the object at that height (straight at the object beside the jar, the hand stalled on
+        # the jar's side 16 cm short of it and 28 cm over it)
+        rim = t.clear_z + CLEARANCE
+        if self._clear is None:  # the first action: where the hand starts
+            self._clear = s.eef_pos.copy()
+            self._rim = not drives and t.clear_z > max(t.place_bottom, p.bottom) + 0.05 and s.eef_pos[2] < rim
+            if self._rim and self.phase == "approach":
+                self._next("over")
+        if self.phase == "over":
+            if self._near(s, [*self._clear[:2], rim], 0.02) or self._count > 40:
+                self._next("approach")
+            return self._goto(s, [*self._clear[:2], rim], OPEN, tilt=grip_tilt, hand=turned)
         if self.phase == "approach":
-            target = np.array([p.pos[0], p.pos[1], p.top + 0.06])
+            target = np.array([p.pos[0], p.pos[1], max(p.top + 0.06, rim) if self._rim else p.top + 0.06])
             if self._near(s, target, 0.015) or self._count > 120:
                 self._next("descend")
             return self._goto(s, target, OPEN, tilt=grip_tilt, hand=turned)
         if self.phase == "descend":
-            return self._descend(s, p, grip_tilt, hand=turned)
+            # from over a rim the hand has 45 cm to go down, not 6 (at 0.7 cm a step, 50 left it 12 cm over)
+            return self._descend(s, p, grip_tilt, hand=turned, limit=120 if self._rim else 50)
         if self.phase == "grasp":
             a, closed = self._grasp(s, p, grip_tilt, hand=turned)
             if closed:
@@ -446,7 +378,7 @@ class RoboCasaOracle:
             if (self._near(s, target, 0.02) and (not low or self._count > 25)) or self._count > 80:
                 self._next("transport")
                 # held at the carry height: the base drives until the place point is straight ahead (the bread)
-                if s.facts.carry_drives:
+                if drives:
                     far = CRAMPED_REACH[1] if cramped else CARRY_REACH
                     self._base_goal, self._base_trail = base_goal(s, [*t.place_xy, 0.0], 0.0, far), []
                     if self._base_goal is not None:
@@ -454,7 +386,7 @@ class RoboCasaOracle:
             return self._goto(s, target, CLOSED, hand=self._hand(s, tilt, self._twist or 0.0, self._turn))
         # a carry that drives twice sets the object's centre, not the grip site, on the place point: tipped, the
         # hand holds the cheese 2.5 cm past its centre (set down that far short, it fell off the bread's near edge)
-        held = s.facts.carry_drives and p.touching_gripper
+        held = drives and p.touching_gripper
         aim = t.place_xy + (s.eef_pos[:2] - p.pos[:2] if held else 0.0)
         if self.phase == "transport":
             target = np.array([*aim, carry_z])

@@ -102,7 +102,9 @@ def privileged_state(raw: dict):
         goal = GoalState(c, f64([1.0, 0, 0, 0]), float(raw["goal_top"]))
         target = Targets(c[:2].copy(), float(raw["goal_floor"]), float(raw["goal_floor"]), float(pick.pos[2]),
                          floor_z=float(raw["goal_floor"]))  # fmt: skip
-        facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]))
+        room = raw.get("base_room")  # counter to cabinet: the base may drive nearer
+        facts = SceneFacts(receptacle_inner=tuple(raw["goal_half"]),
+                           base_room=None if room is None else tuple(float(r) for r in room))  # fmt: skip
         if raw.get("counter_top") is not None:  # cabinet to counter: out of the cabinet, onto the counter
             target, facts = unload_target(raw, pick, c)
     elif "place_pos" in raw:  # put down on a surface or into an open drawer (worker_facts.place_facts)
@@ -114,7 +116,8 @@ def privileged_state(raw: dict):
         goal = None if ceiling is None else GoalState(place, f64([1.0, 0, 0, 0]), float(ceiling))
         if raw.get("base_room") is not None:  # the carry may drive the base (the fridge's shelf, the bread)
             facts = SceneFacts(base_room=tuple(float(r) for r in raw["base_room"]),
-                               carry_drives=bool(raw.get("carry_drives", False)))  # fmt: skip
+                               carry_drives=bool(raw.get("carry_drives", False)),
+                               reach_drives=bool(raw.get("reach_drives", False)))  # fmt: skip
     elif "hinge_pos" in raw:  # a part to swing shut (or open): goal is its hinge, turned the way it faces
         goal, target = hinge_goal(raw), hinge_target(raw)
         facts = SceneFacts(**_room(raw, "hinge_ceiling"), lift=raw.get("hinge_lift"))

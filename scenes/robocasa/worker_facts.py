@@ -122,6 +122,8 @@ def oracle_facts(env, task: str) -> dict:
     return {
         **fixture_part_facts(env, task), **unload_facts(env, task), **object_extent_facts(env), **place_facts(env, task),
         **button_facts(env, task), **hinged_facts(env, task),
+        # the counter-to-cabinet script drives nearer a cabinet beyond its reach (oracle.CABINET_REACH)
+        **({"base_room": base_room(env)} if task == "PickPlaceCounterToCabinet" else {}),
     }  # fmt: skip
 
 
@@ -332,7 +334,8 @@ def place_facts(env, task: str) -> dict:
     world point its bottom goes to, and, where something hangs over it, ``place_ceiling`` (that thing's underside).
     On the sink-to-counter container's top; under the coffee machine's pour site (``receptacle_place_site``), moved
     ``COFFEE_SHIFT`` toward the machine's front; into an open drawer's uncovered part (``drawer_facts``); onto the
-    sink basin's floor at its middle; onto the blender jar's floor, carried over its rim (``place_clear``, the
+    sink basin's floor at its middle (with the base's room and ``reach_drives``: the carry drives to an object out
+    of the arm's reach); onto the blender jar's floor, carried over its rim (``place_clear``, the
     height the carried object's bottom must clear); into the stand mixer's bowl over its rim and CheesyBread's
     cheese onto the bread's top, each with the base's room and ``carry_drives`` (the carry drives the base to the
     object, then with it to the place point); empty for the other tasks."""
@@ -349,7 +352,7 @@ def place_facts(env, task: str) -> dict:
     if task == "PickPlaceCounterToDrawer":
         return drawer_facts(env)
     if task == "PickPlaceCounterToSink":  # the basin's floor, under its centre (RoboCasa checks the object's)
-        return {"place_pos": _floor_centre(env.sink)}
+        return {"place_pos": _floor_centre(env.sink), "base_room": base_room(env), "reach_drives": True}
     if task == "PickPlaceCounterToBlender":  # into the jar: over its rim (the blender's top), onto its floor
         top = max(float(p[2]) for p in env.blender.get_ext_sites(all_points=True, relative=False))
         return {"place_pos": _floor_centre(env.blender), "place_clear": top}

@@ -21,5 +21,6 @@ MARKER = "INDGEN_PLACEHOLDER_TREE"  # a file at the root naming what wrote the t
 # head overhangs its front (OpenStandMixerHead), the kettle's lid button collides and springs back, the fridge has
 # its drawer and an open shelf, the stand mixer's bowl is open; 7: the toaster oven's door is hinged higher and
 # thinner (CloseToasterOvenDoor: a finger gets under its open free edge); 8: the kettle's switch is RoboCasa's
-# lever, low on its side, hinged at its inner end and pressed down at its free end
-VERSION = 8
+# lever, low on its side, hinged at its inner end and pressed down at its free end; 9: a graspable category's box
+# is shrunk (all three sides alike) where RoboCasa's scale would make it wider than GRASPABLE_WIDTH
+VERSION = 9

@@ -11,6 +11,27 @@ from pathlib import Path
 
 from .model import fmt
 
+OBJECT_HALF = (0.03, 0.03, 0.04)  # m: a category's box ({cat}_ph), half sides before RoboCasa's scale
+ACCESSORY_HALF = (0.04, 0.04, 0.06)  # m: a model the fixture registry names under objects/ (a glass cup)
+# m: the widest a graspable category's box may be once RoboCasa scales it: fully open, the Panda's finger meshes stand
+# 7.7 cm apart (robosuite's panda_gripper.xml), and a box at its category's scale (up to 2.5) reached 9.6-15 cm
+# across, which no grasp closes on (a third of the pick-place tasks' evaluation episodes under the pretrain split,
+# whose first instances are the registry's 8 cm models); RoboCasa's graspable models fit the hand
+GRASPABLE_WIDTH = 0.07
+
+
+def object_half(cfg: dict | None, registry: str, half=OBJECT_HALF) -> tuple[float, float, float]:
+    """The half sides of a box of a category in one registry (``cfg``: RoboCasa's raw category entry, None for no
+    category): ``half``, shrunk alike on all three sides where the category is graspable and its scale would make
+    it wider than ``GRASPABLE_WIDTH``."""
+    if not cfg or registry not in cfg or not cfg.get("graspable"):
+        return tuple(half)  # type: ignore[return-value]
+    scale = cfg[registry].get("scale", 1.0)
+    across = max(scale[:2]) if isinstance(scale, (list, tuple)) else float(scale)
+    wide = 2 * max(half[:2]) * across
+    k = GRASPABLE_WIDTH / wide if wide > GRASPABLE_WIDTH else 1.0
+    return tuple(round(h * k, 5) for h in half)  # type: ignore[return-value]
+
 
 def object_model(name: str, half: tuple[float, float, float]) -> str:
     """One kitchen object: a free box with robosuite's bottom/top/horizontal-radius sites and a ``reg_bbox``."""

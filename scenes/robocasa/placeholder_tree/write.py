@@ -10,7 +10,7 @@ import shutil
 from pathlib import Path
 
 from . import MARKER, VERSION
-from .files import BOX_OBJ, Writer, object_model
+from .files import ACCESSORY_HALF, BOX_OBJ, Writer, object_half, object_model
 from .fixtures import fixture_model, simple_model
 from .model import DEFAULT_SIZE, SIZES
 
@@ -72,15 +72,17 @@ def write_tree(dst: Path) -> dict:
     dst.mkdir(parents=True, exist_ok=True)
     shutil.copytree(wheel_assets, dst, dirs_exist_ok=True)
     w = Writer(dst, wheel_assets)
+    categories, registry_of = object_categories(), {f: r for r, f in REGISTRY_FOLDERS.items()}
     for kind, key, cfg in registry_entries(wheel_assets):
         xml = cfg.get("xml")
         if isinstance(xml, str):
             rel = xml if xml.endswith(".xml") else f"{xml}/model.xml"
-            body = (
-                fixture_model(kind, key)
-                if not xml.startswith("objects/")
-                else object_model(key, (0.04, 0.04, 0.06))
-            )
+            if xml.startswith("objects/"):  # objects/<registry folder>/<category>/<model>
+                parts = rel.split("/")
+                reg, cat = registry_of.get(parts[1], ""), parts[2] if len(parts) > 3 else ""
+                body = object_model(key, object_half(categories.get(cat), reg, ACCESSORY_HALF))
+            else:
+                body = fixture_model(kind, key)
             w.write(rel, body, "fixtures")
             w.texture(str(Path(rel).parent / "tex.png"))
         for v in _strings(cfg):  # nested too: a handle style's handle_config.texture
@@ -96,7 +98,7 @@ def write_tree(dst: Path) -> dict:
         elif rel.startswith("fixtures/") and not Path(rel).suffix:
             w.write(f"{rel}/model.xml", simple_model(Path(rel).name, DEFAULT_SIZE), "fixtures")
             w.texture(f"{rel}/tex.png")
-    for cat, cfg in object_categories().items():
+    for cat, cfg in categories.items():
         for reg, folder in REGISTRY_FOLDERS.items():
             if reg not in cfg:
                 continue
@@ -106,7 +108,7 @@ def write_tree(dst: Path) -> dict:
             folders = cfg[reg].get("model_folders") or [f"{folder}/{cat}"]
             for fold in folders:
                 model = f"objects/{fold}/{cat}_ph" + ("/part" if aux else "") + "/model.xml"
-                w.write(model, object_model(cat, (0.03, 0.03, 0.04)), "objects")
+                w.write(model, object_model(cat, object_half(cfg, reg)), "objects")
     # files the wheel's own XML points at (cabinet textures, meshes) that the wheel does not ship
     for xml in list(dst.rglob("*.xml")):
         text = xml.read_text(errors="ignore")

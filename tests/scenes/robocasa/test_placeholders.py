@@ -38,3 +38,26 @@ def test_a_fresh_tree_then_a_rerun_count_the_same_files(tmp_path, capsys):
     again = _summary(tmp_path / "tree", capsys)
     assert first[1] == again[2] > 0 and first[2] == again[1] == 0  # written once, then already there
     assert (first[0], first[3], first[4]) == (again[0], again[3], again[4])
+
+
+def test_a_graspable_box_is_never_wider_than_the_hand_opens():
+    """Tree 9: a graspable category's box at RoboCasa's scale is at most GRASPABLE_WIDTH across (the Panda's
+    fingers open 7.7 cm); its shape is kept, other categories and narrow ones keep their size."""
+    from scenes.robocasa.placeholder_tree.files import (
+        ACCESSORY_HALF,
+        GRASPABLE_WIDTH,
+        OBJECT_HALF,
+        object_half,
+    )
+
+    wine = {"graspable": True, "objaverse": {"scale": 1.6}}
+    half = object_half(wine, "objaverse")
+    assert 2 * half[0] * 1.6 == pytest.approx(GRASPABLE_WIDTH, abs=1e-4)
+    assert half[2] / half[0] == pytest.approx(OBJECT_HALF[2] / OBJECT_HALF[0], rel=1e-3)
+    fish = {"graspable": True, "aigen": {"scale": [1.35, 1.35, 2.0]}}  # per-axis: the wider side counts
+    assert 2 * object_half(fish, "aigen")[0] * 1.35 == pytest.approx(GRASPABLE_WIDTH, abs=1e-4)
+    assert object_half({"graspable": True, "objaverse": {"scale": 1.1}}, "objaverse") == OBJECT_HALF
+    assert object_half({"graspable": False, "objaverse": {"scale": 2.0}}, "objaverse") == OBJECT_HALF
+    cup = {"graspable": True, "lightwheel": {"scale": 1.0}}  # the registry's 8 cm models shrink too
+    assert object_half(cup, "lightwheel", ACCESSORY_HALF)[0] == pytest.approx(GRASPABLE_WIDTH / 2)
+    assert object_half(None, "lightwheel", ACCESSORY_HALF) == ACCESSORY_HALF
