@@ -81,7 +81,9 @@ def main() -> int:
         print(f"error: no baseline plan for {', '.join(unknown)}; one of {', '.join(PLAN)}")
         return 2
     data = json.loads(args.out.read_text()) if args.out.is_file() else {"tasks": {}}
-    oracle = oracle_identity("robocasa")
+    oracle = {
+        k: v for k, v in oracle_identity("robocasa").items() if k in ("name", "version")
+    }  # not the code hash
     data.update(scene="robocasa", split=SPLIT, seed=0, oracle=oracle, tree_version=VERSION)
     for task in tasks:
         axis, levels = PLAN[task]
