@@ -149,7 +149,8 @@ def build(
 ) -> dict:
     """Write a complete run directory (every planned episode; with ``adaptive``, what its rule runs); with
     ``error_rate`` 0 every episode is ok, so a resume finds nothing to run."""
-    from indgen_vla.app.engine.run import _fingerprint, _runner_config, build_manifest, build_plan
+    from indgen_vla.app.engine.policy_source import runner_config as _runner_config
+    from indgen_vla.app.engine.run import _fingerprint, build_manifest, build_plan
     from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.registry import load_policy
 

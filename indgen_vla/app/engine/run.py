@@ -10,9 +10,10 @@ import sys
 import uuid
 from collections import defaultdict
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.policy_source import PolicySource, check_object_run, runner_config
 from indgen_vla.app.engine.share import (
     copies,
     fill_copies,
@@ -25,10 +26,6 @@ from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, ServerUnre
 from indgen_vla.core.protocol.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.core.protocol.training_support import cells_to_json
 from indgen_vla.core.runs.records import RunDir
-
-if TYPE_CHECKING:
-    from indgen_vla.app.engine.local import EarlyWorkers
-    from indgen_vla.app.engine.rollout import RunnerConfig
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
 
@@ -166,30 +163,6 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
     }
 
 
-def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
-    """An image policy on placeholder assets without ``--smoke``: its cameras would see boxes."""
-    return bool(cameras) and getattr(plan.builder, "placeholder_assets", False) and not cfg.run.smoke
-
-
-def check_policy_contract(cfg: EvalConfig, plan: EvalPlan, policy) -> None:
-    """Before any episode: the policy's cameras and action size must be the scene family's (``EnvSpec``), and an
-    image policy runs on placeholder assets only with ``--smoke`` (its cameras would see boxes). One line each."""
-    spec = policy.spec
-    env_spec = getattr(plan.builder, "env_spec", None)
-    try:
-        if env_spec is not None:
-            env_spec.check_policy(spec, cfg.plan.scene)
-        if _refused_on_placeholders(cfg, plan, spec.cameras):
-            raise ConfigError(
-                f"scene {cfg.plan.scene} runs on placeholder assets (boxes, flat textures): an image policy's "
-                f"success there is not a measurement; point the scene at its real assets, or pass --smoke to run "
-                f"{spec.name} anyway (the manifest records 'not a measurement')"
-            )
-    except ConfigError:
-        policy.close()
-        raise
-
-
 def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = None) -> Path:
     """Run (or resume) an evaluation and write its report; returns the run directory.
 
@@ -199,107 +172,94 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
     from rich.console import Console
 
     from indgen_vla.app.engine import timing
-    from indgen_vla.core.reporting.report import write_run_report
 
     clock = timing.start_session()
-    if policy is not None:
-        check_object_run(cfg)
     console = Console(stderr=True, quiet=quiet)
+    plan, preregistered = prepare(cfg, console, given=policy)
+    out, source, probe = Path(cfg.run.out), PolicySource(cfg, plan, policy), None
+    run_id = existing_run_id(out) or uuid.uuid4().hex[:12]
+    try:
+        if not (
+            out / "manifest.json"
+        ).exists():  # a new run: refuse a policy that does not fit before writing
+            probe = source.checked(_first_round(cfg, plan))
+        run = open_run(cfg, plan, run_id, preregistered)
+        todo = plan_todo(cfg, plan, run)
+        if todo:
+            if probe is None:
+                probe = source.checked(todo)
+            _run_todo(cfg, plan, run, run_id, todo, source.load, probe, source.early, console)
+        elif probe is not None:
+            probe.close()
+    finally:
+        source.close_unused()
+    finish(cfg, plan, run, todo, probe, clock, console)
+    return out
+
+
+def prepare(cfg: EvalConfig, console, given: object | None = None) -> tuple[EvalPlan, dict | None]:
+    """The plan, checked before anything loads or is written: an object policy's run, the assets building needs,
+    a pre-registered lock (one line on a deviation), infeasible levels; prints the feasibility warnings and each
+    level's certification basis. Returns the plan and the lock's record (None without ``--preregistered``)."""
+    from indgen_vla.core.reporting.certification_view import plan_basis_lines
+
+    if given is not None:
+        check_object_run(cfg)
     plan = build_plan(cfg)
     plan.builder.check_ready()  # what building an env needs (LIBERO's assets), after the names and levels
-    if (
-        cfg.plan.preregistered
-    ):  # before anything loads or is written: the lock refuses a deviation in one line
+    preregistered = None
+    if cfg.plan.preregistered:
         from indgen_vla.app.engine.preregister import check_preregistered
 
         preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
-    from indgen_vla.core.reporting.certification_view import plan_basis_lines
-
     cells = [dataclasses.asdict(c) for c in plan.scene_plan.cells]
     for line in plan_basis_lines(plan.scene_plan.scene, list(plan.axes), cells):
         console.print(line.replace("**", "").replace("`", ""), markup=False, highlight=False)
-    out = Path(cfg.run.out)
-    existing = RunDir(out)
-    run_id = (
-        existing.manifest.get("run_id") if (out / "manifest.json").exists() else None
-    ) or uuid.uuid4().hex[:12]
+    return plan, preregistered
 
-    # what the policy's family is told besides its spec: the scene family's contract, precision/compile options
-    env_spec, options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
 
-    def make_policy():
-        if policy is not None:
-            return adopt_object(policy, cfg, env_spec)
-        from policy_wrappers.registry import load_policy
+def existing_run_id(out: Path) -> str | None:
+    """The run id of the run in ``out`` a resume continues (None for a new run)."""
+    return RunDir(out).manifest.get("run_id") if (out / "manifest.json").exists() else None
 
-        return load_policy(
-            cfg.policy.spec, trust_remote_code=cfg.policy.trust_remote_code, device=cfg.policy.device,
-            scene=cfg.plan.scene, env_spec=env_spec, **options,
-        )  # fmt: skip
 
-    def prestart(jobs: list) -> EarlyWorkers | None:
-        """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
-        simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
-        their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
-        if cfg.run.backend != "local" or not jobs:
-            return None
-        from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
-        from policy_wrappers.registry import preview_policy
+def open_run(cfg: EvalConfig, plan: EvalPlan, run_id: str, preregistered: dict | None) -> RunDir:
+    """The run directory, new or resumed (a different plan refused), with its T0 sharing, lock and the shared T0
+    copies a kill cut off."""
+    run = RunDir.create_or_resume(Path(cfg.run.out), build_manifest(cfg, plan, run_id))
+    record_sharing(run, sharing_entry(cfg, plan))
+    if cfg.plan.preregistered:
+        run.update_manifest(preregistered=preregistered)
+    fill_copies(plan, run)
+    return run
 
-        n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
-        view = None if policy is not None else preview_policy(cfg.policy.spec, device=cfg.policy.device,
-                                                               env_spec=env_spec, **options)  # fmt: skip
-        if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
-            return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
-        if view is not None:
-            return EarlyWorkers(_runner_config(cfg, plan, view), jobs, max(1, n))
-        if n:
-            start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
-        return None
 
-    probe, early = None, None
-    try:
-        # a new run: refuse a policy that does not fit before writing anything
-        if not (out / "manifest.json").exists():
-            early = prestart(_first_round(cfg, plan))
-            probe = make_policy()
-            check_policy_contract(cfg, plan, probe)
-        run = RunDir.create_or_resume(out, build_manifest(cfg, plan, run_id))
-        record_sharing(run, sharing_entry(cfg, plan))
-        if cfg.plan.preregistered:
-            run.update_manifest(preregistered=preregistered)
-        fill_copies(plan, run)  # shared T0 episodes whose copies a kill cut off
-        if (
-            cfg.adaptive.mode
-        ):  # only what the sequential rule still needs (levels past a decided break never run)
-            from indgen_vla.app.engine.adaptive import next_round
+def plan_todo(cfg: EvalConfig, plan: EvalPlan, run: RunDir) -> list:
+    """The rollouts still to run: those not finished, or under ``--adaptive`` only what the sequential rule still
+    needs (levels past a decided break never run)."""
+    if cfg.adaptive.mode:
+        from indgen_vla.app.engine.adaptive import next_round
 
-            todo = next_round(plan, run.episodes(), cfg)
-        else:
-            done = run.done_keys()
-            todo = [j for j in plan.rollouts() if j.key not in done]
-        if todo:
-            if probe is None:
-                early = prestart(todo)
-                probe = make_policy()
-                check_policy_contract(cfg, plan, probe)
-            _run_todo(cfg, plan, run, run_id, todo, make_policy, probe, early, console)
-        elif probe is not None:
-            probe.close()
-    finally:
-        if early is not None:  # workers nobody took: a refused policy, an interrupted load
-            early.close()
-    if not todo and not quiet:
+        return next_round(plan, run.episodes(), cfg)
+    done = run.done_keys()
+    return [j for j in plan.rollouts() if j.key not in done]
+
+
+def finish(cfg: EvalConfig, plan: EvalPlan, run: RunDir, todo: list, probe, clock, console) -> None:
+    """Write the run's report, and what this session's clocks saw (``indgen budget --timing`` reads it back)."""
+    from indgen_vla.core.reporting.report import write_run_report
+
+    if not todo:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
             if cfg.adaptive.mode
             else f"all {len(plan.jobs)} planned episodes are"
         )
-        console.print(f"{done_text} already in {out}; writing the report")
+        console.print(f"{done_text} already in {Path(cfg.run.out)}; writing the report")
     write_run_report(run, cfg.plan.gamma)
-    if clock.episodes:  # what this session's clocks saw (indgen budget --timing reads it back)
+    if clock.episodes:
         from indgen_vla.app.engine.local import worker_processes
 
         spec = probe.spec if probe is not None else None
@@ -308,31 +268,6 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
             pipeline=cfg.run.pipeline, batched=spec.batched if spec else None, device=cfg.policy.device,
             backend=cfg.run.backend,
             replan=(cfg.policy.replan_steps or spec.replan_steps) if spec else cfg.policy.replan_steps))  # fmt: skip
-    return out
-
-
-def check_object_run(cfg: EvalConfig) -> None:
-    """What a run of a policy object in memory cannot do, refused in one line before anything starts."""
-    if cfg.run.backend != "local":
-        raise ConfigError(f"a policy object in memory runs on the local backend only (--backend {cfg.run.backend} "
-                          "would ship it to other processes); save it (save_pretrained) and pass lerobot:DIR")  # fmt: skip
-    if cfg.policy.compile != "off":
-        raise ConfigError("compile is for policies loaded from a spec; a policy object in memory runs uncompiled "
-                          "(compile it yourself before passing it)")  # fmt: skip
-
-
-def adopt_object(obj: object, cfg: EvalConfig, env_spec):
-    """The engine's policy for an object in memory (``policy_wrappers.objects.adopt``); one per run: a policy
-    with per-episode state serves one environment, so it refuses more than one worker."""
-    from policy_wrappers.objects import adopt
-
-    p = adopt(obj, name=cfg.policy.spec, device=cfg.policy.device, env_spec=env_spec,
-              precision=cfg.policy.precision, replan_steps=cfg.policy.replan_steps)  # fmt: skip
-    if not p.spec.batched and (cfg.run.workers > 1 or cfg.run.pipeline):
-        p.close()
-        raise ConfigError(f"policy object {cfg.policy.spec} keeps per-episode state (not batched), so one instance "
-                          "serves one environment: run it with workers=1 and no pipeline")  # fmt: skip
-    return p
 
 
 def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
@@ -346,19 +281,6 @@ def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
     return next_round(plan, episodes_frame([]), cfg)
 
 
-def _runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
-    """How the workers build scenes for a policy that asks for ``view`` (its ``PolicySpec``, or the
-    ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
-    from indgen_vla.app.engine.rollout import RunnerConfig
-
-    side = cfg.policy.image_size or (view.image_size[0] if view.image_size else 128)
-    return RunnerConfig(
-        levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.plan.max_steps,
-        privileged=view.privileged, warmup_steps=cfg.policy.warmup_steps, objects=view.observes_objects,
-        video_dir=str(Path(cfg.run.out) / "videos") if cfg.run.video else None, history_steps=view.history_steps,
-    )  # fmt: skip
-
-
 def _run_todo(
     cfg: EvalConfig, plan: EvalPlan, run: RunDir, run_id: str, todo: list, make_policy, probe, early, console
 ):
@@ -370,7 +292,7 @@ def _run_todo(
     replan = cfg.policy.replan_steps or spec.replan_steps
     if replan > spec.chunk_size:
         raise ConfigError(f"--replan-steps {replan} exceeds the policy's chunk size {spec.chunk_size}")
-    runner_cfg = _runner_config(cfg, plan, spec)
+    runner_cfg = runner_config(cfg, plan, spec)
     manifest = run.manifest
     resolved = manifest.get("resolved") or plan.record()  # a run made before "resolved" existed
     if "fingerprint" in manifest:  # a resume weighs today's scene facts (assets, worker, initial states)

@@ -135,7 +135,7 @@ def test_history_steps_reach_the_runner_config():
     workers) in ``_runner_config``, from the loaded spec or the preview: the history travels with it."""
     from types import SimpleNamespace
 
-    from indgen_vla.app.engine.run import _runner_config
+    from indgen_vla.app.engine.policy_source import runner_config as _runner_config
 
     cfg = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
     plan = SimpleNamespace(builder=scene_levels("pick_place", ["pick_y"]))
