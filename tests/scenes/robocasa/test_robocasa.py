@@ -345,7 +345,7 @@ def test_policy_spec_takes_the_scene_families_camera_names():
 
 def test_a_policy_that_does_not_fit_the_scene_is_refused_before_any_episode(tmp_path):
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import check_policy_contract
+    from indgen_vla.app.engine.policy_source import check_policy_contract
 
     cfg = EvalConfig.from_flat(policy="p", scene="robocasa", axes=("base_y",), out=str(tmp_path))
     seven = _policy(action_dim=7, cameras=())
