@@ -20,7 +20,7 @@ from typing import Any
 
 from indgen_vla.app.engine.config import FLAG_FIELDS, FLAT_DEFAULTS, EvalConfig
 from indgen_vla.core.errors import IndgenError, RunDirError
-from indgen_vla.core.runs.records import MANIFEST, EpisodeRecord, RunDir, atomic_write_json
+from indgen_vla.core.runs.records import FINISHED, MANIFEST, EpisodeRecord, RunDir, atomic_write_json
 from indgen_vla.core.runs.shards import (
     Shard,
     check_protocol,
@@ -211,10 +211,13 @@ def _lines(
     manifest: dict[str, Any], rows: list[dict[str, Any]], counts: dict[str, int], missing: int
 ) -> list[str]:
     merged, plan = manifest["merged_from"], manifest["plan"]
-    ok = sum(r["status"] == "ok" for r in rows)
+    # an unavailable episode is its seed's: finished, never run again
+    finished = sum(r["status"] in FINISHED for r in rows)
+    unavailable, errors = sum(r["status"] == "unavailable" for r in rows), len(rows) - finished
     planned = manifest["resolved"]["episodes"]
-    lines = [f"merged {len(merged['shards'])} shards: {ok} finished episodes"
-             + (f" and {len(rows) - ok} error rows" if len(rows) > ok else "")
+    lines = [f"merged {len(merged['shards'])} shards: {finished} finished episodes"
+             + (f" ({unavailable} of them unavailable: ruled out by their level)" if unavailable else "")
+             + (f" and {errors} error rows" if errors else "")
              + f" of {planned} planned; tasks {', '.join(plan['tasks'])}; axes {', '.join(plan['axes'])}"]  # fmt: skip
     lines += [
         f"  {s['path']}: {s['kept']} of its {s['episodes']} rows (run {s['run_id']})"
@@ -231,7 +234,7 @@ def _lines(
         lines.append(
             f"{missing} episode video(s) named in the shards' rows are in no shard (their rows keep them)"
         )
-    todo = planned - ok if not plan.get("adaptive") else None
+    todo = planned - finished if not plan.get("adaptive") else None
     if todo == 0:
         return lines
     # an adaptive run's plan caps its episodes: only its rule knows whether the shards' ladders are settled

@@ -397,10 +397,13 @@ def _run_with_progress(
     for j in plan.jobs:
         planned[(j.axis, j.level)] += 1
     stats: dict[tuple[str, int], list[int]] = defaultdict(lambda: [0, 0, 0])  # successes, ok, errors
-    for r in run.episodes().itertuples():  # earlier error rows are re-run now: only ok rows count as done
+    # earlier error rows are re-run now; ok and unavailable ones are done
+    for r in run.episodes().itertuples():
         if r.status == "ok":
             stats[(r.axis, int(r.level))][0] += int(r.success)
             stats[(r.axis, int(r.level))][1] += 1
+        elif r.status == "unavailable":  # counted as on_record counts it when it is recorded
+            stats[(r.axis, int(r.level))][2] += 1
     rollouts = {j.key for j in plan.rollouts()}  # the total and its ETA count rollouts, not shared copies
     taken = taken_keys(plan, run)
     with Progress(*progress_columns(), console=console, transient=False) as progress:

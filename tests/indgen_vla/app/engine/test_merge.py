@@ -327,3 +327,19 @@ def test_shards_on_other_numerics_merge_with_a_warning_and_keep_each_shards_nume
     assert f"warning: {other} ran on other numerics (cpu_isa " in printed and "vs avx2" in printed
     entries = read(tmp_path / "merged", "manifest.json")["merged_from"]["shards"]
     assert entries[1]["numerics"]["cpu_isa"] == "avx2" != entries[0]["numerics"]["cpu_isa"]
+
+
+def test_an_unavailable_episode_is_finished_in_a_merge(runs, tmp_path, capsys):
+    """An episode its level rules out (status ``unavailable``) is finished: the merge counts it as such and asks for
+    no run of it, as a resume would run none."""
+
+    def rule_out_one(rows: list[dict]) -> list[dict]:
+        first = dict(rows[0], status="unavailable", success=False, failure="unavailable", progress=None,
+                     error="attempt 1: EpisodeUnavailableError: placement check")  # fmt: skip
+        return [first, *rows[1:]]
+
+    shard = copy_shard(runs / "pick_y", tmp_path / "pick_y_ruled_out", rows=rule_out_one)
+    assert main(["merge", str(shard), str(runs / "scale"), "--out", str(tmp_path / "merged")]) == 0
+    printed = capsys.readouterr().out
+    assert "8 finished episodes (1 of them unavailable: ruled out by their level) of 8 planned" in printed
+    assert "error rows" not in printed and "not finished" not in printed
