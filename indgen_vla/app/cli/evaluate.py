@@ -65,7 +65,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"report: {out / 'report.md'} (in a browser: {out / 'report.html'})\nplots:  {out / 'plots'}/ (success "
           f"curves; 'indgen report {out}' draws every plot)\nepisodes: {out / 'episodes.parquet'}")  # fmt: skip
     eps = run.episodes()
-    ruled_out = unavailable_rows(eps) if len(eps) else eps["status"].astype(bool)
+    ruled_out = unavailable_rows(eps)  # an empty run's frame has the columns too
     # an unavailable episode is its seed's (a RoboCasa kitchen too narrow for pick_x, a LIBERO state that does not
     # hold a moved object): a re-run repeats it, so it is no error to retry
     unavailable, errors = int(ruled_out.sum()), int(((eps["status"] == "error") & ~ruled_out).sum())

@@ -375,12 +375,13 @@ def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, po
     )
 
     cams = tuple(runner_cfg.cameras)
+    versions = package_versions()
     fp = build_fingerprint(
-        resolved, package_versions(), max_steps=cfg.plan.max_steps, warmup_steps=cfg.policy.warmup_steps,
+        resolved, versions, max_steps=cfg.plan.max_steps, warmup_steps=cfg.policy.warmup_steps,
         cameras=cams, image_size=runner_cfg.image_size, render_backend=plan.builder.render_backend() if cams else "",
         policy=policy_conventions(policy.spec, policy),
     )  # fmt: skip
-    return {**fp, NUMERICS: numeric_builds()}
+    return {**fp, NUMERICS: numeric_builds(versions)}
 
 
 def _run_with_progress(

@@ -81,22 +81,29 @@ def build_fingerprint(
     }
 
 
+def _cpuinfo() -> tuple[str, set[str] | None]:
+    """This machine's CPU model and flags from /proc/cpuinfo (flags None where it cannot be read)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return "", None
+    info = {
+        k.strip(): v.strip() for k, _, v in (ln.partition(":") for ln in lines if ":" in ln)
+    }  # every core alike
+    return info.get("model name", ""), set(info.get("flags", "").split())
+
+
 def cpu_isa(flags: set[str] | None = None) -> str:
     """The instruction set torch's CPU kernels dispatch to on this machine, as ``torch.backends.cpu.
     get_cpu_capability()`` names it (lower case), read from the CPU's flags so that recording it imports nothing:
     ATen's rule (``ATEN_CPU_CAPABILITY`` overrides; AVX512 needs avx512vl, bw, dq and fma; AVX2 avx2 and fma)."""
-    import os
-
     override = os.environ.get("ATEN_CPU_CAPABILITY", "").strip().lower()
     if override:
         return override
     if flags is None:
-        flags = set()
-        try:
-            with open("/proc/cpuinfo") as f:
-                line = next((ln for ln in f if ln.startswith("flags")), "")
-            flags = set(line.split(":", 1)[1].split()) if ":" in line else set()
-        except OSError:
+        flags = _cpuinfo()[1]
+        if flags is None:
             return "unknown"
     if {"avx512vl", "avx512bw", "avx512dq", "fma"} <= flags:
         return "avx512"
@@ -105,27 +112,20 @@ def cpu_isa(flags: set[str] | None = None) -> str:
     return "default"
 
 
-def numeric_builds() -> dict[str, Any]:
+def numeric_builds(versions: Mapping[str, str]) -> dict[str, Any]:
     """The machine and builds a run's floating point depends on: the CPU, the instruction set torch's kernels
-    dispatch to there (AVX2, AVX512: a network's last bits differ between them) and torch's build."""
+    dispatch to there (AVX2, AVX512: a network's last bits differ between them) and torch's build (``versions``:
+    the run's package versions, ``engine.run.package_versions``)."""
     import platform
-    from importlib.metadata import PackageNotFoundError, version
 
-    cpu = ""
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
-    except OSError:
-        pass
+    model, flags = _cpuinfo()
     out: dict[str, Any] = {
         "machine": platform.machine(),
-        "cpu": cpu or platform.processor(),
-        "cpu_isa": cpu_isa(),
+        "cpu": model or platform.processor(),
+        "cpu_isa": cpu_isa(flags),  # the override first; unreadable flags: "unknown"
     }
-    try:
-        out["torch"] = version("torch")
-    except PackageNotFoundError:
-        pass
+    if "torch" in versions:
+        out["torch"] = versions["torch"]
     return out
 
 
