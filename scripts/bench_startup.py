@@ -195,25 +195,17 @@ def main() -> None:
     roots = {"this": ROOT, **({"other": Path(a.compare).resolve()} if a.compare else {})}
     runs: dict[str, list[dict]] = {name: [] for name in roots}
     with tempfile.TemporaryDirectory() as tmp:
-        for name, root in roots.items():  # caches, .pyc, page cache
-            one_run(
-                root,
-                a.policy or shipped(root),
-                a.workers,
-                a.episodes,
-                Path(tmp) / f"warmup-{name}",
-                a.max_steps,
+
+        def run_in(root: Path, out: str) -> dict:
+            return one_run(
+                root, a.policy or shipped(root), a.workers, a.episodes, Path(tmp) / out, a.max_steps
             )
+
+        for name, root in roots.items():  # caches, .pyc, page cache
+            run_in(root, f"warmup-{name}")
         for i in range(a.repeats):
             for name, root in roots.items():
-                row = one_run(
-                    root,
-                    a.policy or shipped(root),
-                    a.workers,
-                    a.episodes,
-                    Path(tmp) / f"{name}{i}",
-                    a.max_steps,
-                )
+                row = run_in(root, f"{name}{i}")
                 runs[name].append(row)
                 print(json.dumps({"checkout": name, **row}), flush=True)
     out = {
