@@ -1,7 +1,7 @@
 """Scenes: frozen specs, inductive axes (successors), the registered scene families, the oracle and certification.
 
 A scene family is one ``scenes.registry.Scene`` subclass registered with ``@register_scene`` (the built-ins in
-``scenes.catalog``, the LIBERO suites in ``scenes.libero``); the functions here look it up by name. Environments are
+``scenes.catalog``, the LIBERO suites in ``scenes.libero``); ``get_scene`` looks one up by name at the edges. Environments are
 built through a level builder (``scenes.planning``: ``resolve_scene_plan(...).builder`` or ``scene_levels``), the one
 road ``evaluate``, ``certify``, ``demos`` and ``mimicgen`` take. Importing this package is cheap: robosuite and MuJoCo
 load only when a builder builds an env.
@@ -26,29 +26,9 @@ class _DropMacroWarning(logging.Filter):
 # scenes.sim, scenes.objects (the layouts), LIBERO; certify, demos, mimicgen and the workers all stay quiet
 logging.getLogger("robosuite_logs").addFilter(_DropMacroWarning())
 
-__all__ = ["scene_names", "tasks", "select_tasks", "axes_for", "check_ready"]
+__all__ = ["get_scene", "scene_names"]
 
 
 def scene_names() -> list[str]:
     """Registered scene names: the built-in families, then the LIBERO suites."""
     return [s.name for s in registered_scenes()]
-
-
-def check_ready(scene: str) -> None:
-    """Fail fast, in one line, when a scene's external install or assets are missing (LIBERO's Hub download)."""
-    get_scene(scene).check_ready()
-
-
-def tasks(scene: str) -> list[str]:
-    """Tasks of ``scene`` (the first is the default)."""
-    return list(get_scene(scene).tasks)
-
-
-def select_tasks(scene: str, task: str | None) -> list[str]:
-    """The tasks a run covers: ``[default]`` for None/"", every task for "all", else ``[task]`` (checked)."""
-    return get_scene(scene).select_tasks(task)
-
-
-def axes_for(scene: str) -> list[str]:
-    """Single axes ``scene`` supports (any '+'-composition of them works too)."""
-    return list(get_scene(scene).axes)

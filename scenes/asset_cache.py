@@ -15,15 +15,14 @@ import os
 import warnings
 
 from indgen_vla.core.protocol.plan import WARM_CELL_ENV
+from scenes.planning import scene_levels
+from scenes.registry import Scene, get_scene
 
 
-def warm(scene: str, task: str) -> None:
+def warm(scene: Scene, task: str) -> None:
     """Build and reset ``task``'s level 0 of ``scene`` (along its first axis: level 0 is T0 on every axis), no
     cameras (no GL context in the fork server), and close it: what is left is MuJoCo's asset cache."""
-    from scenes.planning import scene_levels
-    from scenes.registry import get_scene
-
-    axis = get_scene(scene).default_axis
+    axis = scene.default_axis
     env = scene_levels(scene, [axis]).make_env(task, axis, 0, cameras=(), image_size=(64, 64), max_steps=1)
     try:
         env.reset(seed=0)
@@ -33,7 +32,8 @@ def warm(scene: str, task: str) -> None:
 
 if cell := os.environ.get(WARM_CELL_ENV):
     try:  # an optimisation: a failure here must not stop the fork server (each worker then compiles cold)
-        warm(**json.loads(cell))
+        named = json.loads(cell)  # the fork server's entry: the one place here a family is looked up by name
+        warm(get_scene(named["scene"]), named["task"])
     except Exception as e:
         warnings.warn(
             f"MuJoCo's asset cache not filled in the fork server ({type(e).__name__}: {e})", stacklevel=1

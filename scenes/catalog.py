@@ -36,7 +36,7 @@ class RobosuiteScene(Scene):
         """The simulator layout of one level (imports robosuite)."""
         import scenes.layouts as layouts
 
-        return getattr(layouts, self.builder)(spec)
+        return getattr(layouts, self.builder)(spec, self.distractor_slots)
 
     def env_class(self) -> type[SceneEnv]:
         from scenes.env import SceneEnv

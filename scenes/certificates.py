@@ -28,7 +28,7 @@ from pathlib import Path
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.stats.metrics import clopper_pearson_ci
-from scenes.registry import get_scene
+from scenes.registry import Scene
 
 THRESHOLD = 0.95
 CONFIDENCE = 0.95
@@ -123,12 +123,10 @@ def tree_stamp(root: str) -> tuple[str, int]:
     return h.hexdigest(), n
 
 
-def asset_stamp(scene: str) -> dict | None:
+def asset_stamp(scene: Scene) -> dict | None:
     """What a per-machine certificate records of the asset tree it was made on (``Scene.asset_tree``): its root
     and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
-    from scenes.registry import get_scene
-
-    tree = get_scene(scene).asset_tree()
+    tree = scene.asset_tree()
     if tree is None:
         return None
     from scenes.libero.assets import tree_identity
@@ -194,7 +192,7 @@ def row_oracle_version(row: dict, cert: dict | None = None) -> int:
     return int(((cert or {}).get("oracle") or {}).get("version", UNKNOWN_VERSION))
 
 
-def current_oracle_version(scene: str) -> int | None:
+def current_oracle_version(scene: Scene) -> int | None:
     """The version of ``scene``'s oracle in this checkout (None for a scene this version no longer knows)."""
     from scenes.oracle import oracle_identity
 
@@ -226,25 +224,27 @@ def certified_levels(cert: dict) -> list[int]:
     return sorted(int(r["level"]) for r in cert["levels"] if level_status(r) == "certified")
 
 
-def certification_root(scene: str | None = None) -> Path:
+def certification_root(scene: Scene | None = None) -> Path:
     """$INDGEN_CERT_DIR, else the committed certificates (``indgen_vla.core.resources.certification_dir``) for the built-in
     scenes, else a cache folder per asset tree."""
     env = os.environ.get("INDGEN_CERT_DIR")
     if env:
         return Path(env)
-    if scene is None or get_scene(scene).committed_certificates:
+    if scene is None or scene.committed_certificates:
         from indgen_vla.core.resources import certification_dir
 
         return certification_dir()
-    sc = get_scene(scene)
-    assets, scope = sc.asset_tree(), sc.certificate_scope()  # scope "": the folder certificates had before it
+    assets, scope = (
+        scene.asset_tree(),
+        scene.certificate_scope(),
+    )  # scope "": the folder certificates had before it
     where = str(assets.resolve() if assets else "none") + (f"\0{scope}" if scope else "")
     tag = hashlib.sha1(where.encode()).hexdigest()[:12]
     return Path(os.environ.get("INDGEN_CACHE", "~/.cache/indgen")).expanduser() / "certification" / tag
 
 
 def _steps(
-    axis: AxisRef, step: float | None, preset: str | None, scene: str | None, task: str | None
+    axis: AxisRef, step: float | None, preset: str | None, scene: Scene | None, task: str | None
 ) -> dict[str, float]:
     """The component steps of ``axis`` with --step / --axes-preset over ``scene``'s (and ``task``'s) own steps."""
     from scenes.axes import get_successor, load_preset, successor_steps
@@ -252,11 +252,11 @@ def _steps(
     overrides = load_preset(preset) if preset else None
     if scene is None:
         return successor_steps(get_successor(axis, step, overrides))
-    return successor_steps(get_scene(scene).successor(axis, step, overrides, task))
+    return successor_steps(scene.successor(axis, step, overrides, task))
 
 
 def axis_dirname(
-    axis: str | AxisRef, step: float | None = None, preset: str | None = None, scene: str | None = None,
+    axis: str | AxisRef, step: float | None = None, preset: str | None = None, scene: Scene | None = None,
     task: str | None = None,
 ) -> str:  # fmt: skip
     """``axis`` at the (family's, task's) default steps, else ``axis@comp=step,...`` so other steps never overwrite
@@ -269,24 +269,24 @@ def axis_dirname(
 
 
 def cert_path(
-    scene: str, task: str | None, axis: str | AxisRef, step: float | None = None, preset: str | None = None,
+    scene: Scene, task: str | None, axis: str | AxisRef, step: float | None = None, preset: str | None = None,
     root: str | Path | None = None,
 ) -> Path:  # fmt: skip
     """The certify.json of (scene, task, axis, steps)."""
-    task = get_scene(scene).resolve_task(task)
+    task = scene.resolve_task(task)
     base = Path(root) if root is not None else certification_root(scene)
-    return base / scene / task / axis_dirname(axis, step, preset, scene, task) / "certify.json"
+    return base / scene.name / task / axis_dirname(axis, step, preset, scene, task) / "certify.json"
 
 
 def find_certification(
-    scene: str, task: str | None, axis: str | AxisRef, step: float | None = None, *, preset: str | None = None,
+    scene: Scene, task: str | None, axis: str | AxisRef, step: float | None = None, *, preset: str | None = None,
     root: str | Path | None = None,
 ) -> dict | None:  # fmt: skip
     """The certificate of (scene, task, axis) made at these component steps, or None if there is none."""
     import json
 
     axis = AxisRef.parse(axis)
-    want = _steps(axis, step, preset, scene, get_scene(scene).resolve_task(task))
+    want = _steps(axis, step, preset, scene, scene.resolve_task(task))
 
     def same_steps(cert: dict) -> bool:
         have = cert.get("steps") or {axis.name: cert.get("step")}
@@ -319,12 +319,10 @@ def find_certification(
 _SAID: set[str] = set()
 
 
-def shipped_certification(scene: str, path: Path) -> dict | None:
+def shipped_certification(scene: Scene, path: Path) -> dict | None:
     """The shipped certificate at ``path`` (``cert_path`` under ``certification_dir()``) when it was made on a tree
     listed like the user's; else None (with one line on stderr per scene when it exists but the tree differs)."""
-    from scenes.registry import get_scene
-
-    if get_scene(scene).committed_certificates:
+    if scene.committed_certificates:
         return None  # the built-ins' certificates are the committed ones already
     if not path.is_file():
         return None
@@ -333,11 +331,11 @@ def shipped_certification(scene: str, path: Path) -> dict | None:
     made = (cert.get("assets") or {}).get("listing_sha256")
     if stamp is not None and made and stamp.get("listing_sha256") == made:
         return cert
-    if scene not in _SAID:
-        _SAID.add(scene)
+    if scene.name not in _SAID:
+        _SAID.add(scene.name)
         have = (stamp or {}).get("listing_sha256", "none")
         print(
-            f"note: the shipped {scene} certificates cover the asset tree {str(made)[:12]} ('indgen setup "
+            f"note: the shipped {scene.name} certificates cover the asset tree {str(made)[:12]} ('indgen setup "
             f"libero'); yours ({str(have)[:12]}, {(stamp or {}).get('root')}) differs, so they are not used "
             f"here: run 'indgen certify' on it, or install that tree",
             file=sys.stderr,

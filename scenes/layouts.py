@@ -11,9 +11,10 @@ import numpy as np
 import scenes.objects as O
 from scenes.mujoco_geom import grasp_height
 from scenes.privileged import GoalState, PickState, SceneFacts, Targets
-from scenes.registry import get_scene
 from scenes.sim import TABLE_TOP, FreeObject, Layout
 from scenes.spec import PICK_OBJECTS, SceneSpec
+
+Slots = tuple[tuple[float, float], ...]  # a family's distractor spots (``Scene.distractor_slots``)
 
 CLUTTER_SLOTS = [
     (-0.045, 0.10),
@@ -28,8 +29,7 @@ def _grasp_frac(kind: str) -> float:
     return PICK_OBJECTS[kind][1] if kind in PICK_OBJECTS else 0.5
 
 
-def _distractors(spec: SceneSpec) -> list[tuple[object, tuple[float, float, float]]]:
-    slots = get_scene(spec.scene).distractor_slots
+def _distractors(spec: SceneSpec, slots: Slots) -> list[tuple[object, tuple[float, float, float]]]:
     if spec.distractors > len(slots):
         from indgen_vla.core.errors import InfeasibleLevelError
 
@@ -53,7 +53,7 @@ def _pick(spec: SceneSpec, x0: float = 0.0, y0: float = 0.0, z: float = TABLE_TO
     )  # fmt: skip
 
 
-def pick_place_layout(spec: SceneSpec) -> Layout:
+def pick_place_layout(spec: SceneSpec, slots: Slots) -> Layout:
     """LIBERO-Object style: the pick object, a basket, two dressing objects, visual distractors."""
     frac = _grasp_frac(spec.pick.kind)
     free = [
@@ -87,7 +87,7 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
 
     return Layout(
         free=free,
-        static=_distractors(spec),
+        static=_distractors(spec, slots),
         pick="pick",
         goal="goal",
         robot_back=spec.robot_back,
@@ -97,7 +97,7 @@ def pick_place_layout(spec: SceneSpec) -> Layout:
     )
 
 
-def stack_layout(spec: SceneSpec) -> Layout:
+def stack_layout(spec: SceneSpec, slots: Slots) -> Layout:
     """Stack: a pick block and a target block raised by ``stack_in`` inches of riser plates."""
     n_plates = int(round(spec.stack_in / 0.25))
     if abs(n_plates * 0.25 - spec.stack_in) > 1e-6:
@@ -138,7 +138,7 @@ def stack_layout(spec: SceneSpec) -> Layout:
 
     return Layout(
         free=free,
-        static=_distractors(spec),
+        static=_distractors(spec, slots),
         pick="pick",
         goal="goal",
         robot_back=spec.robot_back,
@@ -147,7 +147,7 @@ def stack_layout(spec: SceneSpec) -> Layout:
     )
 
 
-def cabinet_layout(spec: SceneSpec) -> Layout:
+def cabinet_layout(spec: SceneSpec, slots: Slots) -> Layout:
     """RoboCasa style: an object in a cabinet compartment (with clutter) to be put on the table."""
     if spec.clutter > len(CLUTTER_SLOTS):
         from indgen_vla.core.errors import InfeasibleLevelError
@@ -179,7 +179,7 @@ def cabinet_layout(spec: SceneSpec) -> Layout:
             grasp_z=grasp_height(pick.bottom, pick.top, frac),
         )
 
-    static = [(cab, (CAB_X, cab_y, TABLE_TOP + half_h))] + _distractors(spec)
+    static = [(cab, (CAB_X, cab_y, TABLE_TOP + half_h))] + _distractors(spec, slots)
     facts = SceneFacts(fixture_centre=centre, fixture_half=half)
     return Layout(
         free=free,

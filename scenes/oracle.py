@@ -13,12 +13,16 @@ import hashlib
 import inspect
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
 from scenes.privileged import PrivilegedState, privileged_of
+
+if TYPE_CHECKING:
+    from scenes.registry import Scene
 
 # Gripper pointing straight down, fingers closing along world y (the Panda's home orientation, untilted).
 R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -133,23 +137,21 @@ class Phase(enum.Enum):
         return o._goto(s, target, -1.0, speed=0.5)
 
 
-def oracle_for(scene: str | None = None):
+def oracle_for(scene: Scene | None = None):
     """``standin:oracle``: the privileged oracle of ``scene``'s family (``Scene.oracle``; the tabletop one when no
     scene is named)."""
     return OraclePolicy() if scene is None else oracle_class(scene)()
 
 
-def oracle_class(scene: str) -> type:
+def oracle_class(scene: Scene) -> type:
     """The class of ``scene``'s oracle (``Scene.oracle``), not instantiated."""
     import importlib
 
-    from scenes.registry import get_scene
-
-    module, _, attr = get_scene(scene).oracle.partition(":")
+    module, _, attr = scene.oracle.partition(":")
     return getattr(importlib.import_module(module), attr)
 
 
-def oracle_identity(scene: str) -> dict:
+def oracle_identity(scene: Scene) -> dict:
     """What a certificate records of the oracle that made it: its class, its hand-bumped ``version`` and
     a hash of its source (``oracle_code_hash``)."""
     cls = oracle_class(scene)
@@ -175,7 +177,7 @@ def oracle_code_hash(cls: type) -> str:
     return h.hexdigest()[:16]
 
 
-def oracle_scripts(scene: str, task: str) -> bool:
+def oracle_scripts(scene: Scene, task: str) -> bool:
     """Whether ``scene``'s oracle has a script for ``task`` (a family's oracle class may list its ``tasks``; one
     that lists none scripts every task). A task without one stays uncertified: no certificate, evaluate warns."""
     tasks = getattr(oracle_class(scene), "tasks", None)

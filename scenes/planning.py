@@ -22,7 +22,6 @@ from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
 from indgen_vla.core.protocol.progression import parse_levels
 from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
-from scenes.registry import configure_scene, get_scene
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
@@ -37,47 +36,51 @@ class SceneLevels:
     Implements ``indgen_vla.core.protocol.plan.LevelBuilder``.
     """
 
-    scene: str
+    # the family as the command configured it (RoboCasa365's split, registries): pickled, the workers build with it
+    family: Scene
     successors: Mapping[str, Successor] = field(default_factory=dict)
     # axis -> task -> successor, for an axis whose family resolves its step per task (RoboCasa365's pick_x)
     task_successors: Mapping[str, Mapping[str, Successor]] = field(default_factory=dict)
-    # the family's options as the command resolved them (RoboCasa365's split, registries): the workers build with these
-    options: tuple[tuple[str, str], ...] = ()
 
-    def family(self) -> Scene:
-        """The scene family under the plan's options (``Scene.configured``), in the driver and in every worker."""
-        sc = get_scene(self.scene)
-        return sc.configured(dict(self.options)) if self.options else sc
+    @property
+    def scene(self) -> str:
+        """The family's registered name (what records and the manifest name)."""
+        return self.family.name
+
+    @property
+    def options(self) -> tuple[tuple[str, str], ...]:
+        """The family's options as the command resolved them (``Scene.options``), sorted."""
+        return tuple(sorted(self.family.options().items()))
 
     @property
     def preload(self) -> tuple[str, ...]:
-        return tuple(self.family().preload)
+        return tuple(self.family.preload)
 
     @property
     def env_spec(self):
         """The family's observation/action contract (``indgen_vla.core.protocol.interface.EnvSpec``): cameras, state, action."""
-        return self.family().env_spec
+        return self.family.env_spec
 
     @property
     def placeholder_assets(self) -> bool:
         """The family simulates placeholder assets (boxes): an image policy's rate there is not a measurement."""
-        return bool(self.family().placeholder_assets())
+        return bool(self.family.placeholder_assets())
 
     @property
     def action_dim(self) -> int:
         """The family's action size (``EnvSpec.action_dim``: 7 on the tabletop families, 12 on RoboCasa365)."""
-        return int(self.family().env_spec.action_dim)
+        return int(self.family.env_spec.action_dim)
 
     def check_ready(self) -> None:
         """Raise the family's one-line missing-install or missing-assets ``SceneError`` (e.g. LIBERO's asset tree)
         before any environment is built; resolving names, axes and levels never needs it."""
-        self.family().check_ready()
+        self.family.check_ready()
 
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
     ) -> BaseSceneEnv:  # fmt: skip
-        return self.family().make_env(task, self.successor(task, axis), level, cameras=cameras,
+        return self.family.make_env(task, self.successor(task, axis), level, cameras=cameras,
                                       image_size=image_size, max_steps=max_steps)  # fmt: skip
 
     def successor(self, task: str, axis: str) -> Successor:
@@ -85,7 +88,7 @@ class SceneLevels:
         return self.task_successors.get(axis, {}).get(task, self.successors[axis])
 
     def describe(self) -> dict[str, Any]:
-        sc = self.family()
+        sc = self.family
         return {
             "scene": self.scene,
             "family": f"{type(sc).__module__}.{type(sc).__qualname__}",
@@ -107,7 +110,7 @@ class SceneLevels:
     def worker_environment(self) -> dict[str, str]:
         """The plan's choices as the environment variables the family reads (``Scene.worker_environment``), for
         simulator actors on nodes whose own environment says otherwise."""
-        return self.family().worker_environment()
+        return self.family.worker_environment()
 
     def render_backend(self) -> str:
         """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""
@@ -136,13 +139,13 @@ def task_steps(per_task: Mapping[str, Successor]) -> dict[str, dict[str, float]]
 
 
 def scene_levels(
-    scene: str, axes: Sequence[str | AxisRef], step: float | None = None, preset: str | None = None,
+    scene: Scene, axes: Sequence[str | AxisRef], step: float | None = None, preset: str | None = None,
     tasks: Sequence[str] = (),
 ) -> SceneLevels:  # fmt: skip
     """A builder for ``axes`` of ``scene`` without a full plan (T0 builds, benchmarks, tests that drive workers
-    directly); with ``tasks``, each task's own successor where the family's steps differ by task; the family's
-    options as the command configured them (``configure_scene``), else as the environment gives them."""
-    sc = get_scene(scene)
+    directly); with ``tasks``, each task's own successor where the family's steps differ by task; ``scene`` as the
+    command configured it (``Scene.configured``), else with the options the environment gives."""
+    sc = scene.configured({})
     overrides = load_preset(preset) if preset else None
     return _levels(sc, [AxisRef.parse(a) for a in axes], tasks, step, overrides)
 
@@ -161,11 +164,11 @@ def _levels(
         successors[ref.name] = by_task[tasks[0]]
         if any(s != shared for s in by_task.values()):
             per_task[ref.name] = by_task
-    return SceneLevels(sc.name, successors, per_task, tuple(sorted(sc.options().items())))
+    return SceneLevels(sc, successors, per_task)
 
 
 def resolve_scene_plan(
-    scene: str,
+    scene: Scene,
     task: str | None,
     axes: Sequence[str | AxisRef],
     levels: str | Sequence[int] | None = None,
@@ -177,7 +180,7 @@ def resolve_scene_plan(
     """Resolve a run's scene side once (one-line errors for unknown names, bad levels, condition 2).
 
     Args:
-        scene: a registered scene name (``indgen scenes``).
+        scene: a scene family (``scenes.registry.get_scene``), configured or not.
         task: a task name, ``"all"``, or None for the scene's default task.
         axes: axis names or compositions (or their parsed ``AxisRef``), in the run's order.
         levels: the ``--levels`` text (``-3:3``, ``0,2``) or list, None for each axis's default range.
@@ -189,12 +192,14 @@ def resolve_scene_plan(
             or absent: the family's default), resolved here once; the certificates looked up and the builder's
             workers use the same.
     """
-    with configure_scene(scene, options):  # unknown name: one line suggesting the closest
-        return _resolve(scene, task, axes, levels, step, preset, certificates)
+    sc = scene.configured(
+        dict(options or {})
+    )  # a new value: the certificates and the workers read one choice
+    return _resolve(sc, task, axes, levels, step, preset, certificates)
 
 
 def _resolve(
-    scene: str, task: str | None, axes: Sequence[str | AxisRef], levels: str | Sequence[int] | None,
+    sc: Scene, task: str | None, axes: Sequence[str | AxisRef], levels: str | Sequence[int] | None,
     step: float | None, preset: str | None, certificates: bool,
 ) -> ScenePlan:  # fmt: skip
     """``resolve_scene_plan``'s work, with the family configured."""
@@ -210,7 +215,6 @@ def _resolve(
     from scenes.oracle import oracle_scripts
 
     # names, axes and levels only: no assets needed (building an env does: SceneLevels.check_ready)
-    sc = get_scene(scene)
     refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups
     for ref in refs:  # every component one of the scene's axes, before select_tasks reads the axes
         sc.check_axis(ref)
@@ -225,12 +229,12 @@ def _resolve(
         planned[name] = tuple(parse_levels(levels, specs[name]))
         for t in tasks:  # condition 2 (strictly harder), before any episode runs; one line if violated
             sc.check_progression(t, builder.successor(t, name), overridden)
-    cells, oracle_version = [], current_oracle_version(scene)
+    cells, oracle_version = [], current_oracle_version(sc)
     for ref in refs:
         for t in tasks:
             successor = builder.successor(t, ref.name)
-            cert = find_certification(scene, t, ref, step, preset=preset) if certificates else None
-            scripted = cert is not None or oracle_scripts(scene, t)
+            cert = find_certification(sc, t, ref, step, preset=preset) if certificates else None
+            scripted = cert is not None or oracle_scripts(sc, t)
             failed = set(infeasible_levels(cert)) if cert else set()
             certified = set(certified_levels(cert)) if cert else set()
             rows = {int(r["level"]): r for r in cert["levels"]} if cert else {}
@@ -252,5 +256,5 @@ def _resolve(
                     made = EXHAUSTIVE  # LIBERO: a row that played all its fixed states, ledger or not
                 cells.append(Cell(t, ref.name, k, param, status, evidence, key, made))
     steps = {a: task_steps(by_task) for a, by_task in builder.task_successors.items()}
-    return ScenePlan(scene, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,
+    return ScenePlan(sc.name, tuple(tasks), specs, planned, tuple(cells), builder, task_steps=steps,
                      refs={r.name: r for r in refs})  # fmt: skip

@@ -10,8 +10,7 @@ Importing this is cheap (no simulator); ``make_env`` imports the simulator backe
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
@@ -29,7 +28,6 @@ if TYPE_CHECKING:
 DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
 
 _SCENES: dict[str, Scene] = {}
-_CONFIGURED: dict[str, Scene] = {}  # the families a running command configured (``configure_scene``)
 
 
 class Scene:
@@ -96,6 +94,13 @@ class Scene:
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
+
+    def __eq__(self, other: object) -> bool:
+        """A family is a value: the same class under the same options (two plans' builders compare equal)."""
+        return type(other) is type(self) and other.options() == self.options()  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash((type(self), tuple(sorted(self.options().items()))))
 
     @property
     def default_axis(self) -> str:
@@ -175,8 +180,8 @@ class Scene:
             )
 
     def configured(self, given: Mapping[str, Any]) -> Scene:
-        """The family under the options ``given`` (None: not given, the family's default), resolved once: what a
-        command runs with (``configure_scene``) and a plan's builder carries to workers (``options``)."""
+        """The family under the options ``given`` (None: not given, the family's default) as a new value, resolved
+        once: what a command's plan holds and its builder carries to workers."""
         self.check_options(given)
         return self
 
@@ -314,31 +319,15 @@ def register_scene[T: type[Scene]](cls: T) -> T:
     return cls
 
 
-def get_scene(name: str) -> Scene:
-    """The registered scene ``name`` (as the running command configured it, ``configure_scene``); an unknown name
-    is one line suggesting the closest ones."""
+def get_scene(name: str, options: Mapping[str, Any] | None = None) -> Scene:
+    """The registered scene ``name``, configured with a command's ``options`` when given (``Scene.configured``: a
+    new value, RoboCasa365's split); an unknown name is one line suggesting the closest ones. Called at the edges
+    only (the CLI, the API, a worker's entry): everything inside takes the object."""
     try:
-        configured = _CONFIGURED.get(name)
-        return configured if configured is not None else _SCENES[name]
+        sc = _SCENES[name]
     except (KeyError, TypeError):
         raise UnknownNameError("scene", str(name), list(_SCENES)) from None
-
-
-@contextlib.contextmanager
-def configure_scene(name: str, given: Mapping[str, Any] | None = None) -> Iterator[Scene]:
-    """Within the block ``get_scene(name)`` is the family under the command's options ``given`` (None: not given),
-    resolved once here (RoboCasa365: the flags, else the environment, else the defaults), so the plan, the
-    certificates and the manifest read one choice; the plan's builder carries it to workers and Ray actors."""
-    sc = get_scene(name).configured(dict(given or {}))
-    before = _CONFIGURED.get(name)
-    _CONFIGURED[name] = sc
-    try:
-        yield sc
-    finally:
-        if before is None:
-            _CONFIGURED.pop(name, None)
-        else:
-            _CONFIGURED[name] = before
+    return sc if options is None else sc.configured(dict(options))
 
 
 def registered_scenes() -> list[Scene]:

@@ -4,14 +4,17 @@ table of ``indgen axes``. Importing this is cheap."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
 
-def scene_axis_rows(scene: str) -> list[dict]:
+if TYPE_CHECKING:
+    from scenes.registry import Scene
+
+
+def scene_axis_rows(sc: Scene) -> list[dict]:
     """One row per (axis, group of tasks that share its step and range) of ``scene``, in the family's axis order."""
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import resolve_alias
-    from scenes.registry import get_scene
 
-    sc = get_scene(scene)
     rows: list[dict] = []
     for axis in map(AxisRef.parse, sc.axes):
         try:

@@ -9,6 +9,8 @@ import json
 import os
 import time
 
+from scenes.registry import get_scene
+
 
 class CpuMeter:
     """CPU seconds of this process and of every worker process it started (sampled, as workers exit on close),
@@ -55,7 +57,7 @@ def runner_config(scene: str, cameras, hw, max_steps: int, history_steps: int = 
     from indgen_vla.app.engine.rollout import RunnerConfig
     from scenes.planning import scene_levels
 
-    return RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
+    return RunnerConfig(levels=scene_levels(get_scene(scene), ["pick_y"]), cameras=tuple(cameras), image_size=tuple(hw),
                         max_steps=max_steps, privileged=False, history_steps=history_steps)  # fmt: skip
 
 
@@ -65,7 +67,7 @@ def level0_jobs(scene: str, episodes: int) -> tuple[str, list]:
     import scenes
     from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
-    task = scenes.tasks(scene)[0]
+    task = list(scenes.get_scene(scene).tasks)[0]
     cfg = EvalConfig.from_flat(policy="bench", scene=scene, axes=("pick_y",), out="-", episodes=episodes)
     return task, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
 

@@ -26,6 +26,8 @@ from pathlib import Path
 from _engine_box import CpuMeter, level0_jobs, model_alone, scaling
 from _engine_profile import profile_coordinator, profile_worker
 
+from scenes.registry import get_scene
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
@@ -38,7 +40,7 @@ def bare_loop(jobs, scene, policy, replan, max_steps) -> float:
     env = None
     for job in jobs:
         if env is None:
-            env = scene_levels(scene, [job.axis]).make_env(job.task, job.axis, job.level, cameras=(),
+            env = scene_levels(get_scene(scene), [job.axis]).make_env(job.task, job.axis, job.level, cameras=(),
                                                            image_size=(128, 128), max_steps=max_steps)  # fmt: skip
         obs, _ = env.reset(seed=job.seed)
         policy.reset(obs.instruction, seed=job.seed)
@@ -64,7 +66,7 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False
     from scenes.planning import scene_levels
 
     rc = RunnerConfig(
-        levels=scene_levels(scene, ["pick_y"]),
+        levels=scene_levels(get_scene(scene), ["pick_y"]),
         cameras=(),
         image_size=(64, 64),
         max_steps=max_steps,
@@ -107,7 +109,7 @@ def pipeline_bench(
         policy = load_policy(f"lerobot:{path}", scene=scene, device=device)
         cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
         # calibration: one step vs one act
-        env = scene_levels(scene, ["pick_y"]).make_env(
+        env = scene_levels(get_scene(scene), ["pick_y"]).make_env(
             task, "pick_y", 0, cameras=cams, image_size=hw, max_steps=None
         )
         obs, _ = env.reset(seed=0)
@@ -123,7 +125,7 @@ def pipeline_bench(
         t_step = (time.perf_counter() - t0) / 10
         env.close()
         rc = RunnerConfig(
-            levels=scene_levels(scene, ["pick_y"]),
+            levels=scene_levels(get_scene(scene), ["pick_y"]),
             cameras=cams,
             image_size=hw,
             max_steps=max_steps,
@@ -217,7 +219,7 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
         replan = policy.spec.replan_steps
         for _ in range(repeats):
             for lazy in (False, True):
-                rc = RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=policy.spec.cameras, image_size=hw, max_steps=max_steps, privileged=False, lazy_render=lazy)  # fmt: skip
+                rc = RunnerConfig(levels=scene_levels(get_scene(scene), ["pick_y"]), cameras=policy.spec.cameras, image_size=hw, max_steps=max_steps, privileged=False, lazy_render=lazy)  # fmt: skip
                 records: list = []
                 t0 = time.perf_counter()
                 with CpuMeter() as meter:
@@ -250,8 +252,8 @@ def gil_overlap(scene: str, size: int, n: int) -> dict:
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
-    task = scenes.tasks(scene)[0]
-    levels = scene_levels(scene, ["pick_y"])  # level 0: T0
+    task = list(scenes.get_scene(scene).tasks)[0]
+    levels = scene_levels(get_scene(scene), ["pick_y"])  # level 0: T0
     out = {}
     with tempfile.TemporaryDirectory() as d:
         policy = load_policy(f"lerobot:{build_tiny_checkpoint('act', d, cameras=('agentview',), size=size)}")
@@ -403,7 +405,7 @@ def main() -> None:
     policy = load_policy(args.policy)
     replan = policy.spec.replan_steps
     # warm-up: imports and first model build
-    scene_levels(args.scene, ["pick_y"]).make_env(task, "pick_y", 0, cameras=(), image_size=(128, 128),
+    scene_levels(get_scene(args.scene), ["pick_y"]).make_env(task, "pick_y", 0, cameras=(), image_size=(128, 128),
                                                   max_steps=None).close()  # fmt: skip
     steps = len(jobs) * max_steps
     times: dict[str, list[float]] = {"bare": [], "1w": [], "2w": [], "start_1w": [], "start_2w": []}

@@ -25,6 +25,8 @@ import sys
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -36,7 +38,7 @@ def _jobs(episodes: int):
     import scenes
     from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
-    task = scenes.tasks("pick_place")[0]
+    task = list(scenes.get_scene("pick_place").tasks)[0]
     cfg = EvalConfig.from_flat(policy="standin:oracle", scene="pick_place", axes=("pick_y",), out="-",
                                episodes=episodes, workers=2, backend="ray")  # fmt: skip
     return cfg, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
@@ -224,7 +226,7 @@ def main() -> None:
     from scenes.planning import scene_levels
 
     cfg, jobs = _jobs(args.episodes)
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64),
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=args.max_steps, privileged=True)  # fmt: skip
     meta = RunMeta("bench", "standin:oracle", "", "pick_place")
     replan = OraclePolicy.spec.replan_steps

@@ -127,7 +127,7 @@ def child(scene: str, size: int, frames: int, repeats: int, only_default: bool) 
     from scenes.registry import get_scene
 
     axis = get_scene(scene).default_axis  # level 0: T0 on every axis
-    plan = resolve_scene_plan(scene, None, (axis,), [0])
+    plan = resolve_scene_plan(get_scene(scene), None, (axis,), [0])
     env = plan.builder.make_env(plan.tasks[0], axis, 0, cameras=(), image_size=(128, 128), max_steps=10**6)
     try:
         env.reset(seed=0)

@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.registry import get_scene
+
 BARE = r"""
 import json, sys, time
 import numpy as np
@@ -66,7 +68,7 @@ def proxy(task: str, steps: int, cameras: tuple[str, ...], split: str) -> dict:
     options = {"split": split, "obj_registries": ",".join(DEFAULT_REGISTRIES)}
     out = {}
     t = time.perf_counter()
-    plan = resolve_scene_plan("robocasa", task, ("base_y",), [0], options=options)
+    plan = resolve_scene_plan(get_scene("robocasa"), task, ("base_y",), [0], options=options)
     env = plan.builder.make_env(task, "base_y", 0, cameras=cameras, image_size=(256, 256), max_steps=None)
     try:
         env.reset(seed=3)

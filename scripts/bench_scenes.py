@@ -132,7 +132,7 @@ def _bare(env, actions, render: bool, fast: bool = True) -> tuple[float, float]:
 def t0_env(scene: str, cameras: tuple[str, ...], image_size: tuple[int, int]):
     """``scene``'s T0 (level 0 of its first axis, its first task), built as a run builds it, without a step limit."""
     sc = get_scene(scene)
-    return scene_levels(scene, [sc.default_axis]).make_env(
+    return scene_levels(get_scene(scene), [sc.default_axis]).make_env(
         sc.resolve_task(None), sc.default_axis, 0, cameras=cameras, image_size=image_size, max_steps=10**6
     )
 

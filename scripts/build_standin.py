@@ -25,6 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")  # lerobot re-enables them per saved episode
@@ -174,7 +176,7 @@ def main() -> int:
         shutil.rmtree(d, ignore_errors=True)
     noise = HumanNoise()
     log(f"recording {a.n_demos} noisy-oracle T0 demos of {SCENE} (state-only) into {demos}")
-    stats = record_demos(SCENE, demos, a.n_demos, seed=a.demo_seed, cameras=(), noise=noise)
+    stats = record_demos(get_scene(SCENE), demos, a.n_demos, seed=a.demo_seed, cameras=(), noise=noise)
     log(
         f"  {stats['episodes']} episodes, {stats['frames']} frames, oracle keep rate {stats['success_rate']:.2f}"
     )

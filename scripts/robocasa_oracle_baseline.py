@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -82,7 +84,7 @@ def main() -> int:
         return 2
     data = json.loads(args.out.read_text()) if args.out.is_file() else {"tasks": {}}
     oracle = {
-        k: v for k, v in oracle_identity("robocasa").items() if k in ("name", "version")
+        k: v for k, v in oracle_identity(get_scene("robocasa")).items() if k in ("name", "version")
     }  # not the code hash
     data.update(scene="robocasa", split=SPLIT, seed=0, oracle=oracle, tree_version=VERSION)
     for task in tasks:
@@ -90,7 +92,9 @@ def main() -> int:
         rows = {}
         for level in levels:
             t0 = time.time()
-            results = baseline_episodes("robocasa", task, axis, level, EPISODES, options={"split": SPLIT})
+            results = baseline_episodes(
+                get_scene("robocasa"), task, axis, level, EPISODES, options={"split": SPLIT}
+            )
             rows[str(level)] = level_entry(results)
             print(f"{task} {axis} {level}: {rows[str(level)]} ({time.time() - t0:.0f} s)", flush=True)
         data["tasks"][task] = {"axis": axis, "levels": rows}

@@ -16,6 +16,8 @@ import re
 import statistics
 import time
 
+from scenes.registry import get_scene
+
 
 def measure(task: str, seeds: list[int]) -> dict:
     """Each seed's range, and per level the episode's offset and window, or why the kitchen holds no level."""
@@ -25,7 +27,7 @@ def measure(task: str, seeds: list[int]) -> dict:
 
     rows: dict[int, dict] = {s: {"levels": {}} for s in seeds}
     for level in range(5):
-        plan = resolve_scene_plan("robocasa", task, ("pick_x",), [level])
+        plan = resolve_scene_plan(get_scene("robocasa"), task, ("pick_x",), [level])
         env = plan.builder.make_env(task, "pick_x", level, cameras=(), image_size=(128, 128), max_steps=None)
         try:
             for seed in seeds:

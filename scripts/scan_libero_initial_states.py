@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 SCENE = "libero_object"
 MOVED = 0.01  # a state whose pick object or basket ends this far (m) from its level pose: thrown, not settled
 
@@ -60,7 +62,7 @@ def scan_level(task: str, axis: str, level: int, states: int, steps: int) -> dic
     from scenes.planning import resolve_scene_plan
 
     t0 = time.time()
-    plan = resolve_scene_plan(SCENE, task, (axis,), [level])
+    plan = resolve_scene_plan(get_scene(SCENE), task, (axis,), [level])
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(64, 64), max_steps=None)
     try:
         seen = [watch(env, i, steps) for i in range(states)]
@@ -117,7 +119,7 @@ def main(argv=None) -> int:
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import get_successor
 
-    tasks = scenes.tasks(SCENE) if a.tasks == "all" else tuple(a.tasks.split(","))
+    tasks = list(scenes.get_scene(SCENE).tasks) if a.tasks == "all" else tuple(a.tasks.split(","))
     done = set()
     if out.is_file():
         done = {

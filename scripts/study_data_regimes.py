@@ -22,6 +22,8 @@ import threading
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
@@ -87,7 +89,7 @@ def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
     if not (demos / ".done").is_file():
         shutil.rmtree(demos, ignore_errors=True)
         log(f"recording {n_demos} T0 demos with object poses into {demos}")
-        record_demos(SCENE, demos, n_demos, seed=0, cameras=(), objects=True)
+        record_demos(get_scene(SCENE), demos, n_demos, seed=0, cameras=(), objects=True)
         (demos / ".done").touch()
     if not (mg / STATS_FILE).is_file():  # a generation killed half way resumes
         log(f"generating {n_mg} MimicGen T0 episodes from the demos into {mg}")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 DOC = Path(__file__).resolve().parents[1] / "docs" / "results" / "data_regimes.md"
 
 
@@ -44,7 +46,7 @@ def feasibility(results: dict, axes: list[str]) -> str:
             manifest["plan"]["tasks"],
             manifest["plan"]["levels"][axis],
         )
-        cert = find_certification(scene, task, axis)
+        cert = find_certification(get_scene(scene), task, axis)
         ok = set(certified_levels(cert)) if cert else set()
         missing = [k for k in levels if k not in ok]
         parts.append(f"`{axis}` ({scene}/{task}): " + ("every evaluated level certified" if not missing else

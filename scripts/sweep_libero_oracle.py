@@ -19,6 +19,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from scenes.registry import get_scene
+
 SCENE = "libero_object"
 
 
@@ -48,12 +50,12 @@ def run_cell(job: tuple) -> dict:
 
     t0 = time.time()
     try:
-        plan = resolve_scene_plan(SCENE, task, (axis,), [level])
+        plan = resolve_scene_plan(get_scene(SCENE), task, (axis,), [level])
         env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=None)
     except Exception as e:  # a level LIBERO cannot build is a finding, not a crash of the sweep
         return {"task": task, "axis": axis, "level": level, "n": 0, "successes": 0, "episodes": [], "seed": seed,
                 "error": f"{type(e).__name__}: {e}", "wall_s": round(time.time() - t0, 1)}  # fmt: skip
-    policy = oracle_for(SCENE)
+    policy = oracle_for(get_scene(SCENE))
     eps = []
     try:
         for i in range(episodes):
@@ -154,7 +156,7 @@ def main(argv=None) -> int:
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import get_successor
 
-    tasks = scenes.tasks(SCENE) if a.tasks == "all" else tuple(a.tasks.split(","))
+    tasks = list(scenes.get_scene(SCENE).tasks) if a.tasks == "all" else tuple(a.tasks.split(","))
     have = done_cells(out)
     jobs = []
     for axis in a.axes.split(","):

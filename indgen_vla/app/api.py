@@ -132,18 +132,18 @@ def certify(
     ``split`` / ``obj_registries``: RoboCasa365's (``--split`` / ``--obj-registries``)."""
     from indgen_vla.app.certify.run import certify as run_certify
     from scenes.certificates import cert_path
-    from scenes.registry import configure_scene
+    from scenes.registry import get_scene
 
-    options = {"split": split, "obj_registries": obj_registries}
-    with configure_scene(scene, options):  # the certificates' folder follows the choice
-        path = (
-            Path(os.fspath(out)) / "certify.json"
-            if out is not None
-            else cert_path(scene, task, axis, step, axes_preset)
-        )
-        return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                           max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path,
-                           options=options)  # fmt: skip
+    # the family configured once (the certificates' folder follows the choice), handed on
+    sc = get_scene(scene, {"split": split, "obj_registries": obj_registries})
+    path = (
+        Path(os.fspath(out)) / "certify.json"
+        if out is not None
+        else cert_path(sc, task, axis, step, axes_preset)
+    )
+    return run_certify(sc, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                       max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset,
+                       out=path)  # fmt: skip
 
 
 def import_lerobot_eval(

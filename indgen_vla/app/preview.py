@@ -20,7 +20,8 @@ from indgen_vla.core.reporting.figures import contact_sheet, unit_name
 from indgen_vla.core.runs.records import atomic_savefig
 from scenes.axes import get_path, shifts, spec_at_level
 from scenes.env import check_env_args
-from scenes.registry import get_scene
+from scenes.planning import resolve_scene_plan
+from scenes.registry import Scene
 
 FORMATS = (".png", ".pdf", ".svg", ".jpg")  # what the sheet is written as, by --out's suffix
 
@@ -29,7 +30,7 @@ FORMATS = (".png", ".pdf", ".svg", ".jpg")  # what the sheet is written as, by -
 class PreviewRequest:
     """What ``indgen preview`` renders; checked on construction, never corrected silently."""
 
-    scene: str
+    scene: Scene  # the family as the command configured it (RoboCasa365's --split, --obj-registries)
     axes: tuple[str, ...]
     out: Path
     task: str | None = None
@@ -40,13 +41,8 @@ class PreviewRequest:
     size: int = 256
     episode: int = 0
     seed: int = 0
-    split: str | None = None  # RoboCasa365's split and object registries (--split, --obj-registries)
-    obj_registries: str | None = None
 
     def __post_init__(self) -> None:
-        get_scene(self.scene).check_options(
-            self.scene_options()
-        )  # a family without them, a bad value: one line
         if not self.axes:
             raise ConfigError("--axis is empty; name an axis, e.g. --axis pick_y (see 'indgen axes')")
         if not 8 <= self.size <= 2048:
@@ -60,10 +56,6 @@ class PreviewRequest:
                 f"--out {self.out}: the sheet is written as {', '.join(FORMATS[:-1])} or {FORMATS[-1]}; end the "
                 f"name with one of them, e.g. --out {self.out.with_suffix('.png')}"
             )
-
-    def scene_options(self) -> dict[str, str | None]:
-        """The scene family's options the preview sets (None: the family's default)."""
-        return {"split": self.split, "obj_registries": self.obj_registries}
 
 
 @dataclass(frozen=True)
@@ -84,7 +76,7 @@ def level_caption(plan: ScenePlan, task: str, axis: str, level: int) -> str:
     parts = shifts(successor)
     if len(parts) == 1:
         return f"{head}\n{axis} = {_value(plan.cell(task, axis, level).param, plan.axes[axis].unit)}"
-    spec = spec_at_level(get_scene(plan.scene).base(task), successor, level)
+    spec = spec_at_level(plan.builder.family.base(task), successor, level)
     return "\n".join(
         [head, *(f"{p.axis.name} = {_value(get_path(spec, p.axis.field), p.axis.unit)}" for p in parts)]
     )
@@ -116,10 +108,7 @@ def render_level(
 
 def preview_tiles(req: PreviewRequest) -> tuple[ScenePlan, list[Tile]]:
     """Resolve the request as ``evaluate`` would and render every level of every axis, in level order."""
-    from scenes.planning import resolve_scene_plan
-
-    plan = resolve_scene_plan(req.scene, req.task, req.axes, req.levels, req.step, req.preset,
-                              options=req.scene_options())  # fmt: skip
+    plan = resolve_scene_plan(req.scene, req.task, req.axes, req.levels, req.step, req.preset)
     plan.builder.check_ready()
     cameras = plan.builder.env_spec.cameras
     camera = check_env_args((req.camera or cameras[0],), None, cameras)[0]
@@ -131,7 +120,7 @@ def preview_tiles(req: PreviewRequest) -> tuple[ScenePlan, list[Tile]]:
                 img = render_level(plan, task, axis, k, req, camera)
                 tiles.append(Tile(axis, k, level_caption(plan, task, axis, k), img))
     finally:
-        if get_scene(plan.scene).runtime is not None:  # a family in its own venv: stop its idle worker now
+        if plan.builder.family.runtime is not None:  # a family in its own venv: stop its idle worker now
             from scenes.external import close_idle_workers
 
             close_idle_workers()

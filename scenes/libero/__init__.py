@@ -17,12 +17,17 @@ from typing import TYPE_CHECKING, ClassVar
 from indgen_vla.core.errors import ConfigError, SceneError
 from scenes.axes import shifts
 from scenes.predicates import BddlGoal
-from scenes.registry import Scene, get_scene, register_scene
+from scenes.registry import Scene, register_scene
 from scenes.spec import Item
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
     from scenes.libero.env import LiberoSceneEnv
+
+
+_SLOT_COUNT: dict[
+    str, int
+] = {}  # each suite's number of distractor slots (``LiberoSuite.__init_subclass__``)
 
 
 @dataclass(frozen=True)
@@ -36,7 +41,7 @@ class LiberoSpec:
     distractors: int = 0
 
     def __post_init__(self) -> None:
-        n = len(get_scene(self.scene).distractor_slots)
+        n = _SLOT_COUNT[self.scene]
         if not isinstance(self.distractors, int) or not 0 <= self.distractors <= n:
             raise ConfigError(f"scene {self.scene}: distractors must be 0..{n}, got {self.distractors!r}")
 
@@ -61,6 +66,12 @@ class LiberoSuite(Scene):
 
     task_pattern: ClassVar[str]
     max_steps = 280
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        """A suite's spec checks its distractors against the suite's slots (a spec carries the suite's name)."""
+        super().__init_subclass__(**kwargs)
+        _SLOT_COUNT[cls.name] = len(cls.distractor_slots)
+
     success_predicate = BddlGoal()  # the one predicate at every level: LIBERO's own BDDL goal
     committed_certificates = False  # certificates depend on the user's LIBERO asset tree
     fixed_initial_states = "LIBERO's 50 fixed initial states (episode % 50)"
@@ -76,7 +87,7 @@ class LiberoSuite(Scene):
         """LIBERO's tasks of the suite in benchmark order, by short name (needs hf-libero, not its assets)."""
         from scenes.libero.bddl import short_name, suite_task_names
 
-        return tuple(short_name(self.name, f) for f in suite_task_names(self.name))
+        return tuple(short_name(self.task_pattern, f) for f in suite_task_names(self.name))
 
     def listed_tasks(self) -> tuple[str, ...]:
         return self.tasks if available() else ()
@@ -85,7 +96,7 @@ class LiberoSuite(Scene):
         """The parsed BDDL problem of ``task`` (``scenes.libero.bddl.LiberoTask``)."""
         from scenes.libero.bddl import load_task
 
-        return load_task(self.name, task)
+        return load_task(self.name, self.task_pattern, task)
 
     def base(self, task: str) -> LiberoSpec:
         """T0: the pick object and receptacle at their BDDL init-region centres, unscaled, no distractors."""

@@ -36,11 +36,9 @@ def suite_task_names(suite: str) -> tuple[str, ...]:
         ) from None
 
 
-def short_name(suite: str, task_file: str) -> str:
+def short_name(pattern: str, task_file: str) -> str:
     """The task's short name: group 1 of the suite's ``task_pattern`` (``scenes.libero.LiberoSuite``)."""
-    from scenes.registry import get_scene
-
-    m = re.fullmatch(get_scene(suite).task_pattern, task_file)
+    m = re.fullmatch(pattern, task_file)
     return m.group(1) if m else task_file
 
 
@@ -112,10 +110,11 @@ def _section(text: str, head: str) -> str:
 
 
 @cache
-def load_task(suite: str, short: str) -> LiberoTask:
-    """Parse the task's BDDL: objects, init regions and the (In/On pick receptacle) goal."""
+def load_task(suite: str, pattern: str, short: str) -> LiberoTask:
+    """Parse the task's BDDL (``pattern``: the suite's ``task_pattern``): objects, init regions and the (In/On pick
+    receptacle) goal."""
     files = suite_task_names(suite)
-    by_short = {short_name(suite, f): (i, f) for i, f in enumerate(files)}
+    by_short = {short_name(pattern, f): (i, f) for i, f in enumerate(files)}
     task_id, file = by_short[short]
     path = libero_root() / "bddl_files" / suite / f"{file}.bddl"
     try:

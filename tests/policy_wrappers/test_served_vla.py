@@ -14,6 +14,7 @@ import pytest
 from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
 from policy_wrappers.registry import load_policy
 from policy_wrappers.serve import PolicyServer
+from scenes.registry import get_scene
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -122,7 +123,7 @@ def test_rynnvla_gets_the_step_before_each_query_from_the_engine():
         calls.append(([np.asarray(h) for h in his_img], [np.asarray(h) for h in his_wrist]))
         return np.tile([0.9, 0.2, -0.3, 0.0, 0.0, 0.0, -1.0], (5, 1))  # moves the arm: frames differ
 
-    levels = scene_levels("pick_place", ["pick_y"])
+    levels = scene_levels(get_scene("pick_place"), ["pick_y"])
     with serving(rynnvla_session(infer)) as port:
         policy = load_policy(f"rynnvla:ws://127.0.0.1:{port}")
         assert policy.spec.history_steps == 1
@@ -153,7 +154,7 @@ def test_rynnvla_gets_the_step_before_each_query_from_the_engine():
 def _first_task() -> str:
     import scenes
 
-    return list(scenes.tasks("pick_place"))[0]
+    return list(scenes.get_scene("pick_place").tasks)[0]
 
 
 def test_rynnvla_history_state_and_episode_reset(obs_factory, caplog):

@@ -156,9 +156,9 @@ def test_api_lists():
         "libero_spatial",
         "robocasa",
     ]
-    assert len(scenes.tasks("pick_place")) >= 6
-    assert "stack" in scenes.axes_for("stack")
-    for t in scenes.tasks("pick_place"):
+    assert len(list(scenes.get_scene("pick_place").tasks)) >= 6
+    assert "stack" in list(scenes.get_scene("stack").axes)
+    for t in list(scenes.get_scene("pick_place").tasks):
         assert get_scene("pick_place").instruction(t).startswith("pick up the ")
 
 

@@ -203,16 +203,22 @@ def test_every_family_is_registered_once_with_its_docstring_sections():
     with pytest.raises(UnknownNameError, match="did you mean 'libero_spatial'"):
         get_scene("libero_spatal")
     with pytest.raises(UnknownNameError, match="did you mean 'stack'"):
-        scenes.tasks("stak")
+        list(scenes.get_scene("stak").tasks)
 
 
 def test_a_registered_subclass_is_found_by_the_scenes_api(private_registry):
     register_scene(_tiny_pick())
     assert scenes.scene_names()[-1] == "tiny_pick"
-    assert scenes.tasks("tiny_pick") == ["milk"] and scenes.axes_for("tiny_pick") == ["distractor", "pick_y"]
-    assert scenes.select_tasks("tiny_pick", "all") == ["milk"] == scenes.select_tasks("tiny_pick", None)
+    assert list(scenes.get_scene("tiny_pick").tasks) == ["milk"] and list(
+        scenes.get_scene("tiny_pick").axes
+    ) == ["distractor", "pick_y"]
+    assert (
+        scenes.get_scene("tiny_pick").select_tasks("all")
+        == ["milk"]
+        == scenes.get_scene("tiny_pick").select_tasks(None)
+    )
     assert level_param("tiny_pick", None, "pick_y", 2) == level_param("pick_place", "milk", "pick_y", 2)
-    resolve_scene_plan("tiny_pick", None, ["pick_y+distractor"])
+    resolve_scene_plan(get_scene("tiny_pick"), None, ["pick_y+distractor"])
     with pytest.raises(UnknownNameError, match="axis of scene tiny_pick 'goal_y'"):
         level_env("tiny_pick", axis="goal_y")
     # the family's own distractor slots place the distractors of its levels (make_env's default axis: distractor)
@@ -251,24 +257,31 @@ def test_register_rejects_incomplete_classes(private_registry):
 
 
 def test_select_tasks_is_the_one_task_resolution():
-    assert scenes.select_tasks("stack", None) == ["orange_on_blue"] == scenes.select_tasks("stack", "")
-    assert scenes.select_tasks("stack", "all") == scenes.tasks("stack")
+    assert (
+        scenes.get_scene("stack").select_tasks(None)
+        == ["orange_on_blue"]
+        == scenes.get_scene("stack").select_tasks("")
+    )
+    assert scenes.get_scene("stack").select_tasks("all") == list(scenes.get_scene("stack").tasks)
     with pytest.raises(UnknownNameError, match="did you mean 'red_on_green'.*all"):
-        scenes.select_tasks("stack", "red_on_gren")
+        scenes.get_scene("stack").select_tasks("red_on_gren")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("libero") is None, reason="needs hf-libero")
 def test_libero_spatial_defaults_to_scale_and_missing_assets_are_one_line(tmp_path, monkeypatch):
     """``make_env("libero_spatial")`` once raised a bare KeyError; now its default axis is scale, and without
     LIBERO's assets it is the one-line SceneError saying how to get them."""
-    assert get_scene("libero_spatial").default_axis == "scale" and len(scenes.tasks("libero_spatial")) == 10
+    assert (
+        get_scene("libero_spatial").default_axis == "scale"
+        and len(list(scenes.get_scene("libero_spatial").tasks)) == 10
+    )
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
     with pytest.raises(SceneError, match="not a LIBERO asset folder") as err:
         level_env("libero_spatial", cameras=())
     assert "\n" not in str(err.value)
     with pytest.raises(SceneError, match="hf download"):
-        scenes.check_ready("libero_spatial")
-    scenes.check_ready("stack")  # built-ins need nothing
+        scenes.get_scene("libero_spatial").check_ready()
+    scenes.get_scene("stack").check_ready()  # built-ins need nothing
 
 
 @pytest.mark.slow

@@ -52,7 +52,9 @@ def test_builds_and_steps_at_the_extreme_level(scene, axis):
         assert isinstance(obs, Observation) and set(obs.images) == {"agentview"}
         assert obs.images["agentview"].shape == (64, 64, 3) and obs.state.dtype == np.float32
         assert obs.instruction == env.instruction and info["seed"] == 1
-        assert env.level == level and env.task == scenes.tasks(scene)[0] and env.max_steps == 3
+        assert (
+            env.level == level and env.task == list(scenes.get_scene(scene).tasks)[0] and env.max_steps == 3
+        )
         for k in range(3):  # the reset and the last step render; no check reads the frames of the two between
             obs, reward, terminated, truncated, info = env.step(np.zeros(7, dtype=np.float32), observe=k == 2)
             assert isinstance(info["success"], bool) and reward == float(info["success"])

@@ -16,7 +16,8 @@ pytest.importorskip("libero")
 import scenes  # noqa: E402
 from indgen_vla.core.errors import SceneError  # noqa: E402
 from indgen_vla.core.protocol.axis_ref import AxisRef  # noqa: E402
-from scenes.libero.bddl import add_fixtures, load_task, parse_regions, shift_region  # noqa: E402
+from scenes.libero.bddl import add_fixtures, parse_regions, shift_region  # noqa: E402
+from scenes.registry import get_scene  # noqa: E402
 from tests.fixtures.levels import level_env, level_param  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
@@ -47,14 +48,14 @@ def _env(axis="pick_y", level=0, **kw):
 
 def test_registry_without_simulator():
     assert SCENE in scenes.scene_names()
-    tasks = scenes.tasks(SCENE)
+    tasks = list(scenes.get_scene(SCENE).tasks)
     # lerobot task_id order
     assert len(tasks) == 10 and tasks[0] == "alphabet_soup" and tasks[-1] == "orange_juice"
-    assert set(scenes.axes_for(SCENE)) == {"pick_y", "goal_y", "scale", "distractor"}
+    assert set(list(scenes.get_scene(SCENE).axes)) == {"pick_y", "goal_y", "scale", "distractor"}
     assert level_param(SCENE, None, "pick_y", 2) == pytest.approx(-0.24 + 0.05)
     assert level_param(SCENE, "milk", "goal_y", -3) == pytest.approx(0.26 - 3 * 0.0367)
     assert level_param(SCENE, None, "scale", 3) == pytest.approx(1.2001)
-    t = load_task(SCENE, "alphabet_soup")
+    t = get_scene(SCENE).task_info("alphabet_soup")
     assert (t.pick, t.goal, t.pick_region, t.goal_region) == (
         "alphabet_soup_1",
         "basket_1",
@@ -65,7 +66,7 @@ def test_registry_without_simulator():
 
 
 def test_bddl_edits_touch_only_their_region():
-    text = load_task(SCENE, "ketchup").bddl_path.read_text()
+    text = get_scene(SCENE).task_info("ketchup").bddl_path.read_text()
     moved = shift_region(text, "bin_region", 0.0, 0.0367)
     a, b = parse_regions(text), parse_regions(moved)
     assert {k for k in a if a[k] != b[k]} == {"bin_region"}
@@ -76,7 +77,7 @@ def test_bddl_edits_touch_only_their_region():
 def test_missing_assets_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
     with pytest.raises(SceneError, match="INDGEN_LIBERO_ASSETS") as e:
-        scenes.check_ready(SCENE)
+        scenes.get_scene(SCENE).check_ready()
     msg = str(e.value)  # the project's own one-step fix first, then the alternatives
     assert "\n" not in msg and msg.index("run 'indgen setup libero'") < msg.index(
         "hf download lerobot/libero-assets"
@@ -99,7 +100,7 @@ def test_names_axes_and_levels_need_no_assets(tmp_path, monkeypatch):
     monkeypatch.setenv("HOME", str(tmp_path))
     if find_assets(required=False) is not None:
         pytest.skip("hf-libero's package holds an asset tree here")
-    plan = resolve_scene_plan(SCENE, "milk", ["pick_y"], "-1:1")
+    plan = resolve_scene_plan(get_scene(SCENE), "milk", ["pick_y"], "-1:1")
     assert [c.level for c in plan.cells] == [-1, 0, 1]
     for task, axis, levels, error, text in [
         ("nosuch", "pick_y", "0", UnknownNameError, "unknown task of scene libero_object 'nosuch'"),
@@ -107,7 +108,7 @@ def test_names_axes_and_levels_need_no_assets(tmp_path, monkeypatch):
         ("milk", "pick_y", "1:x", ConfigError, "--levels '1:x' is not a range"),
     ]:
         with pytest.raises(error, match=re.escape(text)):
-            resolve_scene_plan(SCENE, task, [axis], levels)
+            resolve_scene_plan(get_scene(SCENE), task, [axis], levels)
     with pytest.raises(SceneError, match="run 'indgen setup libero'"):
         plan.builder.check_ready()
 
@@ -132,7 +133,8 @@ def test_level0_matches_lerobot_libero_env(mini):
     )
     try:
         assert (
-            isinstance(env, LiberoSceneEnv) and env.bddl_file == load_task(SCENE, "alphabet_soup").bddl_path
+            isinstance(env, LiberoSceneEnv)
+            and env.bddl_file == get_scene(SCENE).task_info("alphabet_soup").bddl_path
         )
         assert env.max_steps == ref._max_episode_steps == 280 and env.instruction == ref.task_description
         obs, info = env.reset(seed=11, options={"episode": 3})
@@ -238,9 +240,9 @@ def test_episode_index_fixes_the_initial_state(mini):
 def test_oracle_certifies_extreme_levels(mini):
     from indgen_vla.app.certify.run import certify
 
-    cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=1)
+    cert = certify(get_scene(SCENE), "pick_y", levels=[-3, 0, 3], episodes=1)
     assert [r["successes"] == r["n"] for r in cert["levels"]] == [True, True, True], cert  # no failure
-    cert = certify(SCENE, "goal_y+distractor", levels=[3], episodes=1)
+    cert = certify(get_scene(SCENE), "goal_y+distractor", levels=[3], episodes=1)
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert
 
 
@@ -266,7 +268,7 @@ def test_level_0_of_axes_with_one_key_is_one_environment(mini):
     start and step alike (images, state, privileged poses) from the same seed and episode."""
     from scenes.planning import resolve_scene_plan
 
-    sp = resolve_scene_plan(SCENE, "alphabet_soup", ["pick_y", "scale+distractor"], "0")
+    sp = resolve_scene_plan(get_scene(SCENE), "alphabet_soup", ["pick_y", "scale+distractor"], "0")
     keys = {sp.cell("alphabet_soup", a, 0).env_key for a in sp.axes}
     assert len(keys) == 1 and "" not in keys
     envs = [_env(a, 0, cameras=("agentview",), image_size=(32, 32)) for a in sp.axes]

@@ -9,6 +9,7 @@ import os
 
 import pytest
 
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_env
 
 pytest.importorskip("libero")
@@ -34,7 +35,7 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
         s = env.privileged_state()
         dx, dy = s.target.grasp_xy - s.pick.pos[:2]
         assert dx < -0.02 and abs(dy) < 0.01, (dx, dy)  # along the box, away from the can (at larger x)
-        ok, steps = run_oracle_episode(env, oracle_for(SCENE), seed, 1)
+        ok, steps = run_oracle_episode(env, oracle_for(get_scene(SCENE)), seed, 1)
         assert ok and steps < 200, steps
         # episode 5 (the failure this level had) would start from a thrown box: its moved initial state overlaps a
         # neighbour and the settling steps throw it 27 cm (docs/results/libero_object_real_assets.md), so the
@@ -72,7 +73,7 @@ def test_real_assets_level0_and_oracle(real):
         assert obs.images["agentview"].std() > 5 and obs.state.shape == (8,)
     finally:
         env.close()
-    cert = certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=2)
+    cert = certify(get_scene(SCENE), "pick_y", levels=[-3, 0, 3], episodes=2)
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
 
 
@@ -90,14 +91,16 @@ def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
 
     os.environ["INDGEN_LIBERO_ASSETS"] = str(real)
     try:
-        cert = find_certification(SCENE, "alphabet_soup", "goal_y")
+        cert = find_certification(get_scene(SCENE), "alphabet_soup", "goal_y")
         assert cert is not None and certified_levels(cert) == [-3, -2, -1, 0, 1, 2, 3]
-        cc = find_certification(SCENE, "cream_cheese", "pick_y")
+        cc = find_certification(get_scene(SCENE), "cream_cheese", "pick_y")
         assert infeasible_levels(cc) == [-3] and certified_levels(cc) == [-2, -1, 0, 1, 2, 3]
         assert all(row_oracle_version(r, cc) == 2 for r in cc["levels"])  # made by LiberoOracle v2
         # -3: no LIBERO state holds the level (placement check); -2 with its thrown states left out
         assert "60 of 60 seeds cannot hold this level" in cc["levels"][0]["infeasible"]
-        plan = resolve_scene_plan(SCENE, "cream_cheese", ("pick_y",), "-3:-1")  # what evaluate plans
+        plan = resolve_scene_plan(
+            get_scene(SCENE), "cream_cheese", ("pick_y",), "-3:-1"
+        )  # what evaluate plans
         assert [c.certificate for c in plan.cells] == ["failed", "certified", "certified"], plan.cells
         assert [c.evidence.split(" (")[0] for c in plan.cells] == ["0/0", "59/59", "59/59"]
         assert plan.cells[0].evidence == "0/0 (failed: 60 seeds unavailable)"
@@ -105,7 +108,7 @@ def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
         from scenes import certificates as certify_shipped
 
         certify_shipped._SAID.discard(SCENE)
-        assert find_certification(SCENE, "alphabet_soup", "goal_y") is None
+        assert find_certification(get_scene(SCENE), "alphabet_soup", "goal_y") is None
         err = capsys.readouterr().err
         assert "shipped libero_object certificates cover the asset tree" in err and "differs" in err
     finally:
@@ -118,7 +121,7 @@ def test_every_level_of_one_task(real, axis, tmp_path):
     """The sweep's shape on one task: every level of an axis, two episodes each."""
     from indgen_vla.app.certify.run import certify
 
-    cert = certify(SCENE, axis, task="ketchup", episodes=2, out=tmp_path / "c.json")
+    cert = certify(get_scene(SCENE), axis, task="ketchup", episodes=2, out=tmp_path / "c.json")
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
 
 
@@ -129,7 +132,7 @@ def test_partial_levels_resume_with_the_same_episodes(tmp_path):
     from scenes.planning import scene_levels
 
     part = tmp_path / "certify.partial.L0.jsonl"
-    args = (scene_levels("stack", ["stack"]), "orange_on_blue", "stack", 0, 0, None)
+    args = (scene_levels(get_scene("stack"), ["stack"]), "orange_on_blue", "stack", 0, 0, None)
     first = certify_level(*args, Rule(n_max=1), partial=part, key="k")
     assert first["n"] == 1 and len(EpisodeLog(part, "k").results) == 1
     again = certify_level(*args, Rule(n_max=2), partial=part, key="k")  # runs episode 1 only

@@ -10,7 +10,7 @@ pytest.importorskip("libero")
 
 import scenes  # noqa: E402
 from indgen_vla.core.errors import UnknownNameError  # noqa: E402
-from scenes.libero.bddl import load_task  # noqa: E402
+from scenes.registry import get_scene  # noqa: E402
 from tests.fixtures.levels import level_env  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
@@ -25,21 +25,24 @@ def _env(axis="scale", level=0, **kw):
 
 
 def test_registry_axes_and_tasks():
-    tasks = scenes.tasks(SCENE)
+    tasks = list(scenes.get_scene(SCENE).tasks)
     assert len(tasks) == 10 and tasks[0] == "between_the_plate_and_the_ramekin" and DRAWER in tasks
-    assert scenes.axes_for(SCENE) == ["scale", "distractor"]
+    assert list(scenes.get_scene(SCENE).axes) == ["scale", "distractor"]
     for task in tasks:
-        t = load_task(SCENE, task)
+        t = get_scene(SCENE).task_info(task)
         assert (t.pick, t.goal, t.goal_region) == ("akita_black_bowl_1", "plate_1", "plate_region")
         assert t.language.startswith("pick up the black bowl") and t.language.endswith(
             "place it on the plate"
         )
     assert (
-        not load_task(SCENE, "on_the_cookie_box").pick_on_table
-        and load_task(SCENE, "on_the_cookie_box").pick_region == "box_region"
+        not get_scene(SCENE).task_info("on_the_cookie_box").pick_on_table
+        and get_scene(SCENE).task_info("on_the_cookie_box").pick_region == "box_region"
     )
-    assert not load_task(SCENE, DRAWER).pick_on_table and load_task(SCENE, "next_to_the_plate").pick_on_table
-    assert dict(load_task(SCENE, DRAWER).objects)["akita_black_bowl_2"] == "akita_black_bowl"
+    assert (
+        not get_scene(SCENE).task_info(DRAWER).pick_on_table
+        and get_scene(SCENE).task_info("next_to_the_plate").pick_on_table
+    )
+    assert dict(get_scene(SCENE).task_info(DRAWER).objects)["akita_black_bowl_2"] == "akita_black_bowl"
 
 
 @pytest.mark.parametrize("axis", ["pick_y", "goal_y", "pick_y+distractor"])
@@ -52,10 +55,13 @@ def test_moving_axes_are_refused_with_the_supported_ones(axis):
 
 @pytest.mark.slow  # 10 s: all ten tasks; level 0 of one task is checked pixel for pixel by default
 def test_every_task_builds_and_steps_at_level_0(mini):
-    for task in scenes.tasks(SCENE):
+    for task in list(scenes.get_scene(SCENE).tasks):
         env = _env(task=task, max_steps=2)
         try:
-            assert env.bddl_file == load_task(SCENE, task).bddl_path and env._states.shape == (50, 92)
+            assert env.bddl_file == get_scene(SCENE).task_info(task).bddl_path and env._states.shape == (
+                50,
+                92,
+            )
             obs, info = env.reset(seed=0, options={"episode": 1})
             assert info["init_state"] == 1 and obs.state.shape == (8,)
             for _ in range(2):
@@ -74,7 +80,7 @@ def test_level0_matches_lerobot_libero_env(mini):
     from lerobot.envs.libero import LiberoEnv, _get_suite
 
     env = _env(task=DRAWER, cameras=("agentview", "wrist"), image_size=(32, 32))
-    task_id = load_task(SCENE, DRAWER).task_id
+    task_id = get_scene(SCENE).task_info(DRAWER).task_id
     ref = LiberoEnv(
         _get_suite(SCENE),
         task_id,
@@ -151,5 +157,5 @@ def test_levels_build_and_change_one_thing(mini, axis, level, task):
 def test_oracle_solves_level_0(mini, task):
     from indgen_vla.app.certify.run import certify
 
-    cert = certify(SCENE, "scale", task=task, levels=[0], episodes=1)
+    cert = certify(get_scene(SCENE), "scale", task=task, levels=[0], episodes=1)
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert

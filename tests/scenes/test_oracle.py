@@ -16,6 +16,7 @@ from scenes.axes import get_successor
 from scenes.catalog import builtin_scenes
 from scenes.certificates import infeasible_levels, load_certification
 from scenes.oracle import OraclePolicy
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -155,7 +156,7 @@ def test_infeasible_levels_and_corrupt_files(tmp_path):
     with pytest.raises(RunDirError, match="no certification"):
         load_certification(tmp_path / "missing")
     with pytest.raises(ConfigError, match="workers"):
-        certify("stack", "stack", levels="0", episodes=1, workers=0)
+        certify(get_scene("stack"), "stack", levels="0", episodes=1, workers=0)
 
 
 def test_write_mp4(tmp_path):
@@ -194,9 +195,14 @@ def test_find_certification_matches_scene_task_axis_and_step(tmp_path, monkeypat
             {"scene": "stack", "task": "orange_on_blue", "axis": "stack", "step": 0.25, "levels": [row]}
         )
     )
-    assert find_certification("stack", "orange_on_blue", "stack", root=tmp_path)["levels"] == [row]
-    assert find_certification("stack", "orange_on_blue", "stack", step=0.5, root=tmp_path) is None
-    assert find_certification("stack", "orange_on_blue", "pick_y", root=tmp_path) is None
-    assert find_certification("stack", scenes.tasks("stack")[1], "stack", root=tmp_path) is None
+    assert find_certification(get_scene("stack"), "orange_on_blue", "stack", root=tmp_path)["levels"] == [row]
+    assert find_certification(get_scene("stack"), "orange_on_blue", "stack", step=0.5, root=tmp_path) is None
+    assert find_certification(get_scene("stack"), "orange_on_blue", "pick_y", root=tmp_path) is None
+    assert (
+        find_certification(
+            get_scene("stack"), list(scenes.get_scene("stack").tasks)[1], "stack", root=tmp_path
+        )
+        is None
+    )
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    assert find_certification("stack", None, "stack") is not None
+    assert find_certification(get_scene("stack"), None, "stack") is not None

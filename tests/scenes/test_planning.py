@@ -10,10 +10,11 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED
 from scenes.planning import resolve_scene_plan, scene_levels
+from scenes.registry import get_scene
 
 
 def test_parameters_are_t0_plus_k_steps_and_certificates_come_from_the_committed_files():
-    sp = resolve_scene_plan("pick_place", "lemon", ["pick_y", "goal_y"], "-3:3")
+    sp = resolve_scene_plan(get_scene("pick_place"), "lemon", ["pick_y", "goal_y"], "-3:3")
     y0 = scenes.get_scene("pick_place").base("lemon").pick.y
     for k in range(-3, 4):
         assert sp.cell("lemon", "pick_y", k).param == pytest.approx(y0 + 0.025 * k)
@@ -25,13 +26,13 @@ def test_parameters_are_t0_plus_k_steps_and_certificates_come_from_the_committed
 
 
 def test_a_step_no_certificate_was_made_at_leaves_every_level_uncertified():
-    sp = resolve_scene_plan("pick_place", None, ["pick_y"], "0:2", step=0.03)
+    sp = resolve_scene_plan(get_scene("pick_place"), None, ["pick_y"], "0:2", step=0.03)
     assert {c.certificate for c in sp.cells} == {UNCERTIFIED} and {c.evidence for c in sp.cells} == {""}
     assert sp.cell("milk", "pick_y", 2).param == pytest.approx(sp.cell("milk", "pick_y", 0).param + 0.06)
 
 
 def test_the_builder_pickles_and_builds_the_same_level_as_the_family():
-    sp = resolve_scene_plan("pick_place", "milk", ["scale"], "2")
+    sp = resolve_scene_plan(get_scene("pick_place"), "milk", ["scale"], "2")
     builder = pickle.loads(pickle.dumps(sp.builder))
     assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
     assert builder.preload == (
@@ -54,14 +55,14 @@ def test_the_builder_pickles_and_builds_the_same_level_as_the_family():
 
 
 def test_scene_levels_needs_no_plan_and_refuses_an_unknown_axis_in_one_line():
-    assert scene_levels("pick_place", ["pick_y"]).successors["pick_y"].axis.step == 0.025
+    assert scene_levels(get_scene("pick_place"), ["pick_y"]).successors["pick_y"].axis.step == 0.025
     with pytest.raises(Exception, match=r"unknown axis 'pick_q'"):
-        scene_levels("pick_place", ["pick_q"])
+        scene_levels(get_scene("pick_place"), ["pick_q"])
 
 
 def test_the_plan_parses_each_axis_once_and_hands_out_the_resolved_axes():
     sp = resolve_scene_plan(
-        "pick_place", "milk", ["pick_y@distractor=2", "pick_y+scale", "pick_y@distractor=2"], "0:1"
+        get_scene("pick_place"), "milk", ["pick_y@distractor=2", "pick_y+scale", "pick_y@distractor=2"], "0:1"
     )
     assert list(sp.axes) == list(sp.refs) == ["pick_y@distractor=2", "pick_y+scale"]  # a repeat is one axis
     held = sp.axis("pick_y@distractor=2")
@@ -70,19 +71,20 @@ def test_the_plan_parses_each_axis_once_and_hands_out_the_resolved_axes():
     assert sp.axis("pick_y+scale").ref.components == ("pick_y", "scale")
     assert sp.builder.successor("milk", "pick_y+scale").axis.name == "pick_y+scale"
     with pytest.raises(ConfigError, match="write compositions as") as e:
-        resolve_scene_plan("pick_place", None, ["pick_y+"])
+        resolve_scene_plan(get_scene("pick_place"), None, ["pick_y+"])
     assert "\n" not in str(e.value)
 
 
 def test_scene_levels_resolves_each_tasks_own_successor():
     """Without a plan (a T0 build), ``tasks`` gives a family whose steps differ by task its per-task successors."""
-    builder = scene_levels("pick_place", ["pick_y"], tasks=["milk", "lemon"])
+    builder = scene_levels(get_scene("pick_place"), ["pick_y"], tasks=["milk", "lemon"])
     assert builder.task_successors == {} and builder.successor("lemon", "pick_y").axis.step == 0.025
 
 
 def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
-    """Follow cfg from evaluate: the engine calls one module-level function of scenes (the resolution);
-    everything else it does with scenes is a method of an object the plan handed it (builder, env)."""
+    """Follow cfg from evaluate: the engine looks the family up by name once (``PlanConfig.family``) and calls one
+    module-level function of scenes with it (the resolution); everything else it does with scenes is a method of an
+    object the plan handed it (the family, builder, env)."""
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import evaluate
 
@@ -107,7 +109,7 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
         evaluate(cfg, quiet=True)
     finally:
         sys.setprofile(None)
-    assert entered == {"planning.py:resolve_scene_plan"}
+    assert entered == {"registry.py:get_scene", "planning.py:resolve_scene_plan"}
 
 
 def test_the_fork_servers_preload_is_quiet():
@@ -126,14 +128,14 @@ def test_the_fork_servers_preload_is_quiet():
 
 
 def test_level_0_keys_come_from_the_levels_spec_not_the_axis_name():
-    sp = resolve_scene_plan("pick_place", "all", ["pick_y", "scale", "pick_y+distractor"], "0:1")
+    sp = resolve_scene_plan(get_scene("pick_place"), "all", ["pick_y", "scale", "pick_y+distractor"], "0:1")
     for t in sp.tasks:  # level 0 of each is the task's T0 spec (a composition's level 0 adds no distractor)
         keys = {sp.cell(t, a, 0).env_key for a in sp.axes}
         assert len(keys) == 1 and "" not in keys
         assert sp.cell(t, "pick_y", 1).env_key == ""  # only level 0 is keyed
     assert len({sp.cell(t, "pick_y", 0).env_key for t in sp.tasks}) == len(sp.tasks)  # tasks differ
     # a preset that moves T0 itself is not needed to tell them apart: a step changes level 1, never level 0's key
-    other = resolve_scene_plan("pick_place", "milk", ["pick_y"], "0:1", step=0.03)
+    other = resolve_scene_plan(get_scene("pick_place"), "milk", ["pick_y"], "0:1", step=0.03)
     assert other.cell("milk", "pick_y", 0).env_key == sp.cell("milk", "pick_y", 0).env_key
 
 
@@ -155,5 +157,5 @@ def test_robocasa_pick_x_level_0_is_a_window_so_it_shares_nothing():
 
 def test_a_family_that_cannot_describe_its_level_shares_nothing(monkeypatch):
     monkeypatch.setattr(type(scenes.get_scene("pick_place")), "env_from_spec", False)
-    sp = resolve_scene_plan("pick_place", "milk", ["pick_y", "scale"], "0")
+    sp = resolve_scene_plan(get_scene("pick_place"), "milk", ["pick_y", "scale"], "0")
     assert {c.env_key for c in sp.cells} == {""}

@@ -21,6 +21,7 @@ from pathlib import Path
 from scipy.stats import binom
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
+from scenes.registry import Scene, registered_scenes
 
 AUDIT_FIRST_BLOCK = 1000  # audits draw from here: certification attempts (blocks 1, 2, ...) never meet them
 AUDIT_ALPHA = 0.05
@@ -51,7 +52,7 @@ def shipped_levels(
     return out
 
 
-def audit_level(scene: str, task: str, axis: str, level: int, block: int, episodes: int,
+def audit_level(family: Scene, task: str, axis: str, level: int, block: int, episodes: int,
                 max_steps: int | None) -> dict:  # fmt: skip
     """``episodes`` oracle episodes of one level on ``block`` (unavailable seeds skipped and counted, as certify
     does), in this process."""
@@ -60,12 +61,12 @@ def audit_level(scene: str, task: str, axis: str, level: int, block: int, episod
     from scenes.oracle import oracle_for
     from scenes.planning import resolve_scene_plan
 
-    t0 = time.time()
-    plan = resolve_scene_plan(scene, task, (axis,), [level], certificates=False)
+    t0, scene = time.time(), family.name
+    plan = resolve_scene_plan(family, task, (axis,), [level], certificates=False)
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
     results, unavailable, i = [], 0, 0
     try:
-        policy = oracle_for(scene)
+        policy = oracle_for(plan.builder.family)
         while len(results) < episodes and unavailable <= episodes:
             try:
                 results.append(
@@ -97,19 +98,20 @@ def audit(
     from indgen_vla.core.resources import certification_dir
     from scenes.certificates import shipped_certification
     from scenes.heldout import basis, burnt_blocks, next_block
-    from scenes.registry import get_scene
 
     if n < 1 or episodes < 1 or workers < 1:
         raise ConfigError(f"--audit, --episodes and --workers must be >= 1 (got {n}, {episodes}, {workers})")
     root = Path(root) if root is not None else certification_dir()
     pool, skipped = [], set()
+    families = {s.name: s for s in registered_scenes()}  # an audit draws from every family's certificates
     for item in shipped_levels(root, scenes):
         sc, _task, _axis, _level, _row, cert = item
         try:
-            get_scene(sc).check_ready()  # e.g. LIBERO without its assets
+            family = families[sc]
+            family.check_ready()  # e.g. LIBERO without its assets
             ok = (
-                get_scene(sc).committed_certificates
-                or shipped_certification(sc, _cert_file(root, cert)) is not None
+                family.committed_certificates
+                or shipped_certification(family, _cert_file(root, cert)) is not None
             )
         except Exception as e:  # a scene this machine cannot run: say so once
             ok = False
@@ -126,7 +128,7 @@ def audit(
     jobs = []
     for sc, task, axis, level, row, cert in drawn:
         block = next_block(row, burnt_blocks(cert, level), AUDIT_FIRST_BLOCK)
-        jobs.append((sc, task, axis, level, block, episodes, cert.get("max_steps")))
+        jobs.append((families[sc], task, axis, level, block, episodes, cert.get("max_steps")))
     rows = _run(jobs, workers)
     for (_sc, _t, _a, _l, row, _c), r in zip(drawn, rows, strict=True):
         r["basis"] = basis(row)

@@ -16,10 +16,11 @@ from typing import Any
 from indgen_vla.app.certify.run import run_oracle_episode
 from indgen_vla.core.errors import EpisodeUnavailableError
 from indgen_vla.core.protocol.seeding import evaluation_seed
+from scenes.registry import Scene
 
 
 def baseline_episodes(
-    scene: str, task: str, axis: str, level: int, episodes: int, seed: int = 0,
+    scene: Scene, task: str, axis: str, level: int, episodes: int, seed: int = 0,
     options: Mapping[str, Any] | None = None,
 ) -> list[tuple[bool | None, int]]:  # fmt: skip
     """The oracle's (success, steps) on ``evaluate``'s episodes 0..episodes-1 of one level (None: the level's
@@ -29,7 +30,7 @@ def baseline_episodes(
 
     plan = resolve_scene_plan(scene, task, (axis,), [level], certificates=False, options=options)
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=None)
-    policy = oracle_for(scene)
+    policy = oracle_for(plan.builder.family)
     out: list[tuple[bool | None, int]] = []
     try:
         for i in range(episodes):

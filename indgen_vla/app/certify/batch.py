@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError
+from scenes.registry import Scene
 
 
 def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
@@ -22,7 +23,7 @@ def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
 
 
 def certify_many(
-    scene: str, pairs: list[tuple[str, str]], *, levels: str | list[int] | None = None,
+    scene: Scene, pairs: list[tuple[str, str]], *, levels: str | list[int] | None = None,
     episodes: int | None = None, seed: int = 1, workers: int = 1, root: str | Path | None = None,
     deadline_s: float | None = None, log=print, retest: bool = False,
 ) -> list[dict]:  # fmt: skip
@@ -61,7 +62,7 @@ def certify_many(
         p.log = None  # one line here instead
         p.merge(row)
         if log:
-            log(level_line(scene, p.cert["task"], p.cert["axis"], row))
+            log(level_line(scene.name, p.cert["task"], p.cert["axis"], row))
 
     if workers == 1:
         while nxt < len(items) and (deadline_s is None or time.time() - t0 < deadline_s):

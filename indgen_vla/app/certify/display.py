@@ -12,6 +12,7 @@ from indgen_vla.app.certify.run import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from scenes.certificates import current_oracle_version, level_status, level_verdict
 from scenes.heldout import basis
+from scenes.registry import Scene
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
 
@@ -92,13 +93,13 @@ class CertifyDisplay:
         self._seen[k] = n
 
 
-def print_table(cert: dict) -> None:
-    """A certificate's levels: successes, rate, lower bound and verdict."""
+def print_table(cert: dict, scene: Scene) -> None:
+    """A certificate's levels (of ``scene``'s family): successes, rate, lower bound and verdict."""
     from rich.console import Console
     from rich.table import Table
 
     rule = cert.get("rule", {})
-    current = current_oracle_version(cert["scene"])
+    current = current_oracle_version(scene)
     oracle = cert.get("oracle") or {}
     table = Table(
         title=f"certification: {cert['scene']}/{cert['task']}, axis {cert['axis']} (step {cert['step']:g} {cert['unit']})",

@@ -15,7 +15,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
@@ -31,11 +31,9 @@ from scenes.certificates import (
 )
 from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING, fixed_states_basis
 from scenes.privileged import with_privileged
-from scenes.registry import get_scene
+from scenes.registry import Scene
 
 if TYPE_CHECKING:
-    from collections.abc import Mapping
-
     from indgen_vla.core.protocol.plan import LevelBuilder
 
 
@@ -97,7 +95,7 @@ def certify_level(
     results, infeasible = log.results, ""
     env = builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
     try:
-        policy = oracle_for(scene)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
+        policy = oracle_for(builder.family)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not infeasible and not rule.stop(sum(ok for ok, _ in results), len(results)):
             i = len(results) + log.unavailable
             try:
@@ -119,7 +117,7 @@ def certify_level(
         rule,
         time.time() - t0,
         log.unavailable,
-        oracle_identity(scene)["version"],
+        oracle_identity(builder.family)["version"],
         infeasible,
     )
 
@@ -171,12 +169,13 @@ class Pending:
     watch: object = None
     # level -> (earlier attempts, this attempt's header): the ledger each finished row carries (``scenes.heldout``)
     attempts: dict = dataclasses.field(default_factory=dict)
+    fixed_states: int = 0  # the family's fixed initial states (``Scene.fixed_state_count``; LIBERO: 50)
 
     def merge(self, row: dict) -> None:
         cert = self.cert
         if int(row["level"]) in self.attempts:
             row = with_attempt(row, *self.attempts[int(row["level"])])
-            states = get_scene(cert["scene"]).fixed_state_count
+            states = self.fixed_states
             if states:  # LIBERO: blocks repeat its fixed states; a full pass is exhaustive (scenes.heldout)
                 row = fixed_states_basis(row, states)
         rows = {int(r["level"]): r for r in cert["levels"]}
@@ -223,7 +222,7 @@ def with_attempt(row: dict, earlier: list[dict], attempt: dict) -> dict:
 
 
 def certify(
-    scene: str,
+    scene: Scene,
     axis: str | AxisRef,
     *,
     task: str | None = None,
@@ -238,7 +237,6 @@ def certify(
     out: str | Path | None = None,
     log=None,
     watch=None,
-    options: Mapping[str, Any] | None = None,
     retest: bool = False,
 ) -> dict:
     """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
@@ -246,26 +244,23 @@ def certify(
     certified only in-sample), and the finished episodes of a level a killed
     run left half done, and write after every level. ``log`` gets a line per event; ``watch``
     (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to run, each episode and
-    each finished level instead of the per-level lines. ``options``: the family's (``--split``,
-    ``--obj-registries``; ``scenes.registry.configure_scene``), which its level jobs' builder carries."""
-    from scenes.registry import configure_scene
-
+    each finished level instead of the per-level lines. ``scene``: the family as the command configured it
+    (``--split``, ``--obj-registries``), which its level jobs' builder carries."""
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
-    with configure_scene(scene, options):
-        p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                    max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch,
-                    retest=retest)  # fmt: skip
-        if workers == 1 or len(p.jobs) <= 1:
-            for j in p.jobs:
-                p.merge(_certify_job(j, None if watch is None else watch.episode))
-        else:
-            _run_pool(p.jobs, min(workers, len(p.jobs)), p.merge, watch)
-        return p.result()
+    p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
+                max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch,
+                retest=retest)  # fmt: skip
+    if workers == 1 or len(p.jobs) <= 1:
+        for j in p.jobs:
+            p.merge(_certify_job(j, None if watch is None else watch.episode))
+    else:
+        _run_pool(p.jobs, min(workers, len(p.jobs)), p.merge, watch)
+    return p.result()
 
 
 def prepare(
-    scene: str, axis: str | AxisRef, *, task: str | None = None, levels: str | list[int] | None = None,
+    family: Scene, axis: str | AxisRef, *, task: str | None = None, levels: str | list[int] | None = None,
     step: float | None = None, episodes: int | None = None, seed: int = FIRST_BLOCK, max_steps: int | None = None,
     threshold: float = THRESHOLD, preset: str | None = None, out: str | Path | None = None, log=None, watch=None,
     retest: bool = False,
@@ -286,15 +281,14 @@ def prepare(
     )  # fmt: skip
     from scenes.oracle import oracle_identity, oracle_scripts
     from scenes.planning import resolve_scene_plan
-    from scenes.registry import get_scene
 
-    sc = get_scene(scene)
+    sc, scene = family, family.name
     task = sc.resolve_task(task)
     ref = AxisRef.parse(axis)
     sc.check_axis(ref)
     axis = ref.name
 
-    if not oracle_scripts(scene, task):
+    if not oracle_scripts(sc, task):
         raise NoOracleError(
             f"{scene}/{task}: standin:oracle has no script for this task, so its levels stay uncertified "
             "(evaluate warns); certify a task the oracle scripts"
@@ -303,7 +297,7 @@ def prepare(
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     rule = Rule(threshold=threshold, confidence=attempt_confidence(1), n_max=episodes or 0)
     # the family's (and task's) own steps, the levels' range and condition 2, before any episode runs
-    plan = resolve_scene_plan(scene, task, (ref,), levels, step, preset, certificates=False)
+    plan = resolve_scene_plan(sc, task, (ref,), levels, step, preset, certificates=False)
     plan.builder.check_ready()
     successor = plan.builder.successor(task, axis)
     spec, lv = successor.axis, list(plan.levels[axis])
@@ -312,10 +306,10 @@ def prepare(
         "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps,
         "rule": {**rule.as_dict(), "name": RULE, "alpha": ALPHA, "spending": SPENDING},
         "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
-        "oracle": oracle_identity(scene),
+        "oracle": oracle_identity(sc),
     }  # fmt: skip
     version = cert["oracle"]["version"]
-    stamp = asset_stamp(scene)
+    stamp = asset_stamp(sc)
     cert["assets"] = stamp if stamp is not None else builtin_assets()
     path = Path(out) if out is not None else None
     done: dict[int, dict] = {}
@@ -370,7 +364,7 @@ def prepare(
         if log and j > 1:
             log(f"{scene}/{task}/{axis} level {k}: held-out attempt {j} on seed block {block} (confidence "
                 f"{level_rule.confidence:.5f}: {needed}/{needed} certifies)")  # fmt: skip
-    return Pending(cert, path, lv, jobs, log, watch, attempts)
+    return Pending(cert, path, lv, jobs, log, watch, attempts, sc.fixed_state_count)
 
 
 def _burn_stale_partial(cert: dict, level: int, part: Path | None, key: str) -> bool:

@@ -16,11 +16,14 @@ from pathlib import Path
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
 from indgen_vla.core.reporting.oracle_states import ORACLE_STATES
 from indgen_vla.core.runs.records import RunDir, atomic_write_json
+from scenes.registry import Scene
 
 
-def certify_evaluation_states(run_dir: str | Path, *, episodes: int | None = None, log=print) -> dict:
+def certify_evaluation_states(
+    run_dir: str | Path, family: Scene, *, episodes: int | None = None, log=print
+) -> dict:
     """Play the oracle on the initial states of the run at ``run_dir`` (episodes 0..``episodes``-1 of every
-    planned cell) and write ``oracle_states.json`` there; returns its content."""
+    planned cell) of ``family`` (the run's scene) and write ``oracle_states.json`` there; returns its content."""
     import json
 
     from indgen_vla.app.certify.run import run_oracle_episode
@@ -35,6 +38,8 @@ def certify_evaluation_states(run_dir: str | Path, *, episodes: int | None = Non
     if episodes is not None and episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {episodes}")
     plan, scene, config = m.get("plan") or {}, m["scene"], m.get("config") or {}
+    if scene != family.name:
+        raise ConfigError(f"{run_dir} is a run of scene {scene}, not {family.name}; pass its own scene")
     options = {k: config[k] for k in ("split", "obj_registries") if config.get(k) is not None}
     rows = df[df["shared_from"].fillna("") == ""] if "shared_from" in df else df  # a shared T0 is its owner's
     rows = rows[["task", "axis", "level", "episode", "seed"]].drop_duplicates()
@@ -42,7 +47,7 @@ def certify_evaluation_states(run_dir: str | Path, *, episodes: int | None = Non
         rows = rows[rows["episode"] < episodes]
     path = run.path / ORACLE_STATES
     have = json.loads(path.read_text()) if path.is_file() else {}
-    ident = oracle_identity(scene)
+    ident = oracle_identity(family)
     if have and have.get("oracle", {}).get("code_hash") != ident["code_hash"]:
         if log:
             log(f"{path}: made by another oracle ({have.get('oracle')}); playing every state again")
@@ -51,7 +56,7 @@ def certify_evaluation_states(run_dir: str | Path, *, episodes: int | None = Non
     out = {"scene": scene, "run_seed": m.get("seed"), "oracle": ident, "states": []}
     for (task, axis), group in rows.groupby(["task", "axis"], sort=True):
         levels = sorted({int(k) for k in group["level"]})
-        sp = resolve_scene_plan(scene, task, (axis,), levels, plan.get("step"), plan.get("axes_preset"),
+        sp = resolve_scene_plan(family, task, (axis,), levels, plan.get("step"), plan.get("axes_preset"),
                                 certificates=False, options=options or None)  # fmt: skip
         for level in levels:
             todo = group[(group["level"] == level)].sort_values("episode")
@@ -61,7 +66,7 @@ def certify_evaluation_states(run_dir: str | Path, *, episodes: int | None = Non
             env = sp.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128),
                                       max_steps=plan.get("max_steps"))  # fmt: skip
             try:
-                policy = oracle_for(scene)
+                policy = oracle_for(sp.builder.family)
                 for r in todo:
                     try:
                         ok, steps = run_oracle_episode(env, policy, int(r.seed), int(r.episode))

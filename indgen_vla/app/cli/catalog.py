@@ -62,10 +62,11 @@ def axes_table(as_json: bool) -> int:
 
 def scene_axes_table(scene: str, as_json: bool) -> int:
     """One scene family's own steps and level ranges, per task where they differ (``scenes.scene_axes``)."""
+    from scenes.registry import get_scene
     from scenes.scene_axes import scene_axis_rows
 
     title = f"axes of scene {scene}: its own steps and level ranges, per task where they differ"
-    return _axis_listing(scene_axis_rows(scene), as_json, title, "tasks")
+    return _axis_listing(scene_axis_rows(get_scene(scene)), as_json, title, "tasks")
 
 
 def _axis_listing(rows: list[dict], as_json: bool, title: str, where: str) -> int:

@@ -56,7 +56,8 @@ def main(args: argparse.Namespace) -> int:
     """Write certify.json per task (resuming what is there); exit 1 if a level failed."""
     from indgen_vla.core.errors import ConfigError
     from indgen_vla.core.protocol.axis_ref import AxisRef
-    from scenes.registry import configure_scene
+    from indgen_vla.core.runs.records import RunDir
+    from scenes.registry import get_scene
 
     if args.audit is not None:
         return _audit(args)
@@ -67,7 +68,8 @@ def main(args: argparse.Namespace) -> int:
             )
         from indgen_vla.app.certify.states import certify_evaluation_states
 
-        out = certify_evaluation_states(args.run, episodes=args.episodes)
+        family = get_scene(RunDir(args.run).manifest["scene"])  # the run's own scene
+        out = certify_evaluation_states(args.run, family, episodes=args.episodes)
         solved = [s["solved"] for s in out["states"]]
         print(f"the oracle solved {sum(s is True for s in solved)} of {sum(s is not None for s in solved)} "
               f"evaluated states of {args.run}; run 'indgen report {args.run}' to split the policy's failures")  # fmt: skip
@@ -78,12 +80,12 @@ def main(args: argparse.Namespace) -> int:
         )
     axis = AxisRef.parse(args.axis)  # a malformed name: one line, before any scene lookup
     options = {"split": args.split, "obj_registries": args.obj_registries}  # a bad value: one line, here
-    with configure_scene(args.scene, options):  # one choice for the certificates' folder and every level
-        return _certify_tasks(args, axis)
+    # one choice for the certificates' folder and every level: the family configured once, handed on
+    return _certify_tasks(args, axis, get_scene(args.scene, options))
 
 
-def _certify_tasks(args: argparse.Namespace, axis) -> int:
-    """Each task of ``args`` in turn, the scene configured."""
+def _certify_tasks(args: argparse.Namespace, axis, sc) -> int:
+    """Each task of ``args`` in turn on ``sc``, the scene configured."""
     from pathlib import Path
 
     from indgen_vla.app.certify.display import CertifyDisplay, print_table
@@ -91,32 +93,31 @@ def _certify_tasks(args: argparse.Namespace, axis) -> int:
     from indgen_vla.core.errors import RunDirError
     from scenes.certificates import cert_path, certified_levels, infeasible_levels
     from scenes.oracle import oracle_scripts
-    from scenes.registry import get_scene
 
-    tasks = get_scene(args.scene).select_tasks(args.task, (axis,))
+    tasks = sc.select_tasks(args.task, (axis,))
     preset = args.axes_preset
     failed = False
     for task in tasks:
         if args.out is None:
-            path = cert_path(args.scene, task, axis, args.step, preset)
+            path = cert_path(sc, task, axis, args.step, preset)
         else:
             path = Path(args.out) / (task if len(tasks) > 1 else "") / "certify.json"
-        if len(tasks) > 1 and not oracle_scripts(args.scene, task):
+        if len(tasks) > 1 and not oracle_scripts(sc, task):
             print(
                 f"{args.scene}/{task}/{args.axis}: uncertified (standin:oracle has no script for this task)"
             )
             continue
         try:
-            with CertifyDisplay(args.scene, get_scene(args.scene).resolve_task(task), args.axis) as display:
+            with CertifyDisplay(args.scene, sc.resolve_task(task), args.axis) as display:
                 cert = certify(
-                    args.scene, axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
+                    sc, axis, task=task, levels=args.levels, step=args.step, episodes=args.episodes,
                     seed=args.seed, max_steps=args.max_steps, workers=args.workers or 1,
                     threshold=args.threshold or 0.95, preset=preset, out=path,
                     log=display.log, watch=display, retest=args.held_out,
                 )  # fmt: skip
         except OSError as e:
             raise RunDirError(f"cannot write {path}: {e.strerror}; pick another --out") from None
-        print_table(cert)
+        print_table(cert, sc)
         print(f"certificate: {path}")
         bad = infeasible_levels(cert)
         if bad:

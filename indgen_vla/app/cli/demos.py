@@ -20,6 +20,7 @@ def main(args: argparse.Namespace) -> int:
 
     from indgen_vla.app.regimes import quiet_datasets
     from indgen_vla.app.regimes.demos import HumanNoise, LevelRequest, record_demos
+    from scenes.registry import get_scene
 
     p = IndgenParser(
         prog="indgen demos",
@@ -70,7 +71,7 @@ def main(args: argparse.Namespace) -> int:
         console.print(f"  {label}: {kept}/{a.n} kept ({attempt} attempts)", end="\r")
 
     out = Path(a.out)
-    stats = record_demos(a.scene, out, a.n, a.task, a.seed, a.image_size,
+    stats = record_demos(get_scene(a.scene), out, a.n, a.task, a.seed, a.image_size,
                          noise=HumanNoise(sigma=a.noise, pause_prob=a.pause_prob), repo_id=a.repo_id,
                          use_videos=a.videos, progress=progress, cameras=cams, objects=a.objects, levels=levels,
                          workers=(os.cpu_count() or 1) if a.workers is None else a.workers, notice=console.print)  # fmt: skip

@@ -35,12 +35,15 @@ def main(args: argparse.Namespace) -> int:
 
     from indgen_vla.app.preview import PreviewRequest, write_preview
     from indgen_vla.core.protocol.progression import expand_axes
+    from scenes.registry import get_scene
 
+    # the family configured once (a family without these options, a bad value: one line), handed on
+    scene = get_scene(args.scene, {"split": args.split, "obj_registries": args.obj_registries})
     req = PreviewRequest(
-        scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),
+        scene=scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),
         task=args.task, levels=args.levels, step=args.step, preset=args.axes_preset, camera=args.camera,
-        size=args.size, episode=args.episode, seed=args.seed, split=args.split, obj_registries=args.obj_registries,
+        size=args.size, episode=args.episode, seed=args.seed,
     )  # fmt: skip
     path, tiles = write_preview(req)
-    print(f"{path}: {len(tiles)} level(s) of {req.scene}, episode {req.episode}")
+    print(f"{path}: {len(tiles)} level(s) of {req.scene.name}, episode {req.episode}")
     return 0

@@ -15,13 +15,16 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
 from indgen_vla.core.protocol.progression import expand_axes
 from indgen_vla.core.resources import config_dir
+
+if TYPE_CHECKING:
+    from scenes.registry import Scene
 
 DEFAULT_EPISODES = 50
 # the scene options' help lines (evaluate's flags, and certify's and preview's: cli/options.add_scene_options)
@@ -87,7 +90,7 @@ class PlanConfig:
                             "--adaptive too)", action=argparse.BooleanOptionalAction)  # fmt: skip
     preregistered: str | None = option(None, "a plan.lock written by 'indgen budget --write': refuse to run anything "
                                        "that deviates from it", metavar="LOCK")  # fmt: skip
-    # the scene family's options (Scene.scene_options), resolved once per command (scenes.registry.configure_scene)
+    # the scene family's options (Scene.scene_options), resolved once per command (PlanConfig.family)
     split: str | None = option(None, SPLIT_HELP, metavar="{pretrain,target,all}")
     obj_registries: str | None = option(None, REGISTRIES_HELP, metavar="A,B")
 
@@ -110,13 +113,18 @@ class PlanConfig:
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
         if any(v is not None for v in self.scene_options().values()):
-            from scenes import get_scene
-
-            get_scene(self.scene).check_options(self.scene_options())
+            self.family()  # a family without them, a bad value: one line
 
     def scene_options(self) -> dict[str, str | None]:
         """The scene family's options the run sets (None: the family's default; ``Scene.scene_options``)."""
         return {"split": self.split, "obj_registries": self.obj_registries}
+
+    def family(self) -> Scene:
+        """The run's scene family configured with its options (``Scene.configured``: a new value), looked up by
+        name here, where a command's config meets the scene layer; the plan holds it and hands it on."""
+        from scenes.registry import get_scene  # lazy: start-up (registering the families, 0.34 s, off --help)
+
+        return get_scene(self.scene, self.scene_options())
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -59,9 +59,7 @@ def build_plan(cfg: EvalConfig) -> EvalPlan:
     from scenes.planning import resolve_scene_plan
 
     p = cfg.plan
-    sp = resolve_scene_plan(
-        p.scene, p.task, p.axes, p.levels, p.step, p.axes_preset, options=p.scene_options()
-    )
+    sp = resolve_scene_plan(p.family(), p.task, p.axes, p.levels, p.step, p.axes_preset)
     jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), p.episodes, p.seed, cfg.run.video,
                      cfg.run.video_per_level)  # fmt: skip
     return with_sharing(cfg, EvalPlan(sp, jobs))

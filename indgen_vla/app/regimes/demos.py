@@ -22,6 +22,7 @@ from indgen_vla.app.regimes.resume import check_same_run
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM
 from scenes.poses import object_vector
+from scenes.registry import Scene
 
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]
@@ -120,27 +121,26 @@ class LevelRequest:
 
 
 def plan_cells(
-    scene: str, task: str | None, req: LevelRequest, cameras, image_size: int
+    sc: Scene, task: str | None, req: LevelRequest, cameras, image_size: int
 ) -> tuple[list[DemoCell], EnvMaker]:
     """The cells to record and the ``EnvMaker`` of their scenes; with ``--axis`` resolved exactly as ``evaluate``
     resolves it (``scenes.planning.resolve_scene_plan``: names, level range, condition 2, certificates)."""
     from indgen_vla.core.protocol.plan import FAILED
     from scenes.planning import resolve_scene_plan, scene_levels
-    from scenes.registry import get_scene
 
-    sc = get_scene(scene)
+    scene = sc.name
     if sc.fixed_initial_states:
         raise ConfigError(f"scene {scene} starts every episode from {sc.fixed_initial_states}, the initial states "
                           "`evaluate` runs; demonstrations there would train on them: record on a scene whose seed "
                           "draws the initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
     if req.axis is None:  # T0: level 0 of the family's first axis, each task's own
         tasks = sc.select_tasks(task)
-        builder = scene_levels(scene, (sc.default_axis,), tasks=tasks)
+        builder = scene_levels(sc, (sc.default_axis,), tasks=tasks)
         return [DemoCell(t) for t in tasks], EnvMaker(
             scene, tuple(cameras), image_size, builder, sc.default_axis
         )
 
-    plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.preset)
+    plan = resolve_scene_plan(sc, task, (req.axis,), req.levels, req.step, req.preset)
     plan.builder.check_ready()
     axis = next(iter(plan.axes))
     failed = [c for c in plan.cells if c.certificate == FAILED]
@@ -209,7 +209,7 @@ def _progress(
 
 
 def record_demos(
-    scene: str, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
+    family: Scene, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
     cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
     repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
     objects: bool = False, levels: LevelRequest | None = None, workers: int = 1, notice=None,
@@ -223,11 +223,11 @@ def record_demos(
     saying so); a complete one is left as it is (stats ``already_complete``). ``workers`` > 1 records in worker
     processes; the dataset is the same for any number.
     """
-    noise, levels = noise or HumanNoise(), levels or LevelRequest()
+    noise, levels, scene = noise or HumanNoise(), levels or LevelRequest(), family.name
     for flag, value in (("--n", n), ("--workers", workers)):
         if value < 1:
             raise ConfigError(f"{flag} must be >= 1, got {value}")
-    cells, maker = plan_cells(scene, task, levels, cameras, image_size)
+    cells, maker = plan_cells(family, task, levels, cameras, image_size)
     args = json.loads(json.dumps({
         "scene": scene, "task": task, "axis": levels.axis, "levels": levels.levels, "step": levels.step,
         "axes_preset": levels.preset, "n": n, "seed": seed, "image_size": image_size, "cameras": list(cameras),

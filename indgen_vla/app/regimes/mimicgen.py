@@ -176,14 +176,15 @@ def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, 
     """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis resolved
     as ``evaluate`` resolves it (``scenes.planning.resolve_scene_plan``), both through the builder."""
     from scenes.planning import resolve_scene_plan, scene_levels
-    from scenes.registry import get_scene
+    from scenes.registry import registered_scenes
 
+    family = {s.name: s for s in registered_scenes()}[scene]  # the family the source dataset's sidecar names
     if where.get("axis") is None:
-        axis, level = get_scene(scene).default_axis, 0
-        builder = scene_levels(scene, (axis,), tasks=(task,))
+        axis, level = family.default_axis, 0
+        builder = scene_levels(family, (axis,), tasks=(task,))
     else:
         axis = where["axis"]
-        plan = resolve_scene_plan(scene, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
+        plan = resolve_scene_plan(family, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
         builder = plan.builder
     builder.check_ready()
     return builder.make_env(task, axis, level, cameras=cams, image_size=size, max_steps=None)

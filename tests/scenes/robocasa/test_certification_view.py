@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import pytest
 
+from scenes.registry import get_scene
+
 
 @pytest.fixture
 def unscripted_toaster(monkeypatch):
@@ -28,7 +30,7 @@ def test_a_task_without_an_oracle_is_marked_in_the_plan_and_summary(placeholders
     from indgen_vla.core.reporting.summary import summarize
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("robocasa", "all", ("base_y",), "0:1", None, None)
+    plan = resolve_scene_plan(get_scene("robocasa"), "all", ("base_y",), "0:1", None, None)
     by_task = {c.task: c for c in plan.cells if c.level == 1}
     assert (
         by_task["CloseToasterOvenDoor"].evidence == NO_ORACLE

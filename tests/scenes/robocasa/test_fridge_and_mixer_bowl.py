@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_placeholder_geometry import (
     _check_open_container,
     _colliders,
@@ -177,8 +178,8 @@ def test_certify_scripts_the_fridge_and_not_the_mixer_bowl():
     mixer's bowl is not (2/7: the arm meets the raised head): its levels stay no_oracle rather than failed."""
     from scenes.oracle import oracle_scripts
 
-    assert oracle_scripts("robocasa", "PickPlaceFridgeDrawerToShelf")
-    assert not oracle_scripts("robocasa", "PickPlaceCounterToStandMixer")
+    assert oracle_scripts(get_scene("robocasa"), "PickPlaceFridgeDrawerToShelf")
+    assert not oracle_scripts(get_scene("robocasa"), "PickPlaceCounterToStandMixer")
 
 
 @needs_venv

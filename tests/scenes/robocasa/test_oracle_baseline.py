@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 BASELINE = Path(__file__).with_name("oracle_baseline.json")
@@ -29,7 +30,9 @@ def test_every_scripted_task_has_a_baseline_of_the_current_oracle_and_tree():
     from scenes.robocasa.splits import DEFAULT_SPLIT
 
     b = _baseline()
-    now = oracle_identity("robocasa")  # its code hash moves with any edit (comments too): the version decides
+    now = oracle_identity(
+        get_scene("robocasa")
+    )  # its code hash moves with any edit (comments too): the version decides
     assert b["oracle"] == {"name": now["name"], "version": now["version"]}, (
         "re-measure: scripts/robocasa_oracle_baseline.py"
     )
@@ -69,7 +72,13 @@ def test_the_oracle_keeps_its_baseline(placeholders, task, axis):
     lines = []
     for level, recorded in b["tasks"][task]["levels"].items():
         results = baseline_episodes(
-            "robocasa", task, axis, int(level), recorded["episodes"], b["seed"], {"split": b["split"]}
+            get_scene("robocasa"),
+            task,
+            axis,
+            int(level),
+            recorded["episodes"],
+            b["seed"],
+            {"split": b["split"]},
         )
         lines.append(shortfall(task, axis, int(level), recorded, results))
     assert not any(lines), "\n".join(line for line in lines if line)

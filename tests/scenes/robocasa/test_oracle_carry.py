@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
 
@@ -68,9 +69,9 @@ def test_certify_scripts_the_carry_tasks():
         "PickPlaceCounterToSink",
         "PickPlaceCounterToBlender",
     ):
-        assert oracle_scripts("robocasa", task), task
+        assert oracle_scripts(get_scene("robocasa"), task), task
     # solved half the time on placeholders until the square grasp (oracle v3): 8/8 at pick_x levels since
-    assert oracle_scripts("robocasa", "CoffeeSetupMug")
+    assert oracle_scripts(get_scene("robocasa"), "CoffeeSetupMug")
 
 
 @needs_venv  # ~15 s: the carry script's episode of the smoke group (251 steps)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_oracle_carry import _raw
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
@@ -215,5 +216,5 @@ def test_certify_scripts_the_cheese_and_not_the_mixer_bowl():
     from scenes.oracle import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
-    assert oracle_scripts("robocasa", "CheesyBread") and RoboCasaOracle.version >= 5
-    assert not oracle_scripts("robocasa", "PickPlaceCounterToStandMixer")
+    assert oracle_scripts(get_scene("robocasa"), "CheesyBread") and RoboCasaOracle.version >= 5
+    assert not oracle_scripts(get_scene("robocasa"), "PickPlaceCounterToStandMixer")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
 
@@ -60,8 +61,8 @@ def test_certify_scripts_the_kettle_lid_and_lever():
     """Both kettle parts have scripts (the lid's sweep, the lever's press: docs/results)."""
     from scenes.oracle import oracle_scripts
 
-    assert oracle_scripts("robocasa", "CloseElectricKettleLid")
-    assert oracle_scripts("robocasa", "TurnOnElectricKettle")
+    assert oracle_scripts(get_scene("robocasa"), "CloseElectricKettleLid")
+    assert oracle_scripts(get_scene("robocasa"), "TurnOnElectricKettle")
 
 
 @needs_venv

@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_robocasa import _box, _oracle_episodes, needs_venv
 
 
@@ -128,7 +129,9 @@ def test_certify_scripts_closing_the_toaster_oven_door():
     from scenes.oracle import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
-    assert oracle_scripts("robocasa", "CloseToasterOvenDoor") and RoboCasaOracle.version >= 4  # listed in v4
+    assert (
+        oracle_scripts(get_scene("robocasa"), "CloseToasterOvenDoor") and RoboCasaOracle.version >= 4
+    )  # listed in v4
 
 
 @needs_venv

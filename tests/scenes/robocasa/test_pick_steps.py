@@ -10,6 +10,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
+from scenes.registry import get_scene
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 # hand-computed: RoboCasa 1.0.1's pick region (m) / 5
@@ -127,7 +128,7 @@ def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
     from indgen_vla.app.engine.config import EvalConfig
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("robocasa", "all", ["pick_x"], "0:4")
+    plan = resolve_scene_plan(get_scene("robocasa"), "all", ["pick_x"], "0:4")
     params = plan.params()
     for task, step in STEPS.items():
         assert [params[(task, "pick_x", k)] for k in range(5)] == pytest.approx([k * step for k in range(5)])
@@ -142,9 +143,11 @@ def test_the_plan_records_each_tasks_step_and_its_offsets(placeholders):
     assert "task_steps" not in cfg.plan_dict(
         list(plan.tasks), {"pick_x": [0]}, None
     )  # other families: unchanged
-    one = resolve_scene_plan("robocasa", "all", ["pick_x"], "0:1", step=0.05)
+    one = resolve_scene_plan(get_scene("robocasa"), "all", ["pick_x"], "0:1", step=0.05)
     assert one.task_steps == {} and {c.param for c in one.cells if c.level == 1} == {0.05}
-    horizon = resolve_scene_plan("robocasa", "all", ["base_y"], "0:1")  # no per-task step: nothing recorded
+    horizon = resolve_scene_plan(
+        get_scene("robocasa"), "all", ["base_y"], "0:1"
+    )  # no per-task step: nothing recorded
     assert horizon.task_steps == {} and horizon.builder.task_successors == {}
 
 
@@ -190,16 +193,18 @@ def test_certificates_are_keyed_by_the_tasks_own_step(placeholders, tmp_path, mo
 
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
     task = "PickPlaceSinkToCounter"
-    assert cert_path("robocasa", task, "pick_x").parent.name == "pick_x"
-    assert cert_path("robocasa", task, "pick_x", step=0.05).parent.name == "pick_x"  # its own step, given
-    assert cert_path("robocasa", task, "pick_x", step=0.04).parent.name == "pick_x@pick_x=0.04"
+    assert cert_path(get_scene("robocasa"), task, "pick_x").parent.name == "pick_x"
+    assert (
+        cert_path(get_scene("robocasa"), task, "pick_x", step=0.05).parent.name == "pick_x"
+    )  # its own step, given
+    assert cert_path(get_scene("robocasa"), task, "pick_x", step=0.04).parent.name == "pick_x@pick_x=0.04"
     for steps in ({"pick_x": 0.05}, {"pick_x": 0.12}):
-        path = cert_path("robocasa", task, "pick_x")
+        path = cert_path(get_scene("robocasa"), task, "pick_x")
         path.parent.mkdir(parents=True, exist_ok=True)
         cert = {"scene": "robocasa", "task": task, "axis": "pick_x", "steps": steps, "levels": [],
-                "assets": asset_stamp("robocasa")}  # fmt: skip
+                "assets": asset_stamp(get_scene("robocasa"))}  # fmt: skip
         path.write_text(json.dumps(cert))
-        found = find_certification("robocasa", task, "pick_x")
+        found = find_certification(get_scene("robocasa"), task, "pick_x")
         assert (found is not None) == (steps == {"pick_x": 0.05})
 
 

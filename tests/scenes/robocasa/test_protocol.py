@@ -9,6 +9,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_env
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
@@ -65,7 +66,7 @@ def test_the_horizon_preset_resolves_to_appendix_bs_six_tasks(placeholders):
     from scenes.robocasa import AXIS_TASKS
 
     d = load_config_preset("robocasa_horizon")
-    plan = resolve_scene_plan(d["scene"], d["task"], d["axes"], d["levels"])
+    plan = resolve_scene_plan(get_scene(d["scene"]), d["task"], d["axes"], d["levels"])
     assert plan.tasks == AXIS_TASKS["horizon"] and len(plan.cells) == 6 * 4
 
 
@@ -90,7 +91,7 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):
     from scenes.robocasa.environment import find_python
     from scenes.robocasa.worker_facts import RELEASES
 
-    described = scene_levels("robocasa", ["base_y"]).describe()
+    described = scene_levels(get_scene("robocasa"), ["base_y"]).describe()
     env, protocol = described["environment"], described["protocol"]
     assert protocol["regime"] == "black-box" and protocol["assets"]["placeholders"] is True
     assert (
@@ -114,7 +115,7 @@ def _oracle_until(env, seed: int, stop, limit: int) -> int:
     from scenes.oracle import oracle_for
     from scenes.privileged import with_privileged
 
-    policy = oracle_for("robocasa")
+    policy = oracle_for(get_scene("robocasa"))
     obs, _ = env.reset(seed=seed)
     policy.reset(env.instruction, seed)
     for _ in range(limit):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_env
 
 
@@ -267,12 +268,12 @@ def test_levels_0_to_3_on_base_y_resolve_for_robocasa(placeholders):
     from scenes.axes import get_successor
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:3")
+    plan = resolve_scene_plan(get_scene("robocasa"), "PickPlaceCounterToCabinet", ["base_y"], "0:3")
     assert list(plan.levels["base_y"]) == [0, 1, 2, 3]
     assert [c.param for c in plan.cells] == pytest.approx([0.0, 0.125, 0.25, 0.375])
     assert get_successor(AxisRef.parse("horizon")).axis.max_level == 2
     with pytest.raises(ConfigError, match="outside"):
-        resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:4")
+        resolve_scene_plan(get_scene("robocasa"), "PickPlaceCounterToCabinet", ["base_y"], "0:4")
 
 
 def test_backend_and_family_agree_on_the_pick_window():
@@ -398,7 +399,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     from scenes.oracle import oracle_for
     from scenes.robocasa.oracle import RoboCasaOracle
 
-    policy = oracle_for("robocasa")
+    policy = oracle_for(get_scene("robocasa"))
     assert isinstance(policy, RoboCasaOracle) and policy.spec.action_dim == 12
     env = level_env("robocasa", task="CloseStandMixerHead", axis="fixture_x", level=0, cameras=(),
                     max_steps=150)  # fmt: skip
@@ -422,7 +423,7 @@ def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
     env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
                     max_steps=400)  # fmt: skip
     try:
-        assert run_oracle_episode(env, oracle_for("robocasa"), seed=3)[0]
+        assert run_oracle_episode(env, oracle_for(get_scene("robocasa")), seed=3)[0]
     finally:
         env.close()
 
@@ -435,16 +436,18 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path, m
     from scenes.oracle import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
-    assert oracle_scripts("robocasa", "CloseToasterOvenDoor")
+    assert oracle_scripts(get_scene("robocasa"), "CloseToasterOvenDoor")
     monkeypatch.setattr(
         RoboCasaOracle, "tasks", tuple(t for t in RoboCasaOracle.tasks if t != "CloseToasterOvenDoor")
     )
-    assert oracle_scripts("robocasa", "CloseStandMixerHead") and not oracle_scripts(
-        "robocasa", "CloseToasterOvenDoor"
+    assert oracle_scripts(get_scene("robocasa"), "CloseStandMixerHead") and not oracle_scripts(
+        get_scene("robocasa"), "CloseToasterOvenDoor"
     )
-    assert oracle_scripts("pick_place", "bread")  # an oracle that lists no tasks scripts every task
+    assert oracle_scripts(
+        get_scene("pick_place"), "bread"
+    )  # an oracle that lists no tasks scripts every task
     with pytest.raises(NoOracleError, match="robocasa/CloseToasterOvenDoor: standin:oracle has no script"):
-        certify("robocasa", "base_y", task="CloseToasterOvenDoor", out=tmp_path / "certify.json")
+        certify(get_scene("robocasa"), "base_y", task="CloseToasterOvenDoor", out=tmp_path / "certify.json")
     assert not (tmp_path / "certify.json").exists()
 
 
@@ -461,7 +464,7 @@ def _oracle_episodes(
     # no max_steps: the task's own horizon (RoboCasa's get_task_horizon; test_horizons checks it against upstream)
     assert env.max_steps == (max_steps or TASK_HORIZONS[task])
     try:
-        policy = oracle_for("robocasa")
+        policy = oracle_for(get_scene("robocasa"))
         return [run_oracle_episode(env, policy, episode_seed(0, "robocasa", task, axis, level, i), i)[0]
                 for i in episodes]  # fmt: skip
     finally:

@@ -172,7 +172,7 @@ def test_the_choice_reaches_the_worker_the_fingerprint_and_the_certificates(plac
         )
         facts = sc.protocol_facts()
         assert facts["split"]["split"] == split
-        seen[(split, regs)] = (facts["initial_states"], certification_root("robocasa"))
+        seen[(split, regs)] = (facts["initial_states"], certification_root(get_scene("robocasa")))
     assert len({s for s, _ in seen.values()}) == len({r for _, r in seen.values()}) == 4
     legacy, root = seen[("all", "")]
     assert legacy.endswith(PICK_T0) and "split" not in legacy  # the words every run had before the option
@@ -232,19 +232,21 @@ def test_the_flag_beats_the_variable_and_the_plans_builder_carries_it_to_the_wor
 
     monkeypatch.setenv(splits.SPLIT_ENV, "all")
     flags = {"split": "pretrain", "obj_registries": "lightwheel"}
-    plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:1", options=flags)
+    plan = resolve_scene_plan(
+        get_scene("robocasa"), "PickPlaceCounterToCabinet", ["base_y"], "0:1", options=flags
+    )
     builder = pickle.loads(pickle.dumps(plan.builder))  # as a worker process receives it
     successor = builder.successor("PickPlaceCounterToCabinet", "base_y")
     # what ExternalSceneEnv sends the RoboCasa worker's build (backend.py reads split and obj_registries from it)
-    sent = builder.family().level_config("PickPlaceCounterToCabinet", successor, 1, (), (64, 64))
+    sent = builder.family.level_config("PickPlaceCounterToCabinet", successor, 1, (), (64, 64))
     assert (sent["split"], sent["obj_registries"]) == ("pretrain", ["lightwheel"])
-    facts = builder.family().protocol_facts()  # the manifest's protocol entry (SceneLevels.describe)
+    facts = builder.family.protocol_facts()  # the manifest's protocol entry (SceneLevels.describe)
     assert facts["split"] == {"split": "pretrain", "obj_registries": ["lightwheel"],
                               "kitchens": splits.SPLIT_WORDS["pretrain"]}  # fmt: skip
     assert "split pretrain" in facts["initial_states"]
     assert builder.worker_environment() == {splits.SPLIT_ENV: "pretrain", splits.REGISTRIES_ENV: "lightwheel"}
     assert get_scene("robocasa").split_choice() == ("all", splits.DEFAULT_REGISTRIES)
-    env_plan = resolve_scene_plan("robocasa", "PickPlaceCounterToCabinet", ["base_y"], "0:1")
+    env_plan = resolve_scene_plan(get_scene("robocasa"), "PickPlaceCounterToCabinet", ["base_y"], "0:1")
     assert (
         dict(env_plan.builder.options)["split"] == "all"
     )  # no flag: the variable, resolved once all the same

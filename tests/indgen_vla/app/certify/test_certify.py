@@ -30,6 +30,7 @@ from scenes.certificates import (
 )
 from scenes.heldout import SPENDING
 from scenes.planning import resolve_scene_plan
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
@@ -74,7 +75,7 @@ def test_sequential_rule_stops_once_the_bound_is_out_of_reach():
 def test_failing_level_stops_after_one_episode_and_is_refused(tmp_path):
     # 5 control steps cannot solve stack: the first failure ends the level (59 would be needed)
     out = tmp_path / "c" / "certify.json"
-    cert = certify("stack", "stack", levels="0", max_steps=5, out=out)
+    cert = certify(get_scene("stack"), "stack", levels="0", max_steps=5, out=out)
     row = cert["levels"][0]
     assert (row["n"], row["successes"], row["status"], row["certified"], row["feasible"]) == (
         1,
@@ -107,25 +108,41 @@ def test_failing_level_stops_after_one_episode_and_is_refused(tmp_path):
 
 def test_certify_is_per_task_resumable_and_atomic(tmp_path):
     root = tmp_path / "certs"
-    a = cert_path("stack", "orange_on_blue", "stack", root=root)
+    a = cert_path(get_scene("stack"), "orange_on_blue", "stack", root=root)
     assert a == root / "stack" / "orange_on_blue" / "stack" / "certify.json"
-    cert = certify("stack", "stack", task="orange_on_blue", levels="0", episodes=1, max_steps=5, out=a)
+    cert = certify(
+        get_scene("stack"), "stack", task="orange_on_blue", levels="0", episodes=1, max_steps=5, out=a
+    )
     assert cert["levels"][0]["status"] == "failed" and cert["task"] == "orange_on_blue"  # 5 steps: no success
     assert [p.name for p in a.parent.iterdir()] == ["certify.json"]  # no temp files left behind
-    assert find_certification("stack", "orange_on_blue", "stack", root=root)["task"] == "orange_on_blue"
-    assert find_certification("stack", None, "stack", root=root) is not None  # None: the first task
-    other = scenes.tasks("stack")[1]
-    assert find_certification("stack", other, "stack", root=root) is None  # never inherits another task's
-    assert find_certification("stack", "orange_on_blue", "stack", step=0.5, root=root) is None
+    assert (
+        find_certification(get_scene("stack"), "orange_on_blue", "stack", root=root)["task"]
+        == "orange_on_blue"
+    )
+    assert (
+        find_certification(get_scene("stack"), None, "stack", root=root) is not None
+    )  # None: the first task
+    other = list(scenes.get_scene("stack").tasks)[1]
+    assert (
+        find_certification(get_scene("stack"), other, "stack", root=root) is None
+    )  # never inherits another task's
+    assert find_certification(get_scene("stack"), "orange_on_blue", "stack", step=0.5, root=root) is None
     logs = []
     again = certify(
-        "stack", "stack", task="orange_on_blue", levels="0:1", episodes=1, max_steps=5, out=a, log=logs.append
+        get_scene("stack"),
+        "stack",
+        task="orange_on_blue",
+        levels="0:1",
+        episodes=1,
+        max_steps=5,
+        out=a,
+        log=logs.append,
     )
     assert any("reusing levels [0]" in m for m in logs) and [r["level"] for r in again["levels"]] == [0, 1]
     assert again["levels"][0] == cert["levels"][0]
     logs.clear()
     certify(
-        "stack",
+        get_scene("stack"),
         "stack",
         task="orange_on_blue",
         levels="0",
@@ -156,7 +173,7 @@ def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
     write_json_atomic(d / "certify.json", {"scene": "stack", "task": "orange_on_blue", "axis": "stack",
                                            "step": 0.25, "unit": "in", "levels": rows})  # fmt: skip
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    cert = find_certification("stack", "orange_on_blue", "stack")
+    cert = find_certification(get_scene("stack"), "orange_on_blue", "stack")
     assert [level_status(r) for r in cert["levels"]] == ["certified", "insufficient", "failed"]
     assert infeasible_levels(cert) == [2]
     summary = write_summary(tmp_path).read_text()
@@ -170,31 +187,33 @@ def test_find_certification_reads_old_and_new_rows(tmp_path, monkeypatch):
 def test_default_jobs_put_every_tasks_first_axis_first():
     jobs = default_jobs()
     n_first = sum(len(s.tasks) for s in builtin_scenes())
-    assert all(a == scenes.axes_for(s)[0] for s, _, a in jobs[:n_first])
+    assert all(a == list(scenes.get_scene(s).axes)[0] for s, _, a in jobs[:n_first])
     assert ("pick_place", "bread", "pick_y+distractor") in jobs[n_first:]
     assert len(jobs) == len(set(jobs)) == 7 * 7 + 4 * 6 + 5 * 3
 
 
 def test_strictly_harder_is_checked_up_front_for_axes_and_compositions(tmp_path):
-    resolve_scene_plan("pick_place", None, ["pick_y"])
-    resolve_scene_plan("pick_place", None, ["pick_y+distractor"])
+    resolve_scene_plan(get_scene("pick_place"), None, ["pick_y"])
+    resolve_scene_plan(get_scene("pick_place"), None, ["pick_y+distractor"])
     with pytest.raises(ProgressionError, match="placement jitter"):
-        resolve_scene_plan("pick_place", None, ["pick_y"], step=0.005)
+        resolve_scene_plan(get_scene("pick_place"), None, ["pick_y"], step=0.005)
     preset = tmp_path / "small.yaml"
     preset.write_text("axes:\n  pick_y: {step: 0.005}\n")
     with pytest.raises(ProgressionError, match=r"component pick_y at step 0.005"):
-        resolve_scene_plan("pick_place", None, ["pick_y+distractor"], preset=str(preset))
+        resolve_scene_plan(get_scene("pick_place"), None, ["pick_y+distractor"], preset=str(preset))
     preset.write_text("axes:\n  goal_y: {step: 0.004}\n")
     with pytest.raises(ProgressionError, match="component goal_y"):
-        resolve_scene_plan("stack", None, ["goal_y+distractor"], preset=str(preset))
+        resolve_scene_plan(get_scene("stack"), None, ["goal_y+distractor"], preset=str(preset))
     with pytest.raises(ProgressionError):  # certify refuses before building any env
-        certify("pick_place", "pick_y", step=0.005, episodes=1, out=tmp_path / "x" / "certify.json")
+        certify(
+            get_scene("pick_place"), "pick_y", step=0.005, episodes=1, out=tmp_path / "x" / "certify.json"
+        )
     assert not (tmp_path / "x").exists()
 
 
 def _spec(name: str, step: float | None = None, preset: str | None = None):
     """The spec of ``name`` on pick_place under ``step`` / ``preset``, as the plan resolves it."""
-    return resolve_scene_plan("pick_place", None, [name], step=step, preset=preset).axes[name]
+    return resolve_scene_plan(get_scene("pick_place"), None, [name], step=step, preset=preset).axes[name]
 
 
 def test_axes_preset_steps_reach_specs_params_and_folders(tmp_path):
@@ -235,10 +254,13 @@ def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
 
     cache = os.environ["INDGEN_CACHE"]
     tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
-    assert certification_root("libero_object") == Path(cache) / "certification" / tag
-    assert certification_root("pick_place").parts[-2:] == ("scenes", "certification")  # built-ins: committed
+    assert certification_root(get_scene("libero_object")) == Path(cache) / "certification" / tag
+    assert certification_root(get_scene("pick_place")).parts[-2:] == (
+        "scenes",
+        "certification",
+    )  # built-ins: committed
     assert (
-        cert_path("libero_object", None, "pick_y").parent.parent.parent.parent
+        cert_path(get_scene("libero_object"), None, "pick_y").parent.parent.parent.parent
         == Path(cache) / "certification" / tag
     )
 
@@ -246,8 +268,8 @@ def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
 @pytest.mark.slow
 def test_workers_give_the_same_certificate(tmp_path):
     kw = dict(task="orange_on_blue", levels="0:2", episodes=2)
-    one = certify("stack", "stack", workers=1, out=tmp_path / "a" / "certify.json", **kw)
-    two = certify("stack", "stack", workers=2, out=tmp_path / "b" / "certify.json", **kw)
+    one = certify(get_scene("stack"), "stack", workers=1, out=tmp_path / "a" / "certify.json", **kw)
+    two = certify(get_scene("stack"), "stack", workers=2, out=tmp_path / "b" / "certify.json", **kw)
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in one["levels"]]
     assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in two["levels"]]
     assert [r["level"] for r in load_certification(tmp_path / "b")["levels"]] == [0, 1, 2]
@@ -265,34 +287,39 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     (tree / "objects" / "box.xml").write_text("<mujoco model='a'/>")
     monkeypatch.setattr(type(get_scene("stack")), "asset_tree", lambda self: tree)
     root = tmp_path / "certs"
-    out = cert_path("stack", None, "stack", root=root)
-    certify("stack", "stack", levels="0", episodes=1, max_steps=5, out=out)
-    cert = find_certification("stack", None, "stack", root=root)
+    out = cert_path(get_scene("stack"), None, "stack", root=root)
+    certify(get_scene("stack"), "stack", levels="0", episodes=1, max_steps=5, out=out)
+    cert = find_certification(get_scene("stack"), None, "stack", root=root)
     assert cert is not None and cert["assets"]["root"] == str(tree.resolve()) and cert["assets"]["files"] == 1
     (tree / "objects" / "box.xml").write_text("<mujoco model='b'/>")  # same path and size, other content
     tree_stamp.cache_clear()  # the next command sees the tree as it is now
-    assert find_certification("stack", None, "stack", root=root) is None
+    assert find_certification(get_scene("stack"), None, "stack", root=root) is None
     logs = []
-    certify("stack", "stack", levels="0", episodes=1, max_steps=5, out=out, log=logs.append)
+    certify(get_scene("stack"), "stack", levels="0", episodes=1, max_steps=5, out=out, log=logs.append)
     assert any("made on other asset files than" in m for m in logs), logs  # made again, not reused
-    assert find_certification("stack", None, "stack", root=root) is not None
+    assert find_certification(get_scene("stack"), None, "stack", root=root) is not None
     old = json.loads(out.read_text())
     del old["assets"]  # as written before certificates recorded their tree
     out.write_text(json.dumps(old))
-    assert find_certification("stack", None, "stack", root=root) is None
+    assert find_certification(get_scene("stack"), None, "stack", root=root) is None
 
 
 def test_certify_builds_its_levels_through_the_plan(tmp_path):
     """certify resolves its axis as evaluate does and hands each level job the plan's builder (the one road)."""
     p = prepare(
-        "pick_place", "pick_y+distractor", task="lemon", levels="0:1", episodes=1, out=tmp_path / "c.json"
+        get_scene("pick_place"),
+        "pick_y+distractor",
+        task="lemon",
+        levels="0:1",
+        episodes=1,
+        out=tmp_path / "c.json",
     )
-    plan = resolve_scene_plan("pick_place", "lemon", ["pick_y+distractor"], "0:1")
+    plan = resolve_scene_plan(get_scene("pick_place"), "lemon", ["pick_y+distractor"], "0:1")
     assert [j[1:4] for j in p.jobs] == [("lemon", "pick_y+distractor", 0), ("lemon", "pick_y+distractor", 1)]
     assert all(j[0] == plan.builder for j in p.jobs)
     assert p.cert["steps"] == {"pick_y": 0.025, "distractor": 1.0} and p.levels == [0, 1]
     with pytest.raises(ConfigError, match="write a held axis as A@B=j") as e:
-        prepare("pick_place", "pick_y@distractor", episodes=1)
+        prepare(get_scene("pick_place"), "pick_y@distractor", episodes=1)
     assert "\n" not in str(e.value)
 
 
@@ -316,7 +343,7 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
             pass
 
     class Builder:  # the plan's builder, building the stand-in above
-        scene = "stack"
+        scene, family = "stack", get_scene("stack")
 
         def make_env(self, *args, **kwargs):
             return Env()

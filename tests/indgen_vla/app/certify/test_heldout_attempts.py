@@ -11,13 +11,14 @@ from indgen_vla.app.certify.run import certify, prepare
 from indgen_vla.core.reporting.certification_view import plan_basis_lines
 from scenes.certificates import cert_path, load_certification
 from scenes.heldout import HELD_OUT, IN_SAMPLE
+from scenes.registry import get_scene
 
 
 def _in_sample(tmp_path):
     """A stack certificate whose level 0 was certified in-sample (block 0, after a failure there) and level 1 on
     held-out states (block 1)."""
-    out = cert_path("stack", "orange_on_blue", "stack", root=tmp_path)
-    head = prepare("stack", "stack", task="orange_on_blue", levels="0", max_steps=5).cert
+    out = cert_path(get_scene("stack"), "orange_on_blue", "stack", root=tmp_path)
+    head = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", max_steps=5).cert
     ok = {"level": 0, "param": 0.0, "n": 59, "successes": 59, "rate": 1.0, "lower_bound": 0.9505, "status": "certified",
           "certified": True, "feasible": True, "stopped_early": False, "mean_steps": 5.0, "wall_s": 1.0, "block": 0,
           "oracle_version": 1, "certified_on": IN_SAMPLE,
@@ -37,8 +38,13 @@ def _in_sample(tmp_path):
 
 def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch):
     out = _in_sample(tmp_path)
-    assert prepare("stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out).jobs == []
-    again = prepare("stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, retest=True)
+    assert (
+        prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out).jobs
+        == []
+    )
+    again = prepare(
+        get_scene("stack"), "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, retest=True
+    )
     (job,) = again.jobs  # level 1 was held-out: kept
     earlier, attempt = again.attempts[0]
     # in-sample attempts spent nothing: this is attempt 1 (59/59); blocks 0 (used) and 1 (burnt by a sweep) skipped
@@ -48,7 +54,7 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [c.basis for c in plan.cells] == [IN_SAMPLE, HELD_OUT]
     (line,) = plan_basis_lines(
         "stack", ["stack"], [dataclasses.asdict(c) for c in plan.cells]
@@ -57,14 +63,14 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
                            "**certified in-sample (tuned)** at orange_on_blue: 0 (in-sample:")  # fmt: skip
 
     logs = []
-    cert = certify("stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, retest=True,
+    cert = certify(get_scene("stack"), "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, retest=True,
                    log=logs.append)  # fmt: skip
     row = {r["level"]: r for r in cert["levels"]}[0]
     # 5 steps cannot stack: the held-out attempt fails and replaces the in-sample certificate, history kept
     assert row["status"] == "failed" and row["block"] == 2 and "certified_on" not in row
     assert [a["block"] for a in row["attempts"]] == [0, 0, 2] and row["attempts"][-1]["held_out"]
     assert load_certification(out)["levels"][0] == row
-    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [(c.certificate, c.basis) for c in plan.cells] == [("failed", ""), ("certified", HELD_OUT)]
 
 
@@ -75,12 +81,12 @@ def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_i
     from scenes.oracle import OraclePolicy
 
     out = tmp_path / "certify.json"
-    (job,) = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs
+    (job,) = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs
     EpisodeLog(job[-2], job[-1]).add(True, 50)  # one episode of block 1, then killed
-    (same,) = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs
+    (same,) = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs
     assert (same[4], same[-1]) == (1, job[-1])  # resumes there
     monkeypatch.setattr(OraclePolicy, "version", OraclePolicy.version + 1)
-    p = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out)
+    p = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out)
     assert p.jobs[0][4] == 2 and [b["block"] for b in p.cert["burnt"]["0"]] == [1]
 
 
@@ -98,8 +104,8 @@ def test_a_fixed_state_family_reports_exhaustive_certificates(tmp_path, monkeypa
     for r in cert["levels"]:
         r.pop("attempts"), r.pop("certified_on")  # as made before ledgers
     out.write_text(json.dumps(cert))
-    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [c.basis for c in plan.cells] == [EXHAUSTIVE, EXHAUSTIVE]
     monkeypatch.setattr(type(get_scene("stack")), "fixed_state_count", 60)  # 59 episodes do not cover 60
-    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [c.basis for c in plan.cells] == [IN_SAMPLE, IN_SAMPLE]

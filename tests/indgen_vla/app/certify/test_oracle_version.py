@@ -19,13 +19,13 @@ from scenes.certificates import (
     row_oracle_version,
 )
 from scenes.oracle import OraclePolicy, oracle_identity
-from scenes.registry import registered_scenes
+from scenes.registry import get_scene, registered_scenes
 
 
 def test_every_family_oracle_has_a_version():
     """Each registered scene's oracle names its class and an integer version; LIBERO's is at least the v2 of the
     sweep (docs/results/libero_object_real_assets.md)."""
-    ids = {s.name: oracle_identity(s.name) for s in registered_scenes()}
+    ids = {s.name: oracle_identity(get_scene(s.name)) for s in registered_scenes()}
     assert all(isinstance(i["version"], int) and i["version"] >= 1 for i in ids.values()), ids
     assert {k: ids["stack"][k] for k in ("name", "version")} == {"name": "scenes.oracle:OraclePolicy",
                                                                  "version": OraclePolicy.version}  # fmt: skip
@@ -39,9 +39,9 @@ def test_every_family_oracle_has_a_version():
 def _old_certificate(tmp_path):
     """A stack certificate as made before versions were recorded (``prepare``'s header, rows written here): level 0
     failed at its first episode, level 1 certified (59/59), no ``oracle`` field anywhere."""
-    out = cert_path("stack", "orange_on_blue", "stack", root=tmp_path)
-    old = prepare("stack", "stack", task="orange_on_blue", levels="0", max_steps=5).cert
-    assert old.pop("oracle") == oracle_identity("stack")
+    out = cert_path(get_scene("stack"), "orange_on_blue", "stack", root=tmp_path)
+    old = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", max_steps=5).cert
+    assert old.pop("oracle") == oracle_identity(get_scene("stack"))
     fail = {"level": 0, "param": 0.0, "n": 1, "successes": 0, "rate": 0.0, "lower_bound": 0.0, "status": "failed",
             "certified": False, "feasible": False, "stopped_early": True, "mean_steps": 5.0, "wall_s": 1.0}  # fmt: skip
     ok = {**fail, "level": 1, "param": 0.25, "n": 59, "successes": 59, "rate": 1.0, "lower_bound": 0.951,
@@ -57,7 +57,13 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     assert [row_oracle_version(r, old) for r in old["levels"]] == [1, 1]  # no field: v1
     logs = []
     same = prepare(
-        "stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, log=logs.append
+        get_scene("stack"),
+        "stack",
+        task="orange_on_blue",
+        levels="0:1",
+        max_steps=5,
+        out=out,
+        log=logs.append,
     )
     assert same.jobs == [] and not any("again" in m for m in logs)  # same version: nothing to re-run
 
@@ -72,12 +78,18 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
     from scenes.planning import resolve_scene_plan
 
-    plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
+    plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [c.evidence for c in plan.cells] == ["0/1 (failed (oracle v1, current v2))", "59/59 (certified)"]
 
     logs.clear()
     again = certify(
-        "stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, out=out, log=logs.append
+        get_scene("stack"),
+        "stack",
+        task="orange_on_blue",
+        levels="0:1",
+        max_steps=5,
+        out=out,
+        log=logs.append,
     )
     assert any("levels [0] failed under an older oracle; trying them again with oracle v2" in m for m in logs)
     rows = {r["level"]: r for r in again["levels"]}
@@ -95,15 +107,15 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     assert (
         "| 0: 0/1! 1: 59/59~ | 1 | 0, 2, 3, 4 | OraclePolicy v1, v2 |" in write_summary(tmp_path).read_text()
     )
-    assert find_certification("stack", "orange_on_blue", "stack")["levels"] == again["levels"]
+    assert find_certification(get_scene("stack"), "orange_on_blue", "stack")["levels"] == again["levels"]
 
 
 def test_a_partial_level_of_another_oracle_version_is_not_reused(tmp_path, monkeypatch):
     """Episodes a killed run of another oracle version left are not mixed into this version's level."""
     out = tmp_path / "certify.json"
-    key = prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1]
+    key = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1]
     monkeypatch.setattr(OraclePolicy, "version", 2)
-    assert prepare("stack", "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1] != key
+    assert prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1] != key
 
 
 @pytest.mark.parametrize("path", ["libero_object/alphabet_soup/goal_y", "stack/orange_on_blue/stack"])

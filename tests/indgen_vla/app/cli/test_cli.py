@@ -73,7 +73,10 @@ def test_paper_presets_run_the_suite_they_are_named_after():
         ):
             assert name.endswith("_style") or "distractor" in name, name
         for axis in d["axes"]:
-            assert set(map(resolve_alias, axis.split("+"))) <= set(scenes.axes_for(scene)), (name, axis)
+            assert set(map(resolve_alias, axis.split("+"))) <= set(list(scenes.get_scene(scene).axes)), (
+                name,
+                axis,
+            )
     assert presets["libero_object"]["task"] == "all" and presets["libero_object"]["axes"] == [
         "pick_y",
         "goal_y",

@@ -16,6 +16,7 @@ from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError, Unknow
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
 from indgen_vla.core.runs.records import RunDir
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 from tests.fixtures.kill import kill_midway
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -144,7 +145,7 @@ def test_retry_then_error_rows(tmp_path):
     policy = FlakyPolicy(always_fail_seeds={stubborn})
     records = []
     rc = RunnerConfig(
-        levels=scene_levels("pick_place", ["pick_y"]),
+        levels=scene_levels(get_scene("pick_place"), ["pick_y"]),
         cameras=(),
         image_size=(64, 64),
         max_steps=6,
@@ -165,7 +166,7 @@ def test_retry_then_error_rows(tmp_path):
 def _first_task():
     import scenes
 
-    return list(scenes.tasks("pick_place"))[:1]
+    return list(scenes.get_scene("pick_place").tasks)[:1]
 
 
 def test_config_from_yaml_and_flags(tmp_path):
@@ -248,7 +249,7 @@ def test_an_unavailable_episode_is_one_unavailable_row_and_a_backends_own_param_
     jobs = plan_episodes(c, _first_task(), {"pick_y": [0]}, {(t, "pick_y", 0): 0.0 for t in _first_task()})
     out = jobs[1].seed
     resets: list[int] = []
-    levels = _UnavailableLevels(scene_levels("pick_place", ["pick_y"]), frozenset({out}), resets)
+    levels = _UnavailableLevels(scene_levels(get_scene("pick_place"), ["pick_y"]), frozenset({out}), resets)
     rc = RunnerConfig(levels=levels, cameras=(), image_size=(64, 64), max_steps=4, privileged=False)
     records = []
     run_local(jobs, rc, _Zeros, RunMeta("r", "test:zeros", "", "pick_place"), records.append,
@@ -284,7 +285,7 @@ def test_warmup_steps_render_only_the_last_and_change_no_image(monkeypatch):
     (job,) = plan_episodes(c, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
     firsts = []
     for lazy in (True, False):
-        rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=(32, 32),
+        rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=("agentview",), image_size=(32, 32),
                           max_steps=10, privileged=False, warmup_steps=4, lazy_render=lazy)  # fmt: skip
         runner = EnvRunner(rc)
         renders["n"] = 0

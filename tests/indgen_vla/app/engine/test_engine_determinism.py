@@ -14,6 +14,7 @@ from indgen_vla.app.engine.local import run_local
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, run_episode
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -56,10 +57,10 @@ def _setup(scene: str, cameras: tuple[str, ...], history_steps: int = 0):
     """Two episodes of level 1 of two tasks (two scenes: pipelined, each lane holds one in the same process)."""
     import scenes
 
-    tasks = list(scenes.tasks(scene))[:2]
+    tasks = list(scenes.get_scene(scene).tasks)[:2]
     c = EvalConfig.from_flat(policy="test", scene=scene, axes=("pick_y",), out="-", episodes=2)
     jobs = plan_episodes(c, tasks, {"pick_y": [1]}, {(t, "pick_y", 1): 0.0 for t in tasks})
-    rc = RunnerConfig(levels=scene_levels(scene, ["pick_y"]), cameras=cameras, image_size=SIZE, max_steps=MAX_STEPS,
+    rc = RunnerConfig(levels=scene_levels(get_scene(scene), ["pick_y"]), cameras=cameras, image_size=SIZE, max_steps=MAX_STEPS,
                       privileged=False, history_steps=history_steps)  # fmt: skip
     return jobs, rc, RunMeta("r", "test", "", scene)
 

@@ -17,6 +17,7 @@ from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.run import evaluate
 from policy_wrappers.registry import load_policy, preview_policy
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -31,9 +32,9 @@ def _jobs_and_config():
     c = EvalConfig.from_flat(
         policy="standin:random", scene="pick_place", axes=("pick_y",), levels="0:1", episodes=2, out="unused"
     )
-    tasks = list(scenes.tasks("pick_place"))[:1]
+    tasks = list(scenes.get_scene("pick_place").tasks)[:1]
     jobs = plan_episodes(c, tasks, {"pick_y": [0, 1]}, {(t, "pick_y", k): 0.0 for t in tasks for k in (0, 1)})
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64),
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=6, privileged=False)  # fmt: skip
     return jobs, rc
 
@@ -126,13 +127,13 @@ def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkey
     import scenes
     from indgen_vla.app.engine.local import start_forkserver
 
-    builder = scene_levels("libero_object", ["pick_y"])
+    builder = scene_levels(get_scene("libero_object"), ["pick_y"])
     start_forkserver(builder)  # a no-op when an earlier test started it: either way it predates the next line
     nowhere = tmp_path / "nowhere"
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(nowhere))
     c = EvalConfig.from_flat(policy="standin:random", scene="libero_object", axes=("pick_y",), levels="0", episodes=2,
                    out="unused")  # fmt: skip
-    task = list(scenes.tasks("libero_object"))[:1]
+    task = list(scenes.get_scene("libero_object").tasks)[:1]
     jobs = plan_episodes(c, task, {"pick_y": [0]}, {(task[0], "pick_y", 0): 0.0})
     rc = RunnerConfig(levels=builder, cameras=(), image_size=(64, 64), max_steps=2, privileged=False)
     records: list = []

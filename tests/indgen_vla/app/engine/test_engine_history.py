@@ -13,6 +13,7 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation, PolicySpec, ScenePreview
 from indgen_vla.core.protocol.plan import EpisodeJob
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 from tests.fixtures.renders import count_renders
 
@@ -24,7 +25,7 @@ CAMS, SIZE, WARMUP = ("agentview", "wrist"), (32, 32), 1
 def _task() -> str:
     import scenes
 
-    return list(scenes.tasks("pick_place"))[0]
+    return list(scenes.get_scene("pick_place").tasks)[0]
 
 
 def _by_hand(env, job: EpisodeJob, actions: np.ndarray) -> list[Observation]:
@@ -53,7 +54,7 @@ def test_history_is_the_step_before_each_query():
     # the horizon counts warm-up steps; replan 3: queries at steps 0, 3, 6 and the third slice ends at step 7,
     # two actions early
     steps, max_steps = 7, 7 + WARMUP
-    levels = scene_levels("pick_place", ["pick_y"])
+    levels = scene_levels(get_scene("pick_place"), ["pick_y"])
     cams = CAMS[:1]  # one camera keeps it fast (both: test_served_vla.py's engine test)
     rc = RunnerConfig(levels=levels, cameras=cams, image_size=SIZE, max_steps=max_steps, privileged=False,
                       warmup_steps=WARMUP, history_steps=1)  # fmt: skip
@@ -115,7 +116,7 @@ def test_history_renders_only_when_asked_and_changes_no_outcome(monkeypatch):
     runs = {}
     for k in (0, 1):
         log, records = Counter(), []
-        rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=SIZE,
+        rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=("agentview",), image_size=SIZE,
                           max_steps=10, privileged=False, history_steps=k)  # fmt: skip
         renders["n"] = 0
         run_local(jobs, rc, lambda k=k, log=log: _SeesHistory(k, log), RunMeta("r", "test", "", "pick_place"),
@@ -138,7 +139,7 @@ def test_history_steps_reach_the_runner_config():
     from indgen_vla.app.engine.policy_source import runner_config as _runner_config
 
     cfg = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=1)
-    plan = SimpleNamespace(builder=scene_levels("pick_place", ["pick_y"]))
+    plan = SimpleNamespace(builder=scene_levels(get_scene("pick_place"), ["pick_y"]))
     spec = PolicySpec("rynnvla", "x", cameras=CAMS, history_steps=1)
     assert _runner_config(cfg, plan, spec).history_steps == 1
     assert _runner_config(cfg, plan, ScenePreview(CAMS, history_steps=1)) == _runner_config(cfg, plan, spec)

@@ -11,6 +11,7 @@ from indgen_vla.app.engine.local import run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.core.protocol.interface import PolicySpec
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 from tests.fixtures.renders import count_renders
 
@@ -44,9 +45,9 @@ def _run(make_inner, privileged: bool, workers: int, pipeline: bool, max_steps: 
     c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
     import scenes
 
-    task = list(scenes.tasks("pick_place"))[:1]
+    task = list(scenes.get_scene("pick_place").tasks)[:1]
     jobs = plan_episodes(c, task, {"pick_y": [0, 1]}, {(task[0], "pick_y", k): 0.03 * k for k in (0, 1)})
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=max_steps,
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=max_steps,
                       privileged=privileged)  # fmt: skip
     log, instances, records = Counter(), [], []
     run_local(jobs, rc, lambda: Logged(make_inner(), log, instances), RunMeta("r", "test", "", "pick_place"),
@@ -125,12 +126,12 @@ def test_lazy_render_reads_the_same_observations(monkeypatch):
     logs = {}
     for lazy in (False, True):
         log, records = Counter(), []
-        rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=("agentview",), image_size=(32, 32), max_steps=10,
+        rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=("agentview",), image_size=(32, 32), max_steps=10,
                           privileged=False, lazy_render=lazy)  # fmt: skip
         c = EvalConfig.from_flat(policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=2)
         import scenes
 
-        task = list(scenes.tasks("pick_place"))[:1]
+        task = list(scenes.get_scene("pick_place").tasks)[:1]
         jobs = plan_episodes(c, task, {"pick_y": [0]}, {(task[0], "pick_y", 0): 0.0})
 
         def make(log=log):

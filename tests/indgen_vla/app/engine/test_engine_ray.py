@@ -14,6 +14,7 @@ from indgen_vla.app.engine.ray_backend import Batcher, ray_knobs
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -121,21 +122,21 @@ def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):
     manifest records the driver's split."""
     from indgen_vla.app.engine.ray_backend import sim_options
     from scenes.planning import scene_levels
-    from scenes.registry import configure_scene
 
     monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "all")
     monkeypatch.delenv("INDGEN_ROBOCASA_OBJ_REGISTRIES", raising=False)
-    env = sim_options(scene_levels("robocasa", ["base_y"]))["runtime_env"]["env_vars"]
+    env = sim_options(scene_levels(get_scene("robocasa"), ["base_y"]))["runtime_env"]["env_vars"]
     assert env == {"INDGEN_ROBOCASA_SPLIT": "all", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "objaverse,lightwheel"}
-    with configure_scene("robocasa", {"split": "target", "obj_registries": "lightwheel"}):
-        flagged = scene_levels("robocasa", ["base_y"])
+    flagged = scene_levels(get_scene("robocasa", {"split": "target", "obj_registries": "lightwheel"}), ["base_y"])
     assert sim_options(flagged)["runtime_env"]["env_vars"] == {
         "INDGEN_ROBOCASA_SPLIT": "target", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "lightwheel"
     }  # fmt: skip
     monkeypatch.delenv("INDGEN_ROBOCASA_SPLIT")
-    default = sim_options(scene_levels("robocasa", ["base_y"]))["runtime_env"]["env_vars"]
+    default = sim_options(scene_levels(get_scene("robocasa"), ["base_y"]))["runtime_env"]["env_vars"]
     assert default["INDGEN_ROBOCASA_SPLIT"] == "pretrain"
-    assert sim_options(scene_levels("pick_place", ["pick_y"])) == {}  # a scene that reads no such choice
+    assert (
+        sim_options(scene_levels(get_scene("pick_place"), ["pick_y"])) == {}
+    )  # a scene that reads no such choice
 
 
 ROW = ("task", "axis", "level", "episode", "seed", "success", "steps", "status", "failure")
@@ -161,7 +162,7 @@ def ray_session():
 def _jobs(policy: str, episodes: int, workers: int):
     import scenes
 
-    task = list(scenes.tasks("pick_place"))[:1]
+    task = list(scenes.get_scene("pick_place").tasks)[:1]
     c = EvalConfig.from_flat(
         policy=policy, scene="pick_place", axes=("pick_y",), out="-", episodes=episodes, workers=workers
     )
@@ -179,7 +180,7 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     from scenes.oracle import OraclePolicy
 
     c, jobs = _jobs("standin:oracle", 2, 1)
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,
                       privileged=True)  # fmt: skip
     ref = []
     run_local(jobs, rc, OraclePolicy, RunMeta("r", "standin:oracle", "", "pick_place"), ref.append, workers=1,
@@ -201,7 +202,7 @@ def test_ray_batched_policy_actor_matches_local(ray_session):
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 
     c, jobs = _jobs("test:feedback", 2, 2)
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=15,
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=15,
                       privileged=False)  # fmt: skip
     meta, cls = RunMeta("r", "test:feedback", "", "pick_place"), feedback_policy_class()
     ref, got, stats = [], [], {}

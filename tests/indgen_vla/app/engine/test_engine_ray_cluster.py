@@ -18,6 +18,7 @@ import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.engine.run import evaluate
+from scenes.registry import get_scene
 from tests.fixtures.kill import episodes_on_disk, kill_midway, processes
 
 ray = pytest.importorskip("ray")
@@ -192,7 +193,7 @@ def test_a_node_added_mid_run_gets_simulators_and_work(joined, tmp_path):
     gate, added = tmp_path / "go", []
     cfg = config(tmp_path / "unused", episodes=6, workers=5)
     jobs = plan_episodes(cfg, ["milk"], {"pick_y": [0, 1]}, {("milk", "pick_y", k): 0.03 * k for k in (0, 1)})
-    rc = RunnerConfig(levels=scene_levels("pick_place", ["pick_y"]), cameras=(), image_size=(64, 64),
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=10, privileged=True)  # fmt: skip
 
     got, stats, failed = [], {}, []
@@ -353,7 +354,9 @@ def test_a_node_whose_environment_names_another_split_builds_the_drivers(tmp_pat
         plain = ray.remote(num_cpus=1)(Probe).remote()
         assert ray.get(plain.split.remote())[0] == "target"  # the node's own value, what an actor read before
         ray.kill(plain)
-        carried = ray.remote(num_cpus=1, **sim_options(scene_levels("robocasa", ["base_y"])))(Probe).remote()
+        carried = ray.remote(num_cpus=1, **sim_options(scene_levels(get_scene("robocasa"), ["base_y"])))(
+            Probe
+        ).remote()
         assert ray.get(carried.split.remote())[0] == "all"
     finally:
         ray.shutdown()

@@ -14,6 +14,7 @@ from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.scheduler import JobQueue, first_jobs
 from indgen_vla.core.protocol.plan import EpisodeJob
 from scenes.planning import SceneLevels, scene_levels
+from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -66,13 +67,13 @@ def _counted(log: Path, levels: list[int], episodes: int) -> tuple[list, RunnerC
     """pick_place's first task at ``levels`` (``episodes`` each, 6 steps), built by a builder that logs to ``log``."""
     import scenes
 
-    task = scenes.tasks("pick_place")[0]
+    task = list(scenes.get_scene("pick_place").tasks)[0]
     cfg = EvalConfig.from_flat(
         policy="test", scene="pick_place", axes=("pick_y",), out="-", episodes=episodes
     )
     jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
     log.touch()
-    base = scene_levels("pick_place", ["pick_y"])
+    base = scene_levels(get_scene("pick_place"), ["pick_y"])
     rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
                       image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
     return jobs, rc

@@ -19,6 +19,7 @@ from indgen_vla.core.errors import EXIT_EPISODE_ERRORS, EXIT_STOPPED, PolicyConn
 from indgen_vla.core.protocol.interface import Observation
 from policy_wrappers.registry import load_policy
 from scenes.planning import scene_levels
+from scenes.registry import get_scene
 
 pytestmark = [pytest.mark.filterwarnings("ignore"), pytest.mark.timeout(300)]
 _spec = importlib.util.spec_from_file_location(
@@ -219,9 +220,11 @@ def test_reference_loop_reruns_after_connection_fault_without_using_a_retry():
     from indgen_vla.core.protocol.plan import EpisodeJob
 
     runner = EnvRunner(
-        RunnerConfig(scene_levels("pick_place", ["pick_y"]), (), (64, 64), max_steps=8, privileged=False)
+        RunnerConfig(
+            scene_levels(get_scene("pick_place"), ["pick_y"]), (), (64, 64), max_steps=8, privileged=False
+        )
     )
-    job = EpisodeJob(list(scenes.tasks("pick_place"))[0], "pick_y", 0, 0, seed=7, param=0.0)
+    job = EpisodeJob(list(scenes.get_scene("pick_place").tasks)[0], "pick_y", 0, 0, seed=7, param=0.0)
     policy = DropsOnce()
     try:
         rec = run_episode(runner, policy, job, RunMeta("r", "test:drops", "", "pick_place"), 4, max_retries=0)
@@ -238,10 +241,12 @@ def test_local_engine_pauses_shows_the_wait_and_reruns_from_seed():
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.core.protocol.plan import EpisodeJob
 
-    task = list(scenes.tasks("pick_place"))[0]
+    task = list(scenes.get_scene("pick_place").tasks)[0]
     jobs = [EpisodeJob(task, "pick_y", 0, e, seed=10 + e, param=0.0) for e in range(2)]
     policy, records, shown = DropsOnce(), [], []
-    rc = RunnerConfig(scene_levels("pick_place", ["pick_y"]), (), (64, 64), max_steps=8, privileged=False)
+    rc = RunnerConfig(
+        scene_levels(get_scene("pick_place"), ["pick_y"]), (), (64, 64), max_steps=8, privileged=False
+    )
     run_local(jobs, rc, lambda: policy, RunMeta("r", "test:drops", "", "pick_place"), records.append,
               workers=1, replan_steps=4, max_retries=0, on_wait=shown.append)  # fmt: skip
     assert [(r.episode, r.status, r.steps) for r in records] == [(0, "ok", 8), (1, "ok", 8)]

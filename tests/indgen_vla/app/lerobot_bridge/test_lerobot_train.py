@@ -9,6 +9,7 @@ import sys
 
 import pytest
 
+from scenes.registry import get_scene
 from tests.fixtures.lerobot_runs import AXIS, ROOT, SCENE, lerobot_env, needs_plugin
 
 pytestmark = [pytest.mark.slow, needs_plugin]
@@ -18,7 +19,7 @@ def test_lerobot_train_evaluates_an_indgen_level(tmp_path):
     from indgen_vla.app.regimes.demos import record_demos
 
     data = tmp_path / "demos"
-    record_demos(SCENE, data, n=2, cameras=(), objects=True)  # state + object poses, no images
+    record_demos(get_scene(SCENE), data, n=2, cameras=(), objects=True)  # state + object poses, no images
     out = tmp_path / "train"
     cmd = [sys.executable, "-m", "lerobot.scripts.lerobot_train", "--dataset.repo_id=local/indgen_demos",
            f"--dataset.root={data}", "--policy.type=act", "--policy.device=cpu", "--policy.push_to_hub=false",

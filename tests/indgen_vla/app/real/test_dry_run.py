@@ -12,6 +12,7 @@ from indgen_vla.app.cli import main
 from indgen_vla.app.real.plan import RealRun
 from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import OPERATOR_FAILURES
+from scenes.registry import get_scene
 from tests.fixtures.levels import level_param
 
 
@@ -23,8 +24,8 @@ def robot():
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
 
-    policy = load_policy("standin:oracle", scene="stack")
-    levels = scene_levels("stack", ["stack"])
+    policy = load_policy("standin:oracle", family=get_scene("stack"))
+    levels = scene_levels(get_scene("stack"), ["stack"])
     runners = {n: EnvRunner(RunnerConfig(levels=levels, cameras=(), image_size=(32, 32), max_steps=n,
                                          privileged=True)) for n in (None, 30)}  # fmt: skip
     yield policy, runners

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import pytest
 
+from scenes.registry import get_scene
+
 
 @pytest.fixture(scope="session")
 def one_demo(tmp_path_factory):
@@ -13,7 +15,7 @@ def one_demo(tmp_path_factory):
     from indgen_vla.app.regimes.demos import record_demos
 
     out = tmp_path_factory.mktemp("one_demo") / "demos"
-    stats = record_demos("pick_place", out, n=1, image_size=32, seed=3)
+    stats = record_demos(get_scene("pick_place"), out, n=1, image_size=32, seed=3)
     return out, stats
 
 
@@ -24,7 +26,7 @@ def demos(tmp_path_factory):
     from indgen_vla.app.regimes.demos import record_demos
 
     out = tmp_path_factory.mktemp("train") / "demos"
-    record_demos("pick_place", out, n=2, seed=5, cameras=(), objects=True)
+    record_demos(get_scene("pick_place"), out, n=2, seed=5, cameras=(), objects=True)
     return out
 
 
@@ -36,6 +38,6 @@ def level_demos(tmp_path_factory):
     from indgen_vla.app.regimes.demos import LevelRequest, record_demos
 
     out = tmp_path_factory.mktemp("levels") / "demos"
-    stats = record_demos("pick_place", out, n=1, seed=5, cameras=(), objects=True,
+    stats = record_demos(get_scene("pick_place"), out, n=1, seed=5, cameras=(), objects=True,
                          levels=LevelRequest("pick_y", "0:1"))  # fmt: skip
     return out, stats

@@ -12,6 +12,7 @@ from indgen_vla.app.regimes.train import TrainConfig, train_policy
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.training_support import TrainedCell
+from scenes.registry import get_scene
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(180)
@@ -155,7 +156,9 @@ def test_datasets_open_without_lerobots_torchcodec_warning(demos, caplog):
 def test_objects_need_recorded_poses(tmp_path):
     from indgen_vla.app.regimes.demos import record_demos
 
-    record_demos("pick_place", tmp_path / "demos", n=1, seed=3, cameras=())  # state only, without poses
+    record_demos(
+        get_scene("pick_place"), tmp_path / "demos", n=1, seed=3, cameras=()
+    )  # state only, without poses
     with pytest.raises(ConfigError, match="indgen demos --objects"):
         train_policy([tmp_path / "demos"], tmp_path / "out", steps=1, objects=True)
 
