@@ -216,13 +216,13 @@ def _resolve(spec: str, kw: Mapping[str, object]) -> tuple[ParsedSpec, Callable[
 
 def load_policy(
     spec: str, *, trust_remote_code: bool = False, device: str = "cpu", scene: str | None = None,
-    env_spec: EnvSpec | None = None, family: object = None, **kw: object,
+    env_spec: EnvSpec | None = None, scene_family: object = None, **kw: object,
 ):  # fmt: skip
     """Load the policy a spec string names (the engine's and ``indgen serve``'s entry point).
 
     Extra keyword arguments are spec options (the same as ``?key=value``) and override them. ``scene`` (the
     scene being evaluated) reaches loaders that take it, for scene-dependent defaults (base OpenVLA's unnorm_key);
-    ``env_spec`` (the scene family's ``EnvSpec``) and ``family`` (the scene family object itself, opaque here: the
+    ``env_spec`` (the scene family's ``EnvSpec``) and ``scene_family`` (the scene family object itself, opaque here: the
     scenes' own oracle is its family's) reach loaders that take them.
     """
     import inspect
@@ -234,8 +234,8 @@ def load_policy(
         env_spec is not None and "env_spec" in params
     ):  # the scene's cameras and action size (stand-ins act in it)
         extra["env_spec"] = env_spec
-    if family is not None and "family" in params:
-        extra["family"] = family
+    if scene_family is not None and "scene_family" in params:
+        extra["scene_family"] = scene_family
     policy = loader(parsed, options, trust_remote_code=trust_remote_code, device=device, **extra)
     try:
         options.finish()

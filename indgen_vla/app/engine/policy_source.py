@@ -58,7 +58,7 @@ class PolicySource:
         cfg = self.cfg
         return load_policy(
             cfg.policy.spec, trust_remote_code=cfg.policy.trust_remote_code, device=cfg.policy.device,
-            scene=cfg.plan.scene, env_spec=self.env_spec, family=getattr(self.plan.builder, "family", None),
+            scene=cfg.plan.scene, env_spec=self.env_spec, scene_family=getattr(self.plan.builder, "family", None),
             **self.options,
         )  # fmt: skip
 

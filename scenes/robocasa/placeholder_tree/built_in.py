@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from .model import Model
+from .model import Joint, Model
 
 
 def sink(m: Model) -> None:
@@ -35,8 +35,13 @@ def microwave(m: Model) -> None:
     """The interior region, a door hinged at its left edge and the start and stop buttons."""
     hx, hy, hz, front, t = m.hx, m.hy, m.hz, m.front, m.thin
     m.region("int", (0, 0, 0), (hx * 0.8, hy * 0.8, hz * 0.8))
-    m.part("door", "microjoint", (0, front, 0), (hx * 0.9, t, hz * 0.8), axis=(0, 0, 1), rng=(-1.57, 0.0),
-           pivot=(-hx * 0.9, 0, 0), geom_names=("door",))  # fmt: skip
+    m.part(
+        "door",
+        Joint("microjoint", axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0)),
+        (0, front, 0),
+        (hx * 0.9, t, hz * 0.8),
+        geom_names=("door",),
+    )
     m.box("start_button", (hx * 0.9, front, hz * 0.3), (0.01, t * 0.5, 0.01))
     m.box("stop_button", (hx * 0.9, front, -hz * 0.3), (0.01, t * 0.5, 0.01))
 
@@ -48,18 +53,37 @@ def racked_door(m: Model, knobs: tuple[str, ...], tray: bool = False, door: bool
     hx, hy, hz, front, t, small = m.hx, m.hy, m.hz, m.front, m.thin, m.small
     for i, z in enumerate((-0.3, 0.3)):  # racks and trays: inside the box, touched by no task here
         m.region(f"rack{i}", (0, 0, hz * z), (hx * 0.8, hy * 0.8, hz * 0.15))
-        m.part(f"rack{i}", f"rack{i}_joint", (0, 0, hz * z), (hx * 0.5, 0.005, 0.005), kind="slide",
-               axis=(0, -1, 0), rng=(0.0, 0.3), collide=False)  # fmt: skip
+        m.part(
+            f"rack{i}",
+            Joint(f"rack{i}_joint", kind="slide", axis=(0, -1, 0), rng=(0.0, 0.3)),
+            (0, 0, hz * z),
+            (hx * 0.5, 0.005, 0.005),
+            collide=False,
+        )
     if tray:
         m.region("tray0", (0, 0, -hz * 0.6), (hx * 0.8, hy * 0.8, hz * 0.1))
-        m.part("tray0", "tray0_joint", (0, 0, -hz * 0.6), (hx * 0.5, 0.005, 0.005), kind="slide",
-               axis=(0, -1, 0), rng=(0.0, 0.3), collide=False)  # fmt: skip
+        m.part(
+            "tray0",
+            Joint("tray0_joint", kind="slide", axis=(0, -1, 0), rng=(0.0, 0.3)),
+            (0, 0, -hz * 0.6),
+            (hx * 0.5, 0.005, 0.005),
+            collide=False,
+        )
     if door:
-        m.part("door", "door_joint", (0, front, 0), (hx * 0.7, t, hz * 0.8), axis=(1, 0, 0), rng=(0.0, 1.57),
-               pivot=(0, 0, -hz * 0.8))  # fmt: skip
+        m.part(
+            "door",
+            Joint("door_joint", axis=(1, 0, 0), rng=(0.0, 1.57), pivot=(0, 0, -hz * 0.8)),
+            (0, front, 0),
+            (hx * 0.7, t, hz * 0.8),
+        )
     for i, k in enumerate(knobs):
-        m.part(f"knob_{k}", f"knob_{k}_joint", (hx * 0.85, front, hz * (0.6 - 0.3 * i)), small, axis=(0, 1, 0),
-               rng=(0.0, 3.14), collide=False)  # fmt: skip
+        m.part(
+            f"knob_{k}",
+            Joint(f"knob_{k}_joint", axis=(0, 1, 0), rng=(0.0, 3.14)),
+            (hx * 0.85, front, hz * (0.6 - 0.3 * i)),
+            small,
+            collide=False,
+        )
 
 
 def oven(m: Model) -> None:
@@ -78,8 +102,13 @@ def stove(m: Model) -> None:
         y = (-0.5 if "front" in loc else 0.5 if "rear" in loc else 0.0) * hy
         m.site(f"burner_on_{loc}", (x, y, hz))
         m.site(f"burner_{loc}_place_site", (x, y, hz))
-        m.part(f"knob_{loc}", f"knob_{loc}_joint", (hx * (-0.8 + 0.4 * i), front, 0), small,
-               axis=(0, 1, 0), rng=(-6.3, 6.3), collide=False)  # fmt: skip
+        m.part(
+            f"knob_{loc}",
+            Joint(f"knob_{loc}_joint", axis=(0, 1, 0), rng=(-6.3, 6.3)),
+            (hx * (-0.8 + 0.4 * i), front, 0),
+            small,
+            collide=False,
+        )
 
 
 # the fridge (heights over its floor, m): a solid freezer under an open compartment whose crisper drawer (RoboCasa's
@@ -127,10 +156,18 @@ def fridge(m: Model) -> None:
         + "</body>"
     )
     door = (hz - z(FREEZER_TOP)) / 2 - 0.005
-    m.part("fridge_door", "fridge_door_joint", (0, m.front, hz - door - 0.005), (hx * 0.9, t, door),
-           axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
-    m.part("freezer_door", "freezer_door_joint", (0, m.front, z(FREEZER_TOP / 2)), (hx * 0.9, t, FREEZER_TOP / 2 - 0.01),
-           axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0))  # fmt: skip
+    m.part(
+        "fridge_door",
+        Joint("fridge_door_joint", axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0)),
+        (0, m.front, hz - door - 0.005),
+        (hx * 0.9, t, door),
+    )
+    m.part(
+        "freezer_door",
+        Joint("freezer_door_joint", axis=(0, 0, 1), rng=(-1.57, 0.0), pivot=(-hx * 0.9, 0, 0)),
+        (0, m.front, z(FREEZER_TOP / 2)),
+        (hx * 0.9, t, FREEZER_TOP / 2 - 0.01),
+    )
 
 
 # m, the stand mixer's bowl at nominal size: its floor's height over the mixer's bottom, its walls' thickness, its

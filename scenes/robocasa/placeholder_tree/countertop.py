@@ -5,7 +5,7 @@ the racks and bowls that only hold an interior region."""
 from __future__ import annotations
 
 from .built_in import racked_door
-from .model import SIZES, Model
+from .model import SIZES, Joint, Model
 
 
 def stand_mixer(m: Model) -> None:
@@ -16,27 +16,40 @@ def stand_mixer(m: Model) -> None:
     # joint's friction holds it open against gravity (RoboCasa's head is closed at qpos 0). As a tilt-head
     # mixer's head, it reaches over the front (since version 6): its front edge overhangs the free front slab,
     # so a finger can get under it and lift it (OpenStandMixerHead); before, it lay on the collider's top
-    m.part("head", "head_joint", (0, 0, top), (hx * 0.6, hy, t), axis=(-1, 0, 0), rng=(0.0, 0.8),
-           pivot=(0, hy, 0), friction=1.0)  # fmt: skip
+    m.part(
+        "head",
+        Joint("head_joint", axis=(-1, 0, 0), rng=(0.0, 0.8), pivot=(0, hy, 0), friction=1.0),
+        (0, 0, top),
+        (hx * 0.6, hy, t),
+    )
     m.part(
         "bowl_b",
-        "bowl_joint",
+        Joint("bowl_joint", axis=(0, 0, 1), rng=(-3.2, 3.2)),
         (0, front, -hz * 0.5),
         small,
-        axis=(0, 0, 1),
-        rng=(-3.2, 3.2),
         collide=False,
     )
-    m.part("knob_speed", "knob_speed_joint", (hx * 0.6, front, 0), small, rng=(0.0, 1.57), collide=False)
-    m.part("button_head_lock", "button_head_lock_joint", (-hx * 0.6, front, 0), small, kind="slide",
-           axis=(0, 1, 0), rng=(-0.01, 0.0), collide=False)  # fmt: skip
+    m.part(
+        "knob_speed", Joint("knob_speed_joint", rng=(0.0, 1.57)), (hx * 0.6, front, 0), small, collide=False
+    )
+    m.part(
+        "button_head_lock",
+        Joint("button_head_lock_joint", kind="slide", axis=(0, 1, 0), rng=(-0.01, 0.0)),
+        (-hx * 0.6, front, 0),
+        small,
+        collide=False,
+    )
 
 
 def electric_kettle(m: Model) -> None:
     """The lid hinged at its rear edge, the power lever (``kettle_switch``) and the lid's release button."""
     hx, hy, hz, top, t = m.hx, m.hy, m.hz, m.top, m.thin
-    m.part("lid", "lid_joint", (0, 0, top), (hx * 0.7, hy * 0.7, t), axis=(-1, 0, 0), rng=(0.0, 1.57),
-           pivot=(0, hy * 0.7, 0), friction=0.5)  # fmt: skip
+    m.part(
+        "lid",
+        Joint("lid_joint", axis=(-1, 0, 0), rng=(0.0, 1.57), pivot=(0, hy * 0.7, 0), friction=0.5),
+        (0, 0, top),
+        (hx * 0.7, hy * 0.7, t),
+    )
     kettle_switch(m)
     # the lid's release button (ElectricKettle.update_state opens the shut lid once it reads > 0.1 of its
     # range): since version 6 a collider on the top beside the lid (where a kettle's handle carries it), pushed
@@ -45,9 +58,19 @@ def electric_kettle(m: Model) -> None:
     # stands 4 mm over the lid's (a finger on both counts the press before it meets the lid) and its bottom,
     # pushed down, 4 mm over the collider
     xb, top_b, bottom_b = (hx + hx * 0.7) / 2, hz - 0.001, hz - m.slab + 0.014
-    m.part("button_lid", "button_lid_joint", (xb, 0, (top_b + bottom_b) / 2),
-           ((hx * 0.3) / 2 - 0.002, 0.015, (top_b - bottom_b) / 2), kind="slide", axis=(0, 0, 1),
-           rng=(-0.01, 0.0), friction=0.02, spring=(20.0, 0.01))  # fmt: skip
+    m.part(
+        "button_lid",
+        Joint(
+            "button_lid_joint",
+            kind="slide",
+            axis=(0, 0, 1),
+            rng=(-0.01, 0.0),
+            friction=0.02,
+            spring=(20.0, 0.01),
+        ),
+        (xb, 0, (top_b + bottom_b) / 2),
+        ((hx * 0.3) / 2 - 0.002, 0.015, (top_b - bottom_b) / 2),
+    )
 
 
 def kettle_switch(m: Model) -> None:
@@ -61,8 +84,12 @@ def kettle_switch(m: Model) -> None:
     hx, hy, hz, s = m.hx, m.hy, m.hz, m.slab
     m.box("body", (-s / 2, s / 2, -s / 2), (hx - s / 2, hy - s / 2, hz - s / 2))
     length = s - 0.006  # 3 mm off the collider's side and inside the footprint's edge
-    m.part("switch", "switch_joint", (hx - s / 2, 0, -hz + 0.04), (length / 2, 0.0125, 0.003), axis=(0, 1, 0),
-           rng=(0.0, 0.26), pivot=(-length / 2, 0, 0), friction=0.05)  # fmt: skip
+    m.part(
+        "switch",
+        Joint("switch_joint", axis=(0, 1, 0), rng=(0.0, 0.26), pivot=(-length / 2, 0, 0), friction=0.05),
+        (hx - s / 2, 0, -hz + 0.04),
+        (length / 2, 0.0125, 0.003),
+    )
 
 
 def coffee_machine(m: Model) -> None:
@@ -91,10 +118,20 @@ def toaster(m: Model) -> None:
     """Two slots' knobs and levers, the cancel button."""
     hx, hz, front, t, small = m.hx, m.hz, m.front, m.thin, m.small
     for i, pair in enumerate(("0_0", "0_1")):
-        m.part(f"knob_{pair}", f"knob_{pair}_joint", (hx * (0.3 + 0.3 * i), front, 0), small, axis=(0, 1, 0),
-               rng=(0.0, 3.14), collide=False)  # fmt: skip
-        m.part(f"lever_{pair}", f"lever_{pair}_joint", (-hx * (0.3 + 0.3 * i), front, 0), small,
-               kind="slide", axis=(0, 0, 1), rng=(-0.05, 0.0), collide=False)  # fmt: skip
+        m.part(
+            f"knob_{pair}",
+            Joint(f"knob_{pair}_joint", axis=(0, 1, 0), rng=(0.0, 3.14)),
+            (hx * (0.3 + 0.3 * i), front, 0),
+            small,
+            collide=False,
+        )
+        m.part(
+            f"lever_{pair}",
+            Joint(f"lever_{pair}_joint", kind="slide", axis=(0, 0, 1), rng=(-0.05, 0.0)),
+            (-hx * (0.3 + 0.3 * i), front, 0),
+            small,
+            collide=False,
+        )
     m.box("button_cancel", (0, front, -hz * 0.5), (0.01, t * 0.5, 0.01))
 
 
@@ -112,8 +149,12 @@ def toaster_oven(m: Model) -> None:
     racked_door(m, ("doneness", "function", "temp", "time"), tray=True, door=False)
     bottom, top = -m.hz + DOOR_HINGE * 2 * m.hz, m.hz * 0.8
     half = (top - bottom) / 2
-    m.part("door", "door_joint", (0, m.front, (top + bottom) / 2), (m.hx * 0.7, DOOR_HALF, half), axis=(1, 0, 0),
-           rng=(0.0, 1.57), pivot=(0, 0, -half))  # fmt: skip
+    m.part(
+        "door",
+        Joint("door_joint", axis=(1, 0, 0), rng=(0.0, 1.57), pivot=(0, 0, -half)),
+        (0, m.front, (top + bottom) / 2),
+        (m.hx * 0.7, DOOR_HALF, half),
+    )
 
 
 def open_top(m: Model) -> None:

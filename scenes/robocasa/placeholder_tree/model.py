@@ -3,6 +3,8 @@ sizes of each fixture kind's box."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 SLAB = 0.05  # front and top slabs of a fixture's footprint kept free of its collider: where its moving parts live
 
 # nominal full size (w, d, h) in metres of each fixture type's box (the registry's size/scale rescales it)
@@ -21,6 +23,27 @@ DEFAULT_SIZE = (0.12, 0.12, 0.2)  # counter-top accessories
 
 def fmt(*v: float) -> str:
     return " ".join(f"{x:.5g}" for x in v)
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A part's one joint: its type, axis, range, ``pivot`` (in the part's frame), friction loss and ``spring``
+    (stiffness, rest position) for a button that springs back."""
+
+    name: str
+    kind: str = "hinge"
+    axis: tuple[float, float, float] = (1, 0, 0)
+    rng: tuple[float, float] = (0.0, 1.57)
+    pivot: tuple[float, float, float] = (0, 0, 0)
+    friction: float = 0.2
+    spring: tuple[float, float] | None = None
+
+    def xml(self) -> str:
+        k = "" if self.spring is None else f' stiffness="{self.spring[0]:g}" springref="{self.spring[1]:g}"'
+        return (
+            f'<joint name="{self.name}" type="{self.kind}" pos="{fmt(*self.pivot)}" axis="{fmt(*self.axis)}" '
+            f'range="{fmt(*self.rng)}" limited="true" damping="2" armature="0.01" frictionloss="{self.friction:g}"{k}/>'
+        )
 
 
 class Model:
@@ -87,19 +110,11 @@ class Model:
             f'<site name="{name}" pos="{fmt(*pos)}" size="{size}" rgba="1 0 0 0"/>'
         )
 
-    def part(self, name: str, joint: str | None, pos, half, kind="hinge", axis=(1, 0, 0), rng=(0.0, 1.57),
-             sites=(), geom_names=(), children="", collide=True, pivot=(0, 0, 0), friction=0.2,
-             spring: tuple[float, float] | None = None) -> None:  # fmt: skip
-        """A child body at ``pos`` (in a free slab, never inside a collider) with one joint (at ``pivot`` in its
-        frame) and a small box of its own; ``collide=False`` for parts no task touches (racks, knobs); ``spring``
-        (stiffness, rest position) for a button that springs back."""
-        k = "" if spring is None else f' stiffness="{spring[0]:g}" springref="{spring[1]:g}"'
-        j = (
-            f'<joint name="{joint}" type="{kind}" pos="{fmt(*pivot)}" axis="{fmt(*axis)}" range="{fmt(*rng)}" '
-            f'limited="true" damping="2" armature="0.01" frictionloss="{friction:g}"{k}/>'
-            if joint
-            else ""
-        )
+    def part(self, name: str, joint: Joint | None, pos, half, sites=(), geom_names=(), children="",
+             collide=True) -> None:  # fmt: skip
+        """A child body at ``pos`` (in a free slab, never inside a collider) with one ``joint`` (None: fixed) and a
+        small box of its own; ``collide=False`` for parts no task touches (racks, knobs)."""
+        j = joint.xml() if joint is not None else ""
         gname = geom_names[0] if geom_names else f"{name}_g"
         flags = "" if collide else ' contype="0" conaffinity="0"'
         g = (

@@ -24,7 +24,7 @@ def robot():
     from policy_wrappers.registry import load_policy
     from scenes.planning import scene_levels
 
-    policy = load_policy("standin:oracle", family=get_scene("stack"))
+    policy = load_policy("standin:oracle", scene_family=get_scene("stack"))
     levels = scene_levels(get_scene("stack"), ["stack"])
     runners = {n: EnvRunner(RunnerConfig(levels=levels, cameras=(), image_size=(32, 32), max_steps=n,
                                          privileged=True)) for n in (None, 30)}  # fmt: skip
