@@ -81,7 +81,9 @@ class RandomPolicy:
         pass
 
 
-def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec=None, scene_family=None):
+def load(
+    parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec=None, scene_family=None
+):
     """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter);
     ``random`` and ``noop`` act in the scene's action space (``env_spec``: 7-d tabletop, 12-d RoboCasa365)."""
     from policy_wrappers.registry import STANDINS
@@ -107,7 +109,9 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
             takes_scene = "scene" in inspect.signature(cls).parameters
         except (TypeError, ValueError):
             takes_scene = False
-        return cls(scene=scene_family) if takes_scene and scene_family is not None else cls()  # its own oracle
+        return (
+            cls(scene=scene_family) if takes_scene and scene_family is not None else cls()
+        )  # its own oracle
     if Path(name).expanduser().is_dir():
         from policy_wrappers import lerobot_policy
 
