@@ -205,7 +205,7 @@ def serve(
 ) -> None:  # fmt: skip
     """``indgen serve``: load the policy spec and serve it until Ctrl-C; ``on_listening(spec_name, port)`` hears
     when the port is bound."""
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     if not 0 <= int(port) <= 65535:
         raise ConfigError(f"--port must be in 0..65535, got {port}")

@@ -86,7 +86,7 @@ def load(
 ):
     """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter);
     ``random`` and ``noop`` act in the scene's action space (``env_spec``: 7-d tabletop, 12-d RoboCasa365)."""
-    from policy_wrappers.registry import STANDINS
+    from policy_wrappers.specs import STANDINS
 
     name = parsed.target
     dim = {"action_dim": env_spec.action_dim} if env_spec is not None else {}

@@ -15,8 +15,8 @@ import os
 import warnings
 
 from indgen_vla.core.protocol.plan import WARM_CELL_ENV
+from scenes.family import Scene, get_scene
 from scenes.planning import scene_levels
-from scenes.registry import Scene, get_scene
 
 
 def warm(scene: Scene, task: str) -> None:

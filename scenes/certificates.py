@@ -28,7 +28,7 @@ from pathlib import Path
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.stats.metrics import clopper_pearson_ci
-from scenes.registry import Scene
+from scenes.family import Scene
 
 THRESHOLD = 0.95
 CONFIDENCE = 0.95
@@ -178,7 +178,7 @@ def level_status(row: dict) -> str:
     return "insufficient" if row["feasible"] else "failed"
 
 
-# The oracle's version (``scenes.oracle.oracle_identity``): each row records the one that ran it. Feasibility is a
+# The oracle's version (``scenes.oracles.oracle_identity``): each row records the one that ran it. Feasibility is a
 # property of the level, so a level any version certified stays certified; a level an older (or other) version
 # failed is re-tried by ``certify`` and reported "failed (oracle vN, current vM)" until then. Rows and certificates
 # made before versions were recorded count as version 1.
@@ -194,7 +194,7 @@ def row_oracle_version(row: dict, cert: dict | None = None) -> int:
 
 def current_oracle_version(scene: Scene) -> int | None:
     """The version of ``scene``'s oracle in this checkout (None for a scene this version no longer knows)."""
-    from scenes.oracle import oracle_identity
+    from scenes.oracles import oracle_identity
 
     try:
         return oracle_identity(scene)["version"]

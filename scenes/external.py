@@ -19,12 +19,12 @@ import numpy as np
 
 from indgen_vla.core.errors import SceneError
 from indgen_vla.core.protocol.interface import Observation
-from scenes.env import BaseSceneEnv
+from scenes.base_env import BaseSceneEnv
 from scenes.runtime import ExternalRuntime, WorkerDied, WorkerProcess
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
-    from scenes.registry import Scene
+    from scenes.family import Scene
 
 # One idle worker per runtime, kept by ``close`` for the next env of this process: the next level skips the
 # simulator's import and reuses the worker's T0 cache (RoboCasa: one reset per episode instead of two).

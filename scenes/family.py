@@ -25,6 +25,8 @@ if TYPE_CHECKING:
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import Successor
 
+TABLETOP_ORACLE = "scenes.tabletop.oracle:OraclePolicy"  # standin:oracle without a scene, and the default
+
 DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
 
 _SCENES: dict[str, Scene] = {}
@@ -81,11 +83,9 @@ class Scene:
     env_spec: ClassVar[EnvSpec] = TABLETOP
     runtime: ClassVar[Any] = None
     preload: ClassVar[tuple[str, ...]] = (
-        "scenes.env", "scenes.sim", "mujoco", "scenes.robosuite_kernels", "scenes.asset_cache"
+        "scenes.base_env", "scenes.sim", "mujoco", "scenes.robosuite_kernels", "scenes.asset_cache"
     )  # fmt: skip
-    oracle: ClassVar[str] = (
-        "scenes.oracle:OraclePolicy"  # the privileged oracle ("module:attr") standin:oracle runs
-    )
+    oracle: ClassVar[str] = TABLETOP_ORACLE  # the privileged oracle ("module:attr") standin:oracle runs
     axis_overrides: ClassVar[Mapping[str, Mapping[str, float]]] = {}
     fixed_initial_states: ClassVar[str] = ""
     fixed_state_count: ClassVar[int] = 0  # how many (LIBERO: 50); certificates over them are exhaustive
@@ -127,8 +127,8 @@ class Scene:
         raise NotImplementedError
 
     def env_class(self) -> type[gym.Env]:
-        """The ``scenes.env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this method
-        (it loads the simulator); typed ``gym.Env`` here because ``scenes.env`` imports this module."""
+        """The ``scenes.base_env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this
+        method (it loads the simulator); typed ``gym.Env`` here because ``scenes.base_env`` imports this module."""
         raise NotImplementedError
 
     def make_env(

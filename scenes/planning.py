@@ -25,8 +25,8 @@ from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
-    from scenes.env import BaseSceneEnv
-    from scenes.registry import Scene
+    from scenes.base_env import BaseSceneEnv
+    from scenes.family import Scene
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,7 @@ def resolve_scene_plan(
     """Resolve a run's scene side once (one-line errors for unknown names, bad levels, condition 2).
 
     Args:
-        scene: a scene family (``scenes.registry.get_scene``), configured or not.
+        scene: a scene family (``scenes.family.get_scene``), configured or not.
         task: a task name, ``"all"``, or None for the scene's default task.
         axes: axis names or compositions (or their parsed ``AxisRef``), in the run's order.
         levels: the ``--levels`` text (``-3:3``, ``0,2``) or list, None for each axis's default range.
@@ -212,7 +212,7 @@ def _resolve(
         level_verdict,
     )
     from scenes.heldout import EXHAUSTIVE, basis, covers_every_state
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     # names, axes and levels only: no assets needed (building an env does: SceneLevels.check_ready)
     refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups

@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from scenes.registry import Scene
+    from scenes.family import Scene
 
 
 def scene_axis_rows(sc: Scene) -> list[dict]:

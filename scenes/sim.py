@@ -1,6 +1,6 @@
 """The one robosuite environment every scene builds into: a Panda at a table plus a ``Layout`` of objects.
 
-Importing this module imports robosuite and MuJoCo; ``scenes`` and ``scenes.catalog`` never do.
+Importing this module imports robosuite and MuJoCo; ``scenes`` and ``scenes.tabletop`` never do.
 Placement is seeded from the episode seed alone (numpy Generator), the robot starts without
 initialisation noise, and the model is built once per env (``hard_reset=False``), so the same
 (scene, task, axis, level, seed) gives the same initial state bit for bit in any process.

@@ -9,7 +9,7 @@ import json
 import os
 import time
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 
 class CpuMeter:
@@ -141,7 +141,7 @@ def model_alone(spec_str: str, batches: list[int], device: str, precision: str, 
     size, and the GPU's busy share while it runs; the ceiling an in-engine run is compared with. ``first_call_s``
     per batch size is the warm-up call: with ``--compile`` it holds the compile (a second process reads the
     inductor cache, ``policy_wrappers.compile.cache_dir``)."""
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     t0 = time.perf_counter()
     policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))
@@ -238,7 +238,7 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     >= 0.8 when the model is the bottleneck)."""
     from indgen_vla.app.engine.local import LANES, run_local
     from indgen_vla.app.engine.rollout import RunMeta
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     task, jobs = level0_jobs(scene, episodes)
     policy = load_policy(spec_str, device=device, **_policy_options(precision, compile_mode))

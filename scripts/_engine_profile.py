@@ -34,7 +34,7 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta
     from indgen_vla.core.runs.records import RunDir
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     task, jobs = level0_jobs(scene, episodes)

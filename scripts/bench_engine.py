@@ -26,7 +26,7 @@ from pathlib import Path
 from _engine_box import CpuMeter, level0_jobs, model_alone, scaling
 from _engine_profile import profile_coordinator, profile_worker
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -62,7 +62,7 @@ CPU: dict[str, tuple[float, float]] = {}  # run label -> CPU seconds (main proce
 def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False) -> float:
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
 
     rc = RunnerConfig(
@@ -99,7 +99,7 @@ def pipeline_bench(
 
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
@@ -172,7 +172,7 @@ def batched_gain(batch: int, reps: int) -> float:
     import numpy as np
 
     from indgen_vla.core.protocol.interface import Observation
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     with tempfile.TemporaryDirectory() as d:
@@ -203,7 +203,7 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
@@ -248,7 +248,7 @@ def gil_overlap(scene: str, size: int, n: int) -> dict:
     import numpy as np
 
     import scenes
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
@@ -400,7 +400,7 @@ def main() -> None:
     from scenes.planning import scene_levels
 
     task, jobs = level0_jobs(args.scene, episodes)
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     policy = load_policy(args.policy)
     replan = policy.spec.replan_steps

@@ -25,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
@@ -68,7 +68,7 @@ def round_trip_ms(calls: int) -> dict:
 
     from indgen_vla.app.engine.ray_backend import _PolicyActor, _PolicyClient
     from indgen_vla.core.protocol.interface import Observation
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     obs = Observation({}, np.zeros(8, np.float32), "pick")
     direct = load_policy("standin:random")
@@ -105,7 +105,7 @@ class SlowOracle:
     free); the same decisions, so records stay equal across backends."""
 
     def __init__(self, forward_s: float = 0.0):
-        from scenes.oracle import OraclePolicy
+        from scenes.tabletop.oracle import OraclePolicy
 
         self.inner, self.forward_s = OraclePolicy(), forward_s
         self.spec = self.inner.spec
@@ -222,8 +222,8 @@ def main() -> None:
     import ray
 
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from scenes.oracle import OraclePolicy
     from scenes.planning import scene_levels
+    from scenes.tabletop.oracle import OraclePolicy
 
     cfg, jobs = _jobs(args.episodes)
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),

@@ -123,8 +123,8 @@ def _diff(a: list[np.ndarray], b: list[np.ndarray]) -> dict:
 
 def child(scene: str, size: int, frames: int, repeats: int, only_default: bool) -> list[dict]:
     """All options (or only the default) in this process; rows with timings and pixel differences."""
+    from scenes.family import get_scene
     from scenes.planning import resolve_scene_plan
-    from scenes.registry import get_scene
 
     axis = get_scene(scene).default_axis  # level 0: T0 on every axis
     plan = resolve_scene_plan(get_scene(scene), None, (axis,), [0])

@@ -152,7 +152,7 @@ def build(
     from indgen_vla.app.engine.policy_source import runner_config as _runner_config
     from indgen_vla.app.engine.run import _fingerprint, build_manifest, build_plan
     from indgen_vla.core.runs.records import RunDir
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     patch_tasks(tasks)
     cfg = _config(tasks, out, adaptive, episodes)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 BARE = r"""
 import json, sys, time

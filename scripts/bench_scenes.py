@@ -24,9 +24,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from scenes.catalog import builtin_scenes  # noqa: E402  (the bare-robosuite baseline needs a built-in scene)
+from scenes.family import get_scene  # noqa: E402
+from scenes.listing import builtin_scenes  # noqa: E402  (the bare-robosuite baseline needs a built-in scene)
 from scenes.planning import scene_levels  # noqa: E402
-from scenes.registry import get_scene  # noqa: E402
 from scenes.sim import CAMERA_NAMES  # noqa: E402
 
 CAMS = ("agentview", "wrist")

@@ -36,7 +36,7 @@ def shipped(root: Path) -> str:
 # (part, module, attribute): attribute is "func" or "Class.method"; wrapped in the child before the CLI runs
 PARTS = (
     ("plan", "indgen_vla.app.engine.run", "build_plan"),
-    ("policy_load", "policy_wrappers.registry", "load_policy"),
+    ("policy_load", "policy_wrappers.specs", "load_policy"),
     ("manifest", "indgen_vla.app.engine.run", "build_manifest"),
     ("run_dir_create", "indgen_vla.core.runs.records", "RunDir.create_or_resume"),
     ("fingerprint", "indgen_vla.app.engine.run", "_fingerprint"),

@@ -412,7 +412,7 @@ def main(argv: list[str] | None = None) -> dict:
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     work = Path(a.work) if a.work else Path(tempfile.mkdtemp(prefix="bench_vs_lerobot_"))
     work.mkdir(parents=True, exist_ok=True)

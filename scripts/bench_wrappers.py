@@ -49,8 +49,8 @@ def timed(fn, n: int, warmup: int = 5) -> float:
 
 def bench_openpi(n: int) -> dict:
     from policy_wrappers.openpi import make_request
-    from policy_wrappers.registry import load_policy
     from policy_wrappers.serve import PolicyServer
+    from policy_wrappers.specs import load_policy
 
     server = PolicyServer(load_policy("standin:noop?chunk=10"), port=0)
     port = server.start_background()
@@ -71,7 +71,7 @@ def bench_openpi(n: int) -> dict:
 
 def bench_openvla(n: int) -> dict:
     from policy_wrappers.openvla import dumps, loads
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     reply = dumps([np.zeros(7, np.float32)] * 8).encode()
 
@@ -105,7 +105,7 @@ def bench_openvla(n: int) -> dict:
 def bench_groot(n: int) -> dict:
     import zmq
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     reply_n16 = msgpack_numpy.groot_packb(
         [
@@ -160,8 +160,8 @@ def bench_groot(n: int) -> dict:
 def bench_lerobot(n: int, batch: int, ckpt: str, threads: int) -> dict:
     import torch
 
-    from policy_wrappers.registry import load_policy
     from policy_wrappers.serve import PolicyServer
+    from policy_wrappers.specs import load_policy
 
     torch.set_num_threads(threads)
     policy = load_policy(f"lerobot:{ckpt}")

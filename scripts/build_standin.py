@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")

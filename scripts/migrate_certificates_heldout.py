@@ -32,8 +32,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from scenes.family import get_scene  # noqa: E402
 from scenes.heldout import FIRST_ALPHA, HELD_OUT, IN_SAMPLE, LEGACY_BLOCK, fixed_states_basis  # noqa: E402
-from scenes.registry import get_scene  # noqa: E402
 
 CERTS = ROOT / "scenes" / "certification"
 # sweep cells (10 episodes = block 0's first ten) that failed before any certification of the level, so the oracle
@@ -55,11 +55,11 @@ SEEN_FAILING = {
     ): "sweep v1 9/10 (timeout_holding, episode 3 traced with v2)",
     ("libero_object", "alphabet_soup", "scale", 3): "sweep v2 0/10 (no_grasp)",
 }
-# the files that make up each family's oracle, as ``scenes.oracle.oracle_code_hash`` reads them today
+# the files that make up each family's oracle, as ``scenes.oracles.oracle_code_hash`` reads them today
 ORACLE_FILES = {
-    "scenes.oracle:OraclePolicy": ["scenes/oracle.py"],
+    "scenes.tabletop.oracle:OraclePolicy": ["scenes/tabletop/oracle.py"],
     "scenes.libero.oracle:LiberoOracle": [
-        "scenes/oracle.py",
+        "scenes/tabletop/oracle.py",
         "scenes/libero/oracle.py",
         "scenes/libero/grasp_clearance.py",
     ],  # fmt: skip
@@ -154,7 +154,7 @@ def migrate(write: bool = True) -> list[str]:
     hist, tuned = history(), []
     for path in sorted(CERTS.glob("*/*/*/certify.json")):
         cert = json.loads(path.read_text())
-        oracle = (cert.get("oracle") or {}).get("name") or "scenes.oracle:OraclePolicy"
+        oracle = (cert.get("oracle") or {}).get("name") or "scenes.tabletop.oracle:OraclePolicy"
         cert["oracle"] = {"name": oracle, "version": (cert.get("oracle") or {}).get("version", 1)}
         if "assets" not in cert:  # a built-in scene: robosuite's bundled models (README: robosuite 1.4.0)
             cert["assets"] = {"tree": "robosuite's bundled models (built-in scene)", "robosuite": "1.4.0"}

@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -71,7 +71,7 @@ def main() -> int:
         print(table(json.loads(args.out.read_text())))
         return 0
     from indgen_vla.app.certify.baseline import baseline_episodes, level_entry
-    from scenes.oracle import oracle_identity
+    from scenes.oracles import oracle_identity
     from scenes.robocasa.placeholder_tree import VERSION
 
     if not os.environ.get("INDGEN_ROBOCASA_ASSETS"):

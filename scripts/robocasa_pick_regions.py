@@ -16,7 +16,7 @@ import re
 import statistics
 import time
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 
 def measure(task: str, seeds: list[int]) -> dict:

@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 SCENE = "libero_object"
 MOVED = 0.01  # a state whose pick object or basket ends this far (m) from its level pose: thrown, not settled

@@ -19,9 +19,9 @@ from pathlib import Path
 def main(argv=None) -> int:
     from indgen_vla.app.certify.suite import write_summary
     from indgen_vla.core.resources import certification_dir
+    from scenes.family import get_scene
     from scenes.heldout import fixed_states_basis
-    from scenes.libero.setup import COMPLETE_TREE, FILES
-    from scenes.registry import get_scene
+    from scenes.libero.install import COMPLETE_TREE, FILES
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("src", help="a certify_many root holding libero_object/<task>/<axis>/certify.json")

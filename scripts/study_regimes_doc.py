@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "results" / "data_regimes.md"
 

@@ -19,7 +19,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 SCENE = "libero_object"
 
@@ -44,7 +44,7 @@ def run_cell(job: tuple) -> dict:
     import numpy as np
 
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.planning import resolve_scene_plan
     from scenes.privileged import with_privileged
 

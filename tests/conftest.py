@@ -40,7 +40,7 @@ def complete_libero_tree():
     """Where ``indgen setup libero`` installed LIBERO's complete tree (its listing is the wheels'), else None: the
     tree every ``real_assets`` test runs on."""
     from scenes.libero.assets import tree_identity
-    from scenes.libero.setup import COMPLETE_TREE, default_dest
+    from scenes.libero.install import COMPLETE_TREE, default_dest
 
     root = default_dest()
     return root if root.is_dir() and tree_identity(root) == COMPLETE_TREE else None

@@ -132,7 +132,7 @@ def certify(
     ``split`` / ``obj_registries``: RoboCasa365's (``--split`` / ``--obj-registries``)."""
     from indgen_vla.app.certify.run import certify as run_certify
     from scenes.certificates import cert_path
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     # the family configured once (the certificates' folder follows the choice), handed on
     sc = get_scene(scene, {"split": split, "obj_registries": obj_registries})

@@ -19,9 +19,9 @@ from indgen_vla.core.protocol.seeding import evaluation_seed
 from indgen_vla.core.reporting.figures import contact_sheet, unit_name
 from indgen_vla.core.runs.records import atomic_savefig
 from scenes.axes import get_path, shifts, spec_at_level
-from scenes.env import check_env_args
+from scenes.base_env import check_env_args
+from scenes.family import Scene
 from scenes.planning import resolve_scene_plan
-from scenes.registry import Scene
 
 FORMATS = (".png", ".pdf", ".svg", ".jpg")  # what the sheet is written as, by --out's suffix
 

@@ -24,7 +24,7 @@ class PolicyCheck:
     name = "policy"
 
     def __init__(self, spec: str):
-        from policy_wrappers.registry import load_policy
+        from policy_wrappers.specs import load_policy
 
         self.spec = spec
         self.policy = load_policy(spec)  # a remote family connects and shakes hands here: fails in one line

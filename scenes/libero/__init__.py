@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError, SceneError
 from scenes.axes import shifts
+from scenes.family import Scene, register_scene
 from scenes.predicates import BddlGoal
-from scenes.registry import Scene, register_scene
 from scenes.spec import Item
 
 if TYPE_CHECKING:

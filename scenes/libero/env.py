@@ -23,7 +23,7 @@ from indgen_vla.core.errors import SceneError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.progression import check_strictly_harder
 from scenes.axes import Successor, axis_param, shifts, spec_at_level
-from scenes.env import BaseSceneEnv
+from scenes.base_env import BaseSceneEnv
 from scenes.libero.assets import config_dir, find_assets, import_libero
 from scenes.libero.bddl import LiberoTask, add_fixtures, shift_region
 from scenes.libero.problem import level_problem, problem_class

@@ -1,4 +1,4 @@
-"""LIBERO's privileged oracle: the tabletop script (``scenes.oracle``) with two habits the real meshes need.
+"""LIBERO's privileged oracle: the tabletop script (``scenes.tabletop.oracle``) with two habits the real meshes need.
 
 It grasps where the env says the open gripper clears the neighbours (``Targets.grasp_xy``, from
 ``scenes.libero.grasp_clearance``) and carries the object's centre, not the grip point, to the basket; and it ends
@@ -8,7 +8,7 @@ arm's reach and waiting out those phases' step limits left too few of the 280 st
 
 from __future__ import annotations
 
-from scenes.oracle import OraclePolicy
+from scenes.tabletop.oracle import OraclePolicy
 
 
 class LiberoOracle(OraclePolicy):

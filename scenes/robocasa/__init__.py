@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, ClassVar
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import EnvSpec
 from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
-from scenes.registry import Scene, register_scene
-from scenes.robocasa.deviations import DEVIATIONS, PICK_T0, SPAWN_JITTER
+from scenes.family import Scene, register_scene
+from scenes.robocasa.departures import DEVIATIONS, PICK_T0, SPAWN_JITTER
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.robocasa.split_option import SplitOption

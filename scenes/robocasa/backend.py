@@ -163,7 +163,7 @@ class RoboCasaLevel:
                 # registries
                 **kitchen,
                 robot_spawn_deviation_pos_x=0.0,  # RoboCasa's 0.15 / 0.05 m jitter off: a documented choice
-                robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/deviations.py SPAWN_JITTER, in the manifest)
+                robot_spawn_deviation_pos_y=0.0,  # (scenes/robocasa/departures.py SPAWN_JITTER, in the manifest)
                 translucent_robot=False,
             )
         self.env._indgen_pins = self.env._indgen_made = self.env._indgen_seed = None

@@ -30,7 +30,7 @@ import numpy as np
 
 from indgen_vla.core.errors import PolicyError
 from indgen_vla.core.protocol.interface import ROT_SCALE, Observation
-from scenes.oracle import R_DOWN, _axis_angle, oracle_spec
+from scenes.oracles import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz, to_base
 from scenes.robocasa.oracle_cabinet import OPEN, pick_place, unload
@@ -79,8 +79,8 @@ class RoboCasaOracle:
     """Scripted PandaOmron arm from privileged poses: cabinet pick-and-place, or the stand mixer's head."""
 
     spec = oracle_spec(ACTION_DIM)
-    version = 6  # bumped by hand with every change of behaviour (scenes.oracle.OraclePolicy.version)
-    # the tasks it scripts (scenes.oracle.oracle_scripts): certify refuses the others, whose levels stay uncertified
+    version = 6  # bumped by hand with every change of behaviour (scenes.tabletop.oracle.OraclePolicy.version)
+    # the tasks it scripts (scenes.oracles.oracle_scripts): certify refuses the others, whose levels stay uncertified
     # (the carry into the stand mixer's bowl, which drives twice as CheesyBread's does, fails its first levels:
     # docs/results/robocasa_oracle.md)
     tasks = (

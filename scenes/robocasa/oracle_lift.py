@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.oracle import R_DOWN
+from scenes.oracles import R_DOWN
 from scenes.privileged import PrivilegedState
 from scenes.robocasa.oracle_base import base_goal, drive_phase, rz
 from scenes.robocasa.oracle_fixtures import CLOSED, hinge_frame

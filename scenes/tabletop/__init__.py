@@ -1,6 +1,6 @@
-"""The built-in scene families (pure data, no simulator import) and the ``indgen scenes`` / ``indgen axes`` listings.
-
-Each family is one registered ``Scene`` subclass; ``scenes.layouts`` holds its simulator builder.
+"""The tabletop family: pick_place, stack and cabinet_pick on this package's robosuite scene (pure data here, no
+simulator import). Each is one registered ``TabletopScene``; ``builders`` turns a level's spec into its simulator
+``Layout`` (with ``mjcf``'s objects), ``env`` builds the level, ``oracle`` scripts it.
 """
 
 from __future__ import annotations
@@ -8,38 +8,40 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.protocol.axis_ref import AxisRef
-from scenes.axes import axis_components, base_axis_names, get_successor
+from scenes.family import TABLETOP_ORACLE, Scene, register_scene
 from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
-from scenes.registry import Scene, register_scene, registered_scenes
 from scenes.spec import BLOCK_COLOURS, PICK_OBJECTS, Item, SceneSpec
 
 if TYPE_CHECKING:
-    from scenes.env import SceneEnv
     from scenes.sim import Layout
+    from scenes.tabletop.env import SceneEnv
 
 SHORT_DRESSING = ("lemon", "bread", "can", "cube", "cylinder")
 STACK_TASKS = ("orange_on_blue", "red_on_green", "yellow_on_red", "blue_on_yellow")
 
 
-class RobosuiteScene(Scene):
-    """A family built by this package's robosuite backend (``scenes.env.SceneEnv``) from a ``SceneSpec``.
+class TabletopScene(Scene):
+    """A family built by this package's robosuite backend (``scenes.tabletop.env.SceneEnv``) from a ``SceneSpec``:
+    the base a tabletop family of your own subclasses (docs/extending.md).
 
-    ``builder`` names the ``scenes.layouts`` function turning a level's spec into the simulator ``Layout``.
+    ``builder`` names the ``scenes.tabletop.builders`` function turning a level's spec (and the family's distractor
+    slots) into the simulator ``Layout``.
     """
 
     tasks: ClassVar[tuple[str, ...]]
     builder: ClassVar[str]
     env_from_spec = True  # SceneEnv builds scene.layout(spec_at_level(...)); the successor adds nothing else
+    oracle = TABLETOP_ORACLE
+    preload = (*Scene.preload, "scenes.tabletop.env", "scenes.tabletop.builders")
 
     def layout(self, spec: SceneSpec) -> Layout:
         """The simulator layout of one level (imports robosuite)."""
-        import scenes.layouts as layouts
+        import scenes.tabletop.builders as builders  # lazy: optional robosuite (the listings never build)
 
-        return getattr(layouts, self.builder)(spec, self.distractor_slots)
+        return getattr(builders, self.builder)(spec, self.distractor_slots)
 
     def env_class(self) -> type[SceneEnv]:
-        from scenes.env import SceneEnv
+        from scenes.tabletop.env import SceneEnv  # lazy: optional robosuite (the listings never build)
 
         return SceneEnv
 
@@ -49,11 +51,13 @@ class RobosuiteScene(Scene):
         if not getattr(cls, "tasks", ()) or not isinstance(cls.tasks, tuple):
             raise ConfigError(f"scene {cls.name}: set tasks to a non-empty tuple of task names")
         if not isinstance(getattr(cls, "builder", None), str):
-            raise ConfigError(f"scene {cls.name}: set builder to the name of a scenes.layouts function")
+            raise ConfigError(
+                f"scene {cls.name}: set builder to the name of a scenes.tabletop.builders function"
+            )
 
 
 @register_scene
-class PickPlace(RobosuiteScene):
+class PickPlace(TabletopScene):
     """LIBERO-Object style pick and place into a basket.
 
     **Task Description:**
@@ -99,7 +103,7 @@ def _stack_pair(task: str) -> tuple[str, str]:
 
 
 @register_scene
-class Stack(RobosuiteScene):
+class Stack(TabletopScene):
     """The paper's real-robot Stack task in simulation.
 
     **Task Description:**
@@ -150,7 +154,7 @@ class Stack(RobosuiteScene):
 
 
 @register_scene
-class CabinetPick(RobosuiteScene):
+class CabinetPick(TabletopScene):
     """RoboCasa style: take an object out of a cabinet compartment.
 
     **Task Description:**
@@ -186,36 +190,3 @@ class CabinetPick(RobosuiteScene):
 
     def instruction(self, task: str) -> str:
         return f"take the {PICK_OBJECTS[task][0]} out of the cabinet and put it on the table"
-
-
-def builtin_scenes() -> list[RobosuiteScene]:
-    """The registered families this package builds itself (no external assets)."""
-    return [s for s in registered_scenes() if isinstance(s, RobosuiteScene)]
-
-
-# ---- ``indgen scenes`` / ``indgen axes`` ------------------------------------------------------------
-def scene_rows() -> list[dict]:
-    """One row per registered scene for ``indgen scenes``: the built-ins, then the LIBERO suites (assets not
-    required)."""
-    return [s.row() for s in registered_scenes()]
-
-
-def axis_rows() -> list[dict]:
-    """Every base axis and two examples of compositions: step, unit, levels, field, description, scenes."""
-    scenes = scene_rows()
-    rows = []
-    for ref in map(AxisRef.parse, base_axis_names() + ["pick_y+distractor", "pick_y@distractor=2"]):
-        ax = get_successor(ref).axis
-        rows.append(
-            {
-                "name": ax.name,
-                "step": ax.step,
-                "unit": ax.unit,
-                "levels": f"{ax.min_level}..{ax.max_level}",
-                "signed": ax.signed,
-                "field": ax.field,
-                "description": ax.description,
-                "scenes": [s["name"] for s in scenes if all(p in s["axes"] for p in axis_components(ref))],
-            }
-        )
-    return rows

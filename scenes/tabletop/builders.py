@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-import scenes.objects as O
+import scenes.tabletop.mjcf as O
 from scenes.mujoco_geom import grasp_height
 from scenes.privileged import GoalState, PickState, SceneFacts, Targets
 from scenes.sim import TABLE_TOP, FreeObject, Layout

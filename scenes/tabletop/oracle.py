@@ -1,4 +1,4 @@
-"""The privileged scripted oracle that certifies every level (Assumption 2): approach, grasp, lift, transport, release.
+"""The tabletop family's privileged scripted oracle, which certifies every level (Assumption 2): approach, grasp, lift, transport, release.
 
 It reads the env's ``PrivilegedState`` that the engine attaches to its observation (``scenes.privileged``) and
 emits 7-d OSC_POSE delta actions. It has no randomness, so it is deterministic given the episode. Each phase
@@ -8,38 +8,14 @@ is a ``Phase`` member whose method emits one action and decides when the next ph
 from __future__ import annotations
 
 import enum
-import functools
-import hashlib
-import inspect
 from collections.abc import Sequence
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from indgen_vla.core.errors import PolicyError
-from indgen_vla.core.protocol.interface import ACTION_DIM, ROT_SCALE, Observation, PolicySpec
+from indgen_vla.core.protocol.interface import ACTION_DIM, ROT_SCALE, Observation
+from scenes.oracles import R_DOWN, _axis_angle, oracle_spec
 from scenes.privileged import PrivilegedState, privileged_of
-
-if TYPE_CHECKING:
-    from scenes.registry import Scene
-
-# Gripper pointing straight down, fingers closing along world y (the Panda's home orientation, untilted).
-R_DOWN = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-
-
-def _axis_angle(r: np.ndarray) -> np.ndarray:
-    """Axis-angle vector of a rotation matrix."""
-    cos = np.clip((np.trace(r) - 1) / 2, -1.0, 1.0)
-    angle = np.arccos(cos)
-    if angle < 1e-6:
-        return np.zeros(3)
-    v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    n = np.linalg.norm(v)
-    if n < 1e-9:  # angle ~ pi: take the axis from the symmetric part
-        w, vecs = np.linalg.eigh((r + r.T) / 2)
-        return vecs[:, np.argmax(w)] * angle
-    return v / n * angle
 
 
 class Phase(enum.Enum):
@@ -135,65 +111,6 @@ class Phase(enum.Enum):
         hold = o._hold
         target = np.array([hold[0], hold[1], max(hold[2] + 0.08, o.travel_z(s) - 0.02)])
         return o._goto(s, target, -1.0, speed=0.5)
-
-
-def oracle_for(scene: Scene | None = None):
-    """``standin:oracle``: the privileged oracle of ``scene``'s family (``Scene.oracle``; the tabletop one when no
-    scene is named)."""
-    return OraclePolicy() if scene is None else oracle_class(scene)()
-
-
-def oracle_class(scene: Scene) -> type:
-    """The class of ``scene``'s oracle (``Scene.oracle``), not instantiated."""
-    import importlib
-
-    module, _, attr = scene.oracle.partition(":")
-    return getattr(importlib.import_module(module), attr)
-
-
-def oracle_identity(scene: Scene) -> dict:
-    """What a certificate records of the oracle that made it: its class, its hand-bumped ``version`` and
-    a hash of its source (``oracle_code_hash``)."""
-    cls = oracle_class(scene)
-    return {"name": f"{cls.__module__}:{cls.__qualname__}", "version": int(cls.version),
-            "code_hash": oracle_code_hash(cls)}  # fmt: skip
-
-
-@functools.cache
-def oracle_code_hash(cls: type) -> str:
-    """SHA-256 (first 16 hex) of the source of every ``scenes`` module in the oracle class's hierarchy and the
-    ``*oracle*.py``/``grasp*.py`` beside its own module: a behaviour change without a version bump shows here."""
-    files: set[Path] = set()
-    for k in cls.__mro__:
-        mod = inspect.getmodule(k)
-        if mod is not None and mod.__name__.startswith("scenes") and getattr(mod, "__file__", None):
-            files.add(Path(mod.__file__))
-    own = Path(inspect.getfile(cls)).parent
-    files |= {*own.glob("*oracle*.py"), *own.glob("grasp*.py")}
-    h = hashlib.sha256()
-    # keyed by folder/name: scenes/oracle.py and libero/oracle.py
-    for name, f in sorted((f"{f.parent.name}/{f.name}", f) for f in files):
-        h.update(name.encode() + b"\0" + f.read_bytes())
-    return h.hexdigest()[:16]
-
-
-def oracle_scripts(scene: Scene, task: str) -> bool:
-    """Whether ``scene``'s oracle has a script for ``task`` (a family's oracle class may list its ``tasks``; one
-    that lists none scripts every task). A task without one stays uncertified: no certificate, evaluate warns."""
-    tasks = getattr(oracle_class(scene), "tasks", None)
-    return tasks is None or task in tasks
-
-
-def oracle_spec(action_dim: int) -> PolicySpec:
-    """What every scene family's scripted oracle declares: privileged, camera-free, one instance per env."""
-    return PolicySpec(
-        family="standin",
-        name="standin:oracle",
-        privileged=True,
-        cameras=(),
-        batched=False,
-        action_dim=action_dim,
-    )
 
 
 class OraclePolicy:

@@ -11,7 +11,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from policy_wrappers import compile as pcompile
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(300)
@@ -83,7 +83,7 @@ def test_compile_cache_defaults_to_indgens_dir_in_a_fresh_process(tiny_act, tmp_
     that default into $TORCHINDUCTOR_CACHE_DIR. A fresh interpreter, so the load is what imports inductor."""
     code = (
         "import numpy as np; from indgen_vla.core.protocol.interface import Observation; "
-        "from policy_wrappers.registry import load_policy; "
+        "from policy_wrappers.specs import load_policy; "
         f"p = load_policy('lerobot:{tiny_act}', compile='default'); "
         "o = Observation({c: np.zeros((32, 32, 3), np.uint8) for c in p.spec.cameras}, np.zeros(8, np.float32), "
         "'pick'); p.reset('pick', seed=0); p.act([o])"

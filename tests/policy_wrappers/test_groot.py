@@ -12,7 +12,7 @@ import pytest
 
 from indgen_vla.core.errors import PolicyError
 from policy_wrappers.image_tools import flip_180
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 zmq = pytest.importorskip("zmq")
 pytestmark = pytest.mark.timeout(60)

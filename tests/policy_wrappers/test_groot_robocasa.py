@@ -21,7 +21,7 @@ from test_robocasa_layouts import CAMS, our_state, robocasa_convert_action, robo
 
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 pytest.importorskip("torch")
 pytestmark = pytest.mark.timeout(60)

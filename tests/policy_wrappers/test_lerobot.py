@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError, PolicyError
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(120)

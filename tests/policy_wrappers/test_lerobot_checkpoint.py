@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.core.protocol.interface import ScenePreview
-from policy_wrappers.registry import load_policy, preview_policy
+from policy_wrappers.specs import load_policy, preview_policy
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = ROOT / "checkpoints" / "act_pick_place_human"
@@ -120,7 +120,7 @@ def test_a_hub_cached_checkpoint_is_previewed_offline(tiny_act, hub_cache):
 
 def test_previewing_imports_neither_torch_nor_lerobot(tiny_act):
     code = (
-        "import sys; from policy_wrappers.registry import preview_policy; "
+        "import sys; from policy_wrappers.specs import preview_policy; "
         f"v = preview_policy('lerobot:{tiny_act}'); "
         "print(v.cameras, 'torch' in sys.modules, 'lerobot' in sys.modules)"
     )

@@ -17,7 +17,7 @@ SHIPPED = ROOT / "checkpoints" / "act_pick_place_human"
 
 CHILD = """
 import sys
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 policy = load_policy("lerobot:" + sys.argv[1], scene="pick_place")
 OTHERS = ("lerobot.policies.eo1.modeling_eo1", "lerobot.policies.fastwam.modeling_fastwam",
           "lerobot.policies.groot.processor_groot", "lerobot.policies.smolvla.modeling_smolvla", "datasets")

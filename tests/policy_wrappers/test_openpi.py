@@ -12,7 +12,7 @@ from loopback import WebsocketServer
 from indgen_vla.core.errors import PolicyError
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import resize_with_pad
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -15,7 +15,7 @@ from numpy.lib.format import descr_to_dtype, dtype_to_descr
 
 from indgen_vla.core.errors import ConfigError, PolicyError
 from policy_wrappers.image_tools import center_crop_tf, flip_180, resize_jpeg_lanczos
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 pytestmark = pytest.mark.timeout(60)
 

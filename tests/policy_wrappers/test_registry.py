@@ -13,7 +13,7 @@ import pytest
 import indgen_vla.app.engine  # noqa: F401  (the application registers standin:oracle)
 from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
 from indgen_vla.core.protocol.interface import Policy, validate_chunk
-from policy_wrappers.registry import load_policy, parse_spec
+from policy_wrappers.specs import load_policy, parse_spec
 
 
 def test_parse_spec_splits_family_target_options():
@@ -73,7 +73,7 @@ def test_scene_reaches_only_loaders_that_take_it():
 
 def test_oracle_is_lazy(monkeypatch):
     try:
-        import scenes.oracle  # noqa: F401
+        import scenes.oracles  # noqa: F401
     except ModuleNotFoundError:
         with pytest.raises(PolicyError, match="not installed yet"):
             load_policy("standin:oracle")
@@ -95,7 +95,7 @@ def test_policies_main_json(capsys):
 
 def test_import_is_light():
     code = (
-        "import sys, policy_wrappers, policy_wrappers.registry; "
+        "import sys, policy_wrappers, policy_wrappers.specs; "
         "bad = [m for m in ('torch', 'lerobot', 'transformers', 'zmq', 'websockets') if m in sys.modules]; "
         "print(bad); sys.exit(1 if bad else 0)"
     )

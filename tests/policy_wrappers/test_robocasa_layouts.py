@@ -150,7 +150,7 @@ def test_a_lerobot_robocasa_checkpoint_gets_lerobots_state_and_returns_our_actio
     import torch
     from lerobot.envs.robocasa import convert_action as lerobot_convert_action
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     policy = load_policy(f"lerobot:{tiny_robocasa_act}", env_spec=_spec())
     assert policy.spec.action_dim == 12 and set(policy.spec.cameras) == set(CAMS) and not policy.spec.flip_180
@@ -176,7 +176,7 @@ def test_a_lerobot_robocasa_checkpoint_gets_lerobots_state_and_returns_our_actio
 
 def test_a_lerobot_robocasa_checkpoint_is_refused_on_the_tabletop(tiny_robocasa_act):
     from indgen_vla.core.errors import PolicyError
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     with pytest.raises((PolicyError, ConfigError), match="don't know which camera|shape \\(12,\\)"):
         load_policy(f"lerobot:{tiny_robocasa_act}", env_spec=TABLETOP)
@@ -213,7 +213,7 @@ def test_groot_n16_on_robocasa_sends_groots_keys_and_returns_robocasas_action():
     convert_action order of the returned action.<name> keys (unmap_action reads them by key)."""
     from test_groot import GrootServer
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     modality = {
         "video": {"delta_indices": [0], "modality_keys": ["res256_image_side_0", "res256_image_side_1",
@@ -261,7 +261,7 @@ def test_groot_on_robocasa_refuses_n15_with_squarefk_keys_and_a_server_wanting_o
     from test_groot import GrootServer
 
     from indgen_vla.core.errors import PolicyError
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     with pytest.raises(ConfigError, match="keys=squarefk is Isaac-GR00T N1.6's RoboCasa set-up"):
         load_policy("groot:tcp://127.0.0.1:1?api=n1.5&keys=squarefk", env_spec=_spec())
@@ -281,7 +281,7 @@ def test_openpi_on_robocasa_sends_robocasa365s_client_request():
         openpi_server,
     )  # openpi_client's resize_with_pad, written out
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     seen = []
     actions = np.random.default_rng(7).normal(size=(10, 12)).astype(np.float32)

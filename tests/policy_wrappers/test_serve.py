@@ -12,8 +12,8 @@ from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180, resize_with_pad
-from policy_wrappers.registry import load_policy
 from policy_wrappers.serve import PolicyServer, serve
+from policy_wrappers.specs import load_policy
 
 pytestmark = pytest.mark.timeout(120)
 

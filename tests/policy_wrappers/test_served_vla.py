@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError, PolicyError, UnknownNameError
-from policy_wrappers.registry import load_policy
 from policy_wrappers.serve import PolicyServer
-from scenes.registry import get_scene
+from policy_wrappers.specs import load_policy
+from scenes.family import get_scene
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -7,7 +7,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import PolicySpec, declared_reads
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
 
 
 def test_noop_is_still_and_open(obs_factory):

@@ -19,7 +19,7 @@ pytestmark = pytest.mark.timeout(300)
 SCRIPT = """
 import importlib, json, os, sys
 import mujoco
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 for m in ("indgen_vla.app.engine.local", *get_scene("pick_place").preload):
     importlib.import_module(m)

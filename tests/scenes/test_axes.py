@@ -30,8 +30,8 @@ from scenes.axes import (
     spec_at_level,
     successor_steps,
 )
-from scenes.catalog import builtin_scenes
-from scenes.registry import get_scene
+from scenes.family import get_scene
+from scenes.listing import builtin_scenes
 from tests.fixtures.levels import level_env
 
 
@@ -164,7 +164,7 @@ def test_api_lists():
 
 def test_import_is_light():
     code = (
-        "import sys, scenes, scenes.catalog, scenes.axes, scenes.registry, scenes.libero; "
+        "import sys, scenes, scenes.tabletop, scenes.axes, scenes.family, scenes.libero; "
         "bad = [m for m in ('robosuite', 'mujoco', 'torch') if m in sys.modules]; print(bad); "
         "sys.exit(1 if bad else 0)"
     )

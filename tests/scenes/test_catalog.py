@@ -16,9 +16,10 @@ import scenes
 from indgen_vla.app.cli import main
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
 from scenes import registry
-from scenes.catalog import PickPlace, builtin_scenes
+from scenes.family import Scene, get_scene, register_scene, registered_scenes
+from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan
-from scenes.registry import Scene, get_scene, register_scene, registered_scenes
+from scenes.tabletop import PickPlace
 from tests.fixtures.levels import level_env, level_param
 
 

@@ -16,7 +16,7 @@ from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.progression import check_semantics_preserved, check_single_axis
 from scenes.axes import get_successor
-from scenes.catalog import builtin_scenes
+from scenes.listing import builtin_scenes
 from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -124,7 +124,7 @@ def test_seeded_determinism_in_process_and_across_processes():
 def test_gymnasium_env_checker():
     from gymnasium.utils.env_checker import check_env
 
-    from scenes.env import DictObservation
+    from scenes.base_env import DictObservation
 
     env = level_env("pick_place", cameras=("wrist",), image_size=(32, 32))
     try:

@@ -80,7 +80,7 @@ def test_progress_agrees_with_failure_modes_on_random_traces():
 def _scripted(env, variant: str, steps: int, seed: int = 1) -> tuple[bool, str, int]:
     """The oracle, altered to fail one way on purpose, for at most ``steps``; returns (success, failure mode,
     progress)."""
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     pol = OraclePolicy()
     env.reset(seed=seed)

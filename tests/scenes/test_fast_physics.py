@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import SceneError
-from scenes.catalog import builtin_scenes
-from scenes.oracle import OraclePolicy
+from scenes.listing import builtin_scenes
 from scenes.privileged import with_privileged
+from scenes.tabletop.oracle import OraclePolicy
 from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")

@@ -16,8 +16,8 @@ pytest.importorskip("libero")
 import scenes  # noqa: E402
 from indgen_vla.core.errors import SceneError  # noqa: E402
 from indgen_vla.core.protocol.axis_ref import AxisRef  # noqa: E402
+from scenes.family import get_scene  # noqa: E402
 from scenes.libero.bddl import add_fixtures, parse_regions, shift_region  # noqa: E402
-from scenes.registry import get_scene  # noqa: E402
 from tests.fixtures.levels import level_env, level_param  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 
@@ -379,7 +379,7 @@ def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path,
     pytest.importorskip("lerobot")
     import indgen_vla.app.engine.local as local
     from indgen_vla.app.cli import main
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
     def no_early_workers(*a, **k):

@@ -9,7 +9,7 @@ import os
 
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.levels import level_env
 
 pytest.importorskip("libero")
@@ -24,7 +24,7 @@ def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.errors import EpisodeUnavailableError
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
 
     env = level_env(SCENE, task="cream_cheese", axis="pick_y", level=-2, cameras=("agentview",),
                     image_size=(64, 64))  # fmt: skip

@@ -10,7 +10,7 @@ pytest.importorskip("libero")
 
 import scenes  # noqa: E402
 from indgen_vla.core.errors import UnknownNameError  # noqa: E402
-from scenes.registry import get_scene  # noqa: E402
+from scenes.family import get_scene  # noqa: E402
 from tests.fixtures.levels import level_env  # noqa: E402
 from tests.scenes.conftest import assert_steps_match  # noqa: E402
 

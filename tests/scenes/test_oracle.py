@@ -13,10 +13,10 @@ from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.interface import Observation, Policy
 from scenes.axes import get_successor
-from scenes.catalog import builtin_scenes
 from scenes.certificates import infeasible_levels, load_certification
-from scenes.oracle import OraclePolicy
-from scenes.registry import get_scene
+from scenes.family import get_scene
+from scenes.listing import builtin_scenes
+from scenes.tabletop.oracle import OraclePolicy
 from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")

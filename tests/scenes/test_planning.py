@@ -9,8 +9,8 @@ import scenes
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED
+from scenes.family import get_scene
 from scenes.planning import resolve_scene_plan, scene_levels
-from scenes.registry import get_scene
 
 
 def test_parameters_are_t0_plus_k_steps_and_certificates_come_from_the_committed_files():
@@ -36,11 +36,13 @@ def test_the_builder_pickles_and_builds_the_same_level_as_the_family():
     builder = pickle.loads(pickle.dumps(sp.builder))
     assert builder.describe()["successors"] == {"scale": {"type": "Shift", "steps": {"scale": 0.0667}}}
     assert builder.preload == (
-        "scenes.env",
+        "scenes.base_env",
         "scenes.sim",
         "mujoco",
         "scenes.robosuite_kernels",
         "scenes.asset_cache",
+        "scenes.tabletop.env",
+        "scenes.tabletop.builders",
     )
     env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
     sc = scenes.get_scene("pick_place")
@@ -118,7 +120,7 @@ def test_the_fork_servers_preload_is_quiet():
     import subprocess
     import sys
 
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     mods = ("indgen_vla.app.engine.local", *get_scene("pick_place").preload)
     code = f"import importlib\nfor m in {mods!r}:\n    importlib.import_module(m)"

@@ -2,8 +2,8 @@
 
 import os
 
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 
 
 def test_the_builder_names_the_gl_renderer_of_this_machine():

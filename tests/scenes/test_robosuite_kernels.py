@@ -37,7 +37,7 @@ print(json.dumps({"loaded": loaded, "used": used}))
 def test_the_fork_servers_kernels_cover_a_real_episode(mini):
     """After real steps of the built-in and LIBERO scenes the kernels hold exactly the overloads the module
     loaded: a layout robosuite or a scene starts to pass differently shows up here as a new signature."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     assert "scenes.robosuite_kernels" in get_scene("pick_place").preload
     assert "scenes.robosuite_kernels" in get_scene("libero_object").preload

@@ -23,7 +23,7 @@ def _obs(spec, n: int, seed: int = 0) -> list[Observation]:
 
 
 def _act_and_pad(spec_str: str, device: str = "cpu") -> None:
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     policy = load_policy(spec_str, device=device)
     assert policy.spec.batched and set(policy.spec.cameras) == {"agentview", "wrist"}
@@ -84,7 +84,7 @@ def _compiled_matches_eager(spec_str: str, mode: str, device: str) -> None:
     included (drawn by the eager ``sample_actions`` around the compiled flow step)."""
     import torch
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     eager, compiled = load_policy(spec_str, device=device), load_policy(spec_str, device=device, compile=mode)
     model = compiled.policy.model  # one flow step is compiled, not the whole (loop-unrolling) sample_actions
@@ -131,7 +131,7 @@ def test_flow_noise_is_drawn_per_query_not_per_batch(tmp_path):
     import dataclasses
 
     from indgen_vla.core.protocol.interface import QUERY_KEY
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     policy = load_policy(build.build_smolvla(tmp_path / "smolvla", reduced=True))
     a, b = (

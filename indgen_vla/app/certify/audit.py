@@ -21,7 +21,7 @@ from pathlib import Path
 from scipy.stats import binom
 
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
-from scenes.registry import Scene, registered_scenes
+from scenes.family import Scene, registered_scenes
 
 AUDIT_FIRST_BLOCK = 1000  # audits draw from here: certification attempts (blocks 1, 2, ...) never meet them
 AUDIT_ALPHA = 0.05
@@ -58,7 +58,7 @@ def audit_level(family: Scene, task: str, axis: str, level: int, block: int, epi
     does), in this process."""
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.planning import resolve_scene_plan
 
     t0, scene = time.time(), family.name

@@ -16,7 +16,7 @@ from typing import Any
 from indgen_vla.app.certify.run import run_oracle_episode
 from indgen_vla.core.errors import EpisodeUnavailableError
 from indgen_vla.core.protocol.seeding import evaluation_seed
-from scenes.registry import Scene
+from scenes.family import Scene
 
 
 def baseline_episodes(
@@ -25,7 +25,7 @@ def baseline_episodes(
 ) -> list[tuple[bool | None, int]]:  # fmt: skip
     """The oracle's (success, steps) on ``evaluate``'s episodes 0..episodes-1 of one level (None: the level's
     placement check ruled the episode's initial state out, as ``evaluate`` counts it unavailable)."""
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.planning import resolve_scene_plan
 
     plan = resolve_scene_plan(scene, task, (axis,), [level], certificates=False, options=options)

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError
-from scenes.registry import Scene
+from scenes.family import Scene
 
 
 def _job(item: tuple[int, tuple]) -> tuple[int, dict]:

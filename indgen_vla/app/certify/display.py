@@ -11,8 +11,8 @@ from __future__ import annotations
 from indgen_vla.app.certify.run import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from scenes.certificates import current_oracle_version, level_status, level_verdict
+from scenes.family import Scene
 from scenes.heldout import basis
-from scenes.registry import Scene
 
 _STATUS = {"certified": "[green]certified[/]", "failed": "[red]failed[/]", "insufficient": "insufficient"}
 

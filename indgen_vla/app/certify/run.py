@@ -29,9 +29,9 @@ from scenes.certificates import (
     same_assets,
     write_json_atomic,
 )
+from scenes.family import Scene
 from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING, fixed_states_basis
 from scenes.privileged import with_privileged
-from scenes.registry import Scene
 
 if TYPE_CHECKING:
     from indgen_vla.core.protocol.plan import LevelBuilder
@@ -61,7 +61,7 @@ def level_row(
 ) -> dict:  # fmt: skip
     """The certification row of one level from its episodes' (success, steps); ``unavailable``: the seeds skipped
     because their initial state cannot hold the level (a key only when some were); ``oracle_version``: the oracle
-    that ran them (``scenes.oracle.oracle_identity``; a failure by another version is re-tried); ``infeasible``: why
+    that ran them (``scenes.oracles.oracle_identity``; a failure by another version is re-tried); ``infeasible``: why
     too few seeds hold the level to certify it (the level is then ``failed`` whatever its episodes gave)."""
     n, successes = len(results), sum(ok for ok, _ in results)
     status = "failed" if infeasible else rule.status(successes, n)
@@ -87,7 +87,7 @@ def certify_level(
     the rule's ``n_max`` make the level ``failed``, with the reason in its row's ``infeasible``. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
     killed run finished under the same ``key`` are reused."""
     from indgen_vla.app.certify.partial import EpisodeLog
-    from scenes.oracle import oracle_for, oracle_identity
+    from scenes.oracles import oracle_for, oracle_identity
 
     t0 = time.time()
     scene = builder.scene
@@ -279,7 +279,7 @@ def prepare(
         next_block,
         spent_attempts,
     )  # fmt: skip
-    from scenes.oracle import oracle_identity, oracle_scripts
+    from scenes.oracles import oracle_identity, oracle_scripts
     from scenes.planning import resolve_scene_plan
 
     sc, scene = family, family.name

@@ -16,7 +16,7 @@ from pathlib import Path
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
 from indgen_vla.core.reporting.oracle_states import ORACLE_STATES
 from indgen_vla.core.runs.records import RunDir, atomic_write_json
-from scenes.registry import Scene
+from scenes.family import Scene
 
 
 def certify_evaluation_states(
@@ -27,7 +27,7 @@ def certify_evaluation_states(
     import json
 
     from indgen_vla.app.certify.run import run_oracle_episode
-    from scenes.oracle import oracle_for, oracle_identity
+    from scenes.oracles import oracle_for, oracle_identity
     from scenes.planning import resolve_scene_plan
 
     run = RunDir(run_dir)

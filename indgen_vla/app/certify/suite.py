@@ -19,9 +19,9 @@ from scenes.certificates import (
     row_oracle_version,
     stale_failure,
 )
+from scenes.family import registered_scenes
 from scenes.heldout import EXHAUSTIVE, HELD_OUT, IN_SAMPLE, basis
-from scenes.oracle import oracle_scripts
-from scenes.registry import registered_scenes
+from scenes.oracles import oracle_scripts
 
 
 def default_jobs(scene_names: list[str] | None = None) -> list[tuple[str, str, str]]:

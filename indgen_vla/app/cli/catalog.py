@@ -1,5 +1,5 @@
-"""``indgen scenes``, ``indgen axes`` and ``indgen policies``: what is registered (``scenes.catalog.scene_rows``,
-``axis_rows``; ``policy_wrappers.registry.catalog``), as tables or ``--json``."""
+"""``indgen scenes``, ``indgen axes`` and ``indgen policies``: what is registered (``scenes.listing.scene_rows``,
+``axis_rows``; ``policy_wrappers.specs.catalog``), as tables or ``--json``."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def main(args: argparse.Namespace) -> int:
 
 def scenes_table(as_json: bool) -> int:
     """Every scene with its tasks, axes, episode length and what it needs beyond the venv."""
-    from scenes.catalog import scene_rows
+    from scenes.listing import scene_rows
 
     rows = scene_rows()
     if as_json:
@@ -53,7 +53,7 @@ def scenes_table(as_json: bool) -> int:
 
 def axes_table(as_json: bool) -> int:
     """Every axis with its step, level range, description and supporting scenes."""
-    from scenes.catalog import axis_rows
+    from scenes.listing import axis_rows
 
     title = ("axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one at a "
              "level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)")  # fmt: skip
@@ -62,7 +62,7 @@ def axes_table(as_json: bool) -> int:
 
 def scene_axes_table(scene: str, as_json: bool) -> int:
     """One scene family's own steps and level ranges, per task where they differ (``scenes.scene_axes``)."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.scene_axes import scene_axis_rows
 
     title = f"axes of scene {scene}: its own steps and level ranges, per task where they differ"
@@ -90,7 +90,7 @@ def _axis_listing(rows: list[dict], as_json: bool, title: str, where: str) -> in
 
 def policies_text(as_json: bool) -> int:
     """Spec families and stand-ins."""
-    from policy_wrappers.registry import catalog
+    from policy_wrappers.specs import catalog
 
     data = catalog()
     if as_json:

@@ -57,7 +57,7 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.core.errors import ConfigError
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from indgen_vla.core.runs.records import RunDir
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     if args.audit is not None:
         return _audit(args)
@@ -92,7 +92,7 @@ def _certify_tasks(args: argparse.Namespace, axis, sc) -> int:
     from indgen_vla.app.certify.run import certify
     from indgen_vla.core.errors import RunDirError
     from scenes.certificates import cert_path, certified_levels, infeasible_levels
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     tasks = sc.select_tasks(args.task, (axis,))
     preset = args.axes_preset

@@ -20,7 +20,7 @@ def main(args: argparse.Namespace) -> int:
 
     from indgen_vla.app.regimes import quiet_datasets
     from indgen_vla.app.regimes.demos import HumanNoise, LevelRequest, record_demos
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     p = IndgenParser(
         prog="indgen demos",

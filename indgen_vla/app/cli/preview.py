@@ -35,7 +35,7 @@ def main(args: argparse.Namespace) -> int:
 
     from indgen_vla.app.preview import PreviewRequest, write_preview
     from indgen_vla.core.protocol.progression import expand_axes
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     # the family configured once (a family without these options, a bad value: one line), handed on
     scene = get_scene(args.scene, {"split": args.split, "obj_registries": args.obj_registries})

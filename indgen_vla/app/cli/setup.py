@@ -1,5 +1,5 @@
 """``indgen setup robocasa|libero``: RoboCasa365's pinned venv (``scenes.robocasa.environment.setup_venv``) and its
-placeholder kitchen tree, or LIBERO's complete asset tree (``scenes.libero.setup``) and the overlay of a partial one;
+placeholder kitchen tree, or LIBERO's complete asset tree (``scenes.libero.install``) and the overlay of a partial one;
 and where each is. The scene layer holds the work; this module holds the flags and what is printed."""
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def _robocasa_placeholders(dst, python) -> None:
 def _libero(args: argparse.Namespace) -> int:
     """Install (or check) LIBERO's complete tree and say where it is and how indgen finds it."""
     from scenes.libero.assets import ASSETS_ENV, find_assets
-    from scenes.libero.setup import COMPLETE_TREE, SetupOptions, install
+    from scenes.libero.install import COMPLETE_TREE, SetupOptions, install
 
     res = install(SetupOptions(dest=args.dest, wheels=args.wheels, verify=args.verify, offline=args.offline))
     state = f"unpacked {res.written} files" if res.written else "already complete"

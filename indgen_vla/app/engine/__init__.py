@@ -4,8 +4,8 @@ The application composes scenes and policies, so the scene-side stand-ins are re
 (``policy_wrappers`` never refers to ``scenes``): ``standin:oracle`` is the scenes' privileged controller.
 """
 
-from policy_wrappers.registry import register_standin
+from policy_wrappers.specs import register_standin
 
 register_standin(
-    "oracle", "scenes.oracle:oracle_for", "privileged scripted oracle of the scenes (certifies every level)"
+    "oracle", "scenes.oracles:oracle_for", "privileged scripted oracle of the scenes (certifies every level)"
 )

@@ -24,7 +24,7 @@ from indgen_vla.core.protocol.progression import expand_axes
 from indgen_vla.core.resources import config_dir
 
 if TYPE_CHECKING:
-    from scenes.registry import Scene
+    from scenes.family import Scene
 
 DEFAULT_EPISODES = 50
 # the scene options' help lines (evaluate's flags, and certify's and preview's: cli/options.add_scene_options)
@@ -122,7 +122,7 @@ class PlanConfig:
     def family(self) -> Scene:
         """The run's scene family configured with its options (``Scene.configured``: a new value), looked up by
         name here, where a command's config meets the scene layer; the plan holds it and hands it on."""
-        from scenes.registry import get_scene  # lazy: start-up (registering the families, 0.34 s, off --help)
+        from scenes.family import get_scene  # lazy: start-up (registering the families, 0.34 s, off --help)
 
         return get_scene(self.scene, self.scene_options())
 

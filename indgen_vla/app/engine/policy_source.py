@@ -53,7 +53,7 @@ class PolicySource:
         """A new instance of the policy (the engine asks for one per worker when it is not batched)."""
         if self.given is not None:
             return adopt_object(self.given, self.cfg, self.env_spec)
-        from policy_wrappers.registry import load_policy
+        from policy_wrappers.specs import load_policy
 
         cfg = self.cfg
         return load_policy(
@@ -78,7 +78,7 @@ class PolicySource:
         if cfg.run.backend != "local" or not jobs:
             return None
         from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
-        from policy_wrappers.registry import preview_policy
+        from policy_wrappers.specs import preview_policy
 
         n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
         view = None if self.given is not None else preview_policy(

@@ -308,7 +308,7 @@ class _SimActor:
 def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
     from functools import partial
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     extra = cfg.policy_options()  # precision/compile, for families that take them
     p = cfg.policy

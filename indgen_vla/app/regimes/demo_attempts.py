@@ -43,7 +43,7 @@ class HumanNoise:
 
 def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Observation, np.ndarray, dict]]:
     """Yield (observation, executed action, info) for one episode of the noisy oracle, seeded."""
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     rng = np.random.default_rng(seed)
     oracle = OraclePolicy()

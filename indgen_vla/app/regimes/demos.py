@@ -21,8 +21,8 @@ from indgen_vla.app.regimes.journal import read_episode_sidecar as read_episode_
 from indgen_vla.app.regimes.resume import check_same_run
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM
+from scenes.family import Scene
 from scenes.poses import object_vector
-from scenes.registry import Scene
 
 FPS = 20  # robosuite control frequency used by every scene
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "gripper_l", "gripper_r"]

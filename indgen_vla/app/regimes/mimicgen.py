@@ -175,8 +175,8 @@ def _new_seed(
 def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, ...], size: tuple[int, int]):
     """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis resolved
     as ``evaluate`` resolves it (``scenes.planning.resolve_scene_plan``), both through the builder."""
+    from scenes.family import registered_scenes
     from scenes.planning import resolve_scene_plan, scene_levels
-    from scenes.registry import registered_scenes
 
     family = {s.name: s for s in registered_scenes()}[scene]  # the family the source dataset's sidecar names
     if where.get("axis") is None:

@@ -10,8 +10,8 @@ from PIL import Image
 from indgen_vla.app.cli import main
 from indgen_vla.app.preview import PreviewRequest, level_caption, render_level, write_preview
 from indgen_vla.core.errors import ConfigError
+from scenes.family import get_scene
 from scenes.planning import resolve_scene_plan
-from scenes.registry import get_scene
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 

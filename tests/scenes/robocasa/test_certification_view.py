@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 
 @pytest.fixture

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_placeholder_geometry import (
     _check_open_container,
     _colliders,
@@ -176,7 +176,7 @@ def test_fingers_close_across_a_square_objects_side_whatever_its_turn(yaw_deg):
 def test_certify_scripts_the_fridge_and_not_the_mixer_bowl():
     """The fridge's carry is listed (8/8 at every base_y level, docs/results/robocasa_oracle.md); the carry into the
     mixer's bowl is not (2/7: the arm meets the raised head): its levels stay no_oracle rather than failed."""
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     assert oracle_scripts(get_scene("robocasa"), "PickPlaceFridgeDrawerToShelf")
     assert not oracle_scripts(get_scene("robocasa"), "PickPlaceCounterToStandMixer")

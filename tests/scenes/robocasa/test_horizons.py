@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from scenes.robocasa.deviations import DEVIATIONS, SPAWN_JITTER
+from scenes.robocasa.departures import DEVIATIONS, SPAWN_JITTER
 from scenes.robocasa.horizons import TASK_HORIZONS
 
 
@@ -27,7 +27,7 @@ def test_every_tasks_horizon_is_robocasas_registered_one():
     """robocasa/robocasa robocasa/utils/dataset_registry_utils.py ``get_task_horizon(task)`` returns the task's
     ``horizon`` of ``ATOMIC_TASK_DATASETS`` / ``COMPOSITE_TASK_DATASETS`` in robocasa/utils/dataset_registry.py
     (be22d659 = the pinned rlinf-robocasa365 1.0.1): asked of the pinned install itself, for all 17 tasks."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     tasks = get_scene("robocasa").tasks
     assert set(TASK_HORIZONS) == set(tasks) and len(tasks) == 17
@@ -41,7 +41,7 @@ def test_every_tasks_horizon_is_robocasas_registered_one():
 
 def test_a_task_runs_its_own_horizon_unless_max_steps_replaces_it():
     from indgen_vla.core.protocol.deviations import protocol_deviations
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     sc = get_scene("robocasa")
     assert sc.task_max_steps("PickPlaceSinkToCounter") == 900 and sc.task_max_steps("TurnOnBlender") == 300
@@ -112,7 +112,7 @@ def test_the_spawn_jitter_robocasa_defaults_to_is_recorded_as_set_to_zero(placeh
     """robocasa/robocasa robocasa/environments/kitchen/kitchen.py: Kitchen.__init__ defaults
     robot_spawn_deviation_pos_x=0.15, robot_spawn_deviation_pos_y=0.05; the manifest's protocol facts record that
     default beside the 0 the worker builds with, and the deviation in words."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     code = (
         "import inspect\nfrom robocasa.environments.kitchen.kitchen import Kitchen\n"
@@ -132,7 +132,7 @@ def test_the_base_controller_enters_the_fingerprint(placeholders):
     """The worker builds with create_env's controller config (robocasa/utils/env_utils.py, be22d659), not
     robosuite's default, since issue 41: a run made before reads another simulator and is not resumed as this one."""
     from indgen_vla.core.protocol.fingerprint import build_fingerprint, differences
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa import BASE_CONTROLLER
 
     env = {"scene": "robocasa", "environment": get_scene("robocasa").environment_versions()}

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 BASELINE = Path(__file__).with_name("oracle_baseline.json")
@@ -23,7 +23,7 @@ def _baseline() -> dict:
 def test_every_scripted_task_has_a_baseline_of_the_current_oracle_and_tree():
     """An oracle change bumps its version (and a tree change the tree's): the file must then be measured again, so
     a lowered count shows in the commit's diff of it."""
-    from scenes.oracle import oracle_identity
+    from scenes.oracles import oracle_identity
     from scenes.robocasa import AXIS_TASKS
     from scenes.robocasa.oracle import RoboCasaOracle
     from scenes.robocasa.placeholder_tree import VERSION

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
 
@@ -61,7 +61,7 @@ def test_the_carry_height_is_fixed_before_the_object_rises():
 
 
 def test_certify_scripts_the_carry_tasks():
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     for task in (
         "PickPlaceSinkToCounter",

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_oracle_carry import _raw
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
@@ -65,7 +65,7 @@ def test_under_a_low_wall_cabinet_the_hand_grasps_tipped_with_the_fingers_across
     from the approach on, untwisted (R_DOWN slides the fingers along the base's y), so a pitch keeps the fingers
     level and the cheese flat; the coffee machine's button (as low at some seeds) keeps the square grasp's twist
     and ``UNDER_TILT`` after the grasp only: its carry does not drive."""
-    from scenes.oracle import R_DOWN
+    from scenes.oracles import R_DOWN
     from scenes.robocasa import privileged_state
     from scenes.robocasa.oracle import CRAMPED, CRAMPED_REACH, CRAMPED_TILT, HAND_ROOM, RoboCasaOracle
 
@@ -213,7 +213,7 @@ def test_the_oracle_puts_the_cheese_on_the_bread_past_the_coffee_machine_and_bes
 def test_certify_scripts_the_cheese_and_not_the_mixer_bowl():
     """CheesyBread is listed since oracle v5 (25 of 28 episodes under ``certify --episodes 8``, each failure explained
     in docs/results); PickPlaceCounterToStandMixer fails its first levels, so they stay no_oracle, not failed."""
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
     assert oracle_scripts(get_scene("robocasa"), "CheesyBread") and RoboCasaOracle.version >= 5

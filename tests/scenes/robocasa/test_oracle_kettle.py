@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _oracle_episodes, needs_venv
 
 
@@ -59,7 +59,7 @@ def test_the_oracle_goes_behind_the_lid_then_sweeps_it_toward_the_front():
 
 def test_certify_scripts_the_kettle_lid_and_lever():
     """Both kettle parts have scripts (the lid's sweep, the lever's press: docs/results)."""
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     assert oracle_scripts(get_scene("robocasa"), "CloseElectricKettleLid")
     assert oracle_scripts(get_scene("robocasa"), "TurnOnElectricKettle")

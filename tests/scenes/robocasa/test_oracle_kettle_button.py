@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _box, _oracle_episodes, needs_venv
 
 
@@ -83,7 +83,7 @@ def test_the_oracle_drives_to_the_button_presses_it_and_leaves_it_once_counted()
 
 
 def test_certify_scripts_opening_the_kettle_lid():
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     assert oracle_scripts(get_scene("robocasa"), "OpenElectricKettleLid")
 

@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _box, _oracle_episodes, needs_venv
 
 
@@ -115,7 +115,7 @@ def test_the_oracle_drives_comes_in_beside_the_lever_presses_it_and_tips_further
 
 
 def test_certify_scripts_turning_the_kettle_on():
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     assert oracle_scripts(get_scene("robocasa"), "TurnOnElectricKettle")
 

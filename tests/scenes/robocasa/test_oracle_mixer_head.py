@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _box, _oracle_episodes, needs_venv
 
 
@@ -87,7 +87,7 @@ def test_the_oracle_drives_then_goes_under_the_heads_free_edge_and_lifts_it():
 
 
 def test_certify_scripts_opening_the_mixer_head():
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
 
     assert oracle_scripts(get_scene("robocasa"), "OpenStandMixerHead")
 

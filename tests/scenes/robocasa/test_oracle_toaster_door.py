@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import _box, _oracle_episodes, needs_venv
 
 
@@ -126,7 +126,7 @@ def test_the_mixer_head_is_still_lifted_open():
 
 
 def test_certify_scripts_closing_the_toaster_oven_door():
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
     assert (

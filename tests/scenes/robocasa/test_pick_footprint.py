@@ -141,8 +141,8 @@ def test_the_fingerprint_names_the_window_rule_and_the_manifest_its_one_deviatio
     """A pick_x run under window rule 1 (no footprint rule, the sampler's range narrowed, CheesyBread's base moved)
     has another ``initial_states`` in its fingerprint, so it is neither pooled with nor resumed as one under rule 2;
     the deviations name the window and nothing of CheesyBread's base."""
-    from scenes.registry import get_scene
-    from scenes.robocasa.deviations import DEVIATIONS, PICK_T0
+    from scenes.family import get_scene
+    from scenes.robocasa.departures import DEVIATIONS, PICK_T0
 
     facts = get_scene("robocasa").protocol_facts()
     assert facts["initial_states"].endswith(PICK_T0) and "window rule 2" in PICK_T0

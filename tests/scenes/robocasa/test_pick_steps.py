@@ -10,7 +10,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
 # hand-computed: RoboCasa 1.0.1's pick region (m) / 5
@@ -20,7 +20,7 @@ STEPS = {"CheesyBread": 0.2, "CoffeeSetupMug": 0.06, "PickPlaceCabinetToCounter"
 
 
 def test_each_tasks_step_is_its_region_over_five():
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa import AXIS_TASKS
 
     sc = get_scene("robocasa")
@@ -56,7 +56,7 @@ def test_each_tasks_step_is_its_region_over_five():
 def test_the_worker_gets_what_its_pick_window_needs():
     """The worker divides each kitchen's range itself (``pick_window.level_offset``) for the task's own step (also
     when --step equals it); a user's step stays metres; only pick_x alone records the episode's offset as param."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     sc = get_scene("robocasa")
 
@@ -80,7 +80,7 @@ def test_the_worker_gets_what_its_pick_window_needs():
 )  # fmt: skip
 def test_a_step_whose_top_level_leaves_the_region_is_refused(task, step, fits):
     from indgen_vla.core.protocol.progression import ProgressionError
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     sc = get_scene("robocasa")
     successor = sc.successor(AxisRef.parse("pick_x"), step, task=task)

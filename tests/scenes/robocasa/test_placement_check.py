@@ -14,7 +14,7 @@ from tests.scenes.robocasa.test_robocasa import needs_venv
 def _worker_resets(task: str, levels: list[tuple[dict, int]]) -> list:
     """One RoboCasa worker built for ``task`` with each level's ``edits`` (what ``level_config`` sends) and reset
     from its seed: the reset's reply, or the ``EpisodeUnavailableError`` it raised."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.runtime import WorkerProcess
 
     worker, out = WorkerProcess(get_scene("robocasa").runtime), []

@@ -9,7 +9,7 @@ import pytest
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.levels import level_env
 from tests.scenes.robocasa.test_robocasa import needs_venv
 
@@ -29,7 +29,7 @@ def test_each_paper_preset_runs_its_axis_on_appendix_bs_task_list(name):
     from indgen_vla.app.engine.config import load_config_preset
     from indgen_vla.core.protocol.progression import parse_levels
     from scenes.axes import resolve_alias
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa import AXIS_TASKS
 
     d = load_config_preset(name)
@@ -42,7 +42,7 @@ def test_each_paper_preset_runs_its_axis_on_appendix_bs_task_list(name):
 
 
 def test_task_all_is_the_axis_list_and_a_task_off_the_list_is_refused():
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa import AXIS_TASKS
 
     sc = get_scene("robocasa")
@@ -112,7 +112,7 @@ def test_the_manifest_records_the_workers_versions_and_release(placeholders):
 def _oracle_until(env, seed: int, stop, limit: int) -> int:
     """Step the RoboCasa oracle from ``seed`` until ``stop(env)`` holds after a step (or ``limit`` steps): an
     episode cut short there, the way max_steps cuts one. Returns the steps taken."""
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.privileged import with_privileged
 
     policy = oracle_for(get_scene("robocasa"))
@@ -214,7 +214,7 @@ def test_canonical_kitchens_expand_and_reach_the_worker_config():
     """``Task@5x5`` is the task in each of RoboCasa's 25 canonical kitchens (minus those its class excludes);
     ``Task@L-S`` pins one, passed to the worker as RoboCasa's own layout_ids / style_ids; anything else is one line."""
     from scenes.axes import get_successor
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa import AXIS_TASKS, KITCHEN_SETS
 
     sc = get_scene("robocasa")

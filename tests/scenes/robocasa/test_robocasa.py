@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.levels import level_env
 
 
@@ -27,7 +27,7 @@ needs_venv = pytest.mark.skipif(
 
 def test_base_y_is_the_horizon_axis_and_task_lists_are_checked():
     from indgen_vla.core.protocol.axis_ref import AxisRef
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     base_y = AxisRef.parse("base_y")
     sc = get_scene("robocasa")
@@ -40,7 +40,7 @@ def test_base_y_is_the_horizon_axis_and_task_lists_are_checked():
 def test_env_spec_follows_lerobot():
     """lerobot's src/lerobot/envs/robocasa.py: OBS_STATE_DIM = 16, ACTION_DIM = 12, DEFAULT_CAMERAS =
     robot0_agentview_left, robot0_eye_in_hand, robot0_agentview_right (raw RoboCasa names)."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     spec = get_scene("robocasa").env_spec
     assert (spec.state_dim, spec.action_dim) == (16, 12)
@@ -396,7 +396,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
     worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
     from indgen_vla.app.certify.run import run_oracle_episode
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.robocasa.oracle import RoboCasaOracle
 
     policy = oracle_for(get_scene("robocasa"))
@@ -418,7 +418,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
 @pytest.mark.slow
 def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
     from indgen_vla.app.certify.run import run_oracle_episode
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
 
     env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
                     max_steps=400)  # fmt: skip
@@ -433,7 +433,7 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path, m
     uncertified, which evaluate reports in one warning line (engine.run.check_feasible), instead of 'failed'.
     CloseToasterOvenDoor is taken off the oracle's list for it (every base_y task has a script since oracle v4)."""
     from indgen_vla.app.certify.run import NoOracleError, certify
-    from scenes.oracle import oracle_scripts
+    from scenes.oracles import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
 
     assert oracle_scripts(get_scene("robocasa"), "CloseToasterOvenDoor")
@@ -457,7 +457,7 @@ def _oracle_episodes(
     """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
     from indgen_vla.app.certify.run import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.oracle import oracle_for
+    from scenes.oracles import oracle_for
     from scenes.robocasa.horizons import TASK_HORIZONS
 
     env = level_env("robocasa", task=task, axis=axis, level=level, step=step, cameras=(), max_steps=max_steps)

@@ -63,7 +63,7 @@ def test_each_split_is_what_robocasas_create_env_makes_of_it():
     from the installed RoboCasa), ``in_split`` names exactly the split's kitchens (pretrain 2,500, target 10, all
     3,600), the default registries are ``Kitchen``'s, and every appendix-B task is a pretraining task (6 of the 17
     are also atomic_seen target tasks): the reasons the default is pretrain."""
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
     from scenes.robocasa.environment import find_python
 
     tasks = list(get_scene("robocasa").tasks)
@@ -154,8 +154,8 @@ def test_the_choice_reaches_the_worker_the_fingerprint_and_the_certificates(plac
     (the worker's choice before the option) keeps the fingerprint's words and the folder runs had then."""
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.certificates import certification_root
-    from scenes.registry import get_scene
-    from scenes.robocasa.deviations import PICK_T0
+    from scenes.family import get_scene
+    from scenes.robocasa.departures import PICK_T0
 
     sc = get_scene("robocasa")
     monkeypatch.delenv("INDGEN_CERT_DIR", raising=False)
@@ -191,7 +191,7 @@ def test_a_choice_the_placeholder_tree_or_the_kitchen_cannot_serve_is_refused_in
     each in one line naming the fix."""
     from indgen_vla.app.cli import main
     from indgen_vla.core.protocol.axis_ref import AxisRef
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     out = tmp_path / "run"
     args = ["evaluate", "--policy", "standin:noop", "--scene", "robocasa", "--task", "PickPlaceCounterToCabinet",
@@ -227,8 +227,8 @@ def test_the_flag_beats_the_variable_and_the_plans_builder_carries_it_to_the_wor
     the family outside the command still reads the variable."""
     import pickle
 
+    from scenes.family import get_scene
     from scenes.planning import resolve_scene_plan
-    from scenes.registry import get_scene
 
     monkeypatch.setenv(splits.SPLIT_ENV, "all")
     flags = {"split": "pretrain", "obj_registries": "lightwheel"}

@@ -15,7 +15,6 @@ from indgen_vla.app.certify.run import certify, prepare
 from indgen_vla.app.certify.suite import default_jobs, write_summary
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.progression import ProgressionError
-from scenes.catalog import builtin_scenes
 from scenes.certificates import (
     Rule,
     axis_dirname,
@@ -28,9 +27,10 @@ from scenes.certificates import (
     lower_bound,
     write_json_atomic,
 )
+from scenes.family import get_scene
 from scenes.heldout import SPENDING
+from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan
-from scenes.registry import get_scene
 from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
@@ -280,7 +280,7 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     one file rewritten, same size) must not keep the old tree's certificate, nor must one made before certificates
     recorded their tree. Played on ``stack`` given an asset tree (5 control steps: one failed episode, cheap)."""
     from scenes.certificates import tree_stamp
-    from scenes.registry import get_scene
+    from scenes.family import get_scene
 
     tree = tmp_path / "assets"
     (tree / "objects").mkdir(parents=True)
@@ -327,7 +327,7 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level too few seeds hold is ``failed``,
     with the reason in its row (a batch goes on to its next level)."""
-    import scenes.oracle
+    import scenes.oracles
     from indgen_vla.app.certify import run as certify_run
     from indgen_vla.core.errors import EpisodeUnavailableError
 
@@ -348,7 +348,7 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
         def make_env(self, *args, **kwargs):
             return Env()
 
-    monkeypatch.setattr(scenes.oracle, "oracle_for", lambda scene: None)
+    monkeypatch.setattr(scenes.oracles, "oracle_for", lambda scene: None)
     monkeypatch.setattr(
         certify_run, "run_oracle_episode", lambda env, policy, seed, i: (env.reset(seed), (True, 9))[1]
     )

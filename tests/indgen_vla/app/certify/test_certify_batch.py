@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 
 def test_a_chunk_cut_by_its_deadline_is_resumed_by_the_next(tmp_path):

@@ -10,7 +10,7 @@ import pytest
 
 from indgen_vla.app.certify.run import certify
 from indgen_vla.app.cli import main
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 
 def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, capsys):

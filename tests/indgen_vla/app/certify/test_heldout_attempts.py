@@ -10,8 +10,8 @@ import json
 from indgen_vla.app.certify.run import certify, prepare
 from indgen_vla.core.reporting.certification_view import plan_basis_lines
 from scenes.certificates import cert_path, load_certification
+from scenes.family import get_scene
 from scenes.heldout import HELD_OUT, IN_SAMPLE
-from scenes.registry import get_scene
 
 
 def _in_sample(tmp_path):
@@ -78,7 +78,7 @@ def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_i
     """The same attempt resumes its block; a killed attempt of another oracle version had looked at its block's
     first episodes, so the next attempt burns it and draws the next block."""
     from indgen_vla.app.certify.partial import EpisodeLog
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     out = tmp_path / "certify.json"
     (job,) = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs
@@ -93,9 +93,9 @@ def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_i
 def test_a_fixed_state_family_reports_exhaustive_certificates(tmp_path, monkeypatch):
     """A family with a finite set of initial states (LIBERO's 50; here stack given 50): a certified row that
     played all of them is reported "exhaustive", with or without a ledger (a user's older LIBERO certificate)."""
+    from scenes.family import get_scene
     from scenes.heldout import EXHAUSTIVE
     from scenes.planning import resolve_scene_plan
-    from scenes.registry import get_scene
 
     out = _in_sample(tmp_path)
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))

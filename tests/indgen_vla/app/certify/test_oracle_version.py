@@ -18,8 +18,9 @@ from scenes.certificates import (
     load_certification,
     row_oracle_version,
 )
-from scenes.oracle import OraclePolicy, oracle_identity
-from scenes.registry import get_scene, registered_scenes
+from scenes.family import get_scene, registered_scenes
+from scenes.oracles import oracle_identity
+from scenes.tabletop.oracle import OraclePolicy
 
 
 def test_every_family_oracle_has_a_version():
@@ -27,7 +28,7 @@ def test_every_family_oracle_has_a_version():
     sweep (docs/results/libero_object_real_assets.md)."""
     ids = {s.name: oracle_identity(get_scene(s.name)) for s in registered_scenes()}
     assert all(isinstance(i["version"], int) and i["version"] >= 1 for i in ids.values()), ids
-    assert {k: ids["stack"][k] for k in ("name", "version")} == {"name": "scenes.oracle:OraclePolicy",
+    assert {k: ids["stack"][k] for k in ("name", "version")} == {"name": "scenes.tabletop.oracle:OraclePolicy",
                                                                  "version": OraclePolicy.version}  # fmt: skip
     # the source hash: LIBERO's oracle (a subclass, its own module) differs from the tabletop one
     assert all(len(i["code_hash"]) == 16 for i in ids.values())

@@ -15,8 +15,8 @@ from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
 from indgen_vla.core.runs.records import RunDir
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 from tests.fixtures.kill import kill_midway
 
 pytestmark = pytest.mark.filterwarnings("ignore")

@@ -13,8 +13,8 @@ from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 from indgen_vla.app.engine.local import run_local
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, run_episode
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
 pytestmark = pytest.mark.filterwarnings("ignore")

@@ -15,9 +15,9 @@ from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 from indgen_vla.app.engine.local import EarlyWorkers, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.run import evaluate
-from policy_wrappers.registry import load_policy, preview_policy
+from policy_wrappers.specs import load_policy, preview_policy
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -94,7 +94,7 @@ def test_evaluate_builds_the_first_scene_while_the_policy_loads(tmp_path, monkey
 
     early = run("early")
     assert taken == [True]
-    monkeypatch.setattr("policy_wrappers.registry.preview_policy", lambda *a, **k: None)
+    monkeypatch.setattr("policy_wrappers.specs.preview_policy", lambda *a, **k: None)
     late = run("late")
     assert taken == [True]  # no preview: no early workers
     assert early == late and len(early) == 2

@@ -12,8 +12,8 @@ from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation, PolicySpec, ScenePreview
 from indgen_vla.core.protocol.plan import EpisodeJob
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 from tests.fixtures.renders import count_renders
 

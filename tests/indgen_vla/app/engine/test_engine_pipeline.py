@@ -10,8 +10,8 @@ from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 from indgen_vla.app.engine.local import run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.core.protocol.interface import PolicySpec
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 from tests.fixtures.renders import count_renders
 
@@ -59,7 +59,7 @@ def _run(make_inner, privileged: bool, workers: int, pipeline: bool, max_steps: 
 
 def test_pipelined_oracle_equals_unpipelined():
     """Per-episode policies (the oracle): one instance per environment, two environments in one worker."""
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     ref, ref_log, ref_n = _run(OraclePolicy, True, workers=1, pipeline=False, max_steps=30)
     got, got_log, got_n = _run(OraclePolicy, True, workers=1, pipeline=True, max_steps=30)

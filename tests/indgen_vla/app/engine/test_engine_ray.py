@@ -13,8 +13,8 @@ from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 from indgen_vla.app.engine.ray_backend import Batcher, ray_knobs
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")
@@ -94,7 +94,7 @@ def test_policy_actor_replies_errors_as_the_local_engine_describes_them():
 
     from indgen_vla.app.engine.ray_backend import _PolicyActor
     from indgen_vla.app.engine.rollout import _describe
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     made = []
     actor = _PolicyActor(lambda: made.append(OraclePolicy()) or made[-1], max_batch=4, max_wait_s=0.01)
@@ -127,7 +127,9 @@ def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):
     monkeypatch.delenv("INDGEN_ROBOCASA_OBJ_REGISTRIES", raising=False)
     env = sim_options(scene_levels(get_scene("robocasa"), ["base_y"]))["runtime_env"]["env_vars"]
     assert env == {"INDGEN_ROBOCASA_SPLIT": "all", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "objaverse,lightwheel"}
-    flagged = scene_levels(get_scene("robocasa", {"split": "target", "obj_registries": "lightwheel"}), ["base_y"])
+    flagged = scene_levels(
+        get_scene("robocasa", {"split": "target", "obj_registries": "lightwheel"}), ["base_y"]
+    )
     assert sim_options(flagged)["runtime_env"]["env_vars"] == {
         "INDGEN_ROBOCASA_SPLIT": "target", "INDGEN_ROBOCASA_OBJ_REGISTRIES": "lightwheel"
     }  # fmt: skip
@@ -177,7 +179,7 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     from indgen_vla.app.engine.local import run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.app.engine.run import evaluate
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     c, jobs = _jobs("standin:oracle", 2, 1)
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,

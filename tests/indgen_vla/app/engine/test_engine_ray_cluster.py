@@ -18,7 +18,7 @@ import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.engine.run import evaluate
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.kill import episodes_on_disk, kill_midway, processes
 
 ray = pytest.importorskip("ray")
@@ -168,7 +168,7 @@ def test_driver_sigkilled_then_the_same_command_resumes_to_the_uninterrupted_run
 def gated_oracle(gate: str):
     """The oracle, except that ``act`` waits until the file ``gate`` exists: the run's episodes hold still until the
     test opens it. Defined in a function so Ray ships the class by value (no test module import in the actors)."""
-    from scenes.oracle import OraclePolicy
+    from scenes.tabletop.oracle import OraclePolicy
 
     class Gated(OraclePolicy):
         def act(self, observations):
@@ -262,8 +262,8 @@ def test_killed_simulator_and_policy_actors_are_replaced_and_no_episode_is_lost(
 def test_an_openpi_server_that_stops_and_restarts_pauses_the_ray_run_and_loses_nothing(joined, tmp_path):
     """As locally (test_faults.test_server_restart_mid_run_loses_nothing): `indgen serve` stopped after the first
     episode and back 2 s later; the simulator actors wait (run_episode's backoff) and rerun from the seed."""
-    from policy_wrappers.registry import load_policy
     from policy_wrappers.serve import PolicyServer
+    from policy_wrappers.specs import load_policy
     from tests.indgen_vla.app.engine.test_faults import soak
 
     port = soak.free_port()

@@ -13,8 +13,8 @@ from indgen_vla.app.engine.local import run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.scheduler import JobQueue, first_jobs
 from indgen_vla.core.protocol.plan import EpisodeJob
+from scenes.family import get_scene
 from scenes.planning import SceneLevels, scene_levels
-from scenes.registry import get_scene
 from tests.fixtures.feedback import feedback_policy_class
 
 pytestmark = pytest.mark.filterwarnings("ignore")

@@ -17,9 +17,9 @@ from indgen_vla.app.cli import main
 from indgen_vla.app.engine.reconnect import Outage
 from indgen_vla.core.errors import EXIT_EPISODE_ERRORS, EXIT_STOPPED, PolicyConnectionError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
-from policy_wrappers.registry import load_policy
+from policy_wrappers.specs import load_policy
+from scenes.family import get_scene
 from scenes.planning import scene_levels
-from scenes.registry import get_scene
 
 pytestmark = [pytest.mark.filterwarnings("ignore"), pytest.mark.timeout(300)]
 _spec = importlib.util.spec_from_file_location(

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.lerobot_runs import AXIS, ROOT, SCENE, lerobot_env, needs_plugin
 
 pytestmark = [pytest.mark.slow, needs_plugin]

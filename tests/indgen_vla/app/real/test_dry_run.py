@@ -12,7 +12,7 @@ from indgen_vla.app.cli import main
 from indgen_vla.app.real.plan import RealRun
 from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import OPERATOR_FAILURES
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.levels import level_param
 
 
@@ -21,7 +21,7 @@ def robot():
     """The simulated robot: stack-scene runners (full episode length, and one cut short so the oracle fails)."""
     import indgen_vla.app.engine  # noqa: F401 - registers standin:oracle
     from indgen_vla.app.engine.rollout import EnvRunner, RunnerConfig
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
 
     policy = load_policy("standin:oracle", scene_family=get_scene("stack"))

@@ -7,7 +7,7 @@ import pytest
 
 from indgen_vla.app.regimes.demos import HumanNoise, record_demos
 from indgen_vla.core.errors import ConfigError
-from scenes.registry import get_scene
+from scenes.family import get_scene
 from tests.fixtures.levels import level_env, level_param
 
 
@@ -68,10 +68,10 @@ def test_demos_build_t0_and_levels_through_the_plans_builder():
 @pytest.mark.slow  # ~12 s: fresh interpreters
 def test_demos_and_mimicgen_build_their_scenes_without_robosuites_macro_warning():
     """Both commands build scenes in their own process through the plan's builder, whose layouts import robosuite by
-    scenes.objects, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
+    scenes.tabletop.mjcf, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
     (the fork server's preload: tests/scenes/test_planning.py::test_the_fork_servers_preload_is_quiet)."""
     code = ("import indgen_vla.app.regimes.mimicgen\n"
-            "from indgen_vla.app.regimes.demos import LevelRequest, plan_cells\nfrom scenes.registry import get_scene\n"
+            "from indgen_vla.app.regimes.demos import LevelRequest, plan_cells\nfrom scenes.family import get_scene\n"
             "cells, maker = plan_cells(get_scene('pick_place'), None, LevelRequest(), (), 64)\n"
             "env = maker(cells[0])\nenv.reset(seed=0)\nenv.close()")  # fmt: skip
     assert "macro" not in _run(code)

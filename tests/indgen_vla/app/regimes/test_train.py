@@ -12,7 +12,7 @@ from indgen_vla.app.regimes.train import TrainConfig, train_policy
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.training_support import TrainedCell
-from scenes.registry import get_scene
+from scenes.family import get_scene
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(180)
@@ -50,7 +50,7 @@ def test_loss_decreases_and_checkpoint_is_saved(trained, demos):
 def test_checkpoint_loads_through_lerobot_policy_path(trained, demos):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     policy = load_policy(f"lerobot:{trained}")
     assert policy.spec.cameras == () and (policy.spec.chunk_size, policy.spec.replan_steps) == (20, 10)
@@ -67,7 +67,7 @@ def test_checkpoint_loads_through_lerobot_policy_path(trained, demos):
 def test_env_state_without_the_proprio_step_is_refused(trained, tmp_path):
     import shutil
 
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     ckpt = tmp_path / "ckpt"
     shutil.copytree(trained, ckpt)
@@ -96,7 +96,7 @@ def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos,
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.engine.run import evaluate
     from indgen_vla.core.protocol.interface import OBJECT_DIM
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     cfg = TrainConfig(steps=40, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20,
                       objects=True)  # fmt: skip
@@ -165,7 +165,7 @@ def test_objects_need_recorded_poses(tmp_path):
 
 @pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped checkpoint not built yet")
 def test_shipped_checkpoint_is_small_documented_and_loads():
-    from policy_wrappers.registry import load_policy
+    from policy_wrappers.specs import load_policy
 
     size = sum(f.stat().st_size for f in SHIPPED.iterdir() if f.is_file())
     assert size <= 20 * 1024 * 1024

@@ -17,7 +17,7 @@ from indgen_vla.core.protocol.fingerprint import (
 
 def base() -> dict:
     return {
-        "scene": "pick_place", "family": "scenes.catalog.PickPlace",
+        "scene": "pick_place", "family": "scenes.tabletop.PickPlace",
         "simulator": {"robosuite": "1.4.0", "mujoco": "3.8.1"}, "assets": "shipped", "horizon": 280,
         "settle_steps": 0, "initial_states": "seeded", "cameras": ["agentview"], "image_size": [128, 128],
         "render_backend": "Mesa / llvmpipe (egl)",

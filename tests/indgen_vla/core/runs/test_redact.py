@@ -6,8 +6,8 @@ import pytest
 
 from indgen_vla.app.cli import main
 from indgen_vla.core.runs.redact import redact, redact_tree
-from policy_wrappers.registry import load_policy, parse_spec
 from policy_wrappers.serve import PolicyServer
+from policy_wrappers.specs import load_policy, parse_spec
 
 SECRET = "s3cr3t-Key_42"
 
