@@ -1,7 +1,8 @@
 """indgen-vla: measure inductive generalization of robot manipulation policies.
 
-The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md), and the types a policy of
-your own implements (``Policy``, ``PolicySpec``, ``Observation``: docs/extending.md). Importing this package is
+The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md), the types a policy of
+your own implements (``Policy``, ``PolicySpec``, ``Observation``) and those a scene family of your own subclasses
+(``Scene``, ``TabletopScene``, ``SceneSpec``, ``Item``, ``register_scene``: docs/extending.md). Importing this package is
 cheap: each name loads its module on first use, and torch, robosuite and lerobot load only inside what needs them.
 """
 
@@ -31,6 +32,15 @@ _LAZY = {
     "PolicySpec": "indgen_vla.core.protocol.interface:PolicySpec",
     "Observation": "indgen_vla.core.protocol.interface:Observation",
     "EnvSpec": "indgen_vla.core.protocol.interface:EnvSpec",
+    # the extension point of a scene family of your own (docs/extending.md): the base, the tabletop backend's base,
+    # a level's frozen spec and its items, the registration, the family lookup by name, the tabletop predicates
+    "Scene": "scenes.family:Scene",
+    "TabletopScene": "scenes.tabletop:TabletopScene",
+    "SceneSpec": "scenes.spec:SceneSpec",
+    "Item": "scenes.spec:Item",
+    "register_scene": "scenes.family:register_scene",
+    "get_scene": "scenes.family:get_scene",
+    "InReceptacle": "scenes.predicates:InReceptacle",
     "IndgenError": "indgen_vla.core.errors:IndgenError",
     "ConfigError": "indgen_vla.core.errors:ConfigError",
 }

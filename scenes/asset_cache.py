@@ -15,7 +15,7 @@ import os
 import warnings
 
 from indgen_vla.core.protocol.plan import WARM_CELL_ENV
-from scenes.family import Scene, get_scene
+from scenes.family import Scene, registered_scenes
 from scenes.planning import scene_levels
 
 
@@ -32,8 +32,11 @@ def warm(scene: Scene, task: str) -> None:
 
 if cell := os.environ.get(WARM_CELL_ENV):
     try:  # an optimisation: a failure here must not stop the fork server (each worker then compiles cold)
-        named = json.loads(cell)  # the fork server's entry: the one place here a family is looked up by name
-        warm(get_scene(named["scene"]), named["task"])
+        named = json.loads(cell)
+        # the families this fork server knows; one a user's script registers is not among them: nothing to warm
+        known = {s.name: s for s in registered_scenes()}
+        if named["scene"] in known:
+            warm(known[named["scene"]], named["task"])
     except Exception as e:
         warnings.warn(
             f"MuJoCo's asset cache not filled in the fork server ({type(e).__name__}: {e})", stacklevel=1

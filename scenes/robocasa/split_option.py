@@ -1,5 +1,5 @@
 """RoboCasa365's split and RoboCasa's object registries as the family's options (``--split``, ``--obj-registries``;
-the API's ``split``, ``obj_registries``): chosen once per command (``scenes.family.get_scene(name, options)``), the flag
+the API's ``split``, ``obj_registries``): chosen once per command (``Scene.configured``, at the command's edge), the flag
 over ``INDGEN_ROBOCASA_SPLIT`` / ``INDGEN_ROBOCASA_OBJ_REGISTRIES`` over the defaults (``splits.choice``), and
 read by every method of the family that depends on them."""
 
