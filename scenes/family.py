@@ -102,10 +102,19 @@ class Scene:
     def __hash__(self) -> int:
         return hash((type(self), tuple(sorted(self.options().items()))))
 
+    # ---- the catalogue: what the family offers (tasks, axes, T0, instruction, successors, listing) ---------
     @property
     def default_axis(self) -> str:
         """The family's first axis: T0 builds (``indgen demos`` without --axis, the asset cache) are its level 0."""
         return self.axes[0]
+
+    def base(self, task: str):
+        """T0: the frozen spec of ``task`` at level 0 (what the axes' successors edit)."""
+        raise NotImplementedError
+
+    def instruction(self, task: str) -> str:
+        """The language instruction of ``task`` (the same at every level)."""
+        raise NotImplementedError
 
     def successor(
         self, axis: AxisRef, step: float | None = None, overrides: Mapping[str, Mapping] | None = None,
@@ -117,28 +126,16 @@ class Scene:
 
         return get_successor(axis, step, merge_overrides(self.axis_overrides, overrides))
 
-    # ---- what a family provides ------------------------------------------------------------------
-    def base(self, task: str):
-        """T0: the frozen spec of ``task`` at level 0 (what the axes' successors edit)."""
-        raise NotImplementedError
+    def task_max_steps(self, task: str) -> int:
+        """``task``'s episode length when no ``--max-steps`` is given: the family's own (RoboCasa365: per task)."""
+        return self.max_steps
 
-    def instruction(self, task: str) -> str:
-        """The language instruction of ``task`` (the same at every level)."""
-        raise NotImplementedError
+    def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
+        """Condition 2 (strictly harder levels) before any episode runs, from the frozen specs; ``overridden``
+        says --step / --axes-preset changed a step (a family that needs a built env checks only then)."""
+        from scenes.axes import check_progression
 
-    def env_class(self) -> type[gym.Env]:
-        """The ``scenes.base_env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this
-        method (it loads the simulator); typed ``gym.Env`` here because ``scenes.base_env`` imports this module."""
-        raise NotImplementedError
-
-    def make_env(
-        self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
-        max_steps: int | None,
-    ) -> gym.Env:  # fmt: skip
-        """Build one level of one (resolved) task along ``successor``."""
-        return self.env_class()(
-            self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
-        )
+        check_progression(self.base(task), successor)
 
     def level_identity(self, task: str, successor: Successor, level: int) -> Any:
         """What ``make_env`` builds for (task, level) along ``successor``, as plain data without the axis's name:
@@ -151,87 +148,6 @@ class Scene:
 
         return {"scene": self.name, "task": task, "spec": spec_at_level(self.base(task), successor, level)}
 
-    def check_ready(self) -> None:
-        """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
-
-    def asset_tree(self):
-        """The asset tree a per-machine certificate depends on (``committed_certificates = False``), or None."""
-        return None
-
-    def certificate_scope(self) -> str:
-        """A user's choice besides the asset tree that changes which initial states a level draws (RoboCasa365's
-        split): per-machine certificates made under another live in another folder ("": none)."""
-        return ""
-
-    def worker_environment(self) -> dict[str, str]:
-        """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
-        split): a Ray actor on another node gets these, not its node's own ({}: none)."""
-        return {}
-
-    def check_options(self, given: Mapping[str, Any]) -> None:
-        """One line for an option given (not None) that the family has not (``scene_options``) or a value it
-        refuses; a frozen config's ``__post_init__`` calls it, before anything runs."""
-        extra = [k for k, v in given.items() if v is not None and k not in self.scene_options]
-        if extra:
-            flag = "--" + extra[0].replace("_", "-")
-            takers = [s.name for s in _SCENES.values() if extra[0] in s.scene_options]
-            raise ConfigError(
-                f"scene {self.name} takes no {flag} (only {', '.join(takers) or 'no scene'} does); leave it out"
-            )
-
-    def configured(self, given: Mapping[str, Any]) -> Scene:
-        """The family under the options ``given`` (None: not given, the family's default) as a new value, resolved
-        once: what a command's plan holds and its builder carries to workers."""
-        self.check_options(given)
-        return self
-
-    def options(self) -> dict[str, str]:
-        """The family's options as this instance resolved them ({}: none), for a builder to carry."""
-        return {}
-
-    def placeholder_assets(self) -> bool:
-        """True when the assets found are placeholders (boxes): images are then no measurement."""
-        return False
-
-    def privileged_from(self, raw: Any):
-        """A ``PrivilegedState`` from what a family in its own runtime sends (``ExternalSceneEnv``); others return
-        one directly."""
-        return raw
-
-    def environment_versions(self) -> dict[str, str]:
-        """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
-        if self.runtime is None:
-            return {}
-        from scenes.runtime import worker_versions
-
-        return worker_versions(self.runtime)
-
-    def needs(self) -> str | None:
-        """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
-        return None
-
-    def task_max_steps(self, task: str) -> int:
-        """``task``'s episode length when no ``--max-steps`` is given: the family's own (RoboCasa365: per task)."""
-        return self.max_steps
-
-    def protocol_facts(self) -> dict[str, Any]:
-        """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
-        settling steps after reset, where initial states come from, and the identity of the asset tree."""
-        return {
-            "max_steps": self.max_steps,
-            "settle_steps": 0,
-            "initial_states": "sampled from each episode's seed (T0 jitter)",
-            "assets": "shipped with the simulator packages (their versions identify them)",
-        }
-
-    def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
-        """Condition 2 (strictly harder levels) before any episode runs, from the frozen specs; ``overridden``
-        says --step / --axes-preset changed a step (a family that needs a built env checks only then)."""
-        from scenes.axes import check_progression
-
-        check_progression(self.base(task), successor)
-
-    # ---- shared checks -----------------------------------------------------------------------------
     def resolve_task(self, task: str | None) -> str:
         """``task``, or the default (first) task when None; a one-line error suggesting the right name."""
         if task is None:
@@ -282,6 +198,92 @@ class Scene:
         """The tasks ``indgen scenes`` shows (a family whose task list needs an install shows none without it)."""
         return tuple(self.tasks)
 
+    def needs(self) -> str | None:
+        """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
+        return None
+
+    # ---- the environment: how and where a level is built (SceneLevels holds the family and calls these) ----
+    def env_class(self) -> type[gym.Env]:
+        """The ``scenes.base_env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this
+        method (it loads the simulator); typed ``gym.Env`` here because ``scenes.base_env`` imports this module."""
+        raise NotImplementedError
+
+    def make_env(
+        self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
+        max_steps: int | None,
+    ) -> gym.Env:  # fmt: skip
+        """Build one level of one (resolved) task along ``successor``."""
+        return self.env_class()(
+            self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
+        )
+
+    def check_ready(self) -> None:
+        """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
+
+    def placeholder_assets(self) -> bool:
+        """True when the assets found are placeholders (boxes): images are then no measurement."""
+        return False
+
+    def privileged_from(self, raw: Any):
+        """A ``PrivilegedState`` from what a family in its own runtime sends (``ExternalSceneEnv``); others return
+        one directly."""
+        return raw
+
+    def environment_versions(self) -> dict[str, str]:
+        """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
+        if self.runtime is None:
+            return {}
+        from scenes.runtime import worker_versions
+
+        return worker_versions(self.runtime)
+
+    def protocol_facts(self) -> dict[str, Any]:
+        """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
+        settling steps after reset, where initial states come from, and the identity of the asset tree."""
+        return {
+            "max_steps": self.max_steps,
+            "settle_steps": 0,
+            "initial_states": "sampled from each episode's seed (T0 jitter)",
+            "assets": "shipped with the simulator packages (their versions identify them)",
+        }
+
+    def check_options(self, given: Mapping[str, Any]) -> None:
+        """One line for an option given (not None) that the family has not (``scene_options``) or a value it
+        refuses; a frozen config's ``__post_init__`` calls it, before anything runs."""
+        extra = [k for k, v in given.items() if v is not None and k not in self.scene_options]
+        if extra:
+            flag = "--" + extra[0].replace("_", "-")
+            takers = [s.name for s in _SCENES.values() if extra[0] in s.scene_options]
+            raise ConfigError(
+                f"scene {self.name} takes no {flag} (only {', '.join(takers) or 'no scene'} does); leave it out"
+            )
+
+    def configured(self, given: Mapping[str, Any]) -> Scene:
+        """The family under the options ``given`` (None: not given, the family's default) as a new value, resolved
+        once: what a command's plan holds and its builder carries to workers."""
+        self.check_options(given)
+        return self
+
+    def options(self) -> dict[str, str]:
+        """The family's options as this instance resolved them ({}: none), for a builder to carry."""
+        return {}
+
+    def worker_environment(self) -> dict[str, str]:
+        """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
+        split): a Ray actor on another node gets these, not its node's own ({}: none)."""
+        return {}
+
+    # ---- the certificate store's hooks: which asset tree and choice a per-machine certificate depends on ---
+    def asset_tree(self):
+        """The asset tree a per-machine certificate depends on (``committed_certificates = False``), or None."""
+        return None
+
+    def certificate_scope(self) -> str:
+        """A user's choice besides the asset tree that changes which initial states a level draws (RoboCasa365's
+        split): per-machine certificates made under another live in another folder ("": none)."""
+        return ""
+
+    # ---- registration --------------------------------------------------------------------------------------
     @classmethod
     def validate(cls) -> None:
         """Check the class attributes when the class is registered (one line naming the problem)."""
