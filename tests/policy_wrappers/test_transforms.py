@@ -11,7 +11,7 @@ import pytest
 import policy_wrappers
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.registry import Registry
-from policy_wrappers import registry
+from policy_wrappers import specs as registry
 from policy_wrappers.image_tools import (
     center_crop_tf,
     convert_gripper,

@@ -15,7 +15,7 @@ import pytest
 import scenes
 from indgen_vla.app.cli import main
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
-from scenes import registry
+from scenes import family as registry
 from scenes.family import Scene, get_scene, register_scene, registered_scenes
 from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan

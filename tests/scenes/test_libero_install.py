@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("libero")
 
-from scenes.libero import setup as ls  # noqa: E402
+from scenes.libero import install as ls  # noqa: E402
 
 
 def _wheels():
