@@ -161,3 +161,19 @@ def test_a_family_that_cannot_describe_its_level_shares_nothing(monkeypatch):
     monkeypatch.setattr(type(scenes.get_scene("pick_place")), "env_from_spec", False)
     sp = resolve_scene_plan(get_scene("pick_place"), "milk", ["pick_y", "scale"], "0")
     assert {c.env_key for c in sp.cells} == {""}
+
+
+def test_a_configured_family_is_a_new_value_and_nothing_global_changes(monkeypatch):
+    """``get_scene(name, options)`` returns ``Scene.configured``'s new value (no overlay a later lookup would see);
+    the plan's builder holds it and pickles it for the workers."""
+    import scenes.family
+
+    monkeypatch.setenv("INDGEN_ROBOCASA_SPLIT", "all")
+    registered = get_scene("robocasa")
+    target = get_scene("robocasa", {"split": "target"})
+    assert target is not registered and target != registered and target.split_choice()[0] == "target"
+    assert get_scene("robocasa") is registered and registered.split_choice()[0] == "all"
+    assert target == get_scene("robocasa", {"split": "target"})  # a value: equal options, equal families
+    assert not hasattr(scenes.family, "_CONFIGURED") and not hasattr(scenes.family, "configure_scene")
+    builder = scene_levels(get_scene("pick_place"), ["pick_y"])
+    assert pickle.loads(pickle.dumps(builder)) == builder and builder.scene == "pick_place"
