@@ -111,7 +111,7 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
         evaluate(cfg, quiet=True)
     finally:
         sys.setprofile(None)
-    assert entered == {"registry.py:get_scene", "planning.py:resolve_scene_plan"}
+    assert entered == {"family.py:get_scene", "planning.py:resolve_scene_plan"}
 
 
 def test_the_fork_servers_preload_is_quiet():
