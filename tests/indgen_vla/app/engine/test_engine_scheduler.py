@@ -74,7 +74,7 @@ def _counted(log: Path, levels: list[int], episodes: int) -> tuple[list, RunnerC
     jobs = plan_episodes(cfg, [task], {"pick_y": levels}, {(task, "pick_y", k): 0.02 * k for k in levels})
     log.touch()
     base = scene_levels(get_scene("pick_place"), ["pick_y"])
-    rc = RunnerConfig(levels=CountingLevels(base.scene, base.successors, log=str(log)), cameras=(),
+    rc = RunnerConfig(levels=CountingLevels(base.family, base.successors, log=str(log)), cameras=(),
                       image_size=(64, 64), max_steps=6, privileged=False)  # fmt: skip
     return jobs, rc
 
