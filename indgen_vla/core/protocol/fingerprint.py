@@ -167,9 +167,24 @@ def policy_conventions(spec, policy) -> dict[str, Any]:
     return out
 
 
+# scene families whose class moved module without changing (scenes/ became one folder per family): a run recorded
+# under the old path is the same family, so it resumes and compares as before
+MOVED_FAMILIES = {"scenes.catalog.": "scenes.tabletop."}
+
+
+def _field(fp: Mapping[str, Any], field: str) -> Any:
+    """``fp[field]``, a moved family's class path read as its current one."""
+    v = fp.get(field)
+    if field == "family" and isinstance(v, str):
+        for old, new in MOVED_FAMILIES.items():
+            if v.startswith(old):
+                return new + v[len(old) :]
+    return v
+
+
 def digest(fp: Mapping[str, Any]) -> str:
     """A short hash of the fields that change outcomes (equal digests: comparable runs)."""
-    keep = {k: fp.get(k) for k in (*OUTCOME_FIELDS, POLICY_FIELD)}
+    keep = {k: _field(fp, k) for k in (*OUTCOME_FIELDS, POLICY_FIELD)}
     return hashlib.sha256(json.dumps(keep, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
@@ -178,7 +193,7 @@ def differences(a: Mapping[str, Any], b: Mapping[str, Any]) -> list[tuple[str, A
     policy's conventions (outcome-changing only when both runs use the same policy family)."""
     out = []
     for f in (*OUTCOME_FIELDS, *INFO_FIELDS):
-        if a.get(f) != b.get(f):
+        if _field(a, f) != _field(b, f):
             out.append((f, a.get(f), b.get(f), f in OUTCOME_FIELDS))
     pa, pb = a.get(POLICY_FIELD) or {}, b.get(POLICY_FIELD) or {}
     same_family = pa.get("family") == pb.get("family")
