@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.app.config_fields import option
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -31,15 +32,6 @@ REGISTRIES_HELP = ("RoboCasa's object registries, a comma list of objaverse, aig
                    "objaverse,lightwheel); wins over $INDGEN_ROBOCASA_OBJ_REGISTRIES")  # fmt: skip
 PRESET_DIR = config_dir("paper")
 ADAPTIVE_MODES = ("kstar", "curve", "until-failure")  # core.stats.sprt.MODES (a test keeps them equal)
-
-
-def option(default: Any = dataclasses.MISSING, help: str | None = None, *, name: str | None = None,
-           flag: str | None = None, **argparse_kwargs: Any) -> Any:  # fmt: skip
-    """A config field and its option: ``help`` its --help line (``None``: no flag, API and YAML only), ``name`` its
-    flat name where it differs from the field's, ``flag`` its flag's name where it differs from ``name``;
-    ``argparse_kwargs`` (type, choices, metavar) go to ``add_argument`` as they are."""
-    meta = {"help": help, "name": name, "flag": flag, "argparse": argparse_kwargs}
-    return field(default=default, metadata=meta)
 
 
 def workers_value(text: str) -> int | str:
