@@ -1,6 +1,6 @@
 """Operating characteristics of every decision the toolkit prints: its size (the chance of the wrong call at the null
 or its boundary) and its power, by exact enumeration where the tables are small and seeded simulation otherwise.
-``scripts/operating_characteristics.py`` writes them to docs/statistics.md; the default tests assert the sizes."""
+``scripts/operating_characteristics.py`` writes them to docs/results/statistics.md; the default tests assert the sizes."""
 
 from __future__ import annotations
 
