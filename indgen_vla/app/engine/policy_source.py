@@ -8,8 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
+from indgen_vla.app.engine.rollout import RunnerConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EvalPlan
+from policy_wrappers.objects import adopt
+from policy_wrappers.registry import load_policy, preview_policy
 
 if TYPE_CHECKING:
     from indgen_vla.app.engine.local import EarlyWorkers
@@ -53,7 +57,6 @@ class PolicySource:
         """A new instance of the policy (the engine asks for one per worker when it is not batched)."""
         if self.given is not None:
             return adopt_object(self.given, self.cfg, self.env_spec)
-        from policy_wrappers.registry import load_policy
 
         cfg = self.cfg
         return load_policy(
@@ -76,8 +79,6 @@ class PolicySource:
         cfg, plan = self.cfg, self.plan
         if cfg.run.backend != "local" or not jobs:
             return None
-        from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
-        from policy_wrappers.registry import preview_policy
 
         n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
         view = None if self.given is not None else preview_policy(
@@ -109,8 +110,6 @@ def check_object_run(cfg: EvalConfig) -> None:
 def adopt_object(obj: object, cfg: EvalConfig, env_spec):
     """The engine's policy for an object in memory (``policy_wrappers.objects.adopt``); one per run: a policy
     with per-episode state serves one environment, so it refuses more than one worker."""
-    from policy_wrappers.objects import adopt
-
     p = adopt(obj, name=cfg.policy.spec, device=cfg.policy.device, env_spec=env_spec,
               precision=cfg.policy.precision, replan_steps=cfg.policy.replan_steps)  # fmt: skip
     if not p.spec.batched and (cfg.run.workers > 1 or cfg.run.pipeline):
@@ -123,8 +122,6 @@ def adopt_object(obj: object, cfg: EvalConfig, env_spec):
 def runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
     """How the workers build scenes for a policy that asks for ``view`` (its ``PolicySpec``, or the
     ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
-    from indgen_vla.app.engine.rollout import RunnerConfig
-
     side = cfg.policy.image_size or (view.image_size[0] if view.image_size else 128)
     return RunnerConfig(
         levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.plan.max_steps,
