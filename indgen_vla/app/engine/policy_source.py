@@ -5,19 +5,14 @@ workers' ``RunnerConfig`` for what it reads."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from indgen_vla.app.engine import local
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
 from indgen_vla.app.engine.rollout import RunnerConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EvalPlan
+from policy_wrappers import registry
 from policy_wrappers.objects import adopt
-from policy_wrappers.registry import load_policy, preview_policy
-
-if TYPE_CHECKING:
-    from indgen_vla.app.engine.local import EarlyWorkers
-    from indgen_vla.app.engine.rollout import RunnerConfig
 
 
 def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
@@ -51,7 +46,7 @@ class PolicySource:
         self.cfg, self.plan, self.given = cfg, plan, given
         # what the policy's family is told besides its spec: the scene family's contract, precision/compile options
         self.env_spec, self.options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
-        self.early: EarlyWorkers | None = None
+        self.early: local.EarlyWorkers | None = None
 
     def load(self):
         """A new instance of the policy (the engine asks for one per worker when it is not batched)."""
@@ -59,7 +54,7 @@ class PolicySource:
             return adopt_object(self.given, self.cfg, self.env_spec)
 
         cfg = self.cfg
-        return load_policy(
+        return registry.load_policy(
             cfg.policy.spec, trust_remote_code=cfg.policy.trust_remote_code, device=cfg.policy.device,
             scene=cfg.plan.scene, env_spec=self.env_spec, **self.options,
         )  # fmt: skip
@@ -72,7 +67,7 @@ class PolicySource:
         check_policy_contract(self.cfg, self.plan, probe)
         return probe
 
-    def prestart(self, jobs: list) -> EarlyWorkers | None:
+    def prestart(self, jobs: list) -> local.EarlyWorkers | None:
         """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
         simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
         their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
@@ -80,15 +75,15 @@ class PolicySource:
         if cfg.run.backend != "local" or not jobs:
             return None
 
-        n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
-        view = None if self.given is not None else preview_policy(
+        n = local.worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
+        view = None if self.given is not None else registry.preview_policy(
             cfg.policy.spec, device=cfg.policy.device, env_spec=self.env_spec, **self.options)  # fmt: skip
         if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
             return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
         if view is not None:
-            return EarlyWorkers(runner_config(cfg, plan, view), jobs, max(1, n))
+            return local.EarlyWorkers(runner_config(cfg, plan, view), jobs, max(1, n))
         if n:
-            start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
+            local.start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
         return None
 
     def close_unused(self) -> None:
