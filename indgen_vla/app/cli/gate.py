@@ -78,6 +78,11 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.core.comparison.gate import GateConfig, gate  # lazy: start-up (numpy)
 
     if args.plan:
+        if args.candidate is not None:
+            raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
+        GateConfig(
+            args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
+        )  # validates
         return _plan(args)
     if args.candidate is None:
         raise ConfigError(
@@ -99,16 +104,9 @@ def main(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace) -> int:
     """``gate --plan``: print the smoke's episodes a level (JSON with --json)."""
-    from indgen_vla.core.comparison.gate import GateConfig  # lazy: start-up (numpy)
-
     # lazy: start-up (numpy)
     from indgen_vla.core.comparison.gate_plan import baseline_rates, plan_episodes, plan_lines
 
-    if args.candidate is not None:
-        raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
-    GateConfig(
-        args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
-    )  # validates
     levels = baseline_rates(args.baseline, args.gamma)
     plan = plan_episodes([p for _, _, p in levels], args.margin, args.alpha, args.power, args.pairing)
     print(json.dumps(plan, indent=2) if args.json else "\n".join(plan_lines(args.baseline, plan, levels)))
