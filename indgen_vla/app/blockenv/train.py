@@ -49,9 +49,7 @@ class TrainConfig:
 
 def _untrained(cfg: TrainConfig):
     """The method's model, freshly initialised (torch loads here, not when a config is checked)."""
-    from indgen_vla.app.blockenv.models import (
-        build_model,  # lazy: start-up (torch, for sample and oracle runs)
-    )
+    from indgen_vla.app.blockenv.models import build_model  # lazy: start-up (torch, seconds)
 
     return build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
 
