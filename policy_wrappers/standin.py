@@ -16,6 +16,7 @@ from indgen_vla.core.protocol.interface import (
     PolicySpec,
     validate_chunk,
 )
+from policy_wrappers import lerobot_policy, registry
 
 GRIPPER = 6  # the gripper's index in the tabletop 7-d action and in RoboCasa's 12-d (convert_action order)
 
@@ -84,8 +85,6 @@ class RandomPolicy:
 def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu", env_spec=None, scene=None):
     """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter);
     ``random`` and ``noop`` act in the scene's action space (``env_spec``: 7-d tabletop, 12-d RoboCasa365)."""
-    from policy_wrappers.registry import STANDINS
-
     name = parsed.target
     dim = {"action_dim": env_spec.action_dim} if env_spec is not None else {}
     if name == "noop":
@@ -94,9 +93,9 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
         return RandomPolicy(
             parsed.spec, **options.fields(RandomPolicy, {"chunk_size": "chunk", "scale": "scale"}), **dim
         )
-    if name in STANDINS:
+    if name in registry.STANDINS:
         try:
-            cls = STANDINS.load(name)
+            cls = registry.STANDINS.load(name)
         except ModuleNotFoundError as e:
             raise PolicyError(
                 f"policy {parsed.spec}: needs the {e.name!r} package, which is not installed yet"
@@ -109,9 +108,7 @@ def load(parsed, options, *, trust_remote_code: bool = False, device: str = "cpu
             takes_scene = False
         return cls(scene=scene) if takes_scene and scene else cls()  # e.g. the scene family's own oracle
     if Path(name).expanduser().is_dir():
-        from policy_wrappers import lerobot_policy
-
         return lerobot_policy.load(
             parsed, options, trust_remote_code=trust_remote_code, device=device, family="standin"
         )
-    raise UnknownNameError("stand-in policy (or checkpoint directory)", name, STANDINS.names())
+    raise UnknownNameError("stand-in policy (or checkpoint directory)", name, registry.STANDINS.names())

@@ -15,9 +15,13 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from indgen_vla.app.blockenv.env import BlockEnvConfig
+from indgen_vla.app.blockenv.data import rollout_oracle
+from indgen_vla.app.blockenv.env import BlockEnvConfig, legal_grasps
+from indgen_vla.app.blockenv.evaluate import evaluate_model
 from indgen_vla.app.blockenv.reproduce import _pooled
+from indgen_vla.app.blockenv.train import TrainConfig, train
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.registry import lookup
 from indgen_vla.core.runs.records import atomic_write_json, atomic_write_text
 from indgen_vla.core.stats.metrics import break_level
 
@@ -110,10 +114,6 @@ def run_ablation(name: str, scale: AblationScale, log=print, models: dict | None
     ``models`` caches trained models by their training configuration, across ablations of one run.
     """
     import torch
-
-    from indgen_vla.app.blockenv.evaluate import evaluate_model
-    from indgen_vla.app.blockenv.train import TrainConfig, train
-    from indgen_vla.core.registry import lookup
 
     title, variants = lookup("BlockEnv ablation", name, ABLATIONS)
     torch.set_num_threads(1)
@@ -212,9 +212,6 @@ def legality_top1(model, level: int, episodes: int, cfg: BlockEnvConfig, seed: i
     """
     import numpy as np
     import torch
-
-    from indgen_vla.app.blockenv.data import rollout_oracle
-    from indgen_vla.app.blockenv.env import legal_grasps
 
     demos = rollout_oracle(np.full(episodes, level), cfg, np.random.default_rng([seed, level, 7]))
     obs = torch.as_tensor(demos.obs, dtype=torch.long)

@@ -13,7 +13,8 @@ import numpy as np
 
 from indgen_vla.app.blockenv.data import Demos, legality_targets, make_demos
 from indgen_vla.app.blockenv.env import BlockEnvConfig
-from indgen_vla.core.errors import ConfigError
+from indgen_vla.app.blockenv.methods import METHODS, check_options
+from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.runs.records import atomic_write_bytes, atomic_write_text
 
 
@@ -33,23 +34,24 @@ class TrainConfig:
     maml_inner_lr: float = 0.05
     maml_support: int = 5
     schedule: str = "cosine"
-    extra: dict = field(default_factory=dict)  # the method's variant options (models.base.OPTIONS)
+    extra: dict = field(default_factory=dict)  # the method's variant options (methods.OPTIONS)
 
     def __post_init__(self) -> None:
-        from indgen_vla.app.blockenv.models.base import METHODS
-
         if self.method not in METHODS:
-            from indgen_vla.core.errors import UnknownNameError
-
             raise UnknownNameError("BlockEnv method", self.method, [*METHODS, "oracle"])
         if self.steps < 1 or self.batch < 1 or self.demos_per_level < 1 or not self.lr > 0:
             raise ConfigError("steps, batch and demos_per_level must be >= 1 and lr > 0")
         if self.schedule not in ("cosine", "constant"):
             raise ConfigError(f"schedule must be 'cosine' or 'constant', got {self.schedule!r}")
         BlockEnvConfig(grid_size=self.grid_size).check_level(max(self.train_levels))
-        from indgen_vla.app.blockenv.models.base import check_options
-
         check_options(self.method, self.extra)
+
+
+def _untrained(cfg: TrainConfig):
+    """The method's model, freshly initialised (torch loads here, not when a config is checked)."""
+    from indgen_vla.app.blockenv.models import build_model  # lazy: start-up (torch, seconds)
+
+    return build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
 
 
 def _tensors(obs, actions, levels):
@@ -100,13 +102,11 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
     """Train one method; returns (model, demos) — demos are reused for MAML's support sets."""
     import torch
 
-    from indgen_vla.app.blockenv.models import build_model
-
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     env_cfg = BlockEnvConfig(grid_size=cfg.grid_size)
     demos = make_demos(list(cfg.train_levels), cfg.demos_per_level, env_cfg, seed=10_000 + cfg.seed)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
+    model = _untrained(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     if cfg.schedule == "cosine":  # decays to 0 over cfg.steps optimiser updates, whichever path makes them
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.steps)
@@ -229,8 +229,6 @@ def save_checkpoint(model, cfg: TrainConfig, out: Path) -> Path:
 def load_checkpoint(path: Path):
     import torch
 
-    from indgen_vla.app.blockenv.models import build_model
-
     try:
         raw = json.loads((path / "config.json").read_text())
     except (OSError, json.JSONDecodeError):
@@ -239,7 +237,7 @@ def load_checkpoint(path: Path):
         ) from None
     raw["train_levels"] = tuple(raw["train_levels"])
     cfg = TrainConfig(**raw)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
+    model = _untrained(cfg)
     try:
         state = torch.load(path / "model.pt", weights_only=True)
     except (OSError, EOFError, RuntimeError, pickle.UnpicklingError):

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from indgen_vla.core.runs.records import EPISODES, REPORT
+
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The merge subcommand: the shards and the merged run directory."""
@@ -29,9 +31,8 @@ def main(args: argparse.Namespace) -> int:
     """Merge the shards into ``--out``, print its tables, the merge's notes and where the report is."""
     import shlex
 
-    from indgen_vla.app.engine.merge import merge
-    from indgen_vla.core.reporting.report import print_tables, run_label
-    from indgen_vla.core.runs.records import EPISODES, REPORT
+    from indgen_vla.app.engine.merge import merge  # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     command = " ".join(["indgen", "merge", *map(shlex.quote, args.runs), "--out", shlex.quote(args.out)])
     run, summary, lines = merge(args.runs, args.out, command)

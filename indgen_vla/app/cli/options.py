@@ -8,6 +8,8 @@ import copy
 import re
 from collections.abc import Iterable
 
+from indgen_vla.app.engine.config import OPTIONS
+
 
 class IndgenParser(argparse.ArgumentParser):
     """argparse that suggests the closest subcommand or choice on a typo, in one line, and reads
@@ -37,8 +39,6 @@ def add_config_flags(
 ) -> None:
     """Add the flags of these evaluate options (flat names), each made from its config field's metadata
     (``indgen_vla.app.engine.config.option``): its help line, type, choices, metavar; a bool is a switch."""
-    from indgen_vla.app.engine.config import OPTIONS  # light: no numpy, no scene
-
     for name in names:
         o = OPTIONS[name]
         if o.flag is None:

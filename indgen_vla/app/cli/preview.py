@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from indgen_vla.app.cli.options import add_level_options, add_scene_options
+from indgen_vla.core.protocol.progression import expand_axes
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -33,8 +34,7 @@ def main(args: argparse.Namespace) -> int:
     """``indgen preview --scene S [--task T] --axis A[,B] [--levels] [--camera] [--size] [--episode] --out F``."""
     from pathlib import Path
 
-    from indgen_vla.app.preview import PreviewRequest, write_preview
-    from indgen_vla.core.protocol.progression import expand_axes
+    from indgen_vla.app.preview import PreviewRequest, write_preview  # lazy: start-up (numpy)
 
     req = PreviewRequest(
         scene=args.scene, axes=expand_axes([a.strip() for a in args.axis.split(",") if a.strip()]), out=Path(args.out),

@@ -96,13 +96,13 @@ class PlanConfig:
         if self.step is not None and not self.step > 0:
             raise ConfigError(f"--step must be positive, got {self.step}")
         if self.axes_preset is not None:
-            from scenes.axes import load_preset as load_axes_preset  # yaml only; raises one clear line
+            from scenes.axes import load_preset as load_axes_preset  # lazy: start-up (scenes: numpy, 0.4 s)
 
             load_axes_preset(self.axes_preset)
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
         if any(v is not None for v in self.scene_options().values()):
-            from scenes import get_scene
+            from scenes import get_scene  # lazy: start-up (--help builds flags from this module)
 
             get_scene(self.scene).check_options(self.scene_options())
 
@@ -326,7 +326,7 @@ class EvalConfig:
 
     def sequential_rule(self):
         """The rule of an ``--adaptive`` run (its cap, or until-failure's episodes per level, is ``--episodes``)."""
-        from indgen_vla.core.stats.sprt import make_rule
+        from indgen_vla.core.stats.sprt import make_rule  # lazy: start-up (numpy, scipy: 0.26 s)
 
         a = self.adaptive
         return make_rule(a.mode, self.plan.gamma, a.delta, a.alpha, a.round_size, self.plan.episodes)
@@ -351,7 +351,7 @@ class EvalConfig:
                 a: {t: dict(v) for t, v in by_task.items()} for a, by_task in task_steps.items()
             }
         if self.adaptive.mode is not None:
-            from indgen_vla.core.stats.sprt import plan_entry
+            from indgen_vla.core.stats.sprt import plan_entry  # lazy: start-up (numpy, scipy)
 
             plan["adaptive"] = plan_entry(self.adaptive.mode, self.sequential_rule())
         return plan

@@ -14,6 +14,7 @@ from lerobot.envs.utils import FreezeAfterEpisodeEnd
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from indgen_vla.app.lerobot_bridge.level_env import FIRST_SEED, LevelEnv, LevelSetup, resolve_levels
+from indgen_vla.core.protocol.interface import OBJECT_DIM
 
 os.environ.setdefault(
     "MUJOCO_GL", "egl"
@@ -71,8 +72,6 @@ class IndgenEnv(EnvConfig):
             self.features[f"pixels/{cam}"] = PolicyFeature(type=FeatureType.VISUAL, shape=(h, w, 3))
             self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
         if self.object_poses:
-            from indgen_vla.core.protocol.interface import OBJECT_DIM
-
             self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(OBJECT_DIM,))
             self.features_map["environment_state"] = OBS_ENV_STATE
 

@@ -22,7 +22,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from indgen_vla.app.engine.config import config_from_values
 from indgen_vla.app.engine.rollout import EnvRunner, RunnerConfig
+from indgen_vla.app.engine.run import build_plan, check_feasible
 from indgen_vla.core.errors import ConfigError, SceneError
 from indgen_vla.core.protocol.interface import OBJECT_DIM, Observation
 from indgen_vla.core.protocol.plan import EpisodeJob
@@ -113,9 +115,6 @@ def resolve_levels(
 ) -> tuple[list[LevelSetup], list[str]]:  # fmt: skip
     """Each task's ``LevelSetup`` (``task`` "all": every task of the scene) and evaluate's warnings about the level
     (uncertified); a level whose certification failed is refused as ``evaluate`` refuses it."""
-    from indgen_vla.app.engine.config import config_from_values
-    from indgen_vla.app.engine.run import build_plan, check_feasible
-
     if first_seed < 0:
         raise ConfigError(f"--env.first_seed must be >= 0, got {first_seed}")
     if video_size < 16:

@@ -29,6 +29,7 @@ from indgen_vla.app.real.setup import ORDERS, RealAxis, RealSetup, load_setup, s
 from indgen_vla.app.real.store import State
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.seeding import episode_seed
+from indgen_vla.core.reporting.caveats import design_caveats
 from indgen_vla.core.runs.records import RunDir, atomic_write_text
 from indgen_vla.core.stats.sprt import (
     UNTIL_FAILURE,
@@ -200,8 +201,6 @@ class RealRun:
     def caveats(self) -> list[str]:
         """What this plan can never show, whatever the operator records: protocol.md's and ``real status``' first
         lines (``caveats.design_caveats``)."""
-        from indgen_vla.core.reporting.caveats import design_caveats
-
         tested = (
             0 if 0 not in self.levels else 1 if self.mode else len(self.levels) - 1
         )  # a walk may stop early
