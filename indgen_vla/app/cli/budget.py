@@ -1,12 +1,12 @@
 """``indgen budget``: size the protocol an ``evaluate`` command would run before it runs (the arithmetic is
-``indgen_vla.app.engine.budget``, imported only when the command runs)."""
+``indgen_vla.app.studies.budget``, imported only when the command runs)."""
 
 from __future__ import annotations
 
 import argparse
 
 from indgen_vla.app.cli.options import add_evaluate_protocol
-from indgen_vla.app.engine.budget import DEFAULT_DROP, DEFAULT_STARTUP_S  # light: no numpy, no scene
+from indgen_vla.app.studies.budget import DEFAULT_DROP, DEFAULT_STARTUP_S  # light: no numpy, no scene
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -50,7 +50,7 @@ def main(args: argparse.Namespace) -> int:
     """Print the budget (``--json``: the dict) and exit 0; bad input exits 2."""
     import json
 
-    from indgen_vla.app.engine.budget import plan_budget, render, request_from_args
+    from indgen_vla.app.studies.budget import plan_budget, render, request_from_args
 
     out = plan_budget(request_from_args(args))
     print(json.dumps(out, indent=2, default=str) if args.json else "\n".join(render(out)))

@@ -1,5 +1,5 @@
 """``indgen series ROOT``: evaluate's protocol flags over every checkpoint of a training output (the work is
-``indgen_vla.app.engine.series``, imported only when the command runs: ``indgen --help`` stays light)."""
+``indgen_vla.app.studies.series``, imported only when the command runs: ``indgen --help`` stays light)."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def main(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from indgen_vla.app.engine.config import config_from_args
-    from indgen_vla.app.engine.series import run_series
+    from indgen_vla.app.studies.series import run_series
     from indgen_vla.core.comparison.series_report import write_series
     from indgen_vla.core.errors import ConfigError
 

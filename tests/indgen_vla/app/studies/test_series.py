@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.engine.series import find_checkpoints
+from indgen_vla.app.studies.series import find_checkpoints
 from indgen_vla.core.comparison.series_report import write_series
 from tests.indgen_vla.core.reporting.test_report import make_run
 
@@ -105,7 +105,7 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     import threading
 
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.series import run_series
+    from indgen_vla.app.studies.series import run_series
 
     pytest.importorskip("lerobot")
     root = tmp_path / "train"

@@ -95,7 +95,7 @@ def _pilot_curve(path: str, levels: dict[str, list[int]]):
 
 def _costs(req: BudgetRequest, plan, horizon: int):
     """The per-unit costs (``wall_time.Costs``), the smoke's replan steps, and notes on what was assumed."""
-    from indgen_vla.app.engine.wall_time import Costs, from_timing
+    from indgen_vla.app.studies.wall_time import Costs, from_timing
     from indgen_vla.core.runs.records import RunDir
 
     if req.steps_per_s is not None:
@@ -198,7 +198,7 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     out["notes"] = notes
     out["workers"] = {}
     if costs is not None:
-        from indgen_vla.app.engine.wall_time import project
+        from indgen_vla.app.studies.wall_time import project
 
         replan = cfg.policy.replan_steps or smoke_replan or 1
         rounds = [[len(rollouts)]] * 3
@@ -269,7 +269,7 @@ def _fmt_s(s: float) -> str:
 
 def _coverage() -> str:
     """The interval's measured coverage on held-out runs, as it is printed beside the interval."""
-    from indgen_vla.app.engine.wall_time import HELDOUT
+    from indgen_vla.app.studies.wall_time import HELDOUT
 
     h = HELDOUT
     return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs, {h['covered_unwidened']} unwidened "
