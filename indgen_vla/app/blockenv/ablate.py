@@ -112,7 +112,7 @@ def run_ablation(name: str, scale: AblationScale, log=print, models: dict | None
     import torch
 
     from indgen_vla.app.blockenv.evaluate import evaluate_model
-    from indgen_vla.app.blockenv.train import TrainConfig, train
+    from indgen_vla.app.blockenv.fit import FitConfig, train
     from indgen_vla.core.registry import lookup
 
     title, variants = lookup("BlockEnv ablation", name, ABLATIONS)
@@ -125,7 +125,7 @@ def run_ablation(name: str, scale: AblationScale, log=print, models: dict | None
         for seed in scale.seeds:
             key = _train_key(v, scale, seed)
             if key not in models:
-                tc = TrainConfig(v.method, seed=seed, steps=v.steps or scale.steps, extra=dict(v.extra),
+                tc = FitConfig(v.method, seed=seed, steps=v.steps or scale.steps, extra=dict(v.extra),
                                  demos_per_level=v.demos_per_level or scale.demos_per_level)  # fmt: skip
                 models[key] = (train(tc)[0], tc)
             model, tc = models[key]

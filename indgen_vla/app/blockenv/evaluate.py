@@ -68,7 +68,7 @@ def evaluate_model(model, method: str, levels, episodes: int, cfg: BlockEnvConfi
         params = None
         if method == "maml":
             from indgen_vla.app.blockenv.data import make_demos
-            from indgen_vla.app.blockenv.train import _tensors, adapt
+            from indgen_vla.app.blockenv.fit import _tensors, adapt
 
             support = make_demos([k], train_cfg.maml_support, cfg, seed=20_000 + seed + k)
             params = adapt(model, _tensors(*support.steps()), train_cfg.maml_inner_lr)

@@ -115,11 +115,11 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
     import torch
 
     from indgen_vla.app.blockenv.evaluate import evaluate_model
-    from indgen_vla.app.blockenv.train import TrainConfig, train
+    from indgen_vla.app.blockenv.fit import FitConfig, train
 
     torch.set_num_threads(1)
     ts = time.perf_counter()
-    tc = TrainConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
+    tc = FitConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
                      demos_per_level=cfg.demos_per_level, hidden=cfg.hidden, extra=cfg.extra_for(method))  # fmt: skip
     model, _ = train(tc)
     res = evaluate_model(

@@ -146,9 +146,9 @@ def _options(items: list[str]) -> dict:
 def _train(a) -> int:
     from rich.progress import Progress
 
-    from indgen_vla.app.blockenv.train import TrainConfig, save_checkpoint, train
+    from indgen_vla.app.blockenv.fit import FitConfig, save_checkpoint, train
 
-    cfg = TrainConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
+    cfg = FitConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
                       steps=a.steps, demos_per_level=a.demos_per_level, extra=_options(a.option))  # fmt: skip
     print(f"training {a.method}: {cfg.demos_per_level} oracle demos per level {list(cfg.train_levels)}, "
           f"{cfg.steps} updates", file=sys.stderr, flush=True)  # fmt: skip
@@ -180,7 +180,7 @@ def _eval(a) -> int:
             raise ConfigError(
                 "--checkpoint DIR is required for learned methods (make one with 'indgen blockenv train')"
             )
-        from indgen_vla.app.blockenv.train import load_checkpoint
+        from indgen_vla.app.blockenv.fit import load_checkpoint
 
         model, tc = load_checkpoint(Path(a.checkpoint))
         if tc.method != a.method:

@@ -116,7 +116,7 @@ def run(argv: list[str], policy_check: Callable[[str], Trigger] | None = None) -
 
 
 def _plan(ns: argparse.Namespace) -> int:
-    from indgen_vla.app.real.plan import PROTOCOL, RealPlanConfig, plan_run
+    from indgen_vla.app.real.design import PROTOCOL, RealPlanConfig, plan_run
 
     fields = ("setup", "out", "axis", "levels", "episodes", "order", "seed", "adaptive", "gamma", "adaptive_delta",
               "adaptive_alpha", "round_size", "operator", "robot", "policy", "data_regime")  # fmt: skip
@@ -150,7 +150,7 @@ def _triggers(ns: argparse.Namespace, rr, policy_check) -> list[Trigger]:
 
 
 def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
-    from indgen_vla.app.real.plan import RealRun
+    from indgen_vla.app.real.design import RealRun
     from indgen_vla.app.real.session import Verdict, interactive, parse_outcome, record_once
 
     rr = RealRun.open(ns.run)
@@ -189,7 +189,7 @@ _DECISION_TEXT = {"continue": "deciding (more episodes needed)"}
 
 
 def _status(ns: argparse.Namespace) -> int:
-    from indgen_vla.app.real.plan import RealRun
+    from indgen_vla.app.real.design import RealRun
     from indgen_vla.app.real.status import status
 
     s = status(RealRun.open(ns.run))

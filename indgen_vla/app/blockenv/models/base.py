@@ -56,7 +56,7 @@ METHODS = {
 }
 
 
-# Variant options a method accepts (TrainConfig.extra): name -> (type, default, what it changes). Defaults are
+# Variant options a method accepts (FitConfig.extra): name -> (type, default, what it changes). Defaults are
 # the configuration of the committed Table 1; the others exist for the ablations in docs/results/blockenv_ablations.md.
 OPTIONS: dict[str, dict[str, tuple[type, object, str]]] = {
     "ind": {
