@@ -100,9 +100,7 @@ def test_training_reduces_the_loss(method):
     from indgen_vla.app.blockenv.fit import FitConfig, train
 
     losses = []
-    train(
-        FitConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v)
-    )
+    train(FitConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v))
     assert np.mean(losses[-5:]) < np.mean(losses[:5])
 
 
