@@ -4,12 +4,15 @@ scripts, with keyword arguments named like the flags and typed results instead o
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.runs.result import Run
+
+if TYPE_CHECKING:
+    from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 
 PathLike = str | os.PathLike[str]
 
@@ -96,16 +99,20 @@ def compare(
     alpha: float = 0.05,
     test: str = "auto",
     out: PathLike | None = None,
-    label_a: str | None = None,
-    label_b: str | None = None,
+    labels: tuple[str | None, str | None] = (None, None),
     allow_protocol_mismatch: bool = False,
 ) -> dict[str, Any]:
     """``indgen compare RUN_A RUN_B``: per-level exact tests (paired where the seeds match) with Holm, written to
-    compare.json/compare.md (default RUN_A/compare); returns compare.json's content."""
+    compare.json/compare.md (default RUN_A/compare); returns compare.json's content. ``labels``: the two runs'
+    names in the tables (default: each run's data regime and policy, else its folder)."""
     from indgen_vla.core.comparison.two_runs import compare_runs
 
+    if len(labels) != 2:
+        raise ConfigError(
+            f"labels must be two names (run_a's, run_b's; None for the default), got {labels!r}"
+        )
     a, b = (Path(os.fspath(r.path if isinstance(r, Run) else r)) for r in (run_a, run_b))
-    return compare_runs(a, b, gamma=gamma, alpha=alpha, test=test, out=out, label_a=label_a, label_b=label_b,
+    return compare_runs(a, b, gamma=gamma, alpha=alpha, test=test, out=out, label_a=labels[0], label_b=labels[1],
                         allow_protocol_mismatch=allow_protocol_mismatch)  # fmt: skip
 
 
@@ -167,3 +174,31 @@ def import_lerobot_eval(
     cfg = ImportConfig(sources=tuple(os.fspath(p) for p in paths), out=os.fspath(out), axis=axis, level=level,
                        seed=seed, policy=policy, data_regime=data_regime)  # fmt: skip
     return report(write_import(cfg), gamma=gamma)[0]
+
+
+def budget(config: BudgetConfig) -> dict[str, Any]:
+    """``indgen budget``: the size of ``config.protocol`` before it runs (episodes, power, the adaptive rule's
+    cost, wall time per worker count; writes the lock with ``write``), as ``indgen budget --json`` prints it."""
+    from indgen_vla.app.studies.budget import plan_budget  # lazy: start-up
+
+    return plan_budget(config)
+
+
+def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None
+           ) -> list[tuple[int, Path]]:  # fmt: skip
+    """``indgen series``: one run of ``config.protocol`` per checkpoint, into ``config.out``/runs/<step>, and the
+    series report (series.md, series.json, plots) rewritten after each (``after_each`` gets the runs too); returns
+    (step, run directory) in step order."""
+    from indgen_vla.app.studies.series import run_series  # lazy: start-up
+    from indgen_vla.core.comparison.series_report import write_series  # lazy: start-up
+
+    out = Path(config.out)
+
+    def report(entries: list[tuple[int, Path]]) -> None:
+        write_series(entries, out, config.protocol.plan.gamma)
+        if after_each is not None:
+            after_each(entries)
+
+    entries = run_series(config, after_each=report)
+    report(entries)  # the checkpoints a re-run skipped too
+    return entries

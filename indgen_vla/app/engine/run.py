@@ -188,7 +188,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         if todo:
             if probe is None:
                 probe = source.checked(todo)
-            _run_todo(cfg, plan, run, run_id, todo, source.load, probe, source.early, console)
+            _run_todo(cfg, plan, run, run_id, todo, source, probe, console)
         elif probe is not None:
             probe.close()
     finally:
@@ -281,11 +281,27 @@ def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
     return next_round(plan, episodes_frame([]), cfg)
 
 
+@dataclasses.dataclass(frozen=True)
+class Rollouts:
+    """How this session's episodes roll out: the workers' config, the records' run fields, actions per chunk."""
+
+    runner_cfg: Any  # rollout.RunnerConfig
+    meta: Any  # rollout.RunMeta
+    replan: int
+
+
 def _run_todo(
-    cfg: EvalConfig, plan: EvalPlan, run: RunDir, run_id: str, todo: list, make_policy, probe, early, console
+    cfg: EvalConfig,
+    plan: EvalPlan,
+    run: RunDir,
+    run_id: str,
+    todo: list,
+    source: PolicySource,
+    probe,
+    console,
 ):
-    """Run the episodes still to do with the loaded ``probe``, after fixing (or checking, on a resume) the
-    run's protocol fingerprint; ``early``: the workers started while it loaded, if any."""
+    """Run the episodes still to do with the loaded ``probe`` (more policies from ``source``, and the workers it
+    started while the policy loaded), after fixing (or checking, on a resume) the run's protocol fingerprint."""
     from indgen_vla.app.engine.rollout import RunMeta
 
     spec = probe.spec
@@ -318,7 +334,7 @@ def _run_todo(
         run_id=run_id, policy=cfg.policy.spec, data_regime=cfg.plan.data_regime, scene=cfg.plan.scene
     )
     try:
-        _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
+        _run_with_progress(cfg, run, plan, todo, Rollouts(runner_cfg, meta, replan), source, probe, console)
     except ServerUnreachableError as e:
         raise ServerUnreachableError(f"{e} (run directory {run.path})") from None
 
@@ -385,10 +401,13 @@ def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, po
 
 
 def _run_with_progress(
-    cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early=None
-):
+    cfg: EvalConfig, run: RunDir, plan: EvalPlan, todo: list, rollouts: Rollouts, source: PolicySource, probe,
+    console,
+):  # fmt: skip
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
-    far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
+    far, and a total row with the ETA. ``source.early`` (``local.EarlyWorkers``) serves the first round's workers,
+    ``source.load`` makes more policies than ``probe``."""
+    runner_cfg, meta, replan, early = rollouts.runner_cfg, rollouts.meta, rollouts.replan, source.early
     from rich.progress import Progress
 
     from indgen_vla.app.engine import timing
@@ -435,7 +454,7 @@ def _run_with_progress(
 
         def policy_factory():  # hand out the loaded policies again in every round; load more only when needed
             if handed[0] == len(made):
-                made.append(make_policy())
+                made.append(source.load())
             handed[0] += 1
             return made[handed[0] - 1]
 
@@ -449,17 +468,18 @@ def _run_with_progress(
 
                 run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
             else:
-                from indgen_vla.app.engine.local import run_local
+                from indgen_vla.app.engine.local import Handoff, LocalOptions, run_local
 
                 # the first round gets the workers started while the policy loaded, a later one the last round's
                 nonlocal early
                 workers = early.take(runner_cfg) if early is not None else list(kept)
                 early = None
                 kept.clear()
-                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.run.workers, replan,
-                          cfg.run.max_retries, cfg.policy.server_patience,
-                          on_wait=lambda text: progress.update(total, info=text), close_policies=False,
-                          pipeline=cfg.run.pipeline, early=workers, keep=kept)  # fmt: skip
+                options = LocalOptions(workers=cfg.run.workers, replan_steps=replan, max_retries=cfg.run.max_retries,
+                                       server_patience_s=cfg.policy.server_patience, pipeline=cfg.run.pipeline,
+                                       close_policies=False)  # fmt: skip
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, options,
+                          on_wait=lambda text: progress.update(total, info=text), handoff=Handoff(workers, kept))  # fmt: skip
 
         try:
             if cfg.adaptive.mode:  # rounds until the sequential rule settles every level (docs/adaptive.md)
