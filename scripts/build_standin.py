@@ -162,7 +162,8 @@ def main() -> int:
     if a.quick:
         a.n_demos, a.steps, a.t0_episodes, a.sweep_episodes = 3, 50, 2, 1
         a.work = a.work or tempfile.mkdtemp(prefix="build_standin_quick_")
-    from indgen_vla.app.regimes.demos import HumanNoise, record_demos
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig, HumanNoise
     from indgen_vla.app.regimes.train import TrainConfig, train_policy
 
     regime, name = ("h+mg", "act_pick_place_hmg") if a.mimicgen else ("h-only", "act_pick_place_human")
@@ -174,7 +175,9 @@ def main() -> int:
         shutil.rmtree(d, ignore_errors=True)
     noise = HumanNoise()
     log(f"recording {a.n_demos} noisy-oracle T0 demos of {SCENE} (state-only) into {demos}")
-    stats = record_demos(SCENE, demos, a.n_demos, seed=a.demo_seed, cameras=(), noise=noise)
+    stats = api.demos(
+        DemosConfig(scene=SCENE, out=demos, n=a.n_demos, seed=a.demo_seed, cameras=(), noise=noise, workers=1)
+    )
     log(
         f"  {stats['episodes']} episodes, {stats['frames']} frames, oracle keep rate {stats['success_rate']:.2f}"
     )

@@ -80,14 +80,15 @@ class StudyClock:
 
 def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
     """The human demos and the MimicGen episodes made from them, once for every checkpoint."""
-    from indgen_vla.app.regimes.demos import record_demos
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig
     from indgen_vla.app.regimes.mimicgen import STATS_FILE, MimicGenConfig, generate
 
     demos, mg = work / "data" / "human", work / "data" / "mimicgen"
     if not (demos / ".done").is_file():
         shutil.rmtree(demos, ignore_errors=True)
         log(f"recording {n_demos} T0 demos with object poses into {demos}")
-        record_demos(SCENE, demos, n_demos, seed=0, cameras=(), objects=True)
+        api.demos(DemosConfig(scene=SCENE, out=demos, n=n_demos, seed=0, cameras=(), objects=True, workers=1))
         (demos / ".done").touch()
     if not (mg / STATS_FILE).is_file():  # a generation killed half way resumes
         log(f"generating {n_mg} MimicGen T0 episodes from the demos into {mg}")

@@ -12,6 +12,8 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.runs.result import Run
 
 if TYPE_CHECKING:
+    from indgen_vla.app.regimes.demos import DemosConfig
+    from indgen_vla.app.regimes.mimicgen import MimicGenConfig
     from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 
 PathLike = str | os.PathLike[str]
@@ -202,3 +204,27 @@ def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]
     entries = run_series(config, after_each=report)
     report(entries)  # the checkpoints a re-run skipped too
     return entries
+
+
+def demos(config: DemosConfig, *, progress: Callable[[str, int, int], None] | None = None,
+          notice: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
+    """``indgen demos``: noisy-oracle demonstrations of ``config.scene`` as a LeRobotDataset at ``config.out``
+    (resumed when it holds an unfinished recording of the same config); returns the recording's stats.
+    ``progress(cell, kept, attempts)`` follows each cell, ``notice`` gets the resume line."""
+    from indgen_vla.app.regimes.demos import record_demos  # lazy: start-up
+    from scenes import get_scene  # lazy: start-up
+
+    return record_demos(config, get_scene(config.scene), progress=progress, notice=notice)
+
+
+def mimicgen(config: MimicGenConfig, *, progress: Callable[[str, int, int, int], None] | None = None,
+             say: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
+    """``indgen mimicgen``: MimicGen-style episodes from the demonstrations ``config.source`` into ``config.out``,
+    each at its source's level and scene (resumed when unfinished); returns the generation stats.
+    ``progress(cell, successes, attempts, total)`` follows each cell, ``say`` gets the resume line."""
+    from indgen_vla.app.regimes.mimicgen import generate  # lazy: start-up
+    from indgen_vla.app.regimes.mimicgen_sources import source_scenes  # lazy: start-up
+    from scenes import get_scene  # lazy: start-up
+
+    scenes = {name: get_scene(name) for name in source_scenes(config.source)}
+    return generate(config, scenes, progress, say=say)

@@ -153,9 +153,12 @@ def test_datasets_open_without_lerobots_torchcodec_warning(demos, caplog):
 
 
 def test_objects_need_recorded_poses(tmp_path):
-    from indgen_vla.app.regimes.demos import record_demos
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig
 
-    record_demos("pick_place", tmp_path / "demos", n=1, seed=3, cameras=())  # state only, without poses
+    api.demos(
+        DemosConfig(scene="pick_place", out=tmp_path / "demos", n=1, seed=3, cameras=(), workers=1)
+    )  # state only, without poses
     with pytest.raises(ConfigError, match="indgen demos --objects"):
         train_policy([tmp_path / "demos"], tmp_path / "out", steps=1, objects=True)
 
