@@ -8,12 +8,13 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.runs.result import Run
 
 if TYPE_CHECKING:
     from indgen_vla.app.regimes.demos import DemosConfig
     from indgen_vla.app.regimes.mimicgen import MimicGenConfig
+    from indgen_vla.app.regimes.train import TrainConfig
     from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 
 PathLike = str | os.PathLike[str]
@@ -39,12 +40,12 @@ def evaluate(
     which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
     override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
     """
-    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values
-    from indgen_vla.app.engine.run import evaluate as run_evaluation
+    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values  # lazy: start-up
+    from indgen_vla.app.engine.run import evaluate as run_evaluation  # lazy: start-up
 
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if obj is not None:
-        from policy_wrappers.objects import describe
+        from policy_wrappers.objects import describe  # lazy: optional lerobot, policy wrappers
 
         policy = describe(obj)
     given = {
@@ -71,10 +72,9 @@ def report(
 ) -> list[Run]:
     """Write summary.json, report.md and plots for each run directory again (as ``indgen report`` does for each)
     and return them; ``gamma``, ``ci`` (wilson | clopper-pearson) and ``margin`` as the flags."""
-    from indgen_vla.core.errors import RunDirError
-    from indgen_vla.core.reporting.report import write_run_report
-    from indgen_vla.core.runs.records import RunDir
-    from indgen_vla.core.stats.contrasts import check_margin
+    from indgen_vla.core.reporting.report import write_run_report  # lazy: start-up
+    from indgen_vla.core.runs.records import RunDir  # lazy: start-up
+    from indgen_vla.core.stats.contrasts import check_margin  # lazy: start-up
 
     if not 0 < gamma <= 1:
         raise ConfigError(f"gamma must be in (0, 1], got {gamma}")
@@ -107,7 +107,7 @@ def compare(
     """``indgen compare RUN_A RUN_B``: per-level exact tests (paired where the seeds match) with Holm, written to
     compare.json/compare.md (default RUN_A/compare); returns compare.json's content. ``labels``: the two runs'
     names in the tables (default: each run's data regime and policy, else its folder)."""
-    from indgen_vla.core.comparison.two_runs import compare_runs
+    from indgen_vla.core.comparison.two_runs import compare_runs  # lazy: start-up
 
     if len(labels) != 2:
         raise ConfigError(
@@ -169,6 +169,7 @@ def import_lerobot_eval(
     """``indgen import lerobot-eval DIR... --out RUN``: lerobot-eval output directories as one run directory, its
     report written (docs/lerobot.md); ``axis``/``level`` place another env's run, ``seed`` is lerobot-eval's --seed
     where eval_info.json records none (default 1000)."""
+    # lazy: start-up
     from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
     from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
 
@@ -228,3 +229,14 @@ def mimicgen(config: MimicGenConfig, *, progress: Callable[[str, int, int, int],
 
     scenes = {name: get_scene(name) for name in source_scenes(config.source)}
     return generate(config, scenes, progress, say=say)
+
+
+def train(config: TrainConfig, *, progress: Callable[[int, float], None] | None = None,
+          say: Callable[[str], None] | None = None) -> Path:  # fmt: skip
+    """``indgen train``: a LeRobot policy trained by ``config.recipe`` on ``config.datasets`` into the checkpoint
+    ``config.out`` (resumed when unfinished), with ``config.evaluation`` run on the weights in memory every
+    ``config.eval_every`` updates; returns the checkpoint directory. ``progress(step, loss)`` follows the loss."""
+    from indgen_vla.app.regimes.train import train_policy  # lazy: start-up
+    from indgen_vla.app.regimes.train_eval import eval_hook  # lazy: start-up
+
+    return train_policy(config, progress=progress, say=say, after_step=eval_hook(config))

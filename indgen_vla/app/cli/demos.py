@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 
 from indgen_vla.app.cli.options import IndgenParser, add_passthrough
+from indgen_vla.app.config_fields import add_flags, from_args
+from indgen_vla.app.regimes import quiet_datasets
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -16,8 +18,6 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 def main(args: argparse.Namespace) -> int:
     """The handler: its own parser over ``args.rest``, then the library call."""
     from indgen_vla.app.api import demos  # lazy: start-up
-    from indgen_vla.app.config_fields import add_flags, from_args
-    from indgen_vla.app.regimes import quiet_datasets
     from indgen_vla.app.regimes.demos import FLAGS, DemosConfig  # lazy: start-up
 
     p = IndgenParser(

@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 
 from indgen_vla.app.cli.evaluate import add_protocol_flags
-from indgen_vla.app.config_fields import add_flags
+from indgen_vla.app.config_fields import add_flags, from_args
+from indgen_vla.app.engine.config import config_from_args
 from indgen_vla.app.studies.config import SeriesConfig  # light: no numpy, no scene
 
 SKIP = {"policy", "out"}  # evaluate's options that a series sets per checkpoint (or has its own of)
@@ -35,8 +36,6 @@ def main(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from indgen_vla.app.api import series  # lazy: start-up
-    from indgen_vla.app.config_fields import from_args
-    from indgen_vla.app.engine.config import config_from_args
 
     ns = argparse.Namespace(**vars(args))
     ns.policy, ns.out = "series", str(Path(args.out) / "runs" / "_")  # replaced per checkpoint
