@@ -343,3 +343,26 @@ def test_rendered_demos_are_the_same_for_one_and_two_workers(tmp_path):
     api.demos(DemosConfig(scene="pick_place", out=one, n=2, seed=7, image_size=16, workers=1))
     api.demos(DemosConfig(scene="pick_place", out=two, n=2, seed=7, image_size=16, workers=2))
     assert dataset_digest(one) == dataset_digest(two)
+
+
+def test_demos_config_names_ideas_as_evaluate_does_and_refuses_in_one_line(tmp_path):
+    """``indgen demos``' flags parse into a ``DemosConfig`` (the level section named as evaluate names it); a bad
+    value is one line naming the flag."""
+    from indgen_vla.app.config_fields import from_flat
+    from indgen_vla.app.regimes.demos import LevelRequest
+
+    flat = {"scene": "pick_place", "n": 2, "out": tmp_path, "axes": "pick_y", "levels": "0:1", "cameras": "",
+            "noise": 0.2, "workers": 1}  # fmt: skip
+    cfg = from_flat(DemosConfig, flat, command="demos")
+    assert cfg.at == LevelRequest(axes=("pick_y",), levels="0:1") and cfg.at.axis == "pick_y"
+    assert cfg.cameras == () and cfg.noise == HumanNoise(sigma=0.2) and cfg.out == tmp_path
+    for values, says in (
+        ({"n": 0}, "--n must be >= 1, got 0"),
+        ({"workers": 0}, "--workers must be >= 1, got 0"),
+    ):
+        with pytest.raises(ConfigError, match=says):
+            DemosConfig(**{"scene": "pick_place", "n": 1, "out": tmp_path, **values})
+    with pytest.raises(ConfigError, match="indgen demos records one axis per dataset"):
+        LevelRequest(axes="pick_y,scale", levels="0:1")
+    with pytest.raises(ConfigError, match="--axis pick_y needs --levels"):
+        LevelRequest(axes=("pick_y",))

@@ -320,3 +320,21 @@ def test_sigkilled_train_resumes_to_the_same_checkpoint(demos, tmp_path):
     assert (
         bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "--seed 0, not --seed 2" in bad.stderr
     )
+
+
+def test_train_config_holds_the_recipe_and_the_evaluation_protocol(tmp_path):
+    """``indgen train``'s flags parse into a ``TrainConfig`` whose ``TrainRecipe`` is what the checkpoint records;
+    ``--eval-every`` and its protocol (an ``EvalConfig``) go together."""
+    from indgen_vla.app.config_fields import from_flat
+    from indgen_vla.app.engine.config import EvalConfig
+
+    cfg = from_flat(TrainConfig, {"datasets": (tmp_path,), "out": tmp_path / "act", "cameras": "agentview",
+                                  "steps": 7, "data_regime": "h"}, command="train")  # fmt: skip
+    assert cfg.recipe == TrainRecipe(steps=7, cameras=("agentview",)) and cfg.datasets == (str(tmp_path),)
+    assert cfg.eval_root == tmp_path / "act_evals"
+    protocol = EvalConfig.from_flat(policy="object:x", scene="pick_place", axes=("pick_y",), out="_")
+    assert TrainConfig(datasets=(tmp_path,), out="o", eval_every=5, evaluation=protocol).eval_every == 5
+    with pytest.raises(ConfigError, match="--eval-every N and --eval 'FLAGS' go together"):
+        TrainConfig(datasets=(tmp_path,), out="o", eval_every=5)
+    with pytest.raises(ConfigError, match="--eval-every must be >= 1 update, got 0"):
+        TrainConfig(datasets=(tmp_path,), out="o", eval_every=0, evaluation=protocol)
