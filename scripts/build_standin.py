@@ -186,7 +186,9 @@ def main() -> int:
         from indgen_vla.app.regimes.mimicgen import MimicGenConfig
 
         log(f"generating {a.mimicgen} MimicGen T0 episodes from the demos into {mg}")
-        gen = api.mimicgen(MimicGenConfig(source=demos, out=mg, n=a.mimicgen, seed=a.demo_seed, guarantee=True))
+        gen = api.mimicgen(
+            MimicGenConfig(source=demos, out=mg, n=a.mimicgen, seed=a.demo_seed, guarantee=True)
+        )
         log(f"  {gen['successes']}/{gen['attempts']} attempts succeeded")
         datasets.append(mg)
     cfg = TrainRecipe(steps=a.steps, seed=a.seed, log_every=max(a.steps // 10, 1))
