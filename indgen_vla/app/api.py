@@ -12,6 +12,7 @@ from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.runs.result import Run
 
 if TYPE_CHECKING:
+    from indgen_vla.app.real.design import RealPlanConfig
     from indgen_vla.app.regimes.demos import DemosConfig
     from indgen_vla.app.regimes.mimicgen import MimicGenConfig
     from indgen_vla.app.regimes.train import TrainConfig
@@ -240,3 +241,11 @@ def train(config: TrainConfig, *, progress: Callable[[int, float], None] | None 
     from indgen_vla.app.regimes.train_eval import eval_hook  # lazy: start-up
 
     return train_policy(config, progress=progress, say=say, after_step=eval_hook(config))
+
+
+def real_plan(config: RealPlanConfig) -> Path:
+    """``indgen real plan``: a run directory for a real-robot axis and the operator's protocol.md (then ``indgen real
+    record``); returns the run directory."""
+    from indgen_vla.app.real.design import plan_run  # lazy: start-up
+
+    return plan_run(config)

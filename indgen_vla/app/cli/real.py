@@ -86,9 +86,10 @@ def run(argv: list[str], policy_check: Callable[[str], Trigger] | None = None) -
 
 
 def _plan(ns: argparse.Namespace) -> int:
-    from indgen_vla.app.real.design import PROTOCOL, RealPlanConfig, plan_run  # lazy: start-up
+    from indgen_vla.app.api import real_plan  # lazy: start-up
+    from indgen_vla.app.real.design import PROTOCOL, RealPlanConfig  # lazy: start-up
 
-    path = plan_run(from_args(RealPlanConfig, ns, command="real plan"))
+    path = real_plan(from_args(RealPlanConfig, ns, command="real plan"))
     print((path / PROTOCOL).read_text(), end="")
     print(f"planned {path}; next: indgen real record {path}")
     return 0
