@@ -6,7 +6,7 @@ import numpy as np
 
 from indgen_vla.app.blockenv.data import make_demos
 from indgen_vla.app.blockenv.env import BlockEnv, BlockEnvConfig, oracle_actions, sample_grids
-from indgen_vla.app.blockenv.train import _tensors, adapt
+from indgen_vla.app.blockenv.fit import _tensors, adapt
 
 
 def initial_grids(level: int, episodes: int, cfg: BlockEnvConfig, seed: int) -> np.ndarray:

@@ -1,5 +1,5 @@
 """The BlockEnv learners' table: each method's key and description, and the variant options it accepts; apart from
-the models so that a ``TrainConfig`` is checked without importing torch."""
+the models so that a ``FitConfig`` is checked without importing torch."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ METHODS = {
 }
 
 
-# Variant options a method accepts (TrainConfig.extra): name -> (type, default, what it changes). Defaults are
+# Variant options a method accepts (FitConfig.extra): name -> (type, default, what it changes). Defaults are
 # the configuration of the committed Table 1; the others exist for the ablations in docs/results/blockenv_ablations.md.
 OPTIONS: dict[str, dict[str, tuple[type, object, str]]] = {
     "ind": {

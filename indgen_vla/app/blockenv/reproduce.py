@@ -12,7 +12,7 @@ import numpy as np
 
 from indgen_vla.app.blockenv.env import BlockEnvConfig
 from indgen_vla.app.blockenv.evaluate import evaluate_model, oracle_rollout
-from indgen_vla.app.blockenv.train import TrainConfig, train
+from indgen_vla.app.blockenv.fit import FitConfig, train
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.reporting.caveats import break_undecidable, needed_for_break, rate_text
 from indgen_vla.core.runs.records import atomic_savefig, atomic_write_json, atomic_write_text
@@ -119,7 +119,7 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
 
     torch.set_num_threads(1)
     ts = time.perf_counter()
-    tc = TrainConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
+    tc = FitConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
                      demos_per_level=cfg.demos_per_level, hidden=cfg.hidden, extra=cfg.extra_for(method))  # fmt: skip
     model, _ = train(tc)
     res = evaluate_model(

@@ -14,8 +14,8 @@ import numpy as np
 from indgen_vla.app.blockenv.ablate import ABLATIONS, AblationScale, ablate
 from indgen_vla.app.blockenv.env import BlockEnvConfig
 from indgen_vla.app.blockenv.evaluate import evaluate_model, initial_grids, oracle_rollout
+from indgen_vla.app.blockenv.fit import FitConfig, load_checkpoint, save_checkpoint, train
 from indgen_vla.app.blockenv.reproduce import ReproduceConfig, render_markdown, reproduce
-from indgen_vla.app.blockenv.train import TrainConfig, load_checkpoint, save_checkpoint, train
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.registry import lookup
 from indgen_vla.core.reporting.caveats import axis_caveats
@@ -64,7 +64,7 @@ def _options(items: list[str]) -> dict:
 def _train(a) -> int:
     from rich.progress import Progress
 
-    cfg = TrainConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
+    cfg = FitConfig(a.method, seed=a.seed, grid_size=a.grid_size, train_levels=tuple(_levels(a.levels)),
                       steps=a.steps, demos_per_level=a.demos_per_level, extra=_options(a.option))  # fmt: skip
     print(f"training {a.method}: {cfg.demos_per_level} oracle demos per level {list(cfg.train_levels)}, "
           f"{cfg.steps} updates", file=sys.stderr, flush=True)  # fmt: skip

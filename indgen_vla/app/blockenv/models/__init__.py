@@ -7,7 +7,7 @@ import it, and this package builds one by method key.
 from torch import nn
 
 from indgen_vla.app.blockenv.methods import METHODS, check_options
-from indgen_vla.app.blockenv.models.local import LocalConvPolicy, StepMLPPolicy
+from indgen_vla.app.blockenv.models.per_step import LocalConvPolicy, StepMLPPolicy
 from indgen_vla.app.blockenv.models.recursive import TRMPolicy
 from indgen_vla.app.blockenv.models.sequence import IndPolicy, RNNPolicy, TransformerPolicy
 from indgen_vla.core.registry import lookup

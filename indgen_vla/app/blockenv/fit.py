@@ -19,7 +19,7 @@ from indgen_vla.core.runs.records import atomic_write_bytes, atomic_write_text
 
 
 @dataclass(frozen=True)
-class TrainConfig:
+class FitConfig:
     """Hyper-parameters of one training run (one method, one seed)."""
 
     method: str
@@ -47,7 +47,7 @@ class TrainConfig:
         check_options(self.method, self.extra)
 
 
-def _untrained(cfg: TrainConfig):
+def _untrained(cfg: FitConfig):
     """The method's model, freshly initialised (torch loads here, not when a config is checked)."""
     from indgen_vla.app.blockenv.models import build_model  # lazy: start-up (torch, seconds)
 
@@ -98,7 +98,7 @@ def _batches(n: int, batch: int, rng: np.random.Generator):
         yield rng.choice(n, size=min(batch, n), replace=n < batch)
 
 
-def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None):
+def train(cfg: FitConfig, progress: Callable[[int, float], None] | None = None):
     """Train one method; returns (model, demos) — demos are reused for MAML's support sets."""
     import torch
 
@@ -138,7 +138,7 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
     return model, demos
 
 
-def _train_trm(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> None:
+def _train_trm(model, opt, demos: Demos, cfg: FitConfig, rng, progress) -> None:
     """Deep supervision: n_sup optimiser steps per batch, carrying (y, z) detached between them.
 
     ``cfg.steps`` counts optimiser updates, as for every other method, so a batch gives n_sup of them.
@@ -185,7 +185,7 @@ def adapt(model, support: tuple, inner_lr: float):
     return {k: (p - inner_lr * gr).detach() for (k, p), gr in zip(params.items(), grads, strict=True)}
 
 
-def _train_maml(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> None:
+def _train_maml(model, opt, demos: Demos, cfg: FitConfig, rng, progress) -> None:
     """First-order MAML: tasks are the training levels; support/query sets are disjoint step samples."""
     import torch
     from torch.func import functional_call
@@ -209,7 +209,7 @@ def _train_maml(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> No
             progress(i, total / len(per_level))
 
 
-def save_checkpoint(model, cfg: TrainConfig, out: Path) -> Path:
+def save_checkpoint(model, cfg: FitConfig, out: Path) -> Path:
     """state_dict (torch.save) + config JSON; load with ``load_checkpoint`` (weights_only=True). Each file is
     written whole or not at all, config.json last and the old one removed first: a save cut short (Ctrl-C, a
     kill, a full disk) over an older checkpoint never leaves its config beside other weights."""
@@ -236,7 +236,7 @@ def load_checkpoint(path: Path):
             f"{path} is not a BlockEnv checkpoint (no readable config.json); train one first"
         ) from None
     raw["train_levels"] = tuple(raw["train_levels"])
-    cfg = TrainConfig(**raw)
+    cfg = FitConfig(**raw)
     model = _untrained(cfg)
     try:
         state = torch.load(path / "model.pt", weights_only=True)
