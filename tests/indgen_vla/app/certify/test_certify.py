@@ -11,24 +11,29 @@ import pytest
 from scipy.stats import beta
 
 import scenes
+from indgen_vla.app.certify import certify_levels as certify_run
 from indgen_vla.app.certify.suite import default_jobs, write_summary
-from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, UnknownNameError
 from indgen_vla.core.protocol.progression import ProgressionError
+from indgen_vla.core.runs.records import atomic_write_json
 from scenes.catalog import builtin_scenes
 from scenes.certificates import (
     Rule,
     axis_dirname,
     cert_path,
+    certification_root,
     episodes_needed,
     find_certification,
     infeasible_levels,
     level_status,
     load_certification,
     lower_bound,
+    tree_stamp,
     write_json_atomic,
 )
 from scenes.heldout import SPENDING
 from scenes.planning import resolve_scene_plan
+from scenes.registry import get_scene
 from tests.fixtures.certify import run_certify, run_prepare
 from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
@@ -238,8 +243,6 @@ def test_json_is_written_atomically(tmp_path):
 def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
     import hashlib
 
-    from scenes.certificates import certification_root
-
     cache = os.environ["INDGEN_CACHE"]
     tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
     assert certification_root("libero_object") == Path(cache) / "certification" / tag
@@ -264,9 +267,6 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     """LIBERO's and RoboCasa365's certificates are cached per asset tree path: a tree updated at the same path (here
     one file rewritten, same size) must not keep the old tree's certificate, nor must one made before certificates
     recorded their tree. Played on ``stack`` given an asset tree (5 control steps: one failed episode, cheap)."""
-    from scenes.certificates import tree_stamp
-    from scenes.registry import get_scene
-
     tree = tmp_path / "assets"
     (tree / "objects").mkdir(parents=True)
     (tree / "objects" / "box.xml").write_text("<mujoco model='a'/>")
@@ -310,8 +310,6 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level too few seeds hold is ``failed``,
     with the reason in its row (a batch goes on to its next level)."""
-    from indgen_vla.app.certify import certify_levels as certify_run
-    from indgen_vla.core.errors import EpisodeUnavailableError
 
     class Env:
         axis_param, calls, out = 0.0, [], {1}
@@ -350,8 +348,6 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
 
 def test_summary_counts_shipped_triples_outside_the_default_batch_apart(tmp_path):
     """LIBERO-Object's shipped certificates are not in certify's default batch: counted beside it, never as its."""
-    from indgen_vla.core.runs.records import atomic_write_json
-
     row = {"n": 59, "successes": 59, "rate": 1.0, "feasible": True, "status": "certified"}
     for task in ("bbq_sauce", "butter"):
         d = tmp_path / "libero_object" / task / "goal_y"

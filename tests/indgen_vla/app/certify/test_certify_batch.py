@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import json
 
+from indgen_vla.app.certify.batch import certify_many
+from indgen_vla.app.certify.certify_config import CertifyPlan, CertifyRule
+from scenes.certificates import cert_path
+from scenes.registry import get_scene
+
 
 def test_a_chunk_cut_by_its_deadline_is_resumed_by_the_next(tmp_path):
-    from indgen_vla.app.certify.batch import certify_many
-    from indgen_vla.app.certify.certify_config import CertifyPlan, CertifyRule
-    from scenes.certificates import cert_path
-    from scenes.registry import get_scene
-
     pairs = [("orange_on_blue", "stack")]
     lines: list[str] = []
     stack, plan, rule = get_scene("stack"), CertifyPlan(levels=[0, 1]), CertifyRule(episodes=1)

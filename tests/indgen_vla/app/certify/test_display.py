@@ -8,6 +8,7 @@ import io
 
 import pytest
 
+from indgen_vla.app.certify.display import CertifyDisplay
 from indgen_vla.app.cli import main
 from tests.fixtures.certify import run_certify
 
@@ -26,8 +27,6 @@ def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, caps
 
 def test_on_a_terminal_each_level_is_a_live_row_and_reused_levels_say_so(tmp_path):
     from rich.console import Console
-
-    from indgen_vla.app.certify.display import CertifyDisplay
 
     def run(levels: str) -> str:
         buf = io.StringIO()

@@ -7,9 +7,13 @@ from __future__ import annotations
 import dataclasses
 import json
 
+from indgen_vla.app.certify.partial import EpisodeLog
 from indgen_vla.core.reporting.certification_view import plan_basis_lines
 from scenes.certificates import cert_path, load_certification
-from scenes.heldout import HELD_OUT, IN_SAMPLE
+from scenes.heldout import EXHAUSTIVE, HELD_OUT, IN_SAMPLE
+from scenes.oracle import OraclePolicy
+from scenes.planning import resolve_scene_plan
+from scenes.registry import get_scene
 from tests.fixtures.certify import run_certify, run_prepare
 
 
@@ -50,8 +54,6 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
     assert len(earlier) == 2
 
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    from scenes.planning import resolve_scene_plan
-
     plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
     assert [c.basis for c in plan.cells] == [IN_SAMPLE, HELD_OUT]
     (line,) = plan_basis_lines(
@@ -75,9 +77,6 @@ def test_retest_reruns_an_in_sample_level_on_a_fresh_block(tmp_path, monkeypatch
 def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_it(tmp_path, monkeypatch):
     """The same attempt resumes its block; a killed attempt of another oracle version had looked at its block's
     first episodes, so the next attempt burns it and draws the next block."""
-    from indgen_vla.app.certify.partial import EpisodeLog
-    from scenes.oracle import OraclePolicy
-
     out = tmp_path / "certify.json"
     (job,) = run_prepare("stack", "stack", task="orange_on_blue", levels="0", path=out).jobs
     EpisodeLog(job.partial, job.key).add(True, 50)  # one episode of block 1, then killed
@@ -91,10 +90,6 @@ def test_a_killed_attempt_resumes_on_its_block_and_another_oracle_never_reuses_i
 def test_a_fixed_state_family_reports_exhaustive_certificates(tmp_path, monkeypatch):
     """A family with a finite set of initial states (LIBERO's 50; here stack given 50): a certified row that
     played all of them is reported "exhaustive", with or without a ledger (a user's older LIBERO certificate)."""
-    from scenes.heldout import EXHAUSTIVE
-    from scenes.planning import resolve_scene_plan
-    from scenes.registry import get_scene
-
     out = _in_sample(tmp_path)
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
     monkeypatch.setattr(type(get_scene("stack")), "fixed_state_count", 50)

@@ -9,6 +9,7 @@ import json
 import pytest
 
 from indgen_vla.app.certify.suite import write_summary
+from indgen_vla.core.resources import certification_dir
 from scenes.certificates import (
     cert_path,
     find_certification,
@@ -18,6 +19,7 @@ from scenes.certificates import (
     row_oracle_version,
 )
 from scenes.oracle import OraclePolicy, oracle_identity
+from scenes.planning import resolve_scene_plan
 from scenes.registry import registered_scenes
 from tests.fixtures.certify import run_certify, run_prepare
 
@@ -70,8 +72,6 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     assert "| 0: 0/1!v1 1: 59/59~ | 1 | 0, 2, 3, 4 | v1 |" in summary  # ~: no ledger, history unknown
 
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    from scenes.planning import resolve_scene_plan
-
     plan = resolve_scene_plan("stack", "orange_on_blue", ("stack",), "0:1")
     assert [c.evidence for c in plan.cells] == ["0/1 (failed (oracle v1, current v2))", "59/59 (certified)"]
 
@@ -109,8 +109,6 @@ def test_a_partial_level_of_another_oracle_version_is_not_reused(tmp_path, monke
 @pytest.mark.parametrize("path", ["libero_object/alphabet_soup/goal_y", "stack/orange_on_blue/stack"])
 def test_shipped_certificates_without_a_version_still_load(path):
     """Certificates shipped before versions were recorded load, count as v1, and keep their verdicts."""
-    from indgen_vla.core.resources import certification_dir
-
     cert = load_certification(certification_dir() / path)
     rows = cert["levels"]
     assert rows and all(row_oracle_version(r, cert) >= 1 for r in rows)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
+from indgen_vla.app.engine.config import config_from_values
+from indgen_vla.app.engine.run import build_plan
 from indgen_vla.app.lerobot_bridge.level_env import (
     FIRST_SEED,
     LevelRequest,
@@ -19,9 +21,6 @@ from tests.fixtures.lerobot_runs import AXIS, EPISODES, LEVEL, SCENE, needs_plug
 
 def test_reset_seed_is_indgen_episode_and_seed():
     """Reset seed first_seed + i is episode i with the seed indgen evaluate plans for it (plan_jobs)."""
-    from indgen_vla.app.engine.config import config_from_values
-    from indgen_vla.app.engine.run import build_plan
-
     for run_seed in (0, 7):
         (setup,), _ = resolve_levels(LevelRequest(scene=SCENE, axis=AXIS, level=2, run_seed=run_seed))
         cfg = config_from_values({"policy": "standin:oracle", "out": "x", "scene": SCENE, "axis": AXIS,
