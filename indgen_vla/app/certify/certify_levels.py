@@ -314,7 +314,7 @@ def prepare(
     stamp = asset_stamp(name)
     cert["assets"] = stamp if stamp is not None else builtin_assets()
     path = Path(path) if path is not None else None
-    done, old_rows = _reuse(cert, path, stamp, rule, log)
+    done, old_rows = _reuse(cert, path, stamp, first.n_max, rule.held_out, log)
     todo = [k for k in lv if k not in done]
     if log and set(done) & set(lv):
         log(f"{name}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
@@ -345,7 +345,9 @@ def prepare(
     return Pending(scene, cert, path, lv, jobs, log, watch, attempts)
 
 
-def _reuse(cert: dict, path: Path | None, stamp: dict | None, rule: CertifyRule, log) -> tuple[dict, dict]:
+def _reuse(
+    cert: dict, path: Path | None, stamp: dict | None, n_max: int, held_out: bool, log
+) -> tuple[dict, dict]:
     """What ``path`` already holds for ``cert`` (its rows, ledgers and burnt blocks copied into ``cert``): the levels
     decided there that need no new attempt, and every stored row by level."""
     done: dict[int, dict] = {}
@@ -366,12 +368,9 @@ def _reuse(cert: dict, path: Path | None, stamp: dict | None, rule: CertifyRule,
                 for r in old["levels"]]  # fmt: skip
         old_rows = {int(r["level"]): r for r in rows}
         cert["burnt"] = old.get("burnt") or {}
-        n_max = Rule(
-            threshold=rule.threshold, confidence=attempt_confidence(1), n_max=rule.episodes or 0
-        ).n_max
         done = {int(r["level"]): r for r in rows if not stale_failure(r, None, version)
                 and (r.get("status") in ("certified", "failed") or r["n"] >= n_max)
-                and not (rule.held_out and r.get("status") == "certified" and basis(r) == IN_SAMPLE)}  # fmt: skip
+                and not (held_out and r.get("status") == "certified" and basis(r) == IN_SAMPLE)}  # fmt: skip
         cert["wall_s"] = float(old.get("wall_s", 0.0))
         cert["levels"] = sorted(rows, key=lambda r: r["level"])
         retry = sorted(int(r["level"]) for r in rows if stale_failure(r, None, version))
