@@ -39,6 +39,7 @@ _LAZY = {
     "PolicyConfig": "indgen_vla.app.engine.config:PolicyConfig",
     "RunConfig": "indgen_vla.app.engine.config:RunConfig",
     "AdaptiveConfig": "indgen_vla.app.engine.config:AdaptiveConfig",
+    "CertifyConfig": "indgen_vla.app.certify.certify_config:CertifyConfig",
     # the extension point of a policy of your own (docs/extending.md): what it sees, declares and returns
     "Policy": "indgen_vla.core.protocol.interface:Policy",
     "PolicySpec": "indgen_vla.core.protocol.interface:PolicySpec",

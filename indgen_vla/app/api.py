@@ -119,41 +119,33 @@ def compare(
                         allow_protocol_mismatch=allow_protocol_mismatch)  # fmt: skip
 
 
-def certify(
-    *,
-    scene: str,
-    axis: str,
-    task: str | None = None,
-    levels: str | list[int] | None = None,
-    step: float | None = None,
-    episodes: int | None = None,
-    seed: int = 0,
-    max_steps: int | None = None,
-    workers: int = 1,
-    threshold: float = 0.95,
-    axes_preset: str | None = None,
-    out: PathLike | None = None,
-    split: str | None = None,
-    obj_registries: str | None = None,
-) -> dict[str, Any]:
+def certify(config: Any = None, **options: Any) -> dict[str, Any]:
     """``indgen certify`` for one task (default: the scene's first): the privileged oracle on each level until the
     59/59 rule decides it, written where ``evaluate`` looks (or to ``out``/certify.json) and resumed from there;
     returns the certificate (per level: n, successes, lower bound, status certified | failed | insufficient).
-    ``split`` / ``obj_registries``: RoboCasa365's (``--split`` / ``--obj-registries``)."""
-    from indgen_vla.app.certify.run import certify as run_certify
+
+    ``config`` is a ``CertifyConfig``; keyword arguments are ``indgen certify``'s flags with ``_`` for ``-``
+    (``scene``, ``axis``, ``task``, ``levels``, ``episodes``, ``seed``, ``workers``, ``held_out``, ``split``, ...),
+    replacing the config's values."""
+    from indgen_vla.app.certify.certify_config import certify_config  # lazy: start-up (import indgen_vla)
+    from indgen_vla.app.certify.certify_levels import certify as certify_levels
     from scenes.certificates import cert_path
     from scenes.registry import configure_scene
 
-    options = {"split": split, "obj_registries": obj_registries}
-    with configure_scene(scene, options):  # the certificates' folder follows the choice
+    cfg = certify_config(config, **options)
+    if cfg.mode != "certify":
+        raise ConfigError(f"certify() certifies levels; {cfg.mode.replace('_', '-')} is the command's other mode: "
+                          f"run 'indgen certify --{cfg.mode.replace('_', '-')} ...'")  # fmt: skip
+    plan = cfg.plan
+    with configure_scene(
+        plan.scene, plan.scene_options()
+    ) as scene:  # the certificates' folder follows the choice
         path = (
-            Path(os.fspath(out)) / "certify.json"
-            if out is not None
-            else cert_path(scene, task, axis, step, axes_preset)
+            Path(cfg.run.out) / "certify.json"
+            if cfg.run.out is not None
+            else cert_path(scene.name, plan.task, plan.axis, plan.step, plan.axes_preset)
         )
-        return run_certify(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                           max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset, out=path,
-                           options=options)  # fmt: skip
+        return certify_levels(scene, cfg, path)
 
 
 def import_lerobot_eval(

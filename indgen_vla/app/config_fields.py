@@ -26,6 +26,20 @@ def option(default: Any = dataclasses.MISSING, help: str | None = None, *, name:
     return field(default=default, metadata=meta)
 
 
+def option_like(cls: type, name: str, default: Any = dataclasses.MISSING, help: Any = dataclasses.MISSING,
+                **argparse_kwargs: Any) -> Any:  # fmt: skip
+    """Another config's option ``name`` (its flat name, flag, help line, argparse keywords and default) for a command
+    where the idea is the same, so both keep one name and one definition; ``default``, ``help`` and argparse
+    keywords given replace its own."""
+    o = flat_options(cls)[name]
+    meta = o.field.metadata
+    return option(
+        o.field.default if default is dataclasses.MISSING else default,
+        meta["help"] if help is dataclasses.MISSING else help,
+        name=meta["name"], flag=meta["flag"], **{**meta["argparse"], **argparse_kwargs},
+    )  # fmt: skip
+
+
 def section(cls: type) -> Any:
     """A config field holding a whole section (a nested config), defaulting to that section's defaults."""
     return field(default_factory=cls, metadata={"section": True})

@@ -13,6 +13,7 @@ from indgen_vla.app.config_fields import (
     from_args,
     from_flat,
     option,
+    option_like,
     section,
     to_flat,
 )
@@ -80,3 +81,18 @@ def test_a_name_defined_twice_is_refused():
 
     with pytest.raises(TypeError, match="option 'episodes' is defined twice"):
         flat_options(Twice)
+
+
+def test_option_like_is_another_configs_option_with_changes():
+    @dataclass(frozen=True, kw_only=True)
+    class Other:
+        axes: tuple[str, ...] = option_like(Outer, "axes", help="one axis")
+        scene: str = option_like(Outer, "scene")
+        episodes: int = option_like(Inner, "episodes", 3)
+
+    opts = flat_options(Other)
+    assert opts["axes"].flag == "axis" and opts["axes"].field.metadata["help"] == "one axis"
+    assert opts["axes"].field.metadata["argparse"] == flat_options(Outer)["axes"].field.metadata["argparse"]
+    assert Other(scene="s").episodes == 3 and opts["episodes"].field.metadata["help"] == "episodes per level"
+    with pytest.raises(TypeError):
+        Other(episodes=1)  # scene has no default, as in Outer: required
