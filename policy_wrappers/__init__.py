@@ -5,12 +5,6 @@
 
 from __future__ import annotations
 
-
-def load_policy(spec: str, **kwargs):
-    """Load the policy a spec string names; see ``policy_wrappers.specs.load_policy``."""
-    from policy_wrappers.specs import load_policy as _load
-
-    return _load(spec, **kwargs)
-
+from policy_wrappers.specs import load_policy
 
 __all__ = ["load_policy"]

@@ -14,6 +14,7 @@ from pathlib import Path
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import PRECISIONS, TABLETOP, EnvSpec, ScenePreview
 from indgen_vla.core.protocol.training_support import TrainedCell, cells_from_json
+from policy_wrappers.compile import check_mode
 from policy_wrappers.layouts import layout_for
 
 IMAGE_PREFIX = "observation.images."
@@ -69,7 +70,6 @@ class LeRobotConfig:
             raise ConfigError(
                 f"lerobot {self.path}: precision must be one of {list(PRECISIONS)}, got {self.precision!r}"
             )
-        from policy_wrappers.compile import check_mode
 
         check_mode(self.compile, self.device, f"lerobot {self.path}")
         for feature, cam in self.camera_map:

@@ -34,7 +34,8 @@ from indgen_vla.core.protocol.interface import (
     validate_chunk,
 )
 from indgen_vla.core.protocol.seeding import episode_seed
-from policy_wrappers import lerobot_checkpoint
+from policy_wrappers import lerobot_checkpoint, lerobot_variants
+from policy_wrappers.compile import compile_forward
 from policy_wrappers.layouts import layout_for
 from policy_wrappers.lerobot_checkpoint import (
     IMAGE_PREFIX,
@@ -49,6 +50,7 @@ from policy_wrappers.lerobot_checkpoint import (
     resolve_cameras,
     scene_view,
 )
+from policy_wrappers.lerobot_import import one_package_scan, policy_package
 from policy_wrappers.transforms import LIBERO_LEROBOT, Conventions, Flip180
 
 # torch's default generators are per process: instances take turns, each with its own generator states (_own_rng)
@@ -83,8 +85,6 @@ class LeRobotPolicy:
         self._state_dim = (spec_env or TABLETOP).state_dim
         self._load()
         if config.compile != "off":
-            from policy_wrappers.compile import compile_forward
-
             compile_forward(self.policy, config.compile, config.device, f"policy {name}")
         features = {k.removeprefix(IMAGE_PREFIX): tuple(f.shape) for k, f in self.cfg.image_features.items()}
         self._cams = resolve_cameras(name, config, features)
@@ -130,8 +130,6 @@ class LeRobotPolicy:
 
     def _load(self) -> None:
         import torch
-
-        from policy_wrappers.lerobot_import import one_package_scan, policy_package
 
         path, rev = self.config.path, self.config.revision
         local = Path(path).expanduser()
@@ -420,10 +418,6 @@ class LeRobotPolicy:
 
 def _sizes(path: str):
     """lerobot's own sizes, or the reduced ones for a ``build_real_size.py --reduced`` directory."""
-    import contextlib
-
-    from policy_wrappers import lerobot_variants
-
     return lerobot_variants.reduced() if lerobot_variants.is_reduced(path) else contextlib.nullcontext()
 
 

@@ -24,6 +24,7 @@ from indgen_vla.core.protocol.interface import QUERY_KEY, Observation
 from policy_wrappers import msgpack_numpy
 from policy_wrappers.image_tools import flip_180
 from policy_wrappers.openpi import HISTORY_PREFIX, INDGEN_SERVER, LIBERO_KEYS, QUERY_WIRE
+from policy_wrappers.specs import load_policy
 
 log = logging.getLogger(__name__)
 
@@ -205,8 +206,6 @@ def serve(
 ) -> None:  # fmt: skip
     """``indgen serve``: load the policy spec and serve it until Ctrl-C; ``on_listening(spec_name, port)`` hears
     when the port is bound."""
-    from policy_wrappers.specs import load_policy
-
     if not 0 <= int(port) <= 65535:
         raise ConfigError(f"--port must be in 0..65535, got {port}")
     loaded = load_policy(policy, trust_remote_code=bool(trust_remote_code))

@@ -1,5 +1,5 @@
 """CPU stand-ins: ``random``, ``noop``, tiny checkpoint directories, and any stand-in the application registers
-(``registry.register_standin``: the scenes' privileged oracle)."""
+(``specs.register_standin``: the scenes' privileged oracle)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from indgen_vla.core.protocol.interface import (
     PolicySpec,
     validate_chunk,
 )
+from policy_wrappers import lerobot_policy, specs
 
 GRIPPER = 6  # the gripper's index in the tabletop 7-d action and in RoboCasa's 12-d (convert_action order)
 
@@ -86,8 +87,6 @@ def load(
 ):
     """``standin:NAME`` or ``standin:PATH`` (a LeRobot checkpoint directory, loaded by the lerobot adapter);
     ``random`` and ``noop`` act in the scene's action space (``env_spec``: 7-d tabletop, 12-d RoboCasa365)."""
-    from policy_wrappers.specs import STANDINS
-
     name = parsed.target
     dim = {"action_dim": env_spec.action_dim} if env_spec is not None else {}
     if name == "noop":
@@ -96,9 +95,9 @@ def load(
         return RandomPolicy(
             parsed.spec, **options.fields(RandomPolicy, {"chunk_size": "chunk", "scale": "scale"}), **dim
         )
-    if name in STANDINS:
+    if name in specs.STANDINS:
         try:
-            cls = STANDINS.load(name)
+            cls = specs.STANDINS.load(name)
         except ModuleNotFoundError as e:
             raise PolicyError(
                 f"policy {parsed.spec}: needs the {e.name!r} package, which is not installed yet"
@@ -113,9 +112,7 @@ def load(
             cls(scene=scene_family) if takes_scene and scene_family is not None else cls()
         )  # its own oracle
     if Path(name).expanduser().is_dir():
-        from policy_wrappers import lerobot_policy
-
         return lerobot_policy.load(
             parsed, options, trust_remote_code=trust_remote_code, device=device, family="standin"
         )
-    raise UnknownNameError("stand-in policy (or checkpoint directory)", name, STANDINS.names())
+    raise UnknownNameError("stand-in policy (or checkpoint directory)", name, specs.STANDINS.names())

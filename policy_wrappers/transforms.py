@@ -1,4 +1,4 @@
-"""Per-checkpoint-family conventions as small frozen transforms: the tables of ``docs/policies.md`` as code.
+"""Per-checkpoint-family conventions as small frozen transforms: docs/results/policy_conventions.md as code.
 
 Each family's LIBERO evaluation prepares images and maps actions in its own way (openpi
 ``src/openpi/policies/libero_policy.py`` composes such steps with ``transforms.compose``). Here an image
@@ -214,7 +214,7 @@ class Conventions:
         return replace(self, render=render, images=images, actions=actions)
 
 
-# ---- the families (docs/policies.md has the upstream sources of every value) --------------------------
+# ---- the families (docs/results/policy_conventions.md has the upstream sources of every value) ---------
 # openpi pi0.5 (examples/libero/main.py): both cameras [::-1, ::-1], resize_with_pad to 224; actions are
 # LIBERO's -1/+1 already (LiberoOutputs keeps actions[..., :7]); action_horizon 10, replan_steps 5.
 LIBERO_OPENPI = Conventions(images=compose(Flip180(), ResizeWithPad(224)), chunk=10, replan=5)

@@ -236,7 +236,7 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     every round to the worker count): ``ceiling_steps_per_s`` = W x replan / its ``act``, what the engine would
     reach if the model were all it waited for, and ``share_of_model_alone`` = the net rate over it (issue 28:
     >= 0.8 when the model is the bottleneck)."""
-    from indgen_vla.app.engine.local import LANES, run_local
+    from indgen_vla.app.engine.local import LANES, LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta
     from policy_wrappers.specs import load_policy
 
@@ -246,8 +246,14 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
     hw = tuple(policy.spec.image_size or (size, size))
     replan, hist = policy.spec.replan_steps, policy.spec.history_steps
     meta = RunMeta("bench", spec_str, "", scene)
-    run_local(jobs[:2], runner_config(scene, cams, hw, 2, hist), lambda: policy, meta, lambda r: None, workers=2,
-              replan_steps=replan, close_policies=False)  # warm-up: fork server, kernels  # fmt: skip
+    run_local(
+        jobs[:2],
+        runner_config(scene, cams, hw, 2, hist),
+        lambda: policy,
+        meta,
+        lambda r: None,
+        LocalOptions(workers=2, replan_steps=replan, close_policies=False),
+    )  # warm-up: fork server, kernels
     out: dict = {"scaling_policy": spec_str, "scaling_cameras": list(cams), "scaling_image": hw[0],
                  "scaling_episodes": len(jobs), "scaling_max_steps": max_steps, "replan": replan,
                  "pipeline": pipeline, "fork_server_cpu_s": fork_server_cpu_s()}  # fmt: skip
@@ -257,14 +263,26 @@ def scaling(spec_str: str, scene: str, workers: list[int], episodes: int, max_st
         envs = w * (LANES if pipeline else 1)
         t0 = time.perf_counter()
         with CpuMeter() as start_meter, Pinner(pin):
-            run_local(jobs[:envs], runner_config(scene, cams, hw, 1, hist), lambda: policy, meta, lambda r: None,
-                      workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline)  # fmt: skip
+            run_local(
+                jobs[:envs],
+                runner_config(scene, cams, hw, 1, hist),
+                lambda: policy,
+                meta,
+                lambda r: None,
+                LocalOptions(workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline),
+            )
         start_s = time.perf_counter() - t0
         records: list = []
         t0 = time.perf_counter()
         with CpuMeter() as meter, GpuBusy() as busy, Pinner(pin):
-            run_local(jobs, runner_config(scene, cams, hw, max_steps, hist), lambda: policy, meta, records.append,
-                      workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline)  # fmt: skip
+            run_local(
+                jobs,
+                runner_config(scene, cams, hw, max_steps, hist),
+                lambda: policy,
+                meta,
+                records.append,
+                LocalOptions(workers=w, replan_steps=replan, close_policies=False, pipeline=pipeline),
+            )
         wall = time.perf_counter() - t0
         steps = sum(r.steps for r in records)
         assert all(r.status == "ok" for r in records), [r.error for r in records if r.status != "ok"][:1]

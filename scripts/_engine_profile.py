@@ -31,7 +31,7 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
     import pstats
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta
     from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.specs import load_policy
@@ -65,8 +65,14 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
         cams, hw = policy.spec.cameras, tuple(policy.spec.image_size or (size, size))
         hist = policy.spec.history_steps
         rc, meta = runner_config(scene, cams, hw, max_steps, hist), RunMeta("bench", spec_str, "", scene)
-        run_local(jobs[:workers], runner_config(scene, cams, hw, 1, hist), lambda: policy, meta, lambda r: None,
-                  workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False)  # warm-up  # fmt: skip
+        run_local(
+            jobs[:workers],
+            runner_config(scene, cams, hw, 1, hist),
+            lambda: policy,
+            meta,
+            lambda r: None,
+            LocalOptions(workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False),
+        )  # warm-up
         out: dict = {"profile_policy": spec_str if "tmp" not in spec_str else f"lerobot ACT (tiny), 2 cameras {hw[0]}px",
                      "profile_workers": workers, "profile_episodes": len(jobs), "profile_max_steps": max_steps,
                      "replan": policy.spec.replan_steps, "device": device}  # fmt: skip
@@ -82,8 +88,14 @@ def profile_coordinator(spec_str: str | None, scene: str, workers: int, episodes
             t0, c0 = time.perf_counter(), time.process_time()
             if prof is not None:
                 prof.enable()
-            run_local(jobs, rc, lambda: policy, meta, on_record, workers=workers,
-                      replan_steps=policy.spec.replan_steps, close_policies=False)  # fmt: skip
+            run_local(
+                jobs,
+                rc,
+                lambda: policy,
+                meta,
+                on_record,
+                LocalOptions(workers=workers, replan_steps=policy.spec.replan_steps, close_policies=False),
+            )
             if prof is not None:
                 prof.disable()
                 forward["prof"] = None

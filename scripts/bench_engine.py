@@ -60,7 +60,7 @@ CPU: dict[str, tuple[float, float]] = {}  # run label -> CPU seconds (main proce
 
 
 def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False) -> float:
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
@@ -75,8 +75,14 @@ def engine_run(jobs, scene, spec_str, replan, max_steps, workers, pipeline=False
     records = []
     t0 = time.perf_counter()
     with CpuMeter() as meter:
-        run_local(jobs, rc, lambda: load_policy(spec_str), RunMeta("bench", spec_str, "", scene), records.append,
-                  workers=workers, replan_steps=replan, pipeline=pipeline)  # fmt: skip
+        run_local(
+            jobs,
+            rc,
+            lambda: load_policy(spec_str),
+            RunMeta("bench", spec_str, "", scene),
+            records.append,
+            LocalOptions(workers=workers, replan_steps=replan, pipeline=pipeline),
+        )
     assert len(records) == len(jobs) and all(r.status == "ok" for r in records)
     CPU[f"{workers}w{'p' if pipeline else ''}_{len(jobs)}x{max_steps}"] = (round(meter.main_s, 2),
                                                                           round(meter.workers_s, 2))  # fmt: skip
@@ -97,7 +103,7 @@ def pipeline_bench(
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: tests.fixtures
     import numpy as np
 
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
@@ -133,8 +139,14 @@ def pipeline_bench(
         )
         meta = RunMeta("bench", "act", "", scene)
         warm = [j for j in jobs[:2]]  # start the forkserver (imports) before timing: a one-off per process
-        run_local(warm, dataclasses.replace(rc, max_steps=1), lambda: policy, meta, lambda r: None, workers=1,
-                  replan_steps=1, close_policies=False, pipeline=True)  # fmt: skip
+        run_local(
+            warm,
+            dataclasses.replace(rc, max_steps=1),
+            lambda: policy,
+            meta,
+            lambda r: None,
+            LocalOptions(workers=1, replan_steps=1, close_policies=False, pipeline=True),
+        )
         times: dict[bool, list[float]] = {False: [], True: []}
         cpu: dict[bool, tuple[float, float]] = {}
         rows: dict[bool, list] = {}
@@ -143,8 +155,14 @@ def pipeline_bench(
                 records: list = []
                 t0 = time.perf_counter()
                 with CpuMeter() as meter:
-                    run_local(jobs, rc, lambda: policy, meta, records.append, workers=1, replan_steps=1,
-                              close_policies=False, pipeline=pipelined)  # fmt: skip
+                    run_local(
+                        jobs,
+                        rc,
+                        lambda: policy,
+                        meta,
+                        records.append,
+                        LocalOptions(workers=1, replan_steps=1, close_policies=False, pipeline=pipelined),
+                    )
                 times[pipelined].append(time.perf_counter() - t0)
                 cpu[pipelined] = (round(meter.main_s, 2), round(meter.workers_s, 2))
                 rows[pipelined] = sorted(
@@ -201,7 +219,7 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
     """A tiny LeRobot ACT (chunk 10, two cameras) executing whole chunks, 1 worker: rendering only the observation
     each chunk ends on (``lazy_render``, the default) vs rendering every step; records must be equal."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from policy_wrappers.specs import load_policy
     from scenes.planning import scene_levels
@@ -223,8 +241,14 @@ def lazy_render_bench(scene: str, size: int, episodes: int, max_steps: int, repe
                 records: list = []
                 t0 = time.perf_counter()
                 with CpuMeter() as meter:
-                    run_local(jobs, rc, lambda: policy, RunMeta("bench", "act", "", scene), records.append,
-                              workers=1, replan_steps=replan, close_policies=False)  # fmt: skip
+                    run_local(
+                        jobs,
+                        rc,
+                        lambda: policy,
+                        RunMeta("bench", "act", "", scene),
+                        records.append,
+                        LocalOptions(workers=1, replan_steps=replan, close_policies=False),
+                    )
                 times[lazy].append(time.perf_counter() - t0)
                 cpu[lazy] = round(meter.main_s + meter.workers_s, 2)
                 rows[lazy] = sorted(

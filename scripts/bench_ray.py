@@ -137,7 +137,7 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     from functools import partial
     from multiprocessing import forkserver
 
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.ray_backend import run_ray
 
     make = partial(SlowOracle, forward_ms / 1000.0)
@@ -146,7 +146,11 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     for _ in range(args.repeats):
         for name in ("local", "ray"):
             if name == "local":
-                r = _timed(lambda rec: run_local(jobs, rc, make, meta, rec, workers=2, replan_steps=replan))
+                r = _timed(
+                    lambda rec: run_local(
+                        jobs, rc, make, meta, rec, LocalOptions(workers=2, replan_steps=replan)
+                    )
+                )
                 forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
             else:
                 r = _timed(lambda rec: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))

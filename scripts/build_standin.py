@@ -25,8 +25,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from scenes.family import get_scene
-
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")  # lerobot re-enables them per saved episode
@@ -164,8 +162,9 @@ def main() -> int:
     if a.quick:
         a.n_demos, a.steps, a.t0_episodes, a.sweep_episodes = 3, 50, 2, 1
         a.work = a.work or tempfile.mkdtemp(prefix="build_standin_quick_")
-    from indgen_vla.app.regimes.demos import HumanNoise, record_demos
-    from indgen_vla.app.regimes.train import TrainConfig, train_policy
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig, HumanNoise
+    from indgen_vla.app.regimes.train import TrainConfig, TrainRecipe, train_policy
 
     regime, name = ("h+mg", "act_pick_place_hmg") if a.mimicgen else ("h-only", "act_pick_place_human")
     start = time.perf_counter()
@@ -176,22 +175,28 @@ def main() -> int:
         shutil.rmtree(d, ignore_errors=True)
     noise = HumanNoise()
     log(f"recording {a.n_demos} noisy-oracle T0 demos of {SCENE} (state-only) into {demos}")
-    stats = record_demos(get_scene(SCENE), demos, a.n_demos, seed=a.demo_seed, cameras=(), noise=noise)
+    stats = api.demos(
+        DemosConfig(scene=SCENE, out=demos, n=a.n_demos, seed=a.demo_seed, cameras=(), noise=noise, workers=1)
+    )
     log(
         f"  {stats['episodes']} episodes, {stats['frames']} frames, oracle keep rate {stats['success_rate']:.2f}"
     )
     datasets = [demos]
     if a.mimicgen:
-        from indgen_vla.app.regimes.mimicgen import MimicGenConfig, generate
+        from indgen_vla.app.regimes.mimicgen import MimicGenConfig
 
         log(f"generating {a.mimicgen} MimicGen T0 episodes from the demos into {mg}")
-        gen = generate(MimicGenConfig(source=demos, out=mg, n=a.mimicgen, seed=a.demo_seed, guarantee=True))
+        gen = api.mimicgen(
+            MimicGenConfig(source=demos, out=mg, n=a.mimicgen, seed=a.demo_seed, guarantee=True)
+        )
         log(f"  {gen['successes']}/{gen['attempts']} attempts succeeded")
         datasets.append(mg)
-    cfg = TrainConfig(steps=a.steps, seed=a.seed, log_every=max(a.steps // 10, 1))
+    cfg = TrainRecipe(steps=a.steps, seed=a.seed, log_every=max(a.steps // 10, 1))
     log(f"training state-only ACT for {cfg.steps} steps (batch {cfg.batch_size})")
-    train_policy(datasets, staged, cfg, data_regime=regime,
-                 progress=lambda s, loss: log(f"  step {s}/{cfg.steps} loss {loss:.4f}"))  # fmt: skip
+    train_policy(
+        TrainConfig(datasets=datasets, out=staged, recipe=cfg, data_regime=regime),
+        progress=lambda s, loss: log(f"  step {s}/{cfg.steps} loss {loss:.4f}"),
+    )
     info = json.loads((staged / "train_info.json").read_text())
     log(f"  trained in {info['train_s']:.0f} s")
     t0 = evaluate(staged, "0:0", a.t0_episodes, work / "eval_t0", a.workers, regime)

@@ -1,8 +1,9 @@
-"""Write docs/statistics.md: the size and power of every decision the toolkit prints, by exact enumeration where the
-tables are small and seeded simulation otherwise (``indgen_vla.core.stats.operating``), each table "claimed /
-measured / grid". Deterministic: the same code gives the same page.
+"""Write docs/results/statistics.md: the size and power of every decision the toolkit prints, by exact
+enumeration where the tables are small and seeded simulation otherwise (``indgen_vla.core.stats.operating``), each
+table "claimed / measured / grid". Deterministic: the same code gives the same page (docs/statistics.md quotes its
+headline figures).
 
-    .venv/bin/python scripts/operating_characteristics.py [--out docs/statistics.md] [--draws 4000]
+    .venv/bin/python scripts/operating_characteristics.py [--out docs/results/statistics.md] [--draws 4000]
         [--wall-time docs/results/wall_time_heldout.jsonl]
 """
 
@@ -233,7 +234,7 @@ def budget_section(lines: list[str], wall: Path | None) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="docs/statistics.md")
+    ap.add_argument("--out", default="docs/results/statistics.md")
     ap.add_argument("--draws", type=int, default=4000)
     ap.add_argument("--wall-time", default="docs/results/wall_time_heldout.jsonl")
     a = ap.parse_args()

@@ -22,8 +22,6 @@ import threading
 import time
 from pathlib import Path
 
-from scenes.family import get_scene
-
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("HF_DATASETS_DISABLE_PROGRESS_BARS", "1")
@@ -82,18 +80,19 @@ class StudyClock:
 
 def build_data(work: Path, n_demos: int, n_mg: int) -> dict[str, list[Path]]:
     """The human demos and the MimicGen episodes made from them, once for every checkpoint."""
-    from indgen_vla.app.regimes.demos import record_demos
-    from indgen_vla.app.regimes.mimicgen import STATS_FILE, MimicGenConfig, generate
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig
+    from indgen_vla.app.regimes.mimicgen import STATS_FILE, MimicGenConfig
 
     demos, mg = work / "data" / "human", work / "data" / "mimicgen"
     if not (demos / ".done").is_file():
         shutil.rmtree(demos, ignore_errors=True)
         log(f"recording {n_demos} T0 demos with object poses into {demos}")
-        record_demos(get_scene(SCENE), demos, n_demos, seed=0, cameras=(), objects=True)
+        api.demos(DemosConfig(scene=SCENE, out=demos, n=n_demos, seed=0, cameras=(), objects=True, workers=1))
         (demos / ".done").touch()
     if not (mg / STATS_FILE).is_file():  # a generation killed half way resumes
         log(f"generating {n_mg} MimicGen T0 episodes from the demos into {mg}")
-        generate(MimicGenConfig(source=demos, out=mg, n=n_mg, seed=0, guarantee=True))
+        api.mimicgen(MimicGenConfig(source=demos, out=mg, n=n_mg, seed=0, guarantee=True))
     return {"h-only": [demos], "h+mg": [demos, mg]}
 
 
@@ -101,7 +100,7 @@ def train(
     work: Path, data: dict[str, list[Path]], seeds: list[int], steps: int
 ) -> dict[tuple[str, int], Path]:
     """One object-observing ACT per (regime, training seed), same budget; finished ones are kept."""
-    from indgen_vla.app.regimes.train import INFO_FILE, TrainConfig, train_policy
+    from indgen_vla.app.regimes.train import INFO_FILE, TrainConfig, TrainRecipe, train_policy
 
     ckpts = {}
     for regime in REGIMES:
@@ -109,8 +108,8 @@ def train(
             out = work / "ckpt" / f"{regime.replace('+', '_')}_s{seed}"
             if not (out / INFO_FILE).is_file():  # a training run killed half way resumes
                 log(f"training {regime} seed {seed} ({steps} updates)")
-                cfg = TrainConfig(steps=steps, seed=seed, objects=True, log_every=max(steps // 5, 1))
-                train_policy(data[regime], out, cfg, data_regime=regime)
+                cfg = TrainRecipe(steps=steps, seed=seed, objects=True, log_every=max(steps // 5, 1))
+                train_policy(TrainConfig(datasets=data[regime], out=out, recipe=cfg, data_regime=regime))
             ckpts[(regime, seed)] = out
     return ckpts
 

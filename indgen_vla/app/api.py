@@ -4,12 +4,19 @@ scripts, with keyword arguments named like the flags and typed results instead o
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.runs.result import Run
+
+if TYPE_CHECKING:
+    from indgen_vla.app.real.design import RealPlanConfig
+    from indgen_vla.app.regimes.demos import DemosConfig
+    from indgen_vla.app.regimes.mimicgen import MimicGenConfig
+    from indgen_vla.app.regimes.train import TrainConfig
+    from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 
 PathLike = str | os.PathLike[str]
 
@@ -34,12 +41,12 @@ def evaluate(
     which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
     override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
     """
-    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values
-    from indgen_vla.app.engine.run import evaluate as run_evaluation
+    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values  # lazy: start-up
+    from indgen_vla.app.engine.run import evaluate as run_evaluation  # lazy: start-up
 
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if obj is not None:
-        from policy_wrappers.objects import describe
+        from policy_wrappers.objects import describe  # lazy: optional lerobot, policy wrappers
 
         policy = describe(obj)
     given = {
@@ -66,10 +73,9 @@ def report(
 ) -> list[Run]:
     """Write summary.json, report.md and plots for each run directory again (as ``indgen report`` does for each)
     and return them; ``gamma``, ``ci`` (wilson | clopper-pearson) and ``margin`` as the flags."""
-    from indgen_vla.core.errors import RunDirError
-    from indgen_vla.core.reporting.report import write_run_report
-    from indgen_vla.core.runs.records import RunDir
-    from indgen_vla.core.stats.contrasts import check_margin
+    from indgen_vla.core.reporting.report import write_run_report  # lazy: start-up
+    from indgen_vla.core.runs.records import RunDir  # lazy: start-up
+    from indgen_vla.core.stats.contrasts import check_margin  # lazy: start-up
 
     if not 0 < gamma <= 1:
         raise ConfigError(f"gamma must be in (0, 1], got {gamma}")
@@ -96,54 +102,49 @@ def compare(
     alpha: float = 0.05,
     test: str = "auto",
     out: PathLike | None = None,
-    label_a: str | None = None,
-    label_b: str | None = None,
+    labels: tuple[str | None, str | None] = (None, None),
     allow_protocol_mismatch: bool = False,
 ) -> dict[str, Any]:
     """``indgen compare RUN_A RUN_B``: per-level exact tests (paired where the seeds match) with Holm, written to
-    compare.json/compare.md (default RUN_A/compare); returns compare.json's content."""
-    from indgen_vla.core.comparison.two_runs import compare_runs
+    compare.json/compare.md (default RUN_A/compare); returns compare.json's content. ``labels``: the two runs'
+    names in the tables (default: each run's data regime and policy, else its folder)."""
+    from indgen_vla.core.comparison.two_runs import compare_runs  # lazy: start-up
 
+    if len(labels) != 2:
+        raise ConfigError(
+            f"labels must be two names (run_a's, run_b's; None for the default), got {labels!r}"
+        )
     a, b = (Path(os.fspath(r.path if isinstance(r, Run) else r)) for r in (run_a, run_b))
-    return compare_runs(a, b, gamma=gamma, alpha=alpha, test=test, out=out, label_a=label_a, label_b=label_b,
+    return compare_runs(a, b, gamma=gamma, alpha=alpha, test=test, out=out, label_a=labels[0], label_b=labels[1],
                         allow_protocol_mismatch=allow_protocol_mismatch)  # fmt: skip
 
 
-def certify(
-    *,
-    scene: str,
-    axis: str,
-    task: str | None = None,
-    levels: str | list[int] | None = None,
-    step: float | None = None,
-    episodes: int | None = None,
-    seed: int = 0,
-    max_steps: int | None = None,
-    workers: int = 1,
-    threshold: float = 0.95,
-    axes_preset: str | None = None,
-    out: PathLike | None = None,
-    split: str | None = None,
-    obj_registries: str | None = None,
-) -> dict[str, Any]:
+def certify(config: Any = None, **options: Any) -> dict[str, Any]:
     """``indgen certify`` for one task (default: the scene's first): the privileged oracle on each level until the
     59/59 rule decides it, written where ``evaluate`` looks (or to ``out``/certify.json) and resumed from there;
     returns the certificate (per level: n, successes, lower bound, status certified | failed | insufficient).
-    ``split`` / ``obj_registries``: RoboCasa365's (``--split`` / ``--obj-registries``)."""
-    from indgen_vla.app.certify.run import certify as run_certify
-    from scenes.certificates import cert_path
-    from scenes.family import get_scene
 
+    ``config`` is a ``CertifyConfig``; keyword arguments are ``indgen certify``'s flags with ``_`` for ``-``
+    (``scene``, ``axis``, ``task``, ``levels``, ``episodes``, ``seed``, ``workers``, ``held_out``, ``split``, ...),
+    replacing the config's values."""
+    from indgen_vla.app.certify.certify_config import certify_config  # lazy: start-up (import indgen_vla)
+    from indgen_vla.app.certify.certify_levels import certify as certify_levels  # lazy: start-up
+    from scenes.certificates import cert_path  # lazy: start-up
+    from scenes.family import get_scene  # lazy: start-up
+
+    cfg = certify_config(config, **options)
+    if cfg.mode != "certify":
+        raise ConfigError(f"certify() certifies levels; {cfg.mode.replace('_', '-')} is the command's other mode: "
+                          f"run 'indgen certify --{cfg.mode.replace('_', '-')} ...'")  # fmt: skip
+    plan = cfg.plan
     # the family configured once (the certificates' folder follows the choice), handed on
-    sc = get_scene(scene, {"split": split, "obj_registries": obj_registries})
+    scene = get_scene(plan.scene, plan.scene_options())
     path = (
-        Path(os.fspath(out)) / "certify.json"
-        if out is not None
-        else cert_path(sc, task, axis, step, axes_preset)
+        Path(cfg.run.out) / "certify.json"
+        if cfg.run.out is not None
+        else cert_path(scene, plan.task, plan.axis, plan.step, plan.axes_preset)
     )
-    return run_certify(sc, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                       max_steps=max_steps, workers=workers, threshold=threshold, preset=axes_preset,
-                       out=path)  # fmt: skip
+    return certify_levels(scene, cfg, path)
 
 
 def import_lerobot_eval(
@@ -160,6 +161,7 @@ def import_lerobot_eval(
     """``indgen import lerobot-eval DIR... --out RUN``: lerobot-eval output directories as one run directory, its
     report written (docs/lerobot.md); ``axis``/``level`` place another env's run, ``seed`` is lerobot-eval's --seed
     where eval_info.json records none (default 1000)."""
+    # lazy: start-up
     from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
     from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
 
@@ -167,3 +169,74 @@ def import_lerobot_eval(
     cfg = ImportConfig(sources=tuple(os.fspath(p) for p in paths), out=os.fspath(out), axis=axis, level=level,
                        seed=seed, policy=policy, data_regime=data_regime)  # fmt: skip
     return report(write_import(cfg), gamma=gamma)[0]
+
+
+def budget(config: BudgetConfig) -> dict[str, Any]:
+    """``indgen budget``: the size of ``config.protocol`` before it runs (episodes, power, the adaptive rule's
+    cost, wall time per worker count; writes the lock with ``write``), as ``indgen budget --json`` prints it."""
+    from indgen_vla.app.studies.budget import plan_budget  # lazy: start-up
+
+    return plan_budget(config)
+
+
+def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None
+           ) -> list[tuple[int, Path]]:  # fmt: skip
+    """``indgen series``: one run of ``config.protocol`` per checkpoint, into ``config.out``/runs/<step>, and the
+    series report (series.md, series.json, plots) rewritten after each (``after_each`` gets the runs too); returns
+    (step, run directory) in step order."""
+    from indgen_vla.app.studies.series import run_series  # lazy: start-up
+    from indgen_vla.core.comparison.series_report import write_series  # lazy: start-up
+
+    out = Path(config.out)
+
+    def report(entries: list[tuple[int, Path]]) -> None:
+        write_series(entries, out, config.protocol.plan.gamma)
+        if after_each is not None:
+            after_each(entries)
+
+    entries = run_series(config, after_each=report)
+    report(entries)  # the checkpoints a re-run skipped too
+    return entries
+
+
+def demos(config: DemosConfig, *, progress: Callable[[str, int, int], None] | None = None,
+          notice: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
+    """``indgen demos``: noisy-oracle demonstrations of ``config.scene`` as a LeRobotDataset at ``config.out``
+    (resumed when it holds an unfinished recording of the same config); returns the recording's stats.
+    ``progress(cell, kept, attempts)`` follows each cell, ``notice`` gets the resume line."""
+    from indgen_vla.app.regimes.demos import record_demos  # lazy: start-up
+    from scenes import get_scene  # lazy: start-up
+
+    return record_demos(config, get_scene(config.scene), progress=progress, notice=notice)
+
+
+def mimicgen(config: MimicGenConfig, *, progress: Callable[[str, int, int, int], None] | None = None,
+             say: Callable[[str], None] | None = None) -> dict[str, Any]:  # fmt: skip
+    """``indgen mimicgen``: MimicGen-style episodes from the demonstrations ``config.source`` into ``config.out``,
+    each at its source's level and scene (resumed when unfinished); returns the generation stats.
+    ``progress(cell, successes, attempts, total)`` follows each cell, ``say`` gets the resume line."""
+    from indgen_vla.app.regimes.mimicgen import generate  # lazy: start-up
+    from indgen_vla.app.regimes.mimicgen_sources import source_scenes  # lazy: start-up
+    from scenes import get_scene  # lazy: start-up
+
+    scenes = {name: get_scene(name) for name in source_scenes(config.source)}
+    return generate(config, scenes, progress, say=say)
+
+
+def train(config: TrainConfig, *, progress: Callable[[int, float], None] | None = None,
+          say: Callable[[str], None] | None = None) -> Path:  # fmt: skip
+    """``indgen train``: a LeRobot policy trained by ``config.recipe`` on ``config.datasets`` into the checkpoint
+    ``config.out`` (resumed when unfinished), with ``config.evaluation`` run on the weights in memory every
+    ``config.eval_every`` updates; returns the checkpoint directory. ``progress(step, loss)`` follows the loss."""
+    from indgen_vla.app.regimes.train import train_policy  # lazy: start-up
+    from indgen_vla.app.regimes.train_eval import eval_hook  # lazy: start-up
+
+    return train_policy(config, progress=progress, say=say, after_step=eval_hook(config))
+
+
+def real_plan(config: RealPlanConfig) -> Path:
+    """``indgen real plan``: a run directory for a real-robot axis and the operator's protocol.md (then ``indgen real
+    record``); returns the run directory."""
+    from indgen_vla.app.real.design import plan_run  # lazy: start-up
+
+    return plan_run(config)

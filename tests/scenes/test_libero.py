@@ -238,11 +238,11 @@ def test_episode_index_fixes_the_initial_state(mini):
 
 @pytest.mark.slow  # ~15 s: oracle episodes at the extreme levels
 def test_oracle_certifies_extreme_levels(mini):
-    from indgen_vla.app.certify.run import certify
+    from tests.fixtures.certify import run_certify
 
-    cert = certify(get_scene(SCENE), "pick_y", levels=[-3, 0, 3], episodes=1)
+    cert = run_certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=1)
     assert [r["successes"] == r["n"] for r in cert["levels"]] == [True, True, True], cert  # no failure
-    cert = certify(get_scene(SCENE), "goal_y+distractor", levels=[3], episodes=1)
+    cert = run_certify(SCENE, "goal_y+distractor", levels=[3], episodes=1)
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert
 
 

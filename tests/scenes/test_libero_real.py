@@ -21,7 +21,7 @@ SCENE = "libero_object"
 def test_cream_cheese_beside_the_can_builds_renders_and_is_solved(real):
     """cream_cheese ``pick_y`` -2, episode 1: the box lies 5 mm from the tomato-sauce can, and the open hand came
     down on the can's top and closed above the box (no_contact) before the grasp point moved off centre."""
-    from indgen_vla.app.certify.run import run_oracle_episode
+    from indgen_vla.app.certify.certify_levels import run_oracle_episode
     from indgen_vla.core.errors import EpisodeUnavailableError
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracles import oracle_for
@@ -65,7 +65,7 @@ def _script(name: str):
 
 def test_real_assets_level0_and_oracle(real):
     """With LIBERO's real assets: level 0 renders, and the oracle solves level 0 and pick_y +-3."""
-    from indgen_vla.app.certify.run import certify
+    from tests.fixtures.certify import run_certify
 
     env = level_env(SCENE, axis="pick_y", level=0, cameras=("agentview", "wrist"), image_size=(128, 128))
     try:
@@ -73,7 +73,7 @@ def test_real_assets_level0_and_oracle(real):
         assert obs.images["agentview"].std() > 5 and obs.state.shape == (8,)
     finally:
         env.close()
-    cert = certify(get_scene(SCENE), "pick_y", levels=[-3, 0, 3], episodes=2)
+    cert = run_certify(SCENE, "pick_y", levels=[-3, 0, 3], episodes=2)
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
 
 
@@ -119,24 +119,24 @@ def test_shipped_certificates_cover_this_tree_only(real, mini, capsys):
 @pytest.mark.parametrize("axis", ["pick_y", "goal_y", "scale"])
 def test_every_level_of_one_task(real, axis, tmp_path):
     """The sweep's shape on one task: every level of an axis, two episodes each."""
-    from indgen_vla.app.certify.run import certify
+    from tests.fixtures.certify import run_certify
 
-    cert = certify(get_scene(SCENE), axis, task="ketchup", episodes=2, out=tmp_path / "c.json")
+    cert = run_certify(SCENE, axis, task="ketchup", episodes=2, path=tmp_path / "c.json")
     assert all(r["successes"] == r["n"] for r in cert["levels"]), cert
 
 
 def test_partial_levels_resume_with_the_same_episodes(tmp_path):
     """A level a killed run left half done resumes from its finished episodes (same seeds, same outcomes)."""
+    from indgen_vla.app.certify.certify_levels import LevelJob, Rule, certify_level
     from indgen_vla.app.certify.partial import EpisodeLog
-    from indgen_vla.app.certify.run import Rule, certify_level
     from scenes.planning import scene_levels
 
     part = tmp_path / "certify.partial.L0.jsonl"
     args = (scene_levels(get_scene("stack"), ["stack"]), "orange_on_blue", "stack", 0, 0, None)
-    first = certify_level(*args, Rule(n_max=1), partial=part, key="k")
+    first = certify_level(LevelJob(*args, Rule(n_max=1), partial=part, key="k"))
     assert first["n"] == 1 and len(EpisodeLog(part, "k").results) == 1
-    again = certify_level(*args, Rule(n_max=2), partial=part, key="k")  # runs episode 1 only
-    fresh = certify_level(*args, Rule(n_max=2))
+    again = certify_level(LevelJob(*args, Rule(n_max=2), partial=part, key="k"))  # runs episode 1 only
+    fresh = certify_level(LevelJob(*args, Rule(n_max=2)))
     assert [again[k] for k in ("n", "successes", "mean_steps")] == [
         fresh[k] for k in ("n", "successes", "mean_steps")
     ]

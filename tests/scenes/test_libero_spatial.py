@@ -155,7 +155,7 @@ def test_levels_build_and_change_one_thing(mini, axis, level, task):
 # from the table; from inside the open top drawer (must clear the cabinet top); from on top of the cabinet
 @pytest.mark.parametrize("task", ["from_table_center", DRAWER, "on_the_wooden_cabinet"])
 def test_oracle_solves_level_0(mini, task):
-    from indgen_vla.app.certify.run import certify
+    from tests.fixtures.certify import run_certify
 
-    cert = certify(get_scene(SCENE), "scale", task=task, levels=[0], episodes=1)
+    cert = run_certify(SCENE, "scale", task=task, levels=[0], episodes=1)
     assert cert["levels"][0]["successes"] == cert["levels"][0]["n"], cert

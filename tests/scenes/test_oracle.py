@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import scenes
-from indgen_vla.app.certify.run import certify, run_oracle_episode
+from indgen_vla.app.certify.certify_levels import run_oracle_episode
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.interface import Observation, Policy
@@ -17,6 +17,7 @@ from scenes.certificates import infeasible_levels, load_certification
 from scenes.family import get_scene
 from scenes.listing import builtin_scenes
 from scenes.tabletop.oracle import OraclePolicy
+from tests.fixtures.certify import run_certify
 from tests.fixtures.levels import level_env
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -156,7 +157,7 @@ def test_infeasible_levels_and_corrupt_files(tmp_path):
     with pytest.raises(RunDirError, match="no certification"):
         load_certification(tmp_path / "missing")
     with pytest.raises(ConfigError, match="workers"):
-        certify(get_scene("stack"), "stack", levels="0", episodes=1, workers=0)
+        run_certify("stack", "stack", levels="0", episodes=1, workers=0)
 
 
 def test_write_mp4(tmp_path):

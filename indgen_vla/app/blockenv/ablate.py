@@ -15,9 +15,13 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from indgen_vla.app.blockenv.env import BlockEnvConfig
+from indgen_vla.app.blockenv.data import rollout_oracle
+from indgen_vla.app.blockenv.env import BlockEnvConfig, legal_grasps
+from indgen_vla.app.blockenv.evaluate import evaluate_model
+from indgen_vla.app.blockenv.fit import FitConfig, train
 from indgen_vla.app.blockenv.reproduce import _pooled
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.registry import lookup
 from indgen_vla.core.runs.records import atomic_write_json, atomic_write_text
 from indgen_vla.core.stats.metrics import break_level
 
@@ -111,10 +115,6 @@ def run_ablation(name: str, scale: AblationScale, log=print, models: dict | None
     """
     import torch
 
-    from indgen_vla.app.blockenv.evaluate import evaluate_model
-    from indgen_vla.app.blockenv.train import TrainConfig, train
-    from indgen_vla.core.registry import lookup
-
     title, variants = lookup("BlockEnv ablation", name, ABLATIONS)
     torch.set_num_threads(1)
     env_cfg = BlockEnvConfig(grid_size=max(12, max(scale.eval_levels) + 1))
@@ -125,7 +125,7 @@ def run_ablation(name: str, scale: AblationScale, log=print, models: dict | None
         for seed in scale.seeds:
             key = _train_key(v, scale, seed)
             if key not in models:
-                tc = TrainConfig(v.method, seed=seed, steps=v.steps or scale.steps, extra=dict(v.extra),
+                tc = FitConfig(v.method, seed=seed, steps=v.steps or scale.steps, extra=dict(v.extra),
                                  demos_per_level=v.demos_per_level or scale.demos_per_level)  # fmt: skip
                 models[key] = (train(tc)[0], tc)
             model, tc = models[key]
@@ -212,9 +212,6 @@ def legality_top1(model, level: int, episodes: int, cfg: BlockEnvConfig, seed: i
     """
     import numpy as np
     import torch
-
-    from indgen_vla.app.blockenv.data import rollout_oracle
-    from indgen_vla.app.blockenv.env import legal_grasps
 
     demos = rollout_oracle(np.full(episodes, level), cfg, np.random.default_rng([seed, level, 7]))
     obs = torch.as_tensor(demos.obs, dtype=torch.long)

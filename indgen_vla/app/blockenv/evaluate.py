@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from indgen_vla.app.blockenv.data import make_demos
 from indgen_vla.app.blockenv.env import BlockEnv, BlockEnvConfig, oracle_actions, sample_grids
+from indgen_vla.app.blockenv.fit import _tensors, adapt
 
 
 def initial_grids(level: int, episodes: int, cfg: BlockEnvConfig, seed: int) -> np.ndarray:
@@ -67,9 +69,6 @@ def evaluate_model(model, method: str, levels, episodes: int, cfg: BlockEnvConfi
     for k in levels:
         params = None
         if method == "maml":
-            from indgen_vla.app.blockenv.data import make_demos
-            from indgen_vla.app.blockenv.train import _tensors, adapt
-
             support = make_demos([k], train_cfg.maml_support, cfg, seed=20_000 + seed + k)
             params = adapt(model, _tensors(*support.steps()), train_cfg.maml_inner_lr)
         s = rollout(model, method, k, episodes, cfg, seed, params)

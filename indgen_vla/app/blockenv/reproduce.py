@@ -11,7 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from indgen_vla.app.blockenv.env import BlockEnvConfig
+from indgen_vla.app.blockenv.evaluate import evaluate_model, oracle_rollout
+from indgen_vla.app.blockenv.fit import FitConfig, train
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.reporting.caveats import break_undecidable, needed_for_break, rate_text
 from indgen_vla.core.runs.records import atomic_savefig, atomic_write_json, atomic_write_text
 from indgen_vla.core.stats.metrics import break_level, wilson_ci
 
@@ -41,7 +44,7 @@ class ReproduceConfig:
     # cost the whole reproduction 27.6 min on 2 idle cores, over its 20-minute budget.
     method_steps: tuple[tuple[str, int], ...] = (("rnn", 12000), ("trm", 1000))
     demos_per_level: int = 300
-    # Variant options (models.base.OPTIONS) per method where Table 1 departs from the model's default. Ind's
+    # Variant options (methods.OPTIONS) per method where Table 1 departs from the model's default. Ind's
     # legality head reads the current grid cell by cell (a shared 3x3 convolution): the paper's head "learns
     # the local invariant grasping rule" and its gate "structurally" prevents blocked grasps, which a linear
     # read-out of the trunk's global embedding does not do even in distribution (docs/results/blockenv_ablations.md, ind_gate).
@@ -114,12 +117,9 @@ def _job(method: str, seed: int, cfg: ReproduceConfig, env_cfg: BlockEnvConfig) 
     """Train one method with one seed and evaluate it: its outcome depends on (method, seed) alone."""
     import torch
 
-    from indgen_vla.app.blockenv.evaluate import evaluate_model
-    from indgen_vla.app.blockenv.train import TrainConfig, train
-
     torch.set_num_threads(1)
     ts = time.perf_counter()
-    tc = TrainConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
+    tc = FitConfig(method, seed=seed, grid_size=env_cfg.grid_size, steps=cfg.steps_for(method),
                      demos_per_level=cfg.demos_per_level, hidden=cfg.hidden, extra=cfg.extra_for(method))  # fmt: skip
     model, _ = train(tc)
     res = evaluate_model(
@@ -209,8 +209,6 @@ def reproduce(cfg: ReproduceConfig, out: Path, log=print, workers: int = 1, resu
         workers: processes training (method, seed) jobs side by side; results do not depend on it.
         resume: keep each finished job in ``out/jobs`` and reuse those done under the same config and code.
     """
-    from indgen_vla.app.blockenv.evaluate import oracle_rollout
-
     env_cfg = BlockEnvConfig(grid_size=max(12, max(cfg.eval_levels) + 1))
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -260,8 +258,6 @@ def _entry(per_level: dict[int, list[tuple[int, int]]], gamma: float, seeds: tup
 def table_caveats(result: dict) -> list[str]:
     """table1.md's first lines: methods below γ at L0 (they did not learn the training task), too few episodes for a
     break to be shown, one seed (no interval over training seeds)."""
-    from indgen_vla.core.reporting.caveats import break_undecidable, needed_for_break, rate_text
-
     c, gamma = result["config"], result["config"]["gamma"]
     n, seeds = c["episodes"] * len(c["seeds"]), len(c["seeds"])
     out = []

@@ -12,16 +12,30 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import multiprocessing as mp
 import os
 import platform
 import random
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from scipy.stats import binom
 
+from indgen_vla.app.certify.certify_config import CertifyConfig
+from indgen_vla.app.certify.certify_levels import run_oracle_episode
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
-from scenes.family import Scene, registered_scenes
+from indgen_vla.core.protocol.seeding import episode_seed
+from indgen_vla.core.resources import certification_dir
+from scenes.certificates import level_status, load_certification, shipped_certification
+from scenes.heldout import basis, burnt_blocks, next_block
+from scenes.oracles import oracle_for
+from scenes.planning import resolve_scene_plan
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from scenes.family import Scene
 
 AUDIT_FIRST_BLOCK = 1000  # audits draw from here: certification attempts (blocks 1, 2, ...) never meet them
 AUDIT_ALPHA = 0.05
@@ -37,8 +51,6 @@ def shipped_levels(
     root: Path, scenes: list[str] | None = None
 ) -> list[tuple[str, str, str, int, dict, dict]]:
     """Every certified (scene, task, axis, level, row, cert) under ``root`` at default steps, sorted."""
-    from scenes.certificates import level_status, load_certification
-
     out = []
     for path in sorted(Path(root).glob("*/*/*/certify.json")):
         if "@" in path.parent.name:
@@ -56,11 +68,6 @@ def audit_level(family: Scene, task: str, axis: str, level: int, block: int, epi
                 max_steps: int | None) -> dict:  # fmt: skip
     """``episodes`` oracle episodes of one level on ``block`` (unavailable seeds skipped and counted, as certify
     does), in this process."""
-    from indgen_vla.app.certify.run import run_oracle_episode
-    from indgen_vla.core.protocol.seeding import episode_seed
-    from scenes.oracles import oracle_for
-    from scenes.planning import resolve_scene_plan
-
     t0, scene = time.time(), family.name
     plan = resolve_scene_plan(family, task, (axis,), [level], certificates=False)
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
@@ -90,28 +97,31 @@ def _job(args: tuple) -> dict:
 
 
 def audit(
-    n: int, *, scenes: list[str] | None = None, episodes: int = 20, seed: int = 0, workers: int = 1,
-    root: str | Path | None = None, out: str | Path | None = None, log=print,
+    config: CertifyConfig, scenes: Sequence[Scene], *, root: str | Path | None = None, out: str | Path | None = None,
+    log=print,
 ) -> dict:  # fmt: skip
-    """Audit ``n`` certified levels drawn at random (``seed``) from the shipped certificates under ``root`` (default:
-    the package's) whose scene is ready here; write ``out`` (audit.json) if given; return the result."""
-    from indgen_vla.core.resources import certification_dir
-    from scenes.certificates import shipped_certification
-    from scenes.heldout import basis, burnt_blocks, next_block
-
-    if n < 1 or episodes < 1 or workers < 1:
-        raise ConfigError(f"--audit, --episodes and --workers must be >= 1 (got {n}, {episodes}, {workers})")
+    """Audit ``config``'s ``--audit`` N certified levels drawn at random (its ``seed``) from the shipped certificates
+    under ``root`` (default: the package's) of ``scenes`` (resolved by the caller) that are ready here,
+    ``config.audit_episodes`` episodes each; write ``out`` (audit.json) if given; return the result."""
+    n, episodes, seed, workers = (
+        config.check.audit,
+        config.audit_episodes,
+        config.rule.seed,
+        config.run.workers,
+    )
+    if n is None:
+        raise ConfigError("audit needs --audit N, the number of shipped certified levels to re-run")
     root = Path(root) if root is not None else certification_dir()
+    by_name = {s.name: s for s in scenes}
     pool, skipped = [], set()
-    families = {s.name: s for s in registered_scenes()}  # an audit draws from every family's certificates
-    for item in shipped_levels(root, scenes):
+    for item in shipped_levels(root, list(by_name)):
         sc, _task, _axis, _level, _row, cert = item
         try:
-            family = families[sc]
-            family.check_ready()  # e.g. LIBERO without its assets
+            scene = by_name[sc]
+            scene.check_ready()  # e.g. LIBERO without its assets
             ok = (
-                family.committed_certificates
-                or shipped_certification(family, _cert_file(root, cert)) is not None
+                scene.committed_certificates
+                or shipped_certification(scene, _cert_file(root, cert)) is not None
             )
         except Exception as e:  # a scene this machine cannot run: say so once
             ok = False
@@ -122,13 +132,14 @@ def audit(
             continue
         pool.append(item)
     if not pool:
+        names = config.audit_scenes
         raise ConfigError(f"no shipped certified level under {root} can run here"
-                          + (f" for scenes {scenes}" if scenes else "") + "; install the scene's assets")  # fmt: skip
+                          + (f" for scenes {names}" if names else "") + "; install the scene's assets")  # fmt: skip
     drawn = random.Random(seed).sample(pool, min(n, len(pool)))
     jobs = []
     for sc, task, axis, level, row, cert in drawn:
         block = next_block(row, burnt_blocks(cert, level), AUDIT_FIRST_BLOCK)
-        jobs.append((families[sc], task, axis, level, block, episodes, cert.get("max_steps")))
+        jobs.append((by_name[sc], task, axis, level, block, episodes, cert.get("max_steps")))
     rows = _run(jobs, workers)
     for (_sc, _t, _a, _l, row, _c), r in zip(drawn, rows, strict=True):
         r["basis"] = basis(row)
@@ -152,7 +163,5 @@ def _run(jobs: list[tuple], workers: int) -> list[dict]:
     """The jobs' rows in order, one level per process when ``workers`` > 1."""
     if workers == 1 or len(jobs) == 1:
         return [_job(j) for j in jobs]
-    import multiprocessing as mp
-
     with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
         return pool.map(_job, jobs, chunksize=1)

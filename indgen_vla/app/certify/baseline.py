@@ -13,10 +13,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.certify.run import run_oracle_episode
+from indgen_vla.app.certify.certify_levels import run_oracle_episode
 from indgen_vla.core.errors import EpisodeUnavailableError
 from indgen_vla.core.protocol.seeding import evaluation_seed
 from scenes.family import Scene
+from scenes.oracles import oracle_for
+from scenes.planning import resolve_scene_plan
 
 
 def baseline_episodes(
@@ -25,9 +27,6 @@ def baseline_episodes(
 ) -> list[tuple[bool | None, int]]:  # fmt: skip
     """The oracle's (success, steps) on ``evaluate``'s episodes 0..episodes-1 of one level (None: the level's
     placement check ruled the episode's initial state out, as ``evaluate`` counts it unavailable)."""
-    from scenes.oracles import oracle_for
-    from scenes.planning import resolve_scene_plan
-
     plan = resolve_scene_plan(scene, task, (axis,), [level], certificates=False, options=options)
     env = plan.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=None)
     policy = oracle_for(plan.builder.family)
@@ -35,7 +34,7 @@ def baseline_episodes(
     try:
         for i in range(episodes):
             try:
-                out.append(run_oracle_episode(env, policy, evaluation_seed(seed, scene, task, i), i))
+                out.append(run_oracle_episode(env, policy, evaluation_seed(seed, scene.name, task, i), i))
             except EpisodeUnavailableError:
                 out.append((None, 0))
     finally:

@@ -2,54 +2,51 @@
 
 ``indgen certify --task all`` certifies one task after another, each with at most one process per level; a
 protocol of 10 tasks x 3 axes x 7 levels keeps 16 cores busy only when all 210 level jobs share one pool. Each
-finished level is merged into its own certify.json at once (``indgen_vla.app.certify.run.Pending``), so a killed batch resumes
+finished level is merged into its own certify.json at once (``indgen_vla.app.certify.certify_levels.Pending``), so a killed batch resumes
 like ``certify`` does, mid-level included (``indgen_vla.app.certify.partial``).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import multiprocessing as mp
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from indgen_vla.app.certify.certify_config import CertifyPlan, CertifyRule
+from indgen_vla.app.certify.certify_levels import LevelJob, _certify_job, level_line, prepare
+from indgen_vla.app.certify.suite import write_summary
 from indgen_vla.core.errors import ConfigError
-from scenes.family import Scene
+from scenes.certificates import cert_path
+
+if TYPE_CHECKING:
+    from scenes.family import Scene
 
 
-def _job(item: tuple[int, tuple]) -> tuple[int, dict]:
-    from indgen_vla.app.certify.run import _certify_job
-
-    index, args = item
-    return index, _certify_job(args)
+def _job(item: tuple[int, LevelJob]) -> tuple[int, dict]:
+    index, job = item
+    return index, _certify_job(job)
 
 
 def certify_many(
-    scene: Scene, pairs: list[tuple[str, str]], *, levels: str | list[int] | None = None,
-    episodes: int | None = None, seed: int = 1, workers: int = 1, root: str | Path | None = None,
-    deadline_s: float | None = None, log=print, retest: bool = False,
+    scene: Scene, pairs: list[tuple[str, str]], plan: CertifyPlan, rule: CertifyRule, *, workers: int = 1,
+    root: str | Path | None = None, deadline_s: float | None = None, log=print,
 ) -> list[dict]:  # fmt: skip
-    """Certify (or resume) ``levels`` of every (task, axis) in ``pairs`` under ``root`` (default: where evaluate
-    looks, ``scenes.certificates.cert_path``; ``seed``: the first seed block, ``retest``: re-run the levels certified
-    only in-sample on a fresh block, ``scenes.heldout``); with ``deadline_s`` no new level starts after that many seconds (those
-    running finish), so a time-boxed chunk ends with whole levels. Returns the certificates as they stand."""
-    import multiprocessing as mp
-
-    from indgen_vla.app.certify.run import level_line, prepare
-    from indgen_vla.app.certify.suite import write_summary
-    from scenes.certificates import cert_path
-
+    """Certify (or resume) ``plan``'s levels of every (task, axis) in ``pairs`` of ``scene`` under ``root`` (default:
+    where evaluate looks, ``scenes.certificates.cert_path``) and ``rule`` (its ``seed``: the first seed block; its
+    ``held_out``: re-run the levels certified only in-sample on a fresh block, ``scenes.heldout``); with
+    ``deadline_s`` no new level starts after that many seconds (those running finish), so a time-boxed chunk ends
+    with whole levels. Returns the certificates as they stand."""
     if workers < 1:
         raise ConfigError(f"--workers must be >= 1, got {workers}")
     pend = [
         prepare(
             scene,
-            axis,
-            task=task,
-            levels=levels,
-            episodes=episodes,
-            seed=seed,
-            out=cert_path(scene, task, axis, root=root),
+            dataclasses.replace(plan, task=task, axes=(axis,)),
+            rule,
+            cert_path(scene, task, axis, root=root),
             log=log,
-            retest=retest,
         )  # fmt: skip
         for task, axis in pairs
     ]

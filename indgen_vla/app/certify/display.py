@@ -8,7 +8,7 @@ the end): a line when a task starts and one per finished level, so a log shows p
 
 from __future__ import annotations
 
-from indgen_vla.app.certify.run import level_line
+from indgen_vla.app.certify.certify_levels import level_line
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from scenes.certificates import current_oracle_version, level_status, level_verdict
 from scenes.family import Scene

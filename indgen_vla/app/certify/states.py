@@ -11,12 +11,16 @@ per state, written after each level, so a killed run resumes; ``--episodes n`` k
 from __future__ import annotations
 
 import datetime as _dt
+import json
 from pathlib import Path
 
+from indgen_vla.app.certify.certify_levels import run_oracle_episode
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError
 from indgen_vla.core.reporting.oracle_states import ORACLE_STATES
 from indgen_vla.core.runs.records import RunDir, atomic_write_json
 from scenes.family import Scene
+from scenes.oracles import oracle_for, oracle_identity
+from scenes.planning import resolve_scene_plan
 
 
 def certify_evaluation_states(
@@ -24,12 +28,6 @@ def certify_evaluation_states(
 ) -> dict:
     """Play the oracle on the initial states of the run at ``run_dir`` (episodes 0..``episodes``-1 of every
     planned cell) of ``family`` (the run's scene) and write ``oracle_states.json`` there; returns its content."""
-    import json
-
-    from indgen_vla.app.certify.run import run_oracle_episode
-    from scenes.oracles import oracle_for, oracle_identity
-    from scenes.planning import resolve_scene_plan
-
     run = RunDir(run_dir)
     m = run.manifest
     df = run.episodes()

@@ -6,7 +6,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from indgen_vla.app.certify.run import certify
+from indgen_vla.app.certify.certify_config import CertifyConfig, CertifyPlan, CertifyRule, CertifyRun
+from indgen_vla.app.certify.certify_levels import certify
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from scenes.axes import get_successor
 from scenes.certificates import (
@@ -38,23 +39,25 @@ def default_jobs(scene_names: list[str] | None = None) -> list[tuple[str, str, s
 
 
 def certify_all(
-    out_dir: str | Path | None = None, episodes: int | None = None, workers: int = 1, seed: int = 1,
+    out_dir: str | Path | None = None, rule: CertifyRule | None = None, *, workers: int = 1,
     scene_names: list[str] | None = None, log=print,
 ) -> list[dict]:  # fmt: skip
-    """Certify (or resume) every default level of every (scene, task, axis) in priority order, rewriting
-    SUMMARY.md after each; every certify.json is replaced atomically after each level."""
+    """Certify (or resume) every default level of every (scene, task, axis) in priority order under ``rule`` (default:
+    the 59/59 rule from seed block 1), rewriting SUMMARY.md after each; every certify.json is replaced atomically
+    after each level."""
     root = Path(out_dir) if out_dir is not None else certification_root()
+    rule = rule or CertifyRule()
+    scenes = {s.name: s for s in registered_scenes()}
     certs = []
-    families = {s.name: s for s in registered_scenes()}  # every family: certify_all is the whole catalogue
     for scene, task, axis in default_jobs(scene_names):
-        sc = families[scene]
-        if not oracle_scripts(sc, task):
+        if not oracle_scripts(scenes[scene], task):
             if log:
                 log(f"{scene}/{task}/{axis}: uncertified (standin:oracle has no script for this task)")
             continue
         try:
-            cert = certify(sc, axis, task=task, episodes=episodes, seed=seed, workers=workers,
-                           out=cert_path(sc, task, axis, root=root), log=log)  # fmt: skip
+            config = CertifyConfig(plan=CertifyPlan(scene=scene, task=task, axes=(axis,)), rule=rule,
+                                   run=CertifyRun(workers=workers))  # fmt: skip
+            cert = certify(scenes[scene], config, cert_path(scenes[scene], task, axis, root=root), log=log)
         except Exception as e:  # a batch over hundreds of levels logs one broken triple and goes on
             log(f"{scene}/{task}/{axis}: FAILED, skipped ({type(e).__name__}: {e})")
             continue

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from policy_wrappers.specs import catalog
+
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The three listing subcommands, each with ``--json``."""
@@ -30,7 +32,7 @@ def main(args: argparse.Namespace) -> int:
 
 def scenes_table(as_json: bool) -> int:
     """Every scene with its tasks, axes, episode length and what it needs beyond the venv."""
-    from scenes.listing import scene_rows
+    from scenes.listing import scene_rows  # lazy: start-up (scenes: numpy)
 
     rows = scene_rows()
     if as_json:
@@ -53,7 +55,7 @@ def scenes_table(as_json: bool) -> int:
 
 def axes_table(as_json: bool) -> int:
     """Every axis with its step, level range, description and supporting scenes."""
-    from scenes.listing import axis_rows
+    from scenes.listing import axis_rows  # lazy: start-up (scenes: numpy)
 
     title = ("axes (compose any supported pair with '+', e.g. pick_y+distractor: both step per level; hold one at a "
              "level with '@', e.g. --axis pick_y@distractor=0:3: a 2-D grid, one pick_y ladder per distractor level)")  # fmt: skip
@@ -62,8 +64,8 @@ def axes_table(as_json: bool) -> int:
 
 def scene_axes_table(scene: str, as_json: bool) -> int:
     """One scene family's own steps and level ranges, per task where they differ (``scenes.scene_axes``)."""
-    from scenes.family import get_scene
-    from scenes.scene_axes import scene_axis_rows
+    from scenes.family import get_scene  # lazy: start-up (scenes: numpy)
+    from scenes.scene_axes import scene_axis_rows  # lazy: start-up (scenes: numpy)
 
     title = f"axes of scene {scene}: its own steps and level ranges, per task where they differ"
     return _axis_listing(scene_axis_rows(get_scene(scene)), as_json, title, "tasks")
@@ -90,8 +92,6 @@ def _axis_listing(rows: list[dict], as_json: bool, title: str, where: str) -> in
 
 def policies_text(as_json: bool) -> int:
     """Spec families and stand-ins."""
-    from policy_wrappers.specs import catalog
-
     data = catalog()
     if as_json:
         print(json.dumps(data, indent=2))

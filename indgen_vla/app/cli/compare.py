@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import argparse
 
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.plan_lock import run_status
+from indgen_vla.core.runs.imported import refuse_unpaired_imports
+from indgen_vla.core.runs.records import RunDir
+
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The compare subcommand: two runs, two axes or two groups, the test, γ, α and the output folder."""
@@ -55,8 +60,7 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Compare, then print compare.md and what was written."""
-    from indgen_vla.core.comparison import two_groups, two_runs
-    from indgen_vla.core.errors import ConfigError
+    from indgen_vla.core.comparison import two_groups, two_runs  # lazy: start-up (numpy)
 
     two_runs.check_levels(args.gamma, args.alpha)
     common = dict(gamma=args.gamma, alpha=args.alpha, out=args.out, label_a=args.label_a, label_b=args.label_b,
@@ -84,12 +88,8 @@ def main(args: argparse.Namespace) -> int:
         "auto",
         "mcnemar",
     ):  # imported runs (indgen import) pair by seed or are refused, as in gate
-        from indgen_vla.core.runs.imported import refuse_unpaired_imports
-
         refuse_unpaired_imports(args.run_a, args.run_b)
     result = two_runs.compare_runs(args.run_a, args.run_b, test=args.test, **common)
-    from indgen_vla.core.protocol.plan_lock import run_status
-    from indgen_vla.core.runs.records import RunDir
 
     for path in (args.run_a, args.run_b):  # "locked, hash H, followed" or its deviations (docs/budget.md)
         run = RunDir(path)

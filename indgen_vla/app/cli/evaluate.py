@@ -4,8 +4,13 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable
 
 from indgen_vla.app.cli.options import add_config_flags
+from indgen_vla.app.engine.config import OPTIONS, config_from_args
+from indgen_vla.core.errors import EXIT_EPISODE_ERRORS, EXIT_UNAVAILABLE
+from indgen_vla.core.reporting.certification_view import unavailable_rows
+from indgen_vla.core.runs.records import SUMMARY, RunDir
 
 # evaluate's config options (flat names, engine/config.py) in --help's order around the command's own --config,
 # --log and --log-project; an option listed in neither tuple is added at the end of the first (before --config)
@@ -20,23 +25,28 @@ FLAGS_AFTER_CONFIG = ("preregistered", "out")
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The evaluate subcommand: a flag per config option with a help line (made from the config's fields), and
     the command's own --config, --log and --log-project."""
-    from indgen_vla.app.engine.config import OPTIONS  # light: no numpy, no scene
-
     p = sp.add_parser("evaluate", help="run a policy along one or more axes and write a run directory")
+    add_protocol_flags(p)
+
+
+def add_protocol_flags(p: argparse.ArgumentParser, skip: Iterable[str] = ()) -> None:
+    """evaluate's flags in its --help order, all but ``skip``'s dests: one per ``EvalConfig`` option with a help
+    line (made from the config's fields), and --config, --log, --log-project. ``indgen budget`` and ``indgen
+    series`` take a protocol exactly as evaluate does, with these."""
+    skip = set(skip)
     listed = {*FLAGS_BEFORE_CONFIG, *FLAGS_AFTER_CONFIG}
-    add_config_flags(
-        p, [*FLAGS_BEFORE_CONFIG, *(n for n, o in OPTIONS.items() if o.flag and n not in listed)]
-    )
-    p.add_argument(
-        "--config",
-        default=None,
-        help="shipped preset name (configs/paper) or YAML path; flags override it",
-    )
-    add_config_flags(p, FLAGS_AFTER_CONFIG)
-    p.add_argument("--log", choices=["trackio", "wandb"], default=None,
-                   help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to this "
-                   "tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip
-    p.add_argument("--log-project", default="indgen", help="the tracker's project name (default indgen)")
+    before = [*FLAGS_BEFORE_CONFIG, *(n for n, o in OPTIONS.items() if o.flag and n not in listed)]
+    add_config_flags(p, [n for n in before if OPTIONS[n].flag not in skip])
+    if "config" not in skip:
+        p.add_argument("--config", default=None,
+                       help="shipped preset name (configs/paper) or YAML path; flags override it")  # fmt: skip
+    add_config_flags(p, [n for n in FLAGS_AFTER_CONFIG if OPTIONS[n].flag not in skip])
+    if "log" not in skip:
+        p.add_argument("--log", choices=["trackio", "wandb"], default=None,
+                       help="also log rates with CIs, k*, verdicts, failure modes, config, fingerprint and videos to "
+                       "this tracker (optional extras; trackio is local, wandb honours WANDB_MODE=offline)")  # fmt: skip
+    if "log_project" not in skip:
+        p.add_argument("--log-project", default="indgen", help="the tracker's project name (default indgen)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -47,18 +57,14 @@ def main(args: argparse.Namespace) -> int:
     import json
     import sys
 
-    from indgen_vla.app.engine.config import config_from_args
-    from indgen_vla.app.engine.run import evaluate
-    from indgen_vla.core.errors import EXIT_EPISODE_ERRORS, EXIT_UNAVAILABLE
-    from indgen_vla.core.reporting.certification_view import unavailable_rows
-    from indgen_vla.core.reporting.report import print_tables, run_label
-    from indgen_vla.core.runs.records import SUMMARY, RunDir
+    from indgen_vla.app.engine.run import evaluate  # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     cfg = config_from_args(args)
     out = evaluate(cfg)
     run = RunDir.open(out)
     if args.log:
-        from indgen_vla.app.engine.trackers import log_runs
+        from indgen_vla.app.engine.trackers import log_runs  # lazy: start-up (numpy)
 
         log_runs(args.log, [(None, out)], project=args.log_project, name=out.name)
     print_tables([(run_label(run), json.loads((out / SUMMARY).read_text()))])

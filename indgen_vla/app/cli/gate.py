@@ -6,6 +6,9 @@ import argparse
 import json
 import math
 
+from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.runs.imported import refuse_unpaired_imports
+
 DEFAULT_MARGIN = (
     0.10  # indgen_vla.core.comparison.gate.DEFAULT_MARGIN (not imported here: `indgen --help` stays light)
 )
@@ -72,18 +75,20 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """CLI handler: print the verdicts (or JSON) and return the gate's exit code."""
-    from indgen_vla.core.comparison.gate import GateConfig, gate
-    from indgen_vla.core.errors import ConfigError
+    from indgen_vla.core.comparison.gate import GateConfig, gate  # lazy: start-up (numpy)
 
     if args.plan:
+        if args.candidate is not None:
+            raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
+        GateConfig(
+            args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
+        )  # validates
         return _plan(args)
     if args.candidate is None:
         raise ConfigError(
             "indgen gate needs BASELINE and CANDIDATE run directories (or --plan BASELINE to size them)"
         )
     if args.test in ("auto", "mcnemar"):  # imported runs (indgen import) pair by seed or are refused
-        from indgen_vla.core.runs.imported import refuse_unpaired_imports
-
         refuse_unpaired_imports(args.baseline, args.candidate)
     cfg = GateConfig(
         baseline=args.baseline, candidate=args.candidate, margin=args.margin, alpha=args.alpha, gamma=args.gamma,
@@ -99,15 +104,9 @@ def main(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace) -> int:
     """``gate --plan``: print the smoke's episodes a level (JSON with --json)."""
-    from indgen_vla.core.comparison.gate import GateConfig
+    # lazy: start-up (numpy)
     from indgen_vla.core.comparison.gate_plan import baseline_rates, plan_episodes, plan_lines
-    from indgen_vla.core.errors import ConfigError
 
-    if args.candidate is not None:
-        raise ConfigError("--plan takes one run directory, the baseline; drop CANDIDATE")
-    GateConfig(
-        args.baseline, args.baseline, margin=args.margin, alpha=args.alpha, gamma=args.gamma
-    )  # validates
     levels = baseline_rates(args.baseline, args.gamma)
     plan = plan_episodes([p for _, _, p in levels], args.margin, args.alpha, args.power, args.pairing)
     print(json.dumps(plan, indent=2) if args.json else "\n".join(plan_lines(args.baseline, plan, levels)))

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from indgen_vla.core.runs.records import EPISODES, REPORT, RunDir
+
 HARNESSES = ("lerobot-eval",)
 
 
@@ -35,10 +37,9 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Import, write the report, print the tables and where things are."""
-    from indgen_vla.app.api import import_lerobot_eval
-    from indgen_vla.core.reporting.report import print_tables, run_label
-    from indgen_vla.core.reporting.summary import summarize
-    from indgen_vla.core.runs.records import EPISODES, REPORT, RunDir
+    from indgen_vla.app.api import import_lerobot_eval  # lazy: start-up (the API loads the engine on use)
+    from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.summary import summarize  # lazy: start-up (numpy)
 
     out = import_lerobot_eval(args.sources, out=args.out, axis=args.axis, level=args.level, seed=args.seed,
                               policy=args.policy, data_regime=args.data_regime, gamma=args.gamma).path  # fmt: skip

@@ -1,9 +1,11 @@
-"""``indgen merge RUN... --out DIR``: its parser; the handler merges the shards (``engine.merge.merge``) and prints
+"""``indgen merge RUN... --out DIR``: its parser; the handler merges the shards (``studies.merge.merge``) and prints
 the tables and what is left to run."""
 
 from __future__ import annotations
 
 import argparse
+
+from indgen_vla.core.runs.records import EPISODES, REPORT
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -29,9 +31,8 @@ def main(args: argparse.Namespace) -> int:
     """Merge the shards into ``--out``, print its tables, the merge's notes and where the report is."""
     import shlex
 
-    from indgen_vla.app.engine.merge import merge
-    from indgen_vla.core.reporting.report import print_tables, run_label
-    from indgen_vla.core.runs.records import EPISODES, REPORT
+    from indgen_vla.app.studies.merge import merge  # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     command = " ".join(["indgen", "merge", *map(shlex.quote, args.runs), "--out", shlex.quote(args.out)])
     run, summary, lines = merge(args.runs, args.out, command)

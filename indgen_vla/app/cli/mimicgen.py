@@ -1,11 +1,13 @@
-"""``indgen mimicgen``: its parser (over the passthrough arguments); the handler augments the demonstrations
-(``indgen_vla.app.regimes.mimicgen.generate``) under a progress bar."""
+"""``indgen mimicgen``: its parser (over the passthrough arguments, made from ``MimicGenConfig``'s fields); the
+handler augments the demonstrations (``indgen_vla.app.api.mimicgen``) under a progress bar."""
 
 from __future__ import annotations
 
 import argparse
 
 from indgen_vla.app.cli.options import IndgenParser, add_passthrough
+from indgen_vla.app.config_fields import add_flags, from_args
+from indgen_vla.app.regimes import quiet_datasets
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -17,36 +19,15 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """The handler: its own parser over ``args.rest``, then the library call."""
-    from indgen_vla.app.regimes import quiet_datasets
-    from indgen_vla.app.regimes.mimicgen import SELECTIONS, STATS_FILE, MimicGenConfig, generate
+    from indgen_vla.app.api import mimicgen  # lazy: start-up
+    from indgen_vla.app.regimes.mimicgen import FLAGS, STATS_FILE, MimicGenConfig  # lazy: start-up
 
     p = IndgenParser(
         prog="indgen mimicgen",
         description="MimicGen-style augmentation of `indgen demos` demonstrations, level by level (LeRobotDataset)",
     )
-    p.add_argument("--source", required=True, help="dataset written by `indgen demos`")
-    p.add_argument(
-        "--n",
-        type=int,
-        required=True,
-        help="generation attempts per task and level (successes with --guarantee)",
-    )
-    p.add_argument("--out", required=True,
-                   help="dataset root: new, or an unfinished one to resume with the same arguments")  # fmt: skip
-    p.add_argument("--seed", type=int, default=0, help="seed of the new initial states and the source choice")
-    p.add_argument("--guarantee", action="store_true", help="attempt until --n successes per task and level")
-    p.add_argument(
-        "--max-attempts", type=int, default=None, help="attempt cap per task and level with --guarantee (5 n)"
-    )
-    p.add_argument("--selection", choices=SELECTIONS, default="nearest", help="per-subtask source choice")
-    p.add_argument("--action-noise", type=float, default=0.05, help="std of motion noise on executed actions")
-    p.add_argument(
-        "--repo-id", default="local/indgen_mimicgen", help="LeRobotDataset repo id stored in the dataset"
-    )
-    a = p.parse_args(args.rest)
-    cfg = MimicGenConfig(source=a.source, out=a.out, n=a.n, seed=a.seed, guarantee=a.guarantee,
-                         max_attempts=a.max_attempts, selection=a.selection, action_noise=a.action_noise,
-                         repo_id=a.repo_id)  # fmt: skip
+    add_flags(p, MimicGenConfig, FLAGS)
+    cfg = from_args(MimicGenConfig, p.parse_args(args.rest), command="mimicgen")
     quiet_datasets()
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
@@ -62,7 +43,7 @@ def main(args: argparse.Namespace) -> int:
                 bars[task] = bar.add_task(task, total=total)
             bar.update(bars[task], completed=attempt, description=f"{task}: {ok} ok")
 
-        stats = generate(cfg, progress, say=console.print)
+        stats = mimicgen(cfg, progress=progress, say=console.print)
     if done:
         return 0
     console.print(f"generated {stats['successes']}/{stats['attempts']} attempts succeeded "

@@ -4,9 +4,10 @@ level options (evaluate, certify, preview, demos) and the passthrough subcommand
 from __future__ import annotations
 
 import argparse
-import copy
 import re
 from collections.abc import Iterable
+
+from indgen_vla.app.engine.config import OPTIONS
 
 
 class IndgenParser(argparse.ArgumentParser):
@@ -37,8 +38,6 @@ def add_config_flags(
 ) -> None:
     """Add the flags of these evaluate options (flat names), each made from its config field's metadata
     (``indgen_vla.app.engine.config.option``): its help line, type, choices, metavar; a bool is a switch."""
-    from indgen_vla.app.engine.config import OPTIONS  # light: no numpy, no scene
-
     for name in names:
         o = OPTIONS[name]
         if o.flag is None:
@@ -66,11 +65,3 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
 def add_passthrough(sp: argparse._SubParsersAction, name: str, help_: str) -> None:
     """A subcommand whose handler parses the rest of the command line itself (``args.rest``)."""
     sp.add_parser(name, help=help_, add_help=False)
-
-
-def add_evaluate_protocol(sp: argparse._SubParsersAction, p: argparse.ArgumentParser, skip: set[str]) -> None:
-    """Give ``p`` evaluate's own option definitions (``sp`` holds evaluate's parser already), all but ``skip``'s
-    dests: ``budget`` and ``series`` take a protocol exactly as ``evaluate`` does."""
-    for action in sp.choices["evaluate"]._actions:
-        if action.dest not in skip and action.dest != "help":
-            p._add_action(copy.copy(action))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from indgen_vla.app.cli.options import add_level_options, add_scene_options
+from indgen_vla.core.protocol.progression import expand_axes
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -33,9 +34,8 @@ def main(args: argparse.Namespace) -> int:
     """``indgen preview --scene S [--task T] --axis A[,B] [--levels] [--camera] [--size] [--episode] --out F``."""
     from pathlib import Path
 
-    from indgen_vla.app.preview import PreviewRequest, write_preview
-    from indgen_vla.core.protocol.progression import expand_axes
-    from scenes.family import get_scene
+    from indgen_vla.app.preview import PreviewRequest, write_preview  # lazy: start-up (numpy)
+    from scenes.family import get_scene  # lazy: start-up (registering the families: numpy)
 
     # the family configured once (a family without these options, a bad value: one line), handed on
     scene = get_scene(args.scene, {"split": args.split, "obj_registries": args.obj_registries})

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from indgen_vla.app.cli.options import IndgenParser, add_passthrough  # one-line errors, as every command
+from indgen_vla.app.config_fields import add_flags, from_args
 from indgen_vla.core.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -23,14 +24,14 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Parse ``args.rest`` with the real-robot sub-parsers and run the one named, with ``--check-policy``."""
-    from indgen_vla.app.real_policy import PolicyCheck
+    from indgen_vla.app.real_policy import PolicyCheck  # lazy: start-up (the policy registry)
 
     return run(args.rest, policy_check=PolicyCheck)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from indgen_vla.app.real.setup import presets
-    from indgen_vla.app.real.trigger import FIELDS
+    from indgen_vla.app.real.design import PLAN_FLAGS, RealPlanConfig  # lazy: start-up
+    from indgen_vla.app.real.trigger import FIELDS  # lazy: start-up
 
     p = IndgenParser(
         prog="indgen real",
@@ -39,38 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp = p.add_subparsers(dest="cmd", required=True)
     pl = sp.add_parser("plan", help="write a run directory and the operator's protocol for a real axis")
-    pl.add_argument("--setup", required=True, help=f"set-up YAML path or preset ({', '.join(presets())})")
-    pl.add_argument("--axis", default=None, help="axis of the set-up (default: its only axis)")
-    pl.add_argument("--levels", default=None, help="levels like 0:4 or 0,1,2 (default: all of the set-up's)")
-    pl.add_argument("--episodes", type=int, default=10,
-                    help="episodes per level (paper: 10; the cap with --adaptive kstar/curve)")  # fmt: skip
-    pl.add_argument("--order", choices=["interleaved", "blocked"], default=None,
-                    help="interleave levels or run them in blocks (default: interleaved where the set-up's "
-                    "change is cheap, blocked where slow)")  # fmt: skip
-    pl.add_argument(
-        "--adaptive",
-        choices=["kstar", "curve", "until-failure", "off"],
-        default=None,
-        help="until-failure: the paper's design (--episodes at each level, levels in order, stop after the first "
-        "observed rate < γ; the default of the set-ups that name it, e.g. stack, scale); kstar/curve: stop each "
-        "level once the sequential rule decides it (as 'indgen evaluate --adaptive'); off: every level",
-    )
-    pl.add_argument(
-        "--adaptive-delta", type=float, default=0.1, help="indifference half-width around γ (0.1)"
-    )
-    pl.add_argument(
-        "--adaptive-alpha", type=float, default=0.025, help="error rate of each verdict, α = β (0.025)"
-    )
-    pl.add_argument("--round-size", type=int, default=5, help="episodes between two looks of the rule (5)")
-    pl.add_argument("--gamma", type=float, default=0.2, help="break threshold γ (paper: 0.2)")
-    pl.add_argument(
-        "--seed", type=int, default=0, help="run seed: episode seeds (pairing) and the shuffle (0)"
-    )
-    pl.add_argument("--policy", required=True, help="name of the policy/checkpoint you run, e.g. pi05-droid")
-    pl.add_argument("--operator", default="", help="who judges the episodes")
-    pl.add_argument("--robot", default="", help="the robot (default: the set-up's)")
-    pl.add_argument("--data-regime", default="", help="label of the training data regime, e.g. h-only")
-    pl.add_argument("--out", required=True, help="run directory to create")
+    add_flags(pl, RealPlanConfig, PLAN_FLAGS)
     rc = sp.add_parser("record", help="take the operator's verdicts (keyboard session, or one --outcome)")
     rc.add_argument("run", metavar="RUN", help="run directory written by 'indgen real plan'")
     rc.add_argument("--outcome", default=None, help="record one verdict and exit: success, failure[:MODE], "
@@ -116,11 +86,10 @@ def run(argv: list[str], policy_check: Callable[[str], Trigger] | None = None) -
 
 
 def _plan(ns: argparse.Namespace) -> int:
-    from indgen_vla.app.real.plan import PROTOCOL, RealPlanConfig, plan_run
+    from indgen_vla.app.api import real_plan  # lazy: start-up
+    from indgen_vla.app.real.design import PROTOCOL, RealPlanConfig  # lazy: start-up
 
-    fields = ("setup", "out", "axis", "levels", "episodes", "order", "seed", "adaptive", "gamma", "adaptive_delta",
-              "adaptive_alpha", "round_size", "operator", "robot", "policy", "data_regime")  # fmt: skip
-    path = plan_run(RealPlanConfig(**{f: getattr(ns, f) for f in fields}))
+    path = real_plan(from_args(RealPlanConfig, ns, command="real plan"))
     print((path / PROTOCOL).read_text(), end="")
     print(f"planned {path}; next: indgen real record {path}")
     return 0
@@ -138,7 +107,7 @@ def _episode(text: str | None) -> tuple[int, int] | None:
 
 def _triggers(ns: argparse.Namespace, rr, policy_check) -> list[Trigger]:
     """The policy check (first: no command starts while the server is down), then the episode command."""
-    from indgen_vla.app.real.trigger import EpisodeCommand
+    from indgen_vla.app.real.trigger import EpisodeCommand  # lazy: start-up
 
     command = EpisodeCommand(ns.episode_command, str(rr.run.path)) if ns.episode_command is not None else None
     out: list[Trigger] = []
@@ -150,8 +119,8 @@ def _triggers(ns: argparse.Namespace, rr, policy_check) -> list[Trigger]:
 
 
 def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
-    from indgen_vla.app.real.plan import RealRun
-    from indgen_vla.app.real.session import Verdict, interactive, parse_outcome, record_once
+    from indgen_vla.app.real.design import RealRun  # lazy: start-up
+    from indgen_vla.app.real.session import Verdict, interactive, parse_outcome, record_once  # lazy: start-up
 
     rr = RealRun.open(ns.run)
     if ns.outcome is None:
@@ -175,7 +144,7 @@ def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | Non
         print("\n".join(lines))
         complete = lines[-1] == "run complete"
     if complete and not ns.no_report:
-        from indgen_vla.core.reporting.report import write_run_report
+        from indgen_vla.core.reporting.report import write_run_report  # lazy: start-up
 
         write_run_report(rr.run, (rr.plan.get("adaptive") or {}).get("gamma", 0.2))
         print(
@@ -189,8 +158,8 @@ _DECISION_TEXT = {"continue": "deciding (more episodes needed)"}
 
 
 def _status(ns: argparse.Namespace) -> int:
-    from indgen_vla.app.real.plan import RealRun
-    from indgen_vla.app.real.status import status
+    from indgen_vla.app.real.design import RealRun  # lazy: start-up
+    from indgen_vla.app.real.status import status  # lazy: start-up
 
     s = status(RealRun.open(ns.run))
     if ns.json:

@@ -33,7 +33,12 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Choose T0, test the ordering, print reference.md and where it went."""
-    from indgen_vla.core.reporting.black_box import reference_dir, render_markdown, write_reference
+    # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.black_box import (
+        reference_dir,
+        render_markdown,
+        write_reference,
+    )
 
     res = write_reference(args.runs, axis=args.axis, task=args.task, level=args.level, out=args.out)
     out = reference_dir(args.runs[0], args.out)

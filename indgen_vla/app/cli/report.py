@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import argparse
 
+from indgen_vla.core.protocol.plan_lock import run_status
+from indgen_vla.core.runs.records import REPORT, SUMMARY, RunDir
+
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The report subcommand: run directories, γ, the interval, the equivalence margin and the overlay folder."""
@@ -33,9 +36,12 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Write each run's report (and the overlay of several), then print the files and the tables."""
-    from indgen_vla.core.protocol.plan_lock import run_status
-    from indgen_vla.core.reporting.report import overlay_dir, print_tables, write_reports
-    from indgen_vla.core.runs.records import REPORT, SUMMARY, RunDir
+    # lazy: start-up (numpy)
+    from indgen_vla.core.reporting.report import (
+        overlay_dir,
+        print_tables,
+        write_reports,
+    )
 
     results = write_reports(args.runs, gamma=args.gamma, ci=args.ci, out=args.out, margin=args.margin)
     for path in args.runs:

@@ -1,19 +1,22 @@
 """``indgen series ROOT``: evaluate's protocol flags over every checkpoint of a training output (the work is
-``indgen_vla.app.engine.series``, imported only when the command runs: ``indgen --help`` stays light)."""
+``indgen_vla.app.studies.series``, imported only when the command runs: ``indgen --help`` stays light)."""
 
 from __future__ import annotations
 
 import argparse
 
-from indgen_vla.app.cli.options import add_evaluate_protocol
+from indgen_vla.app.cli.evaluate import add_protocol_flags
+from indgen_vla.app.config_fields import add_flags, from_args
+from indgen_vla.app.engine.config import config_from_args
+from indgen_vla.app.studies.config import SeriesConfig  # light: no numpy, no scene
 
-SKIP = {"policy", "out", "help"}  # evaluate's options that a series sets per checkpoint (or has its own of)
+SKIP = {"policy", "out"}  # evaluate's options that a series sets per checkpoint (or has its own of)
 # (evaluate's --log/--log-project come along: a series logs each checkpoint at its training step)
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
-    """Register ``indgen series``: evaluate's own protocol options (the same definitions: ``sp`` must hold evaluate's
-    parser already), ROOT, --out, --follow."""
+    """Register ``indgen series``: ROOT, its own options (``SeriesConfig``'s fields: --out, --follow...), then
+    evaluate's protocol flags."""
     p = sp.add_parser(
         "series",
         help="evaluate every checkpoint of a training output (LeRobot's ROOT/checkpoints/<step>) and plot success "
@@ -24,47 +27,31 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     )
     p.add_argument("roots", nargs="+", metavar="ROOT", help="a LeRobot training output (ROOT/checkpoints/<step>/"
                    "pretrained_model) or checkpoint directories in training order")  # fmt: skip
-    p.add_argument(
-        "--out", required=True, help="the series directory (runs/<step>, series.md, series.json, plots)"
-    )
-    p.add_argument(
-        "--follow", action="store_true", help="keep polling ROOT for new checkpoints while training runs"
-    )
-    p.add_argument(
-        "--poll", type=float, default=60.0, help="seconds between two looks with --follow (default 60)"
-    )
-    p.add_argument("--idle-stop", type=float, default=3600.0,
-                   help="with --follow: stop after this many seconds without a new checkpoint (default 3600)")  # fmt: skip
-    add_evaluate_protocol(sp, p, SKIP)
+    add_flags(p, SeriesConfig)
+    add_protocol_flags(p, skip=SKIP)
 
 
 def main(args: argparse.Namespace) -> int:
     """Run the series, write its report, print where it is."""
     from pathlib import Path
 
-    from indgen_vla.app.engine.config import config_from_args
-    from indgen_vla.app.engine.series import run_series
-    from indgen_vla.core.comparison.series_report import write_series
-    from indgen_vla.core.errors import ConfigError
+    from indgen_vla.app.api import series  # lazy: start-up
 
-    if args.poll <= 0 or args.idle_stop < 0:
-        raise ConfigError("--poll must be > 0 and --idle-stop >= 0 seconds")
     ns = argparse.Namespace(**vars(args))
     ns.policy, ns.out = "series", str(Path(args.out) / "runs" / "_")  # replaced per checkpoint
-    base = config_from_args(ns)
-    out = Path(args.out)
+    cfg = from_args(
+        SeriesConfig, args, command="series", protocol=config_from_args(ns), roots=tuple(args.roots)
+    )
+    out = Path(cfg.out)
     logged: set[int] = set()
 
-    def report(entries):
-        write_series(entries, out, base.plan.gamma)
+    def log(entries):
         if args.log:
-            from indgen_vla.app.engine.trackers import log_runs
+            from indgen_vla.app.engine.trackers import log_runs  # lazy: optional trackio/wandb
 
             logged.update(log_runs(args.log, entries, project=args.log_project, name=out.name, skip=logged))
 
-    entries = run_series(base, args.roots, out, follow=args.follow, poll_s=args.poll, idle_stop_s=args.idle_stop,
-                         after_each=report)  # fmt: skip
-    report(entries)
+    entries = series(cfg, after_each=log)
     print(f"series: {len(entries)} checkpoint(s); report: {out / 'series.md'}\njson:   {out / 'series.json'}\n"
           f"plots:  {out / 'plots'}/")  # fmt: skip
     return 0

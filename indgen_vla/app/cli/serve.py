@@ -23,7 +23,7 @@ def main(args: argparse.Namespace) -> int:
     """Log to the terminal and serve until Ctrl-C."""
     import logging
 
-    from policy_wrappers.serve import serve
+    from policy_wrappers.serve import serve  # lazy: start-up (numpy)
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
 

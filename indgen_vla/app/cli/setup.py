@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 
+from indgen_vla.core.errors import ConfigError
+
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """The setup subcommand: the scene family, where its venv goes, whether to recreate it."""
@@ -37,8 +39,6 @@ def main(args: argparse.Namespace) -> int:
     """Create (or find complete) the family's environment and print where it is."""
     from pathlib import Path
 
-    from indgen_vla.core.errors import ConfigError
-
     if args.family == "libero":
         if args.placeholders:
             raise ConfigError(
@@ -48,7 +48,7 @@ def main(args: argparse.Namespace) -> int:
     if args.overlay:
         raise ConfigError("--overlay is libero's; for RoboCasa write placeholders with --placeholders DST")
 
-    from scenes.robocasa.environment import PYTHON_ENV, setup_venv
+    from scenes.robocasa.environment import PYTHON_ENV, setup_venv  # lazy: start-up (scenes: numpy)
 
     py = setup_venv(Path(args.venv) if args.venv else None, force=args.force)
     print(f"RoboCasa interpreter: {py} (used by default; or export {PYTHON_ENV}={py})")
@@ -59,7 +59,7 @@ def main(args: argparse.Namespace) -> int:
 
 def _robocasa_placeholders(dst, python) -> None:
     """Write (or refresh) the placeholder tree with the RoboCasa venv's interpreter and say what it holds."""
-    from scenes.robocasa.placeholders import summary, write_placeholders
+    from scenes.robocasa.placeholders import summary, write_placeholders  # lazy: start-up (scenes: numpy)
 
     counts = write_placeholders(dst, python)
     print(f"{dst}: RoboCasa placeholder assets, {summary(counts)}; set INDGEN_ROBOCASA_ASSETS="
@@ -68,8 +68,8 @@ def _robocasa_placeholders(dst, python) -> None:
 
 def _libero(args: argparse.Namespace) -> int:
     """Install (or check) LIBERO's complete tree and say where it is and how indgen finds it."""
-    from scenes.libero.assets import ASSETS_ENV, find_assets
-    from scenes.libero.install import COMPLETE_TREE, SetupOptions, install
+    from scenes.libero.assets import ASSETS_ENV, find_assets  # lazy: start-up (scenes: numpy)
+    from scenes.libero.install import COMPLETE_TREE, SetupOptions, install  # lazy: start-up (scenes: numpy)
 
     res = install(SetupOptions(dest=args.dest, wheels=args.wheels, verify=args.verify, offline=args.offline))
     state = f"unpacked {res.written} files" if res.written else "already complete"
@@ -94,8 +94,7 @@ def _libero_overlay(src, dest: str | None) -> int:
     """A symlink copy of a partial LIBERO tree with placeholders for its missing files, and which were filled."""
     from pathlib import Path
 
-    from indgen_vla.core.errors import ConfigError
-    from scenes.libero.overlay import collision_suspects, overlay_assets
+    from scenes.libero.overlay import collision_suspects, overlay_assets  # lazy: start-up (scenes: numpy)
 
     if not dest:
         raise ConfigError("--overlay SRC needs --dest DST: the folder the overlay is written to")

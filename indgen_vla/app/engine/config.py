@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from indgen_vla.app.config_fields import option
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -34,15 +35,6 @@ REGISTRIES_HELP = ("RoboCasa's object registries, a comma list of objaverse, aig
                    "objaverse,lightwheel); wins over $INDGEN_ROBOCASA_OBJ_REGISTRIES")  # fmt: skip
 PRESET_DIR = config_dir("paper")
 ADAPTIVE_MODES = ("kstar", "curve", "until-failure")  # core.stats.sprt.MODES (a test keeps them equal)
-
-
-def option(default: Any = dataclasses.MISSING, help: str | None = None, *, name: str | None = None,
-           flag: str | None = None, **argparse_kwargs: Any) -> Any:  # fmt: skip
-    """A config field and its option: ``help`` its --help line (``None``: no flag, API and YAML only), ``name`` its
-    flat name where it differs from the field's, ``flag`` its flag's name where it differs from ``name``;
-    ``argparse_kwargs`` (type, choices, metavar) go to ``add_argument`` as they are."""
-    meta = {"help": help, "name": name, "flag": flag, "argparse": argparse_kwargs}
-    return field(default=default, metadata=meta)
 
 
 def workers_value(text: str) -> int | str:
@@ -107,7 +99,7 @@ class PlanConfig:
         if self.step is not None and not self.step > 0:
             raise ConfigError(f"--step must be positive, got {self.step}")
         if self.axes_preset is not None:
-            from scenes.axes import load_preset as load_axes_preset  # yaml only; raises one clear line
+            from scenes.axes import load_preset as load_axes_preset  # lazy: start-up (scenes: numpy, 0.4 s)
 
             load_axes_preset(self.axes_preset)
         if not 0 < self.gamma <= 1:
@@ -342,7 +334,7 @@ class EvalConfig:
 
     def sequential_rule(self):
         """The rule of an ``--adaptive`` run (its cap, or until-failure's episodes per level, is ``--episodes``)."""
-        from indgen_vla.core.stats.sprt import make_rule
+        from indgen_vla.core.stats.sprt import make_rule  # lazy: start-up (numpy, scipy: 0.26 s)
 
         a = self.adaptive
         return make_rule(a.mode, self.plan.gamma, a.delta, a.alpha, a.round_size, self.plan.episodes)
@@ -367,7 +359,7 @@ class EvalConfig:
                 a: {t: dict(v) for t, v in by_task.items()} for a, by_task in task_steps.items()
             }
         if self.adaptive.mode is not None:
-            from indgen_vla.core.stats.sprt import plan_entry
+            from indgen_vla.core.stats.sprt import plan_entry  # lazy: start-up (numpy, scipy)
 
             plan["adaptive"] = plan_entry(self.adaptive.mode, self.sequential_rule())
         return plan

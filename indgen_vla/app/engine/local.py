@@ -15,6 +15,7 @@ import pickle
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 from indgen_vla.app.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, action_dim
@@ -228,53 +229,71 @@ def egl_devices() -> int:
     return len([p for p in glob.glob("/dev/nvidia[0-9]*") if p[len("/dev/nvidia") :].isdigit()])
 
 
+@dataclass(frozen=True)
+class LocalOptions:
+    """How ``run_local`` runs its jobs: worker processes, actions executed per chunk, tries again of an episode that
+    raised, seconds to wait for an unreachable policy server, two lanes per worker (``pipeline``), and whether it
+    closes the policies it made (a caller that runs rounds keeps them)."""
+
+    workers: int = 1
+    replan_steps: int = 1
+    max_retries: int = 2
+    server_patience_s: float = DEFAULT_PATIENCE_S
+    pipeline: bool = False
+    close_policies: bool = True
+
+
+@dataclass
+class Handoff:
+    """Worker processes passed between ``run_local`` calls. ``early``: workers to use instead of starting new ones
+    (``EarlyWorkers``, or an earlier call's ``keep``), made for its ``runner_cfg``; as many as the call needs are used,
+    more are started if it needs more. ``keep``: after a run that ends normally the workers are appended to it instead
+    of closed, with the scenes they hold, for the caller's next call (adaptive rounds); the caller closes them."""
+
+    early: list | None = None
+    keep: list | None = None
+
+
 def run_local(
     jobs: Sequence[EpisodeJob],
     runner_cfg: RunnerConfig,
     make_policy: Callable[[], object],
     meta: RunMeta,
     on_record: Callable[[EpisodeRecord], None],
-    workers: int = 1,
-    replan_steps: int = 1,
-    max_retries: int = 2,
-    server_patience_s: float = DEFAULT_PATIENCE_S,
+    options: LocalOptions = LocalOptions(),
     on_wait: Callable[[str], None] | None = None,
-    close_policies: bool = True,
-    pipeline: bool = False,
-    early: list | None = None,
-    keep: list | None = None,
+    handoff: Handoff | None = None,
 ) -> None:
     """Run ``jobs`` and hand each finished episode to ``on_record`` as soon as it ends.
 
     Batched policies get one ``act`` per round over all waiting environments; per-episode-stateful
     policies get one instance per environment (remote ones are called concurrently from threads). A connection
     fault pauses the episode, waits with backoff (``on_wait`` gets the progress line, "" when it clears)
-    and re-runs it from its seed; past ``server_patience_s`` it raises ``ServerUnreachableError``.
+    and re-runs it from its seed; past ``options.server_patience_s`` it raises ``ServerUnreachableError``.
 
-    ``pipeline``: two environments per worker (slot ``i`` is lane ``i // W`` of worker ``i % W``), and each
+    ``options.pipeline``: two environments per worker (slot ``i`` is lane ``i // W`` of worker ``i % W``), and each
     lane gets its own ``act``, so a worker steps one lane while the policy computes the other's chunk. Every
     episode still runs from its own seed with its own actions: the records equal the unpipelined run's.
 
-    ``early``: workers to use instead of starting new ones (``EarlyWorkers``, or an earlier call's ``keep``), made
-    for this ``runner_cfg``; as many as this call needs are used, more are started if it needs more. ``keep``: after
-    a run that ends normally the workers are appended to it instead of closed, with the scenes they hold, for the
-    caller's next call (adaptive rounds); the caller closes them.
+    ``handoff``: the workers passed between calls (``Handoff``).
     """
-    n = max(1, min(workers, len(jobs)))
+    o, h = options, handoff or Handoff()
+    early, keep = h.early, h.keep
+    n = max(1, min(o.workers, len(jobs)))
     if not jobs:
         if keep is not None:
             keep.extend(early or [])
         return
-    lanes = LANES if pipeline and len(jobs) > n else 1
+    lanes = LANES if o.pipeline and len(jobs) > n else 1
     n_slots = min(n * lanes, len(jobs))
     pool: list = []
     spare: list = []
     policies: Policies | None = None
     try:
-        n_proc = worker_processes(len(jobs), workers, pipeline)
+        n_proc = worker_processes(len(jobs), o.workers, o.pipeline)
         pool, spare = _reuse(early or [], runner_cfg, n_proc, jobs[0].task)
-        limits = Limits(max_retries, replan_steps, action_dim(runner_cfg.levels))
-        outage = Outage(patience_s=server_patience_s)
+        limits = Limits(o.max_retries, o.replan_steps, action_dim(runner_cfg.levels))
+        outage = Outage(patience_s=o.server_patience_s)
         slots = Slots(jobs, pool, meta, limits, on_record, outage, on_wait or (lambda text: None), n_slots)
         for i in range(n_slots):
             slots.start(i)  # the workers start and build their scenes while the policy loads
@@ -289,7 +308,7 @@ def run_local(
         for w in pool + spare:
             w.close()
         # the caller may keep the policies for its next call (close_policies=False)
-        for p in policies.items if policies is not None and close_policies else []:
+        for p in policies.items if policies is not None and o.close_policies else []:
             close = getattr(p, "close", None)
             if close is not None:
                 try:

@@ -5,15 +5,14 @@ workers' ``RunnerConfig`` for what it reads."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
+from indgen_vla.app.engine import local
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.rollout import RunnerConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EvalPlan
-
-if TYPE_CHECKING:
-    from indgen_vla.app.engine.local import EarlyWorkers
-    from indgen_vla.app.engine.rollout import RunnerConfig
+from policy_wrappers import specs
+from policy_wrappers.objects import adopt
 
 
 def _refused_on_placeholders(cfg: EvalConfig, plan: EvalPlan, cameras) -> bool:
@@ -47,16 +46,15 @@ class PolicySource:
         self.cfg, self.plan, self.given = cfg, plan, given
         # what the policy's family is told besides its spec: the scene family's contract, precision/compile options
         self.env_spec, self.options = getattr(plan.builder, "env_spec", None), cfg.policy_options()
-        self.early: EarlyWorkers | None = None
+        self.early: local.EarlyWorkers | None = None
 
     def load(self):
         """A new instance of the policy (the engine asks for one per worker when it is not batched)."""
         if self.given is not None:
             return adopt_object(self.given, self.cfg, self.env_spec)
-        from policy_wrappers.specs import load_policy
 
         cfg = self.cfg
-        return load_policy(
+        return specs.load_policy(
             cfg.policy.spec, trust_remote_code=cfg.policy.trust_remote_code, device=cfg.policy.device,
             scene=cfg.plan.scene, env_spec=self.env_spec, scene_family=getattr(self.plan.builder, "family", None),
             **self.options,
@@ -70,25 +68,23 @@ class PolicySource:
         check_policy_contract(self.cfg, self.plan, probe)
         return probe
 
-    def prestart(self, jobs: list) -> EarlyWorkers | None:
+    def prestart(self, jobs: list) -> local.EarlyWorkers | None:
         """Start what the run needs while the policy loads: the workers' forkserver (its preload imports the
         simulator) and, when the policy's files say which scenes it will ask for, the workers themselves with
         their first scenes built and reset (``local.EarlyWorkers``; checked against the loaded policy)."""
         cfg, plan = self.cfg, self.plan
         if cfg.run.backend != "local" or not jobs:
             return None
-        from indgen_vla.app.engine.local import EarlyWorkers, start_forkserver, worker_processes
-        from policy_wrappers.specs import preview_policy
 
-        n = worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
-        view = None if self.given is not None else preview_policy(
+        n = local.worker_processes(len(jobs), cfg.run.workers, cfg.run.pipeline)
+        view = None if self.given is not None else specs.preview_policy(
             cfg.policy.spec, device=cfg.policy.device, env_spec=self.env_spec, **self.options)  # fmt: skip
         if view is not None and _refused_on_placeholders(cfg, plan, view.cameras):
             return None  # the loaded policy will be refused: no scene to build (and wait for) meanwhile
         if view is not None:
-            return EarlyWorkers(runner_config(cfg, plan, view), jobs, max(1, n))
+            return local.EarlyWorkers(runner_config(cfg, plan, view), jobs, max(1, n))
         if n:
-            start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
+            local.start_forkserver(plan.builder, jobs[0].task if n > 1 else None)
         return None
 
     def close_unused(self) -> None:
@@ -110,8 +106,6 @@ def check_object_run(cfg: EvalConfig) -> None:
 def adopt_object(obj: object, cfg: EvalConfig, env_spec):
     """The engine's policy for an object in memory (``policy_wrappers.objects.adopt``); one per run: a policy
     with per-episode state serves one environment, so it refuses more than one worker."""
-    from policy_wrappers.objects import adopt
-
     p = adopt(obj, name=cfg.policy.spec, device=cfg.policy.device, env_spec=env_spec,
               precision=cfg.policy.precision, replan_steps=cfg.policy.replan_steps)  # fmt: skip
     if not p.spec.batched and (cfg.run.workers > 1 or cfg.run.pipeline):
@@ -124,8 +118,6 @@ def adopt_object(obj: object, cfg: EvalConfig, env_spec):
 def runner_config(cfg: EvalConfig, plan: EvalPlan, view) -> RunnerConfig:
     """How the workers build scenes for a policy that asks for ``view`` (its ``PolicySpec``, or the
     ``ScenePreview`` read before it loaded): one function for both, so equal views give equal configs."""
-    from indgen_vla.app.engine.rollout import RunnerConfig
-
     side = cfg.policy.image_size or (view.image_size[0] if view.image_size else 128)
     return RunnerConfig(
         levels=plan.builder, cameras=tuple(view.cameras), image_size=(side, side), max_steps=cfg.plan.max_steps,

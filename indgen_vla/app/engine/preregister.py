@@ -6,15 +6,14 @@ from __future__ import annotations
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.fingerprint import build_fingerprint
 from indgen_vla.core.protocol.plan import EvalPlan
+from indgen_vla.core.protocol.plan_lock import LOCKED_FINGERPRINT, protocol_deviations, read_lock
 
 
 def pre_policy_fingerprint(cfg, plan: EvalPlan, versions: dict[str, str]) -> dict[str, Any]:
     """The fingerprint fields that change outcomes and are known before the policy loads (``plan_lock``);
     ``versions``: ``engine.run.package_versions()``."""
-    from indgen_vla.core.protocol.fingerprint import build_fingerprint
-    from indgen_vla.core.protocol.plan_lock import LOCKED_FINGERPRINT
-
     fp = build_fingerprint(plan.record(), versions, max_steps=cfg.plan.max_steps,
                            warmup_steps=cfg.policy.warmup_steps, cameras=(), image_size=(0, 0), render_backend="",
                            policy={})  # fmt: skip
@@ -29,8 +28,6 @@ def manifest_plan(cfg, plan: EvalPlan) -> dict[str, Any]:
 
 def check_preregistered(cfg, plan: EvalPlan, versions: dict[str, str]) -> dict[str, Any]:
     """The manifest's ``preregistered`` entry ({path, hash, lock}); a deviation raises one line naming it."""
-    from indgen_vla.core.protocol.plan_lock import protocol_deviations, read_lock
-
     lock = read_lock(cfg.plan.preregistered)
     fingerprint = pre_policy_fingerprint(cfg, plan, versions)
     bad = protocol_deviations(lock, manifest_plan(cfg, plan), plan.jobs_hash(), fingerprint)

@@ -26,13 +26,15 @@ from pathlib import Path
 
 from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.engine.ray_cluster import Need, join, keeping_sigterm, local_cpus
-from indgen_vla.app.engine.ray_files import FileRoute
+from indgen_vla.app.engine.ray_files import FileRoute, Scratch, sees
 from indgen_vla.app.engine.ray_files import route as files_route
 from indgen_vla.app.engine.ray_pool import Interrupted, Settings, Supervisor
-from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
+from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, _describe, run_episode
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.interface import ACTION_DIM, act_padded, validate_chunk
 from indgen_vla.core.protocol.plan import EpisodeJob
-from indgen_vla.core.runs.records import EpisodeRecord
+from indgen_vla.core.runs.records import EpisodeRecord, RunDir
+from policy_wrappers.specs import load_policy
 
 ENV_KNOBS = {  # environment variable: (default, what it sets)
     "INDGEN_RAY_CPUS_PER_SIM": (1.0, "CPUs reserved per simulator actor"),
@@ -103,8 +105,6 @@ class Batcher:
         self._thread.join(timeout=10)
 
     def _loop(self) -> None:
-        from indgen_vla.core.protocol.interface import ACTION_DIM, act_padded
-
         while (item := self._queue.get()) is not None:
             batch, deadline = [item], time.monotonic() + self.max_wait_s
             # every simulator served has a request in: none can come, so waiting out max_wait_s is lost time
@@ -190,8 +190,6 @@ class _PolicyActor:
         return None
 
     def act(self, client: int, obs):
-        from indgen_vla.core.protocol.interface import ACTION_DIM, validate_chunk
-
         try:
             if self._batcher is not None:
                 return self._batcher.act(obs)
@@ -260,8 +258,6 @@ class _SimActor:
         os.environ.setdefault("MUJOCO_GL", "egl")
         os.environ.setdefault("LP_NUM_THREADS", str(render_threads))
         logging.getLogger("robosuite").setLevel(logging.ERROR)
-        from indgen_vla.app.engine.ray_files import Scratch
-        from indgen_vla.app.engine.rollout import EnvRunner
 
         self.route = route
         self.scratch = Scratch() if route is not None and not route.shared and runner_cfg.video_dir else None
@@ -274,8 +270,6 @@ class _SimActor:
 
     def hello(self, token: str | None = None) -> bool:
         """The first reply, once the simulator is ready: False when it does not see the shared run directory."""
-        from indgen_vla.app.engine.ray_files import sees
-
         return token is None or sees(self.route.run_dir, token)
 
     def node_id(self) -> str:
@@ -289,8 +283,6 @@ class _SimActor:
 
     def run(self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float):
         """``(record, files)``, or ``Interrupted`` when the policy actor died mid-episode."""
-        from indgen_vla.app.engine.rollout import run_episode
-
         try:
             record = run_episode(self.runner, self.policy, job, meta, replan, max_retries, patience)
         except _PolicyActorLost as e:
@@ -307,8 +299,6 @@ class _SimActor:
 
 def _policy_factory(cfg: EvalConfig, scene: str) -> Callable[[], object]:
     from functools import partial
-
-    from policy_wrappers.specs import load_policy
 
     extra = cfg.policy_options()  # precision/compile, for families that take them
     p = cfg.policy
@@ -362,8 +352,6 @@ def run_ray(
     def on_fault(faults, per_node) -> None:
         """The faults survived so far (added to those of earlier invocations of this run) into the manifest."""
         if (run_dir / "manifest.json").exists():
-            from indgen_vla.core.runs.records import RunDir
-
             entry = {**(route.manifest() if route else {}), "faults": _added(before.get("faults", {}), faults),
                      "episodes_per_node": _added(before.get("episodes_per_node", {}), per_node)}  # fmt: skip
             RunDir(run_dir).update_manifest(ray=entry)
@@ -424,8 +412,6 @@ _keeping_sigterm = keeping_sigterm  # the name tests and older callers use
 def _carried(e: Exception) -> Exception:
     """The exception as a reply value, its error line described here (the traceback does not cross processes),
     so an ``error`` row reads as the local backend's."""
-    from indgen_vla.app.engine.rollout import _describe
-
     try:
         e.remote_description = _describe(e)
     except AttributeError:  # an exception type that refuses attributes keeps its plain description

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.runs.records import atomic_write_bytes
 
 SHARED_ENV = "INDGEN_RAY_SHARED_OUT"
 PROBE = ".indgen-shared-probe"
@@ -95,8 +96,6 @@ class Scratch:
 def deliver(run_dir: str, files: dict[str, bytes]) -> None:
     """Write an episode's files into the run directory (atomically each, before its record is appended: a record
     never names a file that is not there)."""
-    from indgen_vla.core.runs.records import atomic_write_bytes
-
     root = Path(run_dir).resolve()
     for rel, data in files.items():
         path = (root / rel).resolve()

@@ -14,10 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from indgen_vla.core.errors import EpisodeUnavailableError
+from indgen_vla.app.engine.reconnect import Outage
+from indgen_vla.core.errors import EpisodeUnavailableError, PolicyConnectionError
 from indgen_vla.core.protocol.interface import ACTION_DIM, QUERY_KEY, Observation, validate_chunk
 from indgen_vla.core.protocol.plan import EpisodeJob, LevelBuilder
 from indgen_vla.core.runs.records import EpisodeRecord
+from indgen_vla.core.runs.video import write_mp4
 
 WARMUP_ACTION = np.array([0, 0, 0, 0, 0, 0, -1], dtype=np.float32)  # openpi's LIBERO client waits like this
 
@@ -211,7 +213,6 @@ class EnvRunner:
     def _write_video(self, job: EpisodeJob, success: bool) -> str:
         if not job.video or not self._frames or not self.cfg.video_dir:
             return ""
-        from indgen_vla.core.runs.video import write_mp4
 
         name = f"{job.axis}_L{job.level}_{job.task}_ep{job.episode}_{'success' if success else 'fail'}.mp4"
         path = Path(self.cfg.video_dir) / name
@@ -291,9 +292,6 @@ def run_episode(
     (``PolicyConnectionError``) waits with backoff and re-runs the episode without using up a retry; past
     ``server_patience_s`` it raises ``ServerUnreachableError``.
     """
-    from indgen_vla.app.engine.reconnect import Outage
-    from indgen_vla.core.errors import PolicyConnectionError
-
     outage, faults, attempt, last_error = Outage(patience_s=server_patience_s), 0, 0, ""
     while attempt <= max_retries:
         t = runner.reset(job)

@@ -12,8 +12,13 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.app.engine import timing
+from indgen_vla.app.engine.adaptive import next_round, run_adaptive
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.local import Handoff, LocalOptions, run_local, worker_processes
 from indgen_vla.app.engine.policy_source import PolicySource, check_object_run, runner_config
+from indgen_vla.app.engine.preregister import check_preregistered
+from indgen_vla.app.engine.rollout import RunMeta
 from indgen_vla.app.engine.share import (
     copies,
     fill_copies,
@@ -23,9 +28,24 @@ from indgen_vla.app.engine.share import (
     with_sharing,
 )
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, ServerUnreachableError
+from indgen_vla.core.protocol.deviations import protocol_deviations
+from indgen_vla.core.protocol.fingerprint import (
+    NUMERICS,
+    ProtocolMismatchError,
+    build_fingerprint,
+    differences,
+    numeric_builds,
+    numerics_warning,
+    policy_conventions,
+    show_difference,
+)
 from indgen_vla.core.protocol.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.core.protocol.training_support import cells_to_json
-from indgen_vla.core.runs.records import RunDir
+from indgen_vla.core.reporting.certification_view import NO_ORACLE, plan_basis_lines
+from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
+from indgen_vla.core.reporting.report import write_run_report
+from indgen_vla.core.runs.records import RunDir, episodes_frame
+from scenes.planning import resolve_scene_plan
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
 
@@ -56,8 +76,6 @@ def git_sha() -> str:
 def build_plan(cfg: EvalConfig) -> EvalPlan:
     """Resolve ``cfg`` once: the scene layer's answer (tasks, successors, parameters, certificates) plus every
     planned episode. The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
-    from scenes.planning import resolve_scene_plan
-
     p = cfg.plan
     sp = resolve_scene_plan(p.family(), p.task, p.axes, p.levels, p.step, p.axes_preset)
     jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), p.episodes, p.seed, cfg.run.video,
@@ -72,8 +90,6 @@ def _levels_text(levels: list[int]) -> str:
 def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
     """Refuse levels where the oracle failed (Assumption 2) unless --allow-infeasible; return one warning
     line per axis naming the requested levels no certificate covers (missing, or too few episodes)."""
-    from indgen_vla.core.reporting.certification_view import NO_ORACLE
-
     warnings = []
     for name, spec in plan.axes.items():
         want = list(plan.levels[name])
@@ -128,8 +144,6 @@ def check_feasible(cfg: EvalConfig, plan: EvalPlan) -> list[str]:
 def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, Any]:
     """manifest.json: the plan a resume must match, the resolved plan (environment, every level's parameter and
     certificate, the episodes' hash), plus provenance (config, versions, commit, command)."""
-    from indgen_vla.core.protocol.deviations import protocol_deviations
-
     return {
         "run_id": run_id,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -169,8 +183,6 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
     (``policy_wrappers.objects``; the local backend only)."""
     from rich.console import Console
 
-    from indgen_vla.app.engine import timing
-
     clock = timing.start_session()
     console = Console(stderr=True, quiet=quiet)
     plan, preregistered = prepare(cfg, console, given=policy)
@@ -186,7 +198,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
         if todo:
             if probe is None:
                 probe = source.checked(todo)
-            _run_todo(cfg, plan, run, run_id, todo, source.load, probe, source.early, console)
+            _run_todo(cfg, plan, run, run_id, todo, source, probe, console)
         elif probe is not None:
             probe.close()
     finally:
@@ -199,16 +211,12 @@ def prepare(cfg: EvalConfig, console, given: object | None = None) -> tuple[Eval
     """The plan, checked before anything loads or is written: an object policy's run, the assets building needs,
     a pre-registered lock (one line on a deviation), infeasible levels; prints the feasibility warnings and each
     level's certification basis. Returns the plan and the lock's record (None without ``--preregistered``)."""
-    from indgen_vla.core.reporting.certification_view import plan_basis_lines
-
     if given is not None:
         check_object_run(cfg)
     plan = build_plan(cfg)
     plan.builder.check_ready()  # what building an env needs (LIBERO's assets), after the names and levels
     preregistered = None
     if cfg.plan.preregistered:
-        from indgen_vla.app.engine.preregister import check_preregistered
-
         preregistered = check_preregistered(cfg, plan, package_versions())
     for w in check_feasible(cfg, plan):
         console.print(f"[yellow]warning:[/] {w}")
@@ -238,8 +246,6 @@ def plan_todo(cfg: EvalConfig, plan: EvalPlan, run: RunDir) -> list:
     """The rollouts still to run: those not finished, or under ``--adaptive`` only what the sequential rule still
     needs (levels past a decided break never run)."""
     if cfg.adaptive.mode:
-        from indgen_vla.app.engine.adaptive import next_round
-
         return next_round(plan, run.episodes(), cfg)
     done = run.done_keys()
     return [j for j in plan.rollouts() if j.key not in done]
@@ -247,8 +253,6 @@ def plan_todo(cfg: EvalConfig, plan: EvalPlan, run: RunDir) -> list:
 
 def finish(cfg: EvalConfig, plan: EvalPlan, run: RunDir, todo: list, probe, clock, console) -> None:
     """Write the run's report, and what this session's clocks saw (``indgen budget --timing`` reads it back)."""
-    from indgen_vla.core.reporting.report import write_run_report
-
     if not todo:
         done_text = (
             "the decisions of every level the adaptive rule needs are"
@@ -258,8 +262,6 @@ def finish(cfg: EvalConfig, plan: EvalPlan, run: RunDir, todo: list, probe, cloc
         console.print(f"{done_text} already in {Path(cfg.run.out)}; writing the report")
     write_run_report(run, cfg.plan.gamma)
     if clock.episodes:
-        from indgen_vla.app.engine.local import worker_processes
-
         spec = probe.spec if probe is not None else None
         run.update_manifest(timing=clock.record(
             workers=cfg.run.workers, processes=worker_processes(len(todo), cfg.run.workers, cfg.run.pipeline),
@@ -273,19 +275,31 @@ def _first_round(cfg: EvalConfig, plan: EvalPlan) -> list:
     the scenes of those, not of levels the rule may never reach)."""
     if not cfg.adaptive.mode:
         return plan.rollouts()
-    from indgen_vla.app.engine.adaptive import next_round
-    from indgen_vla.core.runs.records import episodes_frame
 
     return next_round(plan, episodes_frame([]), cfg)
 
 
-def _run_todo(
-    cfg: EvalConfig, plan: EvalPlan, run: RunDir, run_id: str, todo: list, make_policy, probe, early, console
-):
-    """Run the episodes still to do with the loaded ``probe``, after fixing (or checking, on a resume) the
-    run's protocol fingerprint; ``early``: the workers started while it loaded, if any."""
-    from indgen_vla.app.engine.rollout import RunMeta
+@dataclasses.dataclass(frozen=True)
+class Rollouts:
+    """How this session's episodes roll out: the workers' config, the records' run fields, actions per chunk."""
 
+    runner_cfg: Any  # rollout.RunnerConfig
+    meta: Any  # rollout.RunMeta
+    replan: int
+
+
+def _run_todo(
+    cfg: EvalConfig,
+    plan: EvalPlan,
+    run: RunDir,
+    run_id: str,
+    todo: list,
+    source: PolicySource,
+    probe,
+    console,
+):
+    """Run the episodes still to do with the loaded ``probe`` (more policies from ``source``, and the workers it
+    started while the policy loaded), after fixing (or checking, on a resume) the run's protocol fingerprint."""
     spec = probe.spec
     replan = cfg.policy.replan_steps or spec.replan_steps
     if replan > spec.chunk_size:
@@ -316,7 +330,7 @@ def _run_todo(
         run_id=run_id, policy=cfg.policy.spec, data_regime=cfg.plan.data_regime, scene=cfg.plan.scene
     )
     try:
-        _run_with_progress(cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early)
+        _run_with_progress(cfg, run, plan, todo, Rollouts(runner_cfg, meta, replan), source, probe, console)
     except ServerUnreachableError as e:
         raise ServerUnreachableError(f"{e} (run directory {run.path})") from None
 
@@ -325,14 +339,6 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
     """Refuse, in one line naming the field, to resume a run whose outcome-changing protocol differs from the one
     its episodes on disk were made under (an upgraded simulator, other assets, a new GL renderer); with ``allow``,
     go on and record the differences in the manifest (``protocol_changes``), returning the lines to print."""
-    from indgen_vla.core.protocol.fingerprint import (
-        NUMERICS,
-        ProtocolMismatchError,
-        differences,
-        numerics_warning,
-        show_difference,
-    )
-
     was_numerics = run.manifest["fingerprint"].get(NUMERICS)
     warning = numerics_warning(was_numerics, now.get(NUMERICS), "resumed")
     notes = []
@@ -365,13 +371,6 @@ def _check_resumed_protocol(run: RunDir, now: dict[str, Any], allow: bool) -> li
 def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, policy) -> dict[str, Any]:
     """The run's protocol fingerprint (``indgen_vla.core.protocol.fingerprint``); the render backend is probed only when a
     camera is read."""
-    from indgen_vla.core.protocol.fingerprint import (
-        NUMERICS,
-        build_fingerprint,
-        numeric_builds,
-        policy_conventions,
-    )
-
     cams = tuple(runner_cfg.cameras)
     versions = package_versions()
     fp = build_fingerprint(
@@ -383,14 +382,14 @@ def _fingerprint(cfg: EvalConfig, plan: EvalPlan, resolved: dict, runner_cfg, po
 
 
 def _run_with_progress(
-    cfg, run, plan, todo, runner_cfg, make_policy, probe, meta, replan, console, early=None
-):
+    cfg: EvalConfig, run: RunDir, plan: EvalPlan, todo: list, rollouts: Rollouts, source: PolicySource, probe,
+    console,
+):  # fmt: skip
     """Run the remaining episodes under a live display: one row per (axis, level) with its success so
-    far, and a total row with the ETA. ``early`` (``local.EarlyWorkers``) serves the first round's workers."""
+    far, and a total row with the ETA. ``source.early`` (``local.EarlyWorkers``) serves the first round's workers,
+    ``source.load`` makes more policies than ``probe``."""
+    runner_cfg, meta, replan, early = rollouts.runner_cfg, rollouts.meta, rollouts.replan, source.early
     from rich.progress import Progress
-
-    from indgen_vla.app.engine import timing
-    from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 
     planned: dict[tuple[str, int], int] = defaultdict(int)
     for j in plan.jobs:
@@ -433,7 +432,7 @@ def _run_with_progress(
 
         def policy_factory():  # hand out the loaded policies again in every round; load more only when needed
             if handed[0] == len(made):
-                made.append(make_policy())
+                made.append(source.load())
             handed[0] += 1
             return made[handed[0] - 1]
 
@@ -443,26 +442,23 @@ def _run_with_progress(
             handed[0] = 0
             timing.CLOCK.rollout(started=True)
             if cfg.run.backend == "ray":
-                from indgen_vla.app.engine.ray_backend import run_ray
+                from indgen_vla.app.engine.ray_backend import run_ray  # lazy: optional ray
 
                 run_ray(batch, runner_cfg, cfg, meta, on_record, replan)
             else:
-                from indgen_vla.app.engine.local import run_local
-
                 # the first round gets the workers started while the policy loaded, a later one the last round's
                 nonlocal early
                 workers = early.take(runner_cfg) if early is not None else list(kept)
                 early = None
                 kept.clear()
-                run_local(batch, runner_cfg, policy_factory, meta, on_record, cfg.run.workers, replan,
-                          cfg.run.max_retries, cfg.policy.server_patience,
-                          on_wait=lambda text: progress.update(total, info=text), close_policies=False,
-                          pipeline=cfg.run.pipeline, early=workers, keep=kept)  # fmt: skip
+                options = LocalOptions(workers=cfg.run.workers, replan_steps=replan, max_retries=cfg.run.max_retries,
+                                       server_patience_s=cfg.policy.server_patience, pipeline=cfg.run.pipeline,
+                                       close_policies=False)  # fmt: skip
+                run_local(batch, runner_cfg, policy_factory, meta, on_record, options,
+                          on_wait=lambda text: progress.update(total, info=text), handoff=Handoff(workers, kept))  # fmt: skip
 
         try:
             if cfg.adaptive.mode:  # rounds until the sequential rule settles every level (docs/adaptive.md)
-                from indgen_vla.app.engine.adaptive import run_adaptive
-
                 run_adaptive(plan, run.episodes, run_jobs, cfg)
             else:
                 run_jobs(todo)

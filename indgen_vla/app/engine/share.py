@@ -17,6 +17,7 @@ import dataclasses
 from typing import TYPE_CHECKING, Any
 
 from indgen_vla.core.protocol.plan import SHARING_OFF, EpisodeJob, EvalPlan, shared_t0, sharing_record
+from indgen_vla.core.runs.records import EpisodeRecord
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -63,8 +64,6 @@ def copies(plan: EvalPlan, rec: EpisodeRecord, taken: set) -> list[EpisodeRecord
 def fill_copies(plan: EvalPlan, run: RunDir) -> int:
     """Record the copies a resume finds missing (an owner's episode recorded, the kill before its copies were, or a
     run started with --no-share-t0); an error copy is replaced once its owner is ok. Returns how many it wrote."""
-    from indgen_vla.core.runs.records import EpisodeRecord
-
     if not plan.shared:
         return 0
     rows = {(r["task"], r["axis"], int(r["level"]), int(r["episode"])): r for r in run.rows()}

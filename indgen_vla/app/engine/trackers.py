@@ -18,6 +18,9 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.fingerprint import digest
+from indgen_vla.core.reporting.summary import summarize
+from indgen_vla.core.runs.records import RunDir
 
 TRACKERS = ("trackio", "wandb")
 INSTALL = {"trackio": "pip install 'indgen-vla[trackio]' (or pip install trackio)",
@@ -39,10 +42,6 @@ def _module(kind: str):
 def run_record(run_dir: str | Path) -> dict[str, Any]:
     """What a tracker gets from one run directory: ``metrics`` (flat numbers), ``rows`` (one per level), ``verdicts``
     (axis -> words), ``config`` (the evaluate config, fingerprint and its digest) and ``videos`` (paths)."""
-    from indgen_vla.core.protocol.fingerprint import digest
-    from indgen_vla.core.reporting.summary import summarize
-    from indgen_vla.core.runs.records import RunDir
-
     run = RunDir.open(run_dir)
     m = run.manifest
     s = summarize(run.episodes(), m, (m.get("config") or {}).get("gamma", 0.2))

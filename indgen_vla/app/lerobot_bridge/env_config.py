@@ -13,7 +13,14 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.envs.utils import FreezeAfterEpisodeEnd
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
-from indgen_vla.app.lerobot_bridge.level_env import FIRST_SEED, LevelEnv, LevelSetup, resolve_levels
+from indgen_vla.app.lerobot_bridge.level_env import (
+    FIRST_SEED,
+    LevelEnv,
+    LevelRequest,
+    LevelSetup,
+    resolve_levels,
+)
+from indgen_vla.core.protocol.interface import OBJECT_DIM
 
 os.environ.setdefault(
     "MUJOCO_GL", "egl"
@@ -52,11 +59,11 @@ class IndgenEnv(EnvConfig):
 
     def __post_init__(self) -> None:
         self._setups, self._warnings = resolve_levels(
-            scene=self.scene, task=self.task, axis=self.axis, level=self.level, config=self.config,
-            run_seed=self.run_seed, first_seed=self.first_seed, step=self.step, axes_preset=self.axes_preset,
-            max_steps=self.max_steps, cameras=tuple(self.cameras), image_size=self.image_size,
-            warmup_steps=self.warmup_steps, object_poses=self.object_poses, allow_infeasible=self.allow_infeasible,
-            video_size=self.video_size,
+            LevelRequest(scene=self.scene, task=self.task, axis=self.axis, level=self.level, config=self.config,
+                         run_seed=self.run_seed, first_seed=self.first_seed, step=self.step,
+                         axes_preset=self.axes_preset, max_steps=self.max_steps, cameras=tuple(self.cameras),
+                         image_size=self.image_size, warmup_steps=self.warmup_steps, object_poses=self.object_poses,
+                         allow_infeasible=self.allow_infeasible, video_size=self.video_size)
         )  # fmt: skip
         for line in self._warnings:
             print(f"[indgen] warning: {line}")
@@ -71,8 +78,6 @@ class IndgenEnv(EnvConfig):
             self.features[f"pixels/{cam}"] = PolicyFeature(type=FeatureType.VISUAL, shape=(h, w, 3))
             self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
         if self.object_poses:
-            from indgen_vla.core.protocol.interface import OBJECT_DIM
-
             self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(OBJECT_DIM,))
             self.features_map["environment_state"] = OBS_ENV_STATE
 

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from indgen_vla.app.lerobot_bridge.level_env import FIRST_SEED, parse_group
+from indgen_vla.app.lerobot_bridge.level_env import FIRST_SEED, LevelRequest, parse_group, resolve_levels
 from indgen_vla.core.errors import ConfigError, IndgenError, RunDirError
 from indgen_vla.core.protocol.seeding import evaluation_seed
 from indgen_vla.core.runs.imported import IMPORTED, EvalInfo, TaskEpisodes, read_eval_info
@@ -125,11 +125,10 @@ def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_i
 def _axis_spec(level: dict) -> dict:
     """The axis's spec as ``indgen evaluate`` resolves it by default, where that gives the group's parameter (else the
     env ran another step or preset, which the group does not name: only the axis's name is recorded)."""
-    from indgen_vla.app.lerobot_bridge.level_env import resolve_levels
-
     try:
-        setups, _ = resolve_levels(scene=level["scene"], task=level["task"], axis=level["axis"],
-                                   level=level["level"], run_seed=level["run_seed"], allow_infeasible=True)  # fmt: skip
+        setups, _ = resolve_levels(LevelRequest(scene=level["scene"], task=level["task"], axis=level["axis"],
+                                                level=level["level"], run_seed=level["run_seed"],
+                                                allow_infeasible=True))  # fmt: skip
     except IndgenError:  # a scene or axis this machine cannot resolve: the episodes still import
         return {"name": level["axis"]}
     if abs(setups[0].param - level["param"]) > 1e-9 * (1 + abs(level["param"])):

@@ -15,14 +15,15 @@ gives episode ``episode`` (``indgen_vla.core.protocol.seeding``). With the defau
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from indgen_vla.app.engine.config import config_from_values
 from indgen_vla.app.engine.rollout import EnvRunner, RunnerConfig
+from indgen_vla.app.engine.run import build_plan, check_feasible
 from indgen_vla.core.errors import ConfigError, SceneError
 from indgen_vla.core.protocol.interface import OBJECT_DIM, Observation
 from indgen_vla.core.protocol.plan import EpisodeJob
@@ -104,29 +105,54 @@ def parse_group(group: str) -> dict[str, Any] | None:
         return None
 
 
-def resolve_levels(
-    *, scene: str, axis: str, level: int, task: str | None = None, config: str | None = None, run_seed: int = 0,
-    first_seed: int = FIRST_SEED, step: float | None = None, axes_preset: str | None = None,
-    max_steps: int | None = None, cameras: Sequence[str] = (), image_size: int | None = None,
-    warmup_steps: int | None = None, object_poses: bool = False, allow_infeasible: bool = False,
-    video_size: int = 256,
-) -> tuple[list[LevelSetup], list[str]]:  # fmt: skip
+@dataclass(frozen=True, kw_only=True)
+class LevelRequest:
+    """Which level ``--env.type=indgen`` builds (``IndgenEnv``'s fields, ``indgen import lerobot-eval``'s look-up):
+    the scene, task (None: its first; "all": each task), axis and level, and the evaluate options that shape it
+    (``config``: evaluate's preset, a name or YAML path; ``run_seed``: evaluate's --seed; None: the preset's, else
+    evaluate's default); validated on construction."""
+
+    scene: str
+    axis: str
+    level: int
+    task: str | None = None
+    config: str | None = None
+    run_seed: int = 0
+    first_seed: int = FIRST_SEED  # the lerobot reset seed that is indgen's episode 0
+    step: float | None = None
+    axes_preset: str | None = None
+    max_steps: int | None = None
+    cameras: tuple[str, ...] = ()
+    image_size: int | None = None
+    warmup_steps: int | None = None
+    object_poses: bool = False  # also observe indgen's object poses as environment_state
+    allow_infeasible: bool = False
+    video_size: int = 256  # lerobot-eval's episode videos (render())
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "cameras", tuple(self.cameras))
+        if self.first_seed < 0:
+            raise ConfigError(f"--env.first_seed must be >= 0, got {self.first_seed}")
+        if self.video_size < 16:
+            raise ConfigError(f"--env.video_size must be >= 16 pixels, got {self.video_size}")
+
+    def options(self) -> dict[str, Any]:
+        """The request as ``indgen evaluate``'s options (flat names) for one episode of the level."""
+        return {"policy": POLICY_LABEL, "out": "(lerobot-eval: no run directory)", "scene": self.scene,
+                "task": self.task, "axis": self.axis, "levels": f"{int(self.level)}:{int(self.level)}",
+                "episodes": 1, "seed": int(self.run_seed), "step": self.step, "axes_preset": self.axes_preset,
+                "max_steps": self.max_steps, "allow_infeasible": self.allow_infeasible,
+                "image_size": self.image_size}  # fmt: skip
+
+
+def resolve_levels(request: LevelRequest) -> tuple[list[LevelSetup], list[str]]:
     """Each task's ``LevelSetup`` (``task`` "all": every task of the scene) and evaluate's warnings about the level
     (uncertified); a level whose certification failed is refused as ``evaluate`` refuses it."""
-    from indgen_vla.app.engine.config import config_from_values
-    from indgen_vla.app.engine.run import build_plan, check_feasible
-
-    if first_seed < 0:
-        raise ConfigError(f"--env.first_seed must be >= 0, got {first_seed}")
-    if video_size < 16:
-        raise ConfigError(f"--env.video_size must be >= 16 pixels, got {video_size}")
-    given = {"policy": POLICY_LABEL, "out": "(lerobot-eval: no run directory)", "scene": scene, "task": task,
-             "axis": axis, "levels": f"{int(level)}:{int(level)}", "episodes": 1, "seed": int(run_seed),
-             "step": step, "axes_preset": axes_preset, "max_steps": max_steps, "allow_infeasible": allow_infeasible,
-             "image_size": image_size}  # fmt: skip
-    cfg = config_from_values(given, config, strict=True)
-    if warmup_steps is not None:
-        cfg = dataclasses.replace(cfg, policy=dataclasses.replace(cfg.policy, warmup_steps=int(warmup_steps)))
+    cfg = config_from_values(request.options(), request.config, strict=True)
+    if request.warmup_steps is not None:
+        cfg = dataclasses.replace(
+            cfg, policy=dataclasses.replace(cfg.policy, warmup_steps=int(request.warmup_steps))
+        )
     plan = build_plan(cfg)
     if len(plan.axes) != 1:
         raise ConfigError(
@@ -136,13 +162,13 @@ def resolve_levels(
     builder = plan.builder
     spec = getattr(builder, "env_spec", None)
     known = tuple(spec.cameras) if spec is not None else ("agentview", "wrist")
-    unknown = [c for c in cameras if c not in known]
+    unknown = [c for c in request.cameras if c not in known]
     if unknown:
         raise ConfigError(f"--env.cameras: {unknown} not among scene {plan.scene}'s cameras {list(known)}")
     side = cfg.policy.image_size or 128
-    runner = RunnerConfig(levels=builder, cameras=tuple(cameras), image_size=(side, side),
+    runner = RunnerConfig(levels=builder, cameras=request.cameras, image_size=(side, side),
                           max_steps=cfg.plan.max_steps, privileged=False, warmup_steps=cfg.policy.warmup_steps,
-                          objects=object_poses)  # fmt: skip
+                          objects=request.object_poses)  # fmt: skip
     axis_name = next(iter(plan.axes))
     k = plan.levels[axis_name][0]
     setups = [
@@ -154,13 +180,13 @@ def resolve_levels(
             level=k,
             param=plan.scene_plan.cell(t, axis_name, k).param,
             run_seed=cfg.plan.seed,
-            first_seed=first_seed,
+            first_seed=request.first_seed,
             max_steps=cfg.plan.max_steps,
             state_dim=spec.state_dim if spec else 8,
             action_dim=int(getattr(builder, "action_dim", 7)),
             certificate=plan.scene_plan.cell(t, axis_name, k).certificate,
             axis_spec=plan.axes[axis_name],
-            video_size=video_size,
+            video_size=request.video_size,
         )  # fmt: skip
         for t in plan.tasks
     ]

@@ -8,7 +8,7 @@ voided episodes are still waiting for their re-run, and why each was voided.
 
 from __future__ import annotations
 
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.store import JOURNAL, State
 from indgen_vla.core.runs.records import SECTIONS, atomic_write_text
 

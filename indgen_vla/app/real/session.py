@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.section import SECTION, write_section
 from indgen_vla.app.real.store import (
     FAILURE_HELP,

@@ -3,12 +3,12 @@ episode (what ``indgen real status`` prints, and its ``--json``)."""
 
 from __future__ import annotations
 
+from indgen_vla.app.real.session import Recorder
+from indgen_vla.core.stats.metrics import success_rate
+
 
 def status(rr) -> dict:
     """Per-level counts, Wilson CIs, voids and decisions, and the queue (the ``--json`` of ``real status``)."""
-    from indgen_vla.app.real.session import Recorder
-    from indgen_vla.core.stats.metrics import success_rate
-
     rec = Recorder(rr)
     state = rec.state()
     seq = rr.sequential(state)

@@ -13,11 +13,14 @@ from typing import Any
 
 import numpy as np
 
+from indgen_vla.app.config_fields import option
+from indgen_vla.app.engine.local import init_worker_process, start_forkserver
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.seeding import fresh_seed, held_out_seeds
 from scenes.poses import object_poses
 from scenes.privileged import privileged_of, with_privileged
+from scenes.tabletop.oracle import OraclePolicy
 
 
 @dataclass(frozen=True)
@@ -30,9 +33,9 @@ class HumanNoise:
         pause_steps: (min, max) length of a pause in control steps.
     """
 
-    sigma: float = 0.1
-    pause_prob: float = 0.02
-    pause_steps: tuple[int, int] = (2, 8)
+    sigma: float = option(0.1, "std of motion noise (action units)", name="noise", type=float)
+    pause_prob: float = option(0.02, "per-step probability of a human-like pause", type=float)
+    pause_steps: tuple[int, int] = option((2, 8))  # API only
 
     def __post_init__(self) -> None:
         if self.sigma < 0 or not 0 <= self.pause_prob < 1:
@@ -43,8 +46,6 @@ class HumanNoise:
 
 def noisy_oracle_episode(env, seed: int, noise: HumanNoise) -> Iterator[tuple[Observation, np.ndarray, dict]]:
     """Yield (observation, executed action, info) for one episode of the noisy oracle, seeded."""
-    from scenes.tabletop.oracle import OraclePolicy
-
     rng = np.random.default_rng(seed)
     oracle = OraclePolicy()
     obs, _ = env.reset(seed=seed)
@@ -220,8 +221,6 @@ class _OrderedPool:
     def run(self) -> Iterator[tuple[int, int, list]]:
         from concurrent.futures import ProcessPoolExecutor
 
-        from indgen_vla.app.engine.local import start_forkserver
-
         plan = self.plan
         first = next(c for c in range(len(plan.cells)) if plan.kept[c] < plan.n)
         ctx = start_forkserver(plan.maker, plan.cells[first].task)
@@ -275,8 +274,6 @@ def _init_worker(render_threads: int, env: dict, alive) -> None:
     """The engine's worker setup, and an exit once the main process is gone: a pool worker waits on a queue whose
     write end it holds itself, so after a SIGKILL of the main process it would wait (with its scene) forever."""
     import threading
-
-    from indgen_vla.app.engine.local import init_worker_process
 
     init_worker_process(render_threads, None, env)
 

@@ -6,12 +6,16 @@ same dataset for any number of them (``demo_attempts``)."""
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 # `X as X`: re-exported for mimicgen, train and the tests, which import them from here (their home before the split)
+from indgen_vla.app.config_fields import option, section
+from indgen_vla.app.engine.config import OPTIONS
 from indgen_vla.app.regimes.demo_attempts import AttemptPlan, DemoCell, EnvMaker, kept_episodes
 from indgen_vla.app.regimes.demo_attempts import HumanNoise as HumanNoise
 from indgen_vla.app.regimes.journal import EPISODES_SIDECAR as EPISODES_SIDECAR
@@ -21,7 +25,9 @@ from indgen_vla.app.regimes.journal import read_episode_sidecar as read_episode_
 from indgen_vla.app.regimes.resume import check_same_run
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import ACTION_DIM, OBJECT_DIM, OBJECT_NAMES, STATE_DIM
+from indgen_vla.core.protocol.plan import FAILED
 from scenes.family import Scene
+from scenes.planning import resolve_scene_plan, scene_levels
 from scenes.poses import object_vector
 
 FPS = 20  # robosuite control frequency used by every scene
@@ -83,73 +89,127 @@ def level_columns(level: int, axis: str | None, param: float | None) -> dict:
             "axis_param": np.array([np.nan if param is None else param], np.float64)}  # fmt: skip
 
 
-@dataclass(frozen=True)
+def _evaluate_option(name: str) -> Any:
+    """evaluate's option ``name`` (its help line, type, metavar) as a field of ``indgen demos``' config."""
+    meta = OPTIONS[name].field.metadata
+    help_ = meta["help"].replace("{levels_default}", "required with --axis")
+    return option(None, help_, **meta["argparse"])
+
+
+@dataclass(frozen=True, kw_only=True)
 class LevelRequest:
-    """``--axis``/``--levels``/``--step``/``--axes-preset`` of ``indgen demos``, resolved as ``evaluate`` resolves them.
+    """``--axis``/``--levels``/``--step``/``--axes-preset`` of ``indgen demos``, resolved as ``evaluate`` resolves
+    them: one axis or composition (no axis: T0 only, the default), the levels to record (required with an axis),
+    and the step and axes preset as in ``evaluate``."""
 
-    Attributes:
-        axis: one axis or composition; None records T0 only (the default, as before levels existed).
-        levels: ``--levels`` text (``0:2``, ``0,2``); required with ``axis``.
-        step, preset: ``--step``, ``--axes-preset`` (as in ``evaluate``).
-    """
-
-    axis: str | None = None
-    levels: str | None = None
-    step: float | None = None
-    preset: str | None = None
+    axes: tuple[str, ...] = option((), "record levels of this axis (see 'indgen axes'); default: T0 only",
+                                   flag="axis")  # fmt: skip
+    levels: str | None = _evaluate_option("levels")
+    step: float | None = _evaluate_option("step")
+    axes_preset: str | None = _evaluate_option("axes_preset")
 
     def __post_init__(self) -> None:
-        if self.axis is None and (self.levels, self.step, self.preset) != (None, None, None):
+        if isinstance(self.axes, str):  # the flag's text
+            object.__setattr__(self, "axes", tuple(a.strip() for a in self.axes.split(",") if a.strip()))
+        object.__setattr__(self, "axes", tuple(self.axes))
+        if not self.axes and (self.levels, self.step, self.axes_preset) != (None, None, None):
             raise ConfigError(
                 "--levels, --step and --axes-preset need --axis, e.g. --axis pick_y --levels 0:2"
             )
-        if self.axis is not None and "," in self.axis:
+        if len(self.axes) > 1:
             raise ConfigError(
-                f"--axis {self.axis!r}: indgen demos records one axis per dataset; run it once per axis"
+                f"--axis {','.join(self.axes)!r}: indgen demos records one axis per dataset; run it once per axis"
             )
-        if self.axis is not None and self.levels is None:
+        if self.axes and self.levels is None:
             raise ConfigError(f"--axis {self.axis} needs --levels, the levels to record (e.g. --levels 0:2)")
+
+    @property
+    def axis(self) -> str | None:
+        """The axis recorded (None: T0 only)."""
+        return self.axes[0] if self.axes else None
 
     def extra(self) -> dict:
         """What the sidecar records besides the level (and what ``indgen mimicgen`` rebuilds the level from)."""
         out: dict = {"axis": self.axis}
         if self.step is not None:
             out["step"] = self.step
-        if self.preset is not None:
-            out["axes_preset"] = self.preset
+        if self.axes_preset is not None:
+            out["axes_preset"] = self.axes_preset
         return out
 
 
+@dataclass(frozen=True, kw_only=True)
+class DemosConfig:
+    """What ``indgen demos`` records: ``n`` kept episodes per task (and level) of ``scene`` into the dataset ``out``,
+    with the noisy oracle ``noise``, at T0 or the levels ``at``; the frames' cameras, size and object poses."""
+
+    scene: str = option(help="built-in scene to record (see `indgen scenes`)", required=True)
+    task: str | None = option(None, "task name or 'all' (default: the scene's first task)")
+    at: LevelRequest = section(LevelRequest)
+    n: int = option(help="successful episodes per task (and level)", type=int, required=True)
+    out: Path = option(help="dataset root: a new directory, or one to resume (same arguments)", required=True)
+    seed: int = option(0, "base seed; episode i of a task always gets the same seed", type=int)
+    image_size: int = option(96, "camera side in pixels (square frames)", type=int)
+    noise: HumanNoise = section(HumanNoise)
+    repo_id: str = option("local/indgen_demos", "LeRobotDataset repo id stored in the dataset")
+    videos: bool = option(False, "store cameras as mp4 videos instead of images")
+    cameras: tuple[str, ...] = option(
+        ("agentview", "wrist"), "comma-separated cameras to record; empty = state only"
+    )
+    objects: bool = option(False, "also record the pick and target poses as observation.environment_state (low-dim "
+                           "policies)")  # fmt: skip
+    workers: int | None = option(None, "worker processes recording episodes (default: number of cores); the "
+                                 "dataset is the same for any number", type=int)  # fmt: skip
+    max_attempts_factor: int = option(3)  # attempts per cell at most, in units of n (API only)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.cameras, str):  # the flag's text
+            object.__setattr__(self, "cameras", tuple(c for c in self.cameras.split(",") if c))
+        object.__setattr__(self, "cameras", tuple(self.cameras))
+        object.__setattr__(self, "out", Path(self.out))
+        object.__setattr__(self, "workers", (os.cpu_count() or 1) if self.workers is None else self.workers)
+        if not self.scene:
+            raise ConfigError("--scene is required; list scenes with 'indgen scenes'")
+        for flag, value in (("--n", self.n), ("--workers", self.workers)):
+            if value < 1:
+                raise ConfigError(f"{flag} must be >= 1, got {value}")
+        if self.image_size < 1 or self.max_attempts_factor < 1:
+            raise ConfigError(f"--image-size and max_attempts_factor must be >= 1, got {self.image_size}, "
+                              f"{self.max_attempts_factor}")  # fmt: skip
+
+
+# the flags of ``indgen demos`` in its --help order
+FLAGS = ("scene", "task", "axes", "levels", "step", "axes_preset", "n", "out", "seed", "image_size", "noise",
+         "pause_prob", "repo_id", "videos", "cameras", "objects", "workers")  # fmt: skip
+
+
 def plan_cells(
-    sc: Scene, task: str | None, req: LevelRequest, cameras, image_size: int
+    scene: Scene, task: str | None, req: LevelRequest, cameras, image_size: int
 ) -> tuple[list[DemoCell], EnvMaker]:
     """The cells to record and the ``EnvMaker`` of their scenes; with ``--axis`` resolved exactly as ``evaluate``
     resolves it (``scenes.planning.resolve_scene_plan``: names, level range, condition 2, certificates)."""
-    from indgen_vla.core.protocol.plan import FAILED
-    from scenes.planning import resolve_scene_plan, scene_levels
-
-    scene = sc.name
-    if sc.fixed_initial_states:
-        raise ConfigError(f"scene {scene} starts every episode from {sc.fixed_initial_states}, the initial states "
+    name = scene.name
+    if scene.fixed_initial_states:
+        raise ConfigError(f"scene {name} starts every episode from {scene.fixed_initial_states}, the initial states "
                           "`evaluate` runs; demonstrations there would train on them: record on a scene whose seed "
                           "draws the initial state (pick_place, stack, cabinet_pick)")  # fmt: skip
     if req.axis is None:  # T0: level 0 of the family's first axis, each task's own
-        tasks = sc.select_tasks(task)
-        builder = scene_levels(sc, (sc.default_axis,), tasks=tasks)
+        tasks = scene.select_tasks(task)
+        builder = scene_levels(scene, (scene.default_axis,), tasks=tasks)
         return [DemoCell(t) for t in tasks], EnvMaker(
-            scene, tuple(cameras), image_size, builder, sc.default_axis
+            name, tuple(cameras), image_size, builder, scene.default_axis
         )
 
-    plan = resolve_scene_plan(sc, task, (req.axis,), req.levels, req.step, req.preset)
+    plan = resolve_scene_plan(scene, task, (req.axis,), req.levels, req.step, req.axes_preset)
     plan.builder.check_ready()
     axis = next(iter(plan.axes))
     failed = [c for c in plan.cells if c.certificate == FAILED]
     if failed:
         c = failed[0]
-        raise ConfigError(f"{scene}/{axis}: the oracle failed its certification at task {c.task} level {c.level} "
+        raise ConfigError(f"{name}/{axis}: the oracle failed its certification at task {c.task} level {c.level} "
                           f"({c.evidence}); drop it from --levels")  # fmt: skip
     cells = [DemoCell(c.task, c.level, axis, c.param) for c in plan.cells]
-    return cells, EnvMaker(scene, tuple(cameras), image_size, plan.builder)
+    return cells, EnvMaker(name, tuple(cameras), image_size, plan.builder)
 
 
 ARGS_RECORD = (
@@ -208,46 +268,45 @@ def _progress(
     return kept, attempts
 
 
-def record_demos(
-    family: Scene, out: Path, n: int, task: str | None = None, seed: int = 0, image_size: int = 96,
-    cameras: tuple[str, ...] = ("agentview", "wrist"), noise: HumanNoise | None = None,
-    repo_id: str = "local/indgen_demos", use_videos: bool = False, max_attempts_factor: int = 3, progress=None,
-    objects: bool = False, levels: LevelRequest | None = None, workers: int = 1, notice=None,
-) -> dict:  # fmt: skip
-    """Record ``n`` successful episodes per task (and level) into a LeRobotDataset at ``out``; return stats.
+def record_demos(cfg: DemosConfig, scene: Scene, *, progress=None, notice=None) -> dict:
+    """Record ``cfg.n`` successful episodes per task (and level) of ``scene`` into a LeRobotDataset at ``cfg.out``;
+    return stats.
 
-    ``objects`` adds the pick and target poses per frame as ``observation.environment_state``; ``levels`` (an axis
-    and its levels) records each level, with its level, axis and axis parameter per frame (``LEVEL_FEATURES``)
+    ``cfg.objects`` adds the pick and target poses per frame as ``observation.environment_state``; ``cfg.at`` (an
+    axis and its levels) records each level, with its level, axis and axis parameter per frame (``LEVEL_FEATURES``)
     and in the sidecar. No episode starts from a seed of ``seeding.held_out_seeds`` (the ones ``evaluate`` uses).
     An ``out`` recorded with the same arguments is resumed after its last saved episode (``notice`` gets the line
-    saying so); a complete one is left as it is (stats ``already_complete``). ``workers`` > 1 records in worker
-    processes; the dataset is the same for any number.
+    saying so); a complete one is left as it is (stats ``already_complete``). ``cfg.workers`` > 1 records in worker
+    processes; the dataset is the same for any number. ``progress(label, kept, attempt)`` follows each cell.
     """
-    noise, levels, scene = noise or HumanNoise(), levels or LevelRequest(), family.name
-    for flag, value in (("--n", n), ("--workers", workers)):
-        if value < 1:
-            raise ConfigError(f"{flag} must be >= 1, got {value}")
-    cells, maker = plan_cells(family, task, levels, cameras, image_size)
+    if scene.name != cfg.scene:
+        raise ConfigError(f"record_demos: the scene given is {scene.name}, the config's {cfg.scene}")
+    noise, levels, cameras, out = cfg.noise, cfg.at, cfg.cameras, cfg.out
+    cells, maker = plan_cells(scene, cfg.task, levels, cameras, cfg.image_size)
     args = json.loads(json.dumps({
-        "scene": scene, "task": task, "axis": levels.axis, "levels": levels.levels, "step": levels.step,
-        "axes_preset": levels.preset, "n": n, "seed": seed, "image_size": image_size, "cameras": list(cameras),
-        "noise": noise.sigma, "pause_prob": noise.pause_prob, "pause_steps": list(noise.pause_steps),
-        "repo_id": repo_id, "videos": use_videos, "objects": objects, "max_attempts_factor": max_attempts_factor,
+        "scene": cfg.scene, "task": cfg.task, "axis": levels.axis, "levels": levels.levels, "step": levels.step,
+        "axes_preset": levels.axes_preset, "n": cfg.n, "seed": cfg.seed, "image_size": cfg.image_size,
+        "cameras": list(cameras), "noise": noise.sigma, "pause_prob": noise.pause_prob,
+        "pause_steps": list(noise.pause_steps), "repo_id": cfg.repo_id, "videos": cfg.videos, "objects": cfg.objects,
+        "max_attempts_factor": cfg.max_attempts_factor,
     }))  # fmt: skip
-    feats = features(tuple(cameras), (image_size, image_size), use_videos, objects, levels.axis is not None)
-    lerobot = {"repo_id": repo_id, "fps": FPS, "features": feats, "robot_type": "panda", "use_videos": use_videos,
+    feats = features(
+        cameras, (cfg.image_size, cfg.image_size), cfg.videos, cfg.objects, levels.axis is not None
+    )
+    lerobot = {"repo_id": cfg.repo_id, "fps": FPS, "features": feats, "robot_type": "panda", "use_videos": cfg.videos,
                "video_backend": "pyav"}  # fmt: skip
-    dataset = _open(out, args, lerobot, repo_id=repo_id, record=ARGS_RECORD,
-                    write=_EpisodeWriter(scene, tuple(cameras), objects, levels))  # fmt: skip
+    dataset = _open(out, args, lerobot, repo_id=cfg.repo_id, record=ARGS_RECORD,
+                    write=_EpisodeWriter(cfg.scene, cameras, cfg.objects, levels))  # fmt: skip
     if isinstance(dataset, dict):
         return dataset
-    seeds = [c.attempt_seeds(scene, seed, max_attempts_factor * n) for c in cells]
+    n = cfg.n
+    seeds = [c.attempt_seeds(cfg.scene, cfg.seed, cfg.max_attempts_factor * n) for c in cells]
     kept, attempts = _progress(cells, seeds, read_episode_sidecar(out))
     if sum(kept) and notice is not None:
         notice(f"resuming {out}: {sum(kept)} of {n * len(cells)} episodes already recorded")
     plan = AttemptPlan(maker, noise, cells, seeds, n, kept, attempts)
-    _record(dataset, plan, workers, progress)
-    stats = _stats(scene, cells, plan, read_episode_sidecar(out), levels)
+    _record(dataset, plan, cfg.workers, progress)
+    stats = _stats(cfg.scene, cells, plan, read_episode_sidecar(out), levels)
     dataset.complete({"stats": stats})
     return stats
 

@@ -17,13 +17,14 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from indgen_vla.app.config_fields import option
 from indgen_vla.app.regimes.demos import (
     ENV_STATE,
     FPS,
@@ -48,6 +49,8 @@ from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.seeding import episode_seed, held_out_seeds
 from indgen_vla.core.runs.records import atomic_write_json
+from scenes.family import Scene
+from scenes.planning import resolve_scene_plan, scene_levels
 from scenes.poses import object_poses
 
 SELECTIONS = ("nearest", "random")
@@ -56,6 +59,7 @@ RECORD = (
     "meta/indgen_mimicgen.json"  # the run's arguments, its generation time so far and whether it is complete
 )
 CLI_FLAGS = ("source", "n", "seed", "guarantee", "max_attempts", "selection", "action_noise", "repo_id")
+FLAGS = ("source", "n", "out", *CLI_FLAGS[2:])  # the flags in --help's order
 
 
 # ---- configuration and execution ---------------------------------------------------------------------------
@@ -80,20 +84,22 @@ class MimicGenConfig:
         settle_steps: steps holding the last pose after the plan, for the object to come to rest.
     """
 
-    source: Path
-    out: Path
-    n: int
-    seed: int = 0
-    guarantee: bool = False
-    max_attempts: int | None = None
-    selection: str = "nearest"
-    nn_k: int = 3
-    interp_steps: int = 5
-    max_step_m: float = 0.02
-    action_noise: float = 0.05
-    lift_frac: float = 0.9
-    settle_steps: int = 25
-    repo_id: str = "local/indgen_mimicgen"
+    source: Path = option(help="dataset written by `indgen demos`", required=True)
+    out: Path = option(help="dataset root: new, or an unfinished one to resume with the same arguments",
+                       required=True)  # fmt: skip
+    n: int = option(help="generation attempts per task and level (successes with --guarantee)", type=int,
+                    required=True)  # fmt: skip
+    seed: int = option(0, "seed of the new initial states and the source choice", type=int)
+    guarantee: bool = option(False, "attempt until --n successes per task and level")
+    max_attempts: int | None = option(None, "attempt cap per task and level with --guarantee (5 n)", type=int)
+    selection: str = option("nearest", "per-subtask source choice", choices=SELECTIONS)
+    nn_k: int = option(3)
+    interp_steps: int = option(5)
+    max_step_m: float = option(0.02)
+    action_noise: float = option(0.05, "std of motion noise on executed actions", type=float)
+    lift_frac: float = option(0.9)
+    settle_steps: int = option(25)
+    repo_id: str = option("local/indgen_mimicgen", "LeRobotDataset repo id stored in the dataset")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "source", Path(self.source))
@@ -172,26 +178,25 @@ def _new_seed(
     return s
 
 
-def _level_env(scene: str, task: str, level: int, where: dict, cams: tuple[str, ...], size: tuple[int, int]):
+def _level_env(
+    scene: Scene, task: str, level: int, where: dict, cams: tuple[str, ...], size: tuple[int, int]
+):
     """The env of one source level: T0 as ``indgen demos`` builds it, or level ``level`` of the recorded axis resolved
     as ``evaluate`` resolves it (``scenes.planning.resolve_scene_plan``), both through the builder."""
-    from scenes.family import registered_scenes
-    from scenes.planning import resolve_scene_plan, scene_levels
-
-    family = {s.name: s for s in registered_scenes()}[scene]  # the family the source dataset's sidecar names
     if where.get("axis") is None:
-        axis, level = family.default_axis, 0
-        builder = scene_levels(family, (axis,), tasks=(task,))
+        axis, level = scene.default_axis, 0
+        builder = scene_levels(scene, (axis,), tasks=(task,))
     else:
         axis = where["axis"]
-        plan = resolve_scene_plan(family, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
+        plan = resolve_scene_plan(scene, task, (axis,), [level], where.get("step"), where.get("axes_preset"))
         builder = plan.builder
     builder.check_ready()
     return builder.make_env(task, axis, level, cameras=cams, image_size=size, max_steps=None)
 
 
-def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:
-    """Generate episodes from ``cfg.source`` into ``cfg.out``; return (and write) the generation stats.
+def generate(cfg: MimicGenConfig, scenes: Mapping[str, Scene], progress=None, say=None) -> dict:
+    """Generate episodes from ``cfg.source`` into ``cfg.out`` in ``scenes`` (by name: the source's, resolved by the
+    caller); return (and write) the generation stats.
 
     Every kept episode is saved as it ends (``journal``): an unfinished ``cfg.out`` made with the same arguments
     resumes after its last saved episode (``say`` is told), a finished one is returned as it is, other arguments
@@ -220,7 +225,7 @@ def generate(cfg: MimicGenConfig, progress=None, say=None) -> dict:
     if dataset.episodes and say is not None:
         say(f"mimicgen: resuming {cfg.out}: {dataset.episodes} episodes already saved")
     prior, t0 = (recorded or {}).get("wall_s", 0.0), time.perf_counter()
-    writer = _Writer(dataset, cfg, layout, lambda: round(prior + time.perf_counter() - t0, 2))
+    writer = _Writer(dataset, cfg, layout, lambda: round(prior + time.perf_counter() - t0, 2), scenes)
     with dataset.recording():
         tally: dict[str, tuple[int, int]] = {}
         for pool in by_cell.values():
@@ -334,6 +339,7 @@ class _Writer:
     cfg: MimicGenConfig
     layout: _Layout
     clock: Callable[[], float]  # seconds generating, over every session
+    scenes: Mapping[str, Scene]  # the source's scenes by name
 
     def cell(self, pool: list[SourceDemo], taken: set[int], progress) -> dict[str, tuple[int, int]]:
         """Attempt the level/task of the sources ``pool``, after its last saved episode (the attempts between that
@@ -356,7 +362,7 @@ class _Writer:
             while attempt < per_cell and not (cfg.guarantee and ok >= cfg.n):
                 if env is None:  # the scene's own episode budget: a generated episode must succeed in time
                     env = _level_env(
-                        src.scene, src.task, src.level, where, self.layout.cams, self.layout.size
+                        self.scenes[src.scene], src.task, src.level, where, self.layout.cams, self.layout.size
                     )
                 ok += self._attempt(env, pool, attempt, seeds[attempt], at)
                 attempt += 1

@@ -123,3 +123,8 @@ def select_source(demos: list[SourceDemo], k: int, new_ref: np.ndarray, rng: np.
         angle = np.linalg.norm(Rotation.from_matrix(src[:3, :3].T @ new_ref[:3, :3]).as_rotvec())
         d.append(np.linalg.norm(src[:3, 3] - new_ref[:3, 3]) + 0.05 * angle)  # 5 cm per radian
     return demos[int(rng.choice(np.argsort(d, kind="stable")[:nn_k]))]
+
+
+def source_scenes(root: Path) -> list[str]:
+    """The scenes a source dataset's episodes were recorded in (its sidecar), which generation builds."""
+    return sorted({r["scene"] for r in read_episode_sidecar(root)})

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import time
 from collections.abc import Callable, Sequence
@@ -18,9 +19,18 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.app.config_fields import option, section
+from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.regimes.demos import ENV_STATE, read_episode_sidecar
 from indgen_vla.app.regimes.resume import RESUME_DIR, RUN_FILE, check_same_run, out_state, start_run
-from indgen_vla.app.regimes.train_state import CLI_FLAGS, LossLog, run_identity
+from indgen_vla.app.regimes.train_state import (
+    CLI_FLAGS,
+    LossLog,
+    StepBatches,
+    load_train_state,
+    run_identity,
+    save_train_state,
+)
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import OBJECT_DIM
 from indgen_vla.core.protocol.training_support import (
@@ -35,8 +45,8 @@ INFO_FILE = "train_info.json"
 
 
 @dataclass(frozen=True)
-class TrainConfig:
-    """Policy size, optimisation and input selection for ``train_policy``.
+class TrainRecipe:
+    """Policy size, optimisation and input selection: what decides the checkpoint (``train_info.json``'s config).
 
     Attributes:
         policy: lerobot policy type, ``act`` or ``diffusion``.
@@ -54,32 +64,35 @@ class TrainConfig:
         save_every: steps between resumable states in ``<out>/resume`` (default: every 10 % of ``steps``).
     """
 
-    policy: str = "act"
-    steps: int = 3000
-    batch_size: int = 64
-    lr: float = 1e-3
-    weight_decay: float = 1e-4
-    grad_clip: float = 10.0
-    seed: int = 0
-    cameras: tuple[str, ...] = ()
-    objects: bool = False
-    chunk_size: int = 20
-    n_action_steps: int = 10
-    dim_model: int = 128
-    n_heads: int = 4
-    dim_feedforward: int = 512
-    n_encoder_layers: int = 2
-    n_decoder_layers: int = 1
-    use_vae: bool = False
-    horizon: int = 16
-    n_obs_steps: int = 2
-    down_dims: tuple[int, ...] = (64, 128, 256)
-    num_inference_steps: int = 10
-    cache: bool | None = None
-    log_every: int = 100
-    save_every: int | None = None
+    policy: str = option("act", "lerobot policy type to train", choices=POLICIES)
+    steps: int = option(3000, "optimiser updates", type=int)
+    batch_size: int = option(64, "frames per update", type=int)
+    lr: float = option(1e-3, "learning rate", type=float)
+    weight_decay: float = option(1e-4)
+    grad_clip: float = option(10.0)
+    seed: int = option(0, "training seed (init and batch order)", type=int)
+    cameras: tuple[str, ...] = option((), "comma-separated cameras to read; empty = state-only")
+    objects: bool = option(False, "also read the recorded object poses (low-dim; no cameras)")
+    chunk_size: int = option(20, "actions predicted per chunk", type=int)
+    n_action_steps: int = option(10, "actions executed per chunk", type=int)
+    dim_model: int = option(128)
+    n_heads: int = option(4)
+    dim_feedforward: int = option(512)
+    n_encoder_layers: int = option(2)
+    n_decoder_layers: int = option(1)
+    use_vae: bool = option(False)
+    horizon: int = option(16)
+    n_obs_steps: int = option(2)
+    down_dims: tuple[int, ...] = option((64, 128, 256))
+    num_inference_steps: int = option(10)
+    cache: bool | None = option(None)
+    log_every: int = option(100)
+    save_every: int | None = option(None, "steps between resumable states in OUT/resume (default: every 10%% of "
+                                    "--steps)", type=int)  # fmt: skip
 
     def __post_init__(self) -> None:
+        if isinstance(self.cameras, str):  # the flag's text
+            object.__setattr__(self, "cameras", tuple(c for c in self.cameras.split(",") if c))
         if self.policy not in POLICIES:
             raise ConfigError(f"policy {self.policy!r} is not trainable here; choose one of {list(POLICIES)}")
         for name in ("steps", "batch_size", "chunk_size", "n_action_steps", "dim_model", "n_heads", "horizon",
@@ -112,7 +125,59 @@ class TrainConfig:
         return self.save_every or max(1, math.ceil(self.steps / 10))
 
 
-def _policy_config(cfg: TrainConfig, input_features: dict, output_features: dict):
+@dataclass(frozen=True, kw_only=True)
+class TrainConfig:
+    """What ``indgen train`` trains: a policy by ``recipe`` on ``datasets`` into the checkpoint ``out``, the labels
+    stored with it, and ``evaluation``'s protocol run on the weights in memory every ``eval_every`` updates."""
+
+    datasets: tuple[str, ...] = option()  # DATASETS...: LeRobotDataset roots (positional)
+    out: str = option(help="checkpoint directory: new, or an unfinished one to resume with the same arguments",
+                      required=True)  # fmt: skip
+    recipe: TrainRecipe = section(TrainRecipe)
+    data_regime: str = option("", "label stored with the checkpoint (e.g. human, human+mimicgen)")
+    repo_id: str = option(DEFAULT_REPO_ID, "repo id stored in the checkpoint config")
+    eval_every: int | None = option(None, "evaluate the weights in memory every N updates (and after the last), "
+                                    "with --eval's flags", type=int, metavar="N")  # fmt: skip
+    # --eval's protocol (the command parses its flags; API: an EvalConfig); its policy and out are set per step
+    evaluation: EvalConfig | None = option(None)
+    eval_out: str | None = option(None, "where the runs and series.md go (default: OUT_evals)")
+
+    def __post_init__(self) -> None:
+        datasets = (self.datasets,) if isinstance(self.datasets, str | os.PathLike) else self.datasets
+        object.__setattr__(self, "datasets", tuple(os.fspath(d) for d in datasets))
+        object.__setattr__(self, "out", os.fspath(self.out))
+        if not self.datasets:
+            raise ConfigError("train: give at least one dataset directory")
+        if not self.out:
+            raise ConfigError("train: --out is required: the checkpoint directory")
+        if (self.eval_every is None) != (self.evaluation is None):
+            raise ConfigError("--eval-every N and --eval 'FLAGS' go together, e.g. --eval-every 500 --eval='--scene "
+                              "pick_place --axis pick_y --levels -2:2 --episodes 10'")  # fmt: skip
+        if self.eval_every is not None and self.eval_every < 1:
+            raise ConfigError(f"--eval-every must be >= 1 update, got {self.eval_every}")
+        if self.evaluation is not None and not isinstance(self.evaluation, EvalConfig):
+            raise ConfigError(
+                f"train: evaluation must be an EvalConfig, got {type(self.evaluation).__name__}"
+            )
+
+    @property
+    def eval_root(self) -> Path:
+        """Where the ``--eval-every`` runs and series report go (``eval_root``)."""
+        return eval_root(self.out, self.eval_out)
+
+
+def eval_root(out: str, eval_out: str | None) -> Path:
+    """Where ``--eval-every``'s runs and series report go: ``--eval-out``, or ``OUT_evals``."""
+    return Path(eval_out) if eval_out else Path(out).parent / f"{Path(out).name}_evals"
+
+
+# the flags of ``indgen train`` in its --help order, around the command's own --eval
+FLAGS_BEFORE_EVAL = ("out", "policy", "steps", "batch_size", "lr", "seed", "cameras", "objects", "chunk_size",
+                     "n_action_steps", "data_regime", "repo_id", "save_every", "eval_every")  # fmt: skip
+FLAGS_AFTER_EVAL = ("eval_out",)
+
+
+def _policy_config(cfg: TrainRecipe, input_features: dict, output_features: dict):
     """The lerobot policy config for ``cfg`` (no pretrained weights: nothing is downloaded)."""
     from lerobot.configs.types import NormalizationMode
 
@@ -272,25 +337,22 @@ def _seed_all(seed: int) -> None:
 
 
 def train_policy(
-    dataset_dirs: Sequence[Path | str], out_dir: Path | str, config: TrainConfig | None = None, *,
-    repo_id: str = DEFAULT_REPO_ID, data_regime: str = "", progress: Callable[[int, float], None] | None = None,
-    say: Callable[[str], None] | None = None, after_step: Callable[[int, Any], None] | None = None, **overrides,
+    config: TrainConfig, *, progress: Callable[[int, float], None] | None = None,
+    say: Callable[[str], None] | None = None, after_step: Callable[[int, Any], None] | None = None,
 ) -> Path:  # fmt: skip
-    """Train a lerobot policy on ``dataset_dirs`` and save it (weights + processors) to ``out_dir``.
+    """Train a lerobot policy on ``config.datasets`` by ``config.recipe`` and save it (weights + processors) to
+    ``config.out``.
 
-    An unfinished ``out_dir`` made with the same arguments is resumed from its last saved state (``say`` is told
+    An unfinished ``out`` made with the same arguments is resumed from its last saved state (``say`` is told
     from which step); a finished one is returned unchanged; other arguments are refused in one line.
     ``after_step(step, model)``: called after every update with the model (``policy``, ``pre``, ``post``) in train
-    mode, to evaluate it in memory (``indgen train --eval-every``); it must hand the model back as it found it.
+    mode, to evaluate it in memory (``indgen train --eval-every``: ``train_eval.make_hook``); it must hand the model
+    back as it found it.
     """
-    import dataclasses
-
-    cfg = dataclasses.replace(config or TrainConfig(), **overrides)
-    dirs = [Path(d) for d in dataset_dirs]
-    if not dirs:
-        raise ConfigError("train: give at least one dataset directory")
+    cfg, repo_id, data_regime = config.recipe, config.repo_id, config.data_regime
+    dirs = [Path(d) for d in config.datasets]
     _require_datasets(dirs)
-    out, run = Path(out_dir), run_identity(cfg, dirs, repo_id, data_regime)
+    out, run = Path(config.out), run_identity(cfg, dirs, repo_id, data_regime)
     state = out_state(out, INFO_FILE, "train")
     if state == "finished":
         _check_finished(out, run)
@@ -338,12 +400,12 @@ class _Model:
     samples: _Samples
 
 
-def _build(cfg: TrainConfig, dirs: list[Path], repo_id: str) -> _Model:
+def _build(cfg: TrainRecipe, dirs: list[Path], repo_id: str) -> _Model:
     """The freshly initialised policy, its processors (dataset statistics) and the training samples."""
     from lerobot.datasets.factory import resolve_delta_timestamps
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
 
-    from policy_wrappers.lerobot_steps import ObjectPosesStep, ProprioAsEnvStateStep
+    from policy_wrappers.lerobot_steps import ObjectPosesStep, ProprioAsEnvStateStep  # lazy: optional lerobot
 
     datasets = _open_datasets(dirs, repo_id)
     inputs, outputs = _features(datasets, cfg.cameras, cfg.objects)
@@ -366,13 +428,11 @@ def _build(cfg: TrainConfig, dirs: list[Path], repo_id: str) -> _Model:
 
 
 def _fit(
-    cfg: TrainConfig, model: _Model, root: Path, progress, say, after_step=None
+    cfg: TrainRecipe, model: _Model, root: Path, progress, say, after_step=None
 ) -> tuple[LossLog, float]:
     """AdamW with warm-up and cosine decay from the last saved state in ``root`` (or step 0) to ``cfg.steps``,
     saving the state every ``cfg.every`` steps and after the last; (loss log, training seconds over sessions)."""
     import torch
-
-    from indgen_vla.app.regimes.train_state import StepBatches, load_train_state, save_train_state
 
     policy = model.policy
     optimizer = torch.optim.AdamW(policy.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)

@@ -1,21 +1,25 @@
 """``indgen train --eval-every N --eval "EVALUATE FLAGS"``: evaluate the weights in memory every N updates, one run
 per step in ``--eval-out`` (default ``OUT_evals``), and keep that directory's series report (``indgen_vla.core.comparison.series_report``)
 current. The runs are the training loop recipe of docs/loop.md: same plan and seeds at every step (paired), and the
-training itself is not changed by them (the checkpoint equals one trained without ``--eval-every``). The flags and their
-parsing into an ``EvalConfig`` are the CLI's (``indgen_vla.app.cli.train``); this module takes the config."""
+training itself is not changed by them (the checkpoint equals one trained without ``--eval-every``). The protocol is
+an ``EvalConfig`` (``TrainConfig.evaluation``; the CLI parses ``--eval``'s flags into it); this module takes it."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
 
+from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.run import evaluate
+from indgen_vla.app.regimes.train import TrainConfig
+from indgen_vla.core.comparison.series_report import write_series
 
-def make_hook(base, root: Path, every: int, last: int | None = None, say: Callable[[str], None] = print):
+
+def make_hook(
+    base: EvalConfig, root: Path, every: int, last: int | None = None, say: Callable[[str], None] = print
+):  # fmt: skip
     """``after_step(step, model)``: at every ``every``-th step (and ``last``) evaluate ``model`` in memory into
     ``root/runs/<step>`` and rewrite ``root``'s series report."""
-    from indgen_vla.app.engine.run import evaluate
-    from indgen_vla.core.comparison.series_report import write_series
-
     done: list[tuple[int, Path]] = sorted(
         (int(p.name), p) for p in (root / "runs").glob("*") if p.name.isdigit()
     )
@@ -30,3 +34,10 @@ def make_hook(base, root: Path, every: int, last: int | None = None, say: Callab
         write_series(done, root, base.plan.gamma)
 
     return after_step
+
+
+def eval_hook(cfg: TrainConfig, say: Callable[[str], None] = print):
+    """The ``after_step`` of ``cfg``'s ``--eval-every`` (None without it)."""
+    if cfg.evaluation is None:
+        return None
+    return make_hook(cfg.evaluation, cfg.eval_root, cfg.eval_every, last=cfg.recipe.steps, say=say)

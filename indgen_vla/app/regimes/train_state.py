@@ -14,7 +14,7 @@ from indgen_vla.core.protocol.seeding import episode_seed
 
 MODEL_FILE = "model.safetensors"
 LOG_FILE = "log.json"
-NOT_IN_RUN = ("save_every", "cache")  # TrainConfig fields that never change the checkpoint
+NOT_IN_RUN = ("save_every", "cache")  # TrainRecipe fields that never change the checkpoint
 CLI_FLAGS = ("policy", "steps", "batch_size", "lr", "seed", "cameras", "objects", "chunk_size", "n_action_steps",
              "data_regime", "repo_id", "datasets")  # fmt: skip
 

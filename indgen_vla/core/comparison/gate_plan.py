@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.reporting.summary import summarize
+from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.stats.metrics import MIN_N
 from indgen_vla.core.stats.noninferiority import pass_chance
 from indgen_vla.core.stats.sample_size import first_extra
@@ -48,9 +50,6 @@ def plan_episodes(rates: Sequence[float], margin: float, alpha: float = 0.05, po
 
 def baseline_rates(path: str, gamma: float = 0.2) -> list[tuple[str, int, float]]:
     """(axis, level, rate) of every level of the baseline run above the data floor."""
-    from indgen_vla.core.reporting.summary import summarize
-    from indgen_vla.core.runs.records import RunDir
-
     run = RunDir.open(path)
     s = summarize(run.episodes(), run.manifest, gamma)
     return [(axis, r["level"], r["rate"]) for axis, ax in s["axes"].items() for r in ax["levels"]

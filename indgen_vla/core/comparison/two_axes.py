@@ -14,6 +14,8 @@ from typing import Any
 
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
+from indgen_vla.core.reporting.failures import failure_shift
+from indgen_vla.core.reporting.partial_credit import compare_progress
 from indgen_vla.core.stats.contrasts import ALPHA, AxisPairs, pair_axes, paired_delta
 from indgen_vla.core.stats.metrics import compare_paired_levels
 
@@ -116,9 +118,6 @@ def compare_axes(
 ) -> dict[str, Any]:
     """The compare.json dict of axis A (episodes ``ea``, summary ``sa``) against axis B (``eb``, ``sb``), but for
     the break point difference (``compare.axes_main`` adds it)."""
-    from indgen_vla.core.reporting.failures import failure_shift
-    from indgen_vla.core.reporting.partial_credit import compare_progress
-
     pairs = pair_axes(ea, eb, axis_a, axis_b)
     if not any(pairs.pairs.values()):
         raise RunDirError(f"no finished episode of {axis_a} has a finished partner on {axis_b} (same task, level and "

@@ -14,10 +14,13 @@ import math
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.core.errors import RunDirError
+from indgen_vla.core.comparison.two_runs import check_levels
+from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
 from indgen_vla.core.protocol.interface import declared_reads
 from indgen_vla.core.reporting.caveats import compare_caveats, rate_text
+from indgen_vla.core.reporting.html_page import markdown_page
+from indgen_vla.core.runs.records import RunDir, write_result
 from indgen_vla.core.stats.metrics import (
     MIN_N,
     UNDETERMINED,
@@ -243,10 +246,6 @@ def compare_run_groups(
 ) -> dict[str, Any]:  # fmt: skip
     """``indgen compare --a RUN... --b RUN...``: the two groups' stratified tests and seed-level endpoints, written
     to ``groups_dir`` as compare.json and compare.md; returns the result."""
-    from indgen_vla.core.comparison.two_runs import check_levels
-    from indgen_vla.core.errors import ConfigError
-    from indgen_vla.core.runs.records import RunDir, write_result
-
     check_levels(gamma, alpha)
     if not runs_a or not runs_b:
         raise ConfigError("give both groups: --a RUN... --b RUN... (one run per training seed each)")
@@ -281,8 +280,8 @@ def compare_run_groups(
     result["verdict"] = " ".join(result["verdicts"].values())
     out, text = groups_dir(runs_a[0].path, out), render_markdown(result, la, lb)
     write_result(out, "compare", result, text)
-    from indgen_vla.core.reporting.html_page import markdown_page  # report.html: the verdicts first
 
+    # report.html: the verdicts first
     markdown_page(out, f"Group comparison: {la} vs {lb}", text, [*result["verdicts"].values()],
                   caveats=result["caveats"])  # fmt: skip
     return result

@@ -9,15 +9,19 @@ import math
 from pathlib import Path
 from typing import Any
 
+from indgen_vla.core.comparison.two_axes import as_one_axis, check_plans, compare_axes, parse_axes
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
 from indgen_vla.core.reporting.caveats import compare_caveats, rate_text
 from indgen_vla.core.reporting.failures import failure_shift, plot_failures, render_shift
 from indgen_vla.core.reporting.figures import plot_axis
+from indgen_vla.core.reporting.html_page import markdown_page
 from indgen_vla.core.reporting.partial_credit import compare_progress, plot_progress, render_compare
 from indgen_vla.core.reporting.report import _safe, run_label
 from indgen_vla.core.reporting.summary import summarize
 from indgen_vla.core.runs.records import RunDir, write_result
+from indgen_vla.core.stats.breakpoint import break_point_difference, cells_from_frame
+from indgen_vla.core.stats.contrasts import check_margin, paired_delta, pp
 from indgen_vla.core.stats.metrics import (
     UNDETERMINED,
     compare_levels,
@@ -106,8 +110,6 @@ def add_deltas(rows: list[dict], paired: bool) -> None:
     """Each level row's Δ = B − A with its 95 % interval (``delta``, ``delta_ci``): Newcombe's paired interval on
     the episode pairs (``contrasts.paired_delta``), or for unpaired runs the MOVER combination of the two Wilson
     intervals (``metrics.difference_ci``); NaN without episodes on a side."""
-    from indgen_vla.core.stats.contrasts import paired_delta
-
     for r in rows:
         if paired:
             r["delta"], r["delta_ci"], _ = paired_delta(r, None)
@@ -122,7 +124,6 @@ def add_deltas(rows: list[dict], paired: bool) -> None:
 def break_point_diff(ea, eb, axis: str, gamma: float, usable: tuple[set, set] | None = None) -> dict:
     """B − A in the continuous break point per direction, CI from independent bootstraps ({} if < 2 levels);
     ``usable``: each run's levels above the data floor (the summaries' rows), the only ones it may use."""
-    from indgen_vla.core.stats.breakpoint import break_point_difference, cells_from_frame
 
     def cells(e, keep):
         ok = e[(e["axis"] == axis) & (e["status"] == "ok")]
@@ -283,8 +284,6 @@ def _p(x: float) -> str:
 
 
 def _fmt_delta(r: dict) -> str:
-    from indgen_vla.core.stats.contrasts import pp
-
     if math.isnan(r["delta"]):
         return "no pairs" if "pairs" in r else "n/a"
     lo, hi = r["delta_ci"]
@@ -301,8 +300,6 @@ def check_levels(gamma: float, alpha: float) -> None:
 
 def axes_dir(run_a: str | Path, axes: str, out: str | Path | None = None) -> Path:
     """Where ``compare --axes A:B`` writes: ``out``, else RUN_A/compare_A_vs_B."""
-    from indgen_vla.core.comparison.two_axes import parse_axes
-
     axis_a, axis_b = parse_axes(axes)
     return Path(out) if out else Path(run_a) / f"compare_{_safe(axis_a)}_vs_{_safe(axis_b)}"
 
@@ -315,9 +312,6 @@ def compare_run_axes(
     """``indgen compare RUN [RUN_B] --axes A:B``: axis A of ``run_a`` against axis B of ``run_b`` (default: the same
     run), paired episode by episode; writes compare.json, compare.md and overlay plots to ``axes_dir``; returns the
     result."""
-    from indgen_vla.core.comparison.two_axes import as_one_axis, check_plans, compare_axes, parse_axes
-    from indgen_vla.core.stats.contrasts import check_margin
-
     check_levels(gamma, alpha)
     if test in ("boschloo", "barnard"):
         raise ConfigError(f"--axes compares paired episodes (exact McNemar); drop --test {test}")
@@ -367,9 +361,6 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
         plot_axis(curves, axis, gamma, out / "plots" / f"{stem}.png", "wilson", pairing_note(result))
         plot_failures(curves, axis, out / "plots" / f"{stem}_failures.png")
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
-    from indgen_vla.core.reporting.html_page import (
-        markdown_page,  # report.html: the verdict and its pairing first
-    )
 
     pools = [f"Tasks pooled (`{a}`): {x['tasks']}" for a, x in result["axes"].items() if x.get("tasks")]
     verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools]

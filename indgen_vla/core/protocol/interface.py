@@ -8,7 +8,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.policy_options import (  # noqa: F401  (re-exported: --precision, --compile)
     COMPILE_MODES,
     CUDA_GRAPH_COMPILE_MODES,
@@ -140,8 +140,6 @@ def _check_images(images: dict[str, np.ndarray], what: str) -> None:
 def validate_chunk(chunk: np.ndarray, batch: int, who: str, action_dim: int = ACTION_DIM) -> np.ndarray:
     """Check a policy's (B, T, action_dim) action chunk (7 on the tabletop families); raise ``PolicyError`` naming
     the policy otherwise."""
-    from indgen_vla.core.errors import PolicyError
-
     arr = np.asarray(chunk)
     if arr.ndim == 2 and batch == 1:
         arr = arr[None]

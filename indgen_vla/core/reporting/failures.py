@@ -7,7 +7,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from indgen_vla.core.protocol.interface import FAILURE_MODES
+from indgen_vla.core.reporting.figures import count_note
 from indgen_vla.core.runs.records import atomic_savefig
+from indgen_vla.core.stats.frames import group_items
 
 UNCLASSIFIED = "unclassified"  # rows of run directories written before the failure column existed
 MODES = (*FAILURE_MODES, UNCLASSIFIED)
@@ -29,8 +31,6 @@ def failure_counts(level_df) -> dict[str, int]:
 def failure_counts_by(df, keys: list[str]) -> dict[tuple, dict[str, int]]:
     """``failure_counts`` of every group of ``keys`` (a tuple of their values) in one pass over ``df``: a summary's
     cells without filtering the table once per cell."""
-    from indgen_vla.core.stats.frames import group_items
-
     if not len(df):
         return {}
     if "failure" not in df:
@@ -67,8 +67,6 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     if not any(classified(a["levels"]) for _, a in curves):
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
-
-    from indgen_vla.core.reporting.figures import count_note
 
     fig = Figure(figsize=(4.2 * len(curves), 3.2), dpi=120)
     axes = fig.subplots(1, len(curves), squeeze=False)

@@ -12,8 +12,11 @@ from dataclasses import dataclass, field
 
 from indgen_vla.core.reporting.failures import failure_counts_by
 from indgen_vla.core.reporting.partial_credit import level_progress_by
-from indgen_vla.core.stats.breakpoint import signed_level
+from indgen_vla.core.stats.breakpoint import kstar_status, signed_level, verdict_from_ci
+from indgen_vla.core.stats.frames import group_items, py
 from indgen_vla.core.stats.metrics import MIN_N, below_floor, break_levels, success_rate
+from indgen_vla.core.stats.sample_size import more_to_decide, verdict_error
+from indgen_vla.core.stats.sprt import UNTIL_FAILURE, level_outcomes, outcome_prefix, rule_from_plan
 
 
 @dataclass(frozen=True)
@@ -31,8 +34,6 @@ class LevelCounts:
 def level_counts(df, keys: Sequence[str] = ("level",)) -> dict[tuple, LevelCounts]:
     """Every group's ``LevelCounts``, keyed by the tuple of its ``keys`` values (e.g. (task, level)), in one pass
     over ``df``: filtering the table once per level and task is O(cells × rows) on a protocol-size run."""
-    from indgen_vla.core.stats.frames import group_items, py
-
     keys = list(keys)
     if not len(df):
         return {}
@@ -101,8 +102,6 @@ def usable_rates(rows: list[dict]) -> dict[int, float]:
 
 def decide(rows: list[dict], gamma: float) -> None:
     """Each level's three-way verdict from its CI (broken / intact / undetermined; below the floor: undetermined)."""
-    from indgen_vla.core.stats.breakpoint import verdict_from_ci
-
     for r in rows:
         r["decision"] = (
             "undetermined" if r["insufficient"] else verdict_from_ci(r["ci_low"], r["ci_high"], gamma)
@@ -113,8 +112,6 @@ def sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
     """Adaptive runs: each level's verdict is the sequential rule's, on its episodes in index order; the data
     floor counts against the episodes the rule used, not the cap (a level past a decided k* was never run).
     ``df`` holds one ladder: one task's episodes of one axis. The paper's until-failure design: ``until_failure``."""
-    from indgen_vla.core.stats.sprt import UNTIL_FAILURE, level_outcomes, outcome_prefix, rule_from_plan
-
     if adaptive.get("mode") == UNTIL_FAILURE:
         until_failure(rows, float(adaptive["gamma"]), episodes)
         return
@@ -146,8 +143,6 @@ def until_failure(rows: list[dict], gamma: float, episodes: int) -> None:
 
 def design_text(adaptive: dict | None, episodes: int | None) -> str | None:
     """One line naming the paper's until-failure design and what its break is (None for the other designs)."""
-    from indgen_vla.core.stats.sprt import UNTIL_FAILURE
-
     if not adaptive or adaptive.get("mode") != UNTIL_FAILURE:
         return None
     return (f"the paper's fixed design (§5.3, until failure): {episodes} episodes per level, levels in order, "
@@ -161,8 +156,6 @@ NOT_EVALUATED = "not evaluated (no level on this side of 0 was run)"  # a signed
 def kstar_status_of(rows: list[dict], signed: bool) -> dict:
     """Per direction where k* can lie given the verdicts ("k* = +2, determined" or "k* ∈ [+1, +3]"), speaking only
     of the levels that ran (a planned level with no finished episode is named as not run)."""
-    from indgen_vla.core.stats.breakpoint import kstar_status
-
     verdicts = {r["level"]: r["decision"] for r in rows}
     ran = {r["level"] for r in rows if r["n"] + r.get("errors", 0)}  # planned but not run: n = 0, no errors
     sides = (("pos", 1), ("neg", -1)) if signed else (("pos", 1),)
@@ -223,15 +216,11 @@ DECIDE_POWER = 0.8  # the chance with which "N more episodes would decide it" de
 def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson") -> int | None:
     """How many more episodes make the CI's upper bound fall below γ with chance ≥ 80 % if the observed rate is the
     true one (exact binomial sums, the episodes so far kept; None: > MAX_MORE)."""
-    from indgen_vla.core.stats.sample_size import more_to_decide
-
     return more_to_decide(successes, n, gamma, ci, DECIDE_POWER, MAX_MORE)
 
 
 def _error_text(n: int, gamma: float, ci: str, verdict: str) -> str:
     """The real error of a level's verdict at its n, as computed exactly (nominal 2.5 % a side for a 95 % CI)."""
-    from indgen_vla.core.stats.sample_size import verdict_error
-
     name = "Wilson" if ci == "wilson" else "Clopper–Pearson"
     return f"{name} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
 

@@ -14,6 +14,12 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from indgen_vla.core.reporting.figures import count_note
+from indgen_vla.core.runs.records import atomic_savefig
+from indgen_vla.core.stats.frames import group_items
+from indgen_vla.core.stats.metrics import holm
+from indgen_vla.core.stats.pairing import PAIR_KEY
+
 STAGES = ("no_contact", "contact", "grasp", "lift", "transport", "success")  # score = index
 COLOURS = ("#9e9e9e", "#ffcc80", "#ff9800", "#64b5f6", "#1e88e5", "#4caf50")
 PAIRED_TEST = "wilcoxon_signed_rank_exact"
@@ -51,8 +57,6 @@ def level_progress(level_df) -> dict | None:
 def level_progress_by(df, keys: list[str]) -> dict[tuple, dict]:
     """``level_progress`` of every group of ``keys`` (a tuple of their values) in one pass over ``df``; groups
     without a scored episode are left out (``level_progress`` gives None for them)."""
-    from indgen_vla.core.stats.frames import group_items
-
     if "progress" not in df or not len(df):
         return {}
     ok = df[df["status"] == "ok"]
@@ -204,8 +208,6 @@ def _rank_sum_mc(a: list[int], b: list[int], ranks: dict[int, int], seed: int) -
 def progress_pairs(ea, eb, axis: str) -> tuple[dict[int, list[tuple[int, int]]], int]:
     """Level -> (score A, score B) per episode pair (``pairing.PAIR_KEY``) finished ok and scored in both;
     and how many ok pairs dropped out for a missing score. Call only for runs ``pair_episodes`` calls paired."""
-    from indgen_vla.core.stats.pairing import PAIR_KEY
-
     cols = [*PAIR_KEY, "status", "progress"]
     a = ea[ea["axis"] == axis][cols] if "progress" in ea else None
     b = eb[eb["axis"] == axis][cols] if "progress" in eb else None
@@ -223,8 +225,6 @@ def progress_pairs(ea, eb, axis: str) -> tuple[dict[int, list[tuple[int, int]]],
 def compare_progress(ea, eb, axis: str, paired: bool) -> dict:
     """compare.json's ``progress`` block of one axis: per level the mean scores and an exact rank test
     (paired: Wilcoxon signed-rank on B − A; unpaired: rank-sum permutation test), Holm over the levels."""
-    from indgen_vla.core.stats.metrics import holm
-
     rows: list[dict] = []
     if paired:
         pairs, dropped = progress_pairs(ea, eb, axis)
@@ -314,8 +314,6 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
-    from indgen_vla.core.reporting.figures import count_note
-
     fig = Figure(figsize=(4.2 * len(curves), 3.4), dpi=120)
     axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
@@ -342,7 +340,6 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     fig.legend(handles + h2, labels + l2, fontsize=7, loc="lower center", ncol=7, frameon=False)
     fig.tight_layout(rect=(0, 0.08, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
-    from indgen_vla.core.runs.records import atomic_savefig
 
     atomic_savefig(fig, path)  # a report read while another writes never sees half a PNG
     return path

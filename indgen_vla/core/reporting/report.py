@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
 from indgen_vla.core.protocol.training_support import TRAINED_NOTE, trained_text
 from indgen_vla.core.reporting.caveats import report_caveats
 from indgen_vla.core.reporting.failures import plot_failures, render_breakdown
@@ -18,6 +19,7 @@ from indgen_vla.core.reporting.figures import (
     plot_axis,
 )
 from indgen_vla.core.reporting.grid import grid_lines, plot_grids
+from indgen_vla.core.reporting.html_report import write_overlay_html, write_run_html
 from indgen_vla.core.reporting.levels import fmt_condition2, verdict_line
 from indgen_vla.core.reporting.oracle_states import attach_oracle_states
 from indgen_vla.core.reporting.partial_credit import plot_progress, render_levels
@@ -307,9 +309,6 @@ def write_run_report(
         write_axis_svg(label, a, axis, gamma, run.path / "plots" / f"{_safe(axis)}.svg", summary["ci"])
     if plots or (plots is None and pngs_drawn(run.path / "plots")):
         draw_run_plots(run.path / "plots", label, summary, gamma, order, run.manifest)
-    from indgen_vla.core.reporting.html_report import (
-        write_run_html,  # report.html beside report.md, plots inlined
-    )
 
     write_run_html(run.path, run.manifest, summary, episodes, "\n".join([text, *extra]), label, order)
     return summary
@@ -371,7 +370,6 @@ def write_reports(
             raise RunDirError(
                 f"cannot write to --out {out}: {e.strerror}; choose another directory"
             ) from None
-        from indgen_vla.core.protocol.fingerprint import check_comparable, protocol_section
 
         protocol = check_comparable(
             [(lbl, r.manifest.get("fingerprint")) for (lbl, _), r in zip(results, runs, strict=True)],
@@ -396,7 +394,6 @@ def write_reports(
             plot_progress(curves, axis, out / "plots" / f"{_safe(axis)}_progress.png")
         plot_axes(results, gamma, out / "plots" / AXES_PLOT, order, axis_specs([r.manifest for r in runs]))
         plot_grids(results, gamma, out / "plots")
-        from indgen_vla.core.reporting.html_report import write_overlay_html
 
         write_overlay_html(out, results, text, order)
     return results

@@ -22,6 +22,7 @@ from indgen_vla.core.reporting.levels import (
     task_entry,
     usable_rates,
 )
+from indgen_vla.core.stats.breakpoint import break_point, cells_from_frame
 from indgen_vla.core.stats.contrasts import add_vs_t0
 from indgen_vla.core.stats.metrics import (
     DEFAULT_GAMMA,
@@ -111,8 +112,6 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
 def _break_point(df, gamma: float, multi_task: bool, levels: list[dict]) -> dict:
     """The continuous break point per direction with a bootstrap CI (over tasks, then episodes, when pooled), from
     the levels above the data floor only (``levels``: the axis's pooled rows), like every other printed result."""
-    from indgen_vla.core.stats.breakpoint import break_point, cells_from_frame
-
     ok = df[(df["status"] == "ok") & df["level"].isin(usable_levels(levels))]
     if ok["level"].nunique() < 2:
         return {}

@@ -6,7 +6,7 @@ and every finished episode, so ``report``, ``compare`` and ``reference`` read it
 one protocol: the same plan apart from its tasks and axes (policy, seed, episodes, levels of each axis, steps,
 horizon...), together every task on every axis, the same protocol fingerprint in each field that changes outcomes
 (never overridden: a merged run claims one protocol, and every later report would hide the difference), and the same
-outcome wherever two shards hold the same episode. Pure: reads the shards, writes nothing (``engine/merge.py`` does).
+outcome wherever two shards hold the same episode. Pure: reads the shards, writes nothing (``studies/merge.py`` does).
 """
 
 from __future__ import annotations

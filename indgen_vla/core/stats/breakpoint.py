@@ -17,6 +17,8 @@ import numpy as np
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.crossing import crossing, isotonic_crossing, logistic_crossings
+from indgen_vla.core.stats.frames import group_items, py
+from indgen_vla.core.stats.metrics import break_level
 
 
 def verdict_from_ci(ci_low: float, ci_high: float, gamma: float) -> str:
@@ -120,8 +122,6 @@ def kstar_spread(ks: Sequence[int | None | str], minus: str = "-") -> str:
 def fixed_run_status(levels: Sequence[Mapping], gamma: float, signed: bool | None = None) -> dict:
     """For a fixed-design run's summary levels ({level, rate, ci_low, ci_high, n}): each level's verdict and,
     per direction, the point k* (metrics.break_level) with its status. Levels with n == 0 stay "undetermined"."""
-    from indgen_vla.core.stats.metrics import break_level
-
     verdicts = {
         int(r["level"]): verdict_from_ci(r["ci_low"], r["ci_high"], gamma)
         if r.get("n", 1)
@@ -188,8 +188,6 @@ def cells_from_records(records: Iterable[Mapping], cluster_keys: Sequence[str] =
 def cells_from_frame(df, cluster_keys: Sequence[str] = ()) -> list[Cell]:
     """``cells_from_records`` of an episode table, grouped in one vectorised pass instead of a Python loop over its
     rows: the same cells in the same order (each cell's param is ``cell_param`` of its rows')."""
-    from indgen_vla.core.stats.frames import group_items, py
-
     ok = df[df["status"] == "ok"] if "status" in df else df
     if not len(ok):
         return []

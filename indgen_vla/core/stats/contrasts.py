@@ -17,7 +17,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.stats.frames import group_items
 from indgen_vla.core.stats.metrics import compare_paired_levels, pooled_text, usable_levels, wilson_ci
+from indgen_vla.core.stats.noninferiority import non_inferior
 
 ALPHA = 0.05  # the level of the report's Δ-vs-T0 verdicts (Holm) and of its equivalence tests
 EPISODE_KEY = ("scene", "task", "episode")  # what pairs two levels of one axis; "level" too between two axes
@@ -69,8 +71,6 @@ def paired_equivalence(
     the 1 − 2α Newcombe interval inside ±margin (used before, and still reported as ``ci``) erred 11 % at 50 pairs
     for a nominal 5 % (docs/statistics.md). One claim across several levels ("no level changes") needs each level
     shown at α (an intersection–union test: no multiplicity correction)."""
-    from indgen_vla.core.stats.noninferiority import non_inferior
-
     if not 0 < margin < 1:
         raise ConfigError(f"equivalence margin must be in (0, 1), got {margin}")
     lo, hi = paired_difference_ci(both, a_only, b_only, neither, conf=1 - 2 * alpha)
@@ -162,8 +162,6 @@ def t0_contrasts(
         {"levels": {k: vs_t0}, "tasks": {task: {k: vs_t0}}}, {"unpaired_reason": ...} when level 0 and a level k
         disagree on an episode's seed, or None when the axis has no finished level-0 episode or no other level.
     """
-    from indgen_vla.core.stats.frames import group_items
-
     others = [int(k) for k in levels if k != 0]
     t0, rest = df[df["level"] == 0], df[df["level"] != 0]
     if not others or not (t0["status"] == "ok").any():
@@ -390,8 +388,6 @@ class AxisPairs:
 def pair_axes(ea, eb, axis_a: str, axis_b: str) -> AxisPairs:
     """Pair axis A's episodes (table ``ea``) with axis B's (``eb``, may be the same run) level by level; refuses, in
     one line, axes that share no level and episodes whose seeds differ (runs made with another --seed)."""
-    from indgen_vla.core.stats.frames import group_items
-
     a, b = ea[ea["axis"] == axis_a], eb[eb["axis"] == axis_b]
     la, lb = {int(k) for k in a["level"]}, {int(k) for k in b["level"]}
     shared = sorted(la & lb)

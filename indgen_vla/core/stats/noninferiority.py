@@ -17,7 +17,7 @@ from functools import lru_cache
 import numpy as np
 
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.stats.sample_size import paired_power
+from indgen_vla.core.stats.sample_size import first_extra, paired_power
 
 # pairs up to which the test is exact (about 1-3 s for a new n of 1000); beyond, Tango's asymptotic score test
 N_EXACT = 1000
@@ -194,8 +194,6 @@ def project_pairs(x: int, y: int, n: int, margin: float, alpha: float, alpha_wor
     if the observed pair frequencies are the true ones, the level is shown non-inferior or worse (two-sided exact
     McNemar at ``alpha_worse``) with chance ≥ ``power``, the first n pairs kept: (extra, non-inferior is the likelier,
     that chance); None when no number up to ``cap`` does."""
-    from indgen_vla.core.stats.sample_size import first_extra
-
     qx, qy = x / n, y / n
     chances: dict[int, tuple[float, float]] = {}
 

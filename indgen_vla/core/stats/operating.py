@@ -1,6 +1,6 @@
 """Operating characteristics of every decision the toolkit prints: its size (the chance of the wrong call at the null
 or its boundary) and its power, by exact enumeration where the tables are small and seeded simulation otherwise.
-``scripts/operating_characteristics.py`` writes them to docs/statistics.md; the default tests assert the sizes."""
+``scripts/operating_characteristics.py`` writes them to docs/results/statistics.md; the default tests assert the sizes."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import numpy as np
 from scipy.stats import binom, norm
 
 from indgen_vla.core.stats import noninferiority as ni
-from indgen_vla.core.stats.sample_size import verdict_counts
+from indgen_vla.core.stats.metrics import cochran_armitage, holm, mcnemar_exact, success_rate, wilson_ci
+from indgen_vla.core.stats.sample_size import more_to_decide, verdict_counts
 
 CHECK_GRID = (
     400  # boundary points the measured size is taken over: finer than, and apart from, the test's own grid
@@ -185,8 +186,6 @@ def report_projection(p_true: float, n: int, gamma: float, ci: str, power: float
     """Over first stages of n episodes at ``p_true`` that print "first level below γ ... not yet significant", the
     chance the projected extra episodes then decide the level (exact); ``power`` None: the old projection (the
     observed rate rounded, ~50 %), else ``sample_size.more_to_decide`` at that power."""
-    from indgen_vla.core.stats.sample_size import more_to_decide
-
     intact, broken = verdict_counts(n, gamma, ci)
     mass = decided = min_claim = 0.0
     min_claim = 1.0
@@ -209,8 +208,6 @@ def report_projection(p_true: float, n: int, gamma: float, ci: str, power: float
 
 def _old_more(s: int, n: int, gamma: float, ci: str) -> int | None:
     """The projection before issue 53: the first total whose interval at the observed rate, rounded, is below γ."""
-    from indgen_vla.core.stats.metrics import success_rate
-
     rate = s / n
     for total in range(n + 1, n + 5001):
         if success_rate(round(rate * total), total, method=ci).ci_high < gamma:
@@ -224,8 +221,6 @@ def series_fwer(levels: Sequence[float], n: int, steps: int, draws: int, seed: i
     """Seeded simulation: the chance that a series with no trend (each level's rate the same at every step, up to a
     checkpoint effect of ``checkpoint_sd`` on the logit shared by all levels) flags at least one trend at α = 0.05
     (Cochran–Armitage per level, a rise and a fall), with or without Holm over the table."""
-    from indgen_vla.core.stats.metrics import cochran_armitage, holm
-
     rng = np.random.default_rng(seed)
     logit = np.log(np.asarray(levels) / (1 - np.asarray(levels)))
     hits = 0
@@ -249,8 +244,6 @@ def pooled_ood_size(
 ) -> float:
     """Seeded simulation: the size of the pooled OOD Cochran–Armitage trend (levels ≠ 0 summed, two one-sided tests
     at 2.5 % each) when a checkpoint effect on the logit is shared by the levels and nothing trends."""
-    from indgen_vla.core.stats.metrics import cochran_armitage
-
     rng = np.random.default_rng(seed)
     logit = np.log(np.asarray(levels) / (1 - np.asarray(levels)))
     hits = 0
@@ -271,8 +264,6 @@ def recipe_pass(rates: Sequence[float], n: int, margin: float, alpha: float, dro
     level (exit 0). ``old``: the recipe before issue 53 (Newcombe's bound; exit 5 turned into a pass), passing unless
     a level is significantly worse (Holm-corrected exact McNemar). Returns the simulated chance with its 95 % interval
     and, for the new rule, the exact product of the per-level powers."""
-    from indgen_vla.core.stats.metrics import holm, mcnemar_exact, wilson_ci
-
     rng = np.random.default_rng(seed)
     at = max(range(len(rates)), key=lambda i: rates[i]) if drop else None
     cells = []
@@ -308,8 +299,6 @@ def gate_projection(n: int, p: float, margin: float, alpha: float, power: float 
     """Over the first stages of n pairs of two equal policies at rate p that leave a one-level gate undecided, the
     chance the projected extra pairs decide it (non-inferior, or worse by exact McNemar) when p is the truth, and
     the least chance the projection claimed at the observed frequencies (exact sums over both stages)."""
-    from indgen_vla.core.stats.metrics import mcnemar_exact
-
     qx, qy = ni.pair_model(p, p, model)
     xs, ys, _ = ni._tables(n)
     w = ni.trinomial_pmf(n, qx, qy)

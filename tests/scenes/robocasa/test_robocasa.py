@@ -395,7 +395,7 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
 def test_the_oracle_closes_the_stand_mixer_head(placeholders):
     """``standin:oracle`` on RoboCasa is PandaOmron's own script (Scene.oracle), reading the PrivilegedState the
     worker's facts become; RoboCasa's _check_success (head < 0.01) ends the episode."""
-    from indgen_vla.app.certify.run import run_oracle_episode
+    from indgen_vla.app.certify.certify_levels import run_oracle_episode
     from scenes.oracles import oracle_for
     from scenes.robocasa.oracle import RoboCasaOracle
 
@@ -417,7 +417,7 @@ def test_the_oracle_closes_the_stand_mixer_head(placeholders):
 @needs_venv
 @pytest.mark.slow
 def test_the_oracle_puts_the_object_in_the_cabinet(placeholders):
-    from indgen_vla.app.certify.run import run_oracle_episode
+    from indgen_vla.app.certify.certify_levels import run_oracle_episode
     from scenes.oracles import oracle_for
 
     env = level_env("robocasa", task="PickPlaceCounterToCabinet", axis="base_y", level=0, cameras=(),
@@ -432,9 +432,10 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path, m
     """certify refuses (one line, before any episode) a task RoboCasa's oracle has no script for: its levels stay
     uncertified, which evaluate reports in one warning line (engine.run.check_feasible), instead of 'failed'.
     CloseToasterOvenDoor is taken off the oracle's list for it (every base_y task has a script since oracle v4)."""
-    from indgen_vla.app.certify.run import NoOracleError, certify
+    from indgen_vla.app.certify.certify_levels import NoOracleError
     from scenes.oracles import oracle_scripts
     from scenes.robocasa.oracle import RoboCasaOracle
+    from tests.fixtures.certify import run_certify
 
     assert oracle_scripts(get_scene("robocasa"), "CloseToasterOvenDoor")
     monkeypatch.setattr(
@@ -447,15 +448,15 @@ def test_a_task_the_oracle_does_not_script_is_uncertified_not_failed(tmp_path, m
         get_scene("pick_place"), "bread"
     )  # an oracle that lists no tasks scripts every task
     with pytest.raises(NoOracleError, match="robocasa/CloseToasterOvenDoor: standin:oracle has no script"):
-        certify(get_scene("robocasa"), "base_y", task="CloseToasterOvenDoor", out=tmp_path / "certify.json")
+        run_certify("robocasa", "base_y", task="CloseToasterOvenDoor", path=tmp_path / "certify.json")
     assert not (tmp_path / "certify.json").exists()
 
 
 def _oracle_episodes(
     task: str, axis: str, level: int, episodes, max_steps: int | None, step: float | None = None
 ) -> list[bool]:
-    """The certification's own episodes (``indgen_vla.app.certify.run.run_oracle_episode`` with ``episode_seed``)."""
-    from indgen_vla.app.certify.run import run_oracle_episode
+    """The certification's own episodes (``indgen_vla.app.certify.certify_levels.run_oracle_episode`` with ``episode_seed``)."""
+    from indgen_vla.app.certify.certify_levels import run_oracle_episode
     from indgen_vla.core.protocol.seeding import episode_seed
     from scenes.oracles import oracle_for
     from scenes.robocasa.horizons import TASK_HORIZONS

@@ -1,13 +1,13 @@
 """BlockEnv learners: the paper's baselines (appendix A.1), Ind, and a local translation-equivariant policy.
 
-``base`` holds what every learner shares (encoders, heads, the method table and its options); the learners
+``base`` holds what every learner shares (encoders, heads; the method table and its options are ``blockenv.methods``); the learners
 import it, and this package builds one by method key.
 """
 
 from torch import nn
 
-from indgen_vla.app.blockenv.models.base import METHODS, check_options
-from indgen_vla.app.blockenv.models.local import LocalConvPolicy, StepMLPPolicy
+from indgen_vla.app.blockenv.methods import METHODS, check_options
+from indgen_vla.app.blockenv.models.per_step import LocalConvPolicy, StepMLPPolicy
 from indgen_vla.app.blockenv.models.recursive import TRMPolicy
 from indgen_vla.app.blockenv.models.sequence import IndPolicy, RNNPolicy, TransformerPolicy
 from indgen_vla.core.registry import lookup

@@ -97,12 +97,10 @@ def test_sample_cli_prints_json_grids(capsys):
 
 @pytest.mark.parametrize("method", ["rnn", "transformer_goal_act", "trm", "maml", "ind", "local_equivariant"])
 def test_training_reduces_the_loss(method):
-    from indgen_vla.app.blockenv.train import TrainConfig, train
+    from indgen_vla.app.blockenv.fit import FitConfig, train
 
     losses = []
-    train(
-        TrainConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v)
-    )
+    train(FitConfig(method, steps=25, demos_per_level=20, hidden=32), progress=lambda i, v: losses.append(v))
     assert np.mean(losses[-5:]) < np.mean(losses[:5])
 
 
@@ -263,7 +261,7 @@ def test_legality_loss_weights_match_a_hand_computed_bce():
     import torch
     from torch.nn import functional as F  # noqa: N812
 
-    from indgen_vla.app.blockenv.train import bc_loss
+    from indgen_vla.app.blockenv.fit import bc_loss
 
     torch.manual_seed(0)
     joint = torch.randn(2, 1, 3, 3, 2)
@@ -281,9 +279,9 @@ def test_legality_loss_weights_match_a_hand_computed_bce():
 
 
 def test_variant_options_are_checked():
-    from indgen_vla.app.blockenv.train import TrainConfig
+    from indgen_vla.app.blockenv.fit import FitConfig
 
-    assert TrainConfig("ind", extra={"gate_scale": 4}).extra == {"gate_scale": 4}
+    assert FitConfig("ind", extra={"gate_scale": 4}).extra == {"gate_scale": 4}
     for method, extra, msg in (
         ("ind", {"gate": 1.0}, "no option"),
         ("rnn", {"patch": 2}, "allowed: none"),
@@ -293,7 +291,7 @@ def test_variant_options_are_checked():
         ("trm", {"patch": 0}, "patch must be >= 1"),
     ):
         with pytest.raises(ConfigError, match=msg):
-            TrainConfig(method, extra=extra)
+            FitConfig(method, extra=extra)
 
 
 def test_maml_joint_head_never_mixes_the_two_right_answers():
@@ -386,7 +384,7 @@ def test_ablation_table_rows_match_the_header_with_the_legality_column():
 
 
 def test_train_cli_passes_variant_options(tmp_path):
-    from indgen_vla.app.blockenv.train import load_checkpoint
+    from indgen_vla.app.blockenv.fit import load_checkpoint
 
     out = tmp_path / "ind"
     rest = ["train", "--method", "ind", "--steps", "1", "--demos-per-level", "2", "--out", str(out)]
@@ -403,13 +401,13 @@ def test_train_cli_passes_variant_options(tmp_path):
 def test_a_checkpoint_save_cut_short_never_loads_as_another(tmp_path):
     """A save cut short over an older checkpoint leaves no config.json beside other weights, and a model.pt cut
     short (what the old in-place torch.save left on a kill) is one clear error, not a torch traceback."""
-    from indgen_vla.app.blockenv.train import TrainConfig, load_checkpoint, save_checkpoint, train
+    from indgen_vla.app.blockenv.fit import FitConfig, load_checkpoint, save_checkpoint, train
     from tests.fixtures.kill import writes_cut_short_after
 
     out = tmp_path / "ckpt"
-    small, _ = train(TrainConfig("rnn", steps=1, demos_per_level=2, hidden=8))
-    save_checkpoint(small, TrainConfig("rnn", steps=1, demos_per_level=2, hidden=8), out)
-    big_cfg = TrainConfig("rnn", steps=1, demos_per_level=2, hidden=64)
+    small, _ = train(FitConfig("rnn", steps=1, demos_per_level=2, hidden=8))
+    save_checkpoint(small, FitConfig("rnn", steps=1, demos_per_level=2, hidden=8), out)
+    big_cfg = FitConfig("rnn", steps=1, demos_per_level=2, hidden=64)
     big, _ = train(big_cfg)
     with pytest.raises(OSError), writes_cut_short_after((out / "model.pt").stat().st_size + 100):
         save_checkpoint(big, big_cfg, out)

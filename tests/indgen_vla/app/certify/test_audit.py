@@ -9,8 +9,10 @@ import json
 import pytest
 
 from indgen_vla.app.certify.audit import AUDIT_FIRST_BLOCK, audit, holds, shipped_levels
+from indgen_vla.app.certify.certify_config import certify_config
 from indgen_vla.app.cli import main
 from indgen_vla.core.resources import certification_dir
+from scenes.family import get_scene
 
 
 def test_the_holding_rule_is_the_exact_binomial_test():
@@ -32,13 +34,18 @@ def test_audit_reruns_shipped_pick_place_levels_on_fresh_blocks(tmp_path, capsys
     assert row["scene"] == "pick_place" and row["block"] >= AUDIT_FIRST_BLOCK and row["basis"] == "held-out"
     assert (row["n"], row["successes"], row["holds"]) == (2, 2, True)  # the oracle solves pick_place levels
     # the draw is the seed's: the same level again
-    again = audit(1, scenes=["pick_place"], episodes=1, seed=3, log=None)["levels"][0]
+    config = certify_config(audit=1, episodes=1, seed=3)
+    again = audit(config, [get_scene("pick_place")], log=None)["levels"][0]
     assert (again["task"], again["axis"], again["level"]) == (row["task"], row["axis"], row["level"])
 
 
 def test_audit_refuses_a_scene_with_no_shipped_level(capsys):
-    assert main(["certify", "--audit", "1", "--scene", "no_such_scene"]) == 2
+    assert (
+        main(["certify", "--audit", "1", "--scene", "robocasa"]) == 2
+    )  # certified per machine: none shipped
     assert "no shipped certified level" in capsys.readouterr().err
+    assert main(["certify", "--audit", "1", "--scene", "no_such_scene"]) == 2
+    assert "unknown scene 'no_such_scene'" in capsys.readouterr().err
     assert main(["certify", "--axis", "pick_y"]) == 2  # neither --scene nor --audit: one line
     assert "needs --scene and --axis (or --audit N" in capsys.readouterr().err
     assert main(["certify", "--evaluation-states"]) == 2

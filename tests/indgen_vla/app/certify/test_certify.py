@@ -11,26 +11,30 @@ import pytest
 from scipy.stats import beta
 
 import scenes
-from indgen_vla.app.certify.run import certify, prepare
+from indgen_vla.app.certify import certify_levels as certify_run
 from indgen_vla.app.certify.suite import default_jobs, write_summary
-from indgen_vla.core.errors import ConfigError, UnknownNameError
+from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, UnknownNameError
 from indgen_vla.core.protocol.progression import ProgressionError
+from indgen_vla.core.runs.records import atomic_write_json
 from scenes.certificates import (
     Rule,
     axis_dirname,
     cert_path,
+    certification_root,
     episodes_needed,
     find_certification,
     infeasible_levels,
     level_status,
     load_certification,
     lower_bound,
+    tree_stamp,
     write_json_atomic,
 )
 from scenes.family import get_scene
 from scenes.heldout import SPENDING
 from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan
+from tests.fixtures.certify import run_certify, run_prepare
 from tests.fixtures.levels import level_param
 from tests.scenes.conftest import mini  # noqa: F401 (the LIBERO miniature asset fixture)
 
@@ -75,7 +79,7 @@ def test_sequential_rule_stops_once_the_bound_is_out_of_reach():
 def test_failing_level_stops_after_one_episode_and_is_refused(tmp_path):
     # 5 control steps cannot solve stack: the first failure ends the level (59 would be needed)
     out = tmp_path / "c" / "certify.json"
-    cert = certify(get_scene("stack"), "stack", levels="0", max_steps=5, out=out)
+    cert = run_certify("stack", "stack", levels="0", max_steps=5, path=out)
     row = cert["levels"][0]
     assert (row["n"], row["successes"], row["status"], row["certified"], row["feasible"]) == (
         1,
@@ -110,9 +114,7 @@ def test_certify_is_per_task_resumable_and_atomic(tmp_path):
     root = tmp_path / "certs"
     a = cert_path(get_scene("stack"), "orange_on_blue", "stack", root=root)
     assert a == root / "stack" / "orange_on_blue" / "stack" / "certify.json"
-    cert = certify(
-        get_scene("stack"), "stack", task="orange_on_blue", levels="0", episodes=1, max_steps=5, out=a
-    )
+    cert = run_certify("stack", "stack", task="orange_on_blue", levels="0", episodes=1, max_steps=5, path=a)
     assert cert["levels"][0]["status"] == "failed" and cert["task"] == "orange_on_blue"  # 5 steps: no success
     assert [p.name for p in a.parent.iterdir()] == ["certify.json"]  # no temp files left behind
     assert (
@@ -128,28 +130,28 @@ def test_certify_is_per_task_resumable_and_atomic(tmp_path):
     )  # never inherits another task's
     assert find_certification(get_scene("stack"), "orange_on_blue", "stack", step=0.5, root=root) is None
     logs = []
-    again = certify(
-        get_scene("stack"),
+    again = run_certify(
+        "stack",
         "stack",
         task="orange_on_blue",
         levels="0:1",
         episodes=1,
         max_steps=5,
-        out=a,
+        path=a,
         log=logs.append,
     )
     assert any("reusing levels [0]" in m for m in logs) and [r["level"] for r in again["levels"]] == [0, 1]
     assert again["levels"][0] == cert["levels"][0]
     logs.clear()
-    certify(
-        get_scene("stack"),
+    run_certify(
+        "stack",
         "stack",
         task="orange_on_blue",
         levels="0",
         episodes=1,
         seed=1,
         max_steps=6,
-        out=a,
+        path=a,
         log=logs.append,
     )
     assert any("replacing" in m for m in logs)  # another episode length does not reuse
@@ -205,9 +207,7 @@ def test_strictly_harder_is_checked_up_front_for_axes_and_compositions(tmp_path)
     with pytest.raises(ProgressionError, match="component goal_y"):
         resolve_scene_plan(get_scene("stack"), None, ["goal_y+distractor"], preset=str(preset))
     with pytest.raises(ProgressionError):  # certify refuses before building any env
-        certify(
-            get_scene("pick_place"), "pick_y", step=0.005, episodes=1, out=tmp_path / "x" / "certify.json"
-        )
+        run_certify("pick_place", "pick_y", step=0.005, episodes=1, path=tmp_path / "x" / "certify.json")
     assert not (tmp_path / "x").exists()
 
 
@@ -250,8 +250,6 @@ def test_json_is_written_atomically(tmp_path):
 def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
     import hashlib
 
-    from scenes.certificates import certification_root
-
     cache = os.environ["INDGEN_CACHE"]
     tag = hashlib.sha1(str(mini.resolve()).encode()).hexdigest()[:12]
     assert certification_root(get_scene("libero_object")) == Path(cache) / "certification" / tag
@@ -268,8 +266,8 @@ def test_libero_certificates_are_cached_per_asset_tree(mini):  # noqa: F811
 @pytest.mark.slow
 def test_workers_give_the_same_certificate(tmp_path):
     kw = dict(task="orange_on_blue", levels="0:2", episodes=2)
-    one = certify(get_scene("stack"), "stack", workers=1, out=tmp_path / "a" / "certify.json", **kw)
-    two = certify(get_scene("stack"), "stack", workers=2, out=tmp_path / "b" / "certify.json", **kw)
+    one = run_certify("stack", "stack", workers=1, path=tmp_path / "a" / "certify.json", **kw)
+    two = run_certify("stack", "stack", workers=2, path=tmp_path / "b" / "certify.json", **kw)
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in one["levels"]]
     assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in two["levels"]]
     assert [r["level"] for r in load_certification(tmp_path / "b")["levels"]] == [0, 1, 2]
@@ -279,23 +277,20 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     """LIBERO's and RoboCasa365's certificates are cached per asset tree path: a tree updated at the same path (here
     one file rewritten, same size) must not keep the old tree's certificate, nor must one made before certificates
     recorded their tree. Played on ``stack`` given an asset tree (5 control steps: one failed episode, cheap)."""
-    from scenes.certificates import tree_stamp
-    from scenes.family import get_scene
-
     tree = tmp_path / "assets"
     (tree / "objects").mkdir(parents=True)
     (tree / "objects" / "box.xml").write_text("<mujoco model='a'/>")
     monkeypatch.setattr(type(get_scene("stack")), "asset_tree", lambda self: tree)
     root = tmp_path / "certs"
     out = cert_path(get_scene("stack"), None, "stack", root=root)
-    certify(get_scene("stack"), "stack", levels="0", episodes=1, max_steps=5, out=out)
+    run_certify("stack", "stack", levels="0", episodes=1, max_steps=5, path=out)
     cert = find_certification(get_scene("stack"), None, "stack", root=root)
     assert cert is not None and cert["assets"]["root"] == str(tree.resolve()) and cert["assets"]["files"] == 1
     (tree / "objects" / "box.xml").write_text("<mujoco model='b'/>")  # same path and size, other content
     tree_stamp.cache_clear()  # the next command sees the tree as it is now
     assert find_certification(get_scene("stack"), None, "stack", root=root) is None
     logs = []
-    certify(get_scene("stack"), "stack", levels="0", episodes=1, max_steps=5, out=out, log=logs.append)
+    run_certify("stack", "stack", levels="0", episodes=1, max_steps=5, path=out, log=logs.append)
     assert any("made on other asset files than" in m for m in logs), logs  # made again, not reused
     assert find_certification(get_scene("stack"), None, "stack", root=root) is not None
     old = json.loads(out.read_text())
@@ -306,20 +301,18 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
 
 def test_certify_builds_its_levels_through_the_plan(tmp_path):
     """certify resolves its axis as evaluate does and hands each level job the plan's builder (the one road)."""
-    p = prepare(
-        get_scene("pick_place"),
-        "pick_y+distractor",
-        task="lemon",
-        levels="0:1",
-        episodes=1,
-        out=tmp_path / "c.json",
+    p = run_prepare(
+        "pick_place", "pick_y+distractor", task="lemon", levels="0:1", episodes=1, path=tmp_path / "c.json"
     )
     plan = resolve_scene_plan(get_scene("pick_place"), "lemon", ["pick_y+distractor"], "0:1")
-    assert [j[1:4] for j in p.jobs] == [("lemon", "pick_y+distractor", 0), ("lemon", "pick_y+distractor", 1)]
-    assert all(j[0] == plan.builder for j in p.jobs)
+    assert [(j.task, j.axis, j.level) for j in p.jobs] == [
+        ("lemon", "pick_y+distractor", 0),
+        ("lemon", "pick_y+distractor", 1),
+    ]
+    assert all(j.builder == plan.builder for j in p.jobs)
     assert p.cert["steps"] == {"pick_y": 0.025, "distractor": 1.0} and p.levels == [0, 1]
     with pytest.raises(ConfigError, match="write a held axis as A@B=j") as e:
-        prepare(get_scene("pick_place"), "pick_y@distractor", episodes=1)
+        run_prepare("pick_place", "pick_y@distractor", episodes=1)
     assert "\n" not in str(e.value)
 
 
@@ -327,9 +320,6 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
     """``EpisodeUnavailableError`` (a RoboCasa kitchen too narrow for pick_x): that seed is no episode of the level;
     certification goes on with the next seed index and the row counts it; a level too few seeds hold is ``failed``,
     with the reason in its row (a batch goes on to its next level)."""
-    import scenes.oracles
-    from indgen_vla.app.certify import run as certify_run
-    from indgen_vla.core.errors import EpisodeUnavailableError
 
     class Env:
         axis_param, calls, out = 0.0, [], {1}
@@ -348,18 +338,17 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
         def make_env(self, *args, **kwargs):
             return Env()
 
-    monkeypatch.setattr(scenes.oracles, "oracle_for", lambda scene: None)
+    monkeypatch.setattr(certify_run, "oracle_for", lambda scene: None)
     monkeypatch.setattr(
         certify_run, "run_oracle_episode", lambda env, policy, seed, i: (env.reset(seed), (True, 9))[1]
     )
     rule = certify_run.Rule(n_max=3)
-    row = certify_run.certify_level(Builder(), "t", "a", 0, 0, None, rule)
+    row = certify_run.certify_level(certify_run.LevelJob(Builder(), "t", "a", 0, 0, None, rule))
     assert (row["n"], row["unavailable"], len(Env.calls), len(set(Env.calls))) == (3, 1, 4, 4)
     assert "unavailable" not in certify_run.level_row(0, 0.0, [(True, 9)], rule, 1.0)
     Env.calls, Env.out = [], set(range(10))
-    row = certify_run.certify_level(
-        Builder(), "t", "a", 0, 0, None, rule
-    )  # no seed holds it: failed, with why
+    # no seed holds it: failed, with why
+    row = certify_run.certify_level(certify_run.LevelJob(Builder(), "t", "a", 0, 0, None, rule))
     assert (row["status"], row["feasible"], row["n"], row["unavailable"]) == ("failed", False, 0, 4)
     assert re.fullmatch(
         r"4 of 4 seeds cannot hold this level, e\.g\. seed \d+: a 0\.165 m range", row["infeasible"]
@@ -369,8 +358,6 @@ def test_a_seed_that_cannot_hold_the_level_is_skipped_and_counted(monkeypatch):
 
 def test_summary_counts_shipped_triples_outside_the_default_batch_apart(tmp_path):
     """LIBERO-Object's shipped certificates are not in certify's default batch: counted beside it, never as its."""
-    from indgen_vla.core.runs.records import atomic_write_json
-
     row = {"n": 59, "successes": 59, "rate": 1.0, "feasible": True, "status": "certified"}
     for task in ("bbq_sauce", "butter"):
         d = tmp_path / "libero_object" / task / "goal_y"

@@ -5,27 +5,22 @@ from __future__ import annotations
 
 import json
 
+from indgen_vla.app.certify.batch import certify_many
+from indgen_vla.app.certify.certify_config import CertifyPlan, CertifyRule
+from scenes.certificates import cert_path
 from scenes.family import get_scene
 
 
 def test_a_chunk_cut_by_its_deadline_is_resumed_by_the_next(tmp_path):
-    from indgen_vla.app.certify.batch import certify_many
-    from scenes.certificates import cert_path
-
     pairs = [("orange_on_blue", "stack")]
     lines: list[str] = []
-    first = certify_many(
-        get_scene("stack"), pairs, levels=[0, 1], episodes=1, root=tmp_path, deadline_s=0.0, log=lines.append
-    )
+    stack, plan, rule = get_scene("stack"), CertifyPlan(levels=[0, 1]), CertifyRule(episodes=1)
+    first = certify_many(stack, pairs, plan, rule, root=tmp_path, deadline_s=0.0, log=lines.append)
     assert first[0]["levels"] == [] and any("2 level jobs not started" in x for x in lines), lines
-    second = certify_many(
-        get_scene("stack"), pairs, levels=[0, 1], episodes=1, root=tmp_path, log=lines.append
-    )
+    second = certify_many(stack, pairs, plan, rule, root=tmp_path, log=lines.append)
     assert [r["level"] for r in second[0]["levels"]] == [0, 1]
     on_disk = json.loads(cert_path(get_scene("stack"), "orange_on_blue", "stack", root=tmp_path).read_text())
     assert [(r["level"], r["n"]) for r in on_disk["levels"]] == [(0, 1), (1, 1)]
     assert (tmp_path / "SUMMARY.md").is_file()
-    third = certify_many(
-        get_scene("stack"), pairs, levels=[0, 1], episodes=1, root=tmp_path, log=lines.append
-    )
+    third = certify_many(stack, pairs, plan, rule, root=tmp_path, log=lines.append)
     assert third[0]["levels"] == second[0]["levels"]  # nothing left to run: the stored rows

@@ -8,9 +8,9 @@ import io
 
 import pytest
 
-from indgen_vla.app.certify.run import certify
+from indgen_vla.app.certify.display import CertifyDisplay
 from indgen_vla.app.cli import main
-from scenes.family import get_scene
+from tests.fixtures.certify import run_certify
 
 
 def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, capsys):
@@ -28,14 +28,12 @@ def test_piped_certify_prints_a_line_when_it_starts_and_per_level(tmp_path, caps
 def test_on_a_terminal_each_level_is_a_live_row_and_reused_levels_say_so(tmp_path):
     from rich.console import Console
 
-    from indgen_vla.app.certify.display import CertifyDisplay
-
     def run(levels: str) -> str:
         buf = io.StringIO()
         console = Console(file=buf, force_terminal=True, width=120, color_system=None)
         with CertifyDisplay("stack", "orange_on_blue", "stack", console=console) as d:
             assert d.live
-            certify(get_scene("stack"), "stack", levels=levels, episodes=2, max_steps=5, out=tmp_path / "certify.json",
+            run_certify("stack", "stack", levels=levels, episodes=2, max_steps=5, path=tmp_path / "certify.json",
                     log=d.log, watch=d)  # fmt: skip
         return buf.getvalue().split("\r")[-1]  # the last refresh of the rows
 
@@ -70,14 +68,8 @@ class Recorder:
 @pytest.mark.slow  # two spawned workers import the simulator: ~20 s
 def test_pool_workers_report_each_episode_while_they_run(tmp_path):
     seen = Recorder()
-    certify(
-        get_scene("pick_place"),
-        "pick_y",
-        levels="0:1",
-        episodes=2,
-        workers=2,
-        out=tmp_path / "c.json",
-        watch=seen,
+    run_certify(
+        "pick_place", "pick_y", levels="0:1", episodes=2, workers=2, path=tmp_path / "c.json", watch=seen
     )
     assert seen.started == ([0, 1], 2) and sorted(seen.levels) == [0, 1]
     # the oracle solves pick_place: (level, successes, n) after each episode

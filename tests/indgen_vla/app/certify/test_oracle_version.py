@@ -8,8 +8,8 @@ import json
 
 import pytest
 
-from indgen_vla.app.certify.run import certify, prepare
 from indgen_vla.app.certify.suite import write_summary
+from indgen_vla.core.resources import certification_dir
 from scenes.certificates import (
     cert_path,
     find_certification,
@@ -20,13 +20,15 @@ from scenes.certificates import (
 )
 from scenes.family import get_scene, registered_scenes
 from scenes.oracles import oracle_identity
+from scenes.planning import resolve_scene_plan
 from scenes.tabletop.oracle import OraclePolicy
+from tests.fixtures.certify import run_certify, run_prepare
 
 
 def test_every_family_oracle_has_a_version():
     """Each registered scene's oracle names its class and an integer version; LIBERO's is at least the v2 of the
     sweep (docs/results/libero_object_real_assets.md)."""
-    ids = {s.name: oracle_identity(get_scene(s.name)) for s in registered_scenes()}
+    ids = {s.name: oracle_identity(s) for s in registered_scenes()}
     assert all(isinstance(i["version"], int) and i["version"] >= 1 for i in ids.values()), ids
     assert {k: ids["stack"][k] for k in ("name", "version")} == {"name": "scenes.tabletop.oracle:OraclePolicy",
                                                                  "version": OraclePolicy.version}  # fmt: skip
@@ -41,7 +43,7 @@ def _old_certificate(tmp_path):
     """A stack certificate as made before versions were recorded (``prepare``'s header, rows written here): level 0
     failed at its first episode, level 1 certified (59/59), no ``oracle`` field anywhere."""
     out = cert_path(get_scene("stack"), "orange_on_blue", "stack", root=tmp_path)
-    old = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", max_steps=5).cert
+    old = run_prepare("stack", "stack", task="orange_on_blue", levels="0", max_steps=5).cert
     assert old.pop("oracle") == oracle_identity(get_scene("stack"))
     fail = {"level": 0, "param": 0.0, "n": 1, "successes": 0, "rate": 0.0, "lower_bound": 0.0, "status": "failed",
             "certified": False, "feasible": False, "stopped_early": True, "mean_steps": 5.0, "wall_s": 1.0}  # fmt: skip
@@ -57,14 +59,8 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     old = load_certification(out)
     assert [row_oracle_version(r, old) for r in old["levels"]] == [1, 1]  # no field: v1
     logs = []
-    same = prepare(
-        get_scene("stack"),
-        "stack",
-        task="orange_on_blue",
-        levels="0:1",
-        max_steps=5,
-        out=out,
-        log=logs.append,
+    same = run_prepare(
+        "stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, path=out, log=logs.append
     )
     assert same.jobs == [] and not any("again" in m for m in logs)  # same version: nothing to re-run
 
@@ -77,20 +73,12 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
     assert "| 0: 0/1!v1 1: 59/59~ | 1 | 0, 2, 3, 4 | v1 |" in summary  # ~: no ledger, history unknown
 
     monkeypatch.setenv("INDGEN_CERT_DIR", str(tmp_path))
-    from scenes.planning import resolve_scene_plan
-
     plan = resolve_scene_plan(get_scene("stack"), "orange_on_blue", ("stack",), "0:1")
     assert [c.evidence for c in plan.cells] == ["0/1 (failed (oracle v1, current v2))", "59/59 (certified)"]
 
     logs.clear()
-    again = certify(
-        get_scene("stack"),
-        "stack",
-        task="orange_on_blue",
-        levels="0:1",
-        max_steps=5,
-        out=out,
-        log=logs.append,
+    again = run_certify(
+        "stack", "stack", task="orange_on_blue", levels="0:1", max_steps=5, path=out, log=logs.append
     )
     assert any("levels [0] failed under an older oracle; trying them again with oracle v2" in m for m in logs)
     rows = {r["level"]: r for r in again["levels"]}
@@ -114,16 +102,14 @@ def test_a_failure_by_an_older_oracle_is_retried_and_a_certificate_by_any_stays(
 def test_a_partial_level_of_another_oracle_version_is_not_reused(tmp_path, monkeypatch):
     """Episodes a killed run of another oracle version left are not mixed into this version's level."""
     out = tmp_path / "certify.json"
-    key = prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1]
+    key = run_prepare("stack", "stack", task="orange_on_blue", levels="0", path=out).jobs[0].key
     monkeypatch.setattr(OraclePolicy, "version", 2)
-    assert prepare(get_scene("stack"), "stack", task="orange_on_blue", levels="0", out=out).jobs[0][-1] != key
+    assert run_prepare("stack", "stack", task="orange_on_blue", levels="0", path=out).jobs[0].key != key
 
 
 @pytest.mark.parametrize("path", ["libero_object/alphabet_soup/goal_y", "stack/orange_on_blue/stack"])
 def test_shipped_certificates_without_a_version_still_load(path):
     """Certificates shipped before versions were recorded load, count as v1, and keep their verdicts."""
-    from indgen_vla.core.resources import certification_dir
-
     cert = load_certification(certification_dir() / path)
     rows = cert["levels"]
     assert rows and all(row_oracle_version(r, cert) >= 1 for r in rows)

@@ -16,6 +16,16 @@ def test_import_is_light():
     assert out.strip() == "[]"
 
 
+def test_help_imports_no_numpy_and_no_scene():
+    """``indgen --help`` builds every parser without numpy, scipy or a scene (``# lazy: start-up`` imports)."""
+    code = (
+        "import sys; from indgen_vla.app.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'scenes', 'torch', 'robosuite') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
 def test_help_lists_every_design_subcommand(capsys):
     with pytest.raises(SystemExit) as e:
         main(["--help"])

@@ -83,7 +83,7 @@ class ClosablePolicy:
 
 def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
     from indgen_vla.app.engine.adaptive import run_adaptive
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.app.engine.run import build_plan
     from indgen_vla.core.runs.records import RunDir
@@ -99,15 +99,23 @@ def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
 
     def run_jobs(batch):
         rounds.append(len(batch))
-        run_local(batch, rc, lambda: policy, meta, lambda rec: run.append([rec]), workers=1, replan_steps=4,
-                  close_policies=False)  # fmt: skip
+        run_local(
+            batch,
+            rc,
+            lambda: policy,
+            meta,
+            lambda rec: run.append([rec]),
+            LocalOptions(workers=1, replan_steps=4, close_policies=False),
+        )
 
     run_adaptive(plan, run.episodes, run_jobs, c)
     df = run.episodes()
     assert (
         len(rounds) == 3 and (df["status"] == "ok").all() and not policy.closed
     )  # 3 rounds of 5 on one policy
-    run_local(jobs[15:16], rc, lambda: policy, meta, lambda rec: None, workers=1, replan_steps=4)
+    run_local(
+        jobs[15:16], rc, lambda: policy, meta, lambda rec: None, LocalOptions(workers=1, replan_steps=4)
+    )
     assert policy.closed  # by default run_local closes what it was given
 
 

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, config_from_args, plan_episodes
-from indgen_vla.app.engine.local import run_local
+from indgen_vla.app.engine.local import LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
@@ -151,8 +151,14 @@ def test_retry_then_error_rows(tmp_path):
         max_steps=6,
         privileged=False,
     )
-    run_local(jobs, rc, lambda: policy, RunMeta("r", "test:flaky", "", "pick_place"), records.append,
-              workers=1, replan_steps=4, max_retries=2)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: policy,
+        RunMeta("r", "test:flaky", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=1, replan_steps=4, max_retries=2),
+    )
     by_ep = {r.episode: r for r in records}
     assert len(records) == 3
     assert by_ep[1].status == "error" and "attempt 3" in by_ep[1].error and "test:flaky" in by_ep[1].error
@@ -252,8 +258,14 @@ def test_an_unavailable_episode_is_one_unavailable_row_and_a_backends_own_param_
     levels = _UnavailableLevels(scene_levels(get_scene("pick_place"), ["pick_y"]), frozenset({out}), resets)
     rc = RunnerConfig(levels=levels, cameras=(), image_size=(64, 64), max_steps=4, privileged=False)
     records = []
-    run_local(jobs, rc, _Zeros, RunMeta("r", "test:zeros", "", "pick_place"), records.append,
-              workers=1, replan_steps=4, max_retries=2)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        _Zeros,
+        RunMeta("r", "test:zeros", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=1, replan_steps=4, max_retries=2),
+    )
     by_ep = {r.episode: r for r in records}
     assert by_ep[1].status == "unavailable" and by_ep[1].error.startswith(
         "attempt 1: EpisodeUnavailableError: seed"

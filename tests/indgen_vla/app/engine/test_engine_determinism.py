@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
-from indgen_vla.app.engine.local import run_local
+from indgen_vla.app.engine.local import LocalOptions, run_local
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, run_episode
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
 from scenes.family import get_scene
@@ -83,8 +83,14 @@ def _on_runner(jobs, meta, cameras, history_steps, runner: EnvRunner) -> dict:
 
 def _engine(jobs, rc, meta, cameras, history_steps, **kw) -> dict:
     log, records = {}, []
-    run_local(jobs, rc, lambda: ImageHash(log, cameras, history_steps), meta, records.append, replan_steps=REPLAN,
-              **kw)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: ImageHash(log, cameras, history_steps),
+        meta,
+        records.append,
+        LocalOptions(replan_steps=REPLAN, **kw),
+    )
     return _outcome(records, log)
 
 

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
-from indgen_vla.app.engine.local import EarlyWorkers, run_local
+from indgen_vla.app.engine.local import EarlyWorkers, Handoff, LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.run import evaluate
 from policy_wrappers.specs import load_policy, preview_policy
@@ -42,8 +42,15 @@ def _jobs_and_config():
 def _run(jobs, rc, early=None) -> dict:
     records: list = []
     policy = load_policy("standin:random")
-    run_local(jobs, rc, lambda: policy, RunMeta("r", "standin:random", "", "pick_place"), records.append,
-              workers=1, replan_steps=3, early=early)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: policy,
+        RunMeta("r", "standin:random", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=1, replan_steps=3),
+        handoff=Handoff(early=early),
+    )
     return _outcomes(records)
 
 
@@ -138,8 +145,14 @@ def test_workers_take_the_callers_environment_as_of_their_start(tmp_path, monkey
     rc = RunnerConfig(levels=builder, cameras=(), image_size=(64, 64), max_steps=2, privileged=False)
     records: list = []
     policy = load_policy("standin:random")
-    run_local(jobs, rc, lambda: policy, RunMeta("r", "standin:random", "", "libero_object"), records.append,
-              workers=2, max_retries=0)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: policy,
+        RunMeta("r", "standin:random", "", "libero_object"),
+        records.append,
+        LocalOptions(workers=2, max_retries=0),
+    )
     assert len(records) == 2 and all(r.status == "error" and str(nowhere) in r.error for r in records), [
         r.error for r in records
     ]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
-from indgen_vla.app.engine.local import run_local
+from indgen_vla.app.engine.local import LocalOptions, run_local
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation, PolicySpec, ScenePreview
@@ -119,8 +119,14 @@ def test_history_renders_only_when_asked_and_changes_no_outcome(monkeypatch):
         rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=("agentview",), image_size=SIZE,
                           max_steps=10, privileged=False, history_steps=k)  # fmt: skip
         renders["n"] = 0
-        run_local(jobs, rc, lambda k=k, log=log: _SeesHistory(k, log), RunMeta("r", "test", "", "pick_place"),
-                  records.append, workers=1, replan_steps=5)  # fmt: skip
+        run_local(
+            jobs,
+            rc,
+            lambda k=k, log=log: _SeesHistory(k, log),
+            RunMeta("r", "test", "", "pick_place"),
+            records.append,
+            LocalOptions(workers=1, replan_steps=5),
+        )
         rows = sorted((r.episode, r.seed, r.success, r.steps, r.status, r.failure) for r in records)
         history = {key[1]: n for key, n in log.items() if key[0] == "history"}
         runs[k] = ({key: n for key, n in log.items() if key[0] != "history"}, rows, history, renders["n"])

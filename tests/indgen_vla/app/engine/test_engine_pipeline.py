@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
-from indgen_vla.app.engine.local import run_local
+from indgen_vla.app.engine.local import LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.core.protocol.interface import PolicySpec
 from scenes.family import get_scene
@@ -50,8 +50,14 @@ def _run(make_inner, privileged: bool, workers: int, pipeline: bool, max_steps: 
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=max_steps,
                       privileged=privileged)  # fmt: skip
     log, instances, records = Counter(), [], []
-    run_local(jobs, rc, lambda: Logged(make_inner(), log, instances), RunMeta("r", "test", "", "pick_place"),
-              records.append, workers=workers, replan_steps=5, pipeline=pipeline)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: Logged(make_inner(), log, instances),
+        RunMeta("r", "test", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=workers, replan_steps=5, pipeline=pipeline),
+    )
     rows = sorted((r.task, r.axis, r.level, r.episode, r.seed, r.success, r.steps, r.status, r.failure)
                   for r in records)  # fmt: skip
     return rows, log, len(instances)
@@ -147,8 +153,14 @@ def test_lazy_render_reads_the_same_observations(monkeypatch):
             return policy
 
         calls["n"] = 0
-        run_local(jobs, rc, make, RunMeta("r", "test", "", "pick_place"), records.append,
-                  workers=1, replan_steps=5)  # fmt: skip
+        run_local(
+            jobs,
+            rc,
+            make,
+            RunMeta("r", "test", "", "pick_place"),
+            records.append,
+            LocalOptions(workers=1, replan_steps=5),
+        )
         logs[lazy] = (
             log,
             sorted((r.episode, r.seed, r.steps, r.status, r.failure) for r in records),

@@ -176,7 +176,7 @@ def _jobs(policy: str, episodes: int, workers: int):
 def test_ray_backend_matches_local(tmp_path, ray_session):
     """The oracle through ``evaluate --backend ray`` (2 simulator actors, per-episode oracle instances held by
     the one policy actor) gives the local backend's episodes."""
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.app.engine.run import evaluate
     from scenes.tabletop.oracle import OraclePolicy
@@ -185,8 +185,14 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,
                       privileged=True)  # fmt: skip
     ref = []
-    run_local(jobs, rc, OraclePolicy, RunMeta("r", "standin:oracle", "", "pick_place"), ref.append, workers=1,
-              replan_steps=OraclePolicy.spec.replan_steps)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        OraclePolicy,
+        RunMeta("r", "standin:oracle", "", "pick_place"),
+        ref.append,
+        LocalOptions(workers=1, replan_steps=OraclePolicy.spec.replan_steps),
+    )
     out = evaluate(EvalConfig.from_flat(policy="standin:oracle", scene="pick_place", axes=("pick_y",), levels="0:1",
                               episodes=2, max_steps=25, workers=2, backend="ray", out=str(tmp_path / "ray")),
                    quiet=True)  # fmt: skip
@@ -199,7 +205,7 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
 @pytest.mark.slow
 def test_ray_batched_policy_actor_matches_local(ray_session):
     """A batched policy: one instance in the policy actor serving 2 simulator actors, equal to local."""
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.ray_backend import run_ray
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 
@@ -208,7 +214,7 @@ def test_ray_batched_policy_actor_matches_local(ray_session):
                       privileged=False)  # fmt: skip
     meta, cls = RunMeta("r", "test:feedback", "", "pick_place"), feedback_policy_class()
     ref, got, stats = [], [], {}
-    run_local(jobs, rc, cls, meta, ref.append, workers=1, replan_steps=5)
+    run_local(jobs, rc, cls, meta, ref.append, LocalOptions(workers=1, replan_steps=5))
     run_ray(jobs, rc, c, meta, got.append, 5, make_policy=cls, stats=stats)
     assert len(ref) == 4 and _rows(got) == _rows(ref)
     assert stats["policy_actors"] == 1 and sum(stats["batch_sizes"]) == 4 * 3  # 3 chunks per episode

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
-from indgen_vla.app.engine.local import run_local
+from indgen_vla.app.engine.local import Handoff, LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
 from indgen_vla.app.engine.scheduler import JobQueue, first_jobs
 from indgen_vla.core.protocol.plan import EpisodeJob
@@ -83,8 +83,14 @@ def _run(tmp_path: Path, workers: int, levels=(0, 1, -1), episodes: int = 3) -> 
     log = tmp_path / f"builds_{workers}_{len(levels)}x{episodes}.txt"
     jobs, rc = _counted(log, list(levels), episodes)
     records: list = []
-    run_local(jobs, rc, StateFeedback, RunMeta("r", "test", "", "pick_place"), records.append, workers=workers,
-              replan_steps=5)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        StateFeedback,
+        RunMeta("r", "test", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=workers, replan_steps=5),
+    )
     rows = sorted((r.task, r.axis, r.level, r.episode, r.seed, r.success, r.steps, r.status) for r in records)
     return rows, log.read_text().splitlines()
 
@@ -110,8 +116,15 @@ def _rounds(tmp_path: Path, name: str, levels: list[int], episodes: int, workers
     try:
         for part in ([j for j in jobs if j.episode < split], [j for j in jobs if j.episode >= split]):
             early, kept = kept, []
-            run_local(part, rc, StateFeedback, RunMeta("r", "test", "", "pick_place"), records.append,
-                      workers=workers, replan_steps=5, early=early, keep=kept)  # fmt: skip
+            run_local(
+                part,
+                rc,
+                StateFeedback,
+                RunMeta("r", "test", "", "pick_place"),
+                records.append,
+                LocalOptions(workers=workers, replan_steps=5),
+                handoff=Handoff(early=early, keep=kept),
+            )
             builds.append(len(log.read_text().splitlines()) - sum(builds))
             pools.append(list(kept))
     finally:

@@ -237,7 +237,7 @@ def test_reference_loop_reruns_after_connection_fault_without_using_a_retry():
 
 def test_local_engine_pauses_shows_the_wait_and_reruns_from_seed():
     import scenes
-    from indgen_vla.app.engine.local import run_local
+    from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from indgen_vla.core.protocol.plan import EpisodeJob
 
@@ -247,8 +247,15 @@ def test_local_engine_pauses_shows_the_wait_and_reruns_from_seed():
     rc = RunnerConfig(
         scene_levels(get_scene("pick_place"), ["pick_y"]), (), (64, 64), max_steps=8, privileged=False
     )
-    run_local(jobs, rc, lambda: policy, RunMeta("r", "test:drops", "", "pick_place"), records.append,
-              workers=1, replan_steps=4, max_retries=0, on_wait=shown.append)  # fmt: skip
+    run_local(
+        jobs,
+        rc,
+        lambda: policy,
+        RunMeta("r", "test:drops", "", "pick_place"),
+        records.append,
+        LocalOptions(workers=1, replan_steps=4, max_retries=0),
+        on_wait=shown.append,
+    )
     assert [(r.episode, r.status, r.steps) for r in records] == [(0, "ok", 8), (1, "ok", 8)]
     assert policy.resets == [10, 10, 11]  # episode 0 re-run from its seed; no retry was spent (max_retries=0)
     assert any("server unreachable, retrying in" in s and "patience" in s for s in shown) and shown[-1] == ""

@@ -9,17 +9,19 @@ import sys
 
 import pytest
 
-from scenes.family import get_scene
 from tests.fixtures.lerobot_runs import AXIS, ROOT, SCENE, lerobot_env, needs_plugin
 
 pytestmark = [pytest.mark.slow, needs_plugin]
 
 
 def test_lerobot_train_evaluates_an_indgen_level(tmp_path):
-    from indgen_vla.app.regimes.demos import record_demos
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig
 
     data = tmp_path / "demos"
-    record_demos(get_scene(SCENE), data, n=2, cameras=(), objects=True)  # state + object poses, no images
+    api.demos(
+        DemosConfig(scene=SCENE, out=data, n=2, cameras=(), objects=True, workers=1)
+    )  # state + object poses, no images
     out = tmp_path / "train"
     cmd = [sys.executable, "-m", "lerobot.scripts.lerobot_train", "--dataset.repo_id=local/indgen_demos",
            f"--dataset.root={data}", "--policy.type=act", "--policy.device=cpu", "--policy.push_to_hub=false",

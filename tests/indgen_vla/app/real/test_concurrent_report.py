@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import read_journal, replay
 from tests.indgen_vla.app.real.pty_session import ROOT

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.status import status
 from indgen_vla.app.real.store import OPERATOR_FAILURES
 from scenes.family import get_scene

@@ -21,7 +21,7 @@ def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "2", "--order", "blocked",
                  "--adaptive", "off", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
     capsys.readouterr()
-    from indgen_vla.app.real.plan import RealRun
+    from indgen_vla.app.real.design import RealRun
 
     seeds = RealRun.open(run).seeds
     # an episode out of the queue's order (the set-up of level 1 is on the table now)

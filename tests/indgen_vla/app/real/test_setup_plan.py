@@ -8,7 +8,7 @@ import json
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.setup import load_setup, setup_from_dict
 from indgen_vla.app.real.store import State
 from indgen_vla.core.errors import ConfigError

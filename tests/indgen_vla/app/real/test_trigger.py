@@ -14,7 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.real.plan import RealRun
+from indgen_vla.app.real.design import RealRun
 from indgen_vla.app.real.session import interactive
 from indgen_vla.app.real_policy import PolicyCheck
 from policy_wrappers import msgpack_numpy

@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from indgen_vla.app.regimes.demos import HumanNoise, record_demos
+from indgen_vla.app import api
+from indgen_vla.app.regimes.demos import DemosConfig, HumanNoise
 from indgen_vla.core.errors import ConfigError
-from scenes.family import get_scene
 from tests.fixtures.levels import level_env, level_param
 
 
@@ -27,7 +27,7 @@ def test_demos_round_trip_through_lerobot(one_demo):
     assert np.all(np.abs(actions) <= 1.0) and set(np.unique(np.sign(actions[:, -1]))) <= {-1.0, 1.0}
     assert actions[:, -1].max() == 1.0  # the gripper closed at some point: a grasp happened
     with pytest.raises(ConfigError, match="made with --seed 3, not --seed 0"):
-        record_demos(get_scene("pick_place"), out, n=1)
+        api.demos(DemosConfig(scene="pick_place", out=out, n=1, workers=1))
 
 
 def test_noise_validation():
@@ -50,14 +50,14 @@ def _run(code: str) -> str:
 def test_demos_build_t0_and_levels_through_the_plans_builder():
     """T0 is level 0 of the family's first axis, each task's own; --axis cells use the plan's builder."""
     from indgen_vla.app.regimes.demos import LevelRequest, plan_cells
+    from scenes import get_scene
     from scenes.planning import resolve_scene_plan, scene_levels
 
     cells, maker = plan_cells(get_scene("pick_place"), "all", LevelRequest(), (), 64)
     assert maker.t0_axis == "pick_y" and {c.axis for c in cells} == {None}
     assert maker.builder == scene_levels(get_scene("pick_place"), ["pick_y"], tasks=[c.task for c in cells])
-    cells, maker = plan_cells(
-        get_scene("pick_place"), "milk", LevelRequest("pick_y+distractor", "0:1"), (), 64
-    )
+    at = LevelRequest(axes=("pick_y+distractor",), levels="0:1")
+    cells, maker = plan_cells(get_scene("pick_place"), "milk", at, (), 64)
     assert (
         maker.builder
         == resolve_scene_plan(get_scene("pick_place"), "milk", ["pick_y+distractor"], "0:1").builder
@@ -71,7 +71,8 @@ def test_demos_and_mimicgen_build_their_scenes_without_robosuites_macro_warning(
     scenes.tabletop.mjcf, not scenes.sim: its three-line macro-file warning must not reach the terminal there either
     (the fork server's preload: tests/scenes/test_planning.py::test_the_fork_servers_preload_is_quiet)."""
     code = ("import indgen_vla.app.regimes.mimicgen\n"
-            "from indgen_vla.app.regimes.demos import LevelRequest, plan_cells\nfrom scenes.family import get_scene\n"
+            "from indgen_vla.app.regimes.demos import LevelRequest, plan_cells\n"
+            "from scenes import get_scene\n"
             "cells, maker = plan_cells(get_scene('pick_place'), None, LevelRequest(), (), 64)\n"
             "env = maker(cells[0])\nenv.reset(seed=0)\nenv.close()")  # fmt: skip
     assert "macro" not in _run(code)
@@ -229,13 +230,15 @@ def test_an_interrupted_two_worker_recording_resumes_into_the_uninterrupted_data
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        record_demos(
-            get_scene("pick_place"), out, n=2, seed=5, cameras=(), objects=True, workers=2, progress=interrupt
+        api.demos(
+            DemosConfig(scene="pick_place", out=out, n=2, seed=5, cameras=(), objects=True, workers=2),
+            progress=interrupt,
         )
     assert _sidecar_lines(out) == 1 and not json_of(out)["complete"]
     said = []
-    stats = record_demos(
-        get_scene("pick_place"), out, n=2, seed=5, cameras=(), objects=True, notice=said.append
+    stats = api.demos(
+        DemosConfig(scene="pick_place", out=out, n=2, seed=5, cameras=(), objects=True, workers=1),
+        notice=said.append,
     )
     assert said == [f"resuming {out}: 1 of 2 episodes already recorded"]
     assert stats["episodes"] == 2 and json_of(out)["stats"] == stats
@@ -340,6 +343,29 @@ def test_rendered_demos_are_the_same_for_one_and_two_workers(tmp_path):
     from tests.fixtures.datasets import dataset_digest
 
     one, two = tmp_path / "one", tmp_path / "two"
-    record_demos(get_scene("pick_place"), one, n=2, seed=7, image_size=16, workers=1)
-    record_demos(get_scene("pick_place"), two, n=2, seed=7, image_size=16, workers=2)
+    api.demos(DemosConfig(scene="pick_place", out=one, n=2, seed=7, image_size=16, workers=1))
+    api.demos(DemosConfig(scene="pick_place", out=two, n=2, seed=7, image_size=16, workers=2))
     assert dataset_digest(one) == dataset_digest(two)
+
+
+def test_demos_config_names_ideas_as_evaluate_does_and_refuses_in_one_line(tmp_path):
+    """``indgen demos``' flags parse into a ``DemosConfig`` (the level section named as evaluate names it); a bad
+    value is one line naming the flag."""
+    from indgen_vla.app.config_fields import from_flat
+    from indgen_vla.app.regimes.demos import LevelRequest
+
+    flat = {"scene": "pick_place", "n": 2, "out": tmp_path, "axes": "pick_y", "levels": "0:1", "cameras": "",
+            "noise": 0.2, "workers": 1}  # fmt: skip
+    cfg = from_flat(DemosConfig, flat, command="demos")
+    assert cfg.at == LevelRequest(axes=("pick_y",), levels="0:1") and cfg.at.axis == "pick_y"
+    assert cfg.cameras == () and cfg.noise == HumanNoise(sigma=0.2) and cfg.out == tmp_path
+    for values, says in (
+        ({"n": 0}, "--n must be >= 1, got 0"),
+        ({"workers": 0}, "--workers must be >= 1, got 0"),
+    ):
+        with pytest.raises(ConfigError, match=says):
+            DemosConfig(**{"scene": "pick_place", "n": 1, "out": tmp_path, **values})
+    with pytest.raises(ConfigError, match="indgen demos records one axis per dataset"):
+        LevelRequest(axes="pick_y,scale", levels="0:1")
+    with pytest.raises(ConfigError, match="--axis pick_y needs --levels"):
+        LevelRequest(axes=("pick_y",))

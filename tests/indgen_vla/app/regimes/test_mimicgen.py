@@ -136,8 +136,8 @@ def test_new_seeds_are_deterministic_and_avoid_source_seeds():
 def test_mimicgen_round_trip_through_lerobot(tmp_path, one_demo):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    from indgen_vla.app.api import mimicgen as generate
     from indgen_vla.app.regimes.demos import read_episode_sidecar
-    from indgen_vla.app.regimes.mimicgen import generate
 
     (src, _), out = one_demo, tmp_path / "gen"
     rec = read_episode_sidecar(src)
@@ -170,8 +170,8 @@ def test_mimicgen_generates_each_level_from_its_own_sources(level_demos, tmp_pat
     level's sources, with the level columns and sidecar fields carried over and seeds evaluate never uses."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    from indgen_vla.app.api import mimicgen as generate
     from indgen_vla.app.regimes.demos import LEVEL_FEATURES, read_episode_sidecar
-    from indgen_vla.app.regimes.mimicgen import generate
     from indgen_vla.core.protocol.seeding import held_out_seeds
 
     src = level_demos[0]
@@ -224,7 +224,7 @@ RUN = {"n": 3, "seed": 1, "action_noise": 0.3}  # its attempts: kept, discarded,
 @pytest.fixture(scope="module")
 def generated(demos, tmp_path_factory):
     """Three uninterrupted attempts from the two T0 demos (two kept)."""
-    from indgen_vla.app.regimes.mimicgen import generate
+    from indgen_vla.app.api import mimicgen as generate
 
     out = tmp_path_factory.mktemp("mg") / "gen"
     generate(MimicGenConfig(source=demos, out=out, **RUN))
@@ -236,8 +236,9 @@ def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tm
     """Stopped (Ctrl-C) after its first kept episode and a discarded attempt, with the next staging cut short as a
     kill leaves it, the rerun keeps that episode, runs the discarded attempt again and writes the same dataset,
     file by file, as an uninterrupted run."""
+    from indgen_vla.app.api import mimicgen as generate
     from indgen_vla.app.regimes.journal import JOURNAL, read_episode_sidecar
-    from indgen_vla.app.regimes.mimicgen import RECORD, generate
+    from indgen_vla.app.regimes.mimicgen import RECORD
 
     out, said = tmp_path / "gen", []
 
@@ -246,7 +247,7 @@ def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tm
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        generate(MimicGenConfig(source=demos, out=out, **RUN), stop)
+        generate(MimicGenConfig(source=demos, out=out, **RUN), progress=stop)
     assert json.loads((out / RECORD).read_text())["complete"] is False and len(read_episode_sidecar(out)) == 1
     assert sorted(p.name for p in (out / JOURNAL).iterdir()) == ["checkpoint-000000", "ep-000000.pkl"]
     (out / JOURNAL / ".ep-000001.pkl.k1ll3d").write_bytes(b"torn")
@@ -257,7 +258,7 @@ def test_interrupted_generation_resumes_to_the_same_dataset(generated, demos, tm
 
 @pytest.mark.slow  # ~20 s with its generated dataset
 def test_finished_generation_is_a_no_op_and_other_arguments_are_refused(generated, demos, tmp_path):
-    from indgen_vla.app.regimes.mimicgen import generate
+    from indgen_vla.app.api import mimicgen as generate
 
     stamp = {str(p): p.stat().st_mtime_ns for p in generated.rglob("*")}
     said = []

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from indgen_vla.app.regimes.train import TrainConfig, train_policy
+from indgen_vla.app.regimes.train import TrainConfig, TrainRecipe, train_policy
 from indgen_vla.core.errors import ConfigError, PolicyError
 from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.training_support import TrainedCell
-from scenes.family import get_scene
 
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.timeout(180)
@@ -23,10 +23,17 @@ SHIPPED = Path(__file__).resolve().parents[4] / "checkpoints" / "act_pick_place_
 @pytest.fixture(scope="module")
 def trained(demos, tmp_path_factory) -> Path:
     """A 120-step state-only ACT trained on the demos (given twice: a two-dataset run)."""
-    cfg = TrainConfig(
+    cfg = TrainRecipe(
         steps=120, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20, seed=1
     )
-    return train_policy([demos, demos], tmp_path_factory.mktemp("ckpt") / "act", cfg, data_regime="test")
+    return train_policy(
+        TrainConfig(
+            datasets=[demos, demos],
+            out=tmp_path_factory.mktemp("ckpt") / "act",
+            recipe=cfg,
+            data_regime="test",
+        )
+    )
 
 
 def _obs(state: np.ndarray) -> Observation:
@@ -80,15 +87,19 @@ def test_env_state_without_the_proprio_step_is_refused(trained, tmp_path):
 
 def test_config_and_input_errors(demos, tmp_path):
     with pytest.raises(ConfigError, match="not trainable"):
-        TrainConfig(policy="pi0")
+        TrainRecipe(policy="pi0")
     with pytest.raises(ConfigError, match="exceeds chunk_size"):
-        TrainConfig(chunk_size=5, n_action_steps=10)
+        TrainRecipe(chunk_size=5, n_action_steps=10)
     with pytest.raises(ConfigError, match="unknown camera"):
-        TrainConfig(cameras=("front",))
+        TrainRecipe(cameras=("front",))
     with pytest.raises(ConfigError, match="not a LeRobotDataset"):
-        train_policy([tmp_path], tmp_path / "out", steps=1)
+        train_policy(TrainConfig(datasets=[tmp_path], out=tmp_path / "out", recipe=TrainRecipe(steps=1)))
     with pytest.raises(ConfigError, match="camera 'agentview' is missing"):
-        train_policy([demos], tmp_path / "out", steps=1, cameras=("agentview",))
+        train_policy(
+            TrainConfig(
+                datasets=[demos], out=tmp_path / "out", recipe=TrainRecipe(steps=1, cameras=("agentview",))
+            )
+        )
 
 
 @pytest.mark.slow  # ~9 s: a training run and an evaluation
@@ -98,9 +109,9 @@ def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos,
     from indgen_vla.core.protocol.interface import OBJECT_DIM
     from policy_wrappers.specs import load_policy
 
-    cfg = TrainConfig(steps=40, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20,
+    cfg = TrainRecipe(steps=40, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20,
                       objects=True)  # fmt: skip
-    ckpt = train_policy([demos], tmp_path / "act_objects", cfg)
+    ckpt = train_policy(TrainConfig(datasets=[demos], out=tmp_path / "act_objects", recipe=cfg))
     steps = json.loads((ckpt / "policy_preprocessor.json").read_text())["steps"]
     assert any(s.get("class", "").endswith("ObjectPosesStep") for s in steps)
     assert not any(s.get("class", "").endswith("ProprioAsEnvStateStep") for s in steps)
@@ -120,14 +131,15 @@ def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos,
 
     assert list(pd.read_parquet(out / "episodes.parquet")["status"]) == ["ok"]
     with pytest.raises(ConfigError, match="drop --cameras"):
-        TrainConfig(objects=True, cameras=("agentview",))
+        TrainRecipe(objects=True, cameras=("agentview",))
 
 
 def test_object_poses_are_recorded_and_carried_through_mimicgen(demos, tmp_path):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    from indgen_vla.app.api import mimicgen as generate
     from indgen_vla.app.regimes.demos import ENV_STATE, read_episode_sidecar
-    from indgen_vla.app.regimes.mimicgen import MimicGenConfig, generate
+    from indgen_vla.app.regimes.mimicgen import MimicGenConfig
 
     gen = tmp_path / "gen"
     generate(MimicGenConfig(source=demos, out=gen, n=1, seed=1, guarantee=True, max_attempts=3))
@@ -154,13 +166,18 @@ def test_datasets_open_without_lerobots_torchcodec_warning(demos, caplog):
 
 
 def test_objects_need_recorded_poses(tmp_path):
-    from indgen_vla.app.regimes.demos import record_demos
+    from indgen_vla.app import api
+    from indgen_vla.app.regimes.demos import DemosConfig
 
-    record_demos(
-        get_scene("pick_place"), tmp_path / "demos", n=1, seed=3, cameras=()
+    api.demos(
+        DemosConfig(scene="pick_place", out=tmp_path / "demos", n=1, seed=3, cameras=(), workers=1)
     )  # state only, without poses
     with pytest.raises(ConfigError, match="indgen demos --objects"):
-        train_policy([tmp_path / "demos"], tmp_path / "out", steps=1, objects=True)
+        train_policy(
+            TrainConfig(
+                datasets=[tmp_path / "demos"], out=tmp_path / "out", recipe=TrainRecipe(steps=1, objects=True)
+            )
+        )
 
 
 @pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped checkpoint not built yet")
@@ -186,8 +203,8 @@ def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_
     from indgen_vla.app.engine.run import evaluate
     from indgen_vla.core.protocol.training_support import cells_from_json
 
-    cfg = TrainConfig(steps=5, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5)
-    ckpt = train_policy([level_demos[0]], tmp_path / "act", cfg)
+    cfg = TrainRecipe(steps=5, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5)
+    ckpt = train_policy(TrainConfig(datasets=[level_demos[0]], out=tmp_path / "act", recipe=cfg))
     cells = cells_from_json(json.loads((ckpt / "train_info.json").read_text())["levels"])
     assert sorted((c.axis, c.level, c.episodes) for c in cells) == [("pick_y", 0, 1), ("pick_y", 1, 1)]
     out = evaluate(EvalConfig.from_flat(policy=f"lerobot:{ckpt}", scene="pick_place", axes=("pick_y",), levels="0:2",
@@ -201,7 +218,7 @@ def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_
     assert marked == ["| 0", "| 1"]
 
 
-TINY = TrainConfig(
+TINY = TrainRecipe(
     steps=12, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5, save_every=4
 )
 
@@ -220,7 +237,9 @@ def _same_checkpoint(a: Path, b: Path) -> None:
 @pytest.fixture(scope="module")
 def tiny(demos, tmp_path_factory) -> Path:
     """An uninterrupted 12-step run of TINY."""
-    return train_policy([demos], tmp_path_factory.mktemp("tiny") / "act", TINY)
+    return train_policy(
+        TrainConfig(datasets=[demos], out=tmp_path_factory.mktemp("tiny") / "act", recipe=TINY)
+    )
 
 
 def test_interrupted_training_resumes_to_the_same_checkpoint(tiny, demos, tmp_path):
@@ -232,12 +251,12 @@ def test_interrupted_training_resumes_to_the_same_checkpoint(tiny, demos, tmp_pa
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):  # the first logged loss is step 5: the state of step 4 is on disk
-        train_policy([demos], out, TINY, progress=stop)
+        train_policy(TrainConfig(datasets=[demos], out=out, recipe=TINY), progress=stop)
     assert sorted(p.name for p in (out / "resume").iterdir()) == ["last.json", "run.json", "step_000004"]
     half = out / "resume" / ".step_000008.x1y2"  # what a kill in the middle of the next save leaves
     half.mkdir()
     (half / "model.safetensors").write_bytes(b"torn")
-    train_policy([demos], out, TINY, say=said.append)
+    train_policy(TrainConfig(datasets=[demos], out=out, recipe=TINY), say=said.append)
     assert said == [f"train: resuming {out} from step 4 of 12"]
     _same_checkpoint(tiny, out)
 
@@ -245,21 +264,24 @@ def test_interrupted_training_resumes_to_the_same_checkpoint(tiny, demos, tmp_pa
 def test_finished_rerun_is_a_no_op_and_other_arguments_are_refused(tiny, demos, tmp_path):
     stamp = {p.name: p.stat().st_mtime_ns for p in tiny.iterdir()}
     said = []
-    assert train_policy([demos], tiny, TINY, say=said.append) == tiny
+    assert train_policy(TrainConfig(datasets=[demos], out=tiny, recipe=TINY), say=said.append) == tiny
     assert said == [f"train: {tiny} is already complete (12 steps); nothing to do"]
     assert {p.name: p.stat().st_mtime_ns for p in tiny.iterdir()} == stamp
-    assert train_policy([demos], tiny, TINY, save_every=3) == tiny  # how often it saves changes no checkpoint
+    assert (
+        train_policy(TrainConfig(datasets=[demos], out=tiny, recipe=dataclasses.replace(TINY, save_every=3)))
+        == tiny
+    )  # how often it saves changes no checkpoint
     with pytest.raises(
         ConfigError, match=r"finished run made with --steps 12, not --steps 13; rerun with --steps 12"
     ):
-        train_policy([demos], tiny, TINY, steps=13)
+        train_policy(TrainConfig(datasets=[demos], out=tiny, recipe=dataclasses.replace(TINY, steps=13)))
     with pytest.raises(ConfigError, match="made with --seed 0, not --seed 1"):
-        train_policy([demos], tiny, TINY, seed=1)
+        train_policy(TrainConfig(datasets=[demos], out=tiny, recipe=dataclasses.replace(TINY, seed=1)))
     foreign = tmp_path / "notes"
     foreign.mkdir()
     (foreign / "todo.txt").write_text("keep me")
     with pytest.raises(ConfigError, match="already exists and is not empty"):
-        train_policy([demos], foreign, TINY)
+        train_policy(TrainConfig(datasets=[demos], out=foreign, recipe=TINY))
     assert (foreign / "todo.txt").read_text() == "keep me"
 
 
@@ -298,3 +320,21 @@ def test_sigkilled_train_resumes_to_the_same_checkpoint(demos, tmp_path):
     assert (
         bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "--seed 0, not --seed 2" in bad.stderr
     )
+
+
+def test_train_config_holds_the_recipe_and_the_evaluation_protocol(tmp_path):
+    """``indgen train``'s flags parse into a ``TrainConfig`` whose ``TrainRecipe`` is what the checkpoint records;
+    ``--eval-every`` and its protocol (an ``EvalConfig``) go together."""
+    from indgen_vla.app.config_fields import from_flat
+    from indgen_vla.app.engine.config import EvalConfig
+
+    cfg = from_flat(TrainConfig, {"datasets": (tmp_path,), "out": tmp_path / "act", "cameras": "agentview",
+                                  "steps": 7, "data_regime": "h"}, command="train")  # fmt: skip
+    assert cfg.recipe == TrainRecipe(steps=7, cameras=("agentview",)) and cfg.datasets == (str(tmp_path),)
+    assert cfg.eval_root == tmp_path / "act_evals"
+    protocol = EvalConfig.from_flat(policy="object:x", scene="pick_place", axes=("pick_y",), out="_")
+    assert TrainConfig(datasets=(tmp_path,), out="o", eval_every=5, evaluation=protocol).eval_every == 5
+    with pytest.raises(ConfigError, match="--eval-every N and --eval 'FLAGS' go together"):
+        TrainConfig(datasets=(tmp_path,), out="o", eval_every=5)
+    with pytest.raises(ConfigError, match="--eval-every must be >= 1 update, got 0"):
+        TrainConfig(datasets=(tmp_path,), out="o", eval_every=0, evaluation=protocol)

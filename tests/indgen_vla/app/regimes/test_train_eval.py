@@ -9,7 +9,7 @@ import pytest
 
 from indgen_vla.app.cli import main
 from indgen_vla.app.cli.train import eval_config
-from indgen_vla.app.regimes.train import train_policy
+from indgen_vla.app.regimes.train import TrainConfig, train_policy
 from indgen_vla.app.regimes.train_eval import make_hook
 from indgen_vla.core.runs.records import RunDir
 from tests.indgen_vla.app.regimes.test_train import TINY, _same_checkpoint
@@ -20,13 +20,13 @@ pytestmark = [pytest.mark.timeout(900), pytest.mark.filterwarnings("ignore")]
 
 @pytest.mark.slow  # a training twice and two evaluations: minutes on a loaded 2-core machine
 def test_eval_every_runs_in_memory_and_leaves_the_checkpoint_unchanged(demos, tmp_path):
-    plain = train_policy([demos], tmp_path / "plain", TINY)
+    plain = train_policy(TrainConfig(datasets=[demos], out=tmp_path / "plain", recipe=TINY))
     evals, said = tmp_path / "act_evals", []
     base = eval_config(
         "--scene pick_place --axis pick_y --levels 0 --episodes 1 --max-steps 10 --workers 1", evals
     )
     hook = make_hook(base, evals, every=8, last=TINY.steps, say=said.append)
-    out = train_policy([demos], tmp_path / "act", TINY, after_step=hook)
+    out = train_policy(TrainConfig(datasets=[demos], out=tmp_path / "act", recipe=TINY), after_step=hook)
     _same_checkpoint(plain, out)  # evaluating in the middle changed no weight, optimiser step or loss
     assert said == [
         f"train: evaluating step {s} in memory into {evals / 'runs' / f'{s:09d}'}" for s in (8, 12)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from indgen_vla.app.engine.wall_time import EXIT_S, HIGH, LOW, Costs, from_timing, project, rollout_seconds
+from indgen_vla.app.studies.wall_time import EXIT_S, HIGH, LOW, Costs, from_timing, project, rollout_seconds
 from indgen_vla.core.errors import ConfigError
 
 TIMING = {  # one in-process worker on 2 cores, CPU policy: what engine/timing.py records

@@ -25,10 +25,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.real.setup import ORDERS, RealAxis, RealSetup, load_setup, setup_from_dict
+from indgen_vla.app.config_fields import option
+from indgen_vla.app.real.setup import ORDERS, RealAxis, RealSetup, load_setup, presets, setup_from_dict
 from indgen_vla.app.real.store import State
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.seeding import episode_seed
+from indgen_vla.core.reporting.caveats import design_caveats
 from indgen_vla.core.runs.records import RunDir, atomic_write_text
 from indgen_vla.core.stats.sprt import (
     UNTIL_FAILURE,
@@ -43,28 +45,38 @@ from indgen_vla.core.stats.sprt import (
 )
 
 PROTOCOL = "protocol.md"
+# the flags of ``indgen real plan`` in its --help order
+PLAN_FLAGS = ("setup", "axis", "levels", "episodes", "order", "adaptive", "adaptive_delta", "adaptive_alpha",
+              "round_size", "gamma", "seed", "policy", "operator", "robot", "data_regime", "out")  # fmt: skip
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RealPlanConfig:
     """Everything ``indgen real plan`` needs; validated on construction."""
 
-    setup: str
-    out: str
-    axis: str | None = None
-    levels: str | None = None
-    episodes: int = 10  # the paper's 10 trials per level (the cap with --adaptive kstar/curve)
-    order: str | None = None  # interleaved | blocked; default from the axis's ``change``
-    seed: int = 0
-    adaptive: str | None = None  # kstar | curve | until-failure | off; None: the set-up's ``stopping``
-    gamma: float = 0.2
-    adaptive_delta: float = 0.1
-    adaptive_alpha: float = 0.025
-    round_size: int = 5
-    operator: str = ""
-    robot: str = ""
-    policy: str = ""
-    data_regime: str = ""
+    setup: str = option(help=f"set-up YAML path or preset ({', '.join(presets())})", required=True)
+    out: str = option(help="run directory to create", required=True)
+    axis: str | None = option(None, "axis of the set-up (default: its only axis)")
+    levels: str | None = option(None, "levels like 0:4 or 0,1,2 (default: all of the set-up's)")
+    episodes: int = option(
+        10, "episodes per level (paper: 10; the cap with --adaptive kstar/curve)", type=int
+    )
+    order: str | None = option(None, "interleave levels or run them in blocks (default: interleaved where the "
+                               "set-up's change is cheap, blocked where slow)", choices=list(ORDERS))  # fmt: skip
+    seed: int = option(0, "run seed: episode seeds (pairing) and the shuffle (0)", type=int)
+    adaptive: str | None = option(None, "until-failure: the paper's design (--episodes at each level, levels in "
+                                  "order, stop after the first observed rate < γ; the default of the set-ups that "
+                                  "name it, e.g. stack, scale); kstar/curve: stop each level once the sequential rule "
+                                  "decides it (as 'indgen evaluate --adaptive'); off: every level",
+                                  choices=["kstar", "curve", "until-failure", "off"])  # fmt: skip
+    gamma: float = option(0.2, "break threshold γ (paper: 0.2)", type=float)
+    adaptive_delta: float = option(0.1, "indifference half-width around γ (0.1)", type=float)
+    adaptive_alpha: float = option(0.025, "error rate of each verdict, α = β (0.025)", type=float)
+    round_size: int = option(5, "episodes between two looks of the rule (5)", type=int)
+    operator: str = option("", "who judges the episodes")
+    robot: str = option("", "the robot (default: the set-up's)")
+    policy: str = option("", "name of the policy/checkpoint you run, e.g. pi05-droid", required=True)
+    data_regime: str = option("", "label of the training data regime, e.g. h-only")
 
     def __post_init__(self) -> None:
         if not self.out:
@@ -200,8 +212,6 @@ class RealRun:
     def caveats(self) -> list[str]:
         """What this plan can never show, whatever the operator records: protocol.md's and ``real status``' first
         lines (``caveats.design_caveats``)."""
-        from indgen_vla.core.reporting.caveats import design_caveats
-
         tested = (
             0 if 0 not in self.levels else 1 if self.mode else len(self.levels) - 1
         )  # a walk may stop early

@@ -130,7 +130,7 @@ def test_a_pilot_run_is_the_curve_and_must_cover_every_level(smoke, capsys):
 def test_the_printed_coverage_is_the_committed_held_out_runs():
     """The coverage budget prints beside the wall-time interval counts the held-out rows of
     docs/results/wall_time_heldout.jsonl (scripts/bench_budget.py runs made after the factors were set)."""
-    from indgen_vla.app.engine.wall_time import HELDOUT, HIGH, LOW
+    from indgen_vla.app.studies.wall_time import HELDOUT, HIGH, LOW
 
     path = Path(__file__).resolve().parents[4] / "docs" / "results" / "wall_time_heldout.jsonl"
     rows = [json.loads(x) for x in path.read_text().splitlines() if x.strip()]

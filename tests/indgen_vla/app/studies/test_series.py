@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from indgen_vla.app.cli import main
-from indgen_vla.app.engine.series import find_checkpoints
+from indgen_vla.app.studies.series import find_checkpoints
 from indgen_vla.core.comparison.series_report import write_series
 from tests.indgen_vla.core.reporting.test_report import make_run
 
@@ -105,7 +105,8 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     import threading
 
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.series import run_series
+    from indgen_vla.app.studies.config import SeriesConfig
+    from indgen_vla.app.studies.series import run_series
 
     pytest.importorskip("lerobot")
     root = tmp_path / "train"
@@ -115,9 +116,8 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     base = EvalConfig.from_flat(policy="series", scene="pick_place", axes=("pick_y",), levels="0", episodes=1, max_steps=5,
                       workers=1, out="_")  # fmt: skip
     said = []
-    entries = run_series(
-        base, [root], tmp_path / "s", follow=True, poll_s=0.2, idle_stop_s=1.0, say=said.append
-    )
+    cfg = SeriesConfig(protocol=base, roots=(root,), out=tmp_path / "s", follow=True, poll=0.2, idle_stop=1.0)
+    entries = run_series(cfg, say=said.append)
     timer.join()
     assert [s for s, _ in entries] == [300] and said[-1].startswith("series: step 300: evaluating")
     assert (tmp_path / "s" / "runs" / "000000300" / "summary.json").exists()

@@ -1,4 +1,6 @@
-"""Run the privileged oracle on every level of an axis and certify the feasible levels (``indgen certify``).
+"""Certificates of an axis's levels (``indgen certify``): the privileged oracle's episodes of each level
+(``certify_level``), the certificate being made and resumed (``prepare``, ``Pending``) and the command's driver
+(``certify``) over a scene resolved by the caller and a ``CertifyConfig``.
 
 A level is certified (the paper's Assumption 2, stated statistically) when the one-sided 95 %
 Clopper–Pearson lower bound of the oracle's success rate is >= the threshold (0.95: 59/59 episodes).
@@ -13,28 +15,52 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import multiprocessing as mp
+import queue
 import time
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from indgen_vla.app.certify.certify_config import CertifyConfig, CertifyPlan, CertifyRule
+from indgen_vla.app.certify.partial import EpisodeLog, partial_path
 from indgen_vla.core.errors import ConfigError, EpisodeUnavailableError, RunDirError
-from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.seeding import episode_seed
+from scenes.axes import successor_steps
 from scenes.certificates import (
     THRESHOLD,
     Rule,
     asset_stamp,
     load_certification,
     lower_bound,
+    row_oracle_version,
     same_assets,
+    stale_failure,
     write_json_atomic,
 )
-from scenes.family import Scene
-from scenes.heldout import ALPHA, FIRST_BLOCK, HELD_OUT, IN_SAMPLE, RULE, SPENDING, fixed_states_basis
+from scenes.heldout import (
+    ALPHA,
+    HELD_OUT,
+    IN_SAMPLE,
+    RULE,
+    SPENDING,
+    attempt_alpha,
+    attempt_confidence,
+    basis,
+    burn_block,
+    burnt_blocks,
+    fixed_states_basis,
+    ledger,
+    next_block,
+    spent_attempts,
+)
+from scenes.oracles import oracle_for, oracle_identity, oracle_scripts
+from scenes.planning import resolve_scene_plan
 from scenes.privileged import with_privileged
 
 if TYPE_CHECKING:
     from indgen_vla.core.protocol.plan import LevelBuilder
+    from scenes.family import Scene
 
 
 class NoOracleError(ConfigError):
@@ -76,30 +102,42 @@ def level_row(
     }  # fmt: skip
 
 
-def certify_level(
-    builder: LevelBuilder, task: str, axis: str, level: int, seed: int, max_steps: int | None, rule: Rule,
-    on_episode=None, partial: Path | None = None, key: str = "",
-) -> dict:  # fmt: skip
-    """Run oracle episodes of one level under ``rule`` (sequentially, stopping early on futility), its env built by
-    the plan's ``builder`` as ``evaluate`` builds it; ``on_episode(level, successes, n)`` hears of each finished
-    episode. A seed whose initial state cannot hold the level (``EpisodeUnavailableError``: a RoboCasa kitchen too
-    narrow for pick_x, a LIBERO state that throws its moved object) is skipped and counted; more such seeds than
-    the rule's ``n_max`` make the level ``failed``, with the reason in its row's ``infeasible``. With ``partial`` (``indgen_vla.app.certify.partial``) the episodes a
-    killed run finished under the same ``key`` are reused."""
-    from indgen_vla.app.certify.partial import EpisodeLog
-    from scenes.oracles import oracle_for, oracle_identity
+@dataclasses.dataclass(frozen=True)
+class LevelJob:
+    """One attempt at one level (``prepare`` lists them): the plan's ``builder`` builds its env as ``evaluate`` builds
+    it, episode i on seed block ``block``; ``partial``/``key``: the episode file a killed run left under the same key
+    (``indgen_vla.app.certify.partial``). Picklable: it travels to pool workers."""
 
+    builder: LevelBuilder
+    task: str
+    axis: str
+    level: int
+    block: int
+    max_steps: int | None
+    rule: Rule
+    partial: Path | None = None
+    key: str = ""
+
+
+def certify_level(job: LevelJob, on_episode=None) -> dict:
+    """Run oracle episodes of one level under ``job.rule`` (sequentially, stopping early on futility);
+    ``on_episode(level, successes, n)`` hears of each finished episode. A seed whose initial state cannot hold the
+    level (``EpisodeUnavailableError``: a RoboCasa kitchen too narrow for pick_x, a LIBERO state that throws its moved
+    object) is skipped and counted; more such seeds than the rule's ``n_max`` make the level ``failed``, with the
+    reason in its row's ``infeasible``. The episodes a killed run finished under the same key are reused."""
     t0 = time.time()
-    scene = builder.scene
-    log = EpisodeLog(partial, key)
+    scene, task, axis, level, rule = job.builder.scene, job.task, job.axis, job.level, job.rule
+    log = EpisodeLog(job.partial, job.key)
     results, infeasible = log.results, ""
-    env = builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=max_steps)
+    env = job.builder.make_env(task, axis, level, cameras=(), image_size=(128, 128), max_steps=job.max_steps)
     try:
-        policy = oracle_for(builder.family)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
+        policy = oracle_for(job.builder.family)  # the family's own (RoboCasa: PandaOmron's 12-d arm script)
         while not infeasible and not rule.stop(sum(ok for ok, _ in results), len(results)):
             i = len(results) + log.unavailable
             try:
-                log.add(*run_oracle_episode(env, policy, episode_seed(seed, scene, task, axis, level, i), i))
+                log.add(
+                    *run_oracle_episode(env, policy, episode_seed(job.block, scene, task, axis, level, i), i)
+                )
             except EpisodeUnavailableError as e:
                 log.add(None)
                 if log.unavailable > rule.n_max:
@@ -117,7 +155,7 @@ def certify_level(
         rule,
         time.time() - t0,
         log.unavailable,
-        oracle_identity(builder.family)["version"],
+        oracle_identity(job.builder.family)["version"],
         infeasible,
     )
 
@@ -130,12 +168,11 @@ def _init_worker(events) -> None:
     _EVENTS = events
 
 
-def _certify_job(args: tuple, report=None) -> dict:
+def _certify_job(job: LevelJob, report=None) -> dict:
     """One level job of ``prepare`` (in a pool worker, its episodes are reported on the worker's queue)."""
     if report is None and _EVENTS is not None:
         report = lambda *event: _EVENTS.put(event)  # noqa: E731
-    *head, partial, key = args
-    return certify_level(*head, on_episode=report, partial=partial, key=key)
+    return certify_level(job, on_episode=report)
 
 
 def level_line(scene: str, task: str, axis: str, row: dict) -> str:
@@ -158,24 +195,24 @@ def _key(cert: dict) -> tuple:
 
 @dataclasses.dataclass
 class Pending:
-    """One certificate being made (``prepare``): its dict, its file, the requested levels and their level jobs;
-    ``merge`` takes each finished level's row (written at once, its partial episode file then removed)."""
+    """One certificate being made (``prepare``): its scene, its dict, its file, the requested levels and their level
+    jobs; ``merge`` takes each finished level's row (written at once, its partial episode file then removed)."""
 
+    scene: Scene
     cert: dict
     path: Path | None
     levels: list[int]
-    jobs: list[tuple]
+    jobs: list[LevelJob]
     log: object = None
     watch: object = None
     # level -> (earlier attempts, this attempt's header): the ledger each finished row carries (``scenes.heldout``)
     attempts: dict = dataclasses.field(default_factory=dict)
-    fixed_states: int = 0  # the family's fixed initial states (``Scene.fixed_state_count``; LIBERO: 50)
 
     def merge(self, row: dict) -> None:
         cert = self.cert
         if int(row["level"]) in self.attempts:
             row = with_attempt(row, *self.attempts[int(row["level"])])
-            states = self.fixed_states
+            states = self.scene.fixed_state_count
             if states:  # LIBERO: blocks repeat its fixed states; a full pass is exhaustive (scenes.heldout)
                 row = fixed_states_basis(row, states)
         rows = {int(r["level"]): r for r in cert["levels"]}
@@ -184,8 +221,6 @@ class Pending:
         cert["wall_s"] = round(cert["wall_s"] + row.get("wall_s", 0.0), 1)
         if self.path is not None:
             write_json_atomic(self.path, cert)
-            from indgen_vla.app.certify.partial import partial_path
-
             partial_path(self.path, int(row["level"])).unlink(missing_ok=True)
         if self.watch is not None:
             self.watch.level(row)
@@ -200,8 +235,6 @@ class Pending:
 
 def builtin_assets() -> dict:
     """What a built-in scene's certificate records of its asset tree: robosuite's own models, at its version."""
-    from importlib.metadata import PackageNotFoundError, version
-
     try:
         v = version("robosuite")
     except PackageNotFoundError:
@@ -222,35 +255,16 @@ def with_attempt(row: dict, earlier: list[dict], attempt: dict) -> dict:
 
 
 def certify(
-    scene: Scene,
-    axis: str | AxisRef,
-    *,
-    task: str | None = None,
-    levels: str | list[int] | None = None,
-    step: float | None = None,
-    episodes: int | None = None,
-    seed: int = FIRST_BLOCK,
-    max_steps: int | None = None,
-    workers: int = 1,
-    threshold: float = THRESHOLD,
-    preset: str | None = None,
-    out: str | Path | None = None,
-    log=None,
-    watch=None,
-    retest: bool = False,
+    scene: Scene, config: CertifyConfig, path: str | Path | None = None, *, log=None, watch=None
 ) -> dict:
-    """Certify the requested levels of ``axis`` for one task; with ``out`` (a certify.json path) reuse the
-    levels already decided there under the same steps/rule (with ``retest``, re-run on a fresh block the levels
-    certified only in-sample), and the finished episodes of a level a killed
-    run left half done, and write after every level. ``log`` gets a line per event; ``watch``
-    (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to run, each episode and
-    each finished level instead of the per-level lines. ``scene``: the family as the command configured it
-    (``--split``, ``--obj-registries``), which its level jobs' builder carries."""
-    if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
-    p = prepare(scene, axis, task=task, levels=levels, step=step, episodes=episodes, seed=seed,
-                max_steps=max_steps, threshold=threshold, preset=preset, out=out, log=log, watch=watch,
-                retest=retest)  # fmt: skip
+    """Certify the requested levels of ``config``'s axis for one task of ``scene`` (the family as the caller
+    resolved it, with its options); with ``path`` (a certify.json) reuse the levels already decided there under the
+    same steps/rule (with ``--held-out``, re-run on a fresh block the levels certified only in-sample), and the
+    finished episodes of a level a killed run left half done, and write after every level. ``log`` gets a line per
+    event; ``watch`` (``indgen_vla.app.certify.display.CertifyDisplay``), when given, hears of the levels about to
+    run, each episode and each finished level instead of the per-level lines."""
+    p = prepare(scene, config.plan, config.rule, path, log=log, watch=watch)
+    workers = config.run.workers
     if workers == 1 or len(p.jobs) <= 1:
         for j in p.jobs:
             p.merge(_certify_job(j, None if watch is None else watch.episode))
@@ -260,118 +274,117 @@ def certify(
 
 
 def prepare(
-    family: Scene, axis: str | AxisRef, *, task: str | None = None, levels: str | list[int] | None = None,
-    step: float | None = None, episodes: int | None = None, seed: int = FIRST_BLOCK, max_steps: int | None = None,
-    threshold: float = THRESHOLD, preset: str | None = None, out: str | Path | None = None, log=None, watch=None,
-    retest: bool = False,
-) -> Pending:  # fmt: skip
+    scene: Scene,
+    plan: CertifyPlan,
+    rule: CertifyRule,
+    path: str | Path | None = None,
+    *,
+    log=None,
+    watch=None,
+) -> Pending:
     """Check the request (resolved as ``evaluate`` resolves it: ``scenes.planning.resolve_scene_plan``), read what
-    ``out`` already holds, and list the level jobs still to run."""
-    from indgen_vla.app.certify.partial import partial_path
-    from scenes.axes import successor_steps
-    from scenes.certificates import row_oracle_version, stale_failure
-    from scenes.heldout import (
-        attempt_alpha,
-        attempt_confidence,
-        basis,
-        burnt_blocks,
-        ledger,
-        next_block,
-        spent_attempts,
-    )  # fmt: skip
-    from scenes.oracles import oracle_identity, oracle_scripts
-    from scenes.planning import resolve_scene_plan
-
-    sc, scene = family, family.name
-    task = sc.resolve_task(task)
-    ref = AxisRef.parse(axis)
-    sc.check_axis(ref)
-    axis = ref.name
-
-    if not oracle_scripts(sc, task):
+    ``path`` already holds, and list the level jobs still to run."""
+    task = scene.resolve_task(plan.task)
+    ref = plan.axis
+    if ref is None:
+        raise ConfigError("indgen certify needs --axis, e.g. --axis pick_y")
+    scene.check_axis(ref)
+    name, axis = scene.name, ref.name
+    if not oracle_scripts(scene, task):
         raise NoOracleError(
-            f"{scene}/{task}: standin:oracle has no script for this task, so its levels stay uncertified "
+            f"{name}/{task}: standin:oracle has no script for this task, so its levels stay uncertified "
             "(evaluate warns); certify a task the oracle scripts"
         )
-    if episodes is not None and episodes < 1:
-        raise ConfigError(f"--episodes must be >= 1, got {episodes}")
-    rule = Rule(threshold=threshold, confidence=attempt_confidence(1), n_max=episodes or 0)
+    first = Rule(threshold=rule.threshold, confidence=attempt_confidence(1), n_max=rule.episodes or 0)
     # the family's (and task's) own steps, the levels' range and condition 2, before any episode runs
-    plan = resolve_scene_plan(sc, task, (ref,), levels, step, preset, certificates=False)
-    plan.builder.check_ready()
-    successor = plan.builder.successor(task, axis)
-    spec, lv = successor.axis, list(plan.levels[axis])
+    resolved = resolve_scene_plan(
+        scene, task, (ref,), plan.levels, plan.step, plan.axes_preset, certificates=False
+    )
+    resolved.builder.check_ready()
+    successor = resolved.builder.successor(task, axis)
+    spec, lv = successor.axis, list(resolved.levels[axis])
     cert = {
-        "scene": scene, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
-        "steps": successor_steps(successor), "seed": seed, "max_steps": max_steps,
-        "rule": {**rule.as_dict(), "name": RULE, "alpha": ALPHA, "spending": SPENDING},
-        "episodes": rule.n_max, "threshold": rule.threshold, "wall_s": 0.0, "levels": [],
-        "oracle": oracle_identity(sc),
+        "scene": name, "task": task, "axis": axis, "step": spec.step, "unit": spec.unit,
+        "steps": successor_steps(successor), "seed": rule.seed, "max_steps": plan.max_steps,
+        "rule": {**first.as_dict(), "name": RULE, "alpha": ALPHA, "spending": SPENDING},
+        "episodes": first.n_max, "threshold": first.threshold, "wall_s": 0.0, "levels": [],
+        "oracle": oracle_identity(scene),
     }  # fmt: skip
     version = cert["oracle"]["version"]
-    stamp = asset_stamp(sc)
+    stamp = asset_stamp(scene)
     cert["assets"] = stamp if stamp is not None else builtin_assets()
-    path = Path(out) if out is not None else None
-    done: dict[int, dict] = {}
-    old_rows: dict[int, dict] = {}
-    if path is not None and path.is_file():
-        try:
-            old = load_certification(path)
-        except RunDirError:
-            old = {}
-        if old and not same_assets(old, stamp):
-            if log:
-                log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
-        elif old and _key(old) == _key(cert) and old.get("task") == task:
-            # each row keeps the version that made it; a failure by another version is tried again
-            rows = [{**r, "oracle_version": row_oracle_version(r, old), "attempts": ledger(r, old)}
-                    for r in old["levels"]]  # fmt: skip
-            old_rows = {int(r["level"]): r for r in rows}
-            cert["burnt"] = old.get("burnt") or {}
-            done = {int(r["level"]): r for r in rows if not stale_failure(r, None, version)
-                    and (r.get("status") in ("certified", "failed") or r["n"] >= rule.n_max)
-                    and not (retest and r.get("status") == "certified" and basis(r) == IN_SAMPLE)}  # fmt: skip
-            cert["wall_s"] = float(old.get("wall_s", 0.0))
-            cert["levels"] = sorted(rows, key=lambda r: r["level"])
-            retry = sorted(int(r["level"]) for r in rows if stale_failure(r, None, version))
-            if retry and log:
-                log(f"{scene}/{task}/{axis}: levels {retry} failed under an older oracle; trying them again "
-                    f"with oracle v{version} on held-out seed blocks")  # fmt: skip
-        elif old and log:
-            log(f"{path}: made under other steps/rule/episode length; replacing it")
+    path = Path(path) if path is not None else None
+    done, old_rows = _reuse(cert, path, stamp, first.n_max, rule.held_out, log)
     todo = [k for k in lv if k not in done]
     if log and set(done) & set(lv):
-        log(f"{scene}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
+        log(f"{name}/{task}/{axis}: reusing levels {sorted(set(done) & set(lv))} from {path}")
     if watch is not None:
-        watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], rule.n_max)
+        watch.start(todo, [r for r in cert["levels"] if int(r["level"]) in set(lv) - set(todo)], first.n_max)
     jobs, attempts = [], {}
     for k in todo:  # each attempt on its own never-used block, at its own share of the error (scenes.heldout)
         row = old_rows.get(k)
         part = None if path is None else partial_path(path, k)
         j = spent_attempts(row) + 1
-        level_rule = Rule(threshold=threshold, confidence=attempt_confidence(j), n_max=episodes or 0)
-        needed = Rule(threshold=threshold, confidence=attempt_confidence(j)).n_max
+        level_rule = Rule(
+            threshold=rule.threshold, confidence=attempt_confidence(j), n_max=rule.episodes or 0
+        )
+        needed = Rule(threshold=rule.threshold, confidence=attempt_confidence(j)).n_max
         head = [*_key(cert), task, (stamp or {}).get("stat_sha256"), version]
-        block = next_block(row, burnt_blocks(cert, k), seed)
+        block = next_block(row, burnt_blocks(cert, k), rule.seed)
         if _burn_stale_partial(cert, k, part, json.dumps([*head, block, level_rule.n_max])):
-            block = next_block(row, burnt_blocks(cert, k), seed)
+            block = next_block(row, burnt_blocks(cert, k), rule.seed)
         key = json.dumps([*head, block, level_rule.n_max])  # a killed attempt resumes on its own block
         attempts[k] = (list((row or {}).get("attempts", ())), {
             "attempt": j, "block": block, "held_out": True, "alpha": attempt_alpha(j) if level_rule.n_max >= needed
             else 0.0, "confidence": level_rule.confidence, "n_max": level_rule.n_max, "oracle": cert["oracle"],
         })  # fmt: skip
-        jobs.append((plan.builder, task, axis, k, block, max_steps, level_rule, part, key))
+        jobs.append(LevelJob(resolved.builder, task, axis, k, block, plan.max_steps, level_rule, part, key))
         if log and j > 1:
-            log(f"{scene}/{task}/{axis} level {k}: held-out attempt {j} on seed block {block} (confidence "
+            log(f"{name}/{task}/{axis} level {k}: held-out attempt {j} on seed block {block} (confidence "
                 f"{level_rule.confidence:.5f}: {needed}/{needed} certifies)")  # fmt: skip
-    return Pending(cert, path, lv, jobs, log, watch, attempts, sc.fixed_state_count)
+    return Pending(scene, cert, path, lv, jobs, log, watch, attempts)
+
+
+def _reuse(
+    cert: dict, path: Path | None, stamp: dict | None, n_max: int, held_out: bool, log
+) -> tuple[dict, dict]:
+    """What ``path`` already holds for ``cert`` (its rows, ledgers and burnt blocks copied into ``cert``): the levels
+    decided there that need no new attempt, and every stored row by level."""
+    done: dict[int, dict] = {}
+    old_rows: dict[int, dict] = {}
+    if path is None or not path.is_file():
+        return done, old_rows
+    try:
+        old = load_certification(path)
+    except RunDirError:
+        old = {}
+    version = cert["oracle"]["version"]
+    if old and not same_assets(old, stamp):
+        if log:
+            log(f"{path}: made on other asset files than {stamp['root']} holds now; certifying again")
+    elif old and _key(old) == _key(cert) and old.get("task") == cert["task"]:
+        # each row keeps the version that made it; a failure by another version is tried again
+        rows = [{**r, "oracle_version": row_oracle_version(r, old), "attempts": ledger(r, old)}
+                for r in old["levels"]]  # fmt: skip
+        old_rows = {int(r["level"]): r for r in rows}
+        cert["burnt"] = old.get("burnt") or {}
+        done = {int(r["level"]): r for r in rows if not stale_failure(r, None, version)
+                and (r.get("status") in ("certified", "failed") or r["n"] >= n_max)
+                and not (held_out and r.get("status") == "certified" and basis(r) == IN_SAMPLE)}  # fmt: skip
+        cert["wall_s"] = float(old.get("wall_s", 0.0))
+        cert["levels"] = sorted(rows, key=lambda r: r["level"])
+        retry = sorted(int(r["level"]) for r in rows if stale_failure(r, None, version))
+        if retry and log:
+            log(f"{cert['scene']}/{cert['task']}/{cert['axis']}: levels {retry} failed under an older oracle; "
+                f"trying them again with oracle v{version} on held-out seed blocks")  # fmt: skip
+    elif old and log:
+        log(f"{path}: made under other steps/rule/episode length; replacing it")
+    return done, old_rows
 
 
 def _burn_stale_partial(cert: dict, level: int, part: Path | None, key: str) -> bool:
     """A killed attempt's episodes under another key (oracle, rule: not reused) were still looked at: burn their
     block so no attempt draws it again; True when it did."""
-    from scenes.heldout import burn_block
-
     if part is None or not part.is_file():
         return False
     try:
@@ -385,11 +398,8 @@ def _burn_stale_partial(cert: dict, level: int, part: Path | None, key: str) -> 
     return True
 
 
-def _run_pool(jobs: list[tuple], workers: int, merge, watch) -> None:
+def _run_pool(jobs: list[LevelJob], workers: int, merge, watch) -> None:
     """One level per job in spawned processes; their episodes reach ``watch`` over a queue while they run."""
-    import multiprocessing as mp
-    import queue
-
     ctx = mp.get_context("spawn")
     events = ctx.Queue() if watch is not None else None
 

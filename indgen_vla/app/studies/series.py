@@ -17,8 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.run import evaluate as run_evaluation
+from indgen_vla.app.studies.config import SeriesConfig
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.runs.records import atomic_write_json
+from indgen_vla.core.runs.records import RunDir, atomic_write_json
 
 PROTOCOL = "series_protocol.json"
 OWN_FIELDS = ("policy", "out")  # what differs from checkpoint to checkpoint
@@ -122,8 +124,6 @@ def finished(run: Path) -> bool:
     """A run every planned episode of which finished ok (summary written): a re-run skips it."""
     if not (run / "summary.json").is_file():
         return False
-    from indgen_vla.core.runs.records import RunDir
-
     r = RunDir.open(run)
     plan = r.manifest.get("plan") or {}
     if plan.get(
@@ -136,17 +136,16 @@ def finished(run: Path) -> bool:
 
 
 def run_series(
-    base: EvalConfig, roots: Sequence[str | Path], out: str | Path, *, follow: bool = False, poll_s: float = 60.0,
-    idle_stop_s: float = 3600.0, evaluate: Callable | None = None, say: Callable[[str], None] = print,
+    cfg: SeriesConfig, *, evaluate: Callable | None = None, say: Callable[[str], None] = print,
     after_each: Callable[[list[tuple[int, Path]]], None] | None = None,
 ) -> list[tuple[int, Path]]:  # fmt: skip
-    """Evaluate every checkpoint of ``roots`` under ``base``'s protocol into ``out/runs/<step>``, skipping finished
-    runs; with ``follow``, poll every ``poll_s`` for new checkpoints until none came for ``idle_stop_s``. Returns the
-    (step, run directory) of every checkpoint evaluated, in step order; ``after_each`` gets them after each run (the
-    series report is rewritten there)."""
-    if evaluate is None:
-        from indgen_vla.app.engine.run import evaluate
-    out = Path(out)
+    """Evaluate every checkpoint of ``cfg.roots`` under ``cfg.protocol`` into ``cfg.out/runs/<step>``, skipping
+    finished runs; with ``cfg.follow``, poll every ``cfg.poll`` seconds for new checkpoints until none came for
+    ``cfg.idle_stop``. Returns the (step, run directory) of every checkpoint evaluated, in step order; ``after_each``
+    gets them after each run (the series report is rewritten there); ``evaluate``: the engine's by default."""
+    evaluate = evaluate or run_evaluation
+    base, roots, follow, poll_s, idle_stop_s = cfg.protocol, cfg.roots, cfg.follow, cfg.poll, cfg.idle_stop
+    out = Path(cfg.out)
     check_protocol(out, protocol_of(base))
     done: dict[int, Path] = {}
     last_new = time.monotonic()

@@ -7,78 +7,44 @@ success curve; the whole command's wall time and GPU-hours per worker count from
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from indgen_vla.app.config_fields import from_args
+from indgen_vla.app.engine.config import config_from_args
+from indgen_vla.app.engine.preregister import check_preregistered, manifest_plan, pre_policy_fingerprint
+from indgen_vla.app.engine.run import build_plan, package_versions
+from indgen_vla.app.studies.config import DEFAULT_STARTUP_S, BudgetConfig, budget_workers
+from indgen_vla.app.studies.wall_time import HELDOUT, Costs, from_timing, project
 from indgen_vla.core.errors import ConfigError
+from indgen_vla.core.protocol.plan_lock import make_lock
+from indgen_vla.core.runs.records import RunDir, atomic_write_json
+from indgen_vla.core.stats.adaptive_cost import Curve, assumed_curve, simulate_protocol
+from indgen_vla.core.stats.contrasts import ALPHA
+from indgen_vla.core.stats.sample_size import (
+    decided_rates,
+    fixed_design,
+    paired_power,
+    pairs_for_power,
+    stable_episodes,
+)
+from indgen_vla.core.stats.sprt import make_rule
 
 POWER = 0.8  # the power the pairs are sized for
-DEFAULT_DROP = 0.2
-DEFAULT_STARTUP_S = 10.0  # no smoke: start-up, report and exit assumed (docs/results/benchmarks/startup.md)
 
 
-@dataclass(frozen=True)
-class BudgetRequest:
-    """What ``indgen budget`` was asked (the protocol is an ``EvalConfig``)."""
-
-    cfg: Any  # engine.config.EvalConfig
-    workers: tuple[int, ...]
-    timing: str | None = None
-    steps_per_s: float | None = None
-    startup_s: float | None = None
-    assume: tuple[float, ...] | None = None
-    pilot: str | None = None
-    drop: float = DEFAULT_DROP
-    ci: str = "wilson"
-    replicates: int = 120
-    gpus: int | None = None
-    write: str | None = None
-
-    def __post_init__(self):
-        if not self.workers or any(w < 1 for w in self.workers):
-            raise ConfigError(f"--workers must be positive counts, e.g. 8,16; got {self.workers}")
-        if self.timing and self.steps_per_s is not None:
-            raise ConfigError("give --timing RUN or --steps-per-s, not both")
-        if self.steps_per_s is not None and not self.steps_per_s > 0:
-            raise ConfigError(f"--steps-per-s must be > 0, got {self.steps_per_s}")
-        if self.assume is not None and self.pilot:
-            raise ConfigError("give --assume or --pilot RUN, not both")
-        if not 0 < self.drop < 1:
-            raise ConfigError(f"--drop must be in (0, 1), got {self.drop}")
-        if self.replicates < 1:
-            raise ConfigError(f"--replicates must be >= 1, got {self.replicates}")
-        if self.gpus is not None and self.gpus < 0:
-            raise ConfigError(f"--gpus must be >= 0, got {self.gpus}")
-
-
-def _parse_list(text: str, kind, flag: str) -> tuple:
-    try:
-        return tuple(kind(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise ConfigError(
-            f"{flag} takes a comma list, e.g. {'8,16' if kind is int else '0.95,0.9,0.5'}; got {text!r}"
-        ) from None
-
-
-def request_from_args(args: argparse.Namespace) -> BudgetRequest:
-    """The request from the parsed flags; the protocol resolved as evaluate resolves it (``config_from_args``)."""
-    import os
-
-    from indgen_vla.app.engine.config import config_from_args
-
+def config_from_budget_args(args: argparse.Namespace) -> BudgetConfig:
+    """The budget's config from its parsed flags: the protocol resolved as evaluate resolves it
+    (``config_from_args``), at the first worker count and no run directory."""
+    workers = budget_workers(args.workers)
     ns = argparse.Namespace(**vars(args))
-    workers = _parse_list(args.workers, int, "--workers") if args.workers else (os.cpu_count() or 1,)
     ns.workers, ns.out = workers[0], getattr(args, "out", None) or "(budget)"
-    assume = _parse_list(args.assume, float, "--assume") if args.assume else None
-    return BudgetRequest(cfg=config_from_args(ns), workers=workers, timing=args.timing, steps_per_s=args.steps_per_s,
-                         startup_s=args.startup_s, assume=assume, pilot=args.pilot, drop=args.drop, ci=args.ci,
-                         replicates=args.replicates, gpus=args.gpus, write=args.write)  # fmt: skip
+    return from_args(BudgetConfig, args, command="budget", protocol=config_from_args(ns))
 
 
 def _pilot_curve(path: str, levels: dict[str, list[int]]):
-    from indgen_vla.core.runs.records import RunDir
-    from indgen_vla.core.stats.adaptive_cost import Curve
 
     df = RunDir.open(path).episodes()
     df = df[df["status"] == "ok"]
@@ -93,10 +59,8 @@ def _pilot_curve(path: str, levels: dict[str, list[int]]):
     return Curve(counts=counts)
 
 
-def _costs(req: BudgetRequest, plan, horizon: int):
+def _costs(req: BudgetConfig, plan, horizon: int):
     """The per-unit costs (``wall_time.Costs``), the smoke's replan steps, and notes on what was assumed."""
-    from indgen_vla.app.engine.wall_time import Costs, from_timing
-    from indgen_vla.core.runs.records import RunDir
 
     if req.steps_per_s is not None:
         fixed = DEFAULT_STARTUP_S if req.startup_s is None else req.startup_s
@@ -121,7 +85,7 @@ def _costs(req: BudgetRequest, plan, horizon: int):
         notes.append(
             f"the smoke ran {smoke_h}-step episodes, this protocol {horizon}: its steps per episode scaled"
         )
-    for key, now in (("scene", req.cfg.plan.scene), ("policy", req.cfg.policy.spec)):
+    for key, now in (("scene", req.protocol.plan.scene), ("policy", req.protocol.policy.spec)):
         if run.manifest.get(key) != now:
             notes.append(f"the smoke's {key} is {run.manifest.get(key)}, this protocol's {now}")
     costs = from_timing(timing, steps)
@@ -131,21 +95,9 @@ def _costs(req: BudgetRequest, plan, horizon: int):
     return costs, timing.get("replan_steps"), notes
 
 
-def plan_budget(req: BudgetRequest) -> dict[str, Any]:
+def plan_budget(req: BudgetConfig) -> dict[str, Any]:
     """The budget of ``req``'s protocol as ``indgen budget --json`` prints it (writes the lock when asked)."""
-    from indgen_vla.app.engine.run import build_plan
-    from indgen_vla.core.stats.adaptive_cost import assumed_curve, simulate_protocol
-    from indgen_vla.core.stats.contrasts import ALPHA
-    from indgen_vla.core.stats.sample_size import (
-        decided_rates,
-        fixed_design,
-        paired_power,
-        pairs_for_power,
-        stable_episodes,
-    )
-    from indgen_vla.core.stats.sprt import make_rule
-
-    cfg = req.cfg
+    cfg = req.protocol
     plan = build_plan(cfg)
     levels = {a: list(v) for a, v in plan.levels.items()}
     rollouts = plan.rollouts()
@@ -198,8 +150,6 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     out["notes"] = notes
     out["workers"] = {}
     if costs is not None:
-        from indgen_vla.app.engine.wall_time import project
-
         replan = cfg.policy.replan_steps or smoke_replan or 1
         rounds = [[len(rollouts)]] * 3
         if mode:
@@ -212,9 +162,6 @@ def plan_budget(req: BudgetRequest) -> dict[str, Any]:
     if (
         cfg.plan.preregistered
     ):  # budget a locked protocol: the same check evaluate makes, one line on a deviation
-        from indgen_vla.app.engine.preregister import check_preregistered
-        from indgen_vla.app.engine.run import package_versions
-
         out["preregistered"] = check_preregistered(cfg, plan, package_versions())["hash"]
     if req.write:
         out["lock"] = _write_lock(req, plan, out)
@@ -232,28 +179,19 @@ def _pooled_t0(curve) -> float:
 
 def _percentile_rounds(cost) -> list[list[int]]:
     """The simulated protocols at the 5th percentile, the mean and the 95th percentile of total rollouts."""
-    import numpy as np
-
     totals = np.asarray(cost.totals)
     picks = [float(np.percentile(totals, 5)), float(totals.mean()), float(np.percentile(totals, 95))]
     return [list(cost.rounds[int(np.argmin(np.abs(totals - t)))]) for t in picks]
 
 
-def _write_lock(req: BudgetRequest, plan, out: dict) -> dict:
-    from indgen_vla.app.engine.preregister import manifest_plan, pre_policy_fingerprint
-    from indgen_vla.core.protocol.plan_lock import make_lock
-    from indgen_vla.core.runs.records import atomic_write_json
-    from indgen_vla.core.stats.contrasts import ALPHA
-
-    cfg = req.cfg
+def _write_lock(req: BudgetConfig, plan, out: dict) -> dict:
+    cfg = req.protocol
     analysis = {"gamma": cfg.plan.gamma, "ci": req.ci, "alpha": ALPHA,
                 "test": "exact McNemar vs T0, Holm over levels", "delta": cfg.adaptive.delta,
                 "error_rate": cfg.adaptive.alpha}  # fmt: skip
     budget = {"rollouts_planned": out["protocol"]["rollouts_planned"],
               "episodes_adaptive_expected": (out.get("episodes_adaptive") or {}).get("expected"),
               "wall_s": {w: v["wall_s"] for w, v in out["workers"].items()}}  # fmt: skip
-    from indgen_vla.app.engine.run import package_versions
-
     fingerprint = pre_policy_fingerprint(cfg, plan, package_versions())
     lock = make_lock(manifest_plan(cfg, plan), plan.jobs_hash(), fingerprint, analysis, budget)
     path = Path(req.write)
@@ -269,8 +207,6 @@ def _fmt_s(s: float) -> str:
 
 def _coverage() -> str:
     """The interval's measured coverage on held-out runs, as it is printed beside the interval."""
-    from indgen_vla.app.engine.wall_time import HELDOUT
-
     h = HELDOUT
     return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs, {h['covered_unwidened']} unwidened "
             f"by load: {h['where']}")  # fmt: skip

@@ -13,12 +13,13 @@ import numpy as np
 
 from indgen_vla.app.blockenv.data import Demos, legality_targets, make_demos
 from indgen_vla.app.blockenv.env import BlockEnvConfig
-from indgen_vla.core.errors import ConfigError
+from indgen_vla.app.blockenv.methods import METHODS, check_options
+from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.runs.records import atomic_write_bytes, atomic_write_text
 
 
 @dataclass(frozen=True)
-class TrainConfig:
+class FitConfig:
     """Hyper-parameters of one training run (one method, one seed)."""
 
     method: str
@@ -33,23 +34,24 @@ class TrainConfig:
     maml_inner_lr: float = 0.05
     maml_support: int = 5
     schedule: str = "cosine"
-    extra: dict = field(default_factory=dict)  # the method's variant options (models.base.OPTIONS)
+    extra: dict = field(default_factory=dict)  # the method's variant options (methods.OPTIONS)
 
     def __post_init__(self) -> None:
-        from indgen_vla.app.blockenv.models.base import METHODS
-
         if self.method not in METHODS:
-            from indgen_vla.core.errors import UnknownNameError
-
             raise UnknownNameError("BlockEnv method", self.method, [*METHODS, "oracle"])
         if self.steps < 1 or self.batch < 1 or self.demos_per_level < 1 or not self.lr > 0:
             raise ConfigError("steps, batch and demos_per_level must be >= 1 and lr > 0")
         if self.schedule not in ("cosine", "constant"):
             raise ConfigError(f"schedule must be 'cosine' or 'constant', got {self.schedule!r}")
         BlockEnvConfig(grid_size=self.grid_size).check_level(max(self.train_levels))
-        from indgen_vla.app.blockenv.models.base import check_options
-
         check_options(self.method, self.extra)
+
+
+def _untrained(cfg: FitConfig):
+    """The method's model, freshly initialised (torch loads here, not when a config is checked)."""
+    from indgen_vla.app.blockenv.models import build_model  # lazy: start-up (torch, seconds)
+
+    return build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
 
 
 def _tensors(obs, actions, levels):
@@ -96,17 +98,15 @@ def _batches(n: int, batch: int, rng: np.random.Generator):
         yield rng.choice(n, size=min(batch, n), replace=n < batch)
 
 
-def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None):
+def train(cfg: FitConfig, progress: Callable[[int, float], None] | None = None):
     """Train one method; returns (model, demos) — demos are reused for MAML's support sets."""
     import torch
-
-    from indgen_vla.app.blockenv.models import build_model
 
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     env_cfg = BlockEnvConfig(grid_size=cfg.grid_size)
     demos = make_demos(list(cfg.train_levels), cfg.demos_per_level, env_cfg, seed=10_000 + cfg.seed)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
+    model = _untrained(cfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     if cfg.schedule == "cosine":  # decays to 0 over cfg.steps optimiser updates, whichever path makes them
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.steps)
@@ -138,7 +138,7 @@ def train(cfg: TrainConfig, progress: Callable[[int, float], None] | None = None
     return model, demos
 
 
-def _train_trm(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> None:
+def _train_trm(model, opt, demos: Demos, cfg: FitConfig, rng, progress) -> None:
     """Deep supervision: n_sup optimiser steps per batch, carrying (y, z) detached between them.
 
     ``cfg.steps`` counts optimiser updates, as for every other method, so a batch gives n_sup of them.
@@ -185,7 +185,7 @@ def adapt(model, support: tuple, inner_lr: float):
     return {k: (p - inner_lr * gr).detach() for (k, p), gr in zip(params.items(), grads, strict=True)}
 
 
-def _train_maml(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> None:
+def _train_maml(model, opt, demos: Demos, cfg: FitConfig, rng, progress) -> None:
     """First-order MAML: tasks are the training levels; support/query sets are disjoint step samples."""
     import torch
     from torch.func import functional_call
@@ -209,7 +209,7 @@ def _train_maml(model, opt, demos: Demos, cfg: TrainConfig, rng, progress) -> No
             progress(i, total / len(per_level))
 
 
-def save_checkpoint(model, cfg: TrainConfig, out: Path) -> Path:
+def save_checkpoint(model, cfg: FitConfig, out: Path) -> Path:
     """state_dict (torch.save) + config JSON; load with ``load_checkpoint`` (weights_only=True). Each file is
     written whole or not at all, config.json last and the old one removed first: a save cut short (Ctrl-C, a
     kill, a full disk) over an older checkpoint never leaves its config beside other weights."""
@@ -229,8 +229,6 @@ def save_checkpoint(model, cfg: TrainConfig, out: Path) -> Path:
 def load_checkpoint(path: Path):
     import torch
 
-    from indgen_vla.app.blockenv.models import build_model
-
     try:
         raw = json.loads((path / "config.json").read_text())
     except (OSError, json.JSONDecodeError):
@@ -238,8 +236,8 @@ def load_checkpoint(path: Path):
             f"{path} is not a BlockEnv checkpoint (no readable config.json); train one first"
         ) from None
     raw["train_levels"] = tuple(raw["train_levels"])
-    cfg = TrainConfig(**raw)
-    model = build_model(cfg.method, cfg.grid_size, cfg.hidden, cfg.extra)
+    cfg = FitConfig(**raw)
+    model = _untrained(cfg)
     try:
         state = torch.load(path / "model.pt", weights_only=True)
     except (OSError, EOFError, RuntimeError, pickle.UnpicklingError):

@@ -19,7 +19,9 @@ from pathlib import Path
 from typing import Any
 
 from indgen_vla.app.engine.config import FLAG_FIELDS, FLAT_DEFAULTS, EvalConfig
+from indgen_vla.app.engine.run import build_plan
 from indgen_vla.core.errors import IndgenError, RunDirError
+from indgen_vla.core.reporting.report import write_run_report
 from indgen_vla.core.runs.records import FINISHED, MANIFEST, EpisodeRecord, RunDir, atomic_write_json
 from indgen_vla.core.runs.shards import (
     Shard,
@@ -65,8 +67,6 @@ def resume_plan(
     when one evaluate command plans exactly the union (resolved here as ``evaluate`` resolves it), else ``{"config",
     "note"}`` saying why none does (the shards' tasks are neither one task nor all, their --levels differ by axis...).
     ``share_t0``: the shards' T0 sharing as last run (``shards.sharing_setting``), over their first config's."""
-    from indgen_vla.app.engine.run import build_plan
-
     tasks = plan["tasks"]
     config = {k: v for k, v in (shards[0].manifest.get("config") or {}).items() if k in FLAG_FIELDS}
     config.update(task=tasks[0] if len(tasks) == 1 else "all", axes=tuple(plan["axes"]), out=str(out))
@@ -171,8 +171,6 @@ def merge(
 ) -> tuple[RunDir, dict, list[str]]:
     """Merge the shard run directories ``paths`` into a new run directory ``out`` and write its report; returns the
     run, its summary and the lines that say what the merge did (duplicates, episodes still to run and how)."""
-    from indgen_vla.core.reporting.report import write_run_report
-
     out = Path(out)
     shards = open_shards(paths)
     run = _merged_already(out, shards)
