@@ -24,8 +24,6 @@ import contextlib
 import os
 from pathlib import Path
 
-from indgen_vla.core.errors import ConfigError
-
 SPLIT_ENV = "INDGEN_ROBOCASA_SPLIT"
 REGISTRIES_ENV = "INDGEN_ROBOCASA_OBJ_REGISTRIES"
 # how a bad value is named: the commands' flags (the API's split, obj_registries), which win, or the environment's
@@ -71,6 +69,9 @@ def in_split(split: str, layout: int, style: int) -> bool:
 def check(split: str | None = None, registries: str | None = None, where: tuple[str, str] = FLAGS) -> None:
     """One line listing the valid values (``ConfigError``) when ``split`` or ``registries`` (a comma list) is not
     RoboCasa's; None is "not given". ``where`` names them in the line (the flags, or the environment variables)."""
+    # lazy: optional indgen_vla (the RoboCasa worker loads this file by path in its own venv, without our packages)
+    from indgen_vla.core.errors import ConfigError
+
     if split is not None and split not in SPLITS:
         valid = "; ".join(
             f"{k}{' (default)' if k == DEFAULT_SPLIT else ''}: {v}" for k, v in SPLIT_WORDS.items()
