@@ -33,7 +33,6 @@ if TYPE_CHECKING:
 
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import Successor
-    from scenes.external import ExternalSceneEnv
 
 
 @dataclass(frozen=True)
