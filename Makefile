@@ -55,8 +55,8 @@ test-all: $(STAMP)
 test-cluster: $(STAMP)
 	@$(PY) -m pytest -q -m "" tests/indgen_vla/app/engine/test_engine_ray_cluster.py
 
-lint: $(STAMP)  # ruff, then the layering contracts of pyproject.toml [tool.importlinter]
-	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check . && $(VENV)/bin/lint-imports
+lint: $(STAMP)  # ruff, the layering contracts of pyproject.toml [tool.importlinter], then the lazy imports' share and reasons
+	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check . && $(VENV)/bin/lint-imports && $(VENV)/bin/python scripts/check_lazy_imports.py
 
 clean-venv:
 	rm -rf $(VENV)

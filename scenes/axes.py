@@ -19,7 +19,8 @@ from typing import Any
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.axis_ref import AxisRef
-from indgen_vla.core.protocol.progression import AxisSpec, apply_level
+from indgen_vla.core.protocol.progression import AxisSpec, apply_level, check_strictly_harder
+from indgen_vla.core.resources import config_dir
 from scenes.spec import SceneSpec
 
 # name -> (description, field, step, unit, signed, max_level)
@@ -325,8 +326,6 @@ def successor_steps(successor: Successor) -> dict[str, float]:
 
 
 def presets_dir() -> Path:
-    from indgen_vla.core.resources import config_dir
-
     return config_dir("axes")
 
 
@@ -381,8 +380,6 @@ def check_progression(base: SceneSpec, successor: Successor) -> dict[int, tuple[
     spec at every level (jitter included), must leave the easier levels' support on its own. A held axis
     checks its held axis's ladder from T0, then its own ladder from the held level.
     """
-    from indgen_vla.core.protocol.progression import check_strictly_harder
-
     axis = successor.axis
     if isinstance(successor, Held):
         check_progression(base, successor.held)

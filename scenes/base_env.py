@@ -18,6 +18,7 @@ from indgen_vla.core.protocol.interface import CAMERAS, STATE_DIM, TABLETOP, Obs
 from scenes.axes import Successor
 from scenes.failure import FailureTrace
 from scenes.family import Scene
+from scenes.poses import object_poses, object_vector
 from scenes.privileged import PrivilegedState, with_privileged
 
 # interface camera -> MuJoCo camera of the robosuite tabletop scenes (scenes.sim.CAMERA_NAMES; kept here so that
@@ -192,8 +193,6 @@ class BaseSceneEnv(gym.Env):
 
     def object_observation(self) -> np.ndarray:
         """The pick object's and the target's pose (``Observation.objects``) for low-dim policies that declare it."""
-        from scenes.poses import object_poses, object_vector
-
         return object_vector(object_poses(self.privileged_state()))
 
     def failure_mode(self, success: bool) -> str:

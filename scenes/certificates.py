@@ -27,8 +27,13 @@ from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, RunDirError
 from indgen_vla.core.protocol.axis_ref import AxisRef
+from indgen_vla.core.resources import certification_dir
+from indgen_vla.core.runs.records import atomic_write_json
 from indgen_vla.core.stats.metrics import clopper_pearson_ci
+from scenes.axes import get_successor, load_preset, successor_steps
 from scenes.family import Scene
+from scenes.libero.assets import tree_identity
+from scenes.oracles import oracle_identity
 
 THRESHOLD = 0.95
 CONFIDENCE = 0.95
@@ -94,8 +99,6 @@ class Rule:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON so that ``path`` is always either the old or the new complete file (its folder is made)."""
-    from indgen_vla.core.runs.records import atomic_write_json
-
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(path, data)
 
@@ -129,7 +132,6 @@ def asset_stamp(scene: Scene) -> dict | None:
     tree = scene.asset_tree()
     if tree is None:
         return None
-    from scenes.libero.assets import tree_identity
 
     root = str(Path(tree).resolve())
     digest, files = tree_stamp(root)
@@ -194,8 +196,6 @@ def row_oracle_version(row: dict, cert: dict | None = None) -> int:
 
 def current_oracle_version(scene: Scene) -> int | None:
     """The version of ``scene``'s oracle in this checkout (None for a scene this version no longer knows)."""
-    from scenes.oracles import oracle_identity
-
     try:
         return oracle_identity(scene)["version"]
     except Exception:
@@ -231,8 +231,6 @@ def certification_root(scene: Scene | None = None) -> Path:
     if env:
         return Path(env)
     if scene is None or scene.committed_certificates:
-        from indgen_vla.core.resources import certification_dir
-
         return certification_dir()
     assets, scope = (
         scene.asset_tree(),
@@ -247,8 +245,6 @@ def _steps(
     axis: AxisRef, step: float | None, preset: str | None, scene: Scene | None, task: str | None
 ) -> dict[str, float]:
     """The component steps of ``axis`` with --step / --axes-preset over ``scene``'s (and ``task``'s) own steps."""
-    from scenes.axes import get_successor, load_preset, successor_steps
-
     overrides = load_preset(preset) if preset else None
     if scene is None:
         return successor_steps(get_successor(axis, step, overrides))
@@ -300,8 +296,6 @@ def find_certification(
         if same_steps(cert) and same_assets(cert, asset_stamp(scene)):  # a changed tree: certify again
             return cert
     if root is None and not os.environ.get("INDGEN_CERT_DIR"):
-        from indgen_vla.core.resources import certification_dir
-
         cert = shipped_certification(scene, cert_path(scene, task, axis, step, preset, certification_dir()))
         if cert is not None and same_steps(cert):
             return cert

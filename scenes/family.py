@@ -15,7 +15,15 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
 from indgen_vla.core.protocol.interface import TABLETOP, EnvSpec
-from scenes.axes import axis_components, base_axis_names
+from scenes.axes import (
+    axis_components,
+    base_axis_names,
+    check_progression,
+    get_successor,
+    merge_overrides,
+    spec_at_level,
+)
+from scenes.runtime import worker_versions
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -122,8 +130,6 @@ class Scene:
     ):  # fmt: skip
         """The successor of ``axis`` on this family: its own ``axis_overrides`` under a preset's and ``--step``;
         ``task`` matters only to a family whose steps differ by task (None: the family's task-free successor)."""
-        from scenes.axes import get_successor, merge_overrides
-
         return get_successor(axis, step, merge_overrides(self.axis_overrides, overrides))
 
     def task_max_steps(self, task: str) -> int:
@@ -133,8 +139,6 @@ class Scene:
     def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
         """Condition 2 (strictly harder levels) before any episode runs, from the frozen specs; ``overridden``
         says --step / --axes-preset changed a step (a family that needs a built env checks only then)."""
-        from scenes.axes import check_progression
-
         check_progression(self.base(task), successor)
 
     def level_identity(self, task: str, successor: Successor, level: int) -> Any:
@@ -144,7 +148,6 @@ class Scene:
         reads the successor only through the level's spec says so with ``env_from_spec``."""
         if not self.env_from_spec:
             return None
-        from scenes.axes import spec_at_level
 
         return {"scene": self.name, "task": task, "spec": spec_at_level(self.base(task), successor, level)}
 
@@ -233,7 +236,6 @@ class Scene:
         """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
         if self.runtime is None:
             return {}
-        from scenes.runtime import worker_versions
 
         return worker_versions(self.runtime)
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 from scipy.stats import binom
 
 from indgen_vla.core.errors import ConfigError
+from scenes.certificates import episodes_needed, lower_bound, row_oracle_version
 
 ALPHA = 0.05  # the error the rule spends over every attempt on a level
 FIRST_ALPHA = 0.0485  # attempt 1: 59/59 certifies (0.95**59 = 0.04849 <= 0.0485)
@@ -51,8 +52,6 @@ def attempt_confidence(j: int) -> float:
 
 def certifying_count(n: int, confidence: float, threshold: float) -> int | None:
     """The fewest successes of ``n`` whose lower bound reaches ``threshold`` (None when not even n/n does)."""
-    from scenes.certificates import lower_bound
-
     if lower_bound(n, n, confidence) < threshold:
         return None
     lo, hi = 0, n
@@ -75,8 +74,6 @@ def attempt_pass_probability(p: float, n: int, confidence: float, threshold: flo
 def false_certification(p: float, attempts: int, threshold: float = 0.95, n_max: int | None = None) -> float:
     """P(some of ``attempts`` held-out attempts certifies | oracle rate p), attempt j at ``attempt_confidence(j)``
     on its own block (independent), each of ``n_max`` episodes or the fewest that can certify."""
-    from scenes.certificates import episodes_needed
-
     miss = 1.0
     for j in range(1, attempts + 1):
         conf = attempt_confidence(j)
@@ -87,8 +84,6 @@ def false_certification(p: float, attempts: int, threshold: float = 0.95, n_max:
 
 def naive_false_certification(p: float, attempts: int, threshold: float = 0.95) -> float:
     """The same with every attempt at the old fixed 95 % (59/59): keeping the best of several versions."""
-    from scenes.certificates import episodes_needed
-
     one = attempt_pass_probability(p, episodes_needed(threshold, 0.95), 0.95, threshold)
     return 1.0 - (1.0 - one) ** attempts
 
@@ -101,7 +96,6 @@ def ledger(row: dict, cert: dict | None = None) -> list[dict]:
     block 0 that spent its share (the level's first run could have failed before this one), history unknown."""
     if "attempts" in row:
         return list(row["attempts"])
-    from scenes.certificates import row_oracle_version
 
     version = row_oracle_version(row, cert)
     return [{"attempt": 1, "block": LEGACY_BLOCK, "held_out": True, "alpha": FIRST_ALPHA, "n": row["n"],

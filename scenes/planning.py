@@ -21,7 +21,18 @@ from typing import TYPE_CHECKING, Any
 from indgen_vla.core.protocol.axis_ref import AxisRef
 from indgen_vla.core.protocol.plan import CERTIFIED, FAILED, UNCERTIFIED, Cell, ScenePlan
 from indgen_vla.core.protocol.progression import parse_levels
+from indgen_vla.core.reporting.certification_view import NO_ORACLE
 from scenes.axes import axis_param, load_preset, spec_at_level, successor_steps
+from scenes.certificates import (
+    certified_levels,
+    current_oracle_version,
+    find_certification,
+    infeasible_levels,
+    level_verdict,
+)
+from scenes.heldout import EXHAUSTIVE, basis, covers_every_state
+from scenes.oracles import oracle_scripts
+from scenes.render_info import gl_renderer
 
 if TYPE_CHECKING:
     from scenes.axes import Successor
@@ -114,8 +125,6 @@ class SceneLevels:
 
     def render_backend(self) -> str:
         """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""
-        from scenes.render_info import gl_renderer
-
         return gl_renderer()
 
 
@@ -203,17 +212,6 @@ def _resolve(
     step: float | None, preset: str | None, certificates: bool,
 ) -> ScenePlan:  # fmt: skip
     """``resolve_scene_plan``'s work, with the family configured."""
-    from indgen_vla.core.reporting.certification_view import NO_ORACLE
-    from scenes.certificates import (
-        certified_levels,
-        current_oracle_version,
-        find_certification,
-        infeasible_levels,
-        level_verdict,
-    )
-    from scenes.heldout import EXHAUSTIVE, basis, covers_every_state
-    from scenes.oracles import oracle_scripts
-
     # names, axes and levels only: no assets needed (building an env does: SceneLevels.check_ready)
     refs = list({r.name: r for r in map(AxisRef.parse, axes)}.values())  # malformed: one line, before lookups
     for ref in refs:  # every component one of the scene's axes, before select_tasks reads the axes

@@ -6,15 +6,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from indgen_vla.core.protocol.axis_ref import AxisRef
+from scenes.axes import resolve_alias
+
 if TYPE_CHECKING:
     from scenes.family import Scene
 
 
 def scene_axis_rows(sc: Scene) -> list[dict]:
     """One row per (axis, group of tasks that share its step and range) of ``scene``, in the family's axis order."""
-    from indgen_vla.core.protocol.axis_ref import AxisRef
-    from scenes.axes import resolve_alias
-
     rows: list[dict] = []
     for axis in map(AxisRef.parse, sc.axes):
         try:

@@ -6,17 +6,33 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from indgen_vla.app.certify.certify_config import certify_config
+from indgen_vla.app.certify.certify_levels import certify as certify_levels
+from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values
+from indgen_vla.app.engine.run import evaluate as run_evaluation
+from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
+from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
+from indgen_vla.app.real.design import RealPlanConfig, plan_run
+from indgen_vla.app.regimes.demos import DemosConfig, record_demos
+from indgen_vla.app.regimes.mimicgen import MimicGenConfig, generate
+from indgen_vla.app.regimes.mimicgen_sources import source_scenes
+from indgen_vla.app.regimes.train import TrainConfig, train_policy
+from indgen_vla.app.regimes.train_eval import eval_hook
+from indgen_vla.app.studies.budget import plan_budget
+from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
+from indgen_vla.app.studies.series import run_series
+from indgen_vla.core.comparison.series_report import write_series
+from indgen_vla.core.comparison.two_runs import compare_runs
 from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.reporting.report import write_run_report
+from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.runs.result import Run
-
-if TYPE_CHECKING:
-    from indgen_vla.app.real.design import RealPlanConfig
-    from indgen_vla.app.regimes.demos import DemosConfig
-    from indgen_vla.app.regimes.mimicgen import MimicGenConfig
-    from indgen_vla.app.regimes.train import TrainConfig
-    from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
+from indgen_vla.core.stats.contrasts import check_margin
+from policy_wrappers.objects import describe
+from scenes.certificates import cert_path
+from scenes.family import get_scene
 
 PathLike = str | os.PathLike[str]
 
@@ -41,13 +57,8 @@ def evaluate(
     which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
     override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
     """
-    from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values  # lazy: start-up
-    from indgen_vla.app.engine.run import evaluate as run_evaluation  # lazy: start-up
-
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if obj is not None:
-        from policy_wrappers.objects import describe  # lazy: optional lerobot, policy wrappers
-
         policy = describe(obj)
     given = {
         **options,
@@ -73,10 +84,6 @@ def report(
 ) -> list[Run]:
     """Write summary.json, report.md and plots for each run directory again (as ``indgen report`` does for each)
     and return them; ``gamma``, ``ci`` (wilson | clopper-pearson) and ``margin`` as the flags."""
-    from indgen_vla.core.reporting.report import write_run_report  # lazy: start-up
-    from indgen_vla.core.runs.records import RunDir  # lazy: start-up
-    from indgen_vla.core.stats.contrasts import check_margin  # lazy: start-up
-
     if not 0 < gamma <= 1:
         raise ConfigError(f"gamma must be in (0, 1], got {gamma}")
     check_margin(margin)
@@ -108,8 +115,6 @@ def compare(
     """``indgen compare RUN_A RUN_B``: per-level exact tests (paired where the seeds match) with Holm, written to
     compare.json/compare.md (default RUN_A/compare); returns compare.json's content. ``labels``: the two runs'
     names in the tables (default: each run's data regime and policy, else its folder)."""
-    from indgen_vla.core.comparison.two_runs import compare_runs  # lazy: start-up
-
     if len(labels) != 2:
         raise ConfigError(
             f"labels must be two names (run_a's, run_b's; None for the default), got {labels!r}"
@@ -127,11 +132,6 @@ def certify(config: Any = None, **options: Any) -> dict[str, Any]:
     ``config`` is a ``CertifyConfig``; keyword arguments are ``indgen certify``'s flags with ``_`` for ``-``
     (``scene``, ``axis``, ``task``, ``levels``, ``episodes``, ``seed``, ``workers``, ``held_out``, ``split``, ...),
     replacing the config's values."""
-    from indgen_vla.app.certify.certify_config import certify_config  # lazy: start-up (import indgen_vla)
-    from indgen_vla.app.certify.certify_levels import certify as certify_levels  # lazy: start-up
-    from scenes.certificates import cert_path  # lazy: start-up
-    from scenes.family import get_scene  # lazy: start-up
-
     cfg = certify_config(config, **options)
     if cfg.mode != "certify":
         raise ConfigError(f"certify() certifies levels; {cfg.mode.replace('_', '-')} is the command's other mode: "
@@ -161,10 +161,6 @@ def import_lerobot_eval(
     """``indgen import lerobot-eval DIR... --out RUN``: lerobot-eval output directories as one run directory, its
     report written (docs/lerobot.md); ``axis``/``level`` place another env's run, ``seed`` is lerobot-eval's --seed
     where eval_info.json records none (default 1000)."""
-    # lazy: start-up
-    from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
-    from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
-
     paths = [sources] if isinstance(sources, str | os.PathLike) else list(sources)
     cfg = ImportConfig(sources=tuple(os.fspath(p) for p in paths), out=os.fspath(out), axis=axis, level=level,
                        seed=seed, policy=policy, data_regime=data_regime)  # fmt: skip
@@ -174,8 +170,6 @@ def import_lerobot_eval(
 def budget(config: BudgetConfig) -> dict[str, Any]:
     """``indgen budget``: the size of ``config.protocol`` before it runs (episodes, power, the adaptive rule's
     cost, wall time per worker count; writes the lock with ``write``), as ``indgen budget --json`` prints it."""
-    from indgen_vla.app.studies.budget import plan_budget  # lazy: start-up
-
     return plan_budget(config)
 
 
@@ -184,9 +178,6 @@ def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]
     """``indgen series``: one run of ``config.protocol`` per checkpoint, into ``config.out``/runs/<step>, and the
     series report (series.md, series.json, plots) rewritten after each (``after_each`` gets the runs too); returns
     (step, run directory) in step order."""
-    from indgen_vla.app.studies.series import run_series  # lazy: start-up
-    from indgen_vla.core.comparison.series_report import write_series  # lazy: start-up
-
     out = Path(config.out)
 
     def report(entries: list[tuple[int, Path]]) -> None:
@@ -204,9 +195,6 @@ def demos(config: DemosConfig, *, progress: Callable[[str, int, int], None] | No
     """``indgen demos``: noisy-oracle demonstrations of ``config.scene`` as a LeRobotDataset at ``config.out``
     (resumed when it holds an unfinished recording of the same config); returns the recording's stats.
     ``progress(cell, kept, attempts)`` follows each cell, ``notice`` gets the resume line."""
-    from indgen_vla.app.regimes.demos import record_demos  # lazy: start-up
-    from scenes import get_scene  # lazy: start-up
-
     return record_demos(config, get_scene(config.scene), progress=progress, notice=notice)
 
 
@@ -215,10 +203,6 @@ def mimicgen(config: MimicGenConfig, *, progress: Callable[[str, int, int, int],
     """``indgen mimicgen``: MimicGen-style episodes from the demonstrations ``config.source`` into ``config.out``,
     each at its source's level and scene (resumed when unfinished); returns the generation stats.
     ``progress(cell, successes, attempts, total)`` follows each cell, ``say`` gets the resume line."""
-    from indgen_vla.app.regimes.mimicgen import generate  # lazy: start-up
-    from indgen_vla.app.regimes.mimicgen_sources import source_scenes  # lazy: start-up
-    from scenes import get_scene  # lazy: start-up
-
     scenes = {name: get_scene(name) for name in source_scenes(config.source)}
     return generate(config, scenes, progress, say=say)
 
@@ -228,15 +212,10 @@ def train(config: TrainConfig, *, progress: Callable[[int, float], None] | None 
     """``indgen train``: a LeRobot policy trained by ``config.recipe`` on ``config.datasets`` into the checkpoint
     ``config.out`` (resumed when unfinished), with ``config.evaluation`` run on the weights in memory every
     ``config.eval_every`` updates; returns the checkpoint directory. ``progress(step, loss)`` follows the loss."""
-    from indgen_vla.app.regimes.train import train_policy  # lazy: start-up
-    from indgen_vla.app.regimes.train_eval import eval_hook  # lazy: start-up
-
     return train_policy(config, progress=progress, say=say, after_step=eval_hook(config))
 
 
 def real_plan(config: RealPlanConfig) -> Path:
     """``indgen real plan``: a run directory for a real-robot axis and the operator's protocol.md (then ``indgen real
     record``); returns the run directory."""
-    from indgen_vla.app.real.design import plan_run  # lazy: start-up
-
     return plan_run(config)

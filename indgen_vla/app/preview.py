@@ -20,6 +20,7 @@ from indgen_vla.core.reporting.figures import contact_sheet, unit_name
 from indgen_vla.core.runs.records import atomic_savefig
 from scenes.axes import get_path, shifts, spec_at_level
 from scenes.base_env import check_env_args
+from scenes.external import close_idle_workers
 from scenes.family import Scene
 from scenes.planning import resolve_scene_plan
 
@@ -121,8 +122,6 @@ def preview_tiles(req: PreviewRequest) -> tuple[ScenePlan, list[Tile]]:
                 tiles.append(Tile(axis, k, level_caption(plan, task, axis, k), img))
     finally:
         if plan.builder.family.runtime is not None:  # a family in its own venv: stop its idle worker now
-            from scenes.external import close_idle_workers
-
             close_idle_workers()
     return plan, tiles
 

@@ -16,6 +16,7 @@ from collections.abc import Callable
 
 from indgen_vla.app.real.trigger import EpisodeContext, TriggerError
 from indgen_vla.core.errors import PolicyError
+from policy_wrappers.specs import load_policy
 
 
 class PolicyCheck:
@@ -24,8 +25,6 @@ class PolicyCheck:
     name = "policy"
 
     def __init__(self, spec: str):
-        from policy_wrappers.specs import load_policy
-
         self.spec = spec
         self.policy = load_policy(spec)  # a remote family connects and shakes hands here: fails in one line
 

@@ -17,6 +17,9 @@ from typing import TYPE_CHECKING, ClassVar
 from indgen_vla.core.errors import ConfigError, SceneError
 from scenes.axes import shifts
 from scenes.family import Scene, register_scene
+from scenes.libero import placement_check as placement
+from scenes.libero.assets import find_assets, is_placeholder_tree, libero_root, tree_identity
+from scenes.libero.bddl import load_task, short_name, suite_task_names
 from scenes.predicates import BddlGoal
 from scenes.spec import Item
 
@@ -49,8 +52,6 @@ class LiberoSpec:
 def available() -> bool:
     """Is hf-libero installed (the suites' tasks can be read only then)?"""
     try:
-        from scenes.libero.assets import libero_root
-
         libero_root()
         return True
     except SceneError:
@@ -85,8 +86,6 @@ class LiberoSuite(Scene):
     @property
     def tasks(self) -> tuple[str, ...]:
         """LIBERO's tasks of the suite in benchmark order, by short name (needs hf-libero, not its assets)."""
-        from scenes.libero.bddl import short_name, suite_task_names
-
         return tuple(short_name(self.task_pattern, f) for f in suite_task_names(self.name))
 
     def listed_tasks(self) -> tuple[str, ...]:
@@ -94,8 +93,6 @@ class LiberoSuite(Scene):
 
     def task_info(self, task: str):
         """The parsed BDDL problem of ``task`` (``scenes.libero.bddl.LiberoTask``)."""
-        from scenes.libero.bddl import load_task
-
         return load_task(self.name, self.task_pattern, task)
 
     def base(self, task: str) -> LiberoSpec:
@@ -114,32 +111,24 @@ class LiberoSuite(Scene):
         return self.task_info(task).language
 
     def env_class(self) -> type[LiberoSceneEnv]:
-        from scenes.libero.env import LiberoSceneEnv
+        from scenes.libero.env import LiberoSceneEnv  # lazy: optional robosuite (the listings never build)
 
         return LiberoSceneEnv
 
     def asset_tree(self):
-        from scenes.libero.assets import find_assets
-
         return find_assets(required=False)
 
     def placeholder_assets(self) -> bool:
         """The asset tree in use is the miniature or a gap-filled overlay (``assets.PLACEHOLDER_MARK``)."""
-        from scenes.libero.assets import find_assets, is_placeholder_tree
-
         tree = find_assets(required=False)
         return tree is not None and is_placeholder_tree(tree)
 
     def check_ready(self) -> None:
         """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
-        from scenes.libero.assets import find_assets, libero_root
-
         libero_root()
         find_assets()
 
     def needs(self) -> str:
-        from scenes.libero.assets import find_assets
-
         if not available():
             return "hf-libero (pip install 'lerobot[libero]') and LIBERO's assets"
         assets = find_assets(required=False)
@@ -148,9 +137,7 @@ class LiberoSuite(Scene):
         return f"LIBERO's assets (found: {assets})"
 
     def protocol_facts(self) -> dict:
-        from scenes.libero import placement_check as placement
-        from scenes.libero.assets import find_assets, tree_identity
-        from scenes.libero.env import NUM_STEPS_WAIT
+        from scenes.libero.env import NUM_STEPS_WAIT  # lazy: optional robosuite (the listings never build)
 
         assets = find_assets()
         return {

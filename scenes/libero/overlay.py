@@ -17,6 +17,8 @@ import re
 import struct
 from pathlib import Path
 
+from scenes.libero.assets import mark_placeholder
+
 _FILE_REF = re.compile(r'file="([^"]+)"')
 _COMMENT = re.compile(r"<!--.*?-->", re.S)
 
@@ -74,8 +76,6 @@ def overlay_assets(src: Path, dst: Path) -> list[str]:
         q.parent.mkdir(parents=True, exist_ok=True)
         q.write_bytes(placeholder_bytes(q.suffix.lower()))
     if missing:  # a filled mesh or texture changes what a camera sees
-        from scenes.libero.assets import mark_placeholder
-
         mark_placeholder(
             dst, f"An overlay of {src} (scenes.libero.overlay) with {len(missing)} missing file(s) filled."
         )

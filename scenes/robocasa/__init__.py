@@ -13,12 +13,19 @@ from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import EnvSpec
+from indgen_vla.core.protocol.progression import ProgressionError
 from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
+from scenes.axes import axis_param, get_successor, merge_overrides, resolve_alias, shifts, spec_at_level
+from scenes.external import ExternalSceneEnv
 from scenes.family import Scene, register_scene
+from scenes.libero.assets import tree_identity
+from scenes.robocasa import splits
 from scenes.robocasa.departures import DEVIATIONS, PICK_T0, SPAWN_JITTER
+from scenes.robocasa.environment import find_assets, find_python, is_placeholder, venv_dir
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.robocasa.split_option import SplitOption
+from scenes.robocasa.splits import SPLIT_WORDS, in_split
 from scenes.runtime import ExternalRuntime
 
 if TYPE_CHECKING:
@@ -26,7 +33,6 @@ if TYPE_CHECKING:
 
     from indgen_vla.core.protocol.axis_ref import AxisRef
     from scenes.axes import Successor
-    from scenes.external import ExternalSceneEnv
 
 
 @dataclass(frozen=True)
@@ -174,8 +180,6 @@ def check_pick_region(task: str, successor: Successor) -> None:
     """Every level of the axis's range (as condition 2, whatever --levels runs) keeps its pick window (2 x
     ``PICK_JITTER`` wide, T0's at the region's low-x end) inside the task's declared region: one line naming the
     fix. A kitchen that clips the region is the worker's to judge, per episode (``pick_window.level_offset``)."""
-    from indgen_vla.core.protocol.progression import ProgressionError
-
     part = pick_part(successor)
     if part is None:
         return
@@ -208,14 +212,10 @@ def pick_config(task: str, successor: Successor, level: int) -> dict:
 
 
 def _python() -> Path:
-    from scenes.robocasa.environment import find_python
-
     return find_python()
 
 
 def _worker_env() -> dict[str, str]:
-    from scenes.robocasa.environment import find_assets
-
     return {"ROBOCASA_ASSETS_PATH": str(find_assets()), "MUJOCO_GL": "egl"}
 
 
@@ -267,8 +267,6 @@ class RoboCasa(SplitOption, Scene):
         or the axes preset sets one; every other step is the family's (``axis_overrides``) or the preset's."""
         import dataclasses
 
-        from scenes.axes import get_successor, merge_overrides, resolve_alias
-
         merged = merge_overrides(self.axis_overrides, overrides)
         pick = merged.get("pick_x", {})
         parts = [resolve_alias(p) for p in axis.components]
@@ -314,13 +312,9 @@ class RoboCasa(SplitOption, Scene):
         return task  # replaced by RoboCasa's own ep_meta["lang"] at every reset
 
     def env_class(self) -> type[ExternalSceneEnv]:
-        from scenes.external import ExternalSceneEnv
-
         return ExternalSceneEnv
 
     def asset_tree(self):
-        from scenes.robocasa.environment import find_assets
-
         return find_assets(required=False)
 
     def environment_versions(self) -> dict[str, str]:
@@ -330,8 +324,6 @@ class RoboCasa(SplitOption, Scene):
         return {**super().environment_versions(), "base_controller": BASE_CONTROLLER}
 
     def placeholder_assets(self) -> bool:
-        from scenes.robocasa.environment import find_assets, is_placeholder
-
         assets = find_assets(required=False)
         return assets is not None and is_placeholder(assets)
 
@@ -340,9 +332,6 @@ class RoboCasa(SplitOption, Scene):
 
     def check_ready(self) -> None:
         """The venv, the asset tree, and a split and registries (``splits.choice``) that tree can serve."""
-        from scenes.robocasa import splits
-        from scenes.robocasa.environment import find_assets, find_python, is_placeholder
-
         find_python()
         assets = find_assets()
         problem = splits.tree_problem(assets, *self.split_choice(), placeholders=is_placeholder(assets))
@@ -350,8 +339,6 @@ class RoboCasa(SplitOption, Scene):
             raise ConfigError(problem)
 
     def needs(self) -> str:
-        from scenes.robocasa.environment import find_assets, find_python, is_placeholder, venv_dir
-
         py = find_python(required=False)
         assets = find_assets(required=False)
         venv = (
@@ -368,8 +355,6 @@ class RoboCasa(SplitOption, Scene):
     def select_tasks(self, task: str | None, axes: Sequence[AxisRef] = ()) -> list[str]:
         """``all``: the tasks on every axis of the run (appendix B's lists, ``AXIS_TASKS``), None their first; a
         named task must be on each axis's list (one line naming the list)."""
-        from scenes.axes import resolve_alias
-
         if task and "@" in task:  # canonical kitchens: each task (or the axes' list for all@) in each kitchen
             name, _, kitchen = task.partition("@")
             names = self.select_tasks(name, axes)
@@ -401,10 +386,6 @@ class RoboCasa(SplitOption, Scene):
         """RoboCasa's own reset as initial states, the kitchen asset tree's identity (real or placeholders), and
         the black-box regime (appendix B): T0 is empirical, condition 2 validated post hoc (``indgen reference``
         and the report's monotone test)."""
-        from scenes.libero.assets import tree_identity
-        from scenes.robocasa import splits
-        from scenes.robocasa.environment import find_assets, is_placeholder
-
         assets = find_assets()
         split, registries = self.split_choice()
         # the split's kitchens and instances are where T0 comes from; the choice the worker made before the option
@@ -438,8 +419,6 @@ class RoboCasa(SplitOption, Scene):
 
     def _check_task_lists(self, task: str, parts: Sequence[str]) -> None:
         """One line naming the list of the first of the single axes ``parts`` whose task list lacks ``task``."""
-        from scenes.axes import resolve_alias
-
         task = split_task(task)[0]
         for part in map(resolve_alias, parts):
             if task not in AXIS_TASKS.get(part, ()):
@@ -456,9 +435,6 @@ class RoboCasa(SplitOption, Scene):
 
     def level_config(self, task: str, successor: Successor, level: int, cameras, image_size) -> dict:
         """What the worker builds for (task, level): RoboCasa's task, cameras, and the level's ep_meta edits."""
-        from scenes.axes import axis_param, shifts, spec_at_level
-        from scenes.robocasa.splits import SPLIT_WORDS, in_split
-
         names = [p.axis.name for p in shifts(successor)]
         self._check_task_lists(task, names)
         spec = spec_at_level(self.base(task), successor, level)

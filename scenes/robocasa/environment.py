@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from indgen_vla.core.errors import ConfigError, SceneError
+from scenes.robocasa.placeholder_tree import VERSION
 
 PYTHON_ENV = "INDGEN_ROBOCASA_PYTHON"  # an interpreter of a ready RoboCasa venv
 VENV_ENV = "INDGEN_ROBOCASA_VENV"  # where ``indgen setup robocasa`` makes it
@@ -186,8 +187,6 @@ def is_placeholder(path: Path) -> bool:
 def stale_placeholders(path: Path) -> str | None:
     """One line when ``path`` is a placeholder tree an older generator wrote (its geometry is not what the oracle
     and the docs' numbers assume, and its listing hash names other certificates); None otherwise."""
-    from scenes.robocasa.placeholder_tree import VERSION
-
     if not is_placeholder(path):
         return None
     first = (path / PLACEHOLDER_MARKER).read_text().partition("\n")[0]

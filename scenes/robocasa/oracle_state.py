@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
+
 PRESS_LEVER = 0.16  # m from the mixer head's hinge the press lands at most (tree 5's head: 0.153 m)
 
 
@@ -26,8 +28,6 @@ def hinge_goal(raw: dict):
     the lid's half thickness (``worker_facts.hinge_facts``)."""
     import numpy as np
 
-    from scenes.privileged import GoalState
-
     front = np.asarray(raw["hinge_front"], dtype=np.float64)
     half = np.arctan2(front[1], front[0]) / 2
     quat = np.array([np.cos(half), 0.0, 0.0, np.sin(half)])
@@ -39,8 +39,6 @@ def hinge_target(raw: dict):
     (``clear_z``, 0 closed .. 1 open); no floor (a push, not a put-down)."""
     import numpy as np
 
-    from scenes.privileged import Targets
-
     edge = np.asarray(raw["hinge_edge"], dtype=np.float64)
     return Targets(edge[:2].copy(), float(edge[2]), float(raw["hinge_state"]), float(edge[2]))
 
@@ -49,8 +47,6 @@ def unload_target(raw: dict, pick, centre):
     """Cabinet to counter: put the object down on the counter 12 cm (plus its half width) in front of the cabinet's
     face, straight back from where it stands; the cabinet is the fixture it must leave (``SceneFacts``)."""
     import numpy as np
-
-    from scenes.privileged import SceneFacts, Targets
 
     yaw = float(raw["base_yaw"])
     fwd = np.array([np.cos(yaw), np.sin(yaw)])  # the base faces the cabinet
@@ -79,8 +75,6 @@ def privileged_state(raw: dict):
     (``press_point``).
     """
     import numpy as np
-
-    from scenes.privileged import GoalState, PickState, PrivilegedState, SceneFacts, Targets
 
     f64 = lambda v: np.asarray(v, dtype=np.float64)  # noqa: E731
     # TurnOnBlender's fruit waits in the jar: the power button is what its oracle pushes

@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 
 from indgen_vla.core.errors import SceneError
+from scenes.robocasa.environment import find_python
 
 GENERATOR = Path(__file__).with_name("placeholder_tree")  # a folder Python runs (its __main__.py)
 
@@ -18,8 +19,6 @@ GENERATOR = Path(__file__).with_name("placeholder_tree")  # a folder Python runs
 def write_placeholders(dst: Path, python: Path | None = None) -> dict:
     """Write the tree at ``dst`` with the RoboCasa venv's interpreter; returns the generator's counts (placeholder
     files per kind ``written`` now and already ``present``, files from RoboCasa's ``package``, the ``total``)."""
-    from scenes.robocasa.environment import find_python
-
     py = python or find_python()
     r = subprocess.run([str(py), str(GENERATOR), str(dst)], capture_output=True, text=True,
                        env={"MUJOCO_GL": "egl", "PATH": "/usr/bin:/bin", "HOME": str(Path.home())})  # fmt: skip

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from scenes.robocasa.splits import LEGACY, REGISTRIES_ENV, SPLIT_ENV, check, choice
+
 
 class SplitOption:
     """The ``RoboCasa`` family's split and registries: the command's (``configured``) or the environment's."""
@@ -18,22 +20,16 @@ class SplitOption:
     def certificate_scope(self) -> str:
         """The split and registries, unless they are the worker's choice before the option (``splits.LEGACY``),
         whose certificates keep their folder."""
-        from scenes.robocasa.splits import LEGACY
-
         split, registries = self.split_choice()
         return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
 
     def worker_environment(self) -> dict[str, str]:
         """The split and registries this command resolved (``split_choice``), for the run's simulators everywhere."""
-        from scenes.robocasa.splits import REGISTRIES_ENV, SPLIT_ENV
-
         split, registries = self.split_choice()
         return {SPLIT_ENV: split, REGISTRIES_ENV: ",".join(registries)}
 
     def check_options(self, given) -> None:
         """``split`` one of RoboCasa365's, ``obj_registries`` a comma list of RoboCasa's registries (one line)."""
-        from scenes.robocasa.splits import check
-
         super().check_options(given)  # type: ignore[misc]
         check(given.get("split"), given.get("obj_registries"))
 
@@ -41,8 +37,6 @@ class SplitOption:
         """This family under ``--split`` / ``--obj-registries`` where given, else what it was configured with,
         else the environment's (``splits.choice``): one choice for the whole command."""
         import copy
-
-        from scenes.robocasa.splits import choice
 
         self.check_options(given)
         split, registries = given.get("split"), given.get("obj_registries")
@@ -57,8 +51,6 @@ class SplitOption:
 
     def split_choice(self) -> tuple[str, tuple[str, ...]]:
         """The command's split and registries (``configured``), else the environment's (``splits.choice``)."""
-        from scenes.robocasa.splits import choice
-
         return self._choice if self._choice is not None else choice()
 
     def options(self) -> dict[str, str]:

@@ -69,6 +69,7 @@ def in_split(split: str, layout: int, style: int) -> bool:
 def check(split: str | None = None, registries: str | None = None, where: tuple[str, str] = FLAGS) -> None:
     """One line listing the valid values (``ConfigError``) when ``split`` or ``registries`` (a comma list) is not
     RoboCasa's; None is "not given". ``where`` names them in the line (the flags, or the environment variables)."""
+    # lazy: optional indgen_vla (the RoboCasa worker loads this file by path in its own venv, without our packages)
     from indgen_vla.core.errors import ConfigError
 
     if split is not None and split not in SPLITS:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 import scenes.tabletop.mjcf as O
+from indgen_vla.core.errors import InfeasibleLevelError
 from scenes.mujoco_geom import grasp_height
 from scenes.privileged import GoalState, PickState, SceneFacts, Targets
 from scenes.sim import TABLE_TOP, FreeObject, Layout
@@ -31,8 +32,6 @@ def _grasp_frac(kind: str) -> float:
 
 def _distractors(spec: SceneSpec, slots: Slots) -> list[tuple[object, tuple[float, float, float]]]:
     if spec.distractors > len(slots):
-        from indgen_vla.core.errors import InfeasibleLevelError
-
         raise InfeasibleLevelError(
             f"scene {spec.scene} has {len(slots)} distractor slots; level asks for {spec.distractors}"
         )
@@ -150,8 +149,6 @@ def stack_layout(spec: SceneSpec, slots: Slots) -> Layout:
 def cabinet_layout(spec: SceneSpec, slots: Slots) -> Layout:
     """RoboCasa style: an object in a cabinet compartment (with clutter) to be put on the table."""
     if spec.clutter > len(CLUTTER_SLOTS):
-        from indgen_vla.core.errors import InfeasibleLevelError
-
         raise InfeasibleLevelError(
             f"the cabinet holds {len(CLUTTER_SLOTS)} clutter objects; asked for {spec.clutter}"
         )

@@ -32,7 +32,7 @@ class SceneEnv(BaseSceneEnv):
         self.success_predicate = scene.success_predicate
         layout = scene.layout(self.spec)
         try:
-            from scenes.sim import IndgenRobosuiteEnv
+            from scenes.sim import IndgenRobosuiteEnv  # lazy: optional robosuite (the listings never build)
 
             self._sim_env = IndgenRobosuiteEnv(layout)
         except Exception as e:  # robosuite raises bare assertions and mujoco errors
