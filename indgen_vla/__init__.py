@@ -2,8 +2,9 @@
 
 The public Python API is ``evaluate``, ``report``, ``compare`` and ``certify`` (docs/api.md), the types a policy of
 your own implements (``Policy``, ``PolicySpec``, ``Observation``) and those a scene family of your own subclasses
-(``Scene``, ``TabletopScene``, ``SceneSpec``, ``Item``, ``register_scene``: docs/extending.md). Importing this package is
-cheap: each name loads its module on first use, and torch, robosuite and lerobot load only inside what needs them.
+(``Scene`` and its parts ``SceneEnvironment``, ``SceneCertificates``; ``TabletopScene``, ``SceneSpec``, ``Item``,
+``register_scene``: docs/extending.md). Importing this package is cheap: each name loads its module on first use, and
+torch, robosuite and lerobot load only inside what needs them.
 """
 
 from __future__ import annotations
@@ -46,9 +47,12 @@ _LAZY = {
     "PolicySpec": "indgen_vla.core.protocol.interface:PolicySpec",
     "Observation": "indgen_vla.core.protocol.interface:Observation",
     "EnvSpec": "indgen_vla.core.protocol.interface:EnvSpec",
-    # the extension point of a scene family of your own (docs/extending.md): the base, the tabletop backend's base,
-    # a level's frozen spec and its items, the registration, the family lookup by name, the tabletop predicates
+    # the extension point of a scene family of your own (docs/extending.md): the base (a catalogue with its
+    # environment and certificate parts), the tabletop backend's base, a level's frozen spec and its items, the
+    # registration, the family lookup by name, the tabletop predicates
     "Scene": "scenes.family:Scene",
+    "SceneEnvironment": "scenes.family:SceneEnvironment",
+    "SceneCertificates": "scenes.family:SceneCertificates",
     "TabletopScene": "scenes.tabletop:TabletopScene",
     "SceneSpec": "scenes.spec:SceneSpec",
     "Item": "scenes.spec:Item",

@@ -127,9 +127,9 @@ def tree_stamp(root: str) -> tuple[str, int]:
 
 
 def asset_stamp(scene: Scene) -> dict | None:
-    """What a per-machine certificate records of the asset tree it was made on (``Scene.asset_tree``): its root
-    and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
-    tree = scene.asset_tree()
+    """What a per-machine certificate records of the asset tree it was made on (``SceneCertificates.asset_tree``):
+    its root and ``tree_stamp``; None for a scene without one (the built-ins, whose certificates are committed)."""
+    tree = scene.certificates.asset_tree()
     if tree is None:
         return None
 
@@ -233,8 +233,8 @@ def certification_root(scene: Scene | None = None) -> Path:
     if scene is None or scene.committed_certificates:
         return certification_dir()
     assets, scope = (
-        scene.asset_tree(),
-        scene.certificate_scope(),
+        scene.certificates.asset_tree(),
+        scene.certificates.scope(),
     )  # scope "": the folder certificates had before it
     where = str(assets.resolve() if assets else "none") + (f"\0{scope}" if scope else "")
     tag = hashlib.sha1(where.encode()).hexdigest()[:12]

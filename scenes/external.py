@@ -138,8 +138,8 @@ class ExternalSceneEnv(BaseSceneEnv):
         )
 
     def privileged_state(self):
-        """The family's ``PrivilegedState`` of the worker's privileged facts (``Scene.privileged_from``)."""
-        return self._scene.privileged_from(self._call("privileged"))
+        """The family's ``PrivilegedState`` of the worker's privileged facts (``SceneEnvironment.privileged_from``)."""
+        return self._scene.environment.privileged_from(self._call("privileged"))
 
     def call(self, name: str, **kwargs) -> Any:
         """A backend extra by name (e.g. ``ep_meta``), for tests and the oracle."""

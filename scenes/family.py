@@ -1,9 +1,11 @@
 """The scene registry: one ``Scene`` subclass per scene family, registered once with ``@register_scene``.
 
-A family says everything the toolkit needs about it in one class: its tasks, the axes it supports (the first
-is the default), its episode length, the T0 spec and instruction of each task, its one success predicate, where
-its distractors go, and how to build an env. Like ManiSkill's ``@register_env`` tasks, each registered class's
-docstring has three sections: **Task Description**, **Randomizations** and **Success Conditions**.
+A family's ``Scene`` is its catalogue: its tasks, the axes it supports (the first is the default), its episode
+length, the T0 spec and instruction of each task, its one success predicate, where its distractors go. Two small
+frozen parts hold the rest: ``scene.environment`` (a ``SceneEnvironment``: how to build an env) and
+``scene.certificates`` (a ``SceneCertificates``: what a per-machine certificate depends on). Like ManiSkill's
+``@register_env`` tasks, each registered class's docstring has three sections: **Task Description**,
+**Randomizations** and **Success Conditions**.
 
 Importing this is cheap (no simulator); ``make_env`` imports the simulator backend when it builds.
 """
@@ -11,6 +13,7 @@ Importing this is cheap (no simulator); ``make_env`` imports the simulator backe
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from indgen_vla.core.errors import ConfigError, UnknownNameError
@@ -40,8 +43,82 @@ DOC_SECTIONS = ("Task Description", "Randomizations", "Success Conditions")
 _SCENES: dict[str, Scene] = {}
 
 
+@dataclass(frozen=True)
+class SceneEnvironment:
+    """A family's environment builder: how and where its levels are built (``scene.environment``); a family whose
+    simulator or assets differ subclasses it and names the subclass in its ``Environment`` class attribute."""
+
+    family: Scene
+
+    def env_class(self) -> type[gym.Env]:
+        """The ``scenes.base_env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this
+        method (it loads the simulator); typed ``gym.Env`` here because ``scenes.base_env`` imports this module."""
+        raise NotImplementedError
+
+    def make_env(
+        self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
+        max_steps: int | None,
+    ) -> gym.Env:  # fmt: skip
+        """Build one level of one (resolved) task along ``successor``."""
+        return self.env_class()(
+            self.family, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
+        )
+
+    def check_ready(self) -> None:
+        """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
+
+    def placeholder_assets(self) -> bool:
+        """True when the assets found are placeholders (boxes): images are then no measurement."""
+        return False
+
+    def privileged_from(self, raw: Any):
+        """A ``PrivilegedState`` from what a family in its own runtime sends (``ExternalSceneEnv``); others return
+        one directly."""
+        return raw
+
+    def environment_versions(self) -> dict[str, str]:
+        """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
+        if self.family.runtime is None:
+            return {}
+
+        return worker_versions(self.family.runtime)
+
+    def protocol_facts(self) -> dict[str, Any]:
+        """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
+        settling steps after reset, where initial states come from, and the identity of the asset tree."""
+        return {
+            "max_steps": self.family.max_steps,
+            "settle_steps": 0,
+            "initial_states": "sampled from each episode's seed (T0 jitter)",
+            "assets": "shipped with the simulator packages (their versions identify them)",
+        }
+
+    def worker_environment(self) -> dict[str, str]:
+        """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
+        split): a Ray actor on another node gets these, not its node's own ({}: none)."""
+        return {}
+
+
+@dataclass(frozen=True)
+class SceneCertificates:
+    """A family's certificate store hooks (``scene.certificates``): what a per-machine certificate depends on
+    (``committed_certificates = False``); ``scenes.certificates`` reads them."""
+
+    family: Scene
+
+    def asset_tree(self):
+        """The asset tree a per-machine certificate depends on, or None."""
+        return None
+
+    def scope(self) -> str:
+        """A user's choice besides the asset tree that changes which initial states a level draws (RoboCasa365's
+        split): per-machine certificates made under another live in another folder ("": none)."""
+        return ""
+
+
 class Scene:
-    """A scene family; subclass it, fill the class attributes and methods, and decorate it with ``register_scene``.
+    """A scene family's catalogue (tasks, axes, T0, successors, listing) and options, holding its two parts; subclass
+    it, fill the class attributes and methods, and decorate it with ``register_scene``.
 
     Class attributes:
         name: the registry name (``--scene``).
@@ -77,6 +154,8 @@ class Scene:
             ``SceneSpec`` (``level_identity`` is then that spec: axes with one level-0 spec share their T0 runs).
         scene_options: the options a command may set for the family (RoboCasa365: ``split``, ``obj_registries``,
             flags ``--split``, ``--obj-registries``); ``configured`` applies them, a plan's builder carries them.
+        Environment: its ``SceneEnvironment`` subclass (``env_class`` at least), reached as ``scene.environment``.
+        Certificates: its ``SceneCertificates`` subclass (per-machine certificates), reached as ``scene.certificates``.
     """
 
     name: ClassVar[str]
@@ -99,6 +178,8 @@ class Scene:
     fixed_state_count: ClassVar[int] = 0  # how many (LIBERO: 50); certificates over them are exhaustive
     env_from_spec: ClassVar[bool] = False
     scene_options: ClassVar[tuple[str, ...]] = ()
+    Environment: ClassVar[type[SceneEnvironment]] = SceneEnvironment
+    Certificates: ClassVar[type[SceneCertificates]] = SceneCertificates
 
     def __repr__(self) -> str:
         return f"<scene {self.name} ({type(self).__name__})>"
@@ -109,6 +190,16 @@ class Scene:
 
     def __hash__(self) -> int:
         return hash((type(self), tuple(sorted(self.options().items()))))
+
+    @property
+    def environment(self) -> SceneEnvironment:
+        """The family's environment builder (its ``Environment`` over this configured family)."""
+        return self.Environment(self)
+
+    @property
+    def certificates(self) -> SceneCertificates:
+        """The family's certificate store hooks (its ``Certificates`` over this configured family)."""
+        return self.Certificates(self)
 
     # ---- the catalogue: what the family offers (tasks, axes, T0, instruction, successors, listing) ---------
     @property
@@ -205,50 +296,7 @@ class Scene:
         """What the family needs beyond the venv, for ``indgen scenes`` (None: nothing)."""
         return None
 
-    # ---- the environment: how and where a level is built (SceneLevels holds the family and calls these) ----
-    def env_class(self) -> type[gym.Env]:
-        """The ``scenes.base_env.BaseSceneEnv`` subclass that builds this family's levels, imported only in this
-        method (it loads the simulator); typed ``gym.Env`` here because ``scenes.base_env`` imports this module."""
-        raise NotImplementedError
-
-    def make_env(
-        self, task: str, successor: Successor, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
-        max_steps: int | None,
-    ) -> gym.Env:  # fmt: skip
-        """Build one level of one (resolved) task along ``successor``."""
-        return self.env_class()(
-            self, task, successor, level, cameras=cameras, image_size=image_size, max_steps=max_steps
-        )
-
-    def check_ready(self) -> None:
-        """Fail fast, in one line, when external assets are missing (nothing to check by default)."""
-
-    def placeholder_assets(self) -> bool:
-        """True when the assets found are placeholders (boxes): images are then no measurement."""
-        return False
-
-    def privileged_from(self, raw: Any):
-        """A ``PrivilegedState`` from what a family in its own runtime sends (``ExternalSceneEnv``); others return
-        one directly."""
-        return raw
-
-    def environment_versions(self) -> dict[str, str]:
-        """Package versions of the environment the simulator runs in, when it is not ours (for the manifest)."""
-        if self.runtime is None:
-            return {}
-
-        return worker_versions(self.runtime)
-
-    def protocol_facts(self) -> dict[str, Any]:
-        """What besides the code fixes an episode's outcome, for the run's protocol fingerprint: the horizon, the
-        settling steps after reset, where initial states come from, and the identity of the asset tree."""
-        return {
-            "max_steps": self.max_steps,
-            "settle_steps": 0,
-            "initial_states": "sampled from each episode's seed (T0 jitter)",
-            "assets": "shipped with the simulator packages (their versions identify them)",
-        }
-
+    # ---- the options: what a command chose (part of the family's value; both parts read them) -----------
     def check_options(self, given: Mapping[str, Any]) -> None:
         """One line for an option given (not None) that the family has not (``scene_options``) or a value it
         refuses; a frozen config's ``__post_init__`` calls it, before anything runs."""
@@ -270,21 +318,6 @@ class Scene:
         """The family's options as this instance resolved them ({}: none), for a builder to carry."""
         return {}
 
-    def worker_environment(self) -> dict[str, str]:
-        """The driver's resolved values of the environment variables that change what a worker builds (RoboCasa365's
-        split): a Ray actor on another node gets these, not its node's own ({}: none)."""
-        return {}
-
-    # ---- the certificate store's hooks: which asset tree and choice a per-machine certificate depends on ---
-    def asset_tree(self):
-        """The asset tree a per-machine certificate depends on (``committed_certificates = False``), or None."""
-        return None
-
-    def certificate_scope(self) -> str:
-        """A user's choice besides the asset tree that changes which initial states a level draws (RoboCasa365's
-        split): per-machine certificates made under another live in another folder ("": none)."""
-        return ""
-
     # ---- registration --------------------------------------------------------------------------------------
     @classmethod
     def validate(cls) -> None:
@@ -303,6 +336,9 @@ class Scene:
         unknown = [a for a in cls.axes if a not in base_axis_names()]
         if unknown:
             raise ConfigError(f"scene {name}: unknown axes {unknown}; axes are {base_axis_names()}")
+        for attr, base in (("Environment", SceneEnvironment), ("Certificates", SceneCertificates)):
+            if not (isinstance(getattr(cls, attr), type) and issubclass(getattr(cls, attr), base)):
+                raise ConfigError(f"scene {name}: {attr} must be a {base.__name__} subclass")
         if any(len(s) != 2 for s in cls.distractor_slots):
             raise ConfigError(f"scene {name}: distractor_slots must be (x, y) pairs")
         doc = cls.__dict__.get("__doc__") or ""

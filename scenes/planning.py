@@ -75,7 +75,7 @@ class SceneLevels:
     @property
     def placeholder_assets(self) -> bool:
         """The family simulates placeholder assets (boxes): an image policy's rate there is not a measurement."""
-        return bool(self.family.placeholder_assets())
+        return bool(self.family.environment.placeholder_assets())
 
     @property
     def action_dim(self) -> int:
@@ -85,14 +85,14 @@ class SceneLevels:
     def check_ready(self) -> None:
         """Raise the family's one-line missing-install or missing-assets ``SceneError`` (e.g. LIBERO's asset tree)
         before any environment is built; resolving names, axes and levels never needs it."""
-        self.family.check_ready()
+        self.family.environment.check_ready()
 
     def make_env(
         self, task: str, axis: str, level: int, *, cameras: Sequence[str], image_size: tuple[int, int],
         max_steps: int | None,
     ) -> BaseSceneEnv:  # fmt: skip
-        return self.family.make_env(task, self.successor(task, axis), level, cameras=cameras,
-                                      image_size=image_size, max_steps=max_steps)  # fmt: skip
+        return self.family.environment.make_env(task, self.successor(task, axis), level, cameras=cameras,
+                                                  image_size=image_size, max_steps=max_steps)  # fmt: skip
 
     def successor(self, task: str, axis: str) -> Successor:
         """The successor ``axis`` moves ``task`` along (the task's own where the family's steps differ by task)."""
@@ -106,8 +106,8 @@ class SceneLevels:
             "preload": list(self.preload),
             "env_spec": {"name": sc.env_spec.name, "state_dim": sc.env_spec.state_dim,
                          "action_dim": sc.env_spec.action_dim, "layout": sc.env_spec.layout},
-            "environment": sc.environment_versions(),  # the worker venv's versions when the family runs in its own
-            "protocol": sc.protocol_facts(),
+            "environment": sc.environment.environment_versions(),  # the worker venv's versions when the family runs in its own
+            "protocol": sc.environment.protocol_facts(),
             "successors": {a: self._successor_entry(a, s) for a, s in self.successors.items()},
         }  # fmt: skip
 
@@ -119,9 +119,9 @@ class SceneLevels:
         return {"type": type(successor).__name__, "steps": successor_steps(successor)}
 
     def worker_environment(self) -> dict[str, str]:
-        """The plan's choices as the environment variables the family reads (``Scene.worker_environment``), for
+        """The plan's choices as the environment variables the family reads (``SceneEnvironment.worker_environment``), for
         simulator actors on nodes whose own environment says otherwise."""
-        return self.family.worker_environment()
+        return self.family.environment.worker_environment()
 
     def render_backend(self) -> str:
         """The OpenGL vendor and renderer this machine's ``MUJOCO_GL`` backend renders with (pixels differ by it)."""

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError, SceneError
 from scenes.axes import shifts
-from scenes.family import Scene, register_scene
+from scenes.family import Scene, SceneCertificates, SceneEnvironment, register_scene
 from scenes.libero import placement_check as placement
 from scenes.libero.assets import find_assets, is_placeholder_tree, libero_root, tree_identity
 from scenes.libero.bddl import load_task, short_name, suite_task_names
@@ -58,6 +58,45 @@ def available() -> bool:
         return False
 
 
+class LiberoEnvironment(SceneEnvironment):
+    """A LIBERO suite's environment: ``LiberoSceneEnv`` over the user's LIBERO asset tree."""
+
+    def env_class(self) -> type[LiberoSceneEnv]:
+        from scenes.libero.env import LiberoSceneEnv  # lazy: optional robosuite (the listings never build)
+
+        return LiberoSceneEnv
+
+    def placeholder_assets(self) -> bool:
+        """The asset tree in use is the miniature or a gap-filled overlay (``assets.PLACEHOLDER_MARK``)."""
+        tree = find_assets(required=False)
+        return tree is not None and is_placeholder_tree(tree)
+
+    def check_ready(self) -> None:
+        """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
+        libero_root()
+        find_assets()
+
+    def protocol_facts(self) -> dict:
+        from scenes.libero.env import NUM_STEPS_WAIT  # lazy: optional robosuite (the listings never build)
+
+        assets = find_assets()
+        return {
+            **super().protocol_facts(),
+            "settle_steps": NUM_STEPS_WAIT,
+            # with the placement check: a moved level's state that does not hold its object is an unavailable
+            # episode, not a policy failure (a run made before the check does not resume or pool under it)
+            "initial_states": f"LIBERO's fixed initial states of hf-libero's init files, episode % 50; {placement.RULE}",
+            "assets": {"root": str(assets), "listing_sha256": tree_identity(assets)},
+        }
+
+
+class LiberoCertificates(SceneCertificates):
+    """A suite's certificates depend on the user's LIBERO asset tree."""
+
+    def asset_tree(self):
+        return find_assets(required=False)
+
+
 class LiberoSuite(Scene):
     """A LIBERO suite: its tasks are LIBERO's own (read from hf-libero's BDDL files), built by ``LiberoSceneEnv``.
 
@@ -82,6 +121,8 @@ class LiberoSuite(Scene):
     )
     # LiberoSceneEnv's BDDL and placement read the level's spec (its successor only checks condition 2)
     env_from_spec = True
+    Environment = LiberoEnvironment
+    Certificates = LiberoCertificates
 
     @property
     def tasks(self) -> tuple[str, ...]:
@@ -110,24 +151,6 @@ class LiberoSuite(Scene):
     def instruction(self, task: str) -> str:
         return self.task_info(task).language
 
-    def env_class(self) -> type[LiberoSceneEnv]:
-        from scenes.libero.env import LiberoSceneEnv  # lazy: optional robosuite (the listings never build)
-
-        return LiberoSceneEnv
-
-    def asset_tree(self):
-        return find_assets(required=False)
-
-    def placeholder_assets(self) -> bool:
-        """The asset tree in use is the miniature or a gap-filled overlay (``assets.PLACEHOLDER_MARK``)."""
-        tree = find_assets(required=False)
-        return tree is not None and is_placeholder_tree(tree)
-
-    def check_ready(self) -> None:
-        """Raise the one-line missing-install or missing-assets ``SceneError`` before any episode runs."""
-        libero_root()
-        find_assets()
-
     def needs(self) -> str:
         if not available():
             return "hf-libero (pip install 'lerobot[libero]') and LIBERO's assets"
@@ -136,25 +159,14 @@ class LiberoSuite(Scene):
             return "LIBERO's assets (missing: indgen setup libero, or set INDGEN_LIBERO_ASSETS)"
         return f"LIBERO's assets (found: {assets})"
 
-    def protocol_facts(self) -> dict:
-        from scenes.libero.env import NUM_STEPS_WAIT  # lazy: optional robosuite (the listings never build)
-
-        assets = find_assets()
-        return {
-            **super().protocol_facts(),
-            "settle_steps": NUM_STEPS_WAIT,
-            # with the placement check: a moved level's state that does not hold its object is an unavailable
-            # episode, not a policy failure (a run made before the check does not resume or pool under it)
-            "initial_states": f"LIBERO's fixed initial states of hf-libero's init files, episode % 50; {placement.RULE}",
-            "assets": {"root": str(assets), "listing_sha256": tree_identity(assets)},
-        }
-
     def check_progression(self, task: str, successor: Successor, overridden: bool) -> None:
         """Condition 2 is checked against LIBERO's fixed initial states, which needs level 0 built (physics only,
         ~10 s): up front only when --step / --axes-preset changed a pick_y/goal_y step; the env repeats the check
         when it is built."""
         if overridden and any(p.axis.name in ("pick_y", "goal_y") for p in shifts(successor)):
-            self.make_env(task, successor, 0, cameras=(), image_size=(128, 128), max_steps=None).close()
+            self.environment.make_env(
+                task, successor, 0, cameras=(), image_size=(128, 128), max_steps=None
+            ).close()
 
 
 @register_scene

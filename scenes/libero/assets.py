@@ -26,7 +26,7 @@ HOPE_OBJECTS = (
 
 
 # a file at the top of a tree whose files are not all LIBERO's (the miniature tree, an overlay that filled gaps):
-# an image policy's success there is not a measurement (``LiberoSuite.placeholder_assets``)
+# an image policy's success there is not a measurement (``LiberoEnvironment.placeholder_assets``)
 PLACEHOLDER_MARK = "INDGEN_PLACEHOLDER_ASSETS.txt"
 
 

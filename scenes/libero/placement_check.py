@@ -22,7 +22,7 @@ RULE = (
     f"placement check on levels that move or scale an object: a state is unavailable where the moved pick object or basket lies over "
     f"{OVERLAP_M * 1000:g} mm inside another object at the level's pose, or the settle moves it over "
     f"{MOVED_M * 100:g} cm (xy)"
-)  # in the protocol's initial_states (``LiberoSuite.protocol_facts``): a run made without it does not resume
+)  # in the protocol's initial_states (``LiberoEnvironment.protocol_facts``): a run made without it does not resume
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from indgen_vla.core.protocol.progression import ProgressionError
 from indgen_vla.core.reporting.levels import BLACK_BOX  # appendix B: T0 is empirical here
 from scenes.axes import axis_param, get_successor, merge_overrides, resolve_alias, shifts, spec_at_level
 from scenes.external import ExternalSceneEnv
-from scenes.family import Scene, register_scene
+from scenes.family import Scene, SceneCertificates, SceneEnvironment, register_scene
 from scenes.libero.assets import tree_identity
 from scenes.robocasa import splits
 from scenes.robocasa.departures import DEVIATIONS, PICK_T0, SPAWN_JITTER
@@ -25,7 +25,7 @@ from scenes.robocasa.environment import find_assets, find_python, is_placeholder
 from scenes.robocasa.horizons import REGISTRY, TASK_HORIZONS, task_horizon
 from scenes.robocasa.oracle_state import privileged_state
 from scenes.robocasa.split_option import SplitOption
-from scenes.robocasa.splits import SPLIT_WORDS, in_split
+from scenes.robocasa.splits import REGISTRIES_ENV, SPLIT_ENV, SPLIT_WORDS, in_split
 from scenes.runtime import ExternalRuntime
 
 if TYPE_CHECKING:
@@ -224,6 +224,89 @@ def _worker_env() -> dict[str, str]:
 BASE_CONTROLLER = "RoboCasa's create_env config (base JOINT_VELOCITY_LEGACY)"
 
 
+class RoboCasaEnvironment(SceneEnvironment):
+    """RoboCasa365's environment: ``ExternalSceneEnv`` driving RoboCasa's own venv, under the command's split."""
+
+    def env_class(self) -> type[ExternalSceneEnv]:
+        return ExternalSceneEnv
+
+    def environment_versions(self) -> dict[str, str]:
+        """The worker venv's versions, and the base controller it builds with (``backend.py``): RoboCasa's
+        ``create_env`` config since issue 41, robosuite's default before, which turns base commands once the base has
+        turned, so runs under the two are neither pooled nor resumed as each other."""
+        return {**super().environment_versions(), "base_controller": BASE_CONTROLLER}
+
+    def placeholder_assets(self) -> bool:
+        assets = find_assets(required=False)
+        return assets is not None and is_placeholder(assets)
+
+    def privileged_from(self, raw: dict):
+        return privileged_state(raw)
+
+    def check_ready(self) -> None:
+        """The venv, the asset tree, and a split and registries (``splits.choice``) that tree can serve."""
+        find_python()
+        assets = find_assets()
+        problem = splits.tree_problem(
+            assets, *self.family.split_choice(), placeholders=is_placeholder(assets)
+        )
+        if problem:
+            raise ConfigError(problem)
+
+    def protocol_facts(self) -> dict:
+        """RoboCasa's own reset as initial states, the kitchen asset tree's identity (real or placeholders), and
+        the black-box regime (appendix B): T0 is empirical, condition 2 validated post hoc (``indgen reference``
+        and the report's monotone test)."""
+        assets = find_assets()
+        split, registries = self.family.split_choice()
+        # the split's kitchens and instances are where T0 comes from; the choice the worker made before the option
+        # (splits.LEGACY) keeps the words runs had then, so they resume and pool with runs under it
+        drawn = "" if (split, registries) == splits.LEGACY else f"; {splits.describe(split, registries)}"
+        return {
+            **super().protocol_facts(),
+            "initial_states": "RoboCasa's own reset from each episode's seed (layout, style, objects); levels "
+            f"replay T0's ep_meta with one field moved; {PICK_T0}{drawn}",
+            "split": {
+                "split": split,
+                "obj_registries": list(registries),
+                "kitchens": splits.SPLIT_WORDS[split],
+            },
+            "assets": {
+                "root": str(assets),
+                "placeholders": is_placeholder(assets),
+                "listing_sha256": tree_identity(assets),
+            },  # fmt: skip
+            "regime": BLACK_BOX,
+            # each task's episode length, RoboCasa's own (the fingerprint's horizon unless --max-steps replaces it)
+            "max_steps": dict(TASK_HORIZONS),
+            "horizon_source": REGISTRY,
+            "spawn_jitter": SPAWN_JITTER,
+            "deviations": list(DEVIATIONS),  # from RoboCasa's own protocol (docs/robocasa.md)
+        }
+
+    def worker_environment(self) -> dict[str, str]:
+        """The split and registries this command resolved (``split_choice``), for the run's simulators everywhere."""
+        split, registries = self.family.split_choice()
+        return {SPLIT_ENV: split, REGISTRIES_ENV: ",".join(registries)}
+
+
+class RoboCasaCertificates(SceneCertificates):
+    """RoboCasa365's certificates depend on the kitchen asset tree and the command's split."""
+
+    def asset_tree(self):
+        return find_assets(required=False)
+
+    def scope(self) -> str:
+        """The split and registries, unless they are the worker's choice before the option (``splits.LEGACY``),
+        whose certificates keep their folder."""
+        split, registries = self.family.split_choice()
+        return (
+            ""
+            if (split, registries) == splits.LEGACY
+            else f"split={split};obj_registries={','.join(registries)}"
+        )
+
+
 @register_scene
 class RoboCasa(SplitOption, Scene):
     """RoboCasa365 (rlinf-robocasa365 1.0.1 = upstream RoboCasa v1.0.1), PandaOmron in RoboCasa's kitchens.
@@ -261,6 +344,8 @@ class RoboCasa(SplitOption, Scene):
     preload: ClassVar[tuple[str, ...]] = ()
     axis_overrides: ClassVar[dict] = AXIS_OVERRIDES
     oracle: ClassVar[str] = "scenes.robocasa.oracle:RoboCasaOracle"  # PandaOmron: arm, some tasks base
+    Environment = RoboCasaEnvironment
+    Certificates = RoboCasaCertificates
 
     def successor(self, axis: AxisRef, step=None, overrides=None, task: str | None = None):
         """pick_x's step is ``task``'s own (``pick_step``: its region / 5, appendix B) unless --step (a single axis)
@@ -311,33 +396,6 @@ class RoboCasa(SplitOption, Scene):
     def instruction(self, task: str) -> str:
         return task  # replaced by RoboCasa's own ep_meta["lang"] at every reset
 
-    def env_class(self) -> type[ExternalSceneEnv]:
-        return ExternalSceneEnv
-
-    def asset_tree(self):
-        return find_assets(required=False)
-
-    def environment_versions(self) -> dict[str, str]:
-        """The worker venv's versions, and the base controller it builds with (``backend.py``): RoboCasa's
-        ``create_env`` config since issue 41, robosuite's default before, which turns base commands once the base has
-        turned, so runs under the two are neither pooled nor resumed as each other."""
-        return {**super().environment_versions(), "base_controller": BASE_CONTROLLER}
-
-    def placeholder_assets(self) -> bool:
-        assets = find_assets(required=False)
-        return assets is not None and is_placeholder(assets)
-
-    def privileged_from(self, raw: dict):
-        return privileged_state(raw)
-
-    def check_ready(self) -> None:
-        """The venv, the asset tree, and a split and registries (``splits.choice``) that tree can serve."""
-        find_python()
-        assets = find_assets()
-        problem = splits.tree_problem(assets, *self.split_choice(), placeholders=is_placeholder(assets))
-        if problem:
-            raise ConfigError(problem)
-
     def needs(self) -> str:
         py = find_python(required=False)
         assets = find_assets(required=False)
@@ -381,37 +439,6 @@ class RoboCasa(SplitOption, Scene):
                 "them one at a time (--config robocasa_pick, robocasa_fixture, robocasa_horizon, robocasa_clutter)"
             )
         return shared if task == "all" else shared[:1]
-
-    def protocol_facts(self) -> dict:
-        """RoboCasa's own reset as initial states, the kitchen asset tree's identity (real or placeholders), and
-        the black-box regime (appendix B): T0 is empirical, condition 2 validated post hoc (``indgen reference``
-        and the report's monotone test)."""
-        assets = find_assets()
-        split, registries = self.split_choice()
-        # the split's kitchens and instances are where T0 comes from; the choice the worker made before the option
-        # (splits.LEGACY) keeps the words runs had then, so they resume and pool with runs under it
-        drawn = "" if (split, registries) == splits.LEGACY else f"; {splits.describe(split, registries)}"
-        return {
-            **super().protocol_facts(),
-            "initial_states": "RoboCasa's own reset from each episode's seed (layout, style, objects); levels "
-            f"replay T0's ep_meta with one field moved; {PICK_T0}{drawn}",
-            "split": {
-                "split": split,
-                "obj_registries": list(registries),
-                "kitchens": splits.SPLIT_WORDS[split],
-            },
-            "assets": {
-                "root": str(assets),
-                "placeholders": is_placeholder(assets),
-                "listing_sha256": tree_identity(assets),
-            },  # fmt: skip
-            "regime": BLACK_BOX,
-            # each task's episode length, RoboCasa's own (the fingerprint's horizon unless --max-steps replaces it)
-            "max_steps": dict(TASK_HORIZONS),
-            "horizon_source": REGISTRY,
-            "spawn_jitter": SPAWN_JITTER,
-            "deviations": list(DEVIATIONS),  # from RoboCasa's own protocol (docs/robocasa.md)
-        }
 
     def check_axis_task(self, task: str, axis: AxisRef) -> None:
         """Every component of ``axis`` must list ``task`` (appendix B gives each axis its own tasks)."""

@@ -352,7 +352,7 @@ class RoboCasaLevel:
         return {"state": state, "images": images, "instruction": self.env.get_ep_meta().get("lang", "")}
 
     def privileged(self) -> dict:
-        """What oracles, the success check and tests read (plain numbers; ``RoboCasa.privileged_from`` makes the
+        """What oracles, the success check and tests read (plain numbers; ``RoboCasaEnvironment.privileged_from`` makes the
         ``PrivilegedState``): the grip site, the gripper, the mobile base, the pick object with its extents, the
         target fixture's interior, the moved fixture and the stand mixer's state, and RoboCasa's own success."""
         env = self.env

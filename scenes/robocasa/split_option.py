@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from scenes.robocasa.splits import LEGACY, REGISTRIES_ENV, SPLIT_ENV, check, choice
+from scenes.robocasa.splits import check, choice
 
 
 class SplitOption:
@@ -16,17 +16,6 @@ class SplitOption:
     scene_options: ClassVar[tuple[str, ...]] = ("split", "obj_registries")
     # the command's (``configured``); None: the environment's
     _choice: tuple[str, tuple[str, ...]] | None = None
-
-    def certificate_scope(self) -> str:
-        """The split and registries, unless they are the worker's choice before the option (``splits.LEGACY``),
-        whose certificates keep their folder."""
-        split, registries = self.split_choice()
-        return "" if (split, registries) == LEGACY else f"split={split};obj_registries={','.join(registries)}"
-
-    def worker_environment(self) -> dict[str, str]:
-        """The split and registries this command resolved (``split_choice``), for the run's simulators everywhere."""
-        split, registries = self.split_choice()
-        return {SPLIT_ENV: split, REGISTRIES_ENV: ",".join(registries)}
 
     def check_options(self, given) -> None:
         """``split`` one of RoboCasa365's, ``obj_registries`` a comma list of RoboCasa's registries (one line)."""

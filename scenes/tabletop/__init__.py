@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, ClassVar
 
 from indgen_vla.core.errors import ConfigError
-from scenes.family import TABLETOP_ORACLE, Scene, register_scene
+from scenes.family import TABLETOP_ORACLE, Scene, SceneEnvironment, register_scene
 from scenes.predicates import InReceptacle, OnTableOutside, OnTarget
 from scenes.spec import BLOCK_COLOURS, PICK_OBJECTS, Item, SceneSpec
 
@@ -18,6 +18,15 @@ if TYPE_CHECKING:
 
 SHORT_DRESSING = ("lemon", "bread", "can", "cube", "cylinder")
 STACK_TASKS = ("orange_on_blue", "red_on_green", "yellow_on_red", "blue_on_yellow")
+
+
+class TabletopEnvironment(SceneEnvironment):
+    """The tabletop families' environment: this package's robosuite ``SceneEnv``."""
+
+    def env_class(self) -> type[SceneEnv]:
+        from scenes.tabletop.env import SceneEnv  # lazy: optional robosuite (the listings never build)
+
+        return SceneEnv
 
 
 class TabletopScene(Scene):
@@ -33,17 +42,13 @@ class TabletopScene(Scene):
     env_from_spec = True  # SceneEnv builds scene.layout(spec_at_level(...)); the successor adds nothing else
     oracle = TABLETOP_ORACLE
     preload = (*Scene.preload, "scenes.tabletop.env", "scenes.tabletop.builders")
+    Environment = TabletopEnvironment
 
     def layout(self, spec: SceneSpec) -> Layout:
         """The simulator layout of one level (imports robosuite)."""
         import scenes.tabletop.builders as builders  # lazy: optional robosuite (the listings never build)
 
         return getattr(builders, self.builder)(spec, self.distractor_slots)
-
-    def env_class(self) -> type[SceneEnv]:
-        from scenes.tabletop.env import SceneEnv  # lazy: optional robosuite (the listings never build)
-
-        return SceneEnv
 
     @classmethod
     def validate(cls) -> None:

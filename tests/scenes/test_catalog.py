@@ -281,8 +281,8 @@ def test_libero_spatial_defaults_to_scale_and_missing_assets_are_one_line(tmp_pa
         level_env("libero_spatial", cameras=())
     assert "\n" not in str(err.value)
     with pytest.raises(SceneError, match="hf download"):
-        scenes.get_scene("libero_spatial").check_ready()
-    scenes.get_scene("stack").check_ready()  # built-ins need nothing
+        scenes.get_scene("libero_spatial").environment.check_ready()
+    scenes.get_scene("stack").environment.check_ready()  # built-ins need nothing
 
 
 @pytest.mark.slow

@@ -77,7 +77,7 @@ def test_bddl_edits_touch_only_their_region():
 def test_missing_assets_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("INDGEN_LIBERO_ASSETS", str(tmp_path))
     with pytest.raises(SceneError, match="INDGEN_LIBERO_ASSETS") as e:
-        scenes.get_scene(SCENE).check_ready()
+        scenes.get_scene(SCENE).environment.check_ready()
     msg = str(e.value)  # the project's own one-step fix first, then the alternatives
     assert "\n" not in msg and msg.index("run 'indgen setup libero'") < msg.index(
         "hf download lerobot/libero-assets"
@@ -386,7 +386,7 @@ def test_an_image_policy_on_the_miniature_tree_is_no_measurement(mini, tmp_path,
         raise AssertionError("early workers started for a policy the preview shows will be refused")
 
     monkeypatch.setattr(local, "EarlyWorkers", no_early_workers)
-    assert get_scene("libero_object").placeholder_assets()
+    assert get_scene("libero_object").environment.placeholder_assets()
     ckpt = build_tiny_checkpoint("act", tmp_path / "act")
     args = ["evaluate", "--policy", f"lerobot:{ckpt}", "--scene", "libero_object", "--task", "alphabet_soup",
             "--axis", "scale", "--levels", "0", "--episodes", "1", "--max-steps", "2", "--workers", "1"]  # fmt: skip

@@ -46,7 +46,7 @@ def test_the_builder_pickles_and_builds_the_same_level_as_the_family():
     )
     env = builder.make_env("milk", "scale", 2, cameras=(), image_size=(64, 64), max_steps=5)
     sc = scenes.get_scene("pick_place")
-    ref = sc.make_env(
+    ref = sc.environment.make_env(
         "milk", sc.successor(AxisRef.parse("scale")), 2, cameras=(), image_size=(64, 64), max_steps=5
     )
     try:

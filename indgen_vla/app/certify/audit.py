@@ -118,7 +118,7 @@ def audit(
         sc, _task, _axis, _level, _row, cert = item
         try:
             scene = by_name[sc]
-            scene.check_ready()  # e.g. LIBERO without its assets
+            scene.environment.check_ready()  # e.g. LIBERO without its assets
             ok = (
                 scene.committed_certificates
                 or shipped_certification(scene, _cert_file(root, cert)) is not None

@@ -122,7 +122,7 @@ def test_the_spawn_jitter_robocasa_defaults_to_is_recorded_as_set_to_zero(placeh
     out = subprocess.run([str(_python()), "-c", code], capture_output=True, text=True, check=True)
     x, y = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
     assert SPAWN_JITTER["robocasa_default"] == {"pos_x": x, "pos_y": y}
-    facts = get_scene("robocasa").protocol_facts()
+    facts = get_scene("robocasa").environment.protocol_facts()
     assert facts["spawn_jitter"] == {**SPAWN_JITTER} and facts["spawn_jitter"]["pos_x"] == 0.0
     assert any(d.startswith("robot spawn jitter 0") for d in facts["deviations"])
 
@@ -135,7 +135,7 @@ def test_the_base_controller_enters_the_fingerprint(placeholders):
     from scenes.family import get_scene
     from scenes.robocasa import BASE_CONTROLLER
 
-    env = {"scene": "robocasa", "environment": get_scene("robocasa").environment_versions()}
+    env = {"scene": "robocasa", "environment": get_scene("robocasa").environment.environment_versions()}
     kw = dict(max_steps=None, warmup_steps=0, cameras=(), image_size=(0, 0), render_backend="", policy={})
     now = build_fingerprint({"environment": env}, {}, **kw)
     assert now["simulator"]["worker:base_controller"] == BASE_CONTROLLER

@@ -144,7 +144,7 @@ def test_the_fingerprint_names_the_window_rule_and_the_manifest_its_one_deviatio
     from scenes.family import get_scene
     from scenes.robocasa.departures import DEVIATIONS, PICK_T0
 
-    facts = get_scene("robocasa").protocol_facts()
+    facts = get_scene("robocasa").environment.protocol_facts()
     assert facts["initial_states"].endswith(PICK_T0) and "window rule 2" in PICK_T0
     assert facts["deviations"] == list(DEVIATIONS)
     pick = [d for d in DEVIATIONS if "pick_x" in d or "CheesyBread" in d]

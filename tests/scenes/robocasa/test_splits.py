@@ -170,7 +170,7 @@ def test_the_choice_reaches_the_worker_the_fingerprint_and_the_certificates(plac
             split,
             regs.split(",") if regs else ["objaverse", "lightwheel"],
         )
-        facts = sc.protocol_facts()
+        facts = sc.environment.protocol_facts()
         assert facts["split"]["split"] == split
         seen[(split, regs)] = (facts["initial_states"], certification_root(get_scene("robocasa")))
     assert len({s for s, _ in seen.values()}) == len({r for _, r in seen.values()}) == 4
@@ -240,7 +240,9 @@ def test_the_flag_beats_the_variable_and_the_plans_builder_carries_it_to_the_wor
     # what ExternalSceneEnv sends the RoboCasa worker's build (backend.py reads split and obj_registries from it)
     sent = builder.family.level_config("PickPlaceCounterToCabinet", successor, 1, (), (64, 64))
     assert (sent["split"], sent["obj_registries"]) == ("pretrain", ["lightwheel"])
-    facts = builder.family.protocol_facts()  # the manifest's protocol entry (SceneLevels.describe)
+    facts = (
+        builder.family.environment.protocol_facts()
+    )  # the manifest's protocol entry (SceneLevels.describe)
     assert facts["split"] == {"split": "pretrain", "obj_registries": ["lightwheel"],
                               "kitchens": splits.SPLIT_WORDS["pretrain"]}  # fmt: skip
     assert "split pretrain" in facts["initial_states"]

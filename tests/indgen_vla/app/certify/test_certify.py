@@ -30,7 +30,7 @@ from scenes.certificates import (
     tree_stamp,
     write_json_atomic,
 )
-from scenes.family import get_scene
+from scenes.family import SceneCertificates, get_scene
 from scenes.heldout import SPENDING
 from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan
@@ -280,7 +280,8 @@ def test_an_asset_file_changed_in_place_voids_the_certificate(tmp_path, monkeypa
     tree = tmp_path / "assets"
     (tree / "objects").mkdir(parents=True)
     (tree / "objects" / "box.xml").write_text("<mujoco model='a'/>")
-    monkeypatch.setattr(type(get_scene("stack")), "asset_tree", lambda self: tree)
+    given = type("GivenTree", (SceneCertificates,), {"asset_tree": lambda self: tree})
+    monkeypatch.setattr(type(get_scene("stack")), "Certificates", given)
     root = tmp_path / "certs"
     out = cert_path(get_scene("stack"), None, "stack", root=root)
     run_certify("stack", "stack", levels="0", episodes=1, max_steps=5, path=out)
