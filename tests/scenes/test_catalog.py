@@ -7,6 +7,7 @@ import dataclasses
 import importlib.util
 import json
 import os
+import pickle
 import subprocess
 import sys
 
@@ -16,7 +17,14 @@ import scenes
 from indgen_vla.app.cli import main
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, SceneError, UnknownNameError
 from scenes import family as registry
-from scenes.family import Scene, get_scene, register_scene, registered_scenes
+from scenes.family import (
+    Scene,
+    SceneCertificates,
+    SceneEnvironment,
+    get_scene,
+    register_scene,
+    registered_scenes,
+)
 from scenes.listing import builtin_scenes
 from scenes.planning import resolve_scene_plan
 from scenes.tabletop import PickPlace
@@ -203,6 +211,16 @@ def test_every_family_is_registered_once_with_its_docstring_sections():
         assert all(sec in type(s).__doc__ for sec in registry.DOC_SECTIONS), s.name
     with pytest.raises(UnknownNameError, match="did you mean 'libero_spatial'"):
         get_scene("libero_spatal")
+    for s in registered_scenes():  # each role its own frozen object over the family, which pickles as a value
+        env, certs = s.environment, s.certificates
+        assert (
+            type(env) is s.Environment and type(certs) is s.Certificates and env.family is s is certs.family
+        )
+        assert isinstance(env, SceneEnvironment) and isinstance(certs, SceneCertificates)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            env.family = None
+        assert pickle.loads(pickle.dumps(s)) == s and hash(pickle.loads(pickle.dumps(s))) == hash(s)
+    assert get_scene("stack").environment.env_class() is get_scene("pick_place").environment.env_class()
     with pytest.raises(UnknownNameError, match="did you mean 'stack'"):
         list(scenes.get_scene("stak").tasks)
 
@@ -254,6 +272,11 @@ def test_register_rejects_incomplete_classes(private_registry):
         register_scene(clash)
     with pytest.raises(ConfigError, match="Scene subclasses"):
         register_scene(dict)
+    no_part = type(
+        "NoPart", (_tiny_pick(),), {"name": "no_part", "Environment": dict, "__doc__": _tiny_pick().__doc__}
+    )
+    with pytest.raises(ConfigError, match="no_part: Environment must be a SceneEnvironment subclass"):
+        register_scene(no_part)
     assert "no_doc" not in scenes.scene_names() and "bad_axis" not in scenes.scene_names()
 
 
