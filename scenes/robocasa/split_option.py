@@ -1,7 +1,7 @@
 """RoboCasa365's split and RoboCasa's object registries as the family's options (``--split``, ``--obj-registries``;
 the API's ``split``, ``obj_registries``): chosen once per command (``Scene.configured``, at the command's edge), the flag
 over ``INDGEN_ROBOCASA_SPLIT`` / ``INDGEN_ROBOCASA_OBJ_REGISTRIES`` over the defaults (``splits.choice``), and
-read by every method of the family that depends on them."""
+read through ``split_choice`` by the family and its environment and certificate parts."""
 
 from __future__ import annotations
 
