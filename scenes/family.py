@@ -299,7 +299,7 @@ class Scene:
     # ---- the options: what a command chose (part of the family's value; both parts read them) -----------
     def check_options(self, given: Mapping[str, Any]) -> None:
         """One line for an option given (not None) that the family has not (``scene_options``) or a value it
-        refuses; a frozen config's ``__post_init__`` calls it, before anything runs."""
+        refuses; ``get_scene`` calls it at a command's edge (CLI, API), before anything runs."""
         extra = [k for k, v in given.items() if v is not None and k not in self.scene_options]
         if extra:
             flag = "--" + extra[0].replace("_", "-")

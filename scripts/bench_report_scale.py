@@ -153,10 +153,11 @@ def build(
     from indgen_vla.app.engine.run import _fingerprint, build_manifest, build_plan
     from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.specs import load_policy
+    from scenes.family import get_scene
 
     patch_tasks(tasks)
     cfg = _config(tasks, out, adaptive, episodes)
-    plan = build_plan(cfg)
+    plan = build_plan(cfg, get_scene(cfg.plan.scene, cfg.plan.scene_options()))
     run_id = f"bench{tasks:03d}{'b' if shift else 'a'}{'ad' if adaptive else ''}"
     manifest = build_manifest(cfg, plan, run_id)
     manifest["created"] = "2026-11-25T00:00:00+00:00"  # equal builds, equal manifests
@@ -207,10 +208,11 @@ def decide_once(tasks: int, run_dir: str) -> float:
     from indgen_vla.app.engine.adaptive import next_round
     from indgen_vla.app.engine.run import build_plan
     from indgen_vla.core.runs.records import RunDir
+    from scenes.family import get_scene
 
     patch_tasks(tasks)
     cfg = _config(tasks, run_dir, "kstar")
-    plan, episodes = build_plan(cfg), RunDir.open(run_dir).episodes()
+    plan, episodes = build_plan(cfg, get_scene(cfg.plan.scene)), RunDir.open(run_dir).episodes()
     t0 = time.perf_counter()
     next_round(plan, episodes, cfg)
     return time.perf_counter() - t0

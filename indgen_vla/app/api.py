@@ -32,9 +32,15 @@ from indgen_vla.core.runs.result import Run
 from indgen_vla.core.stats.contrasts import check_margin
 from policy_wrappers.objects import describe
 from scenes.certificates import cert_path
-from scenes.family import get_scene
+from scenes.family import Scene, get_scene
 
 PathLike = str | os.PathLike[str]
+
+
+def family_of(plan: Any) -> Scene:
+    """The scene family of a command's plan section (``scene``, ``scene_options()``), configured with its options:
+    looked up once here, at the edge, and handed down (a bad option for the family: one ``ConfigError`` line)."""
+    return get_scene(plan.scene, plan.scene_options())
 
 
 def evaluate(
@@ -72,7 +78,7 @@ def evaluate(
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
-    return Run(run_evaluation(cfg, quiet=quiet, policy=obj))
+    return Run(run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj))
 
 
 def report(
@@ -137,8 +143,7 @@ def certify(config: Any = None, **options: Any) -> dict[str, Any]:
         raise ConfigError(f"certify() certifies levels; {cfg.mode.replace('_', '-')} is the command's other mode: "
                           f"run 'indgen certify --{cfg.mode.replace('_', '-')} ...'")  # fmt: skip
     plan = cfg.plan
-    # the family configured once (the certificates' folder follows the choice), handed on
-    scene = get_scene(plan.scene, plan.scene_options())
+    scene = family_of(plan)  # configured once (the certificates' folder follows the choice), handed on
     path = (
         Path(cfg.run.out) / "certify.json"
         if cfg.run.out is not None
@@ -164,13 +169,13 @@ def import_lerobot_eval(
     paths = [sources] if isinstance(sources, str | os.PathLike) else list(sources)
     cfg = ImportConfig(sources=tuple(os.fspath(p) for p in paths), out=os.fspath(out), axis=axis, level=level,
                        seed=seed, policy=policy, data_regime=data_regime)  # fmt: skip
-    return report(write_import(cfg), gamma=gamma)[0]
+    return report(write_import(cfg, family_of), gamma=gamma)[0]  # each group's family looked up by its name
 
 
 def budget(config: BudgetConfig) -> dict[str, Any]:
     """``indgen budget``: the size of ``config.protocol`` before it runs (episodes, power, the adaptive rule's
     cost, wall time per worker count; writes the lock with ``write``), as ``indgen budget --json`` prints it."""
-    return plan_budget(config)
+    return plan_budget(config, family_of(config.protocol.plan))
 
 
 def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None
@@ -185,7 +190,7 @@ def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]
         if after_each is not None:
             after_each(entries)
 
-    entries = run_series(config, after_each=report)
+    entries = run_series(config, family_of(config.protocol.plan), after_each=report)
     report(entries)  # the checkpoints a re-run skipped too
     return entries
 
@@ -212,7 +217,8 @@ def train(config: TrainConfig, *, progress: Callable[[int, float], None] | None 
     """``indgen train``: a LeRobot policy trained by ``config.recipe`` on ``config.datasets`` into the checkpoint
     ``config.out`` (resumed when unfinished), with ``config.evaluation`` run on the weights in memory every
     ``config.eval_every`` updates; returns the checkpoint directory. ``progress(step, loss)`` follows the loss."""
-    return train_policy(config, progress=progress, say=say, after_step=eval_hook(config))
+    family = None if config.evaluation is None else family_of(config.evaluation.plan)
+    return train_policy(config, progress=progress, say=say, after_step=eval_hook(config, family))
 
 
 def real_plan(config: RealPlanConfig) -> Path:

@@ -11,8 +11,8 @@ import pytest
 pytest.importorskip("libero")
 
 from indgen_vla.app.engine.config import EvalConfig  # noqa: E402
-from indgen_vla.app.engine.run import evaluate  # noqa: E402
 from indgen_vla.core.stats.sprt import SequentialRule  # noqa: E402
+from tests.fixtures.resolved import evaluate  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

@@ -88,7 +88,7 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
     module-level function of scenes with it (the resolution); everything else it does with scenes is a method of an
     object the plan handed it (the family, builder, env)."""
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import evaluate
+    from tests.fixtures.resolved import evaluate
 
     cfg = EvalConfig.from_flat(policy="standin:random", scene="pick_place", axes=("pick_y", "scale"), levels="0",
                      episodes=1, max_steps=1, workers=1, out=str(tmp_path / "run"))  # fmt: skip

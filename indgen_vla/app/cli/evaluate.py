@@ -57,11 +57,12 @@ def main(args: argparse.Namespace) -> int:
     import json
     import sys
 
+    from indgen_vla.app.api import family_of  # lazy: start-up (numpy)
     from indgen_vla.app.engine.run import evaluate  # lazy: start-up (numpy)
     from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     cfg = config_from_args(args)
-    out = evaluate(cfg)
+    out = evaluate(cfg, family_of(cfg.plan))  # the family looked up once, here at the edge
     run = RunDir.open(out)
     if args.log:
         from indgen_vla.app.engine.trackers import log_runs  # lazy: start-up (numpy)

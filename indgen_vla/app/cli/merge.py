@@ -31,11 +31,14 @@ def main(args: argparse.Namespace) -> int:
     """Merge the shards into ``--out``, print its tables, the merge's notes and where the report is."""
     import shlex
 
+    from indgen_vla.app.api import family_of  # lazy: start-up (numpy)
     from indgen_vla.app.studies.merge import merge  # lazy: start-up (numpy)
     from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     command = " ".join(["indgen", "merge", *map(shlex.quote, args.runs), "--out", shlex.quote(args.out)])
-    run, summary, lines = merge(args.runs, args.out, command)
+    run, summary, lines = merge(
+        args.runs, args.out, family_of, command
+    )  # the shards' config names the family
     print_tables([(run_label(run), summary)])
     for line in lines:
         print(line)

@@ -15,7 +15,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from indgen_vla.app.config_fields import option
 from indgen_vla.core.errors import ConfigError
@@ -23,9 +23,6 @@ from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
 from indgen_vla.core.protocol.progression import expand_axes
 from indgen_vla.core.resources import config_dir
-
-if TYPE_CHECKING:
-    from scenes.family import Scene
 
 DEFAULT_EPISODES = 50
 # the scene options' help lines (evaluate's flags, and certify's and preview's: cli/options.add_scene_options)
@@ -82,7 +79,7 @@ class PlanConfig:
                             "--adaptive too)", action=argparse.BooleanOptionalAction)  # fmt: skip
     preregistered: str | None = option(None, "a plan.lock written by 'indgen budget --write': refuse to run anything "
                                        "that deviates from it", metavar="LOCK")  # fmt: skip
-    # the scene family's options (Scene.scene_options), resolved once per command (PlanConfig.family)
+    # the scene family's options (Scene.scene_options), checked where the command's edge looks the family up
     split: str | None = option(None, SPLIT_HELP, metavar="{pretrain,target,all}")
     obj_registries: str | None = option(None, REGISTRIES_HELP, metavar="A,B")
 
@@ -104,19 +101,11 @@ class PlanConfig:
             load_axes_preset(self.axes_preset)
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"--gamma must be in (0, 1], got {self.gamma}")
-        if any(v is not None for v in self.scene_options().values()):
-            self.family()  # a family without them, a bad value: one line
 
     def scene_options(self) -> dict[str, str | None]:
-        """The scene family's options the run sets (None: the family's default; ``Scene.scene_options``)."""
+        """The scene family's options the run sets (None: the family's default; ``Scene.scene_options``): the edge
+        (CLI, API) configures the family with them once and hands it on."""
         return {"split": self.split, "obj_registries": self.obj_registries}
-
-    def family(self) -> Scene:
-        """The run's scene family configured with its options (``Scene.configured``: a new value), looked up by
-        name here, where a command's config meets the scene layer; the plan holds it and hands it on."""
-        from scenes.family import get_scene  # lazy: start-up (registering the families, 0.34 s, off --help)
-
-        return get_scene(self.scene, self.scene_options())
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -45,6 +45,7 @@ from indgen_vla.core.reporting.certification_view import NO_ORACLE, plan_basis_l
 from indgen_vla.core.reporting.live import level_info, level_label, progress_columns
 from indgen_vla.core.reporting.report import write_run_report
 from indgen_vla.core.runs.records import RunDir, episodes_frame
+from scenes.family import Scene
 from scenes.planning import resolve_scene_plan
 
 VERSIONED = ("indgen-vla", "lerobot", "torch", "transformers", "robosuite", "mujoco", "numpy", "hf-libero")
@@ -73,11 +74,12 @@ def git_sha() -> str:
         return ""
 
 
-def build_plan(cfg: EvalConfig) -> EvalPlan:
-    """Resolve ``cfg`` once: the scene layer's answer (tasks, successors, parameters, certificates) plus every
-    planned episode. The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
+def build_plan(cfg: EvalConfig, family: Scene) -> EvalPlan:
+    """Resolve ``cfg`` once on ``family`` (the scene family its edge looked up, configured with ``cfg``'s scene
+    options): the scene layer's answer (tasks, successors, parameters, certificates) plus every planned episode.
+    The only call from the engine into ``scenes`` for a run; everything after reads the plan."""
     p = cfg.plan
-    sp = resolve_scene_plan(p.family(), p.task, p.axes, p.levels, p.step, p.axes_preset)
+    sp = resolve_scene_plan(family, p.task, p.axes, p.levels, p.step, p.axes_preset)
     jobs = plan_jobs(sp.scene, sp.tasks, sp.levels, sp.params(), p.episodes, p.seed, cfg.run.video,
                      cfg.run.video_per_level)  # fmt: skip
     return with_sharing(cfg, EvalPlan(sp, jobs))
@@ -175,8 +177,9 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
     }
 
 
-def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = None) -> Path:
-    """Run (or resume) an evaluation and write its report; returns the run directory.
+def evaluate(cfg: EvalConfig, family: Scene, quiet: bool = False, *, policy: object | None = None) -> Path:
+    """Run (or resume) an evaluation of ``cfg`` on ``family`` (its scene configured with its scene options, looked up
+    once by the caller: the CLI, the API) and write its report; returns the run directory.
 
     ``policy``: a policy already in memory, run instead of loading ``cfg.policy.spec`` (then only the run's label):
     ``(policy, preprocessor, postprocessor)`` of LeRobot or any ``indgen_vla.core.protocol.interface.Policy``
@@ -185,7 +188,7 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
 
     clock = timing.start_session()
     console = Console(stderr=True, quiet=quiet)
-    plan, preregistered = prepare(cfg, console, given=policy)
+    plan, preregistered = prepare(cfg, family, console, given=policy)
     out, source, probe = Path(cfg.run.out), PolicySource(cfg, plan, policy), None
     run_id = existing_run_id(out) or uuid.uuid4().hex[:12]
     try:
@@ -207,13 +210,15 @@ def evaluate(cfg: EvalConfig, quiet: bool = False, *, policy: object | None = No
     return out
 
 
-def prepare(cfg: EvalConfig, console, given: object | None = None) -> tuple[EvalPlan, dict | None]:
+def prepare(
+    cfg: EvalConfig, family: Scene, console, given: object | None = None
+) -> tuple[EvalPlan, dict | None]:
     """The plan, checked before anything loads or is written: an object policy's run, the assets building needs,
     a pre-registered lock (one line on a deviation), infeasible levels; prints the feasibility warnings and each
     level's certification basis. Returns the plan and the lock's record (None without ``--preregistered``)."""
     if given is not None:
         check_object_run(cfg)
-    plan = build_plan(cfg)
+    plan = build_plan(cfg, family)
     plan.builder.check_ready()  # what building an env needs (LIBERO's assets), after the names and levels
     preregistered = None
     if cfg.plan.preregistered:

@@ -13,6 +13,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.envs.utils import FreezeAfterEpisodeEnd
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
+from indgen_vla.app.engine.config import PlanConfig
 from indgen_vla.app.lerobot_bridge.level_env import (
     FIRST_SEED,
     LevelEnv,
@@ -21,6 +22,7 @@ from indgen_vla.app.lerobot_bridge.level_env import (
     resolve_levels,
 )
 from indgen_vla.core.protocol.interface import OBJECT_DIM
+from scenes.family import Scene, get_scene
 
 os.environ.setdefault(
     "MUJOCO_GL", "egl"
@@ -30,6 +32,11 @@ os.environ.setdefault(
 def _make(setup: LevelSetup) -> gym.Env:
     """One sub-env; frozen after its episode ends, as LeRobot's own benchmarks are (``FreezeAfterEpisodeEnd``)."""
     return FreezeAfterEpisodeEnd(LevelEnv(setup))
+
+
+def _family_of(plan: PlanConfig) -> Scene:
+    """The level's scene family, configured with its options: looked up here, the plugin's entry (an edge)."""
+    return get_scene(plan.scene, plan.scene_options())
 
 
 @EnvConfig.register_subclass("indgen")
@@ -63,7 +70,8 @@ class IndgenEnv(EnvConfig):
                          run_seed=self.run_seed, first_seed=self.first_seed, step=self.step,
                          axes_preset=self.axes_preset, max_steps=self.max_steps, cameras=tuple(self.cameras),
                          image_size=self.image_size, warmup_steps=self.warmup_steps, object_poses=self.object_poses,
-                         allow_infeasible=self.allow_infeasible, video_size=self.video_size)
+                         allow_infeasible=self.allow_infeasible, video_size=self.video_size),
+            _family_of,
         )  # fmt: skip
         for line in self._warnings:
             print(f"[indgen] warning: {line}")

@@ -19,7 +19,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from indgen_vla.app.lerobot_bridge.level_env import FIRST_SEED, LevelRequest, parse_group, resolve_levels
+from indgen_vla.app.lerobot_bridge.level_env import (
+    FIRST_SEED,
+    FamilyOf,
+    LevelRequest,
+    parse_group,
+    resolve_levels,
+)
 from indgen_vla.core.errors import ConfigError, IndgenError, RunDirError
 from indgen_vla.core.protocol.seeding import evaluation_seed
 from indgen_vla.core.runs.imported import IMPORTED, EvalInfo, TaskEpisodes, read_eval_info
@@ -80,7 +86,9 @@ class _Cell:
     spec: dict  # indgen's AxisSpec as a dict; {} for another env's level
 
 
-def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_id: str) -> _Cell:
+def _cell(
+    cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_id: str, family_of: FamilyOf
+) -> _Cell:
     """One task of one file as indgen episodes, with how its seeds were found."""
     ours = parse_group(t.group)
     start = FIRST_SEED if cfg.seed is None else cfg.seed
@@ -100,7 +108,7 @@ def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_i
         if cfg.axis is not None and (cfg.axis, cfg.level) != (ours["axis"], ours["level"]):
             raise ConfigError(f"{info.path}: task group {t.group} is indgen's {ours['axis']} level {ours['level']}, "
                               f"not --axis {cfg.axis} --level {cfg.level}; drop --axis/--level for it")  # fmt: skip
-        param, spec = ours["param"], _axis_spec(ours)
+        param, spec = ours["param"], _axis_spec(ours, family_of)
         episodes = [s - ours["first_seed"] for s in resets]
         if min(episodes) < 0:
             raise RunDirError(f"{info.path}: reset seeds start at {min(resets)}, below the env's first_seed "
@@ -122,13 +130,13 @@ def _cell(cfg: ImportConfig, info: EvalInfo, t: TaskEpisodes, policy: str, run_i
     return _Cell(scene, task, axis, level, param, rows, source, spec)
 
 
-def _axis_spec(level: dict) -> dict:
+def _axis_spec(level: dict, family_of: FamilyOf) -> dict:
     """The axis's spec as ``indgen evaluate`` resolves it by default, where that gives the group's parameter (else the
     env ran another step or preset, which the group does not name: only the axis's name is recorded)."""
     try:
         setups, _ = resolve_levels(LevelRequest(scene=level["scene"], task=level["task"], axis=level["axis"],
                                                 level=level["level"], run_seed=level["run_seed"],
-                                                allow_infeasible=True))  # fmt: skip
+                                                allow_infeasible=True), family_of)  # fmt: skip
     except IndgenError:  # a scene or axis this machine cannot resolve: the episodes still import
         return {"name": level["axis"]}
     if abs(setups[0].param - level["param"]) > 1e-9 * (1 + abs(level["param"])):
@@ -136,12 +144,13 @@ def _axis_spec(level: dict) -> dict:
     return dataclasses.asdict(setups[0].axis_spec)
 
 
-def import_lerobot_eval(cfg: ImportConfig) -> Path:
-    """Write (or rewrite, when it holds an earlier import) the run directory ``cfg.out`` from the sources."""
+def import_lerobot_eval(cfg: ImportConfig, family_of: FamilyOf) -> Path:
+    """Write (or rewrite, when it holds an earlier import) the run directory ``cfg.out`` from the sources;
+    ``family_of``: the edge's (API's) look-up of a group's scene family (an indgen level names its scene)."""
     infos = [read_eval_info(s) for s in cfg.sources]
     digest = hashlib.sha256("".join(i.sha256 for i in infos).encode()).hexdigest()[:12]
     policy = cfg.policy or f"lerobot-eval:{Path(cfg.sources[0]).resolve().name}"
-    cells = [_cell(cfg, info, t, policy, digest) for info in infos for t in info.tasks]
+    cells = [_cell(cfg, info, t, policy, digest, family_of) for info in infos for t in info.tasks]
     scenes = sorted({c.scene for c in cells})
     if len(scenes) > 1:
         raise ConfigError(

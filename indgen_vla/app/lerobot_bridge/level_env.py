@@ -15,25 +15,28 @@ gives episode ``episode`` (``indgen_vla.core.protocol.seeding``). With the defau
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
-from indgen_vla.app.engine.config import config_from_values
+from indgen_vla.app.engine.config import PlanConfig, config_from_values
 from indgen_vla.app.engine.rollout import EnvRunner, RunnerConfig
 from indgen_vla.app.engine.run import build_plan, check_feasible
 from indgen_vla.core.errors import ConfigError, SceneError
 from indgen_vla.core.protocol.interface import OBJECT_DIM, Observation
 from indgen_vla.core.protocol.plan import EpisodeJob
 from indgen_vla.core.protocol.seeding import evaluation_seed
+from scenes.family import Scene
 
 FIRST_SEED = (
     1000  # lerobot-eval's and lerobot-train's default --seed: the reset seed that is indgen's episode 0
 )
 GROUP_PREFIX = "indgen@"  # lerobot-eval's task_group of a level (group_name)
 POLICY_LABEL = "lerobot-eval"  # the plan's policy field; nothing loads it (LeRobot brings its own policy)
+FamilyOf = Callable[[PlanConfig], Scene]  # the edge's look-up: a plan section's scene family, configured
 
 
 @dataclass(frozen=True)
@@ -145,15 +148,16 @@ class LevelRequest:
                 "image_size": self.image_size}  # fmt: skip
 
 
-def resolve_levels(request: LevelRequest) -> tuple[list[LevelSetup], list[str]]:
+def resolve_levels(request: LevelRequest, family_of: FamilyOf) -> tuple[list[LevelSetup], list[str]]:
     """Each task's ``LevelSetup`` (``task`` "all": every task of the scene) and evaluate's warnings about the level
-    (uncertified); a level whose certification failed is refused as ``evaluate`` refuses it."""
+    (uncertified); a level whose certification failed is refused as ``evaluate`` refuses it. ``family_of``: the
+    edge's look-up of the scene family (the request's options and preset name it)."""
     cfg = config_from_values(request.options(), request.config, strict=True)
     if request.warmup_steps is not None:
         cfg = dataclasses.replace(
             cfg, policy=dataclasses.replace(cfg.policy, warmup_steps=int(request.warmup_steps))
         )
-    plan = build_plan(cfg)
+    plan = build_plan(cfg, family_of(cfg.plan))
     if len(plan.axes) != 1:
         raise ConfigError(
             f"--env.axis names {len(plan.axes)} axes ({', '.join(plan.axes)}); give one axis per env"

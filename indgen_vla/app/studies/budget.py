@@ -31,6 +31,7 @@ from indgen_vla.core.stats.sample_size import (
     stable_episodes,
 )
 from indgen_vla.core.stats.sprt import make_rule
+from scenes.family import Scene
 
 POWER = 0.8  # the power the pairs are sized for
 
@@ -95,10 +96,11 @@ def _costs(req: BudgetConfig, plan, horizon: int):
     return costs, timing.get("replan_steps"), notes
 
 
-def plan_budget(req: BudgetConfig) -> dict[str, Any]:
-    """The budget of ``req``'s protocol as ``indgen budget --json`` prints it (writes the lock when asked)."""
+def plan_budget(req: BudgetConfig, family: Scene) -> dict[str, Any]:
+    """The budget of ``req``'s protocol on ``family`` (its scene, looked up by the API) as ``indgen budget --json``
+    prints it (writes the lock when asked)."""
     cfg = req.protocol
-    plan = build_plan(cfg)
+    plan = build_plan(cfg, family)
     levels = {a: list(v) for a, v in plan.levels.items()}
     rollouts = plan.rollouts()
     cells = len({(j.task, j.axis, j.level) for j in rollouts})

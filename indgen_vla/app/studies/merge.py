@@ -14,11 +14,11 @@ import json
 import os
 import shlex
 import shutil
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.engine.config import FLAG_FIELDS, FLAT_DEFAULTS, EvalConfig
+from indgen_vla.app.engine.config import FLAG_FIELDS, FLAT_DEFAULTS, EvalConfig, PlanConfig
 from indgen_vla.app.engine.run import build_plan
 from indgen_vla.core.errors import IndgenError, RunDirError
 from indgen_vla.core.reporting.report import write_run_report
@@ -34,6 +34,9 @@ from indgen_vla.core.runs.shards import (
     open_shards,
     sharing_setting,
 )
+from scenes.family import Scene
+
+FamilyOf = Callable[[PlanConfig], Scene]  # the edge's look-up: a plan section's scene family, configured
 
 # the evaluate flags a resume command repeats where the shards' config differs from the default: what the plan, the
 # protocol and the report depend on (not workers, backend or patience: the user picks those on the machine)
@@ -61,12 +64,17 @@ def resume_command(cfg: EvalConfig) -> str:
 
 
 def resume_plan(
-    shards: Sequence[Shard], plan: dict[str, Any], out: Path, share_t0: bool | None = None
+    shards: Sequence[Shard],
+    plan: dict[str, Any],
+    out: Path,
+    family_of: FamilyOf,
+    share_t0: bool | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """The merged plan in the task order ``evaluate`` gives it, and how to resume the merge: ``{"config", "command"}``
     when one evaluate command plans exactly the union (resolved here as ``evaluate`` resolves it), else ``{"config",
     "note"}`` saying why none does (the shards' tasks are neither one task nor all, their --levels differ by axis...).
-    ``share_t0``: the shards' T0 sharing as last run (``shards.sharing_setting``), over their first config's."""
+    ``family_of``: the edge's look-up of the shards' scene family (their config names it); ``share_t0``: the shards'
+    T0 sharing as last run (``shards.sharing_setting``), over their first config's."""
     tasks = plan["tasks"]
     config = {k: v for k, v in (shards[0].manifest.get("config") or {}).items() if k in FLAG_FIELDS}
     config.update(task=tasks[0] if len(tasks) == 1 else "all", axes=tuple(plan["axes"]), out=str(out))
@@ -74,7 +82,7 @@ def resume_plan(
         config["share_t0"] = share_t0
     try:
         cfg = EvalConfig.from_flat(**config)
-        resolved = build_plan(cfg)
+        resolved = build_plan(cfg, family_of(cfg.plan))
     except (IndgenError, ImportError, OSError) as e:  # e.g. LIBERO's assets missing on this machine
         why = str(e).splitlines()[0] if str(e) else type(e).__name__
         note = f"the shards' command does not resolve on this machine ({why}); merge where the shards ran"
@@ -167,10 +175,11 @@ def _copy_videos(dest: Path, rows: list[dict[str, Any]], shards: Sequence[Shard]
 
 
 def merge(
-    paths: Sequence[str], out: str | os.PathLike[str], command: str = ""
+    paths: Sequence[str], out: str | os.PathLike[str], family_of: FamilyOf, command: str = ""
 ) -> tuple[RunDir, dict, list[str]]:
     """Merge the shard run directories ``paths`` into a new run directory ``out`` and write its report; returns the
-    run, its summary and the lines that say what the merge did (duplicates, episodes still to run and how)."""
+    run, its summary and the lines that say what the merge did (duplicates, episodes still to run and how).
+    ``family_of``: the edge's (CLI's) look-up of the scene family the shards' config names."""
     out = Path(out)
     shards = open_shards(paths)
     run = _merged_already(out, shards)
@@ -184,7 +193,7 @@ def merge(
         merged_cells(shards, plan)  # refuses other parameters or a (task, axis) in no shard, before resolving
         check_protocol(shards)
         rows, counts, kept = merged_rows(shards)
-        plan, resume = resume_plan(shards, plan, out, sharing_setting(shards))
+        plan, resume = resume_plan(shards, plan, out, family_of, sharing_setting(shards))
         manifest = merged_manifest(shards, plan, counts, kept, resume, command)
         missing = write_merged(out, manifest, rows, shards)
         run = RunDir.open(out)

@@ -21,6 +21,7 @@ from indgen_vla.app.engine.run import evaluate as run_evaluation
 from indgen_vla.app.studies.config import SeriesConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.runs.records import RunDir, atomic_write_json
+from scenes.family import Scene
 
 PROTOCOL = "series_protocol.json"
 OWN_FIELDS = ("policy", "out")  # what differs from checkpoint to checkpoint
@@ -136,13 +137,14 @@ def finished(run: Path) -> bool:
 
 
 def run_series(
-    cfg: SeriesConfig, *, evaluate: Callable | None = None, say: Callable[[str], None] = print,
+    cfg: SeriesConfig, family: Scene, *, evaluate: Callable | None = None, say: Callable[[str], None] = print,
     after_each: Callable[[list[tuple[int, Path]]], None] | None = None,
 ) -> list[tuple[int, Path]]:  # fmt: skip
     """Evaluate every checkpoint of ``cfg.roots`` under ``cfg.protocol`` into ``cfg.out/runs/<step>``, skipping
     finished runs; with ``cfg.follow``, poll every ``cfg.poll`` seconds for new checkpoints until none came for
     ``cfg.idle_stop``. Returns the (step, run directory) of every checkpoint evaluated, in step order; ``after_each``
-    gets them after each run (the series report is rewritten there); ``evaluate``: the engine's by default."""
+    gets them after each run (the series report is rewritten there); ``family``: the protocol's scene family (looked up
+    by the API); ``evaluate``: the engine's by default."""
     evaluate = evaluate or run_evaluation
     base, roots, follow, poll_s, idle_stop_s = cfg.protocol, cfg.roots, cfg.follow, cfg.poll, cfg.idle_stop
     out = Path(cfg.out)
@@ -162,7 +164,7 @@ def run_series(
                 continue
             say(f"series: step {c.step}: evaluating {c.path}")
             cfg = base.override(policy=f"lerobot:{c.path}", out=str(run_dir(out, c)))
-            done[c.step] = evaluate(cfg)
+            done[c.step] = evaluate(cfg, family)
             last_new = time.monotonic()
             if after_each is not None:
                 after_each(sorted(done.items()))

@@ -61,7 +61,8 @@ def test_evaluate_does_not_advise_certify_for_a_task_without_an_oracle(
 ):
     """The warning names the unscripted task's levels and stops advising ``indgen certify`` (which refuses it)."""
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import build_plan, check_feasible
+    from indgen_vla.app.engine.run import check_feasible
+    from tests.fixtures.resolved import build_plan
 
     cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task="all", axes=("base_y",), levels="0:1",
                      episodes=1, out=str(tmp_path / "run"))  # fmt: skip

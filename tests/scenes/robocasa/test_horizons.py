@@ -58,7 +58,7 @@ def _noop_episode(task: str, axis: str, out) -> tuple:
     import pandas as pd
 
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import evaluate
+    from tests.fixtures.resolved import evaluate
 
     cfg = EvalConfig.from_flat(policy="standin:noop", scene="robocasa", task=task, axes=(axis,), levels="0", episodes=1,
                      workers=1, out=str(out))  # fmt: skip

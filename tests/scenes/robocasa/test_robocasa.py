@@ -377,7 +377,7 @@ def test_random_evaluates_end_to_end_on_robocasa(placeholders, tmp_path):
     import pandas as pd
 
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import evaluate
+    from tests.fixtures.resolved import evaluate
 
     cfg = EvalConfig.from_flat(policy="standin:random", scene="robocasa", task="PickPlaceCounterToCabinet", axes=("base_y",),
                      levels="0:1", episodes=1, workers=1, max_steps=4, out=str(tmp_path / "run"))  # fmt: skip

@@ -193,8 +193,8 @@ def test_presets_resolve_by_name_from_the_top_level_configs():
 def test_task_and_axis_errors_come_from_the_scene_registry(tmp_path):
     """evaluate and certify share one rule for tasks and axes: the same one-line errors."""
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import build_plan
     from indgen_vla.core.errors import UnknownNameError
+    from tests.fixtures.resolved import build_plan
 
     def cfg(**kw):
         base = dict(policy="standin:oracle", scene="stack", axes=("stack",), out=str(tmp_path), levels="0:1")

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.stats.sprt import SequentialRule
 from tests.fixtures.kill import kill_midway
+from tests.fixtures.resolved import evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 
@@ -85,8 +85,8 @@ def test_rounds_reuse_open_policies_and_the_caller_closes_them(tmp_path):
     from indgen_vla.app.engine.adaptive import run_adaptive
     from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from indgen_vla.app.engine.run import build_plan
     from indgen_vla.core.runs.records import RunDir
+    from tests.fixtures.resolved import build_plan
 
     c = cfg(tmp_path, levels="0", episodes=20)
     plan = build_plan(c)
@@ -127,7 +127,7 @@ def test_every_task_axis_ladder_is_decided_on_its_own_episodes(tmp_path):
     """Two tasks of stack side by side: the rule stops one task's ladder at a broken level 0 while the other
     task's intact level 0 moves it on to level 1; hand-computed from the rule's decisions."""
     from indgen_vla.app.engine.adaptive import ladder_plans, next_round
-    from indgen_vla.app.engine.run import build_plan
+    from tests.fixtures.resolved import build_plan
 
     c = cfg(tmp_path, scene="stack", task="all", axes=("stack",), levels="0:2", episodes=20)
     plan = build_plan(c)
@@ -182,8 +182,9 @@ def test_the_whole_protocol_runs_adaptively_in_one_invocation_and_resumes_after_
 def test_a_new_adaptive_run_prepares_its_first_rounds_scenes_not_the_plans_first_cells(tmp_path):
     """Workers started while the policy loads build the scenes of the rule's first round (level 0 of each
     ladder), not of the first cells of the whole plan, which may be levels the rule never reaches."""
-    from indgen_vla.app.engine.run import _first_round, build_plan
+    from indgen_vla.app.engine.run import _first_round
     from indgen_vla.app.engine.scheduler import cell_of, first_jobs
+    from tests.fixtures.resolved import build_plan
 
     c = cfg(tmp_path, levels="-2:2", episodes=20)
     plan = build_plan(c)

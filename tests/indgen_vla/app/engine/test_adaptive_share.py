@@ -11,10 +11,10 @@ import pytest
 
 from indgen_vla.app.engine.adaptive import ladder_plans, next_round, run_adaptive
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.run import build_plan, evaluate
 from indgen_vla.app.engine.share import copies
 from indgen_vla.core.runs.records import EpisodeRecord, RunDir, episodes_frame
 from tests.fixtures.kill import kill_midway
+from tests.fixtures.resolved import build_plan, evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

@@ -11,13 +11,13 @@ import pytest
 from indgen_vla.app.engine.config import EvalConfig, config_from_args, plan_episodes
 from indgen_vla.app.engine.local import LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError, PolicyError, RunDirError, UnknownNameError
 from indgen_vla.core.protocol.interface import ACTION_DIM, PolicySpec
 from indgen_vla.core.runs.records import RunDir
 from scenes.family import get_scene
 from scenes.planning import scene_levels
 from tests.fixtures.kill import kill_midway
+from tests.fixtures.resolved import evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

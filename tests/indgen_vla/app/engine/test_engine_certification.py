@@ -9,9 +9,10 @@ import pytest
 
 from indgen_vla.app.cli import main
 from indgen_vla.app.engine.config import EvalConfig, config_from_args
-from indgen_vla.app.engine.run import build_plan, check_feasible, evaluate
+from indgen_vla.app.engine.run import check_feasible
 from indgen_vla.core.errors import ConfigError, InfeasibleLevelError, UnknownNameError
 from scenes.certificates import write_json_atomic
+from tests.fixtures.resolved import build_plan, evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

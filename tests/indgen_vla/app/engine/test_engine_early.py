@@ -14,10 +14,10 @@ import pytest
 from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 from indgen_vla.app.engine.local import EarlyWorkers, Handoff, LocalOptions, run_local
 from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-from indgen_vla.app.engine.run import evaluate
 from policy_wrappers.specs import load_policy, preview_policy
 from scenes.family import get_scene
 from scenes.planning import scene_levels
+from tests.fixtures.resolved import evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

@@ -6,10 +6,10 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.run import evaluate
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.fingerprint import differences
 from indgen_vla.core.runs.records import RunDir
+from tests.fixtures.resolved import evaluate
 from tests.fixtures.tiny_policies import build_tiny_checkpoint
 
 pytestmark = pytest.mark.filterwarnings("ignore")

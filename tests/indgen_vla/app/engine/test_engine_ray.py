@@ -178,8 +178,8 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
     the one policy actor) gives the local backend's episodes."""
     from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
-    from indgen_vla.app.engine.run import evaluate
     from scenes.tabletop.oracle import OraclePolicy
+    from tests.fixtures.resolved import evaluate
 
     c, jobs = _jobs("standin:oracle", 2, 1)
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64), max_steps=25,

@@ -17,9 +17,9 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.run import evaluate
 from scenes.family import get_scene
 from tests.fixtures.kill import episodes_on_disk, kill_midway, processes
+from tests.fixtures.resolved import evaluate
 
 ray = pytest.importorskip("ray")
 pytestmark = [pytest.mark.filterwarnings("ignore"), pytest.mark.timeout(900)]

@@ -7,11 +7,11 @@ import pandas as pd
 import pytest
 
 from indgen_vla.app.engine.config import EvalConfig
-from indgen_vla.app.engine.run import build_plan, evaluate
 from indgen_vla.app.engine.share import fill_copies, sharing_entry, with_sharing
 from indgen_vla.core.protocol.plan import SHARING_OFF
 from indgen_vla.core.runs.records import EpisodeRecord, RunDir
 from tests.fixtures.kill import kill_midway
+from tests.fixtures.resolved import build_plan, evaluate
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
+from indgen_vla.app.api import family_of
 from indgen_vla.app.engine.config import config_from_values
-from indgen_vla.app.engine.run import build_plan
 from indgen_vla.app.lerobot_bridge.level_env import (
     FIRST_SEED,
     LevelRequest,
@@ -17,12 +17,15 @@ from indgen_vla.app.lerobot_bridge.level_env import (
 )
 from indgen_vla.core.errors import ConfigError
 from tests.fixtures.lerobot_runs import AXIS, EPISODES, LEVEL, SCENE, needs_plugin, successes
+from tests.fixtures.resolved import build_plan
 
 
 def test_reset_seed_is_indgen_episode_and_seed():
     """Reset seed first_seed + i is episode i with the seed indgen evaluate plans for it (plan_jobs)."""
     for run_seed in (0, 7):
-        (setup,), _ = resolve_levels(LevelRequest(scene=SCENE, axis=AXIS, level=2, run_seed=run_seed))
+        (setup,), _ = resolve_levels(
+            LevelRequest(scene=SCENE, axis=AXIS, level=2, run_seed=run_seed), family_of
+        )
         cfg = config_from_values({"policy": "standin:oracle", "out": "x", "scene": SCENE, "axis": AXIS,
                                   "levels": "2:2", "episodes": 4, "seed": run_seed}, strict=True)  # fmt: skip
         planned = [(j.episode, j.seed, j.param) for j in build_plan(cfg).jobs]
@@ -43,7 +46,7 @@ def test_group_names_the_level():
 
 def test_bad_options_are_one_line():
     with pytest.raises(ConfigError, match="cameras"):
-        resolve_levels(LevelRequest(scene=SCENE, axis=AXIS, level=0, cameras=("top",)))
+        resolve_levels(LevelRequest(scene=SCENE, axis=AXIS, level=0, cameras=("top",)), family_of)
     with pytest.raises(ConfigError, match="first_seed"):
         LevelRequest(scene=SCENE, axis=AXIS, level=0, first_seed=-1)
 

@@ -105,9 +105,9 @@ def test_config_and_input_errors(demos, tmp_path):
 @pytest.mark.slow  # ~9 s: a training run and an evaluation
 def test_object_policy_trains_loads_and_gets_object_poses_from_the_engine(demos, tmp_path):
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import evaluate
     from indgen_vla.core.protocol.interface import OBJECT_DIM
     from policy_wrappers.specs import load_policy
+    from tests.fixtures.resolved import evaluate
 
     cfg = TrainRecipe(steps=40, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=20,
                       objects=True)  # fmt: skip
@@ -200,8 +200,8 @@ def test_training_levels_reach_the_checkpoint_the_manifest_and_the_report(level_
     """Trained on pick_y levels 0 and 1: train_info.json and the policy's spec name them, evaluate records them in
     the manifest, and the report marks levels 0 and 1 (not 2) "trained"."""
     from indgen_vla.app.engine.config import EvalConfig
-    from indgen_vla.app.engine.run import evaluate
     from indgen_vla.core.protocol.training_support import cells_from_json
+    from tests.fixtures.resolved import evaluate
 
     cfg = TrainRecipe(steps=5, batch_size=16, dim_model=32, n_heads=2, dim_feedforward=64, log_every=5)
     ckpt = train_policy(TrainConfig(datasets=[level_demos[0]], out=tmp_path / "act", recipe=cfg))

@@ -12,6 +12,7 @@ from indgen_vla.app.cli.train import eval_config
 from indgen_vla.app.regimes.train import TrainConfig, train_policy
 from indgen_vla.app.regimes.train_eval import make_hook
 from indgen_vla.core.runs.records import RunDir
+from tests.fixtures.resolved import family
 from tests.indgen_vla.app.regimes.test_train import TINY, _same_checkpoint
 
 pytest.importorskip("lerobot")
@@ -25,7 +26,7 @@ def test_eval_every_runs_in_memory_and_leaves_the_checkpoint_unchanged(demos, tm
     base = eval_config(
         "--scene pick_place --axis pick_y --levels 0 --episodes 1 --max-steps 10 --workers 1", evals
     )
-    hook = make_hook(base, evals, every=8, last=TINY.steps, say=said.append)
+    hook = make_hook(base, family(base), evals, every=8, last=TINY.steps, say=said.append)
     out = train_policy(TrainConfig(datasets=[demos], out=tmp_path / "act", recipe=TINY), after_step=hook)
     _same_checkpoint(plain, out)  # evaluating in the middle changed no weight, optimiser step or loss
     assert said == [

@@ -107,6 +107,7 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     from indgen_vla.app.engine.config import EvalConfig
     from indgen_vla.app.studies.config import SeriesConfig
     from indgen_vla.app.studies.series import run_series
+    from tests.fixtures.resolved import family
 
     pytest.importorskip("lerobot")
     root = tmp_path / "train"
@@ -117,7 +118,7 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
                       workers=1, out="_")  # fmt: skip
     said = []
     cfg = SeriesConfig(protocol=base, roots=(root,), out=tmp_path / "s", follow=True, poll=0.2, idle_stop=1.0)
-    entries = run_series(cfg, say=said.append)
+    entries = run_series(cfg, family(base), say=said.append)
     timer.join()
     assert [s for s, _ in entries] == [300] and said[-1].startswith("series: step 300: evaluating")
     assert (tmp_path / "s" / "runs" / "000000300" / "summary.json").exists()
