@@ -83,10 +83,10 @@ def test_scene_levels_resolves_each_tasks_own_successor():
     assert builder.task_successors == {} and builder.successor("lemon", "pick_y").axis.step == 0.025
 
 
-def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
-    """Follow cfg from evaluate: the engine looks the family up by name once (``PlanConfig.family``) and calls one
-    module-level function of scenes with it (the resolution); everything else it does with scenes is a method of an
-    object the plan handed it (the family, builder, env)."""
+def test_evaluate_enters_scenes_once_to_resolve_the_plan_and_never_by_name(tmp_path):
+    """Follow cfg from evaluate: the engine never looks a family up by name (its edge hands it the family) and calls
+    one module-level function of scenes with it (the resolution); everything else it does with scenes is a method
+    of an object the plan handed it (the family, builder, env)."""
     from indgen_vla.app.engine.config import EvalConfig
     from tests.fixtures.resolved import evaluate
 
@@ -111,7 +111,7 @@ def test_evaluate_enters_scenes_by_name_once_to_resolve_the_plan(tmp_path):
         evaluate(cfg, quiet=True)
     finally:
         sys.setprofile(None)
-    assert entered == {"family.py:get_scene", "planning.py:resolve_scene_plan"}
+    assert entered == {"planning.py:resolve_scene_plan"}
 
 
 def test_the_fork_servers_preload_is_quiet():
