@@ -66,6 +66,11 @@ class Option:
         return self.field.metadata["argparse"].get("action") is argparse.BooleanOptionalAction
 
     @property
+    def section(self) -> str:
+        """The top-level section holding the option ("" for a field of the config itself)."""
+        return self.path[0] if self.path else ""
+
+    @property
     def default(self) -> Any:
         """The field's default (``MISSING`` where the option is required)."""
         if self.field.default_factory is not dataclasses.MISSING:
@@ -149,16 +154,22 @@ def add_flags(
         o = options[name]
         if name in skip or (o.flag is None and names is None):
             continue
-        if o.flag is None:
-            raise ValueError(f"option {name} has no flag (its field's metadata has no help line)")
-        kwargs = dict(o.field.metadata["argparse"])
-        if isinstance(o.field.default, bool) and "action" not in kwargs:
-            kwargs["action"] = "store_true"
-        else:
-            kwargs.setdefault("default", None)
-        parser.add_argument(
-            "--" + o.flag.replace("_", "-"), dest=o.flag, help=o.field.metadata["help"], **kwargs
-        )
+        add_option_flag(parser, o)
+
+
+def add_option_flag(parser: argparse.ArgumentParser, o: Option, help: str | None = None) -> None:
+    """One option's flag from its field's metadata (``help`` replaces its help line): its type, choices and metavar;
+    a bool is a switch; a flag left out parses as ``None`` so that the config's default (or a preset) applies."""
+    if o.flag is None:
+        raise ValueError(f"option {o.name} has no flag (its field's metadata has no help line)")
+    kwargs = dict(o.field.metadata["argparse"])
+    if isinstance(o.field.default, bool) and "action" not in kwargs:
+        kwargs["action"] = "store_true"
+    else:
+        kwargs.setdefault("default", None)
+    parser.add_argument(
+        "--" + o.flag.replace("_", "-"), dest=o.flag, help=help or o.field.metadata["help"], **kwargs
+    )
 
 
 def from_args(cls: type, args: argparse.Namespace | Mapping[str, Any], *, command: str, **fixed: Any) -> Any:

@@ -7,6 +7,7 @@ import argparse
 import re
 from collections.abc import Iterable
 
+from indgen_vla.app.config_fields import add_option_flag
 from indgen_vla.app.engine.config import OPTIONS
 
 
@@ -40,15 +41,9 @@ def add_config_flags(
     (``indgen_vla.app.engine.config.option``): its help line, type, choices, metavar; a bool is a switch."""
     for name in names:
         o = OPTIONS[name]
-        if o.flag is None:
-            raise ValueError(f"option {name} has no flag (its field's metadata has no help line)")
-        kwargs = dict(o.field.metadata["argparse"])
-        if isinstance(o.field.default, bool) and "action" not in kwargs:
-            kwargs["action"] = "store_true"
-        else:
-            kwargs.setdefault("default", None)
-        help_ = o.field.metadata["help"].replace("{levels_default}", levels_default)
-        p.add_argument("--" + o.flag.replace("_", "-"), help=help_, **kwargs)
+        add_option_flag(
+            p, o, (o.field.metadata["help"] or "").replace("{levels_default}", levels_default) or None
+        )
 
 
 def add_level_options(p: argparse.ArgumentParser, levels_default: str = LEVELS_DEFAULT) -> None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import option
+from indgen_vla.app.config_fields import Option, option
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -231,32 +231,11 @@ SECTIONS: dict[str, type] = {
 }
 
 
-@dataclass(frozen=True)
-class Option:
-    """One option: its flat name, its section and field there, its flag (``None``: API and YAML only)."""
-
-    name: str
-    section: str
-    field: dataclasses.Field
-
-    @property
-    def flag(self) -> str | None:
-        """The flag's name with ``_`` (argparse's dest), or ``None`` when the option has no flag."""
-        if self.field.metadata.get("help") is None:
-            return None
-        return self.field.metadata.get("flag") or self.name
-
-    @property
-    def negatable(self) -> bool:
-        """A ``--no-...`` flag: its False overrides a preset (other False flags are "not given")."""
-        return self.field.metadata["argparse"].get("action") is argparse.BooleanOptionalAction
-
-
 OPTIONS: dict[str, Option] = {
     o.name: o
     for section, cls in SECTIONS.items()
     for f in dataclasses.fields(cls)
-    for o in [Option(f.metadata["name"] or f.name, section, f)]
+    for o in [Option(f.metadata["name"] or f.name, (section,), f)]
 }
 FLAG_FIELDS = set(OPTIONS)  # the flat names
 # a flag's dest -> its option's flat name, where they differ (axis -> axes)
