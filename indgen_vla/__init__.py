@@ -46,6 +46,8 @@ _LAZY = {
     "Policy": "indgen_vla.core.protocol.interface:Policy",
     "PolicySpec": "indgen_vla.core.protocol.interface:PolicySpec",
     "Observation": "indgen_vla.core.protocol.interface:Observation",
+    "Action": "indgen_vla.core.protocol.interface:Action",
+    "ACTION_DIM": "indgen_vla.core.protocol.interface:ACTION_DIM",
     "EnvSpec": "indgen_vla.core.protocol.interface:EnvSpec",
     # the extension point of a scene family of your own (docs/extending.md): the base (a catalogue with its
     # environment and certificate parts), the tabletop backend's base, a level's frozen spec and its items, the

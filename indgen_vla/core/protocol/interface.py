@@ -19,6 +19,8 @@ from indgen_vla.core.protocol.training_support import TrainedCell
 CAMERAS = ("agentview", "wrist")
 STATE_DIM = 8  # eef pos (3) + eef axis-angle (3) + gripper qpos (2): the LIBERO convention
 ACTION_DIM = 7  # delta eef pos (3) + delta rotation (3) + gripper (-1 open, +1 close)
+# what ``Policy.act`` returns: a (B, T, ACTION_DIM) float32 chunk, one row per observation, T actions each
+type Action = np.ndarray
 # robomimic's "object" observation for low-dim policies that declare it: pick then target, pos + quat (xyzw, w >= 0)
 OBJECT_NAMES = tuple(f"{o}_{c}" for o in ("pick", "goal") for c in ("x", "y", "z", "qx", "qy", "qz", "qw"))
 OBJECT_DIM = len(OBJECT_NAMES)
@@ -276,6 +278,6 @@ class Policy(Protocol):
 
     def reset(self, instruction: str, seed: int | None = None) -> None: ...
 
-    def act(self, observations: Sequence[Observation]) -> np.ndarray: ...
+    def act(self, observations: Sequence[Observation]) -> Action: ...
 
     def close(self) -> None: ...
