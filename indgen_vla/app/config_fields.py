@@ -70,13 +70,6 @@ class Option:
         """The top-level section holding the option ("" for a field of the config itself)."""
         return self.path[0] if self.path else ""
 
-    @property
-    def default(self) -> Any:
-        """The field's default (``MISSING`` where the option is required)."""
-        if self.field.default_factory is not dataclasses.MISSING:
-            return self.field.default_factory()
-        return self.field.default
-
 
 def _section_types(cls: type) -> dict[str, type]:
     hints = typing.get_type_hints(cls)
@@ -112,7 +105,7 @@ def from_flat(cls: type, values: Mapping[str, Any], *, command: str) -> Any:
         raise ConfigError(
             f"unknown option(s) {', '.join(unknown)} for {command}; see 'indgen {command} --help'"
         )
-    return _build(cls, {n: v for n, v in values.items()}, options, ())
+    return _build(cls, dict(values), options, ())
 
 
 def _build(cls: type, values: dict[str, Any], options: dict[str, Option], path: tuple[str, ...]) -> Any:
@@ -172,15 +165,23 @@ def add_option_flag(parser: argparse.ArgumentParser, o: Option, help: str | None
     )
 
 
-def from_args(cls: type, args: argparse.Namespace | Mapping[str, Any], *, command: str, **fixed: Any) -> Any:
+def from_args(
+    cls: type,
+    args: argparse.Namespace | Mapping[str, Any],
+    /,
+    *,
+    command: str,
+    base: Any = None,
+    **fixed: Any,
+) -> Any:
     """A config from parsed flags, or from the API's keyword arguments named like them (a mapping: a name that is
-    no option is refused): every value given wins, the defaults fill the rest; ``fixed`` values (positional
-    arguments, what the command adds) are set as they are."""
+    no option is refused, and a False given is a value): every value given wins over ``base``'s (a config of
+    ``cls``; None: the defaults); ``fixed`` values (positional arguments, what the command adds) are set as they are."""
     strict = not isinstance(args, argparse.Namespace)
     given = dict(args) if strict else vars(args)
     options = flat_options(cls)
     by_flag = {o.flag: n for n, o in options.items() if o.flag}
-    values: dict[str, Any] = {}
+    values: dict[str, Any] = {} if base is None else to_flat(base)
     for key, value in given.items():
         name = by_flag.get(key, key if key in options else None)
         if name is None:
@@ -189,7 +190,7 @@ def from_args(cls: type, args: argparse.Namespace | Mapping[str, Any], *, comman
                 hint = f"; did you mean {close[0]!r}?" if close else f"; see 'indgen {command} --help'"
                 raise ConfigError(f"unknown option {key!r} for {command}{hint}")
             continue
-        if value is None or (value is False and not options[name].negatable):
+        if value is None or (value is False and not strict and not options[name].negatable):
             continue
         values[name] = value
     values.update(fixed)

@@ -10,15 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from indgen_vla.app.config_fields import (
-    flat_options,
-    from_args,
-    from_flat,
-    option,
-    option_like,
-    section,
-    to_flat,
-)
+from indgen_vla.app.config_fields import from_args, option, option_like, section
 from indgen_vla.app.engine.config import PlanConfig
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
@@ -194,18 +186,7 @@ class CertifyConfig:
 def certify_config(config: CertifyConfig | None = None, **options: Any) -> CertifyConfig:
     """The API's road to a ``CertifyConfig``: ``config`` (or the defaults) with the options given (flat names or
     flags, e.g. ``axis``, ``held_out``; None: not given) replacing its values; a name that is no option is one line."""
-    if config is None:
-        return from_args(CertifyConfig, options, command=COMMAND)
-    if not isinstance(config, CertifyConfig):
+    if config is not None and not isinstance(config, CertifyConfig):
         raise ConfigError(f"config must be a CertifyConfig, got {type(config).__name__}; or pass the options as "
                           "keywords")  # fmt: skip
-    names = flat_options(CertifyConfig)
-    by_flag = {o.flag: n for n, o in names.items() if o.flag}
-    values = to_flat(config)
-    for key, value in options.items():
-        name = key if key in names else by_flag.get(key)
-        if name is None:
-            from_args(CertifyConfig, {key: value}, command=COMMAND)  # raises its one line: no such option
-        if value is not None:
-            values[name] = value
-    return from_flat(CertifyConfig, values, command=COMMAND)
+    return from_args(CertifyConfig, options, command=COMMAND, base=config)
