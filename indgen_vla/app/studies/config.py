@@ -40,9 +40,8 @@ class BudgetConfig:
     """What ``indgen budget`` sizes: evaluate's ``protocol`` (its workers the first count, its out unused), the
     worker counts to project, where the costs and the success curve come from, and the lock to write."""
 
-    protocol: EvalConfig = (
-        option()
-    )  # evaluate's flags or --config (the command builds it; API: an EvalConfig)
+    # evaluate's flags or --config (the command builds it; API: an EvalConfig)
+    protocol: EvalConfig = option()
     workers: tuple[int, ...] | None = option(None, "worker counts to project, e.g. 8,16 (default: the number of "
                                              "cores)", metavar="W[,W...]")  # fmt: skip
     timing: str | None = option(None, "a smoke run's directory made on the target box: its manifest's timing and "
@@ -70,9 +69,7 @@ class BudgetConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "workers", budget_workers(self.workers))  # "8,16" (a flag) or a sequence
         object.__setattr__(self, "assume", _numbers(self.assume, float, "--assume"))
-        if not isinstance(self.protocol, EvalConfig):
-            raise ConfigError(f"budget's protocol must be an EvalConfig, got {type(self.protocol).__name__}; build "
-                              "it with EvalConfig.from_flat(...) or indgen_vla.app.engine.config.config_from_values")  # fmt: skip
+        _check_protocol(self.protocol, "budget")
         if not self.workers or any(w < 1 for w in self.workers):
             raise ConfigError(f"--workers must be positive counts, e.g. 8,16; got {self.workers}")
         if self.timing and self.steps_per_s is not None:
@@ -91,17 +88,23 @@ class BudgetConfig:
             raise ConfigError(f"--gpus must be >= 0, got {self.gpus}")
 
 
+def _check_protocol(protocol: object, command: str) -> None:
+    """budget and series run evaluate's protocol: an ``EvalConfig``, as the command line builds it."""
+    if not isinstance(protocol, EvalConfig):
+        owner = "series'" if command == "series" else f"{command}'s"
+        raise ConfigError(f"{owner} protocol must be an EvalConfig, got {type(protocol).__name__}; build it with "
+                          "EvalConfig.from_flat(...) or indgen_vla.app.engine.config.config_from_values")  # fmt: skip
+
+
 @dataclass(frozen=True, kw_only=True)
 class SeriesConfig:
     """What ``indgen series`` evaluates: every checkpoint of ``roots`` under evaluate's ``protocol`` (its policy
     and out are set per checkpoint), into ``out``; ``follow`` keeps polling a training that still writes them."""
 
-    protocol: EvalConfig = (
-        option()
-    )  # evaluate's flags or --config (the command builds it; API: an EvalConfig)
-    roots: tuple[str, ...] = (
-        option()
-    )  # ROOT...: a LeRobot training output or checkpoint directories (positional)
+    # evaluate's flags or --config (the command builds it; API: an EvalConfig)
+    protocol: EvalConfig = option()
+    # ROOT...: a LeRobot training output or checkpoint directories (positional)
+    roots: tuple[str, ...] = option()
     out: str = option(help="the series directory (runs/<step>, series.md, series.json, plots)", required=True)
     follow: bool = option(False, "keep polling ROOT for new checkpoints while training runs")
     poll: float = option(60.0, "seconds between two looks with --follow (default 60)", type=float)
@@ -112,9 +115,7 @@ class SeriesConfig:
         roots = (self.roots,) if isinstance(self.roots, str | os.PathLike) else self.roots
         object.__setattr__(self, "roots", tuple(os.fspath(r) for r in roots))
         object.__setattr__(self, "out", os.fspath(self.out))
-        if not isinstance(self.protocol, EvalConfig):
-            raise ConfigError(f"series' protocol must be an EvalConfig, got {type(self.protocol).__name__}; build "
-                              "it with EvalConfig.from_flat(...) or indgen_vla.app.engine.config.config_from_values")  # fmt: skip
+        _check_protocol(self.protocol, "series")
         if not self.roots:
             raise ConfigError("series needs a ROOT: a LeRobot training output or checkpoint directories")
         if not self.out:
