@@ -149,15 +149,15 @@ def build(
 ) -> dict:
     """Write a complete run directory (every planned episode; with ``adaptive``, what its rule runs); with
     ``error_rate`` 0 every episode is ok, so a resume finds nothing to run."""
+    from indgen_vla.app.api import family_of
     from indgen_vla.app.engine.policy_source import runner_config as _runner_config
     from indgen_vla.app.engine.run import _fingerprint, build_manifest, build_plan
     from indgen_vla.core.runs.records import RunDir
     from policy_wrappers.specs import load_policy
-    from scenes.family import get_scene
 
     patch_tasks(tasks)
     cfg = _config(tasks, out, adaptive, episodes)
-    plan = build_plan(cfg, get_scene(cfg.plan.scene, cfg.plan.scene_options()))
+    plan = build_plan(cfg, family_of(cfg.plan))
     run_id = f"bench{tasks:03d}{'b' if shift else 'a'}{'ad' if adaptive else ''}"
     manifest = build_manifest(cfg, plan, run_id)
     manifest["created"] = "2026-11-25T00:00:00+00:00"  # equal builds, equal manifests
