@@ -69,10 +69,11 @@ def _config(tasks: int, out: str, adaptive: str | None = None, episodes: int = E
 
 
 def patch_tasks(tasks: int) -> None:
-    """Make the scene layer resolve ``tasks`` tasks: pick_place's seven, then renamed copies with their cells."""
-    import scenes.planning as planning
+    """Make the plan resolve ``tasks`` tasks: pick_place's seven, then renamed copies with their cells (patched
+    where the engine calls the scene layer: ``engine.run`` imports ``resolve_scene_plan`` at its top)."""
+    from indgen_vla.app.engine import run
 
-    original = planning.resolve_scene_plan
+    original = run.resolve_scene_plan
 
     def resolve(*a, **k):
         sp = original(*a, **k)
@@ -85,7 +86,7 @@ def patch_tasks(tasks: int) -> None:
         )
         return dataclasses.replace(sp, tasks=tuple(base), cells=cells)
 
-    planning.resolve_scene_plan = resolve
+    run.resolve_scene_plan = resolve
 
 
 def synthetic_records(jobs, meta: dict, shift: float, world: int = 0, error_rate: float = ERROR_RATE):

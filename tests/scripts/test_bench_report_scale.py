@@ -30,10 +30,10 @@ def bench():
 
 @pytest.fixture()
 def runs(bench, tmp_path, monkeypatch):
-    import scenes.planning as planning
+    from indgen_vla.app.engine import run
 
-    # build() patches the scene layer to name more tasks: put it back after the test
-    monkeypatch.setattr(planning, "resolve_scene_plan", planning.resolve_scene_plan)
+    # build() patches the engine's call into the scene layer to name more tasks: put it back after the test
+    monkeypatch.setattr(run, "resolve_scene_plan", run.resolve_scene_plan)
     out = {}
     for name, shift, errors in (("a", 0.0, 0.01), ("b", 0.4, 0.01), ("complete", 0.0, 0.0)):
         out[name] = tmp_path / name
