@@ -112,6 +112,7 @@ def test_evaluate_runs_a_grid_from_one_range_and_reports_it(tmp_path, capsys):
     assert df.loc["pick_y@distractor=1", "param"].loc[1].tolist() == df.loc["pick_y", "param"].loc[1].tolist()
     md = (out / "report.md").read_text()
     assert "## Grid `pick_y` × `distractor`" in md and "| 1 | insufficient data (n = 2 of 2) |" in md
+    assert main(["report", str(out)]) == 0  # the PNGs, the heatmap among them, are drawn by `indgen report`
     assert (out / "plots" / "grid_pick_y_distractor.png").stat().st_size > 5000
     bad = [*args[:6], "pick_y@distractor=1:0", *args[7:-1], str(tmp_path / "bad")]
     capsys.readouterr()
