@@ -22,7 +22,7 @@ from scenes.planning import scene_levels
 loaded = {f.__name__: sorted(map(str, f.signatures)) for f in k.KERNELS}
 used = {}
 for scene in sys.argv[1:]:
-    builder = scene_levels(get_scene(scene), ["pick_y"])
+    builder = scene_levels(scenes.get_scene(scene), ["pick_y"])
     env = builder.make_env(list(scenes.get_scene(scene).tasks)[0], "pick_y", 1, cameras=(), image_size=(64, 64), max_steps=10)
     env.reset(seed=0)
     for _ in range(4):
