@@ -62,11 +62,13 @@ def _timed(run) -> dict:
 
 
 def round_trip_ms(calls: int) -> dict:
-    """One ``act`` of a trivial policy: called in process vs through a policy actor from another actor."""
+    """One ``act`` of a trivial policy: called in process vs from another actor on this node, over the policy
+    actor's socket (``ray_channel``, the default road) and through a Ray actor call (``INDGEN_RAY_SOCKET=0``)."""
     import numpy as np
     import ray
 
-    from indgen_vla.app.engine.ray_backend import _PolicyActor, _PolicyClient
+    from indgen_vla.app.engine.ray_backend import _node, _PolicyActor, _PolicyClient
+    from indgen_vla.app.engine.ray_channel import connect
     from indgen_vla.core.protocol.interface import Observation
     from policy_wrappers.specs import load_policy
 
@@ -80,8 +82,10 @@ def round_trip_ms(calls: int) -> dict:
 
     @ray.remote(num_cpus=0)
     class Caller:
-        def time_calls(self, actor, spec, n: int) -> list[float]:
-            client = _PolicyClient(actor, 0, spec)
+        def time_calls(self, actor, spec, n: int, socket: bool) -> list[float]:
+            channel = connect(ray.get(actor.channel.remote()), _node()) if socket else None
+            assert channel is not None or not socket, "no socket to the policy actor on this node"
+            client = _PolicyClient(actor, 0, spec, channel)
             client.reset("pick", seed=0)
             out = []
             for _ in range(n):
@@ -95,9 +99,13 @@ def round_trip_ms(calls: int) -> dict:
     )
     spec = ray.get(actor.hello.remote())
     ray.get(actor.set_clients.remote(1))  # as the supervisor tells it: one simulator
-    times = ray.get(Caller.remote().time_calls.remote(actor, spec, calls))
-    return {"in_process_ms": round(in_process, 3), "through_actor_median_ms": round(statistics.median(times), 3),
-            "through_actor_p90_ms": round(sorted(times)[int(0.9 * len(times))], 3), "calls": calls}  # fmt: skip
+    out = {"in_process_ms": round(in_process, 3), "calls": calls}
+    caller = Caller.remote()
+    for road, socket in (("socket", True), ("actor", False)):
+        times = sorted(ray.get(caller.time_calls.remote(actor, spec, calls, socket)))
+        out[f"through_{road}_median_ms"] = round(statistics.median(times), 3)
+        out[f"through_{road}_p90_ms"] = round(times[int(0.9 * len(times))], 3)
+    return out
 
 
 class SlowOracle:

@@ -25,6 +25,15 @@ from concurrent.futures import Future
 from pathlib import Path
 
 from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.ray_channel import (
+    SOCKET_ENV,
+    Address,
+    ChannelClient,
+    ChannelLost,
+    ChannelServer,
+    available,
+)
+from indgen_vla.app.engine.ray_channel import connect as channel_connect
 from indgen_vla.app.engine.ray_cluster import Need, join, keeping_sigterm, local_cpus
 from indgen_vla.app.engine.ray_files import FileRoute, Scratch, sees
 from indgen_vla.app.engine.ray_files import route as files_route
@@ -45,6 +54,7 @@ ENV_KNOBS = {  # environment variable: (default, what it sets)
     "INDGEN_RAY_GPUS_PER_POLICY": (1.0, "GPUs per policy actor (device cuda); one actor per that many GPUs"),
     "INDGEN_RAY_MAX_BATCH": (32, "most observations in one batched act"),
     "INDGEN_RAY_BATCH_WAIT_MS": (5.0, "how long a policy actor waits to fill a batch"),
+    SOCKET_ENV: (1, "1: simulators call the policy actor on their node over a Unix socket; 0: through Ray"),
 }
 
 
@@ -58,7 +68,10 @@ def ray_knobs(environ=os.environ) -> dict[str, float]:
         except ValueError:
             value = -1
         zero_ok = name == "INDGEN_RAY_CPUS_PER_POLICY"
-        if not (value >= 0 if zero_ok else value > 0) or (
+        if name == SOCKET_ENV:
+            if value not in (0, 1):
+                raise ConfigError(f"{name}={raw!r}: {what} must be 0 or 1 (default {default})")
+        elif not (value >= 0 if zero_ok else value > 0) or (
             name == "INDGEN_RAY_BATCH_WAIT_MS" and value > 10_000
         ):
             kind = "a number >= 0" if zero_ok else "a positive number"
@@ -144,6 +157,12 @@ class _PolicyActor:
         self._first: object | None = first
         self._batcher = Batcher(first, first.spec.name, max_batch, max_wait_s) if first.spec.batched else None
         self._closed = threading.Event()
+        self._channel: ChannelServer | None = None
+        self._channel_lock = threading.Lock()
+        self._served = {
+            "socket": 0,
+            "ray": 0,
+        }  # policy calls by the road they came (benchmarks and tests read it)
 
     def get_spec(self):
         return self.spec
@@ -151,6 +170,23 @@ class _PolicyActor:
     def hello(self):
         """The first reply, once the policy is loaded: its spec."""
         return self.spec
+
+    def channel(self) -> Address | None:
+        """Where simulators on this node call this actor without Ray (``ray_channel``); None where that is not
+        available. The socket opens at the first request."""
+        with self._channel_lock:
+            if self._channel is None and available():
+                self._channel = ChannelServer(_node(), self._on_call)
+        return self._channel.address if self._channel is not None else None
+
+    def _on_call(self, op: str, client: int, args: tuple):
+        if op not in ("reset", "act"):
+            return ValueError(f"unknown policy call {op!r}")
+        return getattr(self, op)(client, *args, road="socket")
+
+    def calls(self) -> dict[str, int]:
+        """Policy calls served so far, by road: ``socket`` (the channel) or ``ray`` (an actor call)."""
+        return dict(self._served)
 
     def watch(self) -> None:
         """Returns only when the actor closes: the supervisor learns of its death from this call failing, even when no
@@ -177,7 +213,9 @@ class _PolicyActor:
                 self._instances[client] = first if first is not None else self._make()
             return self._instances[client]
 
-    def reset(self, client: int, instruction: str, seed: int | None):
+    def reset(self, client: int, instruction: str, seed: int | None, road: str = "ray"):
+        with self._channel_lock:  # the count is read by benchmarks and tests; calls arrive on many threads
+            self._served[road] += 1
         try:
             policy = self._instance(client)
             if self._batcher is not None:
@@ -189,7 +227,9 @@ class _PolicyActor:
             return _carried(e)
         return None
 
-    def act(self, client: int, obs):
+    def act(self, client: int, obs, road: str = "ray"):
+        with self._channel_lock:
+            self._served[road] += 1
         try:
             if self._batcher is not None:
                 return self._batcher.act(obs)
@@ -203,6 +243,8 @@ class _PolicyActor:
 
     def close(self) -> None:
         self._closed.set()
+        if self._channel is not None:
+            self._channel.close()
         if self._batcher is not None:
             self._batcher.close()
         held = (
@@ -219,16 +261,25 @@ class _PolicyActorLost(BaseException):  # noqa: N818 - a signal to the simulator
 
 
 class _PolicyClient:
-    """What ``run_episode`` sees in a simulator actor: a policy whose calls go to the shared policy actor."""
+    """What ``run_episode`` sees in a simulator actor: a policy whose calls go to the shared policy actor, over its
+    channel when one was opened (``channel``: same node), else through Ray."""
 
-    def __init__(self, actor, client: int, spec):
-        self.actor, self.client, self.spec = actor, client, spec
+    def __init__(self, actor, client: int, spec, channel: ChannelClient | None = None):
+        self.actor, self.client, self.spec, self.channel = actor, client, spec, channel
 
-    def _call(self, method, *args):
+    def _call(self, method: str, *args):
         import ray
 
+        if self.channel is not None:
+            try:
+                result = self.channel.call(method, self.client, *args)
+            except ChannelLost as e:
+                raise _PolicyActorLost(f"policy actor lost ({e})") from None
+            if isinstance(result, Exception):
+                raise result
+            return result
         try:
-            result = ray.get(method.remote(self.client, *args))
+            result = ray.get(getattr(self.actor, method).remote(self.client, *args))
         except ray.exceptions.RayActorError as e:
             raise _PolicyActorLost(f"policy actor lost ({type(e).__name__})") from None
         if isinstance(result, Exception):
@@ -236,22 +287,30 @@ class _PolicyClient:
         return result
 
     def reset(self, instruction: str, seed: int | None = None) -> None:
-        self._call(self.actor.reset, instruction, seed)
+        self._call("reset", instruction, seed)
 
     def act(self, observations):
         import numpy as np
 
-        return np.stack([self._call(self.actor.act, o) for o in observations])
+        return np.stack([self._call("act", o) for o in observations])
 
     def close(self) -> None:
-        pass  # the policy actor owns the policy
+        """The policy actor owns the policy; only the socket to it is this client's."""
+        if self.channel is not None:
+            self.channel.close()
 
 
 class _SimActor:
     """Holds one EnvRunner for the actor's lifetime and runs whole episodes against a policy actor; files an
     episode writes go back with its record unless the run directory is shared (``ray_files``)."""
 
-    def __init__(self, runner_cfg: RunnerConfig, render_threads: int, route: FileRoute | None = None):
+    def __init__(
+        self,
+        runner_cfg: RunnerConfig,
+        render_threads: int,
+        route: FileRoute | None = None,
+        socket: bool = True,
+    ):
         import dataclasses
         import logging
 
@@ -267,6 +326,7 @@ class _SimActor:
             )
         self.runner = EnvRunner(runner_cfg)
         self.policy: _PolicyClient | None = None
+        self.socket = socket
 
     def hello(self, token: str | None = None) -> bool:
         """The first reply, once the simulator is ready: False when it does not see the shared run directory."""
@@ -279,7 +339,19 @@ class _SimActor:
         return os.getpid()
 
     def connect(self, policy_actor, client: int, spec) -> None:
-        self.policy = _PolicyClient(policy_actor, client, spec)
+        """Talk to ``policy_actor`` from now on: over its channel when it is on this node, else through Ray. A policy
+        actor gone meanwhile leaves the Ray road, whose first call then says so (``Interrupted``)."""
+        import ray
+
+        if self.policy is not None:
+            self.policy.close()
+        channel = None
+        if self.socket:
+            try:
+                channel = channel_connect(ray.get(policy_actor.channel.remote()), _node())
+            except ray.exceptions.RayError:
+                channel = None
+        self.policy = _PolicyClient(policy_actor, client, spec, channel)
 
     def run(self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float):
         """``(record, files)``, or ``Interrupted`` when the policy actor died mid-episode."""
@@ -292,6 +364,8 @@ class _SimActor:
         return record, self.scratch.collect() if self.scratch is not None else {}
 
     def close(self) -> None:
+        if self.policy is not None:
+            self.policy.close()
         self.runner.close()
         if self.scratch is not None:
             self.scratch.close()
@@ -365,7 +439,7 @@ def run_ray(
         meta=meta, replan=replan, max_retries=cfg.run.max_retries, patience_s=cfg.policy.server_patience,
         workers=workers, need=need, files=route,
         sim_cls=ray.remote(num_cpus=need.cpus_per_sim, **sim_options(runner_cfg.levels))(_SimActor),
-        sim_args=(runner_cfg, max(1, int(need.cpus_per_sim)), route),
+        sim_args=(runner_cfg, max(1, int(need.cpus_per_sim)), route, bool(knobs[SOCKET_ENV])),
         policy_cls=ray.remote(max_concurrency=most, num_cpus=need.cpus_per_policy, **policy_opts)(_PolicyActor),
         policy_args=(factory, knobs["INDGEN_RAY_MAX_BATCH"], knobs["INDGEN_RAY_BATCH_WAIT_MS"] / 1000.0),
     )  # fmt: skip
@@ -376,6 +450,7 @@ def run_ray(
         on_fault(sup.faults, sup.per_node)
         if stats is not None:
             stats["batch_sizes"] = sup.batch_sizes()
+            stats["policy_calls"] = sup.policy_calls()
             stats["policy_actors"] = len(sup.policies)
             stats["faults"] = dict(sup.faults)
             stats["episodes_per_node"] = dict(sup.per_node)

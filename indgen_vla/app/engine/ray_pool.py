@@ -342,6 +342,13 @@ class Supervisor:
         ready = [a for a in self.policies.values() if a.starting is None]
         return [b for sizes in self.ray.get([a.handle.batch_sizes.remote() for a in ready]) for b in sizes]
 
+    def policy_calls(self) -> dict[str, int]:
+        """The live policy actors' calls served, by road (``_PolicyActor.calls``)."""
+        ready = [a for a in self.policies.values() if a.starting is None]
+        return dict(
+            sum((Counter(c) for c in self.ray.get([a.handle.calls.remote() for a in ready])), Counter())
+        )
+
 
 def _first_line(e: Exception) -> str:
     cause = getattr(e, "cause", None) or e

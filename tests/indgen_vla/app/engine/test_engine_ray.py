@@ -115,6 +115,13 @@ def test_ray_knobs_are_checked():
         ray_knobs({"INDGEN_RAY_MAX_BATCH": "lots"})
     with pytest.raises(ConfigError, match="INDGEN_RAY_CPUS_PER_SIM"):
         ray_knobs({"INDGEN_RAY_CPUS_PER_SIM": "0"})
+    assert (
+        ray_knobs({})["INDGEN_RAY_SOCKET"] == 1
+        and ray_knobs({"INDGEN_RAY_SOCKET": "0"})["INDGEN_RAY_SOCKET"] == 0
+    )
+    for bad in ("2", "yes"):
+        with pytest.raises(ConfigError, match=f"INDGEN_RAY_SOCKET='{bad}'.*0 or 1"):
+            ray_knobs({"INDGEN_RAY_SOCKET": bad})
 
 
 def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):
@@ -203,8 +210,9 @@ def test_ray_backend_matches_local(tmp_path, ray_session):
 
 @needs_ray
 @pytest.mark.slow
-def test_ray_batched_policy_actor_matches_local(ray_session):
-    """A batched policy: one instance in the policy actor serving 2 simulator actors, equal to local."""
+def test_ray_batched_policy_actor_matches_local(ray_session, monkeypatch):
+    """A batched policy: one instance in the policy actor serving 2 simulator actors, equal to local, whether the
+    simulators call it over its node's socket (the default) or through Ray (``INDGEN_RAY_SOCKET=0``)."""
     from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.ray_backend import run_ray
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
@@ -218,3 +226,10 @@ def test_ray_batched_policy_actor_matches_local(ray_session):
     run_ray(jobs, rc, c, meta, got.append, 5, make_policy=cls, stats=stats)
     assert len(ref) == 4 and _rows(got) == _rows(ref)
     assert stats["policy_actors"] == 1 and sum(stats["batch_sizes"]) == 4 * 3  # 3 chunks per episode
+    assert stats["policy_calls"] == {
+        "socket": 4 * (1 + 3)
+    }  # a reset and 3 chunks per episode, none through Ray
+    monkeypatch.setenv("INDGEN_RAY_SOCKET", "0")
+    got, stats = [], {}
+    run_ray(jobs, rc, c, meta, got.append, 5, make_policy=cls, stats=stats)
+    assert _rows(got) == _rows(ref) and stats["policy_calls"] == {"ray": 4 * (1 + 3)}
