@@ -71,9 +71,10 @@ class Ready:
 
 
 class Gather:
-    """How long a batched round waits for the workers still stepping once the first has replied: up to half a
-    forward (running of its recent cost). A forward costs the same at 1 or W rows, so acting on the first replies
-    alone makes the rest wait a whole forward (pi0.5 on an H100: 2 forwards per cycle instead of 1)."""
+    """How long a round waits for the workers still stepping once the first has replied: up to half a forward
+    (running of its recent cost). A forward costs the same at 1 or W rows, so acting on the first replies alone makes
+    the rest wait a whole forward (pi0.5 on an H100: 2 forwards per cycle instead of 1); per-episode instances (a
+    policy server's clients) are called from threads, so one round's calls overlap only if they start together."""
 
     CAP_S = 0.5  # never hold replies longer than this
 

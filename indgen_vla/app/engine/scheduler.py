@@ -231,7 +231,9 @@ def coordinate(slots: Slots, policies: Policies, lanes: int) -> None:
     policy, one ``act`` per lane (batched policies: over every waiting environment of the lane)."""
     n, pool = slots.n, slots.pool
     ready_now = Ready(pool)
-    gather = Gather() if policies.spec.batched and n > 1 else None
+    # per-episode instances are called from threads, all at once only when their replies are there together:
+    # acting on the first alone serialises a policy server's calls (W forwards a cycle instead of 1)
+    gather = Gather() if n > 1 and (policies.spec.batched or policies.threads is not None) else None
     clock = timing.CLOCK
     try:
         while slots.active:

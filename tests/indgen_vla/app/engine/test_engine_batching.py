@@ -36,3 +36,62 @@ def test_ready_reports_only_busy_workers_with_a_reply_and_never_spins_on_idle_on
         assert ready.gather([0, 2], [2], window_s=0.0) == [2]
     finally:
         ready.close()
+
+
+class _Overlapping:
+    """Per-episode instances (``batched=False``, as a policy server's clients) whose ``act`` takes 200 ms, as a
+    server's forward would; ``overlapped`` holds the calls that ran beside another."""
+
+    lock, running, overlapped, calls = threading.Lock(), set(), set(), 0
+
+    def __init__(self):
+        import dataclasses
+
+        from tests.fixtures.feedback import feedback_policy_class
+
+        self.inner = feedback_policy_class()()
+        self.spec = dataclasses.replace(self.inner.spec, batched=False, replan_steps=1)
+
+    def reset(self, instruction, seed=None):
+        pass
+
+    def act(self, observations):
+        cls = type(self)
+        with cls.lock:
+            me = cls.calls = cls.calls + 1
+            if cls.running:  # this call and every one still running overlap
+                cls.overlapped |= cls.running | {me}
+            cls.running.add(me)
+        time.sleep(0.2)
+        with cls.lock:
+            cls.running.discard(me)
+        return self.inner.act(observations)
+
+    def close(self):
+        pass
+
+
+def test_per_episode_policies_of_two_workers_are_called_together():
+    """The local coordinator waits a moment (``Gather``) for the other worker's reply before it calls per-episode
+    instances, so their calls overlap; acting on the first reply alone serialised them (a policy server at 50 ms a
+    forward ran 2 workers at half speed: docs/results/benchmarks/speed.md)."""
+    from indgen_vla.app.engine.config import EvalConfig, plan_episodes
+    from indgen_vla.app.engine.local import LocalOptions, run_local
+    from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
+    from scenes.family import get_scene
+    from scenes.planning import scene_levels
+
+    task = list(get_scene("pick_place").tasks)[:1]
+    c = EvalConfig.from_flat(
+        policy="test:feedback", scene="pick_place", axes=("pick_y",), out="-", episodes=2
+    )
+    jobs = plan_episodes(c, task, {"pick_y": [0]}, {(task[0], "pick_y", 0): 0.0})
+    rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
+                      max_steps=8, privileged=False)  # fmt: skip
+    got = []
+    run_local(jobs, rc, _Overlapping, RunMeta("r", "test:feedback", "", "pick_place"), got.append,
+              LocalOptions(workers=2, replan_steps=1))  # fmt: skip
+    assert len(got) == 2 and all(r.status == "ok" for r in got)
+    assert _Overlapping.calls == 2 * 8
+    overlapped = len(_Overlapping.overlapped)
+    assert overlapped >= 0.75 * _Overlapping.calls, overlapped  # serialised (one call at a time): 0
