@@ -73,18 +73,25 @@ class Ready:
 class Gather:
     """How long a round waits for the workers still stepping once the first has replied: up to half a forward
     (running of its recent cost). A forward costs the same at 1 or W rows, so acting on the first replies alone makes
-    the rest wait a whole forward (pi0.5 on an H100: 2 forwards per cycle instead of 1); per-episode instances (a
-    policy server's clients) are called from threads, so one round's calls overlap only if they start together."""
+    the rest wait a whole forward (pi0.5 on an H100: 2 forwards per cycle instead of 1). Per-episode instances
+    (``per_episode``: a policy server's clients) are called from threads, so one round's calls overlap only if they
+    start together; but a cheap in-process one (the oracle) is better called alone, beside the other workers' steps
+    (gathering cost the oracle 25 % of its episodes/s on 2 workers), so they wait only for forwards of
+    ``PER_EPISODE_MIN_S`` or more."""
 
     CAP_S = 0.5  # never hold replies longer than this
+    PER_EPISODE_MIN_S = 0.005
 
-    def __init__(self) -> None:
+    def __init__(self, per_episode: bool = False) -> None:
         self.cost = 0.0
+        self.per_episode = per_episode
 
     def observe(self, seconds: float) -> None:
         self.cost = seconds if not self.cost else 0.8 * self.cost + 0.2 * seconds
 
     def window(self) -> float:
+        if self.per_episode and self.cost < self.PER_EPISODE_MIN_S:
+            return 0.0
         return min(self.CAP_S, 0.5 * self.cost)
 
 

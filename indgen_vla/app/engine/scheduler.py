@@ -233,7 +233,8 @@ def coordinate(slots: Slots, policies: Policies, lanes: int) -> None:
     ready_now = Ready(pool)
     # per-episode instances are called from threads, all at once only when their replies are there together:
     # acting on the first alone serialises a policy server's calls (W forwards a cycle instead of 1)
-    gather = Gather() if n > 1 and (policies.spec.batched or policies.threads is not None) else None
+    per_episode = not policies.spec.batched
+    gather = Gather(per_episode) if n > 1 and (not per_episode or policies.threads is not None) else None
     clock = timing.CLOCK
     try:
         while slots.active:

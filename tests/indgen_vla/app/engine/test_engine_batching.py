@@ -95,3 +95,19 @@ def test_per_episode_policies_of_two_workers_are_called_together():
     assert _Overlapping.calls == 2 * 8
     overlapped = len(_Overlapping.overlapped)
     assert overlapped >= 0.75 * _Overlapping.calls, overlapped  # serialised (one call at a time): 0
+
+
+def test_a_round_waits_half_a_forward_and_per_episode_instances_only_for_slow_ones():
+    from indgen_vla.app.engine.batching import Gather
+
+    batched, per_episode = Gather(), Gather(per_episode=True)
+    for g in (batched, per_episode):
+        assert g.window() == 0.0  # nothing measured yet
+        g.observe(0.001)
+    assert batched.window() == 0.0005 and per_episode.window() == 0.0  # the oracle: called alone, at once
+    for g in (batched, per_episode):
+        g.observe(0.051)  # running cost 0.8 * 1 ms + 0.2 * 51 ms = 11 ms
+    assert abs(batched.window() - 0.0055) < 1e-9 and abs(per_episode.window() - 0.0055) < 1e-9
+    for _ in range(50):
+        batched.observe(5.0)
+    assert batched.window() == Gather.CAP_S
