@@ -5,13 +5,15 @@ simulator has finished one episode, and one policy call's round trip through a p
 be equal. Runs take turns (local, Ray, local, Ray ...; one Ray instance, its start timed apart), so each pair sees
 the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each local run starts its own fork server
 (stopped after each run), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms`` adds a forward of that
-many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy.
+many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy;
+``--load-s`` a load of that many seconds once per run (a VLA's weights: both backends build their simulators'
+first scenes meanwhile).
 ``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy
 actor and a simulator each), all on this machine. Prints one JSON object on its last line
 (docs/results/benchmarks/speed.md).
 
     .venv/bin/python scripts/bench_ray.py [--episodes 8] [--max-steps 40] [--repeats 3] [--forward-ms 0,50]
-                                          [--calls 300] [--nodes 1,2,3]
+                                          [--calls 300] [--nodes 1,2,3] [--load-s 0]
 """
 
 from __future__ import annotations
@@ -109,10 +111,18 @@ def round_trip_ms(calls: int) -> dict:
 
 
 class SlowOracle:
-    """The oracle with a forward of ``forward_s`` seconds per call (a sleep, as a GPU's forward leaves the CPU
-    free); the same decisions, so records stay equal across backends."""
+    """The oracle with a load of ``load_s`` seconds (once per ``run``) and a forward of ``forward_s`` seconds per call
+    (sleeps, as a GPU's load and forward leave the CPU free); the same decisions, so records stay equal across
+    backends."""
 
-    def __init__(self, forward_s: float = 0.0):
+    loaded: set = set()  # the runs whose weights this process holds
+
+    def __init__(self, forward_s: float = 0.0, load_s: float = 0.0, run: str = ""):
+        if (
+            load_s and run not in SlowOracle.loaded
+        ):  # a VLA's load: once per run and process, not per instance
+            SlowOracle.loaded.add(run)
+            time.sleep(load_s)
         from scenes.tabletop.oracle import OraclePolicy
 
         self.inner, self.forward_s = OraclePolicy(), forward_s
@@ -148,27 +158,27 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     from indgen_vla.app.engine.local import LocalOptions, run_local
     from indgen_vla.app.engine.ray_backend import run_ray
 
-    make = partial(SlowOracle, forward_ms / 1000.0)
     runs: dict[str, list[dict]] = {"local": [], "ray": []}
     rows = None
-    for _ in range(args.repeats):
+    for k in range(args.repeats):
         for name in ("local", "ray"):
+            make = partial(SlowOracle, forward_ms / 1000.0, args.load_s, f"{name}-{k}")
             if name == "local":
                 r = _timed(
-                    lambda rec: run_local(
+                    lambda rec, make=make: run_local(
                         jobs, rc, make, meta, rec, LocalOptions(workers=2, replan_steps=replan)
                     )
                 )
                 forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
             else:
-                r = _timed(lambda rec: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
+                r = _timed(lambda rec, make=make: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
             got = r.pop("rows")
             assert rows is None or got == rows, "the Ray backend recorded other outcomes than the local one"
             rows = got
             r["load_1min"] = round(os.getloadavg()[0], 2)
             runs[name].append(r)
     pairs = list(zip(runs["local"], runs["ray"], strict=True))
-    return {"forward_ms": forward_ms, "local": runs["local"], "ray": runs["ray"],
+    return {"forward_ms": forward_ms, "load_s": args.load_s, "local": runs["local"], "ray": runs["ray"],
             "wall_ratio_ray_over_local": _ratio([b["wall_s"] / a["wall_s"] for a, b in pairs]),
             "steady_ratio_local_over_ray": _ratio([a["episodes_per_s"] / b["episodes_per_s"] for a, b in pairs])}  # fmt: skip
 
@@ -228,6 +238,8 @@ def main() -> None:
     ap.add_argument(
         "--nodes-forward-ms", type=float, default=50.0, help="the policy's forward in the node curve"
     )
+    ap.add_argument("--load-s", type=float, default=0.0,
+                    help="the policy's load in seconds, once per run (a sleep: a VLA's weights reaching a GPU)")  # fmt: skip
     ap.add_argument("--nodes-episodes", type=int, default=12, help="episodes of each node-curve run")
     args = ap.parse_args()
 

@@ -353,6 +353,11 @@ class _SimActor:
                 channel = None
         self.policy = _PolicyClient(policy_actor, client, spec, channel)
 
+    def prepare(self, job: EpisodeJob) -> None:
+        """Build and reset ``job``'s scene now, while the policy actor may still be loading; ``run(job)`` then starts
+        from that reset (the same state: nothing runs on this simulator between the two)."""
+        self.runner.prepare(job)
+
     def run(self, job: EpisodeJob, meta: RunMeta, replan: int, max_retries: int, patience: float):
         """``(record, files)``, or ``Interrupted`` when the policy actor died mid-episode."""
         try:
@@ -451,6 +456,7 @@ def run_ray(
         if stats is not None:
             stats["batch_sizes"] = sup.batch_sizes()
             stats["policy_calls"] = sup.policy_calls()
+            stats["scenes_prepared"] = sup.prepared
             stats["policy_actors"] = len(sup.policies)
             stats["faults"] = dict(sup.faults)
             stats["episodes_per_node"] = dict(sup.per_node)

@@ -40,6 +40,9 @@ class _Actor:
     since: float = field(default_factory=time.monotonic)
     policy: int | None = None  # a simulator: the policy actor it talks to
     job: EpisodeJob | None = None  # a simulator: the episode it runs
+    ahead: EpisodeJob | None = (
+        None  # a simulator: the episode it prepared and runs next (taken from the queue)
+    )
     clients: set[int] = field(default_factory=set)  # a policy actor: its simulators
     spec: object = None  # a policy actor: its policy's PolicySpec
     watch: object = None  # a policy actor: a call that fails when it dies (``_PolicyActor.watch``)
@@ -77,6 +80,7 @@ class Supervisor:
         )  # episode key -> simulator crashes while running it (spend attempts)
         self.faults: Counter = Counter()
         self.per_node: Counter = Counter()  # node id -> episodes its simulators finished
+        self.prepared = 0  # simulators that built their first scene on starting (``_started``)
         self.nodes: dict[str, Node] = {}
         self._ids = 0
         self._refreshed = 0.0
@@ -180,7 +184,7 @@ class Supervisor:
                 sim.policy = k
                 sim.handle.connect.remote(pol.handle, i, pol.spec)
                 pol.handle.set_clients.remote(len(pol.clients))
-            job = self.queue.take(i)
+            job, sim.ahead = sim.ahead or self.queue.take(i), None
             if job is None:
                 continue
             sim.job = job
@@ -221,6 +225,12 @@ class Supervisor:
             a.spec, a.watch = reply, a.handle.watch.remote()
         elif reply is False:  # the simulator does not see the shared run directory
             raise not_shared(self.s.files.run_dir, self._where(a.node))
+        elif (
+            ahead := self.queue.take(k)
+        ) is not None:  # its first scene is built while the policy actor loads
+            a.ahead = ahead
+            a.handle.prepare.remote(ahead)
+            self.prepared += 1
 
     def _finished(self, ref, i: int) -> None:
         sim = self.sims[i]
@@ -285,7 +295,10 @@ class Supervisor:
         if kind == "simulator":
             if a.policy in self.policies:
                 self.policies[a.policy].clients.discard(k)
-            self.queue.release(k)
+            if a.ahead is not None:  # prepared, never started: it runs elsewhere, spending no attempt
+                self.queue.put_back(k, a.ahead)
+            else:
+                self.queue.release(k)
         else:
             for i in a.clients:
                 if i in self.sims:

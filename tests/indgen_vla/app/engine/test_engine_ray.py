@@ -226,9 +226,8 @@ def test_ray_batched_policy_actor_matches_local(ray_session, monkeypatch):
     run_ray(jobs, rc, c, meta, got.append, 5, make_policy=cls, stats=stats)
     assert len(ref) == 4 and _rows(got) == _rows(ref)
     assert stats["policy_actors"] == 1 and sum(stats["batch_sizes"]) == 4 * 3  # 3 chunks per episode
-    assert stats["policy_calls"] == {
-        "socket": 4 * (1 + 3)
-    }  # a reset and 3 chunks per episode, none through Ray
+    # a reset and 3 chunks per episode, none through Ray; each simulator built its first scene as it started
+    assert stats["policy_calls"] == {"socket": 4 * (1 + 3)} and stats["scenes_prepared"] == 2
     monkeypatch.setenv("INDGEN_RAY_SOCKET", "0")
     got, stats = [], {}
     run_ray(jobs, rc, c, meta, got.append, 5, make_policy=cls, stats=stats)
