@@ -245,6 +245,7 @@ def main() -> None:
 
     import ray
 
+    from indgen_vla.app.engine.ray_cluster import LOCAL_SYSTEM_CONFIG
     from indgen_vla.app.engine.rollout import RunMeta, RunnerConfig
     from scenes.planning import scene_levels
     from scenes.tabletop.oracle import OraclePolicy
@@ -260,7 +261,13 @@ def main() -> None:
     forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
     if forwards:
         t0 = time.perf_counter()
-        ray.init(address="local", num_cpus=3, include_dashboard=False, log_to_driver=False)
+        ray.init(
+            address="local",
+            num_cpus=3,
+            include_dashboard=False,
+            log_to_driver=False,
+            _system_config=LOCAL_SYSTEM_CONFIG,
+        )  # the local instance run_ray would start
         result["ray_init_s"] = round(time.perf_counter() - t0, 2)
         try:
             result["policies"] = [paired(args, jobs, rc, cfg, meta, replan, f) for f in forwards]

@@ -160,6 +160,13 @@ def first_fit(nodes: Sequence[Node], need: Need, workers: int | None, jobs: int)
     return plan, note
 
 
+# Ray starts its workers at nice 15 (``worker_niceness``), so beside any process at the default priority (the driver,
+# a build, another job) the simulator actors starve: 2 of them took 52 s instead of 2.2 s to start on 2 cores beside
+# two busy processes (docs/results/benchmarks/speed.md). A local instance runs them at the driver's priority; a cluster
+# that is joined keeps its own setting.
+LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
+
+
 def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None = None) -> bool:
     """Join the Ray cluster this process already joined or ``RAY_ADDRESS`` names (``ray.init`` then takes no
     resource counts: the cluster has its own), else start a local Ray instance of ``local_cpus`` CPUs. True when
@@ -183,7 +190,13 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
                               "instance") from None  # fmt: skip
         return True
     start(
-        lambda: ray.init(address="local", num_cpus=local_cpus, include_dashboard=False, log_to_driver=False)
+        lambda: ray.init(
+            address="local",
+            num_cpus=local_cpus,
+            include_dashboard=False,
+            log_to_driver=False,
+            _system_config=LOCAL_SYSTEM_CONFIG,
+        )
     )
     return True
 
