@@ -7,13 +7,15 @@ the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each 
 (stopped after each run), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms`` adds a forward of that
 many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy;
 ``--load-s`` a load of that many seconds once per run (a VLA's weights: both backends build their simulators'
-first scenes meanwhile).
+first scenes meanwhile); ``--busy N`` keeps N busy-looping processes at the default priority beside the paired runs
+(a box running something else: Ray's workers used to start at nice 15 and starve).
 ``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy
 actor and a simulator each), all on this machine. Prints one JSON object on its last line
 (docs/results/benchmarks/speed.md).
 
     .venv/bin/python scripts/bench_ray.py [--episodes 8] [--max-steps 40] [--repeats 3] [--forward-ms 0,50]
-                                          [--calls 300] [--nodes 1,2,3] [--load-s 0]
+                                          [--calls 300] [--nodes 1,2,3] [--load-s 0] [--busy 0]
+                                          [--worker-niceness 0]
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import json
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -240,6 +243,9 @@ def main() -> None:
     )
     ap.add_argument("--load-s", type=float, default=0.0,
                     help="the policy's load in seconds, once per run (a sleep: a VLA's weights reaching a GPU)")  # fmt: skip
+    ap.add_argument("--busy", type=int, default=0, help="busy-looping processes beside the paired runs")
+    ap.add_argument("--worker-niceness", type=int, default=None,
+                    help="the Ray workers' niceness (default run_ray's, 0; Ray's own default is 15)")  # fmt: skip
     ap.add_argument("--nodes-episodes", type=int, default=12, help="episodes of each node-curve run")
     args = ap.parse_args()
 
@@ -260,20 +266,28 @@ def main() -> None:
               "max_steps": args.max_steps, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
     forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
     if forwards:
-        t0 = time.perf_counter()
-        ray.init(
-            address="local",
-            num_cpus=3,
-            include_dashboard=False,
-            log_to_driver=False,
-            _system_config=LOCAL_SYSTEM_CONFIG,
-        )  # the local instance run_ray would start
-        result["ray_init_s"] = round(time.perf_counter() - t0, 2)
+        busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
+        result["busy_processes"] = args.busy
         try:
+            t0 = time.perf_counter()
+            system = dict(LOCAL_SYSTEM_CONFIG)  # the local instance run_ray would start
+            if args.worker_niceness is not None:
+                system["worker_niceness"] = args.worker_niceness
+            result["worker_niceness"] = system["worker_niceness"]
+            ray.init(
+                address="local",
+                num_cpus=3,
+                include_dashboard=False,
+                log_to_driver=False,
+                _system_config=system,
+            )
+            result["ray_init_s"] = round(time.perf_counter() - t0, 2)
             result["policies"] = [paired(args, jobs, rc, cfg, meta, replan, f) for f in forwards]
             result["policy_round_trip"] = round_trip_ms(args.calls)
         finally:
             ray.shutdown()
+            for b in busy:
+                b.kill()
     if args.nodes:
         _, curve_jobs = _jobs(args.nodes_episodes)
         nodes = [int(x) for x in args.nodes.split(",")]

@@ -161,9 +161,9 @@ def first_fit(nodes: Sequence[Node], need: Need, workers: int | None, jobs: int)
 
 
 # Ray starts its workers at nice 15 (``worker_niceness``), so beside any process at the default priority (the driver,
-# a build, another job) the simulator actors starve: 2 of them took 52 s instead of 2.2 s to start on 2 cores beside
-# two busy processes (docs/results/benchmarks/speed.md). A local instance runs them at the driver's priority; a cluster
-# that is joined keeps its own setting.
+# a build, another job) the simulator actors starve: beside two busy processes on 2 cores, 8 oracle episodes took
+# 122-136 s through Ray against 6-7 s locally, 9-11 s at nice 0 (``scripts/bench_ray.py --busy 2``;
+# docs/results/benchmarks/speed.md). A local instance runs them at the driver's priority; a joined cluster keeps its own.
 LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
 
 

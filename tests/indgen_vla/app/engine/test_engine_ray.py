@@ -236,8 +236,8 @@ def test_ray_batched_policy_actor_matches_local(ray_session, monkeypatch):
 
 @needs_ray
 def test_a_local_instance_runs_its_actors_at_the_drivers_priority(monkeypatch):
-    """Ray's workers default to nice 15: beside any busy process at the default priority the simulators starved (two
-    took 52 s instead of 2.2 s to start on 2 cores). The local instance ``run_ray`` starts sets them to 0."""
+    """Ray's workers default to nice 15: beside busy processes at the default priority the simulators starved (8
+    oracle episodes took 122-136 s against 6-7 s locally on 2 cores). The local instance ``run_ray`` starts sets 0."""
     import os
 
     import ray
