@@ -4,13 +4,13 @@ simulator actors and 1 policy actor), reporting Ray's start, each run's wall tim
 simulator has finished one episode, and one policy call's round trip through a policy actor. The records of both must
 be equal. Runs take turns (local, Ray, local, Ray ...; one Ray instance, its start timed apart), so each pair sees
 the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each local run starts its own fork server
-(stopped after each run), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms`` adds a forward of that
-many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and per slow policy;
-``--load-s`` a load of that many seconds once per run (a VLA's weights: both backends build their simulators'
-first scenes meanwhile); ``--busy N`` keeps N busy-looping processes at the default priority beside the paired runs
-(a box running something else: Ray's workers used to start at nice 15 and starve).
-``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy
-actor and a simulator each), all on this machine. Prints one JSON object on its last line
+(stopped after each run) and its workers while the policy loads (``EarlyWorkers``), as an ``indgen evaluate`` does;
+Ray's actors start in each run too. ``--forward-ms`` adds a forward of that many ms to every policy call (a sleep: a
+GPU's forward leaves the CPU free), once per cheap and per slow policy; ``--load-s`` a load of that many seconds once
+per run (a VLA's weights: both backends build their simulators' first scenes meanwhile); ``--busy N`` keeps N busy-
+looping processes at the default priority beside the paired runs (a box running something else: Ray's workers used to
+start at nice 15 and starve). ``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many
+2-CPU nodes (a policy actor and a simulator each), all on this machine. Prints one JSON object on its last line
 (docs/results/benchmarks/speed.md).
 
     .venv/bin/python scripts/bench_ray.py [--episodes 8] [--max-steps 40] [--repeats 3] [--forward-ms 0,50]
@@ -158,8 +158,17 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     from functools import partial
     from multiprocessing import forkserver
 
-    from indgen_vla.app.engine.local import LocalOptions, run_local
+    from indgen_vla.app.engine.local import EarlyWorkers, Handoff, LocalOptions, run_local
     from indgen_vla.app.engine.ray_backend import run_ray
+
+    def local(rec, make) -> None:
+        """As ``indgen evaluate`` runs locally: workers start, and build their first scenes, while the policy loads
+        in this process; ``run_local`` then adopts both."""
+        early = EarlyWorkers(rc, jobs, 2)
+        loaded = [make()]
+        options = LocalOptions(workers=2, replan_steps=replan)
+        run_local(jobs, rc, lambda: loaded.pop() if loaded else make(), meta, rec, options,
+                  handoff=Handoff(early=early.take(rc)))  # fmt: skip
 
     runs: dict[str, list[dict]] = {"local": [], "ray": []}
     rows = None
@@ -167,11 +176,7 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
         for name in ("local", "ray"):
             make = partial(SlowOracle, forward_ms / 1000.0, args.load_s, f"{name}-{k}")
             if name == "local":
-                r = _timed(
-                    lambda rec, make=make: run_local(
-                        jobs, rc, make, meta, rec, LocalOptions(workers=2, replan_steps=replan)
-                    )
-                )
+                r = _timed(lambda rec, make=make: local(rec, make))
                 forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
             else:
                 r = _timed(lambda rec, make=make: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
