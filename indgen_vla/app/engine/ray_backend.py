@@ -54,7 +54,7 @@ ENV_KNOBS = {  # environment variable: (default, what it sets)
     "INDGEN_RAY_GPUS_PER_POLICY": (1.0, "GPUs per policy actor (device cuda); one actor per that many GPUs"),
     "INDGEN_RAY_MAX_BATCH": (32, "most observations in one batched act"),
     "INDGEN_RAY_BATCH_WAIT_MS": (5.0, "how long a policy actor waits to fill a batch"),
-    SOCKET_ENV: (1, "1: simulators call the policy actor on their node over a Unix socket; 0: through Ray"),
+    SOCKET_ENV: (1, "how simulators call the policy actor on their node (1: a Unix socket, 0: through Ray)"),
 }
 
 

@@ -218,6 +218,10 @@ def prepare(
     level's certification basis. Returns the plan and the lock's record (None without ``--preregistered``)."""
     if given is not None:
         check_object_run(cfg)
+    if cfg.run.backend == "ray":  # its environment knobs, before a run directory is opened
+        from indgen_vla.app.engine.ray_backend import ray_knobs  # lazy: optional ray
+
+        ray_knobs()
     plan = build_plan(cfg, family)
     plan.builder.check_ready()  # what building an env needs (LIBERO's assets), after the names and levels
     preregistered = None

@@ -257,3 +257,17 @@ def test_a_local_instance_runs_its_actors_at_the_drivers_priority(monkeypatch):
         assert ray.get(Probe.remote().niceness.remote()) == os.nice(0)
     finally:
         ray.shutdown()
+
+
+def test_a_bad_knob_is_refused_before_the_run_directory_exists(tmp_path, monkeypatch, capsys):
+    """One ``error:`` line, exit 2, and nothing written: the knobs are checked with the plan, not once Ray runs."""
+    from indgen_vla.app.cli import main
+
+    monkeypatch.setenv("INDGEN_RAY_SOCKET", "2")
+    out = tmp_path / "run"
+    argv = ["evaluate", "--policy", "standin:oracle", "--scene", "pick_place", "--axis", "pick_y", "--levels", "0:1",
+            "--episodes", "1", "--backend", "ray", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "INDGEN_RAY_SOCKET='2'" in errors[0] and "must be 0 or 1" in errors[0]
+    assert not out.exists()
