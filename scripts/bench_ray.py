@@ -121,10 +121,8 @@ class SlowOracle:
     loaded: set = set()  # the runs whose weights this process holds
 
     def __init__(self, forward_s: float = 0.0, load_s: float = 0.0, run: str = ""):
-        if (
-            load_s and run not in SlowOracle.loaded
-        ):  # a VLA's load: once per run and process, not per instance
-            SlowOracle.loaded.add(run)
+        if load_s and run not in SlowOracle.loaded:
+            SlowOracle.loaded.add(run)  # a VLA's load: once per run and process, not per instance
             time.sleep(load_s)
         from scenes.tabletop.oracle import OraclePolicy
 

@@ -159,10 +159,8 @@ class _PolicyActor:
         self._closed = threading.Event()
         self._channel: ChannelServer | None = None
         self._channel_lock = threading.Lock()
-        self._served = {
-            "socket": 0,
-            "ray": 0,
-        }  # policy calls by the road they came (benchmarks and tests read it)
+        # policy calls by the road they came (benchmarks and tests read it); calls arrive on many threads
+        self._served, self._served_lock = {"socket": 0, "ray": 0}, threading.Lock()
 
     def get_spec(self):
         return self.spec
@@ -214,7 +212,7 @@ class _PolicyActor:
             return self._instances[client]
 
     def reset(self, client: int, instruction: str, seed: int | None, road: str = "ray"):
-        with self._channel_lock:  # the count is read by benchmarks and tests; calls arrive on many threads
+        with self._served_lock:
             self._served[road] += 1
         try:
             policy = self._instance(client)
@@ -228,7 +226,7 @@ class _PolicyActor:
         return None
 
     def act(self, client: int, obs, road: str = "ray"):
-        with self._channel_lock:
+        with self._served_lock:
             self._served[road] += 1
         try:
             if self._batcher is not None:
@@ -270,16 +268,13 @@ class _PolicyClient:
     def _call(self, method: str, *args):
         import ray
 
-        if self.channel is not None:
-            try:
-                result = self.channel.call(method, self.client, *args)
-            except ChannelLost as e:
-                raise _PolicyActorLost(f"policy actor lost ({e})") from None
-            if isinstance(result, Exception):
-                raise result
-            return result
         try:
-            result = ray.get(getattr(self.actor, method).remote(self.client, *args))
+            if self.channel is not None:
+                result = self.channel.call(method, self.client, *args)
+            else:
+                result = ray.get(getattr(self.actor, method).remote(self.client, *args))
+        except ChannelLost as e:
+            raise _PolicyActorLost(f"policy actor lost ({e})") from None
         except ray.exceptions.RayActorError as e:
             raise _PolicyActorLost(f"policy actor lost ({type(e).__name__})") from None
         if isinstance(result, Exception):
@@ -350,7 +345,7 @@ class _SimActor:
             try:
                 channel = channel_connect(ray.get(policy_actor.channel.remote()), _node())
             except ray.exceptions.RayError:
-                channel = None
+                pass
         self.policy = _PolicyClient(policy_actor, client, spec, channel)
 
     def prepare(self, job: EpisodeJob) -> None:

@@ -40,9 +40,8 @@ class _Actor:
     since: float = field(default_factory=time.monotonic)
     policy: int | None = None  # a simulator: the policy actor it talks to
     job: EpisodeJob | None = None  # a simulator: the episode it runs
-    ahead: EpisodeJob | None = (
-        None  # a simulator: the episode it prepared and runs next (taken from the queue)
-    )
+    # a simulator: the episode it prepared and runs next (taken from the queue)
+    ahead: EpisodeJob | None = None
     clients: set[int] = field(default_factory=set)  # a policy actor: its simulators
     spec: object = None  # a policy actor: its policy's PolicySpec
     watch: object = None  # a policy actor: a call that fails when it dies (``_PolicyActor.watch``)
@@ -225,10 +224,8 @@ class Supervisor:
             a.spec, a.watch = reply, a.handle.watch.remote()
         elif reply is False:  # the simulator does not see the shared run directory
             raise not_shared(self.s.files.run_dir, self._where(a.node))
-        elif (
-            ahead := self.queue.take(k)
-        ) is not None:  # its first scene is built while the policy actor loads
-            a.ahead = ahead
+        elif (ahead := self.queue.take(k)) is not None:
+            a.ahead = ahead  # its first scene is built while the policy actor loads
             a.handle.prepare.remote(ahead)
             self.prepared += 1
 
