@@ -1,21 +1,21 @@
-"""Benchmark the Ray backend against the local one on this machine: the same oracle episodes of ``pick_place`` with 2
-simulators either way (local: 2 worker processes, the policy in the main process; Ray: a local Ray instance, 2
-simulator actors and 1 policy actor), reporting Ray's start, each run's wall time, the episodes per second once every
-simulator has finished one episode, and one policy call's round trip through a policy actor. The records of both must
-be equal. Runs take turns (local, Ray, local, Ray ...; one Ray instance, its start timed apart), so each pair sees
-the same load: the ratio's median and [min, max] over ``--repeats`` pairs. Each local run starts its own fork server
-(stopped after each run) and its workers while the policy loads (``EarlyWorkers``), as an ``indgen evaluate`` does;
-Ray's actors start in each run too. ``--forward-ms`` adds a forward of that many ms to every policy call (a sleep: a
-GPU's forward leaves the CPU free), once per cheap and per slow policy; ``--load-s`` a load of that many seconds once
-per run (a VLA's weights: both backends build their simulators' first scenes meanwhile); ``--busy N`` keeps N busy-
-looping processes at the default priority beside the paired runs (a box running something else: Ray's workers used to
-start at nice 15 and starve). ``--nodes 1,2,3``: the throughput curve on a ``ray.cluster_utils.Cluster`` of that many
-2-CPU nodes (a policy actor and a simulator each), all on this machine. Prints one JSON object on its last line
-(docs/results/benchmarks/speed.md).
+"""Benchmark the Ray backend against the local one on this machine: the same oracle episodes of ``pick_place`` with
+``--sims`` simulators either way (default 2; local: that many worker processes, the policy in the main process; Ray:
+a local Ray instance with one CPU more, that many simulator actors and 1 policy actor), reporting Ray's start, each
+run's wall time, the episodes per second once every simulator has finished one episode, and one policy call's round
+trip through a policy actor. The records of both must be equal. Runs take turns (local, Ray, local, Ray ...; one Ray
+instance, its start timed apart), so each pair sees the same load: the ratio's median and [min, max] over
+``--repeats`` pairs. Each local run starts its own fork server (stopped after each run) and its workers while the
+policy loads (``EarlyWorkers``), as an ``indgen evaluate`` does; Ray's actors start in each run too. ``--forward-ms``
+adds a forward of that many ms to every policy call (a sleep: a GPU's forward leaves the CPU free), once per cheap and
+per slow policy; ``--load-s`` a load of that many seconds once per run (a VLA's weights: both backends build their
+simulators' first scenes meanwhile); ``--busy N`` keeps N busy-looping processes at the default priority beside the
+paired runs (a box running something else: Ray's workers used to start at nice 15 and starve). ``--nodes 1,2,3``: the
+throughput curve on a ``ray.cluster_utils.Cluster`` of that many 2-CPU nodes (a policy actor and a simulator each),
+all on this machine. Prints one JSON object on its last line (docs/results/benchmarks/speed.md).
 
-    .venv/bin/python scripts/bench_ray.py [--episodes 8] [--max-steps 40] [--repeats 3] [--forward-ms 0,50]
-                                          [--calls 300] [--nodes 1,2,3] [--load-s 0] [--busy 0]
-                                          [--worker-niceness 0]
+    .venv/bin/python scripts/bench_ray.py [--episodes 8] [--sims 2] [--max-steps 40] [--repeats 3]
+                                          [--forward-ms 0,50] [--calls 300] [--nodes 1,2,3] [--load-s 0]
+                                          [--busy 0] [--worker-niceness 0]
 """
 
 from __future__ import annotations
@@ -39,18 +39,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 ROW = ("task", "axis", "level", "episode", "seed", "success", "steps", "status", "failure")
 
 
-def _jobs(episodes: int):
+def _jobs(episodes: int, sims: int = 2):
     import scenes
     from indgen_vla.app.engine.config import EvalConfig, plan_episodes
 
     task = list(scenes.get_scene("pick_place").tasks)[0]
     cfg = EvalConfig.from_flat(policy="standin:oracle", scene="pick_place", axes=("pick_y",), out="-",
-                               episodes=episodes, workers=2, backend="ray")  # fmt: skip
+                               episodes=episodes, workers=sims, backend="ray")  # fmt: skip
     return cfg, plan_episodes(cfg, [task], {"pick_y": [0]}, {(task, "pick_y", 0): 0.0})
 
 
-def _timed(run) -> dict:
-    """Wall time of ``run(on_record)``, and episodes/s after the first two finished (both simulators warm)."""
+def _timed(run, sims: int = 2) -> dict:
+    """Wall time of ``run(on_record)``, and episodes/s after the first ``sims`` finished (every simulator warm)."""
     stamps: list[float] = []
     records: list = []
 
@@ -61,8 +61,9 @@ def _timed(run) -> dict:
     t0 = time.perf_counter()
     run(on_record)
     wall = time.perf_counter() - t0
-    steady = (len(stamps) - 2) / (stamps[-1] - stamps[1]) if len(stamps) > 2 else float("nan")
-    return {"wall_s": round(wall, 2), "first_two_s": round(stamps[1] - t0, 2), "episodes_per_s": round(steady, 3),
+    first = stamps[min(sims, len(stamps)) - 1]
+    steady = (len(stamps) - sims) / (stamps[-1] - first) if len(stamps) > sims else float("nan")
+    return {"wall_s": round(wall, 2), "first_round_s": round(first - t0, 2), "episodes_per_s": round(steady, 3),
             "rows": sorted(tuple(getattr(r, k) for k in ROW) for r in records)}  # fmt: skip
 
 
@@ -162,9 +163,9 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
     def local(rec, make) -> None:
         """As ``indgen evaluate`` runs locally: workers start, and build their first scenes, while the policy loads
         in this process; ``run_local`` then adopts both."""
-        early = EarlyWorkers(rc, jobs, 2)
+        early = EarlyWorkers(rc, jobs, args.sims)
         loaded = [make()]
-        options = LocalOptions(workers=2, replan_steps=replan)
+        options = LocalOptions(workers=args.sims, replan_steps=replan)
         run_local(jobs, rc, lambda: loaded.pop() if loaded else make(), meta, rec, options,
                   handoff=Handoff(early=early.take(rc)))  # fmt: skip
 
@@ -174,10 +175,13 @@ def paired(args, jobs, rc, cfg, meta, replan, forward_ms: float) -> dict:
         for name in ("local", "ray"):
             make = partial(SlowOracle, forward_ms / 1000.0, args.load_s, f"{name}-{k}")
             if name == "local":
-                r = _timed(lambda rec, make=make: local(rec, make))
+                r = _timed(lambda rec, make=make: local(rec, make), args.sims)
                 forkserver._forkserver._stop()  # the next local run starts its fork server, as a CLI run does
             else:
-                r = _timed(lambda rec, make=make: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make))
+                r = _timed(
+                    lambda rec, make=make: run_ray(jobs, rc, cfg, meta, rec, replan, make_policy=make),
+                    args.sims,
+                )
             got = r.pop("rows")
             assert rows is None or got == rows, "the Ray backend recorded other outcomes than the local one"
             rows = got
@@ -213,8 +217,8 @@ def node_curve(args, jobs, rc, cfg, meta, replan, nodes: list[int], forward_ms: 
                 continue
             stats: dict = {}
             r = _timed(
-                lambda rec, s=stats: run_ray(jobs, rc, auto, meta, rec, replan, make_policy=make, stats=s)
-            )
+                lambda rec, s=stats: run_ray(jobs, rc, auto, meta, rec, replan, make_policy=make, stats=s), n
+            )  # a simulator per node
             r.pop("rows")
             out.append({"nodes": n, **r, "policy_actors": stats.get("policy_actors"),
                         "episodes_per_node": stats.get("episodes_per_node"),
@@ -232,6 +236,8 @@ def node_curve(args, jobs, rc, cfg, meta, replan, nodes: list[int], forward_ms: 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=8)
+    ap.add_argument("--sims", type=int, default=2,
+                    help="simulators either way: local worker processes, Ray simulator actors (Ray gets one CPU more)")  # fmt: skip
     ap.add_argument("--max-steps", type=int, default=40)
     ap.add_argument("--calls", type=int, default=300)
     ap.add_argument("--repeats", type=int, default=3, help="pairs (local, Ray) run in turn")
@@ -259,14 +265,16 @@ def main() -> None:
     from scenes.planning import scene_levels
     from scenes.tabletop.oracle import OraclePolicy
 
-    cfg, jobs = _jobs(args.episodes)
+    if not 1 <= args.sims <= args.episodes:
+        ap.error(f"--sims {args.sims}: give 1 to --episodes ({args.episodes}) simulators")
+    cfg, jobs = _jobs(args.episodes, args.sims)
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=args.max_steps, privileged=True)  # fmt: skip
     meta = RunMeta("bench", "standin:oracle", "", "pick_place")
     replan = OraclePolicy.spec.replan_steps
     result = {"machine": f"{platform.machine()} {os.cpu_count()} cores",
               "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "episodes": len(jobs),
-              "max_steps": args.max_steps, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
+              "max_steps": args.max_steps, "sims": args.sims, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
     forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
     if forwards:
         busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
@@ -279,7 +287,7 @@ def main() -> None:
             result["worker_niceness"] = system["worker_niceness"]
             ray.init(
                 address="local",
-                num_cpus=3,
+                num_cpus=args.sims + 1,  # the simulators and the policy actor
                 include_dashboard=False,
                 log_to_driver=False,
                 _system_config=system,

@@ -1,15 +1,17 @@
 """The wheels and GL loaders a bare GPU box needs to run ``rows.py``, packed here within the device tool's 64 MiB.
 
 The box has torch, transformers and the scientific stack but no lerobot, MuJoCo or robosuite, and no network.
-What to carry is measured, not guessed: ``trace`` runs ``rows.py --rehearsal all`` under strace and keeps every
-distribution whose files were opened and that the box lacks (``carry.txt``), and every robosuite asset file opened
-(``robosuite_assets.txt``: 0.3 % of robosuite's 590 MB). ``pack`` downloads those wheels at this venv's versions,
+What to carry is measured, not guessed: ``trace`` runs ``rows.py --rehearsal kit`` (every row but Ray's, which a
+second call carries) under strace and keeps every distribution whose files were opened and that the box lacks
+(``carry.txt``), and every robosuite asset file opened (``robosuite_assets.txt``: 0.3 % of robosuite's 590 MB). ``pack`` downloads those wheels at this venv's versions,
 drops robosuite's unopened assets, and writes ``.whl/kit.tar.xz`` (stored zips, one xz stream) and ``.gl/*.deb``::
 
     .venv/bin/python scripts/gpu/kit.py pack          # then: device run "python3 scripts/gpu/rows.py a",
                                                       #       carry [".whl", ".gl"]
     .venv/bin/python scripts/gpu/kit.py trace         # after a dependency or scene change (needs strace)
     .venv/bin/python scripts/gpu/kit.py check         # declared requirements left behind (never opened here)
+    .venv/bin/python scripts/gpu/kit.py pack-ray      # .ray/ray.tar.xz: Ray for a second call, the same lease:
+                                                      #   device run "python3 scripts/gpu/rows.py ray16", carry [".ray"]
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import sys
 import tarfile
 import tempfile
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,6 +37,10 @@ ROBOSUITE_ASSETS = HERE / "robosuite_assets.txt"
 LIMIT = 64 * 2**20  # what the device tool carries per call, the repository included
 PLATFORMS = ["manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64", "manylinux_2_17_x86_64",
              "manylinux2014_x86_64", "manylinux1_x86_64", "linux_x86_64"]  # fmt: skip
+# Never loaded by a local Ray instance, its actors and ray.cluster_utils (checked by running the ray16 rows on it):
+# the Java jars (31 of Ray's 76 MiB), the dashboard's web page, and the libraries on top of Ray core.
+RAY_DROP = ("ray/jars/", "ray/dashboard/client/", "ray/rllib/", "ray/data/", "ray/serve/", "ray/tune/",
+            "ray/train/", "ray/llm/")  # fmt: skip
 GL_DEBS = ["libvulkan1", "libegl1", "libglvnd0", "libopengl0", "libgl1", "libglx0", "libgles2"]
 
 # The device image's packages as listed in the device tool's KINDS.md (read 2026-11-17).
@@ -107,7 +114,7 @@ def trace(out_dir: Path) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "strace.log"  # about 100 MB
         argv = ["strace", "-f", "-qq", "-e", "trace=open,openat", "-o", str(log), sys.executable,
-                str(HERE / "rows.py"), "--rehearsal", "all", "--out", str(Path(tmp) / "out")]  # fmt: skip
+                str(HERE / "rows.py"), "--rehearsal", "kit", "--out", str(Path(tmp) / "out")]  # fmt: skip
         subprocess.run(argv, check=True, cwd=ROOT)
         rows = [json.loads(x) for x in (Path(tmp) / "out" / "rows.jsonl").read_text().splitlines()]
         if failed := [r["row"] for r in rows if r.get("rc", 0) != 0 or r.get("skipped")]:
@@ -129,14 +136,12 @@ def trace(out_dir: Path) -> dict:
     return {"carry": len(carry), "robosuite_assets": len(assets)}
 
 
-def trim_wheel(src: Path, dst: Path, keep: set[str], prefix: str) -> int:
-    """Copy ``src`` without the members under ``prefix`` that are not in ``keep``, uncompressed (one xz over the
-    tar compresses better), RECORD rewritten to match; returns the number of members dropped."""
+def trim_wheel(src: Path, dst: Path, drop: Callable[[str], bool]) -> int:
+    """Copy ``src`` without the members ``drop`` names, uncompressed (one xz over the tar compresses better),
+    RECORD rewritten to match; returns the number of members dropped."""
     dropped = 0
     with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_STORED) as zout:
-        names = [
-            n for n in zin.namelist() if not (n.startswith(prefix) and n not in keep and not n.endswith("/"))
-        ]
+        names = [n for n in zin.namelist() if n.endswith("/") or not drop(n)]
         dropped = len(zin.namelist()) - len(names)
         kept = set(names)
         for name in names:
@@ -164,7 +169,11 @@ def fetch_wheel(name: str, version: str, dest: Path) -> Path:
 def pack(whl_dir: Path, gl_dir: Path | None) -> dict:
     """Download and trim the carried wheels into ``whl_dir/kit.tar.xz``; the GL loader debs into ``gl_dir``."""
     names = CARRY.read_text().split()
-    keep = {f"{a}" for a in ROBOSUITE_ASSETS.read_text().split()}
+    keep = set(ROBOSUITE_ASSETS.read_text().split())
+
+    def unopened(member: str) -> bool:  # robosuite's asset files the rehearsal never opened
+        return member.startswith("robosuite/models/assets/") and member not in keep
+
     whl_dir.mkdir(exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         raw, stored = Path(tmp) / "raw", Path(tmp) / "stored"
@@ -172,24 +181,64 @@ def pack(whl_dir: Path, gl_dir: Path | None) -> dict:
         stored.mkdir()
         for name in names:
             w = fetch_wheel(name, md.version(name), raw)
-            prefix = "robosuite/models/assets/" if name == "robosuite" else "\0"
-            trim_wheel(w, stored / w.name, keep, prefix)
-        buf = io.BytesIO()
-        with tarfile.open(fileobj=buf, mode="w:xz", preset=9) as tar:
-            for w in sorted(stored.iterdir()):
-                tar.add(w, arcname=w.name)
-    (whl_dir / "kit.tar.xz").write_bytes(buf.getvalue())
-    res = {"wheels": len(names), "kit_mib": round(len(buf.getvalue()) / 2**20, 1)}
+            trim_wheel(w, stored / w.name, unopened if name == "robosuite" else lambda n: False)
+        data = _tar_xz(stored)
+    (whl_dir / "kit.tar.xz").write_bytes(data)
+    res = {"wheels": len(names), "kit_mib": round(len(data) / 2**20, 1)}
     if gl_dir is not None:
         res["gl_debs"] = download_gl(gl_dir)
+    return res | _carried(len(data) + sum(p.stat().st_size for p in (gl_dir or whl_dir).glob("*.deb")))
+
+
+def _tar_xz(folder: Path) -> bytes:
+    """The wheels in ``folder`` as one xz-compressed tar (what ``rows.py`` unpacks on the box)."""
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w:xz", preset=9) as tar:
+        for w in sorted(folder.iterdir()):
+            tar.add(w, arcname=w.name)
+    return buf.getvalue()
+
+
+def _carried(kit_bytes: int) -> dict:
+    """What one device call carries (the kit and the checkout), refused over the device tool's limit."""
     tracked = sum(p.stat().st_size for p in map(ROOT.joinpath, _git_files()) if p.is_file())
-    total = len(buf.getvalue()) + tracked + sum(p.stat().st_size for p in (gl_dir or whl_dir).glob("*.deb"))
-    res["carried_mib"] = round(total / 2**20, 1)
+    total = kit_bytes + tracked
     if total > LIMIT:
         raise SystemExit(
             f"error: the kit and the checkout are {total / 2**20:.1f} MiB, over the device tool's 64"
         )
-    return res
+    return {"carried_mib": round(total / 2**20, 1)}
+
+
+def ray_carry() -> list[str]:
+    """Ray and what it requires, transitively, that the box lacks (jsonschema and its kin), at this venv's versions."""
+    todo, found = ["ray"], []
+    while todo:
+        name = todo.pop()
+        if name in found:
+            continue
+        found.append(name)
+        todo += [r for r in _requires(md.requires(name) or []) if r not in BOX]
+    return sorted(found)
+
+
+def pack_ray(ray_dir: Path) -> dict:
+    """Ray for the second device call (its wheel alone is 76 MiB): ``ray_dir/ray.tar.xz`` without what a local
+    instance and its actors never load (``RAY_DROP``), with its missing requirements."""
+    ray_dir.mkdir(exist_ok=True)
+    names = ray_carry()
+    with tempfile.TemporaryDirectory() as tmp:
+        raw, stored = Path(tmp) / "raw", Path(tmp) / "stored"
+        raw.mkdir()
+        stored.mkdir()
+        dropped = 0
+        for name in names:
+            w = fetch_wheel(name, md.version(name), raw)
+            dropped += trim_wheel(w, stored / w.name, lambda n: n.startswith(RAY_DROP))
+        data = _tar_xz(stored)
+    (ray_dir / "ray.tar.xz").write_bytes(data)
+    res = {"wheels": names, "dropped_files": dropped, "ray_kit_mib": round(len(data) / 2**20, 1)}
+    return res | _carried(len(data))
 
 
 def download_gl(gl_dir: Path) -> int:
@@ -212,12 +261,17 @@ def _git_files() -> list[str]:
 
 def requires(whl: Path) -> list[str]:
     """The names a wheel requires outside extras, for Python 3.12 on Linux."""
-    from packaging.requirements import Requirement
-
     with zipfile.ZipFile(whl) as z:
         meta = next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))
         head = "Requires-Dist: "
-        reqs = [Requirement(x[len(head) :]) for x in z.read(meta).decode().splitlines() if x.startswith(head)]
+        return _requires([x[len(head) :] for x in z.read(meta).decode().splitlines() if x.startswith(head)])
+
+
+def _requires(lines: list[str]) -> list[str]:
+    """The names in Requires-Dist lines that apply outside extras, for Python 3.12 on Linux."""
+    from packaging.requirements import Requirement
+
+    reqs = map(Requirement, lines)
     env = {"python_version": "3.12", "sys_platform": "linux", "platform_system": "Linux", "extra": ""}
     return sorted({norm(r.name) for r in reqs if r.marker is None or r.marker.evaluate(env)})
 
@@ -238,6 +292,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("trace", help="re-measure carry.txt and robosuite_assets.txt (needs strace)")
     p = sub.add_parser("pack", help="fill .whl/kit.tar.xz and .gl/")
     p.add_argument("--no-gl", action="store_true", help="skip the GL loader debs")
+    sub.add_parser("pack-ray", help="fill .ray/ray.tar.xz (the second call's Ray, for the ray16 rows)")
     sub.add_parser(
         "check", help="requirements the carried wheels declare that are neither carried nor on the box"
     )
@@ -246,6 +301,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(trace(HERE)))
     elif a.cmd == "pack":
         print(json.dumps(pack(ROOT / ".whl", None if a.no_gl else ROOT / ".gl")))
+    elif a.cmd == "pack-ray":
+        print(json.dumps(pack_ray(ROOT / ".ray")))
     else:  # information for whoever reads an ImportError from the box: declared, but never opened here
         for whl, req in check(ROOT / ".whl" / "kit.tar.xz"):
             print(f"{whl}: declares {req}; not carried (the rehearsal never opened it) and not on the box")

@@ -10,6 +10,9 @@ first, which fills the git-ignored ``.whl/`` and ``.gl/``)::
                                                  # compiled and eager in the engine (b0: 2026-11-26's call b)
     python3 scripts/gpu/rows.py i56 --budget 500 # issue 56 in one call: 1,000 episodes at 8 and 16 workers,
                                                  # 3 pairs vs lerobot-eval, pi0.5 eager vs compiled (GPU busy %)
+    python3 scripts/gpu/rows.py ray16 --budget 200  # right after a call that installed the kit (the warm box keeps
+                                                    # .venv), carry [".ray"] (``kit.py pack-ray``): Ray / local
+                                                    # with 15 simulators, both policies, 3 pairs
 
 Rows run in the order given and each gets the smaller of its cap and what ``--budget`` leaves (a row that would
 start with under 20 s is skipped and says so), so the most wanted rows come first in each group; docs/benchmarks.md
@@ -40,6 +43,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 VENV_PY = ROOT / ".venv" / "bin" / "python"
 KIT = ROOT / ".whl" / "kit.tar.xz"
+RAY_KIT = ROOT / ".ray" / "ray.tar.xz"  # Ray does not fit beside the kit in one call's 64 MiB
 LOG_TAIL = 80  # lines of each row's output kept in log.txt
 NVIDIA_VENDOR_FILES = {
     "__EGL_VENDOR_LIBRARY_FILENAMES": "/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json",
@@ -95,6 +99,9 @@ SIZES = {
     "pi05_model16": ("--precision bf16 --batches 16 --seconds 3", "--batches 2 --seconds 0.2"),
     "pi05_compile16": ("--precision bf16 --compile reduce-overhead --batches 16 --seconds 3",
                        "--batches 2 --seconds 0.2"),
+    # issue 56's 16-core Ray row: as many simulators as the scaling rows' 15 workers, 4 episodes each
+    "ray_vs_local": ("--sims 15 --episodes 60 --max-steps 40 --repeats 3 --forward-ms 0,50 --calls 300",
+                     "--sims 2 --episodes 3 --max-steps 8 --repeats 1 --forward-ms 0,50 --calls 20"),
 }  # fmt: skip
 
 
@@ -185,6 +192,8 @@ ROWS = {
             "pi0.5 alone, eager, batch 16: forward ms and GPU busy % (the compiled row's baseline)"),
         Row("pi05_compile16", 200, lambda c: _pi05(c, "model", "pi05_compile16"),
             "pi0.5 alone, --compile reduce-overhead, batch 16: forward ms and GPU busy %, first_call_s the compile"),
+        Row("ray_vs_local", 190, lambda c: [c.python, "scripts/bench_ray.py", *_sizes(c, "ray_vs_local")],
+            "Ray / local wall time with 15 simulators, cheap and 50 ms policies, 3 pairs (goal <= 1.10); a call's ms"),
     ]
 }  # fmt: skip
 GROUPS = {
@@ -202,8 +211,10 @@ GROUPS = {
     # issue 56 in one call of < 10 minutes (--budget 500): the engine at scale, the paired comparison with a CI,
     # pi0.5 compiled against eager with GPU busy %
     "i56": ["env", "scaling_1k", "vs_lerobot_paired", "pi05_build", "pi05_model16", "pi05_compile16"],
+    "ray16": ["ray_vs_local"],  # a second call: carries .ray only, runs in the .venv the first call made
     "all": list(ROWS),
 }
+GROUPS["kit"] = [r for r in ROWS if r not in GROUPS["ray16"]]  # what kit.py trace measures the GPU kit on
 
 
 def last_json(text: str) -> dict | None:
@@ -226,6 +237,9 @@ def install_kit(venv: Path, kit: Path, log: Path) -> dict:
     behind the new venv's, so carried versions win and torch stays the box's."""
     if (venv / ".kit").exists():
         return {"venv": "installed earlier"}
+    if not kit.is_file():
+        raise OSError(f"{kit} missing: carry .whl (kit.py pack), or run this group right after a call that did, "
+                      f"while the box is warm (it keeps .venv)")  # fmt: skip
     t0 = time.perf_counter()
     _checked([sys.executable, "-m", "venv", "--without-pip", str(venv)], log)
     py = venv / "bin" / "python"
@@ -235,13 +249,41 @@ def install_kit(venv: Path, kit: Path, log: Path) -> dict:
     (Path(new_site) / "_box_site.pth").write_text(
         "".join(f"import site; site.addsitedir({p!r})\n" for p in parents)
     )
-    pip = [str(py), "-m", "pip", "install", "-q", "--no-index", "--no-deps", "--no-compile"]
-    with tempfile.TemporaryDirectory() as tmp:
-        _checked(["tar", "-xJf", str(kit), "-C", tmp], log)
-        _checked([*pip, *sorted(str(p) for p in Path(tmp).glob("*.whl"))], log)
-    _checked([*pip, "--no-build-isolation", "-e", str(ROOT)], log)
+    _install_wheels(py, kit, log)
+    _checked([*_pip(py), "--no-build-isolation", "-e", str(ROOT)], log)
     (venv / ".kit").touch()
     return {"venv": "created", "install_s": round(time.perf_counter() - t0, 1)}
+
+
+def _pip(py: Path) -> list[str]:
+    """Install into the new venv even what the box's site already has at that version (pip would skip it)."""
+    return [
+        str(py),
+        "-m",
+        "pip",
+        "install",
+        "-q",
+        "--no-index",
+        "--no-deps",
+        "--no-compile",
+        "--ignore-installed",
+    ]
+
+
+def _install_wheels(py: Path, kit: Path, log: Path) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        _checked(["tar", "-xJf", str(kit), "-C", tmp], log)
+        _checked([*_pip(py), *sorted(str(p) for p in Path(tmp).glob("*.whl"))], log)
+
+
+def install_ray(venv: Path, kit: Path, log: Path) -> dict:
+    """Ray's kit (``kit.py pack-ray``) over the venv ``install_kit`` made, once."""
+    if (venv / ".ray").exists():
+        return {"ray": "installed earlier"}
+    t0 = time.perf_counter()
+    _install_wheels(venv / "bin" / "python", kit, log)
+    (venv / ".ray").touch()
+    return {"ray": "installed", "ray_install_s": round(time.perf_counter() - t0, 1)}
 
 
 def unpack_gl() -> int:
@@ -326,6 +368,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not a.rehearsal:  # here the project's own .venv runs the rows; never unpack packages over /
             head |= {"gl_debs": unpack_gl(), **install_kit(ROOT / ".venv", KIT, out / "log.txt")}
+            if RAY_KIT.is_file():
+                head |= install_ray(ROOT / ".venv", RAY_KIT, out / "log.txt")
     except (subprocess.CalledProcessError, OSError) as e:
         _write(out, head | {"error": f"set-up failed: {e}; see log.txt"})
         return 1

@@ -101,6 +101,57 @@ def test_issue_56_call_measures_what_it_promises_within_its_budget(tmp_path):
     assert rehearsal.count("--repeats") == 1 and "--max-steps" in rehearsal
 
 
+def test_ray16_call_measures_the_16_core_ray_row_within_its_budget(tmp_path):
+    # issue 56: Ray / local at the same number of simulators on the box's 16 cores, both policies, n >= 3 pairs,
+    # in a second call of its own (Ray's wheel does not fit beside the kit in one call's 64 MiB)
+    argv = rows.ROWS["ray_vs_local"].argv(rows.Ctx("python3", "cuda", False, tmp_path, {}))
+    opt = {k: argv[argv.index(k) + 1] for k in ("--sims", "--episodes", "--repeats", "--forward-ms")}
+    assert argv[1] == "scripts/bench_ray.py" and opt["--forward-ms"] == "0,50" and int(opt["--repeats"]) >= 3
+    assert int(opt["--sims"]) == 15 and int(opt["--episodes"]) >= 4 * 15  # the scaling rows' 15 workers
+    assert rows.GROUPS["ray16"] == ["ray_vs_local"] and rows.ROWS["ray_vs_local"].cap_s <= 200 - 10
+    assert "ray_vs_local" not in rows.GROUPS["kit"] and {*rows.GROUPS["kit"], "ray_vs_local"} == set(
+        rows.ROWS
+    )
+
+
+def test_a_second_call_on_a_fresh_box_says_what_to_carry(tmp_path):
+    with pytest.raises(OSError, match=r"kit.tar.xz missing: carry .whl .* while the box is warm"):
+        rows.install_kit(tmp_path / "venv", tmp_path / ".whl" / "kit.tar.xz", tmp_path / "log.txt")
+    assert not (tmp_path / "venv").exists()
+
+
+def test_ray_kit_carries_ray_and_what_the_box_lacks_of_its_requirements():
+    names = kit.ray_carry()
+    assert names == ["jsonschema", "jsonschema-specifications", "ray", "referencing", "rpds-py"]
+    assert not set(names) & kit.BOX and all(md.version(n) for n in names)
+
+
+@pytest.mark.slow  # ~2.5 min: Ray's wheel from the package registry, packed (xz), installed, and the ray16 row run
+def test_packed_ray_fits_one_call_and_runs_the_ray16_row(tmp_path):
+    import tarfile
+
+    res = kit.pack_ray(tmp_path / ".ray")
+    assert res["carried_mib"] <= 64 and res["dropped_files"] > 1000, res
+    tiny = _wheel(tmp_path / "tinypkg-1.0-py3-none-any.whl", {"tinypkg/__init__.py": b""})
+    with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
+        tar.add(tiny, arcname=tiny.name)
+    venv = tmp_path / "venv"  # what the first call leaves on the box, over this venv (which has Ray) here
+    rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt")
+    assert (
+        rows.install_ray(venv, tmp_path / ".ray" / "ray.tar.xz", tmp_path / "log.txt")["ray"] == "installed"
+    )
+    py = str(venv / "bin" / "python")
+    code = "import os, ray; d = os.path.dirname(ray.__file__); print(d, os.path.isdir(d + '/jars'))"
+    where, jars = subprocess.run([py, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert where.startswith(str(venv)) and jars == "False"  # the trimmed copy, not this venv's
+    proc = subprocess.run([py, "scripts/gpu/rows.py", "--rehearsal", "ray16", "--out", str(tmp_path / "out")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)  # fmt: skip
+    recs = [json.loads(x) for x in (tmp_path / "out" / "rows.jsonl").read_text().splitlines()]
+    assert proc.returncode == 0 and recs[-1]["rc"] == 0, (tmp_path / "out" / "log.txt").read_text()[-3000:]
+    result = recs[-1]["result"]
+    assert [p["forward_ms"] for p in result["policies"]] == [0.0, 50.0] and result["sims"] == 2
+
+
 def test_unknown_row_is_one_line_and_exit_2(tmp_path, capsys):
     assert rows.main(["scalling", "--rehearsal", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -161,7 +212,7 @@ def test_trim_wheel_drops_unopened_assets_and_pip_installs_the_rest(tmp_path):
     out.mkdir()
     dst = out / src.name
     keep = {"robosim/models/assets/a.stl"}
-    assert kit.trim_wheel(src, dst, keep, "robosim/models/assets/") == 2
+    assert kit.trim_wheel(src, dst, lambda n: n.startswith("robosim/models/assets/") and n not in keep) == 2
     with zipfile.ZipFile(dst) as z:
         names = set(z.namelist())
         record = z.read("robosim-1.0.dist-info/RECORD").decode()
