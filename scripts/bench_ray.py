@@ -272,7 +272,7 @@ def main() -> None:
                       max_steps=args.max_steps, privileged=True)  # fmt: skip
     meta = RunMeta("bench", "standin:oracle", "", "pick_place")
     replan = OraclePolicy.spec.replan_steps
-    result = {"machine": f"{platform.machine()} {os.cpu_count()} cores",
+    result = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "ray": ray.__version__,
               "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "episodes": len(jobs),
               "max_steps": args.max_steps, "sims": args.sims, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
     forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
