@@ -15,9 +15,8 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     add_passthrough(sp, "demos", "record demonstrations (T0, or levels of one axis) as a LeRobotDataset")
 
 
-def main(args: argparse.Namespace) -> int:
-    """The handler: its own parser over ``args.rest``, then the library call."""
-    from indgen_vla.app.api import demos  # lazy: start-up
+def build_parser() -> argparse.ArgumentParser:
+    """``indgen demos``'s own parser: ``DemosConfig``'s fields as flags."""
     from indgen_vla.app.regimes.demos import FLAGS, DemosConfig  # lazy: start-up
 
     p = IndgenParser(
@@ -26,7 +25,15 @@ def main(args: argparse.Namespace) -> int:
         "rerunning the same command resumes an interrupted recording",
     )
     add_flags(p, DemosConfig, FLAGS)
-    cfg = from_args(DemosConfig, p.parse_args(args.rest), command="demos")
+    return p
+
+
+def main(args: argparse.Namespace) -> int:
+    """The handler: its own parser over ``args.rest``, then the library call."""
+    from indgen_vla.app.api import demos  # lazy: start-up
+    from indgen_vla.app.regimes.demos import DemosConfig  # lazy: start-up
+
+    cfg = from_args(DemosConfig, build_parser().parse_args(args.rest), command="demos")
     quiet_datasets()
     from rich.console import Console  # lazy: start-up
 

@@ -17,17 +17,24 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     )
 
 
-def main(args: argparse.Namespace) -> int:
-    """The handler: its own parser over ``args.rest``, then the library call."""
-    from indgen_vla.app.api import mimicgen  # lazy: start-up
-    from indgen_vla.app.regimes.mimicgen import FLAGS, STATS_FILE, MimicGenConfig  # lazy: start-up
+def build_parser() -> argparse.ArgumentParser:
+    """``indgen mimicgen``'s own parser: ``MimicGenConfig``'s fields as flags."""
+    from indgen_vla.app.regimes.mimicgen import FLAGS, MimicGenConfig  # lazy: start-up
 
     p = IndgenParser(
         prog="indgen mimicgen",
         description="MimicGen-style augmentation of `indgen demos` demonstrations, level by level (LeRobotDataset)",
     )
     add_flags(p, MimicGenConfig, FLAGS)
-    cfg = from_args(MimicGenConfig, p.parse_args(args.rest), command="mimicgen")
+    return p
+
+
+def main(args: argparse.Namespace) -> int:
+    """The handler: its own parser over ``args.rest``, then the library call."""
+    from indgen_vla.app.api import mimicgen  # lazy: start-up
+    from indgen_vla.app.regimes.mimicgen import STATS_FILE, MimicGenConfig  # lazy: start-up
+
+    cfg = from_args(MimicGenConfig, build_parser().parse_args(args.rest), command="mimicgen")
     quiet_datasets()
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn

@@ -7,7 +7,7 @@ import argparse
 import shlex
 from pathlib import Path
 
-from indgen_vla.app.cli import build_parser
+from indgen_vla.app.cli import build_parser as indgen_parser
 from indgen_vla.app.cli.options import IndgenParser, add_passthrough
 from indgen_vla.app.config_fields import add_flags, from_args
 from indgen_vla.app.engine.config import EvalConfig, config_from_args
@@ -20,6 +20,16 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     add_passthrough(sp, "train", "train a small LeRobot policy (ACT/Diffusion) on one or more datasets")
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """``indgen train``'s own parser: DATASETS, then ``TrainConfig``'s fields and --eval."""
+    p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
+    p.add_argument(
+        "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
+    )
+    add_eval_options(p)
+    return p
+
+
 def main(args: argparse.Namespace) -> int:
     """The handler: its own parser over ``args.rest``, then the library call."""
     import json
@@ -27,12 +37,7 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.app.api import train  # lazy: start-up
     from indgen_vla.app.regimes.train import INFO_FILE, TrainConfig, eval_root  # lazy: start-up
 
-    p = IndgenParser(prog="indgen train", description="train a small lerobot policy on indgen datasets")
-    p.add_argument(
-        "datasets", nargs="+", help="LeRobotDataset root directories (e.g. human and MimicGen demos)"
-    )
-    add_eval_options(p)
-    a = p.parse_args(getattr(args, "rest", args))
+    a = build_parser().parse_args(getattr(args, "rest", args))
     evaluation = None
     if a.eval is not None:
         evaluation = eval_config(a.eval, eval_root(a.out, a.eval_out))
@@ -77,7 +82,7 @@ def eval_config(flags: str, out: Path) -> EvalConfig:
         raise ConfigError(f"--eval {bad[0]}: the trained policy and the run directories are set per step (local "
                           "backend); leave it out")  # fmt: skip
     try:
-        ns = build_parser().parse_args(["evaluate", *words])
+        ns = indgen_parser().parse_args(["evaluate", *words])
     except SystemExit:
         raise ConfigError(
             f"--eval {flags!r}: not valid evaluate flags (see 'indgen evaluate --help')"
