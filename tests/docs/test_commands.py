@@ -1,6 +1,7 @@
 """Every ``indgen`` command the docs show in a code block parses with today's CLI (the passthrough commands with their
 own parsers), so a reader who copies one gets a run, not a usage error. Blocks labelled ``text`` hold synopses
-(``[--flag]``, ``a | b``) and are skipped; ``...`` stands for flags left out."""
+(``[--flag]``, ``a | b``) and are skipped; ``...`` stands for flags left out. Every ``scripts/`` command they quote
+(benchmarks, studies) names a script and flags that exist."""
 
 from __future__ import annotations
 
@@ -93,3 +94,50 @@ indgen evaluate --policy SPEC [--episodes 50]
     errors = [parse_error(a) for a in found]
     assert "unrecognized arguments: --episdoes 5" in errors[0]
     assert "required: --n" in errors[1] and errors[2] is None
+
+
+UPSTREAM_SCRIPTS = {
+    "serve_policy.py",
+    "deploy.py",
+    "run_eval.py",
+    "lerobot_train.py",
+}  # openpi's, GR00T's, lerobot's
+
+
+def script_problems(markdown: str) -> list[str]:
+    """Each of our ``scripts/NAME.py`` the page quotes that does not exist, and each ``--flag`` quoted after one that
+    is not a literal in the script or its ``scripts/_*.py`` helpers (upstream scripts of those names and
+    ``tests/scripts/`` paths left out)."""
+    helpers = "".join(h.read_text() for h in (ROOT / "scripts").glob("_*.py"))
+    pat = r"(?<![\w/])(?<!tests/)scripts/([\w/]+\.py)((?:[ \t]+(?:\\\n\s*)?(?!scripts/)[^\s`|;]+)*)"
+    bad = []
+    for name, tail in re.findall(pat, markdown):
+        script = ROOT / "scripts" / name
+        if Path(name).name in UPSTREAM_SCRIPTS:
+            continue
+        if not script.is_file():
+            bad.append(f"scripts/{name}: no such script")
+            continue
+        source = script.read_text() + helpers
+        for flag in re.findall(r"(?<![\w-])(--[a-z][\w-]*)", tail):
+            if not any(f"{q}{flag}{q}" in source for q in "\"'"):
+                bad.append(f"scripts/{name} {flag}: no such flag")
+    return list(dict.fromkeys(bad))
+
+
+@pytest.mark.parametrize(
+    "page", [*PAGES, *sorted((ROOT / "docs" / "results").rglob("*.md"))], ids=lambda p: p.name
+)
+def test_every_script_and_flag_the_docs_quote_exists(page):
+    """A benchmark re-run as written finds its script and its flags."""
+    bad = script_problems(page.read_text())
+    assert not bad, "\n".join(bad)
+
+
+def test_the_script_check_sees_a_renamed_script_and_flag():
+    page = ("re-run `scripts/bench_ray.py --sims 2 --simz 3`, `scripts/bench_rey.py`; `tests/scripts/test_gpu_kit.py`, "
+            "openpi's `scripts/serve_policy.py --env LIBERO`")  # fmt: skip
+    assert script_problems(page) == [
+        "scripts/bench_ray.py --simz: no such flag",
+        "scripts/bench_rey.py: no such script",
+    ]
