@@ -159,8 +159,15 @@ class LeRobotPolicy:
                     f"policy {self._name}: no checkpoint directory {path!r} (nor a Hub id {path!r}"
                     f"{' in the local cache' if _offline() else ''}); did you mean '{near}'?"
                 ) from None
-            hint = " (HF_HUB_OFFLINE is set and it is not in the local cache)" if _offline() else ""
-            raise self._fail("the policy config" + hint, e) from None
+            from huggingface_hub.errors import LocalEntryNotFoundError  # lazy: only on this error
+
+            if _offline() and isinstance(e, LocalEntryNotFoundError):  # the Hub's own text adds nothing here
+                fetch = f"hf download {path}" + (f" --revision {rev}" if rev else "")
+                raise PolicyError(
+                    f"policy {self._name}: {path!r} is not in the local cache and HF_HUB_OFFLINE is set; fetch "
+                    f"it once online ({fetch}) or pass a local pretrained_model directory"
+                ) from None
+            raise self._fail("the policy config", e) from None
         cfg.device = self.config.device
         overrides: dict = {"device_processor": {"device": self.config.device}}
         if self.config.vlm:
