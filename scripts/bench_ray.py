@@ -293,7 +293,10 @@ def main() -> None:
                 _system_config=system,
             )
             result["ray_init_s"] = round(time.perf_counter() - t0, 2)
-            result["policies"] = [paired(args, jobs, rc, cfg, meta, replan, f) for f in forwards]
+            result["policies"] = []
+            for f in forwards:  # each policy's pairs as they finish: a run cut short keeps the ones before it
+                result["policies"].append(paired(args, jobs, rc, cfg, meta, replan, f))
+                print(json.dumps({**result, "partial": True}), flush=True)
             result["policy_round_trip"] = round_trip_ms(args.calls)
         finally:
             ray.shutdown()

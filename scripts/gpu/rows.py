@@ -326,6 +326,8 @@ def run_row(row: Row, ctx: Ctx, budget_end: float, out: Path) -> dict:
         "cmd": shlex.join(argv),
     }
     rec["result"] = last_json(text) if rc == 0 else None
+    if rc == "timeout" and (part := last_json(text)) is not None:  # what a bench printed before its cap: kept
+        rec["partial"] = part
     tail = "\n".join(text.splitlines()[-LOG_TAIL:])
     with (out / "log.txt").open("a") as f:
         f.write(f"== {row.name} rc={rc} {rec['wall_s']} s\n$ {rec['cmd']}\n{tail}\n")

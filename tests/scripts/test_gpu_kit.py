@@ -58,9 +58,15 @@ def test_run_row_fails_skips_and_times_out(tmp_path, monkeypatch):
     over = rows.run_row(failing, _ctx(tmp_path), rows.time.monotonic() + 25, tmp_path)
     assert over["skipped"].startswith("budget") and "rc" not in over
     monkeypatch.setattr(rows, "MIN_ROW_S", 1)
-    slow = rows.Row("s", 2, lambda c: [c.python, "-c", "import time; time.sleep(30)"], "")
+    code = 'import time; print(\'{"pairs": 1, "partial": true}\', flush=True); time.sleep(30)'
+    slow = rows.Row("s", 2, lambda c: [c.python, "-c", code], "")
     rec = rows.run_row(slow, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)
     assert rec["rc"] == "timeout" and rec["timeout_s"] == 2 and rec["wall_s"] < 10
+    assert rec["result"] is None and rec["partial"] == {
+        "pairs": 1,
+        "partial": True,
+    }  # what it measured in time
+    assert "partial" not in rows.run_row(failing, _ctx(tmp_path), rows.time.monotonic() + 100, tmp_path)
 
 
 def test_pi05_rows_take_the_built_spec_and_wait_for_it(tmp_path):
