@@ -237,7 +237,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=8)
     ap.add_argument("--sims", type=int, default=2,
-                    help="simulators either way: local worker processes, Ray simulator actors (Ray gets one CPU more)")  # fmt: skip
+                    help="simulators either way: local workers, Ray simulator actors (Ray: a CPU more)")  # fmt: skip
     ap.add_argument("--max-steps", type=int, default=40)
     ap.add_argument("--calls", type=int, default=300)
     ap.add_argument("--repeats", type=int, default=3, help="pairs (local, Ray) run in turn")
@@ -266,7 +266,7 @@ def main() -> None:
     from scenes.tabletop.oracle import OraclePolicy
 
     if not 1 <= args.sims <= args.episodes:
-        ap.error(f"--sims {args.sims}: give 1 to --episodes ({args.episodes}) simulators")
+        ap.error(f"--sims {args.sims}: give 1 to {args.episodes} simulators (no more than --episodes)")
     cfg, jobs = _jobs(args.episodes, args.sims)
     rc = RunnerConfig(levels=scene_levels(get_scene("pick_place"), ["pick_y"]), cameras=(), image_size=(64, 64),
                       max_steps=args.max_steps, privileged=True)  # fmt: skip
@@ -274,7 +274,8 @@ def main() -> None:
     replan = OraclePolicy.spec.replan_steps
     result = {"machine": f"{platform.machine()} {os.cpu_count()} cores", "ray": ray.__version__,
               "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "episodes": len(jobs),
-              "max_steps": args.max_steps, "sims": args.sims, "replan_steps": replan, "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
+              "max_steps": args.max_steps, "sims": args.sims, "replan_steps": replan,
+              "load_1min_start": round(os.getloadavg()[0], 2)}  # fmt: skip
     forwards = [float(x) for x in args.forward_ms.split(",") if x.strip()]
     if forwards:
         busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]

@@ -3,8 +3,9 @@
 The box has torch, transformers and the scientific stack but no lerobot, MuJoCo or robosuite, and no network.
 What to carry is measured, not guessed: ``trace`` runs ``rows.py --rehearsal kit`` (every row but Ray's, which a
 second call carries) under strace and keeps every distribution whose files were opened and that the box lacks
-(``carry.txt``), and every robosuite asset file opened (``robosuite_assets.txt``: 0.3 % of robosuite's 590 MB). ``pack`` downloads those wheels at this venv's versions,
-drops robosuite's unopened assets, and writes ``.whl/kit.tar.xz`` (stored zips, one xz stream) and ``.gl/*.deb``::
+(``carry.txt``), and every robosuite asset file opened (``robosuite_assets.txt``: 0.3 % of robosuite's 590 MB).
+``pack`` downloads those wheels at this venv's versions, drops robosuite's unopened assets, and writes
+``.whl/kit.tar.xz`` (stored zips, one xz stream) and ``.gl/*.deb``::
 
     .venv/bin/python scripts/gpu/kit.py pack          # then: device run "python3 scripts/gpu/rows.py a",
                                                       #       carry [".whl", ".gl"]
