@@ -11,8 +11,10 @@ second call carries) under strace and keeps every distribution whose files were 
                                                       #       carry [".whl", ".gl"]
     .venv/bin/python scripts/gpu/kit.py trace         # after a dependency or scene change (needs strace)
     .venv/bin/python scripts/gpu/kit.py check         # declared requirements left behind (never opened here)
-    .venv/bin/python scripts/gpu/kit.py pack-ray      # .ray/ray.tar.xz: Ray for a second call, the same lease:
-                                                      #   device run "python3 scripts/gpu/rows.py ray16", carry [".ray"]
+    .venv/bin/python scripts/gpu/kit.py pack-ray      # .ray/ray.tar.xz and .gl/: the ray16 call's own kit (Ray with
+                                                      #   the simulator): device run "python3 scripts/gpu/rows.py
+                                                      #   ray16", carry [".ray", ".gl"]
+    .venv/bin/python scripts/gpu/kit.py trace ray16   # its lists, carry_ray.txt and robosuite_assets_ray.txt
 """
 
 from __future__ import annotations
@@ -35,6 +37,12 @@ ROOT = Path(__file__).resolve().parents[2]
 HERE = Path(__file__).resolve().parent
 CARRY = HERE / "carry.txt"
 ROBOSUITE_ASSETS = HERE / "robosuite_assets.txt"
+# the Ray call's own lists (``trace ray16``): it carries everything its rows open, so it runs on a fresh box too
+RAY_CARRY, RAY_ASSETS = HERE / "carry_ray.txt", HERE / "robosuite_assets_ray.txt"
+LISTS = {
+    "kit": (CARRY, ROBOSUITE_ASSETS),
+    "ray16": (RAY_CARRY, RAY_ASSETS),
+}  # rows.py group -> what trace writes
 LIMIT = 64 * 2**20  # what the device tool carries per call, the repository included
 PLATFORMS = ["manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_24_x86_64", "manylinux_2_17_x86_64",
              "manylinux2014_x86_64", "manylinux1_x86_64", "linux_x86_64"]  # fmt: skip
@@ -68,9 +76,9 @@ werkzeug wheel wrapt xarray xxhash yarl zipp""".split()
 )
 # On the box at other versions than lerobot 0.6.1 was resolved with here (transformers 5.17.0, tokenizers 0.23.2):
 ALWAYS = {"transformers", "tokenizers"}
-# The box's CUDA stack: never replaced (its torch is the CUDA build); and this checkout itself.
+# The box's CUDA stack: never replaced (its torch is the CUDA build); and this checkout's own distributions.
 NEVER = re.compile(
-    r"^(torch|torchvision|torchaudio|triton|nvidia-.*|cuda-.*|indgen-vla|pip|setuptools|wheel)$"
+    r"^(torch|torchvision|torchaudio|triton|nvidia-.*|cuda-.*|indgen-vla|lerobot-env-indgen|pip|setuptools|wheel)$"
 )
 
 
@@ -108,23 +116,23 @@ def opened_files(strace_log: Path) -> set[str]:
     return {str((ROOT / p).resolve()) for p in raw}  # relative paths: the rehearsal runs in ROOT
 
 
-def trace(out_dir: Path) -> dict:
-    """Run the rehearsal under strace; write carry.txt and robosuite_assets.txt from what it opened."""
+def trace(out_dir: Path, group: str = "kit") -> dict:
+    """Run ``group``'s rehearsal under strace; write its carry list and robosuite asset list (``LISTS``) from what
+    it opened."""
     if not shutil.which("strace"):
         raise SystemExit("error: strace not found; install it (apt-get install strace) and re-run")
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "strace.log"  # about 100 MB
         argv = ["strace", "-f", "-qq", "-e", "trace=open,openat", "-o", str(log), sys.executable,
-                str(HERE / "rows.py"), "--rehearsal", "kit", "--out", str(Path(tmp) / "out")]  # fmt: skip
+                str(HERE / "rows.py"), "--rehearsal", group, "--out", str(Path(tmp) / "out")]  # fmt: skip
         subprocess.run(argv, check=True, cwd=ROOT)
         rows = [json.loads(x) for x in (Path(tmp) / "out" / "rows.jsonl").read_text().splitlines()]
         if failed := [r["row"] for r in rows if r.get("rc", 0) != 0 or r.get("skipped")]:
             raise SystemExit(f"error: rehearsal rows failed: {', '.join(failed)}; see {tmp}/out/log.txt")
         files = opened_files(log)
     owners = file_owners()
-    dists = {
-        owners[f] for f in files if f in owners and ".dist-info/" not in f
-    }  # metadata scans read every one
+    # metadata scans read every dist-info, and every interpreter start reads every .pth (editable finders too)
+    dists = {owners[f] for f in files if f in owners and ".dist-info/" not in f and not _startup_file(f)}
     rs_root = Path(md.distribution("robosuite").locate_file("robosuite")).resolve()
     assets = sorted(
         str(Path(f).relative_to(rs_root.parent))
@@ -132,9 +140,16 @@ def trace(out_dir: Path) -> dict:
         if f.startswith(str(rs_root / "models" / "assets"))
     )
     carry = carry_set(dists)
-    (out_dir / CARRY.name).write_text("".join(f"{d}\n" for d in carry))
-    (out_dir / ROBOSUITE_ASSETS.name).write_text("".join(f"{a}\n" for a in assets))
+    carry_file, assets_file = LISTS[group]
+    (out_dir / carry_file.name).write_text("".join(f"{d}\n" for d in carry))
+    (out_dir / assets_file.name).write_text("".join(f"{a}\n" for a in assets))
     return {"carry": len(carry), "robosuite_assets": len(assets)}
+
+
+def _startup_file(path: str) -> bool:
+    """A file every interpreter start opens, whether or not its distribution is used."""
+    name = Path(path).name
+    return name.endswith(".pth") or name.startswith("__editable__")
 
 
 def trim_wheel(src: Path, dst: Path, drop: Callable[[str], bool]) -> int:
@@ -169,26 +184,38 @@ def fetch_wheel(name: str, version: str, dest: Path) -> Path:
 
 def pack(whl_dir: Path, gl_dir: Path | None) -> dict:
     """Download and trim the carried wheels into ``whl_dir/kit.tar.xz``; the GL loader debs into ``gl_dir``."""
-    names = CARRY.read_text().split()
-    keep = set(ROBOSUITE_ASSETS.read_text().split())
+    return _pack(CARRY.read_text().split(), ROBOSUITE_ASSETS, whl_dir / "kit.tar.xz", gl_dir)
 
-    def unopened(member: str) -> bool:  # robosuite's asset files the rehearsal never opened
-        return member.startswith("robosuite/models/assets/") and member not in keep
 
-    whl_dir.mkdir(exist_ok=True)
+def pack_ray(ray_dir: Path, gl_dir: Path | None) -> dict:
+    """The Ray call's kit, ``ray_dir/ray.tar.xz``: everything its rows open that the box lacks (``carry_ray.txt``)
+    and Ray's declared requirements, Ray without what a local instance and its actors never load (``RAY_DROP``:
+    its wheel alone is 76 MiB), so it runs on a fresh box as on one an earlier call set up."""
+    names = sorted({*RAY_CARRY.read_text().split(), *ray_carry()})
+    return _pack(names, RAY_ASSETS, ray_dir / "ray.tar.xz", gl_dir)
+
+
+def _pack(names: list[str], assets: Path, out: Path, gl_dir: Path | None) -> dict:
+    """``names`` at this venv's versions, robosuite's assets cut to those listed in ``assets`` and Ray's by
+    ``RAY_DROP``, as one tar.xz at ``out``; the GL loader debs into ``gl_dir``; refused over one call's 64 MiB."""
+    keep = set(assets.read_text().split())
+    drops = {"robosuite": lambda n: n.startswith("robosuite/models/assets/") and n not in keep,
+             "ray": lambda n: n.startswith(RAY_DROP)}  # fmt: skip
+    out.parent.mkdir(exist_ok=True)
+    dropped = 0
     with tempfile.TemporaryDirectory() as tmp:
         raw, stored = Path(tmp) / "raw", Path(tmp) / "stored"
         raw.mkdir()
         stored.mkdir()
         for name in names:
             w = fetch_wheel(name, md.version(name), raw)
-            trim_wheel(w, stored / w.name, unopened if name == "robosuite" else lambda n: False)
+            dropped += trim_wheel(w, stored / w.name, drops.get(name, lambda n: False))
         data = _tar_xz(stored)
-    (whl_dir / "kit.tar.xz").write_bytes(data)
-    res = {"wheels": len(names), "kit_mib": round(len(data) / 2**20, 1)}
+    out.write_bytes(data)
+    res = {"wheels": len(names), "dropped_files": dropped, "kit_mib": round(len(data) / 2**20, 1)}
     if gl_dir is not None:
         res["gl_debs"] = download_gl(gl_dir)
-    return res | _carried(len(data) + sum(p.stat().st_size for p in (gl_dir or whl_dir).glob("*.deb")))
+    return res | _carried(len(data) + sum(p.stat().st_size for p in (gl_dir or out.parent).glob("*.deb")))
 
 
 def _tar_xz(folder: Path) -> bytes:
@@ -221,25 +248,6 @@ def ray_carry() -> list[str]:
         found.append(name)
         todo += [r for r in _requires(md.requires(name) or []) if r not in BOX]
     return sorted(found)
-
-
-def pack_ray(ray_dir: Path) -> dict:
-    """Ray for the second device call (its wheel alone is 76 MiB): ``ray_dir/ray.tar.xz`` without what a local
-    instance and its actors never load (``RAY_DROP``), with its missing requirements."""
-    ray_dir.mkdir(exist_ok=True)
-    names = ray_carry()
-    with tempfile.TemporaryDirectory() as tmp:
-        raw, stored = Path(tmp) / "raw", Path(tmp) / "stored"
-        raw.mkdir()
-        stored.mkdir()
-        dropped = 0
-        for name in names:
-            w = fetch_wheel(name, md.version(name), raw)
-            dropped += trim_wheel(w, stored / w.name, lambda n: n.startswith(RAY_DROP))
-        data = _tar_xz(stored)
-    (ray_dir / "ray.tar.xz").write_bytes(data)
-    res = {"wheels": names, "dropped_files": dropped, "ray_kit_mib": round(len(data) / 2**20, 1)}
-    return res | _carried(len(data))
 
 
 def download_gl(gl_dir: Path) -> int:
@@ -290,20 +298,25 @@ def check(kit: Path) -> list[tuple[str, str]]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
-    sub.add_parser("trace", help="re-measure carry.txt and robosuite_assets.txt (needs strace)")
+    t = sub.add_parser("trace", help="re-measure carry.txt and robosuite_assets.txt (needs strace)")
+    t.add_argument("group", nargs="?", default="kit", choices=list(LISTS),
+                   help="kit (default): the GPU kit's lists; ray16: the Ray call's (carry_ray.txt, ...)")  # fmt: skip
     p = sub.add_parser("pack", help="fill .whl/kit.tar.xz and .gl/")
     p.add_argument("--no-gl", action="store_true", help="skip the GL loader debs")
-    sub.add_parser("pack-ray", help="fill .ray/ray.tar.xz (the second call's Ray, for the ray16 rows)")
+    r = sub.add_parser(
+        "pack-ray", help="fill .ray/ray.tar.xz and .gl/ (the Ray call's kit, for the ray16 rows)"
+    )
+    r.add_argument("--no-gl", action="store_true", help="skip the GL loader debs")
     sub.add_parser(
         "check", help="requirements the carried wheels declare that are neither carried nor on the box"
     )
     a = ap.parse_args(argv)
     if a.cmd == "trace":
-        print(json.dumps(trace(HERE)))
+        print(json.dumps(trace(HERE, a.group)))
     elif a.cmd == "pack":
         print(json.dumps(pack(ROOT / ".whl", None if a.no_gl else ROOT / ".gl")))
     elif a.cmd == "pack-ray":
-        print(json.dumps(pack_ray(ROOT / ".ray")))
+        print(json.dumps(pack_ray(ROOT / ".ray", None if a.no_gl else ROOT / ".gl")))
     else:  # information for whoever reads an ImportError from the box: declared, but never opened here
         for whl, req in check(ROOT / ".whl" / "kit.tar.xz"):
             print(f"{whl}: declares {req}; not carried (the rehearsal never opened it) and not on the box")

@@ -10,9 +10,9 @@ first, which fills the git-ignored ``.whl/`` and ``.gl/``)::
                                                  # compiled and eager in the engine (b0: 2026-11-26's call b)
     python3 scripts/gpu/rows.py i56 --budget 500 # issue 56 in one call: 1,000 episodes at 8 and 16 workers,
                                                  # 3 pairs vs lerobot-eval, pi0.5 eager vs compiled (GPU busy %)
-    python3 scripts/gpu/rows.py ray16 --budget 200  # right after a call that installed the kit (the warm box keeps
-                                                    # .venv), carry [".ray"] (``kit.py pack-ray``): Ray / local
-                                                    # with 15 simulators, both policies, 3 pairs
+    python3 scripts/gpu/rows.py ray16 --budget 200  # carry [".ray", ".gl"] (``kit.py pack-ray``), in any call
+                                                    # of a lease: Ray / local with 15 simulators, both policies,
+                                                    # 3 pairs
 
 Rows run in the order given and each gets the smaller of its cap and what ``--budget`` leaves (a row that would
 start with under 20 s is skipped and says so), so the most wanted rows come first in each group; docs/benchmarks.md
@@ -43,7 +43,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 VENV_PY = ROOT / ".venv" / "bin" / "python"
 KIT = ROOT / ".whl" / "kit.tar.xz"
-RAY_KIT = ROOT / ".ray" / "ray.tar.xz"  # Ray does not fit beside the kit in one call's 64 MiB
+RAY_KIT = (
+    ROOT / ".ray" / "ray.tar.xz"
+)  # the ray16 call's own kit: Ray does not fit beside the GPU kit in 64 MiB
 LOG_TAIL = 80  # lines of each row's output kept in log.txt
 NVIDIA_VENDOR_FILES = {
     "__EGL_VENDOR_LIBRARY_FILENAMES": "/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json",
@@ -211,7 +213,7 @@ GROUPS = {
     # issue 56 in one call of < 10 minutes (--budget 500): the engine at scale, the paired comparison with a CI,
     # pi0.5 compiled against eager with GPU busy %
     "i56": ["env", "scaling_1k", "vs_lerobot_paired", "pi05_build", "pi05_model16", "pi05_compile16"],
-    "ray16": ["ray_vs_local"],  # a second call: carries .ray only, runs in the .venv the first call made
+    "ray16": ["ray_vs_local"],  # a call of its own, carrying .ray (its own kit, Ray included) and .gl
     "all": list(ROWS),
 }
 GROUPS["kit"] = [r for r in ROWS if r not in GROUPS["ray16"]]  # what kit.py trace measures the GPU kit on
@@ -229,30 +231,44 @@ def last_json(text: str) -> dict | None:
     return None
 
 
-def install_kit(venv: Path, kit: Path, log: Path) -> dict:
-    """A venv that sees the box's own packages (torch, CUDA), with the carried wheels and this checkout on top.
+def install_kits(venv: Path, kits: list[Path], log: Path) -> dict:
+    """A venv that sees the box's own packages (torch, CUDA), with the carried kits' wheels and this checkout on
+    top: made once, each kit installed once (a warm box keeps ``.venv`` from an earlier call: ``ray16`` after ``a``).
 
     The box's ``python3`` is itself a venv, and a venv made from a venv gets the base interpreter's site-packages
     as its system site, not the parent venv's: a ``.pth`` adds the parent's site-packages (and its own .pth files)
     behind the new venv's, so carried versions win and torch stays the box's."""
-    if (venv / ".kit").exists():
+    todo = [k for k in kits if not _marker(venv, k).exists()]
+    made = (venv / "bin" / "python").exists()
+    if made and not todo:
         return {"venv": "installed earlier"}
-    if not kit.is_file():
-        raise OSError(f"{kit} missing: carry .whl (kit.py pack), or run this group right after a call that did, "
-                      f"while the box is warm (it keeps .venv)")  # fmt: skip
+    if not made and not kits:
+        raise OSError("no kit carried: carry .whl and .gl (kit.py pack) or .ray and .gl (kit.py pack-ray)")
     t0 = time.perf_counter()
-    _checked([sys.executable, "-m", "venv", "--without-pip", str(venv)], log)
     py = venv / "bin" / "python"
-    new_site = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                              capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
-    parents = dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib"))
-    (Path(new_site) / "_box_site.pth").write_text(
-        "".join(f"import site; site.addsitedir({p!r})\n" for p in parents)
-    )
-    _install_wheels(py, kit, log)
-    _checked([*_pip(py), "--no-build-isolation", "-e", str(ROOT)], log)
-    (venv / ".kit").touch()
-    return {"venv": "created", "install_s": round(time.perf_counter() - t0, 1)}
+    if not made:
+        _checked([sys.executable, "-m", "venv", "--without-pip", str(venv)], log)
+        new_site = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                                  capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+        parents = dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib"))
+        (Path(new_site) / "_box_site.pth").write_text(
+            "".join(f"import site; site.addsitedir({p!r})\n" for p in parents)
+        )
+    for kit in todo:
+        with tempfile.TemporaryDirectory() as tmp:
+            _checked(["tar", "-xJf", str(kit), "-C", tmp], log)
+            _checked([*_pip(py), *sorted(str(p) for p in Path(tmp).glob("*.whl"))], log)
+    if not made:
+        _checked([*_pip(py), "--no-build-isolation", "-e", str(ROOT)], log)
+    for kit in todo:
+        _marker(venv, kit).touch()
+    return {"venv": "added to" if made else "created", "kits": [k.name for k in todo],
+            "install_s": round(time.perf_counter() - t0, 1)}  # fmt: skip
+
+
+def _marker(venv: Path, kit: Path) -> Path:
+    """``.kit`` once ``kit.tar.xz`` is installed, ``.ray`` once ``ray.tar.xz`` is."""
+    return venv / f".{kit.name.split('.')[0]}"
 
 
 def _pip(py: Path) -> list[str]:
@@ -268,22 +284,6 @@ def _pip(py: Path) -> list[str]:
         "--no-compile",
         "--ignore-installed",
     ]
-
-
-def _install_wheels(py: Path, kit: Path, log: Path) -> None:
-    with tempfile.TemporaryDirectory() as tmp:
-        _checked(["tar", "-xJf", str(kit), "-C", tmp], log)
-        _checked([*_pip(py), *sorted(str(p) for p in Path(tmp).glob("*.whl"))], log)
-
-
-def install_ray(venv: Path, kit: Path, log: Path) -> dict:
-    """Ray's kit (``kit.py pack-ray``) over the venv ``install_kit`` made, once."""
-    if (venv / ".ray").exists():
-        return {"ray": "installed earlier"}
-    t0 = time.perf_counter()
-    _install_wheels(venv / "bin" / "python", kit, log)
-    (venv / ".ray").touch()
-    return {"ray": "installed", "ray_install_s": round(time.perf_counter() - t0, 1)}
 
 
 def unpack_gl() -> int:
@@ -369,9 +369,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     try:
         if not a.rehearsal:  # here the project's own .venv runs the rows; never unpack packages over /
-            head |= {"gl_debs": unpack_gl(), **install_kit(ROOT / ".venv", KIT, out / "log.txt")}
-            if RAY_KIT.is_file():
-                head |= install_ray(ROOT / ".venv", RAY_KIT, out / "log.txt")
+            kits = [k for k in (KIT, RAY_KIT) if k.is_file()]
+            head |= {"gl_debs": unpack_gl(), **install_kits(ROOT / ".venv", kits, out / "log.txt")}
     except (subprocess.CalledProcessError, OSError) as e:
         _write(out, head | {"error": f"set-up failed: {e}; see log.txt"})
         return 1

@@ -109,7 +109,7 @@ def test_issue_56_call_measures_what_it_promises_within_its_budget(tmp_path):
 
 def test_ray16_call_measures_the_16_core_ray_row_within_its_budget(tmp_path):
     # issue 56: Ray / local at the same number of simulators on the box's 16 cores, both policies, n >= 3 pairs,
-    # in a second call of its own (Ray's wheel does not fit beside the kit in one call's 64 MiB)
+    # in a call of its own (Ray's wheel does not fit beside the GPU kit in one call's 64 MiB)
     argv = rows.ROWS["ray_vs_local"].argv(rows.Ctx("python3", "cuda", False, tmp_path, {}))
     opt = {k: argv[argv.index(k) + 1] for k in ("--sims", "--episodes", "--repeats", "--forward-ms")}
     assert argv[1] == "scripts/bench_ray.py" and opt["--forward-ms"] == "0,50" and int(opt["--repeats"]) >= 3
@@ -120,36 +120,46 @@ def test_ray16_call_measures_the_16_core_ray_row_within_its_budget(tmp_path):
     )
 
 
-def test_a_second_call_on_a_fresh_box_says_what_to_carry(tmp_path):
-    with pytest.raises(OSError, match=r"kit.tar.xz missing: carry .whl .* while the box is warm"):
-        rows.install_kit(tmp_path / "venv", tmp_path / ".whl" / "kit.tar.xz", tmp_path / "log.txt")
+def test_a_call_with_no_kit_on_a_fresh_box_says_what_to_carry(tmp_path):
+    with pytest.raises(OSError, match=r"no kit carried: carry .whl and .gl .* or .ray and .gl"):
+        rows.install_kits(tmp_path / "venv", [], tmp_path / "log.txt")
     assert not (tmp_path / "venv").exists()
 
 
-def test_ray_kit_carries_ray_and_what_the_box_lacks_of_its_requirements():
-    names = kit.ray_carry()
-    assert names == ["jsonschema", "jsonschema-specifications", "ray", "referencing", "rpds-py"]
-    assert not set(names) & kit.BOX and all(md.version(n) for n in names)
+def test_ray_kit_carries_what_its_rows_open_and_ray_requires():
+    """carry_ray.txt (``kit.py trace ray16``) names Ray, the simulator and what the dashboard's processes import;
+    Ray's declared requirements the box lacks come too; none of it is on the box or this checkout's own."""
+    measured = kit.RAY_CARRY.read_text().split()
+    assert {"ray", "mujoco", "robosuite", "pyopengl"} <= set(measured)
+    assert kit.ray_carry() == ["jsonschema", "jsonschema-specifications", "ray", "referencing", "rpds-py"]
+    assert not set(measured) & kit.BOX and not any(kit.NEVER.match(n) for n in measured)
+    assert all(md.version(n) for n in measured)
+    site = Path(md.distribution("robosuite").locate_file(""))
+    assert [a for a in kit.RAY_ASSETS.read_text().split() if not (site / a).is_file()] == []
 
 
-@pytest.mark.slow  # ~2.5 min: Ray's wheel from the package registry, packed (xz), installed, and the ray16 row run
-def test_packed_ray_fits_one_call_and_runs_the_ray16_row(tmp_path):
-    import tarfile
+def test_startup_files_do_not_make_a_distribution_carried():
+    assert kit._startup_file("/v/site-packages/__editable__.lerobot_env_indgen-0.1.0.pth")
+    assert kit._startup_file("/v/site-packages/distutils-precedence.pth")
+    assert not kit._startup_file("/v/site-packages/mujoco/__init__.py")
 
-    res = kit.pack_ray(tmp_path / ".ray")
+
+@pytest.mark.slow  # ~4 min: 19 wheels from the package registry, packed (xz), installed, and the ray16 row run
+def test_packed_ray_kit_fits_one_call_and_runs_the_ray16_row_alone(tmp_path):
+    res = kit.pack_ray(tmp_path / ".ray", None)
     assert res["carried_mib"] <= 64 and res["dropped_files"] > 1000, res
-    tiny = _wheel(tmp_path / "tinypkg-1.0-py3-none-any.whl", {"tinypkg/__init__.py": b""})
-    with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
-        tar.add(tiny, arcname=tiny.name)
-    venv = tmp_path / "venv"  # what the first call leaves on the box, over this venv (which has Ray) here
-    rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt")
-    assert (
-        rows.install_ray(venv, tmp_path / ".ray" / "ray.tar.xz", tmp_path / "log.txt")["ray"] == "installed"
-    )
+    venv = (
+        tmp_path / "venv"
+    )  # a fresh box: the Ray kit alone makes the venv, over this venv (which has Ray) here
+    made = rows.install_kits(venv, [tmp_path / ".ray" / "ray.tar.xz"], tmp_path / "log.txt")
+    assert made["venv"] == "created" and made["kits"] == ["ray.tar.xz"] and (venv / ".ray").exists()
     py = str(venv / "bin" / "python")
-    code = "import os, ray; d = os.path.dirname(ray.__file__); print(d, os.path.isdir(d + '/jars'))"
-    where, jars = subprocess.run([py, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    assert where.startswith(str(venv)) and jars == "False"  # the trimmed copy, not this venv's
+    code = ("import os, ray, robosuite; d = os.path.dirname(ray.__file__); "
+            "print(d, os.path.isdir(d + '/jars'), robosuite.__file__)")  # fmt: skip
+    where, jars, rs = subprocess.run(
+        [py, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert where.startswith(str(venv)) and jars == "False" and rs.startswith(str(venv))  # the kit's, not ours
     proc = subprocess.run([py, "scripts/gpu/rows.py", "--rehearsal", "ray16", "--out", str(tmp_path / "out")],
                           cwd=ROOT, capture_output=True, text=True, timeout=600)  # fmt: skip
     recs = [json.loads(x) for x in (tmp_path / "out" / "rows.jsonl").read_text().splitlines()]
@@ -285,7 +295,7 @@ def test_install_kit_makes_a_venv_over_a_venv_where_carried_wheels_win(tmp_path)
     with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
         tar.add(whl, arcname=whl.name)
     venv = tmp_path / "venv"
-    res = rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt")
+    res = rows.install_kits(venv, [tmp_path / "kit.tar.xz"], tmp_path / "log.txt")
     assert res["venv"] == "created", (tmp_path / "log.txt").read_text()
     code = ("import importlib.metadata as m, termcolor, torch, indgen_vla, sys; "
             "print(termcolor.CARRIED, m.version('termcolor'), torch.__file__, indgen_vla.__file__, sys.prefix)")  # fmt: skip
@@ -297,6 +307,14 @@ def test_install_kit_makes_a_venv_over_a_venv_where_carried_wheels_win(tmp_path)
     assert carried == "True" and version == "99.0" != parent_termcolor
     assert torch_file.startswith(sys.prefix) and pkg_file == str(ROOT / "indgen_vla" / "__init__.py")
     assert prefix == str(venv)
-    assert rows.install_kit(venv, tmp_path / "kit.tar.xz", tmp_path / "log.txt") == {
+    assert rows.install_kits(venv, [tmp_path / "kit.tar.xz"], tmp_path / "log.txt") == {
         "venv": "installed earlier"
     }
+    # a later call of the same lease (the warm box keeps .venv) adds its own kit, and only it
+    other = _wheel(tmp_path / "tinypkg-1.0-py3-none-any.whl", {"tinypkg/__init__.py": b""})
+    with tarfile.open(tmp_path / "ray.tar.xz", "w:xz") as tar:
+        tar.add(other, arcname=other.name)
+    added = rows.install_kits(venv, [tmp_path / "kit.tar.xz", tmp_path / "ray.tar.xz"], tmp_path / "log.txt")
+    assert added["venv"] == "added to" and added["kits"] == ["ray.tar.xz"] and (venv / ".ray").exists()
+    check = [str(venv / "bin" / "python"), "-c", "import tinypkg, termcolor; print(termcolor.CARRIED)"]
+    assert subprocess.run(check, capture_output=True, text=True, cwd=tmp_path).stdout.strip() == "True"
