@@ -46,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     rc.add_argument("--outcome", default=None, help="record one verdict and exit: success, failure[:MODE], "
                     "void:REASON (for the next queued episode unless --episode)")  # fmt: skip
     rc.add_argument("--episode", default=None, metavar="LEVEL:INDEX", help="with --outcome: which episode")
+    rc.add_argument("--undo", type=int, default=None, metavar="LINE",
+                    help="cancel the verdict on that journal line and exit (the session's 'u' cancels the last)")  # fmt: skip
     rc.add_argument("--note", default="", help="with --outcome: a free-text note")
     rc.add_argument("--video", default="", help="with --outcome: path of the episode's video")
     rc.add_argument(
@@ -120,9 +122,22 @@ def _triggers(ns: argparse.Namespace, rr, policy_check) -> list[Trigger]:
 
 def _record(ns: argparse.Namespace, policy_check: Callable[[str], Trigger] | None = None) -> int:
     from indgen_vla.app.real.design import RealRun  # lazy: start-up
-    from indgen_vla.app.real.session import Verdict, interactive, parse_outcome, record_once  # lazy: start-up
+    from indgen_vla.app.real.session import (  # lazy: start-up
+        Verdict,
+        interactive,
+        parse_outcome,
+        record_once,
+        undo_line,
+    )
 
     rr = RealRun.open(ns.run)
+    if ns.undo is not None:
+        if ns.outcome is not None:
+            raise ConfigError("--undo cancels a verdict and --outcome records one: give one of them")
+        e, kept = undo_line(rr, ns.undo, ns.operator)
+        then = f"it keeps line {kept.seq}'s {kept.kind}" if kept else "it is queued again"
+        print(f"undone: journal line {ns.undo}, level {e.level} episode {e.episode} {e.kind}; {then}")
+        return 0
     if ns.outcome is None:
         if ns.episode or ns.note or ns.video:
             raise ConfigError(

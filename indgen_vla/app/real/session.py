@@ -290,6 +290,25 @@ def record_once(rr: RealRun, verdict: Verdict, episode: tuple[int, int] | None =
     return entry, lines
 
 
+def undo_line(rr: RealRun, seq: int, operator: str = "") -> tuple[Entry, Entry | None]:
+    """Cancel journal line ``seq`` (a verdict or void still in force) with a new undo line, without replaying the
+    journal first: the way out of one that records an episode twice, which no session can open. Returns the line
+    undone and the verdict its episode still counts (the other of a pair), if any."""
+    rec = Recorder(rr, operator)
+    with recording_lock(rec.path):
+        entries = read_journal(rec.path)
+        target = next((e for e in entries if e.seq == seq), None)
+        undone = {e.undo for e in entries if e.kind == "undo"}
+        why = "no such line" if target is None else "an undo" if target.kind == "undo" else "undone already"
+        if target is None or target.kind == "undo" or seq in undone:
+            raise RunDirError(f"{rec.path}: journal line {seq} is {why}; give the line of a verdict in force (as "
+                              "the error about a twice-recorded episode names it)")  # fmt: skip
+        append_entry(rec.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=target.axis, level=target.level,
+                                     episode=target.episode, undo=seq, operator=rec.operator, time=now()))  # fmt: skip
+        state = rec.sync()
+    return target, state.counted.get((target.level, target.episode))
+
+
 def _saved(e: Entry) -> str:
     what = {"success": "success", "failure": f"failure ({e.failure or 'mode not given'})",
             "void": f"VOID ({e.reason}): re-queued"}[e.kind]  # fmt: skip

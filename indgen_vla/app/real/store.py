@@ -161,7 +161,7 @@ def replay(entries: list[Entry], axis: str) -> State:
             if key in counted:
                 raise RunDirError(
                     f"the journal records level {key[0]} episode {key[1]} twice (lines "
-                    f"{counted[key].seq} and {e.seq}); undo one of them ('indgen real record --undo')"
+                    f"{counted[key].seq} and {e.seq}); undo one of them: 'indgen real record RUN --undo LINE'"
                 )
             counted[key] = e
     return State(counted, voids, live, live[-1] if live else None)

@@ -86,3 +86,39 @@ def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     section = (run / "report.d" / "real.md").read_text()  # what the next report.md appends
     assert "- episodes counted: 4; still queued: 0 (the run is complete)" in section
     assert "2, 0 episode(s) still pending" in section and "| pending |" not in section
+
+
+def test_a_journal_recording_an_episode_twice_is_mended_with_undo(tmp_path, capsys):
+    """Two writers, or a hand edit, can leave one episode recorded twice: no session opens such a journal, so its
+    error names the way out, ``record RUN --undo LINE``, which cancels that line without replaying first."""
+    import json
+
+    from indgen_vla.app.real.store import JOURNAL
+
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "2", "--order", "blocked",
+                 "--adaptive", "off", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert _record(run, capsys, "--outcome", "success")[0] == 0  # journal line 1: level 0 episode 0
+    first = (run / JOURNAL).read_text().splitlines()[0]
+    twin = json.loads(first) | {"seq": 2, "kind": "failure", "operator": "bob"}  # another writer's line
+    (run / JOURNAL).write_text(first + "\n" + json.dumps(twin) + "\n")
+    rc, out, err = _record(run, capsys, "--outcome", "success")
+    assert rc == 2 and "records level 0 episode 0 twice (lines 1 and 2)" in err
+    assert "'indgen real record RUN --undo LINE'" in err
+    assert _record(run, capsys, "--undo", "2") == (
+        0,
+        ["undone: journal line 2, level 0 episode 0 failure; it keeps line 1's success"],
+        "",
+    )
+    for line, why in (("2", "undone already"), ("3", "an undo"), ("9", "no such line")):
+        rc, out, err = _record(run, capsys, "--undo", line)
+        assert rc == 2 and err.startswith(f"error: {run}: journal line {line} is {why}; give the line"), err
+    assert _record(run, capsys, "--undo", "1", "--outcome", "success")[2] == (
+        "error: --undo cancels a verdict and --outcome records one: give one of them"
+    )
+    rc, out, _ = _record(run, capsys, "--outcome", "failure")  # the session goes on: the next queued episode
+    assert rc == 0 and out[0] == "saved: level 0 episode 1 failure (mode not given)"
+    assert _record(run, capsys, "--undo", "4")[1] == [
+        "undone: journal line 4, level 0 episode 1 failure; it is queued again"
+    ]
