@@ -10,7 +10,7 @@ second call carries) under strace and keeps every distribution whose files were 
     .venv/bin/python scripts/gpu/kit.py pack          # then: device run "python3 scripts/gpu/rows.py a",
                                                       #       carry [".whl", ".gl"]
     .venv/bin/python scripts/gpu/kit.py trace         # after a dependency or scene change (needs strace)
-    .venv/bin/python scripts/gpu/kit.py check         # declared requirements left behind (never opened here)
+    .venv/bin/python scripts/gpu/kit.py check [KIT]   # declared requirements left behind (never opened here)
     .venv/bin/python scripts/gpu/kit.py pack-ray      # .ray/ray.tar.xz and .gl/: the ray16 call's own kit (Ray with
                                                       #   the simulator): device run "python3 scripts/gpu/rows.py
                                                       #   ray16", carry [".ray", ".gl"]
@@ -291,7 +291,11 @@ def check(kit: Path) -> list[tuple[str, str]]:
         with tarfile.open(kit) as tar:
             tar.extractall(tmp, filter="data")
         wheels = sorted(Path(tmp).glob("*.whl"))
-        have = BOX | {norm(w.name.split("-")[0]) for w in wheels}
+        have = (
+            BOX
+            | {d for d, twin in SAME_MODULES.items() if twin in BOX}
+            | {norm(w.name.split("-")[0]) for w in wheels}
+        )
         return [(w.name, r) for w in wheels for r in requires(w) if r not in have]
 
 
@@ -307,9 +311,11 @@ def main(argv: list[str] | None = None) -> int:
         "pack-ray", help="fill .ray/ray.tar.xz and .gl/ (the Ray call's kit, for the ray16 rows)"
     )
     r.add_argument("--no-gl", action="store_true", help="skip the GL loader debs")
-    sub.add_parser(
+    c = sub.add_parser(
         "check", help="requirements the carried wheels declare that are neither carried nor on the box"
     )
+    c.add_argument("kit", nargs="?", default=str(ROOT / ".whl" / "kit.tar.xz"),
+                   help="the kit to read (default .whl/kit.tar.xz; the Ray call's: .ray/ray.tar.xz)")  # fmt: skip
     a = ap.parse_args(argv)
     if a.cmd == "trace":
         print(json.dumps(trace(HERE, a.group)))
@@ -318,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     elif a.cmd == "pack-ray":
         print(json.dumps(pack_ray(ROOT / ".ray", None if a.no_gl else ROOT / ".gl")))
     else:  # information for whoever reads an ImportError from the box: declared, but never opened here
-        for whl, req in check(ROOT / ".whl" / "kit.tar.xz"):
+        for whl, req in check(Path(a.kit)):
             print(f"{whl}: declares {req}; not carried (the rehearsal never opened it) and not on the box")
     return 0
 

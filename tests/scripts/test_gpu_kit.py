@@ -263,7 +263,8 @@ def test_check_names_requirements_nothing_provides(tmp_path):
     import tarfile
 
     wheels = [_wheel(tmp_path / "alpha-1.0-py3-none-any.whl", {"alpha/__init__.py": b""},
-                     ("beta>=1", "numpy", "gamma; extra == 'dev'", "delta; python_version < '3.10'", "epsilon")),
+                     ("beta>=1", "numpy", "gamma; extra == 'dev'", "delta; python_version < '3.10'", "epsilon",
+                      "opencv-python")),
               _wheel(tmp_path / "beta-2.0-py3-none-any.whl", {"beta/__init__.py": b""})]  # fmt: skip
     with tarfile.open(tmp_path / "kit.tar.xz", "w:xz") as tar:
         for w in wheels:
