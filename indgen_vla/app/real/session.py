@@ -28,6 +28,7 @@ from indgen_vla.app.real.store import (
     recording_lock,
     records,
     replay,
+    undone_lines,
 )
 from indgen_vla.app.real.trigger import (
     FIELDS,
@@ -174,16 +175,27 @@ class Recorder:
         self.sync()
         return entry
 
-    def undo(self) -> Entry | None:
-        """Cancel the latest verdict still in force (a new journal line); None when there is none."""
+    def undo(self, seq: int | None = None) -> Entry | None:
+        """Cancel a verdict still in force with a new journal line: the latest (None when there is none), or journal
+        line ``seq``, found without replaying the journal (the way out of one that records an episode twice, which
+        no session can open)."""
         entries = read_journal(self.path)
-        last = replay(entries, self.rr.axis.name).last
-        if last is None:
-            return None
-        append_entry(self.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=last.axis, level=last.level,
-                                      episode=last.episode, undo=last.seq, operator=self.operator, time=now()))  # fmt: skip
+        if seq is None:
+            target = replay(entries, self.rr.axis.name).last
+            if target is None:
+                return None
+        else:
+            target = next((e for e in entries if e.seq == seq), None)
+            why = (
+                "no such line" if target is None else "an undo" if target.kind == "undo" else "undone already"
+            )
+            if target is None or target.kind == "undo" or seq in undone_lines(entries):
+                raise RunDirError(f"{self.path}: journal line {seq} is {why}; give the line of a verdict in force "
+                                  "(as the error about a twice-recorded episode names it)")  # fmt: skip
+        append_entry(self.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=target.axis, level=target.level,
+                                      episode=target.episode, undo=target.seq, operator=self.operator, time=now()))  # fmt: skip
         self.sync()
-        return last
+        return target
 
     # ------------------------------------------------------------------ what the operator reads
     def level_line(self, state: State, level: int) -> str:
@@ -296,17 +308,8 @@ def undo_line(rr: RealRun, seq: int, operator: str = "") -> tuple[Entry, Entry |
     undone and the verdict its episode still counts (the other of a pair), if any."""
     rec = Recorder(rr, operator)
     with recording_lock(rec.path):
-        entries = read_journal(rec.path)
-        target = next((e for e in entries if e.seq == seq), None)
-        undone = {e.undo for e in entries if e.kind == "undo"}
-        why = "no such line" if target is None else "an undo" if target.kind == "undo" else "undone already"
-        if target is None or target.kind == "undo" or seq in undone:
-            raise RunDirError(f"{rec.path}: journal line {seq} is {why}; give the line of a verdict in force (as "
-                              "the error about a twice-recorded episode names it)")  # fmt: skip
-        append_entry(rec.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=target.axis, level=target.level,
-                                     episode=target.episode, undo=seq, operator=rec.operator, time=now()))  # fmt: skip
-        state = rec.sync()
-    return target, state.counted.get((target.level, target.episode))
+        target = rec.undo(seq)
+        return target, rec.state().counted.get((target.level, target.episode))
 
 
 def _saved(e: Entry) -> str:

@@ -147,9 +147,14 @@ class State:
     last: Entry | None  # the latest live entry (what the next undo cancels)
 
 
+def undone_lines(entries: list[Entry]) -> set[int]:
+    """The journal lines an undo line cancels."""
+    return {e.undo for e in entries if e.kind == "undo"}
+
+
 def replay(entries: list[Entry], axis: str) -> State:
     """Apply the journal in order (an undo cancels its target) and keep the entries of ``axis``."""
-    undone = {e.undo for e in entries if e.kind == "undo"}
+    undone = undone_lines(entries)
     live = [e for e in entries if e.kind != "undo" and e.seq not in undone and e.axis == axis]
     counted: dict[tuple[int, int], Entry] = {}
     voids: dict[tuple[int, int], list[Entry]] = {}
