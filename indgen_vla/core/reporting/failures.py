@@ -63,12 +63,23 @@ def classified(levels: list[dict]) -> bool:
 
 
 def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path | None:
-    """One stacked-bar panel per run: the share of each failure mode per level (None: nothing classified)."""
+    """``failures_figure`` as a PNG at ``path`` (None: nothing classified)."""
+    fig = failures_figure(curves, axis)
+    if fig is None:
+        return None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_savefig(fig, path)
+    return path
+
+
+def failures_figure(curves: list[tuple[str, dict]], axis: str):
+    """One stacked-bar panel per run: the share of each failure mode per level, the legend beside the panels, never
+    over a bar or a title (None: nothing classified)."""
     if not any(classified(a["levels"]) for _, a in curves):
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
-    fig = Figure(figsize=(4.2 * len(curves), 3.2), dpi=120)
+    fig = Figure(figsize=(4.2 * len(curves) + 1.1, 3.2), dpi=120, layout="constrained")
     axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
         rows = [r for r in a["levels"] if sum(r.get("failures", {}).values())]
@@ -91,11 +102,8 @@ def plot_failures(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
         for h, lbl in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(lbl, h)
     labels = [m for m in MODES if m in handles]
-    fig.legend([handles[m] for m in labels], labels, fontsize=7, loc="upper right", ncol=1)
-    fig.tight_layout(rect=(0, 0, 0.82, 1))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_savefig(fig, path)
-    return path
+    fig.legend([handles[m] for m in labels], labels, fontsize=7, loc="outside right upper", ncol=1)
+    return fig
 
 
 def failure_shift(a_levels: list[dict], b_levels: list[dict]) -> dict:

@@ -308,13 +308,24 @@ def render_levels(present: list[tuple[str, dict]]) -> list[str]:
 
 
 def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path | None:
+    """``progress_figure`` as a PNG at ``path``; None when no run has scores."""
+    fig = progress_figure(curves, axis)
+    if fig is None:
+        return None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_savefig(fig, path)  # a report read while another writes never sees half a PNG
+    return path
+
+
+def progress_figure(curves: list[tuple[str, dict]], axis: str):
     """One panel per run: the share of each progress stage per level (success on top, so the success rate is
-    the top segment) and the mean score (right axis); None when no run has scores."""
+    the top segment) and the mean score (right axis), every stage in a legend under the panels; None when no run
+    has scores."""
     if not any(r.get("progress") for _, a in curves for r in a["levels"]):
         return None
     from matplotlib.figure import Figure  # not pyplot (report.plot_axis)
 
-    fig = Figure(figsize=(4.2 * len(curves), 3.4), dpi=120)
+    fig = Figure(figsize=(4.2 * len(curves), 3.8), dpi=120, layout="constrained")
     axes = fig.subplots(1, len(curves), squeeze=False)
     for ax, (label, a) in zip(axes[0], curves, strict=True):
         rows = [r for r in a["levels"] if r.get("progress")]
@@ -337,9 +348,6 @@ def plot_progress(curves: list[tuple[str, dict]], axis: str, path: Path) -> Path
     axes[0][0].set_ylabel("share of scored episodes")
     handles, labels = axes[0][0].get_legend_handles_labels()
     h2, l2 = fig.axes[-1].get_legend_handles_labels()
-    fig.legend(handles + h2, labels + l2, fontsize=7, loc="lower center", ncol=7, frameon=False)
-    fig.tight_layout(rect=(0, 0.08, 1, 1))
-    path.parent.mkdir(parents=True, exist_ok=True)
-
-    atomic_savefig(fig, path)  # a report read while another writes never sees half a PNG
-    return path
+    ncol = 7 if len(curves) > 1 else 4  # 7 entries: one row under two panels, two rows under one
+    fig.legend(handles + h2, labels + l2, fontsize=7, loc="outside lower center", ncol=ncol, frameon=False)
+    return fig
