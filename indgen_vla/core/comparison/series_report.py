@@ -248,59 +248,70 @@ def render_markdown(series: dict, title: str = "Checkpoint series") -> str:
 
 
 def plot_series(series: dict, out: Path) -> list[Path]:
-    """plots/<axis>_success.png (success per level against step, Wilson 95 % bands) and plots/<axis>_kstar.png (k*
-    per direction against step, with the continuous break point's bootstrap CI where there is one)."""
-    from matplotlib.figure import Figure
-
+    """plots/<axis>_success.png and plots/<axis>_kstar.png (``series_figures``)."""
     written = []
+    for name, fig in series_figures(series):
+        path = out / "plots" / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_savefig(fig, path)
+        written.append(path)
+    return written
+
+
+def series_figures(series: dict) -> list[tuple[str, Any]]:
+    """Per axis, ``<axis>_success.png`` (success per level against step, Wilson 95 % bands, the episodes behind each
+    point) and ``<axis>_kstar.png`` (k* per direction against step, with the continuous break point's bootstrap CI
+    where there is one); legends beside the panel, never over a curve."""
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
+    figures = []
     for axis, ax in series["axes"].items():
-        fig = Figure(figsize=(6.4, 4.0))
+        fig = Figure(figsize=(7.2, 4.0), layout="constrained")
         a = fig.add_subplot()
+        ns = []
         for k, pts in ax["levels"].items():
             pts = [p for p in pts if not p.get("insufficient")]
             xs = [p["step"] for p in pts]
             if not xs:
                 continue
+            ns += [p["n"] for p in pts]
             ys = [p["rate"] for p in pts]
             line = a.plot(xs, ys, marker="o", label=f"L{k}")[0]
             a.fill_between(xs, [p["ci"][0] for p in pts], [p["ci"][1] for p in pts],
                            alpha=0.15, color=line.get_color())  # fmt: skip
         a.axhline(series["gamma"], ls="--", color="grey", lw=0.8, label="γ")
+        n = "" if not ns else f"n = {min(ns)}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
         a.set(xlabel="training step", ylabel="success rate", ylim=(-0.02, 1.02),
-              title=f"{axis}: success per level vs step (95% CI; {ax['tasks']})")  # fmt: skip
+              title=f"{axis}: success per level vs step\n{n} per point; Wilson 95 % CI; {ax['tasks']}")  # fmt: skip
         a.title.set_fontsize(8)
-        a.legend(fontsize=7)
-        path = out / "plots" / f"{axis}_success.png"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_savefig(fig, path)
-        written.append(path)
-        fig = Figure(figsize=(6.4, 4.0))
+        fig.legend(fontsize=7, loc="outside right upper")
+        figures.append((f"{axis}_success.png", fig))
+        fig = Figure(figsize=(7.2, 4.0), layout="constrained")
         a = fig.add_subplot()
         levels = [int(k) for k in ax["levels"]]
         for side, ks in ax["kstar"].items():
+            sign = "+" if side == "pos" else "−"
             pts = [(x["step"], _kstar_value(x["k"], levels, side), x["break_point"]) for x in ks]
             pts = [p for p in pts if p[1] is not None]
             if pts:
                 line = a.step([p[0] for p in pts], [p[1] for p in pts], where="post", marker="s",
-                              label=f"k* ({'+' if side == 'pos' else '−'})")[0]  # fmt: skip
+                              label=f"k* ({sign})")[0]  # fmt: skip
             bps = [(s, b) for s, _, b in pts if b and b["ci"] and None not in b["ci"]]
             if pts and bps:
                 a.errorbar([s for s, _ in bps], [b["level"] for _, b in bps],
                            yerr=[[b["level"] - b["ci"][0] for _, b in bps], [b["ci"][1] - b["level"] for _, b in bps]],
-                           fmt="o", ms=3, color=line.get_color(), alpha=0.6, label="break point (95% bootstrap CI)")  # fmt: skip
-        from matplotlib.ticker import MaxNLocator
-
+                           fmt="o", ms=3, color=line.get_color(), alpha=0.6,
+                           label=f"break point ({sign}),\n95 % bootstrap CI")  # fmt: skip
         a.yaxis.set_major_locator(MaxNLocator(integer=True))
         a.margins(x=0.05, y=0.1)
         a.set(xlabel="training step", ylabel="level",
               title=f"{axis}: k* per direction vs step (none in range: drawn one level past the last)")  # fmt: skip
         a.title.set_fontsize(8)
         if a.get_legend_handles_labels()[0]:
-            a.legend(fontsize=7)
-        path = out / "plots" / f"{axis}_kstar.png"
-        atomic_savefig(fig, path)
-        written.append(path)
-    return written
+            fig.legend(fontsize=7, loc="outside right upper")
+        figures.append((f"{axis}_kstar.png", fig))
+    return figures
 
 
 def write_series(

@@ -1,10 +1,12 @@
-"""The failure-mode and progress plots show every legend entry inside the figure, clear of bars and titles."""
+"""The failure-mode, progress and series plots show every legend entry inside the figure, clear of the panels."""
 
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
+from indgen_vla.core.comparison.series_report import series_figures, write_series
 from indgen_vla.core.reporting.failures import MODES, failures_figure
 from indgen_vla.core.reporting.partial_credit import STAGES, progress_figure
+from tests.indgen_vla.core.reporting.test_report import make_run
 
 
 def _run(label: str) -> tuple[str, dict]:
@@ -21,8 +23,22 @@ def _run(label: str) -> tuple[str, dict]:
     return label, {"levels": levels, "pooled_tasks": ["milk"]}
 
 
-def _overlaps(a, b) -> bool:
-    return a.x0 < b.x1 - 1 and b.x0 < a.x1 - 1 and a.y0 < b.y1 - 1 and b.y0 < a.y1 - 1
+def _legend_clear(fig, expected: list[str]) -> None:
+    """Every ``expected`` entry in the figure's one legend and inside the figure; the legend clear of every panel
+    with its title and labels."""
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    (legend,) = fig.legends
+    texts = {t.get_text(): t.get_window_extent(renderer) for t in legend.get_texts()}
+    assert all(e in texts for e in expected), list(texts)
+    box = fig.bbox
+    for text, ext in texts.items():
+        assert box.x0 <= ext.x0 and ext.x1 <= box.x1 and box.y0 <= ext.y0 and ext.y1 <= box.y1, text
+    own = legend.get_window_extent(renderer)
+    for ax in fig.axes:
+        b = ax.get_tightbbox(renderer)
+        covers = own.x0 < b.x1 - 1 and b.x0 < own.x1 - 1 and own.y0 < b.y1 - 1 and b.y0 < own.y1 - 1
+        assert not covers, "the legend covers a panel, its title or labels"
 
 
 @pytest.mark.parametrize("make", [failures_figure, progress_figure], ids=["failures", "progress"])
@@ -31,20 +47,28 @@ def test_every_legend_entry_is_inside_the_figure_and_clear_of_the_panels(make, r
     fig = make(
         [_run(f"h-only / lerobot:checkpoints/act_pick_place_human_{i}") for i in range(runs)], "pick_y"
     )
-    renderer = FigureCanvasAgg(fig).get_renderer()
-    fig.draw(renderer)
-    box = fig.bbox
-    (legend,) = fig.legends
-    entries = [t.get_text() for t in legend.get_texts()]
-    expected = [m for m in MODES] if make is failures_figure else [f"{i} {s}" for i, s in enumerate(STAGES)]
-    assert all(e in entries for e in expected), entries
-    for text in legend.get_texts():
-        ext = text.get_window_extent(renderer)
-        assert box.x0 <= ext.x0 and ext.x1 <= box.x1 and box.y0 <= ext.y0 and ext.y1 <= box.y1, (
-            text.get_text()
-        )
-    own = legend.get_window_extent(renderer)
-    for ax in fig.axes:
-        assert not _overlaps(own, ax.get_tightbbox(renderer)), (
-            "the legend covers a panel, its title or labels"
-        )
+    _legend_clear(fig, list(MODES) if make is failures_figure else [f"{i} {s}" for i, s in enumerate(STAGES)])
+
+
+def test_series_plots_keep_their_legends_off_the_curves_and_say_n_per_point(tmp_path):
+    """Five checkpoints over seven levels: the legend's eight entries sit beside the panel, not over L0 at 1.0."""
+
+    def levels(k: int) -> dict:
+        return {
+            -3: (k // 3, 10),
+            -2: (k // 2, 10),
+            -1: (k, 10),
+            0: (10, 10),
+            1: (k, 10),
+            2: (k // 2, 10),
+            3: (1, 10),
+        }
+
+    runs = [(s, make_run(tmp_path / str(s), levels(k), regime=str(s)).path)
+            for s, k in ((1000, 1), (2000, 4), (3000, 6), (4000, 8), (5000, 10))]  # fmt: skip
+    series = write_series(runs, tmp_path / "out")
+    (success, fig), (kstar, fig2) = series_figures(series)
+    assert (success, kstar) == ("pick_y_success.png", "pick_y_kstar.png")
+    _legend_clear(fig, [f"L{k}" for k in range(-3, 4)] + ["γ"])
+    assert "n = 10 per point" in fig.axes[0].get_title()
+    _legend_clear(fig2, ["k* (+)", "k* (−)"])
