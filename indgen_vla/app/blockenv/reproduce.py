@@ -353,25 +353,35 @@ def _steps(c: dict) -> str:
 
 
 def plot(table: dict, gamma: float, path: Path) -> None:
-    import matplotlib
+    """``figure`` as a PNG at ``path``."""
+    atomic_savefig(figure(table, gamma), path)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=120)
+def figure(table: dict, gamma: float):
+    """Success per level for each method, pooled over seeds, with its Wilson band and the episodes behind each
+    point; the legend beside the panel, clear of the curves."""
+    from matplotlib.figure import Figure  # not pyplot: no global state in a long study
+
+    fig = Figure(figsize=(8, 4), dpi=120, layout="constrained")
+    ax = fig.subplots()
+    ns = []
     for m, e in table.items():
         ks = sorted(int(k) for k in e["levels"])
-        ax.plot(ks, [e["levels"][str(k)]["rate"] for k in ks], marker="o", ms=3, label=m,
-                ls="--" if m == "oracle" else "-")  # fmt: skip
-    ax.axhline(gamma, color="grey", ls=":", lw=1)
+        rows = [e["levels"][str(k)] for k in ks]
+        ns += [r["n"] for r in rows]
+        (line,) = ax.plot(ks, [r["rate"] for r in rows], marker="o", ms=3, label=m,
+                          ls="--" if m == "oracle" else "-")  # fmt: skip
+        ax.fill_between(ks, [r["ci_low"] for r in rows], [r["ci_high"] for r in rows], color=line.get_color(),
+                        alpha=0.12, lw=0)  # fmt: skip
+    ax.axhline(gamma, color="grey", ls=":", lw=1, label=f"γ = {gamma}")
     ax.axvspan(
         2.5, max(int(k) for k in next(iter(table.values()))["levels"]) + 0.5, color="#D8CBFF", alpha=0.3
     )
+    n = f"n = {min(ns)}" if min(ns) == max(ns) else f"n = {min(ns)}–{max(ns)}"
+    ax.set_title(f"success per level, pooled over seeds ({n} per point; Wilson 95 % bands)", fontsize=9)
     ax.set_xlabel("level k (trained on L0–L2; shaded: out of distribution)")
     ax.set_ylabel("success rate")
     ax.set_ylim(-0.03, 1.03)
-    ax.legend(fontsize=7, ncol=2)
+    fig.legend(fontsize=7, loc="outside right upper")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    atomic_savefig(fig, path)
-    plt.close(fig)
+    return fig
