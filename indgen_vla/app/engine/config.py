@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import Option, option
+from indgen_vla.app.config_fields import Option, check_types, option
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -84,6 +84,7 @@ class PlanConfig:
     obj_registries: str | None = option(None, REGISTRIES_HELP, metavar="A,B")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.scene:
             raise ConfigError("--scene is required; list scenes with 'indgen scenes'")
         if not self.axes or not all(self.axes):
@@ -128,6 +129,7 @@ class PolicyConfig:
                                     "stopping (default 600)", type=float)  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.spec:
             raise ConfigError("--policy is required, e.g. --policy standin:oracle or --policy lerobot:HUB_ID")
         _at_least(self.replan_steps, 1, "--replan-steps")
@@ -177,6 +179,7 @@ class RunConfig:
                                            "render backend, policy conventions); the manifest lists it")  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.out:
             raise ConfigError("--out is required: the run directory (re-run the same command to resume)")
         if self.workers == "auto":
@@ -219,6 +222,7 @@ class AdaptiveConfig:
     round_size: int = option(5, "episodes between two looks (default 5)", type=int)
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if self.mode is not None and self.mode not in ADAPTIVE_MODES:
             raise ConfigError(f"--adaptive must be one of {', '.join(ADAPTIVE_MODES)}, got {self.mode!r}")
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 # `X as X`: re-exported for mimicgen, train and the tests, which import them from here (their home before the split)
-from indgen_vla.app.config_fields import option, section
+from indgen_vla.app.config_fields import check_types, option, section
 from indgen_vla.app.engine.config import OPTIONS
 from indgen_vla.app.regimes.demo_attempts import AttemptPlan, DemoCell, EnvMaker, kept_episodes
 from indgen_vla.app.regimes.demo_attempts import HumanNoise as HumanNoise
@@ -109,6 +109,7 @@ class LevelRequest:
     axes_preset: str | None = _evaluate_option("axes_preset")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.axes, str):  # the flag's text
             object.__setattr__(self, "axes", tuple(a.strip() for a in self.axes.split(",") if a.strip()))
         object.__setattr__(self, "axes", tuple(self.axes))
@@ -163,6 +164,7 @@ class DemosConfig:
     max_attempts_factor: int = option(3)  # attempts per cell at most, in units of n (API only)
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.cameras, str):  # the flag's text
             object.__setattr__(self, "cameras", tuple(c for c in self.cameras.split(",") if c))
         object.__setattr__(self, "cameras", tuple(self.cameras))
