@@ -49,6 +49,8 @@ def evaluate(
     out: PathLike | None = None,
     config: Any = None,
     quiet: bool = False,
+    log: str | None = None,
+    log_project: str = "indgen",
     **options: Any,
 ) -> Run:
     """Run (or resume) an evaluation and return its run directory, exactly as ``indgen evaluate`` writes it.
@@ -61,8 +63,13 @@ def evaluate(
     ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists. Whole config
     sections are accepted too (``plan=PlanConfig(...)``, ``run=RunConfig(...)``, ``adaptive=AdaptiveConfig(...)``),
     which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
-    override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
+    override, or an ``EvalConfig``. ``quiet`` hides the live progress display. ``log`` (``trackio`` | ``wandb``) and
+    ``log_project`` are ``--log`` and ``--log-project``: the run's rates, k* and verdicts logged at step 0.
     """
+    if log is not None:
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+
+        tracker_module(log)  # a missing tracker is refused before any episode runs
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if obj is not None:
         policy = describe(obj)
@@ -78,7 +85,12 @@ def evaluate(
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
-    return Run(run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj))
+    out_dir = run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj)
+    if log is not None:
+        from indgen_vla.app.engine.trackers import log_runs
+
+        log_runs(log, [(None, out_dir)], project=log_project, name=out_dir.name)
+    return Run(out_dir)
 
 
 def report(

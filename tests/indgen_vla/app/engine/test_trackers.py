@@ -137,3 +137,47 @@ print("RC", rc)
     assert m["pick_y/L0/n"] == 5 and m["pick_y/L0/success"] == 0.0
     config = json.loads(con.execute("SELECT config FROM configs").fetchone()[0])
     assert config["fingerprint"]["scene"] == "pick_place" and len(config["fingerprint_digest"]) == 12
+
+
+def test_api_log_is_the_log_flag_and_a_missing_tracker_runs_nothing(tmp_path, monkeypatch, capsys):
+    """``indgen_vla.evaluate(log=...)`` is ``--log``: a tracker that is unknown or not installed is one line before any
+    episode runs (no run directory), as the command now refuses it too."""
+    import indgen_vla
+    from indgen_vla.core.errors import ConfigError
+
+    args = dict(policy="standin:random", scene="pick_place", axis="pick_y", levels="0", episodes=1, workers=1)
+    with pytest.raises(ConfigError, match=r"^--log must be one of trackio, wandb, got 'mlflow'$"):
+        indgen_vla.evaluate(**args, out=tmp_path / "a", log="mlflow")
+    monkeypatch.setitem(sys.modules, "trackio", None)  # as if not installed
+    with pytest.raises(ConfigError, match=r"^--log trackio needs the trackio package; pip install"):
+        indgen_vla.evaluate(**args, out=tmp_path / "b", log="trackio")
+    from indgen_vla.app.cli import main
+
+    cli = [
+        "evaluate",
+        *[f"--{k}={v}" for k, v in args.items()],
+        f"--out={tmp_path / 'c'}",
+        "--log",
+        "trackio",
+    ]
+    assert main(cli) == 2
+    assert capsys.readouterr().err.startswith("error: --log trackio needs the trackio package")
+    assert not any((tmp_path / d).exists() for d in "abc")
+
+
+def test_api_evaluate_logs_to_trackio_offline(tmp_path):
+    """The Python API's ``log="trackio"``, ``log_project=``: the run's rates reach a local project, nothing leaves."""
+    pytest.importorskip("trackio")
+    code = f"""
+import indgen_vla
+run = indgen_vla.evaluate(policy="standin:random", scene="pick_place", axis="pick_y", levels="0", episodes=5,
+                          max_steps=5, workers=1, out={str(tmp_path / "run")!r}, quiet=True, log="trackio",
+                          log_project="api")
+print("RUN", run.path.name)
+"""
+    assert "RUN run" in run_logged(tmp_path, "trackio", code)
+    import sqlite3
+
+    con = sqlite3.connect(tmp_path / "trackio" / "api.db")
+    ((step, metrics),) = con.execute("SELECT step, metrics FROM metrics").fetchall()
+    assert step == 0 and json.loads(metrics)["pick_y/L0/n"] == 5
