@@ -57,7 +57,8 @@ def evaluate(
 
     ``policy`` is a spec string (``--policy``), a ``PolicyConfig``, or a policy already in memory: a LeRobot
     ``(policy, preprocessor, postprocessor)`` or any ``Policy`` (a training loop evaluates its current weights
-    without saving them; local backend only; the run records it as ``object:<class>``).
+    without saving them; local backend only; the run records it as ``object:<class>``, or as the ``object:...`` spec
+    of an ``EvalConfig`` given as ``config``, e.g. ``object:ACTPolicy@step5000``).
 
     Keyword arguments are ``indgen evaluate``'s flags with ``_`` for ``-`` (``scene``, ``task``, ``axis``,
     ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists. Whole config
@@ -71,8 +72,11 @@ def evaluate(
 
         tracker_module(log)  # a missing tracker is refused before any episode runs
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
-    if obj is not None:
-        policy = describe(obj)
+    if (
+        obj is not None
+    ):  # the label: an EvalConfig's own "object:..." spec (a training step's), else the class
+        labelled = isinstance(config, EvalConfig) and config.policy.spec.startswith("object:")
+        policy = config.policy.spec if labelled else describe(obj)
     given = {
         **options,
         **({"policy": policy} if policy is not None else {}),

@@ -124,3 +124,20 @@ def test_bad_keywords_and_results_are_one_clear_line(tmp_path):
         from indgen_vla.app.regimes.train import TrainRecipe
 
         TrainRecipe(steps="100")
+
+
+def test_a_policy_object_keeps_the_label_its_config_gives(tmp_path):
+    """A training loop's ``evaluate(config=cfg, policy=obj)`` records ``cfg``'s ``object:...@stepN`` (compare's and
+    series' tables tell the steps apart); without one the run records the object's class."""
+    from policy_wrappers.standin import RandomPolicy
+
+    class Mine(RandomPolicy):
+        pass
+
+    flat = dict(scene="pick_place", axes=("pick_y",), levels="0", episodes=1, max_steps=3, workers=1)
+    cfg = indgen_vla.EvalConfig.from_flat(policy="object:Mine@step7", out=str(tmp_path / "a"), **flat)
+    assert (
+        indgen_vla.evaluate(config=cfg, policy=Mine(), quiet=True).manifest["policy"] == "object:Mine@step7"
+    )
+    plain = indgen_vla.EvalConfig.from_flat(policy="standin:random", out=str(tmp_path / "b"), **flat)
+    assert indgen_vla.evaluate(config=plain, policy=Mine(), quiet=True).manifest["policy"] == "object:Mine"
