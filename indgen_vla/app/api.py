@@ -4,6 +4,7 @@ scripts, with keyword arguments named like the flags and typed results instead o
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,8 @@ from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 from indgen_vla.app.studies.series import run_series
 from indgen_vla.core.comparison.series_report import write_series
 from indgen_vla.core.comparison.two_runs import compare_runs
-from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.errors import ConfigError, EpisodeErrorsWarning, RunDirError
+from indgen_vla.core.reporting.certification_view import unavailable_rows
 from indgen_vla.core.reporting.report import write_run_report
 from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.runs.result import Run
@@ -94,7 +96,20 @@ def evaluate(
         from indgen_vla.app.engine.trackers import log_runs
 
         log_runs(log, [(None, out_dir)], project=log_project, name=out_dir.name)
-    return Run(out_dir)
+    run = Run(out_dir)
+    _warn_errors(run)
+    return run
+
+
+def _warn_errors(run: Run) -> None:
+    """The command's exit 3 in Python: episodes that ended ``error`` (not those their level rules out) are one
+    ``EpisodeErrorsWarning`` line with the first cause, instead of rates that silently count fewer episodes."""
+    eps = run.episodes()
+    bad = eps[(eps["status"] == "error") & ~unavailable_rows(eps)]
+    if len(bad):
+        first = str(bad["error"].iloc[0]).strip().splitlines()[-1] if "error" in bad else "?"
+        warnings.warn(f"{run.path}: {len(bad)} of {len(eps)} episode(s) ended with errors (the 'error' column; the "
+                      f"first: {first}); re-run the same call to retry them", EpisodeErrorsWarning, stacklevel=3)  # fmt: skip
 
 
 def report(

@@ -141,3 +141,37 @@ def test_a_policy_object_keeps_the_label_its_config_gives(tmp_path):
     )
     plain = indgen_vla.EvalConfig.from_flat(policy="standin:random", out=str(tmp_path / "b"), **flat)
     assert indgen_vla.evaluate(config=plain, policy=Mine(), quiet=True).manifest["policy"] == "object:Mine"
+
+
+def test_episodes_that_ended_with_errors_are_a_warning_not_silence(tmp_path):
+    """The command exits 3 when episodes ended ``error``; ``evaluate`` returns the run and warns in one line with the
+    first cause (a policy returning NaN), so a training loop's rates over fewer episodes do not pass unnoticed."""
+    import numpy as np
+
+    from indgen_vla import ACTION_DIM, EpisodeErrorsWarning, PolicySpec
+
+    class NaNs:
+        spec = PolicySpec(
+            family="mine", name="mine:nan", chunk_size=1, replan_steps=1, cameras=(), batched=True
+        )
+
+        def reset(self, instruction, seed=None):
+            pass
+
+        def act(self, observations):
+            return np.full((len(observations), 1, ACTION_DIM), np.nan, np.float32)
+
+        def close(self):
+            pass
+
+    args = dict(scene="pick_place", axis="pick_y", levels="0", episodes=1, max_steps=3, workers=1, quiet=True)
+    with pytest.warns(
+        EpisodeErrorsWarning, match=r"1 of 1 episode\(s\) ended with errors .*non-finite actions"
+    ):
+        run = indgen_vla.evaluate(policy=NaNs(), out=tmp_path / "nan", **args)
+    assert list(run.episodes()["status"]) == ["error"]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EpisodeErrorsWarning)  # a clean run warns nothing
+        indgen_vla.evaluate(policy="standin:oracle", out=tmp_path / "ok", **args)
