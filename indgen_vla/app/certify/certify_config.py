@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from indgen_vla.app.config_fields import check_types, from_args, option, option_like, section
-from indgen_vla.app.engine.config import PlanConfig
+from indgen_vla.app.engine.config import PlanConfig, levels_text
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 
@@ -57,8 +57,7 @@ class CertifyPlan:
     def __post_init__(self) -> None:
         check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         object.__setattr__(self, "axes", _axes(self.axes))
-        if isinstance(self.levels, list | tuple | range):
-            object.__setattr__(self, "levels", ",".join(str(int(k)) for k in self.levels))
+        object.__setattr__(self, "levels", levels_text(self.levels))
         if len(self.axes) > 1:
             raise ConfigError(f"certify takes one axis or composition, got {len(self.axes)} "
                               f"({', '.join(self.axes)}); run certify once per axis")  # fmt: skip

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import numbers
 import os
 import re
 from collections.abc import Mapping
@@ -42,6 +43,28 @@ def workers_value(text: str) -> int | str:
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+
+
+def levels_text(value: Any) -> str | None:
+    """``--levels`` as text from what the Python API and YAML give: the text itself, one level (``levels=2``) or a
+    list, tuple or range of them; anything else is one ``ConfigError`` line."""
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return str(int(value))
+    try:
+        items = list(value)
+    except TypeError:
+        items = None
+    if (
+        items is None
+        or not items
+        or not all(isinstance(k, numbers.Integral) and not isinstance(k, bool) for k in items)
+    ):
+        raise ConfigError(
+            f"--levels must be a range like '-3:3', a list of levels or one level, got {value!r}"
+        )
+    return ",".join(str(int(k)) for k in items)
 
 
 def _at_least(value: int | float | None, low: int, flag: str) -> None:
@@ -85,6 +108,7 @@ class PlanConfig:
 
     def __post_init__(self) -> None:
         check_types(self)  # the API's and YAML's values: one line, not a TypeError below
+        object.__setattr__(self, "levels", levels_text(self.levels))
         if not self.scene:
             raise ConfigError("--scene is required; list scenes with 'indgen scenes'")
         if not self.axes or not all(self.axes):
