@@ -209,15 +209,25 @@ def budget(config: BudgetConfig) -> dict[str, Any]:
     return plan_budget(config, family_of(config.protocol.plan))
 
 
-def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None
-           ) -> list[tuple[int, Path]]:  # fmt: skip
+def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None,
+           log: str | None = None, log_project: str = "indgen") -> list[tuple[int, Path]]:  # fmt: skip
     """``indgen series``: one run of ``config.protocol`` per checkpoint, into ``config.out``/runs/<step>, and the
     series report (series.md, series.json, plots) rewritten after each (``after_each`` gets the runs too); returns
-    (step, run directory) in step order."""
+    (step, run directory) in step order. ``log``/``log_project`` are ``--log``/``--log-project``: each checkpoint's
+    run logged once, at its step, into one tracker run named after ``config.out``."""
     out = Path(config.out)
+    logged: set[int] = set()
+    if log is not None:
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+
+        tracker_module(log)  # a missing tracker is refused before any checkpoint runs
 
     def report(entries: list[tuple[int, Path]]) -> None:
         write_series(entries, out, config.protocol.plan.gamma)
+        if log is not None:
+            from indgen_vla.app.engine.trackers import log_runs
+
+            logged.update(log_runs(log, entries, project=log_project, name=out.name, skip=logged))
         if after_each is not None:
             after_each(entries)
 
