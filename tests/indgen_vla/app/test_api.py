@@ -175,3 +175,57 @@ def test_episodes_that_ended_with_errors_are_a_warning_not_silence(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", EpisodeErrorsWarning)  # a clean run warns nothing
         indgen_vla.evaluate(policy="standin:oracle", out=tmp_path / "ok", **args)
+
+
+# flags of a command that its function names otherwise (dest -> the function's keyword)
+RENAMED = {("compare", "label_a"): "labels", ("compare", "label_b"): "labels", ("import", "harness"): None}
+# the commands' modes the functions do not offer (the command is the way): report's overlay of several runs into one
+# folder and its publication lock; compare of two groups of seeds (--a/--b) or two axes (--axes), whose --margin only
+# those modes read
+CLI_ONLY = {("report", "out"), ("report", "lock_published"), ("compare", "a"), ("compare", "b"),
+            ("compare", "axes"), ("compare", "margin")}  # fmt: skip
+
+
+def _accepted(command: str) -> set[str]:
+    """The keywords ``indgen_vla.<command>`` takes: its signature's, and the options of the config it builds."""
+    import inspect
+
+    from indgen_vla.app.certify.certify_config import CertifyConfig
+    from indgen_vla.app.config_fields import flat_options
+    from indgen_vla.app.engine.config import FLAG_FIELDS, FLAG_NAMES
+
+    func = {"import": indgen_vla.import_lerobot_eval}.get(command) or getattr(indgen_vla, command)
+    names = set(inspect.signature(func).parameters) - {"options"}
+    if command in ("evaluate", "series"):
+        names |= FLAG_FIELDS | set(
+            FLAG_NAMES
+        )  # evaluate's keywords; a series' protocol is an EvalConfig of them
+    if command == "series":
+        names |= set(flat_options(indgen_vla.SeriesConfig))
+    if command == "certify":
+        names |= {n for n, o in flat_options(CertifyConfig).items()} | {
+            o.flag for o in flat_options(CertifyConfig).values() if o.flag
+        }
+    return names
+
+
+@pytest.mark.parametrize("command", ["evaluate", "series", "certify", "report", "compare", "import"])
+def test_every_flag_of_a_command_is_a_keyword_of_its_function(command):
+    """api.md: the functions take the commands' flags with ``_`` for ``-``; a flag added to a command and not to its
+    function (``--log`` was) fails here, unless it is one of the command's own modes listed in ``CLI_ONLY``."""
+    import argparse
+
+    from indgen_vla.app.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+    dests = {a.dest for a in sub._actions if a.dest != "help"}
+    accepted = _accepted(command)
+    missing = sorted(
+        d
+        for d in dests
+        if (command, d) not in CLI_ONLY
+        and RENAMED.get((command, d), d) is not None
+        and RENAMED.get((command, d), d) not in accepted
+    )
+    assert not missing, f"indgen {command} flags the Python function lacks: {missing}"
