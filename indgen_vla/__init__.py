@@ -63,6 +63,7 @@ _LAZY = {
     "InReceptacle": "scenes.predicates:InReceptacle",
     "IndgenError": "indgen_vla.core.errors:IndgenError",
     "ConfigError": "indgen_vla.core.errors:ConfigError",
+    "EpisodeErrorsWarning": "indgen_vla.core.errors:EpisodeErrorsWarning",
 }
 __all__ = ["__version__", *_LAZY]
 

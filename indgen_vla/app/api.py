@@ -4,6 +4,7 @@ scripts, with keyword arguments named like the flags and typed results instead o
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,8 @@ from indgen_vla.app.studies.config import BudgetConfig, SeriesConfig
 from indgen_vla.app.studies.series import run_series
 from indgen_vla.core.comparison.series_report import write_series
 from indgen_vla.core.comparison.two_runs import compare_runs
-from indgen_vla.core.errors import ConfigError, RunDirError
+from indgen_vla.core.errors import ConfigError, EpisodeErrorsWarning, RunDirError
+from indgen_vla.core.reporting.certification_view import unavailable_rows
 from indgen_vla.core.reporting.report import write_run_report
 from indgen_vla.core.runs.records import RunDir
 from indgen_vla.core.runs.result import Run
@@ -49,23 +51,34 @@ def evaluate(
     out: PathLike | None = None,
     config: Any = None,
     quiet: bool = False,
+    log: str | None = None,
+    log_project: str = "indgen",
     **options: Any,
 ) -> Run:
     """Run (or resume) an evaluation and return its run directory, exactly as ``indgen evaluate`` writes it.
 
     ``policy`` is a spec string (``--policy``), a ``PolicyConfig``, or a policy already in memory: a LeRobot
     ``(policy, preprocessor, postprocessor)`` or any ``Policy`` (a training loop evaluates its current weights
-    without saving them; local backend only; the run records it as ``object:<class>``).
+    without saving them; local backend only; the run records it as ``object:<class>``, or as the ``object:...`` spec
+    of an ``EvalConfig`` given as ``config``, e.g. ``object:ACTPolicy@step5000``).
 
     Keyword arguments are ``indgen evaluate``'s flags with ``_`` for ``-`` (``scene``, ``task``, ``axis``,
     ``levels``, ``episodes``, ``workers``, ``adaptive``, ...); ``axis`` and ``levels`` also take lists. Whole config
     sections are accepted too (``plan=PlanConfig(...)``, ``run=RunConfig(...)``, ``adaptive=AdaptiveConfig(...)``),
     which flat keywords override. ``config`` is a preset name or YAML path (``--config``) whose values the keywords
-    override, or an ``EvalConfig``. ``quiet`` hides the live progress display.
+    override, or an ``EvalConfig``. ``quiet`` hides the live progress display. ``log`` (``trackio`` | ``wandb``) and
+    ``log_project`` are ``--log`` and ``--log-project``: the run's rates, k* and verdicts logged at step 0.
     """
+    if log is not None:
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+
+        tracker_module(log)  # a missing tracker is refused before any episode runs
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
-    if obj is not None:
-        policy = describe(obj)
+    if (
+        obj is not None
+    ):  # the label: an EvalConfig's own "object:..." spec (a training step's), else the class
+        labelled = isinstance(config, EvalConfig) and config.policy.spec.startswith("object:")
+        policy = config.policy.spec if labelled else describe(obj)
     given = {
         **options,
         **({"policy": policy} if policy is not None else {}),
@@ -78,7 +91,25 @@ def evaluate(
         raise ConfigError(
             f"config must be a preset name, a YAML path or an EvalConfig, got {type(config).__name__}"
         )
-    return Run(run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj))
+    out_dir = run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj)
+    if log is not None:
+        from indgen_vla.app.engine.trackers import log_runs
+
+        log_runs(log, [(None, out_dir)], project=log_project, name=out_dir.name)
+    run = Run(out_dir)
+    _warn_errors(run)
+    return run
+
+
+def _warn_errors(run: Run) -> None:
+    """The command's exit 3 in Python: episodes that ended ``error`` (not those their level rules out) are one
+    ``EpisodeErrorsWarning`` line with the first cause, instead of rates that silently count fewer episodes."""
+    eps = run.episodes()
+    bad = eps[(eps["status"] == "error") & ~unavailable_rows(eps)]
+    if len(bad):
+        first = str(bad["error"].iloc[0]).strip().splitlines()[-1] if "error" in bad else "?"
+        warnings.warn(f"{run.path}: {len(bad)} of {len(eps)} episode(s) ended with errors (the 'error' column; the "
+                      f"first: {first}); re-run the same call to retry them", EpisodeErrorsWarning, stacklevel=3)  # fmt: skip
 
 
 def report(
@@ -178,15 +209,25 @@ def budget(config: BudgetConfig) -> dict[str, Any]:
     return plan_budget(config, family_of(config.protocol.plan))
 
 
-def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None
-           ) -> list[tuple[int, Path]]:  # fmt: skip
+def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]], None] | None = None,
+           log: str | None = None, log_project: str = "indgen") -> list[tuple[int, Path]]:  # fmt: skip
     """``indgen series``: one run of ``config.protocol`` per checkpoint, into ``config.out``/runs/<step>, and the
     series report (series.md, series.json, plots) rewritten after each (``after_each`` gets the runs too); returns
-    (step, run directory) in step order."""
+    (step, run directory) in step order. ``log``/``log_project`` are ``--log``/``--log-project``: each checkpoint's
+    run logged once, at its step, into one tracker run named after ``config.out``."""
     out = Path(config.out)
+    logged: set[int] = set()
+    if log is not None:
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+
+        tracker_module(log)  # a missing tracker is refused before any checkpoint runs
 
     def report(entries: list[tuple[int, Path]]) -> None:
         write_series(entries, out, config.protocol.plan.gamma)
+        if log is not None:
+            from indgen_vla.app.engine.trackers import log_runs
+
+            logged.update(log_runs(log, entries, project=log_project, name=out.name, skip=logged))
         if after_each is not None:
             after_each(entries)
 

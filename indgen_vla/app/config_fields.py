@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import difflib
+import numbers
 import typing
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -38,6 +39,34 @@ def option_like(cls: type, name: str, default: Any = dataclasses.MISSING, help: 
         meta["help"] if help is dataclasses.MISSING else help,
         name=meta["name"], flag=meta["flag"], **{**meta["argparse"], **argparse_kwargs},
     )  # fmt: skip
+
+
+def check_types(config: Any) -> None:
+    """One ``ConfigError`` line for an option whose value has the wrong type (the Python API and YAML hand values
+    argparse never parsed): a whole number where the flag parses ``int`` (or the default is one), a number where it
+    parses ``float``, true/false for a switch. NumPy scalars become Python ones, so manifests stay JSON."""
+    for f in dataclasses.fields(config):
+        meta = f.metadata.get("argparse")
+        value = getattr(config, f.name)
+        if meta is None or value is None:
+            continue
+        kind = meta.get("type") if "type" in meta else type(f.default)
+        if kind not in (bool, int, float) or "choices" in meta:
+            continue
+        boolean = isinstance(value, bool) or (
+            type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")
+        )
+        if kind is bool and boolean:
+            object.__setattr__(config, f.name, bool(value))
+        elif kind is int and not boolean and isinstance(value, numbers.Integral):
+            object.__setattr__(config, f.name, int(value))
+        elif kind is float and not boolean and isinstance(value, numbers.Real):
+            object.__setattr__(config, f.name, value if isinstance(value, int | float) else float(value))
+        else:
+            what = {bool: "true or false", int: "a whole number", float: "a number"}[kind]
+            flag = f.metadata.get("flag") or f.metadata.get("name") or f.name
+            name = f"--{flag.replace('_', '-')}" if f.metadata.get("help") else flag
+            raise ConfigError(f"{name} must be {what}, got {value!r} ({type(value).__name__})")
 
 
 def section(cls: type) -> Any:

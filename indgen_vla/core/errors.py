@@ -37,6 +37,11 @@ class PolicyError(IndgenError):
     """A policy that cannot be loaded, reached, or returned a malformed action."""
 
 
+class EpisodeErrorsWarning(UserWarning):
+    """``indgen_vla.evaluate`` finished with episodes that ended ``error`` (the command's exit 3): a re-run retries
+    them; ``warnings.simplefilter("error", EpisodeErrorsWarning)`` makes it raise."""
+
+
 # Exit codes of ``indgen evaluate`` (docs/cli.md "Exit codes"): 0 every planned episode ok, 2 bad input,
 # EXIT_EPISODE_ERRORS the run finished but some episodes ended ``error`` (a re-run retries them), EXIT_STOPPED the run
 # stopped early (policy server unreachable past --server-patience; Ctrl-C gives the conventional 130),

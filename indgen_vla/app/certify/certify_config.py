@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from indgen_vla.app.config_fields import from_args, option, option_like, section
-from indgen_vla.app.engine.config import PlanConfig
+from indgen_vla.app.config_fields import check_types, from_args, option, option_like, section
+from indgen_vla.app.engine.config import PlanConfig, levels_text
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.axis_ref import AxisRef
 
@@ -55,9 +55,9 @@ class CertifyPlan:
     obj_registries: str | None = option_like(PlanConfig, "obj_registries")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         object.__setattr__(self, "axes", _axes(self.axes))
-        if isinstance(self.levels, list | tuple | range):
-            object.__setattr__(self, "levels", ",".join(str(int(k)) for k in self.levels))
+        object.__setattr__(self, "levels", levels_text(self.levels))
         if len(self.axes) > 1:
             raise ConfigError(f"certify takes one axis or composition, got {len(self.axes)} "
                               f"({', '.join(self.axes)}); run certify once per axis")  # fmt: skip
@@ -93,6 +93,7 @@ class CertifyRule:
     )
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if self.episodes is not None and (isinstance(self.episodes, bool) or self.episodes < 1):
             raise ConfigError(f"--episodes must be >= 1, got {self.episodes}")
         if not 0 < self.threshold < 1:
@@ -111,6 +112,7 @@ class CertifyRun:
     out: str | None = option(None, "folder for certify.json (default: where evaluate looks; resumes there)")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise ConfigError(f"--workers must be >= 1, got {self.workers!r}")
         if self.out is not None:
@@ -131,6 +133,7 @@ class CertifyCheck:
     run_dir: str | None = option(None, "an evaluate run directory (--evaluation-states)", flag="run")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if self.audit is not None and (isinstance(self.audit, bool) or self.audit < 1):
             raise ConfigError(f"--audit must be >= 1 levels, got {self.audit}")
         if self.evaluation_states and not self.run_dir:

@@ -62,6 +62,10 @@ def main(args: argparse.Namespace) -> int:
     from indgen_vla.core.reporting.report import print_tables, run_label  # lazy: start-up (numpy)
 
     cfg = config_from_args(args)
+    if args.log:
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+
+        tracker_module(args.log)  # a missing tracker is refused before any episode runs
     out = evaluate(cfg, family_of(cfg.plan))  # the family looked up once, here at the edge
     run = RunDir.open(out)
     if args.log:

@@ -43,15 +43,7 @@ def main(args: argparse.Namespace) -> int:
         SeriesConfig, args, command="series", protocol=config_from_args(ns), roots=tuple(args.roots)
     )
     out = Path(cfg.out)
-    logged: set[int] = set()
-
-    def log(entries):
-        if args.log:
-            from indgen_vla.app.engine.trackers import log_runs  # lazy: optional trackio/wandb
-
-            logged.update(log_runs(args.log, entries, project=args.log_project, name=out.name, skip=logged))
-
-    entries = series(cfg, after_each=log)
+    entries = series(cfg, log=args.log, log_project=args.log_project)
     print(f"series: {len(entries)} checkpoint(s); report: {out / 'series.md'}\njson:   {out / 'series.json'}\n"
           f"plots:  {out / 'plots'}/")  # fmt: skip
     return 0

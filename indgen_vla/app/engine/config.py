@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import numbers
 import os
 import re
 from collections.abc import Mapping
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import Option, option
+from indgen_vla.app.config_fields import Option, check_types, option
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -42,6 +43,28 @@ def workers_value(text: str) -> int | str:
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number or auto, got {text!r}") from None
+
+
+def levels_text(value: Any) -> str | None:
+    """``--levels`` as text from what the Python API and YAML give: the text itself, one level (``levels=2``) or a
+    list, tuple or range of them; anything else is one ``ConfigError`` line."""
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return str(int(value))
+    try:
+        items = list(value)
+    except TypeError:
+        items = None
+    if (
+        items is None
+        or not items
+        or not all(isinstance(k, numbers.Integral) and not isinstance(k, bool) for k in items)
+    ):
+        raise ConfigError(
+            f"--levels must be a range like '-3:3', a list of levels or one level, got {value!r}"
+        )
+    return ",".join(str(int(k)) for k in items)
 
 
 def _at_least(value: int | float | None, low: int, flag: str) -> None:
@@ -84,6 +107,8 @@ class PlanConfig:
     obj_registries: str | None = option(None, REGISTRIES_HELP, metavar="A,B")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
+        object.__setattr__(self, "levels", levels_text(self.levels))
         if not self.scene:
             raise ConfigError("--scene is required; list scenes with 'indgen scenes'")
         if not self.axes or not all(self.axes):
@@ -128,6 +153,7 @@ class PolicyConfig:
                                     "stopping (default 600)", type=float)  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.spec:
             raise ConfigError("--policy is required, e.g. --policy standin:oracle or --policy lerobot:HUB_ID")
         _at_least(self.replan_steps, 1, "--replan-steps")
@@ -177,6 +203,7 @@ class RunConfig:
                                            "render backend, policy conventions); the manifest lists it")  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.out:
             raise ConfigError("--out is required: the run directory (re-run the same command to resume)")
         if self.workers == "auto":
@@ -219,6 +246,7 @@ class AdaptiveConfig:
     round_size: int = option(5, "episodes between two looks (default 5)", type=int)
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if self.mode is not None and self.mode not in ADAPTIVE_MODES:
             raise ConfigError(f"--adaptive must be one of {', '.join(ADAPTIVE_MODES)}, got {self.mode!r}")
 

@@ -17,9 +17,11 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from indgen_vla.app.engine.main_guard import check_main_guard
 from indgen_vla.app.engine.reconnect import DEFAULT_PATIENCE_S, Outage
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, Transition, action_dim
 from indgen_vla.app.engine.scheduler import Limits, Policies, Slots, cell_of, coordinate, first_jobs
+from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import WARM_CELL_ENV, EpisodeJob
 from indgen_vla.core.runs.records import EpisodeRecord
 
@@ -180,7 +182,8 @@ def _context(levels, task: str | None = None):
     processes). It starts with one BLAS/OpenMP thread per process (``WORKER_THREAD_ENV``, unless the user set
     them; the main process keeps its own) and names ``task``, the first the workers build, to the preload
     (``WARM_CELL_ENV``: a family may warm its caches with it; callers name one only when two or more workers
-    will share what the fork server warmed)."""
+    will share what the fork server warmed). A script's unguarded top level is refused first (``main_guard``)."""
+    check_main_guard()
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(
         ["indgen_vla.app.engine.local", *levels.preload, "indgen_vla.app.engine.forkserver_exit"]
@@ -373,6 +376,8 @@ class EarlyWorkers:
         # the fork server starts here, not in the thread: starting it sets this process's env briefly
         try:
             ctx = _context(runner_cfg.levels, jobs[0].task if jobs and n > 1 else None)
+        except ConfigError:
+            raise  # an unguarded script (main_guard): no worker would start, now or later
         except (ValueError, OSError) as e:
             self._failed = e  # no fork server on this platform: the run starts as without a preview
             return

@@ -28,7 +28,9 @@ INSTALL = {"trackio": "pip install 'indgen-vla[trackio]' (or pip install trackio
 VIDEOS_PER_RUN = 8  # example videos logged per run at most
 
 
-def _module(kind: str):
+def tracker_module(kind: str):
+    """The tracker's package, imported; a kind that is no tracker, or one not installed, is one ``ConfigError`` line
+    (callers check it before a run, so a missing extra costs no episodes)."""
     if kind not in TRACKERS:
         raise ConfigError(f"--log must be one of {', '.join(TRACKERS)}, got {kind!r}")
     import importlib
@@ -95,7 +97,7 @@ def log_runs(
     """Log each (step, run directory) of ``entries`` (step None: 0) into one tracker run; returns the steps logged.
 
     ``skip``: steps logged before (a series logs each checkpoint once). ``directory``: wandb's local dir."""
-    mod = _module(kind)
+    mod = tracker_module(kind)
     todo = [(0 if s is None else int(s), Path(p)) for s, p in entries if s is None or s not in set(skip)]
     if not todo:
         return []

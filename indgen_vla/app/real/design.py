@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import option
+from indgen_vla.app.config_fields import check_types, option
 from indgen_vla.app.real.setup import ORDERS, RealAxis, RealSetup, load_setup, presets, setup_from_dict
 from indgen_vla.app.real.store import State
 from indgen_vla.core.errors import ConfigError, RunDirError
@@ -79,6 +79,7 @@ class RealPlanConfig:
     data_regime: str = option("", "label of the training data regime, e.g. h-only")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if not self.out:
             raise ConfigError("--out is required: the run directory 'indgen real record' will fill")
         if not self.policy.strip():

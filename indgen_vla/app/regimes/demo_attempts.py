@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from indgen_vla.app.config_fields import option
+from indgen_vla.app.config_fields import check_types, option
 from indgen_vla.app.engine.local import init_worker_process, start_forkserver
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.interface import Observation
@@ -38,6 +38,7 @@ class HumanNoise:
     pause_steps: tuple[int, int] = option((2, 8))  # API only
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if self.sigma < 0 or not 0 <= self.pause_prob < 1:
             raise ConfigError(f"noise sigma must be >= 0 and pause probability in [0, 1); got {self}")
         if not 1 <= self.pause_steps[0] <= self.pause_steps[1]:

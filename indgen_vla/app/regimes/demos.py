@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 # `X as X`: re-exported for mimicgen, train and the tests, which import them from here (their home before the split)
-from indgen_vla.app.config_fields import option, section
-from indgen_vla.app.engine.config import OPTIONS
+from indgen_vla.app.config_fields import check_types, option, section
+from indgen_vla.app.engine.config import OPTIONS, levels_text
 from indgen_vla.app.regimes.demo_attempts import AttemptPlan, DemoCell, EnvMaker, kept_episodes
 from indgen_vla.app.regimes.demo_attempts import HumanNoise as HumanNoise
 from indgen_vla.app.regimes.journal import EPISODES_SIDECAR as EPISODES_SIDECAR
@@ -109,9 +109,11 @@ class LevelRequest:
     axes_preset: str | None = _evaluate_option("axes_preset")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.axes, str):  # the flag's text
             object.__setattr__(self, "axes", tuple(a.strip() for a in self.axes.split(",") if a.strip()))
         object.__setattr__(self, "axes", tuple(self.axes))
+        object.__setattr__(self, "levels", levels_text(self.levels))
         if not self.axes and (self.levels, self.step, self.axes_preset) != (None, None, None):
             raise ConfigError(
                 "--levels, --step and --axes-preset need --axis, e.g. --axis pick_y --levels 0:2"
@@ -163,6 +165,7 @@ class DemosConfig:
     max_attempts_factor: int = option(3)  # attempts per cell at most, in units of n (API only)
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.cameras, str):  # the flag's text
             object.__setattr__(self, "cameras", tuple(c for c in self.cameras.split(",") if c))
         object.__setattr__(self, "cameras", tuple(self.cameras))

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from indgen_vla.app.config_fields import option
+from indgen_vla.app.config_fields import check_types, option
 from indgen_vla.app.regimes.demos import (
     ENV_STATE,
     FPS,
@@ -102,6 +102,7 @@ class MimicGenConfig:
     repo_id: str = option("local/indgen_mimicgen", "LeRobotDataset repo id stored in the dataset")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         object.__setattr__(self, "source", Path(self.source))
         object.__setattr__(self, "out", Path(self.out))
         if self.n < 1:

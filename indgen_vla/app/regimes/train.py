@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import option, section
+from indgen_vla.app.config_fields import check_types, option, section
 from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.regimes.demos import ENV_STATE, read_episode_sidecar
 from indgen_vla.app.regimes.resume import RESUME_DIR, RUN_FILE, check_same_run, out_state, start_run
@@ -91,6 +91,7 @@ class TrainRecipe:
                                     "--steps)", type=int)  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         if isinstance(self.cameras, str):  # the flag's text
             object.__setattr__(self, "cameras", tuple(c for c in self.cameras.split(",") if c))
         if self.policy not in POLICIES:
@@ -143,6 +144,7 @@ class TrainConfig:
     eval_out: str | None = option(None, "where the runs and series.md go (default: OUT_evals)")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         datasets = (self.datasets,) if isinstance(self.datasets, str | os.PathLike) else self.datasets
         object.__setattr__(self, "datasets", tuple(os.fspath(d) for d in datasets))
         object.__setattr__(self, "out", os.fspath(self.out))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from indgen_vla.app.config_fields import option
+from indgen_vla.app.config_fields import check_types, option
 from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.core.errors import ConfigError
 
@@ -67,6 +67,7 @@ class BudgetConfig:
     write: str | None = option(None, "write the pre-registered design to this file", metavar="LOCK")
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         object.__setattr__(self, "workers", budget_workers(self.workers))  # "8,16" (a flag) or a sequence
         object.__setattr__(self, "assume", _numbers(self.assume, float, "--assume"))
         _check_protocol(self.protocol, "budget")
@@ -112,6 +113,7 @@ class SeriesConfig:
                               "(default 3600)", type=float)  # fmt: skip
 
     def __post_init__(self) -> None:
+        check_types(self)  # the API's and YAML's values: one line, not a TypeError below
         roots = (self.roots,) if isinstance(self.roots, str | os.PathLike) else self.roots
         object.__setattr__(self, "roots", tuple(os.fspath(r) for r in roots))
         object.__setattr__(self, "out", os.fspath(self.out))

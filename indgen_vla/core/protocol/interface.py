@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -212,6 +213,7 @@ class PolicySpec:
     reads_observations: bool = True
 
     def __post_init__(self) -> None:
+        self._check_types()
         if self.chunk_size < 1:
             raise ConfigError(f"policy {self.name}: chunk_size must be >= 1, got {self.chunk_size}")
         if not 1 <= self.replan_steps <= self.chunk_size:
@@ -240,6 +242,37 @@ class PolicySpec:
                 f"policy {self.name}: history_steps={self.history_steps} keeps camera images, but it reads no "
                 "camera; declare its cameras or history_steps=0"
             )
+
+    def _check_types(self) -> None:
+        """A policy of one's own declares its spec by hand: a wrong type is one line here, not a TypeError (or a
+        camera per letter of a name) mid-run; ``image_size=64`` is (64, 64)."""
+        for name in ("chunk_size", "replan_steps"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+                raise ConfigError(f"policy {self.name}: {name} must be an integer, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        for name in ("batched", "privileged", "flip_180", "observes_objects"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(
+                    f"policy {self.name}: {name} must be true or false, got {getattr(self, name)!r}"
+                )
+        if isinstance(self.cameras, str) or not isinstance(self.cameras, tuple | list):
+            raise ConfigError(f"policy {self.name}: cameras must be a tuple of camera names, e.g. ('agentview',) "
+                              f"or () for none, got {self.cameras!r}")  # fmt: skip
+        object.__setattr__(self, "cameras", tuple(self.cameras))
+        size = self.image_size
+        if isinstance(size, numbers.Integral) and not isinstance(size, bool):
+            size = (size, size)
+        if size is not None:
+            ok = isinstance(size, tuple | list) and len(size) == 2
+            if not (
+                ok
+                and all(isinstance(x, numbers.Integral) and not isinstance(x, bool) and x >= 1 for x in size)
+            ):
+                raise ConfigError(
+                    f"policy {self.name}: image_size must be (H, W) in pixels or None, got {size!r}"
+                )
+            object.__setattr__(self, "image_size", (int(size[0]), int(size[1])))
 
 
 def declared_reads(values: Iterable[bool | None]) -> bool | None:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import re
 from dataclasses import dataclass
 
 import pytest
 
 from indgen_vla.app.config_fields import (
     add_flags,
+    check_types,
     flat_options,
     from_args,
     from_flat,
@@ -96,3 +98,35 @@ def test_option_like_is_another_configs_option_with_changes():
     assert Other(scene="s").episodes == 3 and opts["episodes"].field.metadata["help"] == "episodes per level"
     with pytest.raises(TypeError):
         Other(episodes=1)  # scene has no default, as in Outer: required
+
+
+@dataclass(frozen=True, kw_only=True)
+class Typed:
+    n: int = option(3, "episodes", type=int)
+    rate: float = option(0.5, "a rate", type=float)
+    limit: int | None = option(None, "a cap", type=int)
+    retries: int = option(2)  # no flag: its default's type
+    video: bool = option(False, "record")
+    name: str = option("a", "a name")
+
+    def __post_init__(self) -> None:
+        check_types(self)
+
+
+def test_check_types_refuses_wrong_types_in_one_line_and_keeps_numpy_out_of_records():
+    """Values the Python API and YAML hand over unparsed: a wrong type is one line naming the flag and the value;
+    NumPy scalars become Python ones (a manifest is JSON); an int where a float is meant stays as given."""
+    import numpy as np
+
+    for kwargs, line in [({"n": "2"}, "--n must be a whole number, got '2' (str)"),
+                         ({"n": 2.0}, "--n must be a whole number, got 2.0 (float)"),
+                         ({"n": True}, "--n must be a whole number, got True (bool)"),
+                         ({"rate": "0.2"}, "--rate must be a number, got '0.2' (str)"),
+                         ({"limit": 1.5}, "--limit must be a whole number, got 1.5 (float)"),
+                         ({"retries": "2"}, "retries must be a whole number, got '2' (str)"),
+                         ({"video": "yes"}, "--video must be true or false, got 'yes' (str)")]:  # fmt: skip
+        with pytest.raises(ConfigError, match=f"^{re.escape(line)}$"):
+            Typed(**kwargs)
+    t = Typed(n=np.int64(4), rate=np.float32(0.25), video=np.bool_(True), limit=None, name="b")
+    assert (t.n, t.rate, t.video) == (4, 0.25, True) and type(t.n) is int and type(t.rate) is float
+    assert type(t.video) is bool and type(Typed(rate=1).rate) is int

@@ -164,3 +164,26 @@ def test_every_field_is_an_option_with_a_flat_name():
     for cls in (PlanConfig, PolicyConfig, RunConfig, AdaptiveConfig):
         for f in dataclasses.fields(cls):
             assert set(f.metadata) == {"help", "name", "flag", "argparse"}, f.name
+
+
+def test_levels_take_one_level_a_sequence_or_text_and_refuse_the_rest():
+    """The Python API's and YAML's ``levels``: ``levels=2`` (it was a TypeError deep in the plan), a list, a range,
+    a NumPy array, or the flag's text; anything else is one line naming --levels. certify and demos take the same."""
+    import numpy as np
+
+    from indgen_vla.app.certify.certify_config import CertifyPlan
+    from indgen_vla.app.engine.config import PlanConfig
+    from indgen_vla.app.regimes.demos import LevelRequest
+
+    plan = dict(scene="pick_place", axes=("pick_y",))
+    for given, text in [(2, "2"), (-1, "-1"), ([0, 1], "0,1"), (range(-1, 2), "-1,0,1"), (np.arange(2), "0,1"),
+                        ("-3:3", "-3:3"), (None, None)]:  # fmt: skip
+        assert PlanConfig(**plan, levels=given).levels == text
+    assert (
+        CertifyPlan(levels=np.int64(1)).levels == "1" and LevelRequest(axes="pick_y", levels=2).levels == "2"
+    )
+    for bad in (1.5, [], [0, "1"], True):
+        with pytest.raises(
+            ConfigError, match=r"^--levels must be a range like '-3:3', a list of levels or one"
+        ):
+            PlanConfig(**plan, levels=bad)

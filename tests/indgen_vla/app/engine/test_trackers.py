@@ -137,3 +137,83 @@ print("RC", rc)
     assert m["pick_y/L0/n"] == 5 and m["pick_y/L0/success"] == 0.0
     config = json.loads(con.execute("SELECT config FROM configs").fetchone()[0])
     assert config["fingerprint"]["scene"] == "pick_place" and len(config["fingerprint_digest"]) == 12
+
+
+def test_api_log_is_the_log_flag_and_a_missing_tracker_runs_nothing(tmp_path, monkeypatch, capsys):
+    """``indgen_vla.evaluate(log=...)`` is ``--log``: a tracker that is unknown or not installed is one line before any
+    episode runs (no run directory), as the command now refuses it too."""
+    import indgen_vla
+    from indgen_vla.core.errors import ConfigError
+
+    args = dict(policy="standin:random", scene="pick_place", axis="pick_y", levels="0", episodes=1, workers=1)
+    with pytest.raises(ConfigError, match=r"^--log must be one of trackio, wandb, got 'mlflow'$"):
+        indgen_vla.evaluate(**args, out=tmp_path / "a", log="mlflow")
+    monkeypatch.setitem(sys.modules, "trackio", None)  # as if not installed
+    with pytest.raises(ConfigError, match=r"^--log trackio needs the trackio package; pip install"):
+        indgen_vla.evaluate(**args, out=tmp_path / "b", log="trackio")
+    from indgen_vla.app.cli import main
+
+    cli = [
+        "evaluate",
+        *[f"--{k}={v}" for k, v in args.items()],
+        f"--out={tmp_path / 'c'}",
+        "--log",
+        "trackio",
+    ]
+    assert main(cli) == 2
+    assert capsys.readouterr().err.startswith("error: --log trackio needs the trackio package")
+    assert not any((tmp_path / d).exists() for d in "abc")
+
+
+def test_api_evaluate_logs_to_trackio_offline(tmp_path):
+    """The Python API's ``log="trackio"``, ``log_project=``: the run's rates reach a local project, nothing leaves."""
+    pytest.importorskip("trackio")
+    code = f"""
+import indgen_vla
+run = indgen_vla.evaluate(policy="standin:random", scene="pick_place", axis="pick_y", levels="0", episodes=5,
+                          max_steps=5, workers=1, out={str(tmp_path / "run")!r}, quiet=True, log="trackio",
+                          log_project="api")
+print("RUN", run.path.name)
+"""
+    assert "RUN run" in run_logged(tmp_path, "trackio", code)
+    import sqlite3
+
+    con = sqlite3.connect(tmp_path / "trackio" / "api.db")
+    ((step, metrics),) = con.execute("SELECT step, metrics FROM metrics").fetchall()
+    assert step == 0 and json.loads(metrics)["pick_y/L0/n"] == 5
+
+
+def test_api_series_refuses_a_missing_tracker_before_any_checkpoint(tmp_path, monkeypatch):
+    import indgen_vla
+    from indgen_vla.core.errors import ConfigError
+
+    proto = indgen_vla.EvalConfig.from_flat(policy="series", scene="pick_place", axes=("pick_y",), out="x")
+    cfg = indgen_vla.SeriesConfig(protocol=proto, roots=(str(tmp_path / "nope"),), out=str(tmp_path / "s"))
+    monkeypatch.setitem(sys.modules, "wandb", None)  # as if not installed
+    with pytest.raises(ConfigError, match=r"^--log wandb needs the wandb package"):
+        indgen_vla.series(cfg, log="wandb")  # before the missing checkpoint directory is even looked at
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.slow  # two real evaluations of the shipped checkpoint
+def test_series_logs_each_checkpoint_at_its_step(tmp_path):
+    """``indgen series ... --log trackio`` (through ``indgen_vla.series(log=...)``): one tracker run named after --out,
+    each checkpoint's rates at its training step."""
+    pytest.importorskip("trackio")
+    pytest.importorskip("lerobot")
+    for step in (100, 200):
+        (tmp_path / f"step_{step}").symlink_to(ROOT / "checkpoints" / "act_pick_place_human")
+    code = f"""
+from indgen_vla.app.cli import main
+rc = main(["series", {str(tmp_path / "step_100")!r}, {str(tmp_path / "step_200")!r}, "--scene", "pick_place",
+           "--axis", "pick_y", "--levels", "0", "--episodes", "1", "--max-steps", "5", "--workers", "1",
+           "--out", {str(tmp_path / "s")!r}, "--log", "trackio", "--log-project", "ser"])
+print("RC", rc)
+"""
+    assert "RC 0" in run_logged(tmp_path, "trackio", code)
+    import sqlite3
+
+    con = sqlite3.connect(tmp_path / "trackio" / "ser.db")
+    rows = con.execute("SELECT run_name, step, metrics FROM metrics ORDER BY step").fetchall()
+    assert [(r[0], r[1]) for r in rows] == [("s", 100), ("s", 200)]
+    assert all(json.loads(r[2])["pick_y/L0/n"] == 1 for r in rows)
