@@ -13,6 +13,7 @@ from indgen_vla.app.certify.certify_config import certify_config
 from indgen_vla.app.certify.certify_levels import certify as certify_levels
 from indgen_vla.app.engine.config import EvalConfig, PolicyConfig, config_from_values
 from indgen_vla.app.engine.run import evaluate as run_evaluation
+from indgen_vla.app.engine.trackers import log_runs, tracker_module
 from indgen_vla.app.lerobot_bridge.eval_import import ImportConfig
 from indgen_vla.app.lerobot_bridge.eval_import import import_lerobot_eval as write_import
 from indgen_vla.app.real.design import RealPlanConfig, plan_run
@@ -70,8 +71,6 @@ def evaluate(
     ``log_project`` are ``--log`` and ``--log-project``: the run's rates, k* and verdicts logged at step 0.
     """
     if log is not None:
-        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
-
         tracker_module(log)  # a missing tracker is refused before any episode runs
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
     if (
@@ -93,8 +92,6 @@ def evaluate(
         )
     out_dir = run_evaluation(cfg, family_of(cfg.plan), quiet=quiet, policy=obj)
     if log is not None:
-        from indgen_vla.app.engine.trackers import log_runs
-
         log_runs(log, [(None, out_dir)], project=log_project, name=out_dir.name)
     run = Run(out_dir)
     _warn_errors(run)
@@ -218,15 +215,11 @@ def series(config: SeriesConfig, *, after_each: Callable[[list[tuple[int, Path]]
     out = Path(config.out)
     logged: set[int] = set()
     if log is not None:
-        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
-
         tracker_module(log)  # a missing tracker is refused before any checkpoint runs
 
     def report(entries: list[tuple[int, Path]]) -> None:
         write_series(entries, out, config.protocol.plan.gamma)
         if log is not None:
-            from indgen_vla.app.engine.trackers import log_runs
-
             logged.update(log_runs(log, entries, project=log_project, name=out.name, skip=logged))
         if after_each is not None:
             after_each(entries)

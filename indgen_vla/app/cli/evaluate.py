@@ -63,7 +63,7 @@ def main(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(args)
     if args.log:
-        from indgen_vla.app.engine.trackers import tracker_module  # lazy: an optional extra
+        from indgen_vla.app.engine.trackers import tracker_module  # lazy: start-up (numpy)
 
         tracker_module(args.log)  # a missing tracker is refused before any episode runs
     out = evaluate(cfg, family_of(cfg.plan))  # the family looked up once, here at the edge
