@@ -67,10 +67,9 @@ class Costs:
         if not self.act_s:
             return 0.0, "not measured"
         seen = sorted(self.act_s)
+        over = f"ms a call over {rows} environment(s)"
         if rows in self.act_s:
-            return self.act_s[
-                rows
-            ], f"{self.act_s[rows] * 1e3:.2f} ms a call over {rows} environment(s) (measured at {rows})"
+            return self.act_s[rows], f"{self.act_s[rows] * 1e3:.2f} {over} (measured at {rows})"
         if not self.batched:
             per_row = sum(self.act_s[b] for b in seen) / sum(seen)
             return per_row * rows, f"{per_row * 1e3:.2f} ms per environment (measured at {seen})"
@@ -79,16 +78,10 @@ class Costs:
         if lo is not None and hi is not None:
             w = (rows - lo) / (hi - lo)
             v = (1 - w) * self.act_s[lo] + w * self.act_s[hi]
-            return (
-                v,
-                f"{v * 1e3:.2f} ms a call over {rows} environment(s) (interpolated between batches {lo} and {hi})",
-            )
+            return v, f"{v * 1e3:.2f} {over} (interpolated between batches {lo} and {hi})"
         near = lo if lo is not None else hi
         v = self.act_s[near]
-        return (
-            v,
-            f"{v * 1e3:.2f} ms a call over {rows} environment(s) (extrapolated flat from batch {near}; re-measure at {rows})",
-        )
+        return v, f"{v * 1e3:.2f} {over} (extrapolated flat from batch {near}; re-measure at {rows})"
 
 
 def from_timing(timing: Mapping, steps_per_episode: float) -> Costs:
