@@ -65,7 +65,7 @@ def test_axis_caveats_name_run_axis_n_ci_and_tasks():
     assert lines[0].startswith(
         "**Cannot answer** (standin:random, `pick_y`, pooled over 2 tasks: bread, milk): T0 succeeds in 0/10"
     )
-    assert "0% [0, 28], wilson 95 % CI" in lines[0]
+    assert "0% [0, 28], Wilson 95 % CI" in lines[0]
     assert (
         lines[1].startswith("**Too few episodes**")
         and "n ≥ 16" in lines[1]
