@@ -219,8 +219,8 @@ class RunDir:
                     if old_plan.get(k) != manifest.get("plan", {}).get(k)
                 )
                 raise RunDirError(
-                    f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}); "
-                    + _resume_hint(old)
+                    f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}"
+                    f"{_first_difference(diff, old_plan, manifest.get('plan', {}))}); " + _resume_hint(old)
                 )
         else:
             atomic_write_json(mpath, dict(manifest))
@@ -419,6 +419,16 @@ def _row(rec: EpisodeRecord) -> dict[str, Any]:
     row = asdict(rec)
     row["policy"], row["error"] = redact(row["policy"]), row["error"] and redact(row["error"])
     return row
+
+
+def _first_difference(diff: list[str], was: Mapping[str, Any], now: Mapping[str, Any]) -> str:
+    """The first differing plan field's two values, when short enough for the one error line ("; episodes: 6 in the
+    run, 8 now"), so the user sees which command made the run."""
+    if not diff:
+        return ""
+    k = diff[0]
+    a, b = json.dumps(was.get(k), default=str), json.dumps(now.get(k), default=str)
+    return f"; {k}: {a} in the run, {b} now" if len(a) + len(b) <= 120 else ""
 
 
 def _resume_hint(manifest: Mapping[str, Any]) -> str:

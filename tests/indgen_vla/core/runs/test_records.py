@@ -57,8 +57,13 @@ def test_costly_rewrites_are_deferred_until_flush(tmp_path, monkeypatch):
 
 def test_manifest_mismatch_refused(tmp_path):
     RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5}})
-    with pytest.raises(RunDirError, match="different plan .*episodes"):
+    with pytest.raises(RunDirError, match="different plan .*episodes") as e:
         RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 6}})
+    # the first difference's two values, so the user sees which command made the run
+    assert "(differs in: episodes; episodes: 5 in the run, 6 now)" in str(e.value)
+    with pytest.raises(RunDirError) as e:  # too long for one line: named, not printed
+        RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5, "tasks": ["t" * 80, "u" * 80]}})
+    assert "(differs in: tasks); use a new --out" in str(e.value)
 
 
 def test_open_errors(tmp_path):
