@@ -427,7 +427,7 @@ def _first_difference(diff: list[str], was: Mapping[str, Any], now: Mapping[str,
     if not diff:
         return ""
     k = diff[0]
-    a, b = json.dumps(was.get(k), default=str), json.dumps(now.get(k), default=str)
+    a, b = (json.dumps(redact_tree(p.get(k)), default=str) for p in (was, now))  # an api_key stays masked
     return f"; {k}: {a} in the run, {b} now" if len(a) + len(b) <= 120 else ""
 
 

@@ -64,6 +64,9 @@ def test_manifest_mismatch_refused(tmp_path):
     with pytest.raises(RunDirError) as e:  # too long for one line: named, not printed
         RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5, "tasks": ["t" * 80, "u" * 80]}})
     assert "(differs in: tasks); use a new --out" in str(e.value)
+    with pytest.raises(RunDirError) as e:  # a secret in a spec stays masked in the line
+        RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": "openpi:ws://h:1?api_key=SECRET"}})
+    assert "SECRET" not in str(e.value) and "api_key=***" in str(e.value)
 
 
 def test_open_errors(tmp_path):
