@@ -235,8 +235,11 @@ class RunDir:
                 f"run directory {run.path} does not exist; pass the --out of an 'indgen evaluate' run"
             )
         if not (run.path / MANIFEST).exists():
+            inner = sorted(str(m.parent) for m in run.path.glob(f"*/{MANIFEST}"))
+            fix = (f"; pass the runs in it instead: {' '.join(inner[:4])}{' ...' * (len(inner) > 4)}" if inner
+                   else "; pass the --out of an 'indgen evaluate' run")  # fmt: skip
             raise RunDirError(
-                f"{run.path} has no {MANIFEST}; it is not a run directory written by 'indgen evaluate'"
+                f"{run.path} has no {MANIFEST}; it is not a run directory written by 'indgen evaluate'{fix}"
             )
         run.manifest  # noqa: B018 - validates the JSON
         run.episodes()

@@ -72,8 +72,13 @@ def test_manifest_mismatch_refused(tmp_path):
 def test_open_errors(tmp_path):
     with pytest.raises(RunDirError, match="does not exist"):
         RunDir.open(tmp_path / "nope")
-    with pytest.raises(RunDirError, match="no manifest.json"):
+    with pytest.raises(RunDirError, match="no manifest.json; .*pass the --out of an 'indgen evaluate' run"):
         RunDir.open(tmp_path)
+    for name in ("b", "a"):  # a folder of runs (e.g. runs/): the line names the runs in it
+        RunDir.create_or_resume(tmp_path / "runs" / name, {"plan": {}})
+    with pytest.raises(RunDirError) as e:
+        RunDir.open(tmp_path / "runs")
+    assert str(e.value).endswith(f"; pass the runs in it instead: {tmp_path / 'runs' / 'a'} {tmp_path / 'runs' / 'b'}")
     (tmp_path / MANIFEST).write_text("{not json")
     with pytest.raises(RunDirError, match="corrupt"):
         RunDir.open(tmp_path)
