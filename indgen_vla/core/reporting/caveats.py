@@ -86,7 +86,10 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                    f"level; a rate needs ≥ {MIN_N} finished episodes and half the planned ones), so no rate, no k* "
                    "and no test is given.")  # fmt: skip
     ns = [r["n"] for r in usable_rows(a["levels"])]
-    if ns and break_undecidable(max(ns), gamma, ci):
+    by_sprt = any(
+        r.get("sequential") for r in a["levels"]
+    )  # --adaptive: the SPRT decides a break, not the CI
+    if ns and break_undecidable(max(ns), gamma, ci) and not by_sprt:
         need = needed_for_break(gamma, ci)
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
                    f"{CI_NAMES.get(ci, ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: the k* below is the first level "
