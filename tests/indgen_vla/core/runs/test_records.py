@@ -78,7 +78,9 @@ def test_open_errors(tmp_path):
         RunDir.create_or_resume(tmp_path / "runs" / name, {"plan": {}})
     with pytest.raises(RunDirError) as e:
         RunDir.open(tmp_path / "runs")
-    assert str(e.value).endswith(f"; pass the runs in it instead: {tmp_path / 'runs' / 'a'} {tmp_path / 'runs' / 'b'}")
+    assert str(e.value).endswith(
+        f"; pass the runs in it instead: {tmp_path / 'runs' / 'a'} {tmp_path / 'runs' / 'b'}"
+    )
     (tmp_path / MANIFEST).write_text("{not json")
     with pytest.raises(RunDirError, match="corrupt"):
         RunDir.open(tmp_path)
