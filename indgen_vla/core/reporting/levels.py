@@ -289,8 +289,9 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
 def axis_verdicts(
     rows: list[dict], break_level: dict, gamma: float, signed: bool, ci: str = "wilson"
 ) -> dict:
-    """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``."""
-    out = {}
+    """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``; a decided
+    break with an undecided level before it says so, since k* may then be that earlier level."""
+    out, status = {}, kstar_status_of(rows, signed)
     for d, keep in (
         (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
     ):
@@ -299,6 +300,11 @@ def axis_verdicts(
             out[d] = NOT_EVALUATED
             continue
         out[d] = direction_verdict(side, break_level.get(d), gamma, ci)
+        st, k = status.get(d) or {}, break_level.get(d)
+        if isinstance(k, int) and st.get("latest") == k and not st.get("determined"):
+            open_ = [signed_level(r["level"]) for r in side
+                     if abs(r["level"]) < abs(k) and r.get("decision") != "intact"]  # fmt: skip
+            out[d] += f"; {st['text']}: {', '.join(open_)} not shown at or above γ"
     return out
 
 
