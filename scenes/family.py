@@ -275,7 +275,9 @@ class Scene:
             if part not in self.axes:
                 if part not in base_axis_names():
                     raise UnknownNameError("axis", part, base_axis_names())
-                raise UnknownNameError(f"axis of scene {self.name}", part, list(self.axes))
+                where = ", ".join(sc.name for sc in registered_scenes() if part in sc.axes)
+                raise UnknownNameError(f"axis of scene {self.name}", part, list(self.axes),
+                                       f"{part!r} runs on {where or 'no registered scene'}")  # fmt: skip
 
     def row(self) -> dict:
         """The family's ``indgen scenes`` row (listing tasks never needs the simulator or the assets)."""

@@ -16,14 +16,16 @@ class ConfigError(IndgenError, ValueError):
 class UnknownNameError(ConfigError, KeyError):
     """An unregistered scene, axis, policy or task; carries close matches for "did you mean"."""
 
-    def __init__(self, kind: str, name: str, choices: list[str] | tuple[str, ...]):
+    def __init__(self, kind: str, name: str, choices: list[str] | tuple[str, ...], note: str = ""):
         import difflib
 
         self.kind, self.name, self.choices = kind, name, sorted(choices)
         close = difflib.get_close_matches(name, self.choices, n=3, cutoff=0.5)
         hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else ""
         listing = f"known: {', '.join(self.choices)}" if self.choices else "none registered"
-        super().__init__(f"unknown {kind} {name!r}; {hint + ' ' if hint else ''}({listing})")
+        super().__init__(
+            f"unknown {kind} {name!r}; {hint + ' ' if hint else ''}({listing}){'; ' * bool(note)}{note}"
+        )
 
     def __str__(self) -> str:  # KeyError would otherwise repr() the message
         return self.args[0]

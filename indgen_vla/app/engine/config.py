@@ -421,7 +421,21 @@ def load_config_preset(path: str) -> dict[str, Any]:
     unknown = sorted(set(values) - FLAG_FIELDS)
     if unknown:
         raise ConfigError(f"--config {p}: unknown option(s) {_did_you_mean(unknown, FLAG_FIELDS)}")
+    _check_numbers(values, f"--config {p}: ")
     return values
+
+
+def _check_numbers(values: Mapping[str, Any], where: str) -> None:
+    """A number option given as something else (a preset's ``episodes: five``, the API's ``episodes="5"``) is one
+    line naming it, where argparse's ``type`` checks a flag; otherwise it reached a comparison as a traceback."""
+    for name, value in values.items():
+        typ = OPTIONS[name].field.metadata.get("argparse", {}).get("type") if name in OPTIONS else None
+        if typ not in (int, float) or value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int if typ is int else (int, float)):
+            kind, default = "a whole number" if typ is int else "a number", OPTIONS[name].field.default
+            eg = "" if default is None else f"; e.g. {name}{': ' if where else '='}{default}"
+            raise ConfigError(f"{where}{name} must be {kind}, got {value!r}{eg}")
 
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
@@ -472,6 +486,7 @@ def config_from_values(
     for name in ("policy", "scene", "out"):
         values.setdefault(name, "")
     values.setdefault("axes", ())
+    _check_numbers(values, "")
     return EvalConfig.from_flat(**values)
 
 

@@ -20,7 +20,7 @@ from indgen_vla.app.engine.config import EvalConfig
 from indgen_vla.app.engine.run import evaluate as run_evaluation
 from indgen_vla.app.studies.config import SeriesConfig
 from indgen_vla.core.errors import ConfigError
-from indgen_vla.core.runs.records import RunDir, atomic_write_json
+from indgen_vla.core.runs.records import MANIFEST, RunDir, atomic_write_json
 from scenes.family import Scene
 
 PROTOCOL = "series_protocol.json"
@@ -102,9 +102,10 @@ def protocol_of(cfg: EvalConfig) -> dict:
 
 
 def check_protocol(out: Path, protocol: dict) -> None:
-    """Record the protocol on the first run; refuse a re-run whose protocol differs, naming the first field."""
+    """Record the protocol on the first run; refuse a re-run whose protocol differs, naming the first field, once a
+    checkpoint's run exists (before that, a corrected command after a failed one records its own)."""
     path = out / PROTOCOL
-    if not path.exists():
+    if not path.exists() or not any((out / "runs").glob(f"*/{MANIFEST}")):
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_json(path, protocol)
         return

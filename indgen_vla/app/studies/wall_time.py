@@ -65,10 +65,11 @@ class Costs:
         """Seconds per ``act`` over ``rows`` environments: interpolated between the batch sizes seen, flat past the
         largest for a batched policy (a forward costs about the same at 1 or W rows), per row for the others."""
         if not self.act_s:
-            return 0.0, "no act measured"
+            return 0.0, "not measured"
         seen = sorted(self.act_s)
+        over = f"ms a call over {rows} environment(s)"
         if rows in self.act_s:
-            return self.act_s[rows], f"measured at {rows}"
+            return self.act_s[rows], f"{self.act_s[rows] * 1e3:.2f} {over} (measured at {rows})"
         if not self.batched:
             per_row = sum(self.act_s[b] for b in seen) / sum(seen)
             return per_row * rows, f"{per_row * 1e3:.2f} ms per environment (measured at {seen})"
@@ -76,13 +77,11 @@ class Costs:
         hi = min((b for b in seen if b > rows), default=None)
         if lo is not None and hi is not None:
             w = (rows - lo) / (hi - lo)
-            return (1 - w) * self.act_s[lo] + w * self.act_s[
-                hi
-            ], f"interpolated between batches {lo} and {hi}"
+            v = (1 - w) * self.act_s[lo] + w * self.act_s[hi]
+            return v, f"{v * 1e3:.2f} {over} (interpolated between batches {lo} and {hi})"
         near = lo if lo is not None else hi
-        return self.act_s[
-            near
-        ], f"extrapolated flat from batch {near} (re-measure at {rows} for a firm number)"
+        v = self.act_s[near]
+        return v, f"{v * 1e3:.2f} {over} (extrapolated flat from batch {near}; re-measure at {rows})"
 
 
 def from_timing(timing: Mapping, steps_per_episode: float) -> Costs:
@@ -187,7 +186,7 @@ def project(costs: Costs, workers: int, replan: int, cells: int, rounds: Sequenc
     low = costs.fixed_s + rollout_seconds(costs, rounds_low or rounds, workers, replan, cells)
     high = costs.fixed_s + rollout_seconds(costs, rounds_high or rounds, workers, replan, cells)
     parts, note = round_parts(costs, workers, replan)
-    bound = max(parts, key=parts.get)
+    bound = max(parts, key=parts.get) if costs.act_s else "none named (no act latency known)"
     if bound == "simulators" and slowdown(costs, workers) * costs.measured_load > 1:
         bound = f"simulators ({workers} workers share {costs.cores} cores)"
     width, shared = sum(parts.values()), math.sqrt(costs.box_load)

@@ -28,7 +28,7 @@ def plan_episodes(rates: Sequence[float], margin: float, alpha: float = 0.05, po
                   model: str = "independent") -> dict[str, Any]:  # fmt: skip
     """The fewest episodes a level (found by doubling, then bisection) at which equal policies pass with chance
     ≥ ``power``, with the chances it gives: passing equal policies, and passing a drop of 2·margin at the level
-    where that is likeliest."""
+    where that is likeliest among those whose rate allows it (a 0 % level cannot drop; None when none can)."""
     if not rates:
         raise ConfigError("the baseline has no level above the data floor to plan from")
     if not 0 < power < 1:
@@ -40,11 +40,14 @@ def plan_episodes(rates: Sequence[float], margin: float, alpha: float = 0.05, po
     n = first_extra(ok, MAX_PLAN)
     if n is None:
         return {"episodes": None, "rates": list(rates), "model": model, "power": power}
-    worst = max(range(len(rates)), key=lambda i: pass_chance(rates, n, margin, alpha, model, 2 * margin, i))
+    can_drop = [i for i, p in enumerate(rates) if p >= 2 * margin - 1e-12]
+    worst = max(
+        can_drop, key=lambda i: pass_chance(rates, n, margin, alpha, model, 2 * margin, i), default=None
+    )
     return {
         "episodes": n, "rates": list(rates), "model": model, "power": power, "margin": margin, "alpha": alpha,
-        "pass_equal": pass_chance(rates, n, margin, alpha, model),
-        "pass_drop_2m": pass_chance(rates, n, margin, alpha, model, 2 * margin, worst), "drop_level_index": worst,
+        "pass_equal": pass_chance(rates, n, margin, alpha, model), "drop_level_index": worst,
+        "pass_drop_2m": None if worst is None else pass_chance(rates, n, margin, alpha, model, 2 * margin, worst),
     }  # fmt: skip
 
 
@@ -62,13 +65,17 @@ def plan_lines(path: str, plan: dict, levels: list[tuple[str, int, float]]) -> l
     if plan["episodes"] is None:
         return [f"no smoke of up to {MAX_PLAN} episodes a level passes equal policies with {plan['power']:.0%} "
                 f"chance at these rates ({rates}); widen --margin"]  # fmt: skip
-    a, k, _ = levels[plan["drop_level_index"]]
     m = plan["margin"]
+    if plan["drop_level_index"] is None:
+        drop = f"no level's rate is {200 * m:.0f}% or more, so no drop of {200 * m:.0f} pp can be tried"
+    else:
+        a, k, _ = levels[plan["drop_level_index"]]
+        drop = (f"a drop of {200 * m:.0f} pp at one level ({a} L{k:+d}, the likeliest to pass) passes with chance "
+                f"{plan['pass_drop_2m']:.2%}")  # fmt: skip
     return [
         f"baseline {path}: {len(levels)} level(s) above the data floor ({rates})",
         f"run the smoke and the baseline with --episodes {plan['episodes']} (same --seed): then two equal policies "
-        f"pass with chance {plan['pass_equal']:.1%}, and a drop of {200 * m:.0f} pp at one level ({a} L{k:+d}, the "
-        f"likeliest to pass) passes with chance {plan['pass_drop_2m']:.2%} (margin {100 * m:.0f} pp, exact "
+        f"pass with chance {plan['pass_equal']:.1%}, and {drop} (margin {100 * m:.0f} pp, exact "
         f"non-inferiority test at one-sided α = {plan['alpha']:g} per level; outcomes paired {plan['model']}, exact "
         "sums over each level's tables)",
     ]

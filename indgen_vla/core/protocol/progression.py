@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -98,6 +99,10 @@ def parse_levels(text: str | Sequence[int] | None, axis: AxisSpec) -> list[int]:
         return axis.default_levels()
     if isinstance(text, str):
         s = text.strip()
+        if re.fullmatch(r"-?\d+\.\.-?\d+", s):
+            raise ConfigError(
+                f"--levels {text!r}: write a range with a colon, --levels {s.replace('..', ':')}"
+            )
         try:
             if ":" in s:
                 lo_s, hi_s = s.split(":", 1)

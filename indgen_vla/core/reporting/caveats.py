@@ -13,6 +13,7 @@ from indgen_vla.core.reporting.certification_view import (
 )
 from indgen_vla.core.reporting.oracle_states import states_lines
 from indgen_vla.core.stats.metrics import (
+    CI_NAMES,
     MIN_N,
     exact_2x2,
     mcnemar_exact,
@@ -76,7 +77,7 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
     t0 = next((r for r in usable_rows(a["levels"]) if r["level"] == 0), None)
     if t0 is not None and t0["rate"] < gamma:
         out.append(f"**Cannot answer** ({where}): T0 succeeds in {t0['successes']}/{t0['n']} "
-                   f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {ci} 95 % CI), "
+                   f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {CI_NAMES.get(ci, ci)} 95 % CI), "
                    f"below γ = {gamma}: a policy that does not solve the base task (or acts blind to it) has no "
                    "generalization to measure; its k* is 0 by construction.")  # fmt: skip
     ran = [r["n"] for r in a["levels"] if r["n"] > 0]
@@ -85,10 +86,13 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                    f"level; a rate needs ≥ {MIN_N} finished episodes and half the planned ones), so no rate, no k* "
                    "and no test is given.")  # fmt: skip
     ns = [r["n"] for r in usable_rows(a["levels"])]
-    if ns and break_undecidable(max(ns), gamma, ci):
+    by_sprt = any(
+        r.get("sequential") for r in a["levels"]
+    )  # --adaptive: the SPRT decides a break, not the CI
+    if ns and break_undecidable(max(ns), gamma, ci) and not by_sprt:
         need = needed_for_break(gamma, ci)
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
-                   f"{ci} 95 % CI above γ = {gamma}, so no level can be decided broken: the k* below is the first level "
+                   f"{CI_NAMES.get(ci, ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: the k* below is the first level "
                    f"whose observed rate is under γ, not a statistically decided break (that needs n ≥ {need} a "
                    "level).")  # fmt: skip
     head = a.get("vs_t0") or {}

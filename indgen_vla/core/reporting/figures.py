@@ -15,7 +15,7 @@ from typing import Any
 from indgen_vla.core.protocol.training_support import fully_trained
 from indgen_vla.core.runs.records import atomic_savefig
 from indgen_vla.core.stats.breakpoint import signed_level
-from indgen_vla.core.stats.metrics import difference_ci, pooled_text, usable_rows
+from indgen_vla.core.stats.metrics import CI_NAMES, difference_ci, pooled_text, usable_rows
 
 AXES_PLOT = (
     "axes.png"  # plots/axes.png: every axis of a report in one figure, written when it covers >= 2 axes
@@ -127,7 +127,7 @@ def plot_axis(
     notes = {lbl: curve_note([a]) for lbl, a in curves}
     labels = [f"{lbl} ({notes[lbl]})" if notes.get(lbl) else lbl for lbl in labels]
     handles.append(Patch(color="grey", alpha=0.25, lw=0))
-    labels.append(f"{ci + ' ' if ci else ''}95 % CI (shaded)")
+    labels.append(f"{CI_NAMES.get(ci, ci) + ' ' if ci else ''}95 % CI (shaded)")
     ncol = 2 if len(labels) > 1 and max(map(len, labels)) <= 48 else 1
     fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
@@ -233,7 +233,7 @@ def axes_figure(
     ci = summaries[0][1].get("ci", "wilson")
     handles = [Line2D([], [], color=c, marker="o", ms=4, label=_legend_label(lbl, s))
                for c, (lbl, s) in zip(colours, summaries, strict=True)]  # fmt: skip
-    handles += [Patch(color="grey", alpha=0.25, lw=0, label=f"{ci} 95 % CI"),
+    handles += [Patch(color="grey", alpha=0.25, lw=0, label=f"{CI_NAMES.get(ci, ci)} 95 % CI"),
                 Line2D([], [], ls="--", color="grey", lw=1, label=f"γ = {gamma}"),
                 Line2D([], [], ls="none", marker="o", ms=9, mfc="none", mec="dimgrey", mew=1.5, label=KSTAR_LABEL)]  # fmt: skip
     ncol = _legend_columns([h.get_label() for h in handles], ncols)
@@ -323,7 +323,7 @@ def overview_lines(summaries: Sequence[tuple[str, dict]], order: Sequence[str] |
     header = ["axis", *(["run"] if several else []), *(f"{signed_level(k, minus='−')}{' (T0)' * (k == 0)}" for k in levels),
               "largest drop from T0 (pp, 95 % CI)"]  # fmt: skip
     lines = ["## Overview: success per axis and level (the paper's Table 2)", "",
-             f"Each cell: success % [{summaries[0][1].get('ci', 'wilson')} 95 % CI] n = finished episodes; – = level "
+             f"Each cell: success % [{CI_NAMES.get(summaries[0][1].get('ci', 'wilson'))} 95 % CI] n = finished episodes; – = level "
              "not evaluated on that axis. Bold: the level with the largest drop from T0; its interval is paired over the "
              "episodes the two levels share (seeds; Newcombe) where the run pairs them, else unpaired (MOVER from the "
              f"two levels' CIs). {pooled}", "",

@@ -14,7 +14,7 @@ from indgen_vla.core.reporting.failures import failure_counts_by
 from indgen_vla.core.reporting.partial_credit import level_progress_by
 from indgen_vla.core.stats.breakpoint import kstar_status, signed_level, verdict_from_ci
 from indgen_vla.core.stats.frames import group_items, py
-from indgen_vla.core.stats.metrics import MIN_N, below_floor, break_levels, success_rate
+from indgen_vla.core.stats.metrics import CI_NAMES, MIN_N, below_floor, break_levels, success_rate
 from indgen_vla.core.stats.sample_size import more_to_decide, verdict_error
 from indgen_vla.core.stats.sprt import UNTIL_FAILURE, level_outcomes, outcome_prefix, rule_from_plan
 
@@ -221,8 +221,7 @@ def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson")
 
 def _error_text(n: int, gamma: float, ci: str, verdict: str) -> str:
     """The real error of a level's verdict at its n, as computed exactly (nominal 2.5 % a side for a 95 % CI)."""
-    name = "Wilson" if ci == "wilson" else "Clopper–Pearson"
-    return f"{name} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
+    return f"{CI_NAMES.get(ci, ci)} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
 
 
 def _rate(r: dict) -> str:
@@ -290,8 +289,9 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
 def axis_verdicts(
     rows: list[dict], break_level: dict, gamma: float, signed: bool, ci: str = "wilson"
 ) -> dict:
-    """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``."""
-    out = {}
+    """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``; a decided
+    break with an undecided level before it says so, since k* may then be that earlier level."""
+    out, status = {}, kstar_status_of(rows, signed)
     for d, keep in (
         (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
     ):
@@ -300,6 +300,11 @@ def axis_verdicts(
             out[d] = NOT_EVALUATED
             continue
         out[d] = direction_verdict(side, break_level.get(d), gamma, ci)
+        st, k = status.get(d) or {}, break_level.get(d)
+        if isinstance(k, int) and st.get("latest") == k and not st.get("determined"):
+            open_ = [signed_level(r["level"]) for r in side
+                     if abs(r["level"]) < abs(k) and r.get("decision") != "intact"]  # fmt: skip
+            out[d] += f"; {st['text']}: {', '.join(open_)} not shown at or above γ"
     return out
 
 

@@ -10,7 +10,7 @@ from xml.sax.saxutils import escape
 
 from indgen_vla.core.reporting.figures import curve_note
 from indgen_vla.core.runs.records import atomic_write_text
-from indgen_vla.core.stats.metrics import usable_rows
+from indgen_vla.core.stats.metrics import CI_NAMES, usable_rows
 
 W, H = 560, 360  # px; the plot area's margins below
 LEFT, RIGHT, TOP, BOTTOM = 52, 16, 40, 58
@@ -70,7 +70,7 @@ def axis_svg(label: str, a: Mapping[str, Any], axis: str, gamma: float, ci: str 
     note = curve_note([a])
     legend = f"{label} ({note})" if note else label
     out.append(f'<text x="{W / 2}" y="{H - 8}" text-anchor="middle" font-size="10">{escape(legend)}; shaded: '
-               f"{escape(ci + ' ' if ci else '')}95 % CI; dashed: γ = {gamma}; ringed: k* (first level below γ)"
+               f"{escape(CI_NAMES.get(ci, ci) + ' ' if ci else '')}95 % CI; dashed: γ = {gamma}; ringed: k* (first level below γ)"
                "</text>")  # fmt: skip
     out.append("</svg>")
     return "\n".join(out) + "\n"

@@ -219,8 +219,8 @@ class RunDir:
                     if old_plan.get(k) != manifest.get("plan", {}).get(k)
                 )
                 raise RunDirError(
-                    f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}); "
-                    + _resume_hint(old)
+                    f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}"
+                    f"{_first_difference(diff, old_plan, manifest.get('plan', {}))}); " + _resume_hint(old)
                 )
         else:
             atomic_write_json(mpath, dict(manifest))
@@ -235,8 +235,11 @@ class RunDir:
                 f"run directory {run.path} does not exist; pass the --out of an 'indgen evaluate' run"
             )
         if not (run.path / MANIFEST).exists():
+            inner = sorted(str(m.parent) for m in run.path.glob(f"*/{MANIFEST}"))
+            fix = (f"; pass the runs in it instead: {' '.join(inner[:4])}{' ...' * (len(inner) > 4)}" if inner
+                   else "; pass the --out of an 'indgen evaluate' run")  # fmt: skip
             raise RunDirError(
-                f"{run.path} has no {MANIFEST}; it is not a run directory written by 'indgen evaluate'"
+                f"{run.path} has no {MANIFEST}; it is not a run directory written by 'indgen evaluate'{fix}"
             )
         run.manifest  # noqa: B018 - validates the JSON
         run.episodes()
@@ -419,6 +422,16 @@ def _row(rec: EpisodeRecord) -> dict[str, Any]:
     row = asdict(rec)
     row["policy"], row["error"] = redact(row["policy"]), row["error"] and redact(row["error"])
     return row
+
+
+def _first_difference(diff: list[str], was: Mapping[str, Any], now: Mapping[str, Any]) -> str:
+    """The first differing plan field's two values, when short enough for the one error line ("; episodes: 6 in the
+    run, 8 now"), so the user sees which command made the run."""
+    if not diff:
+        return ""
+    k = diff[0]
+    a, b = (json.dumps(redact_tree(p.get(k)), default=str) for p in (was, now))  # an api_key stays masked
+    return f"; {k}: {a} in the run, {b} now" if len(a) + len(b) <= 120 else ""
 
 
 def _resume_hint(manifest: Mapping[str, Any]) -> str:

@@ -240,8 +240,9 @@ def t0_verdict(rows: list[dict], margin: float | None, alpha: float = ALPHA) -> 
             return "not tested yet: T0 or every other level is below the data floor"
         return "no level has episodes paired with T0 yet"
     differ = [r for r in tested if r["vs_t0"]["p_holm"] < alpha]
+    over = f"{len(tested)} level{'s' * (len(tested) != 1)}"
     text = (f"{', '.join(_k(r['level']) for r in differ)} differ{'s' * (len(differ) == 1)} from T0"
-            if differ else "no level differs from T0") + f" (exact McNemar, Holm over {len(tested)} levels, α = {alpha:g})"  # fmt: skip
+            if differ else "no level differs from T0") + f" (exact McNemar, Holm over {over}, α = {alpha:g})"  # fmt: skip
     if margin is None:
         return text + ("" if differ else "; this does not show they are equal (--margin M tests equivalence)")
     eq = [r for r in tested if r["vs_t0"]["equivalence"]["equivalent"]]

@@ -59,6 +59,7 @@ def clopper_pearson_ci(successes: int, n: int, conf: float = 0.95) -> tuple[floa
 
 
 CI_METHODS = {"wilson": wilson_ci, "clopper-pearson": clopper_pearson_ci}
+CI_NAMES = {"wilson": "Wilson", "clopper-pearson": "Clopper–Pearson"}  # as printed beside a rate
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,30 @@ def test_negative_level_ranges_parse():
     assert build_parser().parse_args(["evaluate", "--levels", "-1"]).levels == "-1"
 
 
+def test_levels_written_as_the_axes_table_prints_them_get_the_colon_form(tmp_path, capsys):
+    """``indgen axes`` prints ranges as -3..3; typed into --levels that was argparse's bare "expected one
+    argument" (a value starting with -digit read as a flag). It is now one line naming the colon form, exit 2,
+    before anything is written; a malformed negative range reaches the level parser's own line too."""
+    out = tmp_path / "run"
+    for text, want in (("-3..3", "write a range with a colon, --levels -3:3"),
+                       ("0..2", "write a range with a colon, --levels 0:2"),
+                       ("-3:3x", "is not a range like -3:3")):  # fmt: skip
+        argv = [
+            "evaluate",
+            "--policy",
+            "standin:oracle",
+            "--scene",
+            "pick_place",
+            "--axis",
+            "pick_y",
+            "--levels",
+        ]
+        assert main([*argv, text, "--episodes", "2", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert want in err and err.count("\n") == 1 and "expected one argument" not in err
+    assert not out.exists()
+
+
 def test_passthrough_and_unknown_flags(capsys):
     with pytest.raises(SystemExit) as e:
         main(["report", "x", "--bogus"])

@@ -122,3 +122,30 @@ def test_follow_waits_for_checkpoints_a_training_writes(tmp_path):
     timer.join()
     assert [s for s, _ in entries] == [300] and said[-1].startswith("series: step 300: evaluating")
     assert (tmp_path / "s" / "runs" / "000000300" / "summary.json").exists()
+
+
+def test_a_failed_first_command_does_not_lock_the_series_protocol(tmp_path, capsys):
+    """A first series whose ROOT was wrong ran nothing: the corrected command with other flags goes on (it was
+    refused as 'a series run with episodes=50, now 5'); once a checkpoint's run exists, other flags are refused."""
+    from indgen_vla.app.studies.series import check_protocol, run_dir
+
+    s = tmp_path / "s"
+    argv = [
+        "series",
+        str(tmp_path),
+        "--scene",
+        "pick_place",
+        "--axis",
+        "pick_y",
+        "--levels",
+        "0",
+        "--out",
+        str(s),
+    ]
+    assert main(argv) == 2
+    assert "holds no config.json" in capsys.readouterr().err and (s / "series_protocol.json").is_file()
+    check_protocol(s, {"episodes": 5})  # the corrected command's protocol: recorded, not refused
+    assert json.loads((s / "series_protocol.json").read_text()) == {"episodes": 5}
+    make_run(run_dir(s, find_checkpoints([lerobot_output(tmp_path / "train", [100])])[0]), {0: (5, 5)})
+    with pytest.raises(Exception, match="series run with episodes=5, now 6"):
+        check_protocol(s, {"episodes": 6})

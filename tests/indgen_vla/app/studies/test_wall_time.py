@@ -17,7 +17,7 @@ def test_costs_from_a_timing_record_by_hand():
     c = from_timing(TIMING, steps_per_episode=100)
     assert c.sim_s_per_step == pytest.approx(0.02)
     assert c.reset_s == pytest.approx(0.1) and c.build_s == pytest.approx(2.0)
-    assert c.act_at(1) == (pytest.approx(0.001), "measured at 1")
+    assert c.act_at(1) == (pytest.approx(0.001), "1.00 ms a call over 1 environment(s) (measured at 1)")
     # in process the workers' seconds run inside the loop: 12.8 − 0.4 act − 8 − 4.4 = 0 s of coordinator
     assert c.coord_s_per_reply == pytest.approx(0.0, abs=1e-9)
     assert c.fixed_s == pytest.approx(1 + 3 + 2 + EXIT_S)
@@ -64,3 +64,21 @@ def test_a_smoke_on_a_busy_box_widens_the_interval():
     a, b = project(calm, 1, 1, 2, [4]), project(busy, 1, 1, 2, [4])
     assert b.expected == pytest.approx(a.expected)
     assert (b.low, b.high) == (pytest.approx(a.low / 2), pytest.approx(a.high * 2))
+
+
+def test_every_act_description_carries_its_milliseconds_and_no_act_names_no_bound():
+    """budget prints "act <description>": each names the seconds it uses (it printed a bare "measured at 1"), and
+    without any act latency (--steps-per-s) no bound is named, as the note and docs/budget.md say."""
+    c = Costs(sim_s_per_step=0.005, reset_s=0, build_s=0, act_s={8: 0.4, 16: 0.45}, batched=True,
+              coord_s_per_reply=1e-4, fixed_s=10, steps_per_episode=100, cores=16, on_cpu_policy=False)  # fmt: skip
+    assert c.act_at(8)[1] == "400.00 ms a call over 8 environment(s) (measured at 8)"
+    assert c.act_at(12)[1].startswith(
+        "425.00 ms a call over 12 environment(s) (interpolated between batches 8"
+    )
+    assert c.act_at(32)[1].startswith(
+        "450.00 ms a call over 32 environment(s) (extrapolated flat from batch 16"
+    )
+    blind = Costs(sim_s_per_step=0.01, reset_s=0, build_s=0, act_s={}, batched=True, coord_s_per_reply=0,
+                  fixed_s=10, steps_per_episode=100, cores=10**6, on_cpu_policy=False)  # fmt: skip
+    assert blind.act_at(2) == (0.0, "not measured")
+    assert project(blind, 2, 1, 1, [10]).bound == "none named (no act latency known)"

@@ -166,3 +166,22 @@ def test_plan_sizes_the_smoke_from_the_baseline(tmp_path, capsys):
     assert "--plan takes one run directory" in capsys.readouterr().err
     assert main(["gate", str(a.path)]) == 2
     assert "needs BASELINE and CANDIDATE" in capsys.readouterr().err
+
+
+def test_plan_tries_the_drop_only_where_a_level_can_fall_by_2m(tmp_path, capsys):
+    """A level at 0 % cannot drop 20 points: the drop is tried at a level that can (its chance of passing is then
+    small, not the equal policies' 80 %); a baseline with no level at 20 % or more says no drop can be tried."""
+    from indgen_vla.core.comparison.gate_plan import plan_episodes
+
+    plan = plan_episodes([2 / 3, 1.0, 0.0], 0.1)
+    assert plan["drop_level_index"] in (0, 1) and plan["pass_drop_2m"] < 0.05 < plan["pass_equal"]
+    a = make_run(tmp_path / "a", {-1: (4, 6), 0: (6, 6), 1: (0, 6)}, regime="a")
+    assert main(["gate", "--plan", str(a.path), "--margin", "0.1"]) == 0
+    out = capsys.readouterr().out
+    assert "pick_y L+1, the likeliest" not in out and "a drop of 20 pp at one level (pick_y L" in out
+    assert plan_episodes([0.1, 0.15], 0.1)["pass_drop_2m"] is None
+    b = make_run(tmp_path / "b", {0: (2, 20), 1: (3, 20)}, regime="b")
+    assert main(["gate", "--plan", str(b.path), "--margin", "0.1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["drop_level_index"] is None
+    assert main(["gate", "--plan", str(b.path), "--margin", "0.1"]) == 0
+    assert "no level's rate is 20% or more, so no drop of 20 pp can be tried" in capsys.readouterr().out

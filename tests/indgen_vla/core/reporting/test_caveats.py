@@ -65,13 +65,22 @@ def test_axis_caveats_name_run_axis_n_ci_and_tasks():
     assert lines[0].startswith(
         "**Cannot answer** (standin:random, `pick_y`, pooled over 2 tasks: bread, milk): T0 succeeds in 0/10"
     )
-    assert "0% [0, 28], wilson 95 % CI" in lines[0]
+    assert "0% [0, 28], Wilson 95 % CI" in lines[0]
     assert (
         lines[1].startswith("**Too few episodes**")
         and "n ≥ 16" in lines[1]
         and "not a statistically decided break" in lines[1]
     )
     assert len(lines) == 2  # 10 pairs, one level: 2 * 0.5**10 < 0.05, the T0 test can answer
+
+
+def test_an_adaptive_axis_gets_no_wilson_break_caveat():
+    """Under --adaptive the sequential rule decides a break (0/15 is "decided below γ by the sequential rule"): the
+    line that no level can be decided broken at n < 16 was false there; the T0 lines stay."""
+    a = _axis(0, 10)
+    a["levels"][1]["sequential"] = {"verdict": "broken", "n": 10}
+    lines = axis_caveats("A", "x", a, 0.2, "wilson")
+    assert lines[0].startswith("**Cannot answer**") and not any("Too few episodes" in x for x in lines)
 
 
 def test_axis_caveats_no_power_against_t0_and_none_for_a_sound_study():

@@ -109,3 +109,17 @@ def test_a_signed_axis_run_on_one_side_says_the_other_was_not_evaluated():
     )  # the k* status row agrees (it said "−: no break through 0, determined")
     assert status["neg"]["text"] == v["neg"] and not status["neg"]["determined"]
     assert status["pos"]["text"] == "k* = 0, determined"
+
+
+def test_a_decided_break_after_an_undecided_level_names_the_interval_of_kstar():
+    """+1 at 3/10 (CI [11, 60]) is neither intact nor broken, +2 at 0/20 is broken: k* is +1 or +2. The verdict
+    said only "breaks at +2 ..." (the terminal prints no other k* line); it now adds the interval and why."""
+    rows = [row(0, 10, 10, "intact"), row(1, 3, 10, "undetermined"), row(2, 0, 20, "broken")]
+    v = axis_verdicts(rows, {"pos": 2}, 0.2, signed=False)["pos"]
+    assert v.startswith("breaks at +2 (0 %, n = 20, 95 % CI [0, 16]), significantly below γ = 0.2")
+    assert v.endswith("; k* ∈ [+1, +2]: +1 not shown at or above γ")
+    rows[1] = row(
+        1, 9, 10, "intact"
+    )  # every level before the break intact: k* = +2, determined, nothing added
+    assert axis_verdicts(rows, {"pos": 2}, 0.2, signed=False)["pos"].endswith("(Wilson 95 % CI; chance of this call "
+                                                                               "at S = γ with n = 20: 1.2 %)")  # fmt: skip

@@ -44,6 +44,10 @@ def test_report_cli_writes_outputs(tmp_path, capsys):
     assert (a.path / "plots" / "pick_y.png").stat().st_size > 1000
     md = (tmp_path / "cmp" / "report.md").read_text()
     assert "h-only" in md and "h+mg" in md and "| **k\\*** |" in md
+    # the interval's name as the verdicts print it (it read "with wilson 95 % CI" beside "Wilson 95 % CI")
+    assert "Success rate with Wilson 95 % CI" in md and "wilson 95" not in md
+    assert "wilson 95" not in (a.path / "plots" / "pick_y.svg").read_text()
+    assert "wilson 95" not in (a.path / "report.html").read_text()
     assert (tmp_path / "cmp" / "plots" / "pick_y.png").exists()
     b_sum = json.loads((b.path / "summary.json").read_text())
     assert b_sum["axes"]["pick_y"]["break_level"] == {"pos": 1, "neg": -2}  # 2/10 is not < 0.2

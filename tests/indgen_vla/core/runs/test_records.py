@@ -57,15 +57,30 @@ def test_costly_rewrites_are_deferred_until_flush(tmp_path, monkeypatch):
 
 def test_manifest_mismatch_refused(tmp_path):
     RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5}})
-    with pytest.raises(RunDirError, match="different plan .*episodes"):
+    with pytest.raises(RunDirError, match="different plan .*episodes") as e:
         RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 6}})
+    # the first difference's two values, so the user sees which command made the run
+    assert "(differs in: episodes; episodes: 5 in the run, 6 now)" in str(e.value)
+    with pytest.raises(RunDirError) as e:  # too long for one line: named, not printed
+        RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": 5, "tasks": ["t" * 80, "u" * 80]}})
+    assert "(differs in: tasks); use a new --out" in str(e.value)
+    with pytest.raises(RunDirError) as e:  # a secret in a spec stays masked in the line
+        RunDir.create_or_resume(tmp_path, {"plan": {"seed": 0, "episodes": "openpi:ws://h:1?api_key=SECRET"}})
+    assert "SECRET" not in str(e.value) and "api_key=***" in str(e.value)
 
 
 def test_open_errors(tmp_path):
     with pytest.raises(RunDirError, match="does not exist"):
         RunDir.open(tmp_path / "nope")
-    with pytest.raises(RunDirError, match="no manifest.json"):
+    with pytest.raises(RunDirError, match="no manifest.json; .*pass the --out of an 'indgen evaluate' run"):
         RunDir.open(tmp_path)
+    for name in ("b", "a"):  # a folder of runs (e.g. runs/): the line names the runs in it
+        RunDir.create_or_resume(tmp_path / "runs" / name, {"plan": {}})
+    with pytest.raises(RunDirError) as e:
+        RunDir.open(tmp_path / "runs")
+    assert str(e.value).endswith(
+        f"; pass the runs in it instead: {tmp_path / 'runs' / 'a'} {tmp_path / 'runs' / 'b'}"
+    )
     (tmp_path / MANIFEST).write_text("{not json")
     with pytest.raises(RunDirError, match="corrupt"):
         RunDir.open(tmp_path)

@@ -315,3 +315,6 @@ def test_verdict_tells_levels_below_the_floor_from_no_pairs():
     assert t0_verdict([{"level": 1, "vs_t0": below | {"n_pairs": 0}}], None) == (
         "no level has episodes paired with T0 yet"
     )
+    one = {"p": 1.0, "p_holm": 1.0, "n_pairs": 5}  # one tested level: "1 level", not "1 levels"
+    assert "(exact McNemar, Holm over 1 level, α = 0.05)" in t0_verdict([{"level": 1, "vs_t0": one}], None)
+    assert "Holm over 2 levels" in t0_verdict([{"level": k, "vs_t0": one} for k in (1, 2)], None)
