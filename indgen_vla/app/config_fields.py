@@ -43,30 +43,44 @@ def option_like(cls: type, name: str, default: Any = dataclasses.MISSING, help: 
 
 def check_types(config: Any) -> None:
     """One ``ConfigError`` line for an option whose value has the wrong type (the Python API and YAML hand values
-    argparse never parsed): a whole number where the flag parses ``int`` (or the default is one), a number where it
-    parses ``float``, true/false for a switch. NumPy scalars become Python ones, so manifests stay JSON."""
+    argparse never parsed); NumPy scalars become Python ones, so manifests stay JSON (``typed_value``)."""
     for f in dataclasses.fields(config):
-        meta = f.metadata.get("argparse")
         value = getattr(config, f.name)
-        if meta is None or value is None:
-            continue
-        kind = meta.get("type") if "type" in meta else type(f.default)
-        if kind not in (bool, int, float) or "choices" in meta:
-            continue
-        boolean = isinstance(value, bool) or (
-            type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")
-        )
-        if kind is bool and boolean:
-            object.__setattr__(config, f.name, bool(value))
-        elif kind is int and not boolean and isinstance(value, numbers.Integral):
-            object.__setattr__(config, f.name, int(value))
-        elif kind is float and not boolean and isinstance(value, numbers.Real):
-            object.__setattr__(config, f.name, value if isinstance(value, int | float) else float(value))
-        else:
-            what = {bool: "true or false", int: "a whole number", float: "a number"}[kind]
-            flag = f.metadata.get("flag") or f.metadata.get("name") or f.name
-            name = f"--{flag.replace('_', '-')}" if f.metadata.get("help") else flag
-            raise ConfigError(f"{name} must be {what}, got {value!r} ({type(value).__name__})")
+        typed = typed_value(f, value)
+        if typed is not value:
+            object.__setattr__(config, f.name, typed)
+
+
+def typed_value(f: dataclasses.Field, value: Any) -> Any:
+    """``value`` as the option ``f`` takes it: a whole number where the flag parses ``int`` (or the default is one),
+    a number where it parses ``float``, true/false for a switch; anything else is one ``ConfigError`` line naming
+    the flag and, where there is one, an example from its default."""
+    meta = f.metadata.get("argparse")
+    if meta is None or value is None:
+        return value
+    kind = meta.get("type") if "type" in meta else type(f.default)
+    if kind not in (bool, int, float) or "choices" in meta:
+        return value
+    boolean = isinstance(value, bool) or (
+        type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")
+    )
+    if kind is bool and boolean:
+        return value if isinstance(value, bool) else bool(value)
+    if kind is int and not boolean and isinstance(value, numbers.Integral):
+        return value if type(value) is int else int(value)
+    if kind is float and not boolean and isinstance(value, numbers.Real):
+        return value if isinstance(value, int | float) else float(value)
+    what = {bool: "true or false", int: "a whole number", float: "a number"}[kind]
+    flag = f.metadata.get("flag") or f.metadata.get("name") or f.name
+    name = f"--{flag.replace('_', '-')}" if f.metadata.get("help") else flag
+    example = (
+        ""
+        if kind is bool or f.default is None or f.default is dataclasses.MISSING
+        else f"; e.g. {name} {f.default}"
+        if name.startswith("--")
+        else f"; e.g. {name}={f.default}"
+    )
+    raise ConfigError(f"{name} must be {what}, got {value!r} ({type(value).__name__}){example}")
 
 
 def section(cls: type) -> Any:

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from indgen_vla.app.config_fields import Option, check_types, option
+from indgen_vla.app.config_fields import Option, check_types, option, typed_value
 from indgen_vla.core.errors import ConfigError
 from indgen_vla.core.protocol.plan import EpisodeJob, plan_jobs
 from indgen_vla.core.protocol.policy_options import COMPILE_MODES, CUDA_GRAPH_COMPILE_MODES, PRECISIONS
@@ -421,21 +421,19 @@ def load_config_preset(path: str) -> dict[str, Any]:
     unknown = sorted(set(values) - FLAG_FIELDS)
     if unknown:
         raise ConfigError(f"--config {p}: unknown option(s) {_did_you_mean(unknown, FLAG_FIELDS)}")
-    _check_numbers(values, f"--config {p}: ")
+    _check_numbers(values, p)
     return values
 
 
-def _check_numbers(values: Mapping[str, Any], where: str) -> None:
-    """A number option given as something else (a preset's ``episodes: five``, the API's ``episodes="5"``) is one
-    line naming it, where argparse's ``type`` checks a flag; otherwise it reached a comparison as a traceback."""
+def _check_numbers(values: Mapping[str, Any], path: Path) -> None:
+    """A preset's ``episodes: five`` is one line naming the file and the option (``typed_value``), as argparse's
+    ``type`` checks a flag, instead of a TypeError traceback from a comparison below."""
     for name, value in values.items():
-        typ = OPTIONS[name].field.metadata.get("argparse", {}).get("type") if name in OPTIONS else None
-        if typ not in (int, float) or value is None:
-            continue
-        if isinstance(value, bool) or not isinstance(value, int if typ is int else (int, float)):
-            kind, default = "a whole number" if typ is int else "a number", OPTIONS[name].field.default
-            eg = "" if default is None else f"; e.g. {name}{': ' if where else '='}{default}"
-            raise ConfigError(f"{where}{name} must be {kind}, got {value!r}{eg}")
+        if name in OPTIONS:
+            try:
+                typed_value(OPTIONS[name].field, value)
+            except ConfigError as e:
+                raise ConfigError(f"--config {path}: {e}") from None
 
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
@@ -486,7 +484,6 @@ def config_from_values(
     for name in ("policy", "scene", "out"):
         values.setdefault(name, "")
     values.setdefault("axes", ())
-    _check_numbers(values, "")
     return EvalConfig.from_flat(**values)
 
 

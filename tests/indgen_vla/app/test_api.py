@@ -114,13 +114,19 @@ def test_bad_keywords_and_results_are_one_clear_line(tmp_path):
     with pytest.raises(RunDirError, match="not a run directory"):
         indgen_vla.Run(tmp_path)
     # a keyword of the wrong type (argparse never saw it) is the same one line, not a TypeError deep inside
-    with pytest.raises(ConfigError, match=r"^--episodes must be a whole number, got 'two' \(str\)$"):
+    with pytest.raises(
+        ConfigError, match=r"^--episodes must be a whole number, got 'two' \(str\); e.g. --episodes 50$"
+    ):
         indgen_vla.evaluate(
             policy="standin:oracle", scene="pick_place", axis="pick_y", episodes="two", out=tmp_path
         )
-    with pytest.raises(ConfigError, match=r"^--seed must be a whole number, got 1.5 \(float\)$"):
+    with pytest.raises(
+        ConfigError, match=r"^--seed must be a whole number, got 1.5 \(float\); e.g. --seed 1$"
+    ):
         indgen_vla.certify(scene="pick_place", axis="pick_y", levels="0", seed=1.5, out=tmp_path)
-    with pytest.raises(ConfigError, match=r"^--steps must be a whole number, got '100' \(str\)$"):
+    with pytest.raises(
+        ConfigError, match=r"^--steps must be a whole number, got '100' \(str\); e.g. --steps 3000$"
+    ):
         from indgen_vla.app.regimes.train import TrainRecipe
 
         TrainRecipe(steps="100")

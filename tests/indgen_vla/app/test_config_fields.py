@@ -118,12 +118,12 @@ def test_check_types_refuses_wrong_types_in_one_line_and_keeps_numpy_out_of_reco
     NumPy scalars become Python ones (a manifest is JSON); an int where a float is meant stays as given."""
     import numpy as np
 
-    for kwargs, line in [({"n": "2"}, "--n must be a whole number, got '2' (str)"),
-                         ({"n": 2.0}, "--n must be a whole number, got 2.0 (float)"),
-                         ({"n": True}, "--n must be a whole number, got True (bool)"),
-                         ({"rate": "0.2"}, "--rate must be a number, got '0.2' (str)"),
+    for kwargs, line in [({"n": "2"}, "--n must be a whole number, got '2' (str); e.g. --n 3"),
+                         ({"n": 2.0}, "--n must be a whole number, got 2.0 (float); e.g. --n 3"),
+                         ({"n": True}, "--n must be a whole number, got True (bool); e.g. --n 3"),
+                         ({"rate": "0.2"}, "--rate must be a number, got '0.2' (str); e.g. --rate 0.5"),
                          ({"limit": 1.5}, "--limit must be a whole number, got 1.5 (float)"),
-                         ({"retries": "2"}, "retries must be a whole number, got '2' (str)"),
+                         ({"retries": "2"}, "retries must be a whole number, got '2' (str); e.g. retries=2"),
                          ({"video": "yes"}, "--video must be true or false, got 'yes' (str)")]:  # fmt: skip
         with pytest.raises(ConfigError, match=f"^{re.escape(line)}$"):
             Typed(**kwargs)

@@ -140,10 +140,10 @@ def test_yaml_presets_take_flat_keys_or_sections(tmp_path):
 
 @pytest.mark.parametrize(
     ("yaml_text", "says"),
-    [("episodes: five\n", "episodes must be a whole number, got 'five'; e.g. episodes: 50"),
-     ("episodes: 7.5\n", "episodes must be a whole number, got 7.5"),
-     ("gamma: high\n", "gamma must be a number, got 'high'; e.g. gamma: 0.2"),
-     ("plan:\n  seed: true\n", "seed must be a whole number, got True")],
+    [("episodes: five\n", "--episodes must be a whole number, got 'five' (str); e.g. --episodes 50"),
+     ("episodes: 7.5\n", "--episodes must be a whole number, got 7.5 (float)"),
+     ("gamma: high\n", "--gamma must be a number, got 'high' (str); e.g. --gamma 0.2"),
+     ("plan:\n  seed: true\n", "--seed must be a whole number, got True (bool)")],
 )  # fmt: skip
 def test_a_preset_value_of_the_wrong_type_is_one_line(tmp_path, yaml_text, says):
     """A preset's ``episodes: five`` reached a comparison as a TypeError traceback (exit 1); the API's
@@ -153,7 +153,9 @@ def test_a_preset_value_of_the_wrong_type_is_one_line(tmp_path, yaml_text, says)
     with pytest.raises(ConfigError) as e:
         load_config_preset(str(bad))
     assert str(e.value).startswith(f"--config {bad}: {says}") and "\n" not in str(e.value)
-    with pytest.raises(ConfigError, match="^episodes must be a whole number, got '5'; e.g. episodes=50$"):
+    with pytest.raises(
+        ConfigError, match="^--episodes must be a whole number, got '5' \\(str\\); e.g. --episodes 50$"
+    ):
         config_from_values({**BASE, "episodes": "5"}, strict=True)
     assert config_from_values({**BASE, "gamma": 1, "step": 0.02}).plan.gamma == 1  # an int is a number
 
