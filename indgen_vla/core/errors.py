@@ -23,9 +23,10 @@ class UnknownNameError(ConfigError, KeyError):
         close = difflib.get_close_matches(name, self.choices, n=3, cutoff=0.5)
         hint = f"did you mean {', '.join(repr(c) for c in close)}?" if close else ""
         listing = f"known: {', '.join(self.choices)}" if self.choices else "none registered"
-        super().__init__(
-            f"unknown {kind} {name!r}; {hint + ' ' if hint else ''}({listing}){'; ' * bool(note)}{note}"
+        head = (
+            f"unknown {kind} {name!r}; {hint} ({listing})" if hint else f"unknown {kind} {name!r} ({listing})"
         )
+        super().__init__(head + (f"; {note}" if note else ""))
 
     def __str__(self) -> str:  # KeyError would otherwise repr() the message
         return self.args[0]

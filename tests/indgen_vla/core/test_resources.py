@@ -95,5 +95,7 @@ def test_an_installed_wheel_carries_the_presets(tmp_path):
     assert missing.stderr.strip() == f"error: --config nope: no such file; presets shipped: {shipped}"
     bad_axes = _run(indgen, "evaluate", "--scene", "stack", "--axis", "stack", "--policy", "standin:random",
                     "--axes-preset", "nope", "--out", str(tmp_path / "run"), cwd=tmp_path)  # fmt: skip
-    assert bad_axes.returncode == 2 and "(known: paper, quick)" in bad_axes.stderr, bad_axes.stderr
+    assert (
+        bad_axes.returncode == 2 and "unknown --axes-preset 'nope' (known: paper, quick)" in bad_axes.stderr
+    ), bad_axes.stderr
     assert not (tmp_path / "run").exists()

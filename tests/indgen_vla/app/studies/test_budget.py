@@ -140,3 +140,11 @@ def test_the_printed_coverage_is_the_committed_held_out_runs():
         for r in rows
     )
     assert (HELDOUT["runs"], HELDOUT["covered"], HELDOUT["covered_unwidened"]) == (len(rows), inside, plain)
+
+
+def test_a_rate_given_by_hand_claims_no_measured_coverage(capsys):
+    """The held-out coverage was measured on projections from smoke runs; --steps-per-s is a rate given by hand."""
+    proto = [*SMALL, "--levels", "0", "--episodes", "2", "--max-steps", "20"]
+    assert main(["budget", *proto, "--steps-per-s", "100", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "coverage not measured for --steps-per-s" in out and "held-out" not in out
