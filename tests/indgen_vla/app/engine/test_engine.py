@@ -108,6 +108,17 @@ def test_manifest_mismatch_refused(tmp_path):
         evaluate(cfg(tmp_path, levels="0", episodes=3), quiet=True)
 
 
+def test_a_run_whose_manifest_is_gone_is_not_resumed_by_another_plan(tmp_path):
+    """Without manifest.json nothing says which plan made the rows: evaluate with another policy used to adopt
+    them ("all 2 planned episodes are already in ...") and report them as its own."""
+    out = evaluate(cfg(tmp_path, levels="0", episodes=2), quiet=True)
+    (out / "manifest.json").unlink()
+    before = (out / "episodes.parquet").read_bytes()
+    with pytest.raises(RunDirError, match="holds episodes but no manifest.json"):
+        evaluate(cfg(tmp_path, levels="0", episodes=2, policy="standin:noop"), quiet=True)
+    assert (out / "episodes.parquet").read_bytes() == before and not (out / "manifest.json").exists()
+
+
 def test_bad_inputs_are_clear(tmp_path):
     with pytest.raises(UnknownNameError, match="did you mean 'pick_place'"):
         evaluate(cfg(tmp_path, scene="pick_plase"), quiet=True)
