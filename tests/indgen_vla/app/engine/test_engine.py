@@ -119,6 +119,25 @@ def test_a_run_whose_manifest_is_gone_is_not_resumed_by_another_plan(tmp_path):
     assert (out / "episodes.parquet").read_bytes() == before and not (out / "manifest.json").exists()
 
 
+def test_resuming_a_batched_policy_under_another_worker_count_says_so(tmp_path, capsys):
+    """ACT pads its batch to the worker count, and --workers 1 vs 2 gave one episode 107 vs 112 steps here: a
+    resume under another count mixed the two without a word. It still goes on (a cluster resume may need to)."""
+    from indgen_vla.app.cli import main
+    from indgen_vla.core.runs.records import EpisodeRecord
+
+    out = tmp_path / "run"
+    args = ["evaluate", "--policy", "lerobot:checkpoints/act_pick_place_human", "--scene", "pick_place", "--axis",
+            "pick_y", "--levels", "0", "--episodes", "2", "--max-steps", "5", "--out", str(out)]  # fmt: skip
+    assert main([*args, "--workers", "1"]) == 0
+    run = RunDir(out)  # episode 1 lost, as a kill before its row leaves the run
+    run.rewrite([EpisodeRecord(**r) for r in run.rows() if r["episode"] == 0])
+    capsys.readouterr()
+    assert main([*args, "--workers", "2"]) == 0
+    said = " ".join(capsys.readouterr().err.split())  # rich wraps at $COLUMNS
+    assert "warning: resumed with --workers 2, the run began with --workers 1: the policy's batches" in said
+    assert len(RunDir.open(out).episodes()) == 2
+
+
 def test_bad_inputs_are_clear(tmp_path):
     with pytest.raises(UnknownNameError, match="did you mean 'pick_place'"):
         evaluate(cfg(tmp_path, scene="pick_plase"), quiet=True)
