@@ -36,6 +36,15 @@ def interrupted_message(args: argparse.Namespace) -> str:
     return f"interrupted: 'indgen {name}' keeps no partial output; re-run it to start over"
 
 
+_SIGTERM_SEEN = threading.Event()  # set by ``sigterm_raises``'s handler until the next command starts
+
+
+def by_sigterm(exc: BaseException) -> bool:
+    """Whether an interrupt came from SIGTERM: ``Terminated``, or the plain ``KeyboardInterrupt`` a library raised in
+    its place (Ray's ``ray.get`` turns any exception of a signal handler into one), so the exit is still 143."""
+    return isinstance(exc, Terminated) or _SIGTERM_SEEN.is_set()
+
+
 @contextlib.contextmanager
 def sigterm_raises() -> Iterator[None]:
     """While a command runs, SIGTERM raises ``Terminated`` (a ``KeyboardInterrupt``) so that it stops as on Ctrl-C:
@@ -47,8 +56,10 @@ def sigterm_raises() -> Iterator[None]:
 
     def terminate(signum, frame):
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        _SIGTERM_SEEN.set()
         raise Terminated
 
+    _SIGTERM_SEEN.clear()
     previous = signal.signal(signal.SIGTERM, terminate)
     try:
         yield

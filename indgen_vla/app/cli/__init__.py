@@ -17,8 +17,8 @@ from collections.abc import Sequence
 
 from indgen_vla import __version__
 from indgen_vla.app.cli.options import IndgenParser
-from indgen_vla.app.interrupts import interrupted_message, sigterm_raises
-from indgen_vla.core.errors import EXIT_SIGTERM, IndgenError, Terminated
+from indgen_vla.app.interrupts import by_sigterm, interrupted_message, sigterm_raises
+from indgen_vla.core.errors import EXIT_SIGTERM, IndgenError
 
 # subcommand -> "package.module:function" handler taking the parsed Namespace, imported only when that subcommand runs
 HANDLERS: dict[str, str] = {
@@ -113,10 +113,12 @@ def _main(argv: Sequence[str] | None) -> int:
     except IndgenError as e:
         print(f"error: {e}", file=sys.stderr)
         return e.exit_code
-    except Terminated:
-        print(interrupted_message(args).replace("interrupted:", "terminated (SIGTERM):", 1), file=sys.stderr)
-        return EXIT_SIGTERM
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM (``Terminated``, or what a library made of it)
+        if by_sigterm(e):
+            print(
+                interrupted_message(args).replace("interrupted:", "terminated (SIGTERM):", 1), file=sys.stderr
+            )
+            return EXIT_SIGTERM
         print(interrupted_message(args), file=sys.stderr)
         return 130
     except BrokenPipeError:  # e.g. `indgen axes | head`: the reader left; not an error of ours

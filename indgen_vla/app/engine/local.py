@@ -200,12 +200,32 @@ def _context(levels, task: str | None = None):
         if task is not None:
             os.environ[WARM_CELL_ENV] = json.dumps({"scene": levels.scene, "task": task})
         try:
-            forkserver.ensure_running()
+            _spawn_ignoring_ctrl_c(forkserver.ensure_running)
         finally:
             for k, v in saved.items():
                 if v is None:
                     os.environ.pop(k, None)
     return ctx
+
+
+def _spawn_ignoring_ctrl_c(start) -> None:
+    """Call ``start`` (which spawns the fork server) with SIGINT ignored, a disposition the new interpreter inherits:
+    a Ctrl-C during its seconds of preload printed a KeyboardInterrupt traceback beside the coordinator's one line
+    (the fork server ignores SIGINT itself only after its preload; its workers ignore it too). SIGINT is blocked
+    meanwhile, so a Ctrl-C that comes during the spawn reaches the coordinator afterwards instead of being lost."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        start()
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        start()
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def worker_processes(n_jobs: int, workers: int, pipeline: bool) -> int:

@@ -465,8 +465,8 @@ def run_ray(
             sup is not None and not stopped
         ):  # the actors are not detached: they end with this driver in any case
             sup.close()
-        if started_here:
-            ray.shutdown()
+        if started_here:  # ray.shutdown puts SIGTERM back to SIG_DFL underneath Python's handler: a SIGTERM
+            keeping_sigterm(ray.shutdown)  # while the report is written then killed the run with no line
 
 
 def _added(a: dict, b: dict) -> dict[str, int]:

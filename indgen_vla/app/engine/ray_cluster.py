@@ -209,8 +209,9 @@ def local_cpus(workers: int | None, need: Need) -> int:
 
 
 def keeping_sigterm(start: Callable[[], object]) -> None:
-    """Call ``start`` (``ray.init``) and put back the SIGTERM handler it replaces: Ray's exits with status 15 and a
-    C++ stack dump instead of the one-line stop and exit 143 of ``indgen`` (``interrupts.sigterm_raises``)."""
+    """Call ``start`` (``ray.init``, ``ray.shutdown``) and put back the SIGTERM handler it replaces: Ray's exits with
+    status 15 and a C++ stack dump, ``ray.shutdown`` leaves SIG_DFL (Python still reports its own handler), instead
+    of the one-line stop and exit 143 of ``indgen`` (``interrupts.sigterm_raises``)."""
     import signal
 
     if threading.current_thread() is not threading.main_thread():

@@ -38,6 +38,7 @@ from indgen_vla.core.protocol.fingerprint import (
     numerics_warning,
     policy_conventions,
     show_difference,
+    workers_warning,
 )
 from indgen_vla.core.protocol.plan import FAILED, UNCERTIFIED, EvalPlan, plan_jobs
 from indgen_vla.core.protocol.training_support import cells_to_json
@@ -324,8 +325,11 @@ def _run_todo(
         trained = {"training_levels": cells_to_json(spec.training)} if spec.training else {}
         run.update_manifest(fingerprint=fingerprint, reads_observations=spec.reads_observations, **trained)
     else:  # a resume: the episodes still to run must be made under the protocol of those on disk
-        for line in _check_resumed_protocol(run, fingerprint, cfg.run.allow_protocol_mismatch):
-            console.print(f"[yellow]warning:[/] {line}")
+        began = (manifest.get("config") or {}).get("workers")
+        workers = workers_warning(began, cfg.run.workers, spec.batched)
+        for line in [*_check_resumed_protocol(run, fingerprint, cfg.run.allow_protocol_mismatch), workers]:
+            if line:
+                console.print(f"[yellow]warning:[/] {line}")
         if "reads_observations" not in manifest:  # a run started before policies declared it: the same policy
             run.update_manifest(reads_observations=spec.reads_observations)
         # say what it keeps and what it runs (an adaptive round's todo is not "the rest")

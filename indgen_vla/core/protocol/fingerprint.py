@@ -144,6 +144,19 @@ def numerics_warning(was: Mapping[str, Any] | None, now: Mapping[str, Any] | Non
     )
 
 
+def workers_warning(was: Any, now: Any, batched: bool) -> str | None:
+    """One line when a run is resumed under another ``--workers`` (ints; ``auto`` is not compared) with a batched
+    policy: its forward is padded to the worker count, and a neural one can round differently at another batch size,
+    so the episodes run now may not be those an uninterrupted run makes; None otherwise."""
+    if not batched or not isinstance(was, int) or not isinstance(now, int) or was == now:
+        return None
+    return (
+        f"resumed with --workers {now}, the run began with --workers {was}: the policy's batches are padded to the "
+        "worker count, so a neural policy's episodes may differ in their last bits from an uninterrupted run's "
+        f"(docs/run-directory.md); resume with --workers {was} for bit-equal outcomes"
+    )
+
+
 def policy_conventions(spec, policy) -> dict[str, Any]:
     """A policy's resolved conventions: its spec's serving facts and the frozen transforms it applies (crop,
     resize, flip, gripper map), as their reprs, and on a scene family with its own robot the layout it used

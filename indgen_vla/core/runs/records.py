@@ -222,6 +222,11 @@ class RunDir:
                     f"{run.path} holds a run with a different plan (differs in: {', '.join(diff) or 'plan'}"
                     f"{_first_difference(diff, old_plan, manifest.get('plan', {}))}); " + _resume_hint(old)
                 )
+        elif (run.path / EPISODES).exists() or journal.exists():  # rows no plan vouches for: never mixed in
+            raise RunDirError(
+                f"{run.path} holds episodes but no {MANIFEST}, so which run made them is unknown; "
+                f"restore its {MANIFEST} or use a new --out"
+            )
         else:
             atomic_write_json(mpath, dict(manifest))
         return run

@@ -82,3 +82,45 @@ def test_sigterm_stops_a_ray_run_as_a_local_one(tmp_path):
     last = stopped.stderr.strip().splitlines()[-1]
     assert last.startswith("terminated (SIGTERM): finished episodes are saved")
     assert stopped.survivors == [] and 0 < episodes_on_disk(out) < 8
+
+
+RAY_SIGTERM_SCRIPT = """
+import os, signal, sys, threading
+import ray
+from indgen_vla.app.engine.config import EvalConfig
+from indgen_vla.app.engine.ray_cluster import join, keeping_sigterm
+from indgen_vla.app.interrupts import by_sigterm, sigterm_raises
+from indgen_vla.core.errors import Terminated
+from tests.fixtures.resolved import evaluate
+
+with sigterm_raises():  # a SIGTERM while ray.get waits
+    join(1, keeping_sigterm)
+    nap = ray.remote(num_cpus=0)(lambda: __import__("time").sleep(60))
+    threading.Timer(3.0, os.kill, (os.getpid(), signal.SIGTERM)).start()
+    try:
+        ray.get(nap.remote())
+    except KeyboardInterrupt as e:
+        print("in ray.get:", by_sigterm(e), flush=True)
+    keeping_sigterm(ray.shutdown)
+with sigterm_raises():  # a SIGTERM once a Ray run's rollouts are done (its report being written)
+    evaluate(EvalConfig.from_flat(policy="standin:random", scene="pick_place", axes=("pick_y",), levels="0",
+             episodes=1, workers=1, max_steps=4, backend="ray", out=sys.argv[1]), quiet=True)
+    try:
+        signal.raise_signal(signal.SIGTERM)
+    except Terminated:
+        print("after the run: Terminated", flush=True)
+"""
+
+
+@pytest.mark.slow  # 20-40 s: two local Ray instances start
+def test_sigterm_inside_ray_get_and_after_a_ray_run_still_stops_as_sigterm(tmp_path):
+    """Two ways a Ray run lost SIGTERM's exit 143 and one line: ``ray.get`` re-raises the handler's ``Terminated`` as
+    a plain KeyboardInterrupt (exit 130, "interrupted"), and ``ray.shutdown`` left SIGTERM at SIG_DFL under
+    Python's handler, so a SIGTERM while the report was written killed the run (status -15, no line)."""
+    import subprocess
+
+    pytest.importorskip("ray")
+    proc = subprocess.run([sys.executable, "-c", RAY_SIGTERM_SCRIPT, str(tmp_path / "run")], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.splitlines() == ["in ray.get: True", "after the run: Terminated"], proc.stderr[-2000:]

@@ -108,6 +108,36 @@ def test_manifest_mismatch_refused(tmp_path):
         evaluate(cfg(tmp_path, levels="0", episodes=3), quiet=True)
 
 
+def test_a_run_whose_manifest_is_gone_is_not_resumed_by_another_plan(tmp_path):
+    """Without manifest.json nothing says which plan made the rows: evaluate with another policy used to adopt
+    them ("all 2 planned episodes are already in ...") and report them as its own."""
+    out = evaluate(cfg(tmp_path, levels="0", episodes=2), quiet=True)
+    (out / "manifest.json").unlink()
+    before = (out / "episodes.parquet").read_bytes()
+    with pytest.raises(RunDirError, match="holds episodes but no manifest.json"):
+        evaluate(cfg(tmp_path, levels="0", episodes=2, policy="standin:noop"), quiet=True)
+    assert (out / "episodes.parquet").read_bytes() == before and not (out / "manifest.json").exists()
+
+
+def test_resuming_a_batched_policy_under_another_worker_count_says_so(tmp_path, capsys):
+    """ACT pads its batch to the worker count, and --workers 1 vs 2 gave one episode 107 vs 112 steps here: a
+    resume under another count mixed the two without a word. It still goes on (a cluster resume may need to)."""
+    from indgen_vla.app.cli import main
+    from indgen_vla.core.runs.records import EpisodeRecord
+
+    out = tmp_path / "run"
+    args = ["evaluate", "--policy", "lerobot:checkpoints/act_pick_place_human", "--scene", "pick_place", "--axis",
+            "pick_y", "--levels", "0", "--episodes", "2", "--max-steps", "5", "--out", str(out)]  # fmt: skip
+    assert main([*args, "--workers", "1"]) == 0
+    run = RunDir(out)  # episode 1 lost, as a kill before its row leaves the run
+    run.rewrite([EpisodeRecord(**r) for r in run.rows() if r["episode"] == 0])
+    capsys.readouterr()
+    assert main([*args, "--workers", "2"]) == 0
+    said = " ".join(capsys.readouterr().err.split())  # rich wraps at $COLUMNS
+    assert "warning: resumed with --workers 2, the run began with --workers 1: the policy's batches" in said
+    assert len(RunDir.open(out).episodes()) == 2
+
+
 def test_bad_inputs_are_clear(tmp_path):
     with pytest.raises(UnknownNameError, match="did you mean 'pick_place'"):
         evaluate(cfg(tmp_path, scene="pick_plase"), quiet=True)

@@ -237,6 +237,18 @@ def test_numerics_warn_where_a_neural_policys_bits_can_differ():
     assert numerics_warning(None, avx2, "resumed") is None
 
 
+def test_a_resume_under_another_worker_count_warns_for_a_batched_policy_only():
+    """A batched policy's forward is padded to the worker count; per-episode (unbatched) policies, equal counts and
+    ``auto`` give no line."""
+    from indgen_vla.core.protocol.fingerprint import workers_warning
+
+    line = workers_warning(1, 2, batched=True)
+    assert line.startswith("resumed with --workers 2, the run began with --workers 1: ") and "\n" not in line
+    assert line.endswith("resume with --workers 1 for bit-equal outcomes")
+    assert workers_warning(1, 2, batched=False) is None and workers_warning(2, 2, batched=True) is None
+    assert workers_warning("auto", 2, batched=True) is None and workers_warning(None, 2, batched=True) is None
+
+
 def test_cpu_isa_is_the_capability_torch_dispatches_to(monkeypatch):
     """Read from the CPU's flags without importing torch, it names what torch itself reports on this machine, and
     follows ATen's rule on other flag sets and its override variable."""

@@ -69,6 +69,24 @@ def test_manifest_mismatch_refused(tmp_path):
     assert "SECRET" not in str(e.value) and "api_key=***" in str(e.value)
 
 
+def test_episodes_without_a_manifest_are_never_adopted(tmp_path):
+    """A run dir whose manifest.json is gone holds rows no plan vouches for: a resume under any plan would
+    report them as its own, so it is refused and the rows stay as they were."""
+    import indgen_vla.core.runs.records as records
+
+    run = RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 0}})
+    run.append([rec(0, 0)])
+    (tmp_path / "run" / MANIFEST).unlink()
+    before = (tmp_path / "run" / EPISODES).read_bytes()
+    with pytest.raises(RunDirError, match="holds episodes but no manifest.json.*restore its manifest.json"):
+        RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 1}})
+    assert (tmp_path / "run" / EPISODES).read_bytes() == before and not (tmp_path / "run" / MANIFEST).exists()
+    (tmp_path / "run" / EPISODES).unlink()  # rows only in the journal (killed between rewrites) count too
+    (tmp_path / "run" / records.JOURNAL).write_text('{"task":"t","axis":"pick_y","level":0,"episode":1}\n')
+    with pytest.raises(RunDirError, match="no manifest.json"):
+        RunDir.create_or_resume(tmp_path / "run", {"plan": {"seed": 1}})
+
+
 def test_open_errors(tmp_path):
     with pytest.raises(RunDirError, match="does not exist"):
         RunDir.open(tmp_path / "nope")
