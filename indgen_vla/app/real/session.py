@@ -186,12 +186,12 @@ class Recorder:
                 return None
         else:
             target = next((e for e in entries if e.seq == seq), None)
-            why = (
-                "no such line" if target is None else "an undo" if target.kind == "undo" else "undone already"
-            )
+            last = entries[-1].seq if entries else 0
+            why = (f"the journal has no line {seq} (lines 1-{last})" if target is None
+                   else f"journal line {seq} is {'an undo' if target.kind == 'undo' else 'undone already'}")  # fmt: skip
             if target is None or target.kind == "undo" or seq in undone_lines(entries):
-                raise RunDirError(f"{self.path}: journal line {seq} is {why}; give the line of a verdict in force "
-                                  "(as the error about a twice-recorded episode names it)")  # fmt: skip
+                raise RunDirError(f"{self.path}: {why}; give the line of a verdict in force (each "
+                                  "'saved:' line ends with its journal line)")  # fmt: skip
         append_entry(self.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=target.axis, level=target.level,
                                       episode=target.episode, undo=target.seq, operator=self.operator, time=now()))  # fmt: skip
         self.sync()
@@ -245,12 +245,16 @@ class Recorder:
             )
         return out
 
-    def episode_lines(self, state: State, level: int, episode: int, position: tuple[int, int]) -> list[str]:
-        """The block shown before an episode: which, what to change, where things start, what to say."""
+    def episode_lines(self, state: State, level: int, episode: int, position: tuple[int, int],
+                      check: bool = False) -> list[str]:  # fmt: skip
+        """The block shown before an episode: which, what to change, where things start, what to say. The first
+        one of a resumed session, and the one after an undo, spell the set-up out (the scene may have changed)."""
         a, s = self.rr.axis, self.rr.setup
         prev = state.live[-1].level if state.live else None
         if prev is None:
             change = f"set up level {level}: {a.level(level).setup}"
+        elif prev == level and check:
+            change = f"check level {level} is set up (as at the last verdict): {a.level(level).setup}"
         elif prev == level:
             change = f"no change (level {level} as before: {a.param_text(level)})"
         else:
@@ -318,7 +322,19 @@ def _saved(e: Entry) -> str:
     extra = "".join(f"; {k} {v}" for k, v in (("note", e.note), ("video", e.video)) if v)
     if "command" in e.trigger:
         extra += f"; command exit {e.trigger['command']['exit_code']}"
-    return f"saved: level {e.level} episode {e.episode} {what}{extra}"
+    return f"saved: level {e.level} episode {e.episode} {what}{extra} (journal line {e.seq})"
+
+
+def resume_line(entries: list[Entry]) -> str | None:
+    """A resumed session first says what the journal last holds, so an operator whose session died while an
+    episode was on screen knows whether that verdict was saved."""
+    if not entries:
+        return None
+    e = entries[-1]
+    what = (f"undo of line {e.undo} (level {e.level} episode {e.episode})" if e.kind == "undo"
+            else _saved(e).removeprefix("saved: ").rpartition(" (journal line")[0])  # fmt: skip
+    return (f"resuming: the journal's last line is {e.seq}, {what}, at {e.time or 'an unknown time'}; a verdict "
+            "typed after it and never shown as 'saved' was not recorded")  # fmt: skip
 
 
 def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callable[[str], None],
@@ -349,14 +365,18 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
             + (f"until-failure ({rr.episodes} per level until the first level below γ)" if rr.mode == UNTIL_FAILURE
                else f"adaptive {rr.mode} (at most {rr.episodes} per level)" if rr.mode else f"{rr.episodes} per level")
             + f"; operator {rec.operator or 'not named'}. Type ? for help.")  # fmt: skip
+        if (resume := resume_line(read_journal(rec.path))) is not None:
+            say(resume)
+        first = state.live != []
         while True:
             queue = rr.queue(state)
             if not queue:
                 say("run complete: every episode the plan needs is recorded.")
                 return True
             level, ep = queue[0]
-            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue))):
+            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue)), first):
                 say(line)
+            first = False
             ctx = rec.context(state, level, ep)
             for t in triggers:
                 say(t.describe(ctx))
@@ -380,8 +400,8 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                     if started:
                         started["starts"] = runs
                     verdict = None
-                if verdict == "undo":
-                    state = rec.state()
+                if verdict == "undo":  # the scene may show the next episode's set-up: spell the set-up out
+                    state, first = rec.state(), True
                     break
             if verdict in (None, "undo"):
                 continue

@@ -67,7 +67,7 @@ def test_kstar_decisions_and_next_level_match_hand_computation(tmp_path, capsys)
             continue
         out = _record(run, "failure:misplaced", capsys)
     out = _record(run, "failure:misplaced", capsys)
-    assert out[0] == "saved: level 1 episode 14 failure (misplaced)"
+    assert out[0] == "saved: level 1 episode 14 failure (misplaced) (journal line 21)"
     assert "DECIDED: level 1 is broken (S < γ = 0.2) after 15 episodes" in out
     assert "adaptive (kstar): every level it needs is decided; k* = +1, determined" in out
     assert out[-1] == "run complete"  # levels 2 and 3 are never run
