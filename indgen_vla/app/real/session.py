@@ -48,13 +48,14 @@ from indgen_vla.core.stats.sprt import UNTIL_FAILURE, Decision, UntilFailure
 
 PROMPT = "outcome [s f v u q ?]> "
 START_PROMPT = "start the episode [Enter], or s f v u q ?> "  # with a trigger, before it ran
+BACK = "Enter alone: back to the outcome, nothing recorded"
 AGAIN_PROMPT = "outcome [s f v u q ? r]> "  # with a trigger, after it ran (r: run it again)
 RUN_HELP = """\
   Enter (or r)        start the episode: {what}"""
 HELP = """\
   s [note]            success
-  f [mode] [note]     failure; mode = 1-5 or its name (asked if left out)
-  v [reason]          void: does not count, the episode is re-queued (reason asked if left out)
+  f [mode] [note]     failure; mode = 1-5 or its name (asked if left out; Enter alone there backs out)
+  v [reason]          void: does not count, the episode is re-queued (reason asked if left out, as above)
   u                   undo the last verdict (asks to confirm)
   q                   quit (everything recorded is saved; run the same command to resume)
   a note may name a video: 'video=PATH' or a path ending in .mp4"""
@@ -453,20 +454,29 @@ def _read_verdict(line: str, rec: Recorder, ask, say, triggers: Sequence[Trigger
             say(
                 "failure mode: "
                 + "  ".join(f"{j} {m}" for j, m in enumerate(OPERATOR_FAILURES, 1))
-                + "  (0 = not sure)"
+                + f"  (0 = not sure; {BACK})"
             )
             for m in OPERATOR_FAILURES:
                 say(f"    {m}: {FAILURE_HELP[m]}")
-            first, *more = ask("mode> ").split() or [""]
+            answer = ask("mode> ").split()
+            if not answer:  # 'f' typed by mistake: nothing is journaled
+                say("back: nothing recorded")
+                return None
+            first, *more = answer
             mode = "" if first == "0" else failure_mode(first)
-            if mode is not None:
+            if mode is None:
+                say(f"not a failure mode: {first!r}")
+            else:
                 rest = [*rest, *more]  # "4 toppled the stack": the mode, then a note
         note, video = _split_video(rest)
         return Verdict("failure", failure=mode, note=note, video=video)
     if word in ("v", "void"):
         reason = " ".join(rest)
-        while not reason.strip():
-            reason = ask("void reason (why it does not count)> ").strip()
+        if not reason.strip():
+            reason = ask(f"void reason (why it does not count; {BACK})> ").strip()
+        if not reason:  # 'v' typed by mistake
+            say("back: nothing recorded")
+            return None
         return Verdict("void", reason=reason)
     say(f"not understood: {line!r}; type s, f, v, u, q or ? for help")
     return None

@@ -146,3 +146,32 @@ def test_a_resumed_session_says_what_was_saved_and_spells_the_set_up_out(tmp_pat
     s.type("q")
     assert s.wait() == 0
     assert [json.loads(x)["seq"] for x in (run / "journal.jsonl").read_text().splitlines()] == [1, 2, 3, 4]
+
+
+def test_a_mistaken_f_or_v_backs_out_without_a_journal_line(tmp_path):
+    """'f' or 'v' pressed for a success: Enter alone at the follow-up prompt goes back and journals nothing."""
+    run = tmp_path / "run"
+    _plan(run, "--adaptive", "off")
+    s = PtySession(indgen("real", "record", str(run), "--no-report"), tmp_path)
+    s.expect(PROMPT)
+    s.type("f")
+    s.expect("(0 = not sure; Enter alone: back to the outcome, nothing recorded)")
+    s.expect("mode> ")
+    s.type("7")
+    s.expect("not a failure mode: '7'")
+    s.expect("mode> ")
+    s.type("")
+    s.expect("back: nothing recorded")
+    s.expect(PROMPT)
+    s.type("v")
+    s.expect("void reason (why it does not count; Enter alone: back to the outcome, nothing recorded)> ")
+    s.type("")
+    s.expect("back: nothing recorded")
+    s.expect(PROMPT)
+    assert not (run / "journal.jsonl").exists()
+    s.type("s")
+    s.expect("saved: level 0 episode 0 success (journal line 1)")
+    s.expect(PROMPT)
+    s.type("q")
+    assert s.wait() == 0
+    assert [json.loads(x)["kind"] for x in (run / "journal.jsonl").read_text().splitlines()] == ["success"]
