@@ -350,6 +350,13 @@ def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callabl
             say("fix it and press Enter to try again, or type a verdict (e.g. v server down) to go on")
             return None
     say(summary_line(info))
+    c = info.get("command", {})
+    if (
+        c.get("interrupted") or c.get("exit_code", 0) != 0
+    ):  # the eval loop may have crashed: not a verdict yet
+        say(
+            "the command did not exit 0: if the episode did not run as planned, type v with why, or r to run it again"
+        )
     return info
 
 
