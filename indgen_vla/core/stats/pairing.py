@@ -17,9 +17,9 @@ def pair_episodes(ea, eb, axis: str) -> tuple[dict[int, list[tuple[bool, bool]]]
     if ia.index.has_duplicates or ib.index.has_duplicates:
         return None, "a run holds duplicate episodes"
     if set(ia.index) != set(ib.index):
-        return (
-            None,
-            f"the runs did not plan the same episodes on {axis} (tasks, levels or episode counts differ)",
+        return None, (
+            f"the runs do not hold the same episodes on {axis} ({len(ia)} vs {len(ib)}: other tasks, levels or "
+            "--episodes, or a run not finished)"
         )
     ib = ib.loc[ia.index]
     if (ia["seed"].to_numpy() != ib["seed"].to_numpy()).any():
