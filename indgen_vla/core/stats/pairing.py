@@ -26,7 +26,7 @@ def pair_episodes(ea, eb, axis: str) -> tuple[dict[int, list[tuple[bool, bool]]]
         return None, f"episode seeds differ on {axis} (different --seed)"
     pa, pb = ia["param"].to_numpy(dtype=float), ib["param"].to_numpy(dtype=float)
     if (abs(pa - pb) > 1e-9 * (1 + abs(pa))).any():
-        return None, f"level parameters differ on {axis} (different --step)"
+        return None, f"level parameters differ on {axis} (different --step, or a real set-up's YAML)"
     both = ((ia["status"] == "ok") & (ib["status"] == "ok")).to_numpy()
     pairs: dict[int, list[tuple[bool, bool]]] = {int(k): [] for k in ia.index.get_level_values("level")}
     for key, sa, sb in zip(ia.index[both], ia["success"][both], ib["success"][both], strict=True):

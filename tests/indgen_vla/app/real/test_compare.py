@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 
 from indgen_vla.app.cli import main
+from tests.indgen_vla.app.real.pty_session import ROOT
 
 OUTCOMES = [
     "success",
@@ -40,4 +41,24 @@ def test_a_run_still_recording_is_compared_unpaired_and_the_reason_says_so(tmp_p
     assert main(["compare", str(a), str(b), "--out", str(tmp_path / "ab2")]) == 0
     res = json.loads((tmp_path / "ab2" / "compare.json").read_text())
     assert res["test"] == "mcnemar_exact" and res["paired"] is True
+    capsys.readouterr()
+
+
+def test_runs_of_two_set_ups_with_other_heights_are_not_paired_and_the_reason_names_the_set_up(
+    tmp_path, capsys
+):
+    """A copied preset with 0.5 in risers: level 1 is another height, so no episode pairs with the preset's."""
+    a = _run(tmp_path, "pol_a", 10)
+    yaml = tmp_path / "my_stack.yaml"
+    yaml.write_text((ROOT / "configs" / "real" / "stack.yaml").read_text().replace("step: 0.25", "step: 0.5"))
+    b = tmp_path / "pol_b"
+    assert main(["real", "plan", "--setup", str(yaml), "--levels", "0:1", "--episodes", "5", "--adaptive", "off",
+                 "--policy", "pol_b", "--out", str(b)]) == 0  # fmt: skip
+    for outcome in OUTCOMES:
+        assert main(["real", "record", str(b), "--outcome", outcome, "--no-report"]) == 0
+    assert main(["compare", str(a), str(b), "--out", str(tmp_path / "ab")]) == 0
+    res = json.loads((tmp_path / "ab" / "compare.json").read_text())
+    assert res["paired"] is False and res["unpaired_reason"] == (
+        "level parameters differ on stack (different --step, or a real set-up's YAML)"
+    )
     capsys.readouterr()
