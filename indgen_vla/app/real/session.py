@@ -49,6 +49,9 @@ from indgen_vla.core.stats.sprt import UNTIL_FAILURE, Decision, UntilFailure
 PROMPT = "outcome [s f v u q ?]> "
 START_PROMPT = "start the episode [Enter], or s f v u q ?> "  # with a trigger, before it ran
 BACK = "Enter alone: back to the outcome, nothing recorded"
+NOT_ZERO = (
+    "the command did not exit 0: if the episode did not run as planned, type v with why, or r to run it again"
+)
 AGAIN_PROMPT = "outcome [s f v u q ? r]> "  # with a trigger, after it ran (r: run it again)
 RUN_HELP = """\
   Enter (or r)        start the episode: {what}"""
@@ -351,12 +354,8 @@ def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callabl
             return None
     say(summary_line(info))
     c = info.get("command", {})
-    if (
-        c.get("interrupted") or c.get("exit_code", 0) != 0
-    ):  # the eval loop may have crashed: not a verdict yet
-        say(
-            "the command did not exit 0: if the episode did not run as planned, type v with why, or r to run it again"
-        )
+    if c.get("interrupted") or c.get("exit_code", 0) != 0:  # a crashed eval loop: not a verdict yet
+        say(NOT_ZERO)
     return info
 
 
@@ -375,16 +374,16 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
             + f"; operator {rec.operator or 'not named'}. Type ? for help.")  # fmt: skip
         if (resume := resume_line(read_journal(rec.path))) is not None:
             say(resume)
-        first = state.live != []
+        check = bool(state.live)  # resumed: spell the set-up out once
         while True:
             queue = rr.queue(state)
             if not queue:
                 say("run complete: every episode the plan needs is recorded.")
                 return True
             level, ep = queue[0]
-            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue)), first):
+            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue)), check):
                 say(line)
-            first = False
+            check = False
             ctx = rec.context(state, level, ep)
             for t in triggers:
                 say(t.describe(ctx))
@@ -409,7 +408,7 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                         started["starts"] = runs
                     verdict = None
                 if verdict == "undo":  # the scene may show the next episode's set-up: spell the set-up out
-                    state, first = rec.state(), True
+                    state, check = rec.state(), True
                     break
             if verdict in (None, "undo"):
                 continue
