@@ -287,3 +287,17 @@ def test_sigterm_to_the_session_stops_the_episode_command(tmp_path):
     pid = int(r.stdout.split()[1])
     with pytest.raises(ProcessLookupError):  # ended and reaped, not left running
         os.kill(pid, 0)
+
+
+def test_a_bad_check_policy_spec_names_the_option(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "5", "--policy", "p",
+                 "--out", str(run)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["real", "record", str(run), "--check-policy", "bogus:ws://h:1"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: --check-policy bogus:ws://h:1: unknown policy family 'bogus' (known: "), (
+        line
+    )
+    assert "openpi" in line
+    assert not (run / "journal.jsonl").exists()
