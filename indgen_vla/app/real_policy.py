@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable
 
 from indgen_vla.app.real.trigger import EpisodeContext, TriggerError
-from indgen_vla.core.errors import PolicyError
+from indgen_vla.core.errors import ConfigError, PolicyError
 from policy_wrappers.specs import load_policy
 
 
@@ -26,7 +26,12 @@ class PolicyCheck:
 
     def __init__(self, spec: str):
         self.spec = spec
-        self.policy = load_policy(spec)  # a remote family connects and shakes hands here: fails in one line
+        try:
+            self.policy = load_policy(
+                spec
+            )  # a remote family connects and shakes hands here: fails in one line
+        except ConfigError as e:  # a bad SPEC: name the option it came from
+            raise ConfigError(f"--check-policy {spec}: {e}") from None
 
     def describe(self, ctx: EpisodeContext) -> str:
         return f"  policy : {self.spec} (checked and reset with seed {ctx.seed} when the episode starts)"

@@ -217,7 +217,11 @@ class RealRun:
             0 if 0 not in self.levels else 1 if self.mode else len(self.levels) - 1
         )  # a walk may stop early
         where = f"set-up {self.setup.name}, `{self.axis.name}`, task {self.task}"
-        return design_caveats(where, self.episodes, tested, self.gamma, self.mode in (None, UNTIL_FAILURE))
+        out = design_caveats(where, self.episodes, tested, self.gamma, self.mode in (None, UNTIL_FAILURE))
+        if 0 not in self.levels:  # real.md step 1: the training set-up first
+            out.append(f"**No level 0** ({where}): without the training set-up nothing shows the policy solves it and "
+                       f"no level is tested against T0; plan --levels 0:{self.levels[-1]}.")  # fmt: skip
+        return out
 
     @classmethod
     def open(cls, path: str | Path) -> RealRun:

@@ -48,13 +48,17 @@ from indgen_vla.core.stats.sprt import UNTIL_FAILURE, Decision, UntilFailure
 
 PROMPT = "outcome [s f v u q ?]> "
 START_PROMPT = "start the episode [Enter], or s f v u q ?> "  # with a trigger, before it ran
+BACK = "Enter alone: back to the outcome, nothing recorded"
+NOT_ZERO = (
+    "the command did not exit 0: if the episode did not run as planned, type v with why, or r to run it again"
+)
 AGAIN_PROMPT = "outcome [s f v u q ? r]> "  # with a trigger, after it ran (r: run it again)
 RUN_HELP = """\
   Enter (or r)        start the episode: {what}"""
 HELP = """\
   s [note]            success
-  f [mode] [note]     failure; mode = 1-5 or its name (asked if left out)
-  v [reason]          void: does not count, the episode is re-queued (reason asked if left out)
+  f [mode] [note]     failure; mode = 1-5 or its name (asked if left out; Enter alone there backs out)
+  v [reason]          void: does not count, the episode is re-queued (reason asked if left out, as above)
   u                   undo the last verdict (asks to confirm)
   q                   quit (everything recorded is saved; run the same command to resume)
   a note may name a video: 'video=PATH' or a path ending in .mp4"""
@@ -186,12 +190,12 @@ class Recorder:
                 return None
         else:
             target = next((e for e in entries if e.seq == seq), None)
-            why = (
-                "no such line" if target is None else "an undo" if target.kind == "undo" else "undone already"
-            )
+            last = entries[-1].seq if entries else 0
+            why = (f"the journal has no line {seq} (lines 1-{last})" if target is None
+                   else f"journal line {seq} is {'an undo' if target.kind == 'undo' else 'undone already'}")  # fmt: skip
             if target is None or target.kind == "undo" or seq in undone_lines(entries):
-                raise RunDirError(f"{self.path}: journal line {seq} is {why}; give the line of a verdict in force "
-                                  "(as the error about a twice-recorded episode names it)")  # fmt: skip
+                raise RunDirError(f"{self.path}: {why}; give the line of a verdict in force (each "
+                                  "'saved:' line ends with its journal line)")  # fmt: skip
         append_entry(self.path, Entry(seq=entries[-1].seq + 1, kind="undo", axis=target.axis, level=target.level,
                                       episode=target.episode, undo=target.seq, operator=self.operator, time=now()))  # fmt: skip
         self.sync()
@@ -245,12 +249,16 @@ class Recorder:
             )
         return out
 
-    def episode_lines(self, state: State, level: int, episode: int, position: tuple[int, int]) -> list[str]:
-        """The block shown before an episode: which, what to change, where things start, what to say."""
+    def episode_lines(self, state: State, level: int, episode: int, position: tuple[int, int],
+                      check: bool = False) -> list[str]:  # fmt: skip
+        """The block shown before an episode: which, what to change, where things start, what to say. The first
+        one of a resumed session, and the one after an undo, spell the set-up out (the scene may have changed)."""
         a, s = self.rr.axis, self.rr.setup
         prev = state.live[-1].level if state.live else None
         if prev is None:
             change = f"set up level {level}: {a.level(level).setup}"
+        elif prev == level and check:
+            change = f"check level {level} is set up (as at the last verdict): {a.level(level).setup}"
         elif prev == level:
             change = f"no change (level {level} as before: {a.param_text(level)})"
         else:
@@ -318,7 +326,19 @@ def _saved(e: Entry) -> str:
     extra = "".join(f"; {k} {v}" for k, v in (("note", e.note), ("video", e.video)) if v)
     if "command" in e.trigger:
         extra += f"; command exit {e.trigger['command']['exit_code']}"
-    return f"saved: level {e.level} episode {e.episode} {what}{extra}"
+    return f"saved: level {e.level} episode {e.episode} {what}{extra} (journal line {e.seq})"
+
+
+def resume_line(entries: list[Entry]) -> str | None:
+    """A resumed session first says what the journal last holds, so an operator whose session died while an
+    episode was on screen knows whether that verdict was saved."""
+    if not entries:
+        return None
+    e = entries[-1]
+    what = (f"undo of line {e.undo} (level {e.level} episode {e.episode})" if e.kind == "undo"
+            else _saved(e).removeprefix("saved: ").rpartition(" (journal line")[0])  # fmt: skip
+    return (f"resuming: the journal's last line is {e.seq}, {what}, at {e.time or 'an unknown time'}; a verdict "
+            "typed after it and never shown as 'saved' was not recorded")  # fmt: skip
 
 
 def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callable[[str], None],
@@ -333,6 +353,9 @@ def start_episode(triggers: Sequence[Trigger], ctx: EpisodeContext, say: Callabl
             say("fix it and press Enter to try again, or type a verdict (e.g. v server down) to go on")
             return None
     say(summary_line(info))
+    c = info.get("command", {})
+    if c.get("interrupted") or c.get("exit_code", 0) != 0:  # a crashed eval loop: not a verdict yet
+        say(NOT_ZERO)
     return info
 
 
@@ -349,14 +372,18 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
             + (f"until-failure ({rr.episodes} per level until the first level below γ)" if rr.mode == UNTIL_FAILURE
                else f"adaptive {rr.mode} (at most {rr.episodes} per level)" if rr.mode else f"{rr.episodes} per level")
             + f"; operator {rec.operator or 'not named'}. Type ? for help.")  # fmt: skip
+        if (resume := resume_line(read_journal(rec.path))) is not None:
+            say(resume)
+        check = bool(state.live)  # resumed: spell the set-up out once
         while True:
             queue = rr.queue(state)
             if not queue:
                 say("run complete: every episode the plan needs is recorded.")
                 return True
             level, ep = queue[0]
-            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue))):
+            for line in rec.episode_lines(state, level, ep, (len(state.counted), len(queue)), check):
                 say(line)
+            check = False
             ctx = rec.context(state, level, ep)
             for t in triggers:
                 say(t.describe(ctx))
@@ -380,8 +407,8 @@ def interactive(rr: RealRun, operator: str = "", video_pattern: str | None = Non
                     if started:
                         started["starts"] = runs
                     verdict = None
-                if verdict == "undo":
-                    state = rec.state()
+                if verdict == "undo":  # the scene may show the next episode's set-up: spell the set-up out
+                    state, check = rec.state(), True
                     break
             if verdict in (None, "undo"):
                 continue
@@ -433,20 +460,29 @@ def _read_verdict(line: str, rec: Recorder, ask, say, triggers: Sequence[Trigger
             say(
                 "failure mode: "
                 + "  ".join(f"{j} {m}" for j, m in enumerate(OPERATOR_FAILURES, 1))
-                + "  (0 = not sure)"
+                + f"  (0 = not sure; {BACK})"
             )
             for m in OPERATOR_FAILURES:
                 say(f"    {m}: {FAILURE_HELP[m]}")
-            first, *more = ask("mode> ").split() or [""]
+            answer = ask("mode> ").split()
+            if not answer:  # 'f' typed by mistake: nothing is journaled
+                say("back: nothing recorded")
+                return None
+            first, *more = answer
             mode = "" if first == "0" else failure_mode(first)
-            if mode is not None:
+            if mode is None:
+                say(f"not a failure mode: {first!r}")
+            else:
                 rest = [*rest, *more]  # "4 toppled the stack": the mode, then a note
         note, video = _split_video(rest)
         return Verdict("failure", failure=mode, note=note, video=video)
     if word in ("v", "void"):
         reason = " ".join(rest)
-        while not reason.strip():
-            reason = ask("void reason (why it does not count)> ").strip()
+        if not reason.strip():
+            reason = ask(f"void reason (why it does not count; {BACK})> ").strip()
+        if not reason:  # 'v' typed by mistake
+            say("back: nothing recorded")
+            return None
         return Verdict("void", reason=reason)
     say(f"not understood: {line!r}; type s, f, v, u, q or ? for help")
     return None

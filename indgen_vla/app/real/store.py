@@ -98,11 +98,8 @@ def append_entry(run_path: Path, entry: Entry) -> None:
     fd = os.open(p, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         size = os.fstat(fd).st_size
-        if size:
-            tail = os.pread(fd, min(size, 1 << 16), max(0, size - (1 << 16)))
-            if not tail.endswith(b"\n"):  # a torn line: cut back to the last complete one
-                cut = tail.rfind(b"\n")
-                os.ftruncate(fd, size - len(tail) + cut + 1 if cut >= 0 else 0)
+        if size and os.pread(fd, 1, size - 1) != b"\n":  # a torn line: cut back to the last complete one
+            os.ftruncate(fd, _last_line_end(fd, size))
         os.lseek(fd, 0, os.SEEK_END)
         line = (json.dumps(asdict(entry), ensure_ascii=False) + "\n").encode()
         os.write(fd, line)
@@ -115,6 +112,19 @@ def append_entry(run_path: Path, entry: Entry) -> None:
             os.fsync(dfd)
         finally:
             os.close(dfd)
+
+
+def _last_line_end(fd: int, size: int) -> int:
+    """The offset just past the journal's last newline (0 if none), read back in 64 KiB steps: a torn line may
+    be longer than one step, and cutting at 0 on a miss would drop every complete line before it."""
+    end = size
+    while end > 0:
+        start = max(0, end - (1 << 16))
+        cut = os.pread(fd, end - start, start).rfind(b"\n")
+        if cut >= 0:
+            return start + cut + 1
+        end = start
+    return 0
 
 
 @contextmanager

@@ -17,16 +17,16 @@ def pair_episodes(ea, eb, axis: str) -> tuple[dict[int, list[tuple[bool, bool]]]
     if ia.index.has_duplicates or ib.index.has_duplicates:
         return None, "a run holds duplicate episodes"
     if set(ia.index) != set(ib.index):
-        return (
-            None,
-            f"the runs did not plan the same episodes on {axis} (tasks, levels or episode counts differ)",
+        return None, (
+            f"the runs do not hold the same episodes on {axis} ({len(ia)} vs {len(ib)}: other tasks, levels or "
+            "--episodes, or a run not finished)"
         )
     ib = ib.loc[ia.index]
     if (ia["seed"].to_numpy() != ib["seed"].to_numpy()).any():
         return None, f"episode seeds differ on {axis} (different --seed)"
     pa, pb = ia["param"].to_numpy(dtype=float), ib["param"].to_numpy(dtype=float)
     if (abs(pa - pb) > 1e-9 * (1 + abs(pa))).any():
-        return None, f"level parameters differ on {axis} (different --step)"
+        return None, f"level parameters differ on {axis} (different --step, or a real set-up's YAML)"
     both = ((ia["status"] == "ok") & (ib["status"] == "ok")).to_numpy()
     pairs: dict[int, list[tuple[bool, bool]]] = {int(k): [] for k in ia.index.get_level_values("level")}
     for key, sa, sb in zip(ia.index[both], ia["success"][both], ib["success"][both], strict=True):

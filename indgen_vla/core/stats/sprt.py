@@ -474,7 +474,9 @@ def plan_next(
     ks = {}
     for direction, seq in order.items():
         verdicts = {k: shown[k].verdict for k in seq if k in shown}
-        status = kstar_status(verdicts, seq, [k for k in verdicts if shown[k].episodes])
+        # a level with finished episodes ran, even before the rule's first look at it
+        ran = [k for k in verdicts if shown[k].episodes or outcomes.get(k)]
+        status = kstar_status(verdicts, seq, ran)
         status["k"] = kstar_from_decisions(shown, seq, rule.gamma)
         if isinstance(rule, UntilFailure):
             status["text"] = rule.status_text(status["k"], shown, seq)

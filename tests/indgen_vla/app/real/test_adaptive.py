@@ -67,7 +67,7 @@ def test_kstar_decisions_and_next_level_match_hand_computation(tmp_path, capsys)
             continue
         out = _record(run, "failure:misplaced", capsys)
     out = _record(run, "failure:misplaced", capsys)
-    assert out[0] == "saved: level 1 episode 14 failure (misplaced)"
+    assert out[0] == "saved: level 1 episode 14 failure (misplaced) (journal line 21)"
     assert "DECIDED: level 1 is broken (S < γ = 0.2) after 15 episodes" in out
     assert "adaptive (kstar): every level it needs is decided; k* = +1, determined" in out
     assert out[-1] == "run complete"  # levels 2 and 3 are never run
@@ -129,3 +129,27 @@ def test_status_tells_levels_not_reached_yet_from_levels_the_rule_does_not_need(
         lines[3].endswith("no episodes, n = 0, voids 0  not needed")
         and lines[5] == "  kstar: k* = +1, determined"
     )
+
+
+def test_status_mid_round_and_after_an_undo_below_a_decided_level(tmp_path, capsys):
+    """Before the rule's first look a level with episodes has run (k* text), and a level whose episodes were
+    recorded before an undo re-opened a lower one says why it is 'not reached' with n > 0."""
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:2", "--episodes", "10", "--adaptive", "kstar",
+                 "--gamma", "0.5", "--adaptive-delta", "0.4", "--policy", "pi05-droid", "--out", str(run)]) == 0  # fmt: skip
+    capsys.readouterr()
+    for _ in range(2):
+        _record(run, "success", capsys)
+    assert main(["real", "status", str(run)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "  kstar: k* at or beyond 0 (no level through 0 is decided broken; +1, +2 not run)" in out
+    for _ in range(3):
+        _record(run, "success", capsys)  # level 0 intact after 5 (journal lines 1-5)
+    _record(run, "failure:no_grasp", capsys)  # level 1, episode 0 (line 6)
+    assert main(["real", "record", str(run), "--undo", "5"]) == 0  # level 0 open again: 4 episodes
+    capsys.readouterr()
+    assert main(["real", "status", str(run)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "  level 1 (0.25 in): 0/1 = 0 % [0, 79], n = 1, voids 0  not reached (1 recorded before an undo " \
+           "re-opened a lower level)" in out  # fmt: skip
+    assert out[-1] == "next: level 0 episode 4 (1 queued)"

@@ -27,7 +27,9 @@ def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     # an episode out of the queue's order (the set-up of level 1 is on the table now)
     rc, out, _ = _record(run, capsys, "--outcome", "success", "--episode", "1:1", "--video-pattern", PATTERN)
     assert (
-        rc == 0 and out[0] == f"saved: level 1 episode 1 success; video /data/stack_L1_e1_a0_s{seeds[1]}.mp4"
+        rc == 0
+        and out[0]
+        == f"saved: level 1 episode 1 success; video /data/stack_L1_e1_a0_s{seeds[1]}.mp4 (journal line 1)"
     )
     assert out[-1] == "next: level 0 episode 0"  # the queue's head is unchanged
     for bad, message in [
@@ -46,16 +48,20 @@ def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     )
     assert (
         out[0]
-        == f"saved: level 0 episode 1 VOID (gripper cable): re-queued; video /data/stack_L0_e1_a0_s{seeds[1]}.mp4"
+        == f"saved: level 0 episode 1 VOID (gripper cable): re-queued; video /data/stack_L0_e1_a0_s{seeds[1]}.mp4 "
+        "(journal line 2)"
     )
     rc, out, _ = _record(
         run, capsys, "--outcome", "failure:dropped", "--episode", "0:1", "--video-pattern", PATTERN
     )
-    assert out[0] == f"saved: level 0 episode 1 failure (dropped); video /data/stack_L0_e1_a1_s{seeds[1]}.mp4"
+    assert (
+        out[0]
+        == f"saved: level 0 episode 1 failure (dropped); video /data/stack_L0_e1_a1_s{seeds[1]}.mp4 (journal line 3)"
+    )
     rc, out, _ = _record(
         run, capsys, "--outcome", "success", "--video", "/mine.mp4", "--video-pattern", PATTERN
     )
-    assert out[0] == "saved: level 0 episode 0 success; video /mine.mp4"
+    assert out[0] == "saved: level 0 episode 0 success; video /mine.mp4 (journal line 4)"
     rc, out, _ = _record(run, capsys, "--outcome", "void:riser slipped", "--episode", "1:0")
     rows = pq.read_table(run / "episodes.parquet").to_pylist()
     assert [(r["level"], r["episode"], r["video"]) for r in rows] == [
@@ -82,7 +88,7 @@ def test_episode_and_video_pattern_in_the_script_form(tmp_path, capsys):
     assert "| 1 | 0 | riser slipped | — |" in section and section.rstrip().endswith("| pending |")
     assert report.index("## Axis `stack`") < report.index("## Real-robot run")  # appended after the tables
     rc, out, _ = _record(run, capsys, "--outcome", "success", "--no-report")  # the re-run of 1:0: complete
-    assert out[0] == "saved: level 1 episode 0 success" and out[-1] == "run complete"
+    assert out[0] == "saved: level 1 episode 0 success (journal line 6)" and out[-1] == "run complete"
     section = (run / "report.d" / "real.md").read_text()  # what the next report.md appends
     assert "- episodes counted: 4; still queued: 0 (the run is complete)" in section
     assert "2, 0 episode(s) still pending" in section and "| pending |" not in section
@@ -111,14 +117,15 @@ def test_a_journal_recording_an_episode_twice_is_mended_with_undo(tmp_path, caps
         ["undone: journal line 2, level 0 episode 0 failure; it keeps line 1's success"],
         "",
     )
-    for line, why in (("2", "undone already"), ("3", "an undo"), ("9", "no such line")):
+    for line, why in (("2", "journal line 2 is undone already"), ("3", "journal line 3 is an undo"),
+                      ("9", "the journal has no line 9 (lines 1-3)")):  # fmt: skip
         rc, out, err = _record(run, capsys, "--undo", line)
-        assert rc == 2 and err.startswith(f"error: {run}: journal line {line} is {why}; give the line"), err
+        assert rc == 2 and err.startswith(f"error: {run}: {why}; give the line of a verdict in force"), err
     assert _record(run, capsys, "--undo", "1", "--outcome", "success")[2] == (
         "error: --undo cancels a verdict and --outcome records one: give one of them"
     )
     rc, out, _ = _record(run, capsys, "--outcome", "failure")  # the session goes on: the next queued episode
-    assert rc == 0 and out[0] == "saved: level 0 episode 1 failure (mode not given)"
+    assert rc == 0 and out[0] == "saved: level 0 episode 1 failure (mode not given) (journal line 4)"
     assert _record(run, capsys, "--undo", "4")[1] == [
         "undone: journal line 4, level 0 episode 1 failure; it is queued again"
     ]

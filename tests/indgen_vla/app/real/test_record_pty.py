@@ -106,3 +106,72 @@ def test_operator_session_void_kill9_resume(tmp_path, capsys):
     assert [(r["level"], r["episode"], r["success"]) for r in rows] == [
         (0, 0, True), (0, 1, False), (0, 2, True), (1, 0, False), (1, 1, True), (1, 2, True)]  # fmt: skip
     assert [r["failure"] for r in rows] == ["none", "misplaced", "none", "no_contact", "none", "none"]
+
+
+def test_a_resumed_session_says_what_was_saved_and_spells_the_set_up_out(tmp_path):
+    """Killed while an episode is on screen, the operator must learn whether the last verdict was saved and see
+    the set-up in full, not 'no change'; the same after an undo that steps back from a level change."""
+    run = tmp_path / "run"
+    _plan(run, "--order", "blocked", "--adaptive", "off")
+    s = PtySession(indgen("real", "record", str(run), "--no-report"), tmp_path)
+    s.expect(PROMPT)
+    s.type("s")
+    s.expect("saved: level 0 episode 0 success (journal line 1)")
+    s.expect("set-up : no change (level 0 as before: 0 in)")
+    s.expect(PROMPT)
+    s.kill9()
+
+    s = PtySession(indgen("real", "record", str(run), "--no-report"), tmp_path)
+    s.expect("resuming: the journal's last line is 1, level 0 episode 0 success, at 20")
+    s.expect("episode 1 of level 0 (stack = 0 in)   [1 counted, 5 queued]")
+    s.expect("set-up : check level 0 is set up (as at the last verdict): blue block directly on the table")
+    s.expect(PROMPT)
+    s.type("s")
+    s.expect(PROMPT)
+    s.type("f 2")
+    s.expect("saved: level 0 episode 2 failure (no_grasp) (journal line 3)")
+    s.expect("set-up : CHANGE level 0 -> 1: raise the blue block's support to 0.25 in")
+    s.expect(PROMPT)
+    s.type("u")  # the riser may already be in: the set-up of the re-queued level-0 episode is spelled out
+    s.expect("[y/N]> ")
+    s.type("y")
+    s.expect("episode 2 of level 0 (stack = 0 in)")
+    s.expect("set-up : check level 0 is set up (as at the last verdict): blue block directly on the table")
+    s.expect(PROMPT)
+    s.type("q")
+    assert s.wait() == 0
+    s = PtySession(indgen("real", "record", str(run), "--no-report"), tmp_path)
+    s.expect("resuming: the journal's last line is 4, undo of line 3 (level 0 episode 2), at 20")
+    s.expect(PROMPT)
+    s.type("q")
+    assert s.wait() == 0
+    assert [json.loads(x)["seq"] for x in (run / "journal.jsonl").read_text().splitlines()] == [1, 2, 3, 4]
+
+
+def test_a_mistaken_f_or_v_backs_out_without_a_journal_line(tmp_path):
+    """'f' or 'v' pressed for a success: Enter alone at the follow-up prompt goes back and journals nothing."""
+    run = tmp_path / "run"
+    _plan(run, "--adaptive", "off")
+    s = PtySession(indgen("real", "record", str(run), "--no-report"), tmp_path)
+    s.expect(PROMPT)
+    s.type("f")
+    s.expect("(0 = not sure; Enter alone: back to the outcome, nothing recorded)")
+    s.expect("mode> ")
+    s.type("7")
+    s.expect("not a failure mode: '7'")
+    s.expect("mode> ")
+    s.type("")
+    s.expect("back: nothing recorded")
+    s.expect(PROMPT)
+    s.type("v")
+    s.expect("void reason (why it does not count; Enter alone: back to the outcome, nothing recorded)> ")
+    s.type("")
+    s.expect("back: nothing recorded")
+    s.expect(PROMPT)
+    assert not (run / "journal.jsonl").exists()
+    s.type("s")
+    s.expect("saved: level 0 episode 0 success (journal line 1)")
+    s.expect(PROMPT)
+    s.type("q")
+    assert s.wait() == 0
+    assert [json.loads(x)["kind"] for x in (run / "journal.jsonl").read_text().splitlines()] == ["success"]

@@ -176,3 +176,15 @@ def test_protocol_and_status_open_with_what_the_plan_cannot_show(tmp_path, capsy
     capsys.readouterr()
     assert main(["real", "status", str(run)]) == 0
     assert capsys.readouterr().out.splitlines()[: len(caveats)] == [c.replace("**", "") for c in caveats]
+
+
+def test_a_plan_without_level_0_says_it_has_no_baseline(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "1:3", "--episodes", "20", "--adaptive", "off",
+                 "--policy", "p", "--out", str(run)]) == 0  # fmt: skip
+    line = ("**No level 0** (set-up stack, `stack`, task orange_on_blue): without the training set-up nothing shows "
+            "the policy solves it and no level is tested against T0; plan --levels 0:3.")  # fmt: skip
+    assert (run / "protocol.md").read_text().splitlines()[2] == line
+    capsys.readouterr()
+    assert main(["real", "status", str(run)]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == line.replace("**", "")

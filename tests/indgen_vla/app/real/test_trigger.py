@@ -77,6 +77,9 @@ def test_episode_command_runs_per_episode_in_a_terminal_session(tmp_path, capsys
     s.type("")
     s.expect("robot fault: joint 4 limit")
     s.expect("episode command exited 3 after ")
+    s.expect(
+        "the command did not exit 0: if the episode did not run as planned, type v with why, or r to run it again"
+    )
     s.expect(AGAIN)
     s.type("v robot fault, joint 4")
     s.expect("saved: level 0 episode 1 VOID (robot fault, joint 4): re-queued")
@@ -93,6 +96,7 @@ def test_episode_command_runs_per_episode_in_a_terminal_session(tmp_path, capsys
     s.expect("waiting for the robot ...")
     os.killpg(s.proc.pid, signal.SIGINT)  # what Ctrl-C on the terminal does: SIGINT to the foreground group
     s.expect("episode command was stopped (Ctrl-C) after ")
+    s.expect("the command did not exit 0")
     s.expect(AGAIN)
     s.type("r")  # run it again (the scene was reset)
     s.expect("episode command exited 0")
@@ -283,3 +287,17 @@ def test_sigterm_to_the_session_stops_the_episode_command(tmp_path):
     pid = int(r.stdout.split()[1])
     with pytest.raises(ProcessLookupError):  # ended and reaped, not left running
         os.kill(pid, 0)
+
+
+def test_a_bad_check_policy_spec_names_the_option(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["real", "plan", "--setup", "stack", "--levels", "0:1", "--episodes", "5", "--policy", "p",
+                 "--out", str(run)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["real", "record", str(run), "--check-policy", "bogus:ws://h:1"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("error: --check-policy bogus:ws://h:1: unknown policy family 'bogus' (known: "), (
+        line
+    )
+    assert "openpi" in line
+    assert not (run / "journal.jsonl").exists()

@@ -71,7 +71,7 @@ def test_unpaired_runs_use_boschloo_and_project_both_sides(tmp_path, capsys):
     b = make_run(tmp_path / "b", {0: (19, 20)}, regime="b")
     assert main(["gate", str(a.path), str(b.path), "--margin", "0.15"]) == 5
     out = capsys.readouterr().out
-    assert "unpaired Boschloo (the runs did not plan the same episodes" in out
+    assert "unpaired Boschloo (the runs do not hold the same episodes on pick_y (30 vs 20:" in out
     assert "pick_y L0: undecided (neither shown; about " in out and "would show it non-inferior" in out
     res = gate(GateConfig(str(a.path), str(b.path), margin=0.15))
     extra = res["levels"][0]["more_episodes"]

@@ -145,7 +145,7 @@ def test_unpaired_runs_fall_back_to_boschloo(tmp_path, capsys):
     c = _paired_run(tmp_path / "c3", {0: outs[0][:4], 1: outs[1]}, "h+mg")  # fewer episodes at level 0
     assert main(["compare", str(a.path), str(c.path), "--out", str(tmp_path / "d")]) == 0
     res = json.loads((tmp_path / "d" / "compare.json").read_text())
-    assert res["test"] == "boschloo" and "did not plan the same episodes" in res["unpaired_reason"]
+    assert res["test"] == "boschloo" and "do not hold the same episodes on" in res["unpaired_reason"]
 
 
 def test_compare_reports_break_point_difference(tmp_path):
