@@ -353,6 +353,15 @@ def compare_run_axes(
     return result
 
 
+def unfinished(summary: dict, axes, label: str, side: str) -> dict | None:
+    """A run still short of its planned episodes on the compared axes (an evaluate cut short, a real run being
+    recorded, an adaptive run between rounds): its finished and planned counts; None when it is complete."""
+    rows = [r for axis in axes if axis in summary["axes"] for r in summary["axes"][axis]["levels"]]
+    planned = sum(int(r.get("planned") or 0) for r in rows)
+    done = sum(min(int(r.get("planned") or 0), r["n"] + r.get("errors", 0)) for r in rows)
+    return {"label": label, "side": side, "done": done, "planned": planned} if done < planned else None
+
+
 def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: float) -> None:
     """compare.json, compare.md and per compared axis (title, file stem, curves) its overlay plots."""
     result["caveats"] = compare_caveats(result)  # human-readable: what the comparison cannot answer
@@ -405,6 +414,8 @@ def compare_runs(
         usable = (usable_levels(sa["axes"][axis]["levels"]), usable_levels(sb["axes"][axis]["levels"]))
         ax["tasks"] = tasks_text(*(s["axes"][axis].get("pooled_tasks") or [] for s in (sa, sb)))
         ax["break_point_diff"] = break_point_diff(ea, eb, axis, gamma, usable)
+    result["unfinished"] = [u for side, lbl, s in (("A", la, sa), ("B", lb, sb))
+                            if (u := unfinished(s, result["axes"], lbl, side))]  # fmt: skip
     result["verdict"] = verdict(result, la, lb, alpha)
     plots = [(axis, axis, [(la, sa["axes"][axis]), (lb, sb["axes"][axis])]) for axis in result["axes"]]
     _write(compare_dir(ra.path, out), result, plots, gamma)

@@ -152,8 +152,8 @@ def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
 
 def compare_caveats(result: dict, alpha: float = 0.05) -> list[str]:
     """compare.md's first lines: a side whose policy declares it reads no observation (``reads_observations``
-    {"a", "b"}), then each axis on which no level could differ at α whatever the outcomes (too few episodes or
-    pairs for the test and the Holm family)."""
+    {"a", "b"}), a side short of its planned episodes (``unfinished``), then each axis on which no level could
+    differ at α whatever the outcomes (too few episodes or pairs for the test and the Holm family)."""
     paired = bool(result.get("paired") or result.get("contrast"))
     reads = result.get("reads_observations") or {}
     out = []
@@ -161,6 +161,10 @@ def compare_caveats(result: dict, alpha: float = 0.05) -> list[str]:
         label = result.get(f"label_{side}") or side.upper()
         if reads.get(side) is False:
             out.append(blind_caveat(label if label == side.upper() else f"{label} ({side.upper()})", True))
+    for u in result.get("unfinished") or []:
+        out.append(f"**Unfinished**: {u['label']} ({u['side']}) holds {u['done']} of its {u['planned']} planned "
+                   "episodes on the compared axes, so its rates and this comparison are provisional; compare again "
+                   "once it finishes.")  # fmt: skip
     for axis, ax in result["axes"].items():
         rows = [r for r in ax["levels"] if not math.isnan(r.get("p_holm", float("nan")))]
         if not rows:

@@ -188,3 +188,18 @@ def test_compare_runs_returns_what_compare_json_holds_and_prints_nothing(tmp_pat
     assert result["verdict"] == json.loads((a.path / "compare" / "compare.json").read_text())["verdict"]
     assert (a.path / "compare" / "compare.md").read_text() == markdown(result)
     assert (result["label_a"], result["label_b"]) == ("A", "B") and capsys.readouterr().out == ""
+
+
+def test_an_unfinished_side_is_named_first_and_a_finished_one_is_not(tmp_path, capsys):
+    """B planned 10 episodes at each of levels 0 and 1 and holds 7 + 10 (cut short, or still being recorded): compare
+    says so above everything else; A, complete, gets no line."""
+    plan = {"episodes": 10, "levels": {"pick_y": [0, 1]}, "tasks": ["t"]}
+    a = make_run(tmp_path / "a", {0: (9, 10), 1: (5, 10)}, plan=plan)
+    b = make_run(tmp_path / "b", {0: (6, 7), 1: (2, 10)}, regime="h+mg", plan=plan)
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "c")]) == 0
+    out = capsys.readouterr().out
+    line = "holds 17 of its 20 planned episodes on the compared axes, so its rates and this comparison are provisional"
+    assert out.count("**Unfinished**") == 1 and f"(B) {line}" in out
+    result = json.loads((tmp_path / "c" / "compare.json").read_text())
+    assert [(u["side"], u["done"], u["planned"]) for u in result["unfinished"]] == [("B", 17, 20)]
+    assert result["caveats"][0].startswith("**Unfinished**")
