@@ -229,6 +229,10 @@ def load_policy(
 
     parsed, loader, options = _resolve(spec, kw)
     params = inspect.signature(loader).parameters
+    if env_spec is not None and "env_spec" not in params:  # a LIBERO-only family: refused before it connects
+        from policy_wrappers.layouts import layout_for  # lazy: start-up (numpy)
+
+        layout_for(parsed.family, env_spec)
     extra = {"scene": scene} if scene and "scene" in params else {}
     if (
         env_spec is not None and "env_spec" in params

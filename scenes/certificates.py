@@ -325,12 +325,11 @@ def shipped_certification(scene: Scene, path: Path) -> dict | None:
     made = (cert.get("assets") or {}).get("listing_sha256")
     if stamp is not None and made and stamp.get("listing_sha256") == made:
         return cert
-    if scene.name not in _SAID:
+    if stamp is not None and scene.name not in _SAID:  # no tree at all: the scene's own error says so, once
         _SAID.add(scene.name)
-        have = (stamp or {}).get("listing_sha256", "none")
         print(
             f"note: the shipped {scene.name} certificates cover the asset tree {str(made)[:12]} ('indgen setup "
-            f"libero'); yours ({str(have)[:12]}, {(stamp or {}).get('root')}) differs, so they are not used "
+            f"libero'); yours ({str(stamp.get('listing_sha256'))[:12]}, {stamp.get('root')}) differs, so they are not used "
             f"here: run 'indgen certify' on it, or install that tree",
             file=sys.stderr,
         )

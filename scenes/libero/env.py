@@ -26,7 +26,7 @@ from scenes.axes import Successor, axis_param, shifts, spec_at_level
 from scenes.base_env import BaseSceneEnv
 from scenes.libero.assets import HOPE_OBJECTS, config_dir, find_assets, import_libero
 from scenes.libero.bddl import LiberoTask, add_fixtures, shift_region
-from scenes.libero.grasp_clearance import grasp_offset
+from scenes.libero.grasp_clearance import OPEN_HALF, RIM_DOWN, grasp_offset, rim_offset, wall_middles
 from scenes.libero.problem import level_problem, problem_class
 from scenes.privileged import GoalState, PickState, PrivilegedState, Targets
 from scenes.sim import CAMERA_NAMES, fast_step
@@ -281,7 +281,7 @@ class LiberoSceneEnv(BaseSceneEnv):
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False
-        self._grasp_offset: np.ndarray | None = None  # computed at the first privileged state of the episode
+        self._grasp_plan: tuple[np.ndarray, float] | None = None  # (offset, z), at the first privileged state
         return self._observation(), {
             "success": False,
             "step": 0,
@@ -327,12 +327,11 @@ class LiberoSceneEnv(BaseSceneEnv):
     def _lowest(self, geoms: np.ndarray) -> float:
         return float(self._extent(geoms)[0][2])
 
-    def _clear_grasp(
-        self, pick_pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, grasp_z: float
-    ) -> np.ndarray:
-        """The episode's grasp offset from the object's centre (``scenes.libero.grasp_clearance``), from the scene
-        as it stands at the first privileged state (the object at rest, the gripper open above it)."""
-        if getattr(self, "_grasp_offset", None) is None:
+    def _clear_grasp(self, pick_pos: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+        """The episode's grasp offset from the object's centre and grasp height (``scenes.libero.grasp_clearance``:
+        a clear point, or an open-topped object's rim), from the scene at the first privileged state (the object at
+        rest, the gripper open above it)."""
+        if getattr(self, "_grasp_plan", None) is None:
             m, d = self._env.sim.model._model, self._env.sim.data._data
             eef = geom.grip_site(d, self._env.robots[0])[0]
             boxes = [geom.world_aabb(m, d, [g]) for g in self._gripper_geoms]
@@ -341,9 +340,18 @@ class LiberoSceneEnv(BaseSceneEnv):
             obs = [self._extent(g) for g in self._neighbour_geoms if len(g)]
             obs_lo = np.array([b[0] for b in obs]).reshape(-1, 3)
             obs_hi = np.array([b[1] for b in obs]).reshape(-1, 3)
-            centre = np.array([pick_pos[0], pick_pos[1], grasp_z])
-            self._grasp_offset = grasp_offset(grip_lo, grip_hi, obs_lo, obs_hi, centre, (hi[:2] - lo[:2]) / 2)
-        return self._grasp_offset
+            half = (hi[:2] - lo[:2]) / 2
+            c = (lo + hi) / 2
+            rim_z = float(hi[2]) - RIM_DOWN
+            walls = wall_middles(m, d, self._pick_body, c, float(hi[2]), rim_z) if half[1] > OPEN_HALF else []
+            rim = rim_offset(grip_lo, grip_hi, obs_lo, obs_hi, np.array([c[0], c[1], rim_z]), walls)
+            if rim is not None:  # from the body's origin, as the other offsets
+                self._grasp_plan = (rim + c[:2] - pick_pos[:2], rim_z)
+            else:
+                z = geom.grasp_height(float(lo[2]), float(hi[2]), 0.5)
+                centre = np.array([pick_pos[0], pick_pos[1], z])
+                self._grasp_plan = (grasp_offset(grip_lo, grip_hi, obs_lo, obs_hi, centre, half), z)
+        return self._grasp_plan
 
     def _corridor_top(self, start: np.ndarray, end: np.ndarray, margin: float) -> float:
         """Highest top of the other objects and fixtures whose footprint (+ margin) meets the segment start→end."""
@@ -474,6 +482,7 @@ class LiberoSceneEnv(BaseSceneEnv):
             float(ghi[2]), self._corridor_top(pick_pos[:2], place_xy, float(max(hi[:2] - lo[:2]) / 2) + 0.02)
         )
         eef_pos, eef_mat, gripper_qpos = geom.grip_site(d, self._env.robots[0])
+        grasp = self._clear_grasp(pick_pos, lo, hi)
         return PrivilegedState(
             eef_pos=eef_pos,
             eef_mat=eef_mat,
@@ -494,10 +503,9 @@ class LiberoSceneEnv(BaseSceneEnv):
                 place_xy=np.array(place_xy),
                 place_bottom=floor + 0.012,
                 clear_z=clear,
-                grasp_z=geom.grasp_height(bottom, top, 0.5),
+                grasp_z=grasp[1],
                 floor_z=floor,
-                grasp_xy=pick_pos[:2]
-                + self._clear_grasp(pick_pos, lo, hi, geom.grasp_height(bottom, top, 0.5)),
+                grasp_xy=pick_pos[:2] + grasp[0],
             ),
             bddl_success=bool(self._env.check_success()),
         )

@@ -5,6 +5,8 @@ the tomato-sauce can): the Panda hand, 20 cm wide along the fingers' closing axi
 the fingers are still 2 cm above the cheese, and closes on air. ``grasp_offset`` moves the grasp point over the
 object, by as little as it can and only where the centred grasp is blocked, to the nearest point where no gripper
 geom at the grasp pose overlaps a neighbour's bounding box. A centred grasp that is clear stays centred (offset 0).
+An open-topped object wider than the open fingers (LIBERO-Spatial's black bowl, 10.6 cm) closes them on air over
+its centre: ``rim_offset`` pinches its wall instead, one finger inside and one outside.
 """
 
 from __future__ import annotations
@@ -15,6 +17,10 @@ MARGIN = 0.003  # clearance between the gripper's boxes and a neighbour's (m)
 STEP = 0.002  # candidate grid spacing (m)
 PAD_HALF = 0.009  # about half the finger pads' width across the closing axis: they stay on the object
 OPEN_HALF = 0.04  # the open Panda fingers' inner faces from the grip site, along the closing axis (m)
+HOLLOW = 0.02  # an object whose own surface lies this far below its top at its centre is open-topped (m)
+RIM_DOWN = (
+    0.025  # rim grasp: the grip site this far below the rim's top (the real bowl's hull is lower on a side)
+)
 
 
 def blocked(
@@ -48,3 +54,40 @@ def grasp_offset(
         if not blocked(grip_lo, grip_hi, obs_lo, obs_hi, centre + np.array([dx, dy, 0.0])):
             return np.array([dx, dy])
     return np.zeros(2)
+
+
+def rim_offset(
+    grip_lo: np.ndarray, grip_hi: np.ndarray, obs_lo: np.ndarray, obs_hi: np.ndarray, centre: np.ndarray,
+    walls: list[float],
+) -> np.ndarray | None:  # fmt: skip
+    """World (dx, dy) from an open-topped object's centre to the middle of its wall to pinch, on the fingers'
+    closing axis (world y), or None without a wall. ``walls``: the wall's middle on each side where one was found
+    (dy from the centre); the first whose grasp is clear of the neighbours wins, else the first. ``centre``: the
+    grip site over the object's centre at the rim grasp's height."""
+    sides = [np.array([0.0, dy]) for dy in walls]
+    for dxy in sides:
+        if len(obs_lo) == 0 or not blocked(grip_lo, grip_hi, obs_lo, obs_hi, centre + np.array([*dxy, 0.0])):
+            return dxy
+    return sides[0] if sides else None
+
+
+def wall_middles(m, d, body: int, c: np.ndarray, top: float, z: float) -> list[float]:
+    """Body ``body``'s wall middles (dy from ``c``, on the +y then -y side) at height ``z``, from rays on its
+    collision geoms (MuJoCo ``m``, ``d``); [] when its own surface at the centre is not ``HOLLOW`` below ``top``."""
+    import mujoco
+
+    hit, group = np.full(1, -1, np.int32), np.array([1, 0, 0, 0, 0, 0], np.uint8)
+
+    def ray(start, direction) -> float | None:
+        dist = mujoco.mj_ray(m, d, np.asarray(start, float), np.asarray(direction, float), group, 1, -1, hit)
+        return float(dist) if dist >= 0 and m.geom_bodyid[hit[0]] == body else None
+
+    depth = ray([c[0], c[1], top + 0.002], [0, 0, -1])
+    if depth is None or depth - 0.002 < HOLLOW:
+        return []
+    walls = []
+    for sign in (1.0, -1.0):  # the inner face from the centre, the outer face from 20 cm out
+        inner, outer = ray([c[0], c[1], z], [0, sign, 0]), ray([c[0], c[1] + sign * 0.2, z], [0, -sign, 0])
+        if inner is not None and outer is not None and inner < 0.2 - outer:
+            walls.append(sign * (inner + 0.2 - outer) / 2)
+    return walls

@@ -124,6 +124,18 @@ def test_layouts_are_chosen_by_the_scene_family():
         layout_for("openvla-oft", _spec())
 
 
+@pytest.mark.parametrize(
+    "spec", ["openvla-oft:http://127.0.0.1:9", "univla:ws://127.0.0.1:9", "rynnvla:ws://127.0.0.1:9"]
+)
+def test_a_libero_only_family_is_refused_on_robocasa_before_it_connects(spec):
+    """Nothing listens on port 9: the refusal names the missing convention, not a refused connection (a user who
+    then starts the server would only be refused later)."""
+    from policy_wrappers.specs import load_policy
+
+    with pytest.raises(ConfigError, match="has no convention for scene family robocasa_panda_omron"):
+        load_policy(spec, env_spec=_spec())
+
+
 def _robocasa_obs(seed: int, size: int = 16) -> tuple[Observation, dict]:
     """An observation in our layout and the robosuite keys it came from."""
     rng = np.random.default_rng(seed)

@@ -88,6 +88,24 @@ def test_missing_assets_is_one_line(tmp_path, monkeypatch):
     assert r.returncode != 0 and len(lines) == 1 and "LIBERO's assets" in lines[0], r.stderr[-2000:]
 
 
+def test_no_tree_at_all_is_the_error_alone(tmp_path, monkeypatch, capsys):
+    """An empty home and no variables: evaluate prints the missing-assets error only, not also a note that the
+    shipped certificates' tree differs from "yours (none, None)"."""
+    from indgen_vla.app.cli import main
+    from scenes import certificates
+
+    for var in ("INDGEN_LIBERO_ASSETS", "LIBERO_ASSETS"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path))
+    if scenes.get_scene(SCENE).certificates.asset_tree() is not None:
+        pytest.skip("hf-libero's package ships an assets/ folder here")
+    certificates._SAID.discard(SCENE)
+    args = ["evaluate", "--policy", "standin:oracle", "--scene", SCENE, "--axis", "scale", "--levels", "0"]
+    assert main([*args, "--episodes", "1", "--out", str(tmp_path / "run")]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("error: LIBERO's assets are missing"), err
+
+
 def test_names_axes_and_levels_need_no_assets(tmp_path, monkeypatch):
     """On a machine without LIBERO's tree (an empty home, no variables), a plan resolves and bad names, axes and
     levels get their own one-line errors; only a command that builds an env asks for the assets."""

@@ -38,3 +38,19 @@ def test_no_clear_point_on_the_object_keeps_the_centre():
         np.array([[1.0, -0.175, 0.2]]),
     )  # a neighbour along all of it
     assert grasp_offset(GRIP_LO, GRIP_HI, wall_lo, wall_hi, CENTRE, HALF).tolist() == [0.0, 0.0]
+
+
+def test_an_open_topped_object_is_pinched_at_its_clear_wall():
+    """The black bowl (10.6 cm, wider than the open fingers) is grasped at a wall's middle, the side clear of the
+    neighbours first; without a wall found (a solid object) there is no rim grasp."""
+    from scenes.libero.grasp_clearance import rim_offset
+
+    none = np.zeros((0, 3))
+    assert rim_offset(GRIP_LO, GRIP_HI, none, none, CENTRE, []) is None
+    assert rim_offset(GRIP_LO, GRIP_HI, none, none, CENTRE, [0.05, -0.049]).tolist() == [0.0, 0.05]
+    # a tall neighbour beyond the +y wall blocks the hand there: the -y wall is pinched
+    lo, hi = CENTRE + np.array([[-0.05, 0.1, -0.01]]), CENTRE + np.array([[0.05, 0.2, 0.3]])
+    assert blocked(GRIP_LO, GRIP_HI, lo, hi, CENTRE + [0.0, 0.05, 0.0])
+    assert rim_offset(GRIP_LO, GRIP_HI, lo, hi, CENTRE, [0.05, -0.049]).tolist() == [0.0, -0.049]
+    # both sides blocked: the first wall still
+    assert rim_offset(GRIP_LO, GRIP_HI, lo - [0, 0.4, 0], hi, CENTRE, [0.05, -0.049]).tolist() == [0.0, 0.05]

@@ -55,6 +55,8 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
     out: dict[str, Any] = {"gamma": gamma, "ci": ci, "min_n": MIN_N, "axes": {}}
     # the policy's declaration (PolicySpec.reads_observations); None: unknown (a run made before it was recorded)
     out["reads_observations"] = manifest.get("reads_observations")
+    if manifest.get("measurement"):  # --smoke: the report says so before any rate (caveats.report_caveats)
+        out["measurement"] = manifest["measurement"]
     # the levels the policy's training data covered, when it declared them (manifest training_levels)
     training = cells_from_json(manifest.get("training_levels"))
     seen = set(episodes["axis"].unique()) if len(episodes) else set()

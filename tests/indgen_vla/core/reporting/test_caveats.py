@@ -192,3 +192,27 @@ def test_a_declared_blind_policy_comes_first_and_an_undeclared_one_is_unknown():
         "**Cannot answer** (oracle (B)): the policy"
     )
     assert compare_caveats({"axes": {}}) == []
+
+
+def test_a_smoke_run_says_not_a_measurement_before_any_rate(tmp_path):
+    """A ``--smoke`` run's manifest says "not a measurement"; its summary carries that and report.md (and the
+    terminal, from the same caveats) opens with it, where before only report.html's subtitle said so."""
+    from indgen_vla.core.reporting.summary import summarize
+    from indgen_vla.core.runs.records import EpisodeRecord, RunDir
+
+    smoke = "not a measurement (--smoke: a smoke run, e.g. an image policy on placeholder assets)"
+    for name, extra in (("real", {}), ("smoke", {"measurement": smoke})):
+        run = RunDir.create_or_resume(tmp_path / name, {"plan": {"tasks": ["milk"]}, "policy": "p", **extra})
+        run.append([EpisodeRecord(run_id="r", policy="p", data_regime="", scene="s", task="milk", axis="scale",
+                                  level=0, param=1.0, episode=i, seed=i, success=True, steps=1, status="ok",
+                                  error="") for i in range(10)])  # fmt: skip
+        s = summarize(run.episodes(), run.manifest)
+        lines = report_caveats([("p", s)])
+        if extra:
+            assert s["measurement"] == smoke and lines[0] == (
+                "**Not a measurement** (p): --smoke: a smoke run, e.g. an image policy on placeholder assets; "
+                "its rates are not the policy's."
+            )
+            assert report_md([("p", s)]).split("\n")[2] == lines[0]
+        else:
+            assert "measurement" not in s and not any("measurement" in line for line in lines)
