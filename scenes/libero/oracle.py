@@ -15,6 +15,8 @@ class LiberoOracle(OraclePolicy):
     """``standin:oracle`` on the LIBERO suites."""
 
     # v1: the tabletop script with the first clear-grasp constants; v2: tighter clearance (margin 3 mm, grid 2 mm,
-    # pads 9 mm) and approach/lift end once the arm stops (docs/results/libero_object_real_assets.md)
-    version = 2
+    # pads 9 mm) and approach/lift end once the arm stops (docs/results/libero_object_real_assets.md); v3: an
+    # open-topped pick object (LIBERO-Spatial's real bowl, wider than the open fingers) is pinched at its wall
+    # (grasp_clearance.rim_offset); solid objects, all of LIBERO-Object's, keep v2's grasp
+    version = 3
     advance_on_stall = True
