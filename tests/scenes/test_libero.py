@@ -3,6 +3,7 @@ LiberoEnv, the axes, the oracle, certify/evaluate and the missing-assets error."
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -278,6 +279,10 @@ def test_evaluate_cli_with_oracle(mini, tmp_path):
     eps = pd.read_parquet(out / "episodes.parquet")
     assert list(eps["success"]) == [True] and set(eps["status"]) == {"ok"}
     assert set(eps["failure"]) == {"none"}
+    # the miniature tree is boxes and flat textures: the manifest records it and report.md says so before any rate
+    assert json.loads((out / "manifest.json").read_text())["placeholder_assets"] is True
+    first = (out / "report.md").read_text().split("\n")[2]
+    assert first.startswith("**Placeholder assets** (") and "not the benchmark's own" in first
 
 
 @pytest.mark.slow  # 6 s (two LIBERO builds); pick_place's shared T0 is checked against rollouts by default

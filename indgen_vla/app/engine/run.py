@@ -175,6 +175,8 @@ def build_manifest(cfg: EvalConfig, plan: EvalPlan, run_id: str) -> dict[str, An
             if cfg.run.smoke
             else {}
         ),  # fmt: skip
+        # boxes and flat textures in place of the benchmark's meshes: the report says so before any rate
+        **({"placeholder_assets": True} if getattr(plan.builder, "placeholder_assets", False) else {}),
     }
 
 

@@ -134,14 +134,18 @@ def design_caveats(where: str, episodes: int, tested: int, gamma: float, break_b
 
 
 def report_caveats(summaries: Sequence[tuple[str, dict]]) -> list[str]:
-    """Every run's caveat lines in the summaries' order: a ``--smoke`` run's, a declared-blind policy
-    (``blind_caveat``), then each axis's (``axis_caveats``); [] when none applies. A run whose summary predates the declaration (no
-    ``reads_observations``) is treated as unknown: no blind line."""
+    """Every run's caveat lines in the summaries' order: a ``--smoke`` run's, else a run on placeholder assets, a
+    declared-blind policy (``blind_caveat``), then each axis's (``axis_caveats``); [] when none applies. A run whose
+    summary predates the declaration (no ``reads_observations``) is treated as unknown: no blind line."""
     out = []
     for label, s in summaries:
         if s.get("measurement"):
             why = str(s["measurement"]).removeprefix("not a measurement").strip(" ()")
             out.append(f"**Not a measurement** ({label}): {why}; its rates are not the policy's.")
+        elif s.get("placeholder_assets"):
+            out.append(f"**Placeholder assets** ({label}): the scene was simulated with placeholder assets (boxes, "
+                       "flat textures), not the benchmark's own; its rates describe that stand-in scene, not the "
+                       "benchmark.")  # fmt: skip
         if s.get("reads_observations") is False:
             out.append(blind_caveat(label))
         for axis, a in s["axes"].items():

@@ -57,6 +57,8 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
     out["reads_observations"] = manifest.get("reads_observations")
     if manifest.get("measurement"):  # --smoke: the report says so before any rate (caveats.report_caveats)
         out["measurement"] = manifest["measurement"]
+    if manifest.get("placeholder_assets"):  # simulated on placeholder assets: said first, too
+        out["placeholder_assets"] = True
     # the levels the policy's training data covered, when it declared them (manifest training_levels)
     training = cells_from_json(manifest.get("training_levels"))
     seen = set(episodes["axis"].unique()) if len(episodes) else set()

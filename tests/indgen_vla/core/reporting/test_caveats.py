@@ -216,3 +216,17 @@ def test_a_smoke_run_says_not_a_measurement_before_any_rate(tmp_path):
             assert report_md([("p", s)]).split("\n")[2] == lines[0]
         else:
             assert "measurement" not in s and not any("measurement" in line for line in lines)
+
+
+def test_a_run_on_placeholder_assets_says_so_unless_it_is_a_smoke_run():
+    """A run whose manifest records placeholder assets (RoboCasa's boxes, LIBERO's miniature tree) opens with that
+    line; a --smoke run says "Not a measurement" instead, not both."""
+    levels = [
+        {"level": 0, "n": 10, "successes": 10, "rate": 1.0, "ci_low": 0.72, "ci_high": 1.0, "errors": 0}
+    ]
+    base = {"axes": {}, "reads_observations": None, "placeholder_assets": True}
+    (line,) = report_caveats([("oracle", base)])
+    assert line.startswith("**Placeholder assets** (oracle): the scene was simulated with placeholder assets")
+    smoke = report_caveats([("p", {**base, "measurement": "not a measurement (--smoke: x)"})])
+    assert smoke == ["**Not a measurement** (p): --smoke: x; its rates are not the policy's."]
+    assert report_caveats([("oracle", {**base, "placeholder_assets": False})]) == [] and levels
