@@ -2,9 +2,11 @@
 by exact enumeration, the printed real error of a Wilson verdict, the "N more episodes" claim, the CI recipe's pass
 chances, and the series table's family-wise error (seeded simulation). The gate's size: test_noninferiority."""
 
+import numpy as np
 import pytest
 
 from indgen_vla.core.comparison.gate_plan import plan_episodes
+from indgen_vla.core.comparison.series_report import _holm_trends, _trend
 from indgen_vla.core.reporting.levels import direction_verdict
 from indgen_vla.core.stats import operating as oc
 from indgen_vla.core.stats.noninferiority import pass_chance
@@ -52,3 +54,24 @@ def test_the_series_table_is_holm_corrected():
     levels = (0.95, 0.9, 0.8, 0.6, 0.4, 0.3, 0.2)
     assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=False) > 0.35
     assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=True) <= 0.075
+
+
+def test_the_simulated_series_rule_is_the_one_series_runs():
+    """``series_flagged`` (what ``series_fwer`` counts) equals the flags of series_report's own ``_trend`` and
+    ``_holm_trends`` on 300 seeded series, null and trending, levels that do not vary included: the size above is
+    measured on the rule ``indgen series`` prints, not on a copy of it."""
+    rng = np.random.default_rng(5)
+    steps, n, seen = [1000, 2000, 3000, 4000, 5000], 20, set()
+    for i in range(300):
+        rates = np.clip(
+            rng.choice([0.0, 0.2, 0.5, 0.9, 1.0], 4) + (i % 2) * 0.04 * np.arange(5)[:, None], 0, 1
+        )
+        counts = rng.binomial(n, rates)
+        trend = {
+            str(k): _trend(steps, [{"successes": int(c), "n": n} for c in counts[:, k]]) for k in range(4)
+        }
+        _holm_trends(trend, list(trend))
+        real = any(t[f"{side}_holm"] < 0.05 for t in trend.values() for side in ("p_rising", "p_falling"))
+        assert oc.series_flagged(counts, n) == real, counts
+        seen.add(real)
+    assert seen == {True, False}
