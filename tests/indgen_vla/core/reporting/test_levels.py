@@ -54,8 +54,11 @@ def test_no_break_and_a_hole_before_the_break():
     assert (
         direction_verdict(rows[:1], None, 0.2)
         == "no break through 0: every level is significantly at or above γ = 0.2 (Wilson 95 % CI; chance of this "
-        "call at S = γ with n = 10: 3.3 % at the smallest level)"
+        "call at S = γ with n = 10: 3.3 %, the largest over its levels)"
     )
+    # levels of 6 and 8 episodes: the call at n = 8 errs 5.6 %, at n = 6 (the smallest) 1.7 %: the larger is quoted
+    mixed = [row(0, 6, 6, "intact"), row(1, 8, 8, "intact")]
+    assert "with n = 8: 5.6 %, the largest over its levels" in direction_verdict(mixed, None, 0.2)
     hole = [row(0, 10, 10, "intact"), row(1, 0, 1, "undetermined", planned=10, insufficient=True)]
     assert direction_verdict(hole, "undetermined", 0.2) == (
         "undetermined: level +1 has too little data (n = 1 of 10); finish it (re-run the same evaluate command: "
