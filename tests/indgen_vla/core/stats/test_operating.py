@@ -3,6 +3,8 @@ by exact enumeration, the printed real error of a Wilson verdict, the "N more ep
 chances, the series table's family-wise error (seeded simulation) and the size of compare's two tests. The gate's
 size: test_noninferiority."""
 
+from itertools import product
+
 import numpy as np
 import pytest
 from scipy.stats import binom
@@ -11,7 +13,8 @@ from indgen_vla.core.comparison.gate_plan import plan_episodes
 from indgen_vla.core.comparison.series_report import _holm_trends, _trend
 from indgen_vla.core.reporting.levels import direction_verdict
 from indgen_vla.core.stats import operating as oc
-from indgen_vla.core.stats.metrics import exact_2x2, mcnemar_exact
+from indgen_vla.core.stats.breakpoint import kstar_status, verdict_from_ci
+from indgen_vla.core.stats.metrics import exact_2x2, mcnemar_exact, wilson_ci
 from indgen_vla.core.stats.noninferiority import pass_chance
 from indgen_vla.core.stats.sample_size import verdict_error
 
@@ -105,3 +108,22 @@ def test_compares_paired_test_holds_its_size(pairs):
         float(binom.pmf(range(pairs + 1), pairs, d) @ np.array(rej)) for d in np.linspace(0.01, 1, 100)
     )
     assert 0 < size <= 0.05
+
+
+@pytest.mark.parametrize(
+    ("rates", "n"), [((0.9, 0.6, 0.2, 0.1), 8), ((0.9, 0.8, 0.7), 12), ((0.95, 0.21, 0.19), 10)]
+)
+def test_kstar_chances_are_the_sums_over_what_the_report_decides(rates, n):
+    """docs/results/statistics.md's k* table (``operating.kstar_wrong``) against brute force: every count of every
+    level, each level's verdict from its Wilson interval and k*'s status from ``kstar_status``, as the report has
+    them; a level at exactly γ is not a break."""
+    true_k = next((k for k, p in enumerate(rates) if p < 0.2), None)
+    got = {"right": 0.0, "wrong": 0.0, "undetermined": 0.0}
+    for counts in product(range(n + 1), repeat=len(rates)):
+        w = float(np.prod([binom.pmf(s, n, p) for s, p in zip(counts, rates, strict=True)]))
+        verdicts = {k: verdict_from_ci(*wilson_ci(s, n), 0.2) for k, s in enumerate(counts)}
+        st = kstar_status(verdicts, list(range(len(rates))))
+        key = "undetermined" if not st["determined"] else "right" if st["earliest"] == true_k else "wrong"
+        got[key] += w
+    want = oc.kstar_wrong(rates, n, 0.2, "wilson")
+    assert got == {k: pytest.approx(want[k], abs=1e-12) for k in got}
