@@ -252,7 +252,11 @@ def _k(level: int) -> str:
 def basis_text(res: dict) -> str:
     """Which tests decided the levels, paired or not, and the Holm family."""
     if res["paired"]:
-        kind = "non-inferiority: exact unconditional test on Tango's score; worse: paired exact McNemar"
+        kind = "non-inferiority: exact unconditional test on Tango's score"
+        if any((r.get("pairs") or 0) > ni.N_EXACT for r in res.get("levels", [])):  # not exact there: say so
+            kind += (f" (past {ni.N_EXACT} pairs its asymptotic score test, whose size is about α: 5.15 % at 1,500 "
+                     "pairs for α = 5 %, docs/statistics.md)")  # fmt: skip
+        kind += "; worse: paired exact McNemar"
     else:
         kind = f"non-inferiority: exact test on the MOVER bound; worse: unpaired {res['test'].capitalize()}"
         kind += f" ({res['unpaired_reason']})" if res.get("unpaired_reason") else ""

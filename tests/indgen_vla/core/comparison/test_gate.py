@@ -204,3 +204,15 @@ def test_a_level_line_says_when_its_interval_and_the_exact_test_disagree(tmp_pat
     assert "exact test decides" not in "\n".join(
         gate(GateConfig(str(c.path), str(d.path), margin=0.1))["lines"]
     )
+
+
+def test_past_the_exact_range_the_gate_names_the_asymptotic_test(tmp_path):
+    """Past ni.N_EXACT pairs the non-inferiority test is Tango's asymptotic score test (size 5.15 % at 1,500 pairs,
+    docs/statistics.md): the verdict line must not call it exact there, and does below."""
+    n = ni.N_EXACT + 1
+    a, b = (make_run(tmp_path / s, {0: (n - 10, n)}, regime=s) for s in ("a", "b"))
+    res = gate(GateConfig(str(a.path), str(b.path), margin=0.05))
+    assert res["levels"][0]["pairs"] == n and res["exit_code"] == 0
+    assert f"past {ni.N_EXACT} pairs its asymptotic score test" in res["lines"][-1]
+    c, d = (make_run(tmp_path / f"{s}29", {0: (29, 29)}, regime=s) for s in ("a", "b"))
+    assert "asymptotic" not in gate(GateConfig(str(c.path), str(d.path), margin=0.1))["lines"][-1]
