@@ -23,6 +23,7 @@ from indgen_vla.core.protocol.plan_lock import make_lock
 from indgen_vla.core.runs.records import RunDir, atomic_write_json
 from indgen_vla.core.stats.adaptive_cost import Curve, assumed_curve, simulate_protocol
 from indgen_vla.core.stats.contrasts import ALPHA
+from indgen_vla.core.stats.metrics import wilson_ci
 from indgen_vla.core.stats.sample_size import (
     decided_rates,
     fixed_design,
@@ -211,8 +212,9 @@ def _fmt_s(s: float) -> str:
 def _coverage() -> str:
     """The interval's measured coverage on held-out runs, as it is printed beside the interval."""
     h = HELDOUT
-    return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs, {h['covered_unwidened']} unwidened "
-            f"by load: {h['where']}")  # fmt: skip
+    lo, hi = wilson_ci(h["covered"], h["runs"])  # 16 of 16 is a rate of 16 runs: its interval says how firm
+    return (f"such intervals covered {h['covered']} of {h['runs']} held-out runs (Wilson 95 % CI {100 * lo:.0f}-"
+            f"{100 * hi:.0f} %), {h['covered_unwidened']} unwidened by load: {h['where']}")  # fmt: skip
 
 
 def render(out: dict) -> list[str]:

@@ -252,7 +252,11 @@ def _k(level: int) -> str:
 def basis_text(res: dict) -> str:
     """Which tests decided the levels, paired or not, and the Holm family."""
     if res["paired"]:
-        kind = "non-inferiority: exact unconditional test on Tango's score; worse: paired exact McNemar"
+        kind = "non-inferiority: exact unconditional test on Tango's score"
+        if any((r.get("pairs") or 0) > ni.N_EXACT for r in res.get("levels", [])):  # not exact there: say so
+            kind += (f" (past {ni.N_EXACT} pairs its asymptotic score test, whose size is about α: 5.15 % at 1,500 "
+                     "pairs for α = 5 %, docs/statistics.md)")  # fmt: skip
+        kind += "; worse: paired exact McNemar"
     else:
         kind = f"non-inferiority: exact test on the MOVER bound; worse: unpaired {res['test'].capitalize()}"
         kind += f" ({res['unpaired_reason']})" if res.get("unpaired_reason") else ""
@@ -281,6 +285,7 @@ def level_line(r: dict, res: dict) -> str:
     if r["tested"] and not math.isnan(r.get("p_non_inferior", math.nan)):
         stats += f", non-inferiority p={r['p_non_inferior']:.2g}"
     stats += f", p={r['p']:.2g}, Holm p={r['p_holm']:.2g})" if r["tested"] else ")"
+    stats += _interval_note(r, res["margin"], how)
     head = f"{r['axis']} {_k(r['level'])}: {r['verdict']}"
     if r["verdict"] == NON_INFERIOR:
         return f"{head} within {100 * res['margin']:.0f} pp — {sides}; {stats}; {_drop_text(r)}"
@@ -292,6 +297,19 @@ def level_line(r: dict, res: dict) -> str:
             if r.get("more_episodes") is not None else
             f"not decidable with {POWER:.0%} chance within {MAX_MORE} more episodes at the observed rates")  # fmt: skip
     return f"{head} ({why}; {more}) — {sides}; {stats}; {_drop_text(r)}"
+
+
+def _interval_note(r: dict, margin: float, how: str) -> str:
+    """Where the printed interval and the verdict disagree on −M (the interval alone errs above α at the margin, so
+    the exact test decides), say so: else a CI above −M beside "neither shown" reads as a contradiction."""
+    lo = r["delta_ci"][0]
+    if not r["tested"] or math.isnan(lo) or (lo > -margin) == r["non_inferior"]:
+        return ""
+    side = "above" if lo > -margin else "at or below"
+    return (
+        f"; the {how} interval's lower end ({100 * lo:+.1f} pp) is {side} −{100 * margin:g} pp, but that interval "
+        "alone errs above α at the margin (docs/statistics.md §1): the exact test decides"
+    )
 
 
 def summary_line(res: dict) -> str:

@@ -91,10 +91,13 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
     )  # --adaptive: the SPRT decides a break, not the CI
     if ns and break_undecidable(max(ns), gamma, ci) and not by_sprt:
         need = needed_for_break(gamma, ci)
+        # no level observed under γ: there is no observed k* to warn about, only that none could have been shown
+        tail = ("the k* below is the first level whose observed rate is under γ, not a statistically decided break"
+                if any(r["rate"] < gamma for r in usable_rows(a["levels"])) else
+                "had one fallen under γ, its break would only have been observed, not statistically decided")  # fmt: skip
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
-                   f"{CI_NAMES.get(ci, ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: the k* below is the first level "
-                   f"whose observed rate is under γ, not a statistically decided break (that needs n ≥ {need} a "
-                   "level).")  # fmt: skip
+                   f"{CI_NAMES.get(ci, ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: {tail} "
+                   f"(that needs n ≥ {need} a level).")  # fmt: skip
     head = a.get("vs_t0") or {}
     m = len(head.get("holm_over") or [])
     pairs = [r["vs_t0"]["n_pairs"] for r in a["levels"] if "vs_t0" in r and not math.isnan(r["vs_t0"]["p"])]

@@ -16,7 +16,13 @@ from indgen_vla.core.stats.breakpoint import kstar_status, signed_level, verdict
 from indgen_vla.core.stats.frames import group_items, py
 from indgen_vla.core.stats.metrics import CI_NAMES, MIN_N, below_floor, break_levels, success_rate
 from indgen_vla.core.stats.sample_size import more_to_decide, verdict_error
-from indgen_vla.core.stats.sprt import UNTIL_FAILURE, level_outcomes, outcome_prefix, rule_from_plan
+from indgen_vla.core.stats.sprt import (
+    UNTIL_FAILURE,
+    level_outcomes,
+    operating_characteristic,
+    outcome_prefix,
+    rule_from_plan,
+)
 
 
 @dataclass(frozen=True)
@@ -117,10 +123,14 @@ def sequential(rows: list[dict], df, adaptive: dict, episodes: int) -> None:
         return
     rule = rule_from_plan(adaptive, episodes)
     per_level = level_outcomes(df)
+    # the rule's exact error of each call at the near end of the other side (its guarantee; inside the indifference
+    # zone either call may come, e.g. "broken" at S = γ with chance 26 % under the default rule)
+    error_at = {"broken": [rule.p_intact, operating_characteristic(rule, rule.p_intact).p_broken],
+                "intact": [rule.p_broken, operating_characteristic(rule, rule.p_broken).p_intact]}  # fmt: skip
     for r in rows:
         outcomes = outcome_prefix(per_level.get(r["level"], {}))
         dec = rule.decide(outcomes)
-        r["sequential"] = dec.as_dict()
+        r["sequential"] = {**dec.as_dict(), "error_at": error_at}
         r["decision"] = "undetermined" if dec.verdict == "continue" else dec.verdict
         r["planned"] = dec.episodes if dec.final else dec.next_boundary
         r["insufficient"] = dec.n == 0 or (not dec.final and below_floor(r["n"], r["planned"]))
@@ -224,6 +234,18 @@ def _error_text(n: int, gamma: float, ci: str, verdict: str) -> str:
     return f"{CI_NAMES.get(ci, ci)} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
 
 
+def _seq_error_text(seq: dict, verdict: str) -> str:
+    """A sequential call's own exact error, as a CI verdict prints its own: the printed Wilson interval is descriptive
+    after stopping (it may reach past γ), and between γ − δ and γ + δ either call may come."""
+    if "error_at" not in seq:  # a summary written before the rule's errors were recorded
+        return ""
+    (s, p), (lo, hi) = seq["error_at"][verdict], sorted(x[0] for x in seq["error_at"].values())
+    return (
+        f" (chance of this call at S = {s:g}: {100 * p:.1f} %; between {lo:g} and {hi:g} either call may come, "
+        "and the interval is descriptive after stopping)"
+    )
+
+
 def _rate(r: dict) -> str:
     return (
         f"{100 * r['rate']:.0f} %, n = {r['n']}, 95 % CI [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
@@ -255,11 +277,15 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
             signed_level(r["level"]) for r in rows if r.get("decision") != "intact" and not r["insufficient"]
         ]
         if not open_ and any(r.get("sequential") for r in rows):
-            return f"no break through {last}: every level is decided at or above γ = {gamma:g} by the sequential rule"
-        if not open_:
-            n = min(r["n"] for r in rows)
+            seq = next(r["sequential"] for r in rows if r.get("sequential"))
+            return (f"no break through {last}: every level is decided at or above γ = {gamma:g} by the sequential "
+                    f"rule{_seq_error_text(seq, 'intact')}")  # fmt: skip
+        if (
+            not open_
+        ):  # the error is not monotone in n (Wilson at γ = 0.2: 1.7 % at n = 6, 5.6 % at 8): the largest
+            n = max((r["n"] for r in rows), key=lambda m: (verdict_error(m, gamma, ci, "intact"), -m))
             return (f"no break through {last}: every level is significantly at or above γ = {gamma:g} "
-                    f"({_error_text(n, gamma, ci, 'intact')} at the smallest level)")  # fmt: skip
+                    f"({_error_text(n, gamma, ci, 'intact')}, the largest over its levels)")  # fmt: skip
         return (
             f"no level below γ = {gamma:g} through {last} ({', '.join(open_)} not yet significantly above it)"
         )
@@ -271,7 +297,7 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
         return (f"observed break at {head}: the paper's until-failure design stopped at the first level below "
                 f"γ = {gamma:g}; observed, not statistically decided ({why})")  # fmt: skip
     if r.get("decision") == "broken" and r.get("sequential") is not None:
-        return f"breaks at {head}, decided below γ = {gamma:g} by the sequential rule"
+        return f"breaks at {head}, decided below γ = {gamma:g} by the sequential rule{_seq_error_text(r['sequential'], 'broken')}"
     if r.get("decision") == "broken":
         return f"breaks at {head}, significantly below γ = {gamma:g} ({_error_text(r['n'], gamma, ci, 'broken')})"
     seq = r.get("sequential")

@@ -336,15 +336,7 @@ def break_point(
                 "why": str(e),
             }
             continue
-        lv_ci = _interval(boot, conf)
-        if "separated" in why and math.isfinite(xc):
-            # rates of 0 and 1 give the episode bootstrap nothing to vary: the data only place the crossing
-            # between the two adjacent levels around it, so the interval covers at least that bracket
-            i = max(int(np.searchsorted(x, xc, side="right")) - 1, 0)
-            j = min(i + 1, len(x) - 1)
-            lo, hi = lv_ci
-            lv_ci = [min(lo, x[i]) if lo is not None else None, max(hi, x[j]) if hi is not None else None]
-            lv_ci = [float(v) if v is not None else None for v in lv_ci]
+        lv_ci = _widened(_interval(boot, conf), cells, direction, x, xc, why)
         par = [_to_param(v, x, params) if v is not None else None for v in lv_ci]
         lv_ci = [sign * v if v is not None else None for v in lv_ci]
         if sign < 0:
@@ -363,6 +355,24 @@ def break_point(
             "resampled": _resampled(clusters, cluster_names),
         }
     return out
+
+
+def _widened(lv_ci: list, cells: Sequence[Cell], direction: str, x: np.ndarray, xc: float, why: str) -> list:
+    """Rates of 0 and 1 (separated, or not monotone like 0/5, 5/5, 0/5) give the episode bootstrap nothing to vary:
+    the data only place the crossing between the two adjacent levels around it, so the interval covers at least
+    that bracket (else a 95 % interval of zero width)."""
+    _, _, _, _, s, n = _direction_data(cells, direction)
+    s, n = s.sum(0), n.sum(0)
+    flat = bool(((s[n > 0] == 0) | (s[n > 0] == n[n > 0])).all())
+    if not (("separated" in why or flat) and math.isfinite(xc)):
+        return lv_ci
+    i = max(int(np.searchsorted(x, xc, side="right")) - 1, 0)
+    j = min(i + 1, len(x) - 1)
+    lo, hi = lv_ci
+    return [
+        float(min(lo, x[i])) if lo is not None else None,
+        float(max(hi, x[j])) if hi is not None else None,
+    ]
 
 
 def _resampled(clusters: list[tuple], names: Sequence[str] = ()) -> str:
@@ -396,7 +406,11 @@ def break_point_difference(
         pb = [_to_param(v, rb[1], rb[2]) for v in rb[7]]
         with np.errstate(invalid="ignore"):
             dparam = np.array(pb) - np.array(pa)
-        lv = _interval(diff, conf)
+        lv, dpar = _interval(diff, conf), _interval(dparam, conf)
+        ia = _widened(_interval(ra[7], conf), cells_a, direction, x, ra[4], ra[6])
+        ib = _widened(_interval(rb[7], conf), cells_b, direction, rb[1], rb[4], rb[6])
+        if ia != _interval(ra[7], conf) or ib != _interval(rb[7], conf):  # a run the bootstrap cannot vary
+            lv, dpar = _difference_bracket(lv, dpar, ia, ib, (x, params), (rb[1], rb[2]))
         if sign < 0:
             lv = [-v if v is not None else None for v in lv[::-1]]
         pt_param = None
@@ -405,10 +419,21 @@ def break_point_difference(
         out[direction] = {
             "level": sign * point if point is not None else None,
             "param": pt_param,
-            "ci": {"level": lv, "param": _interval(dparam, conf), "conf": conf},
+            "ci": {"level": lv, "param": dpar, "conf": conf},
             "methods": [ra[5], rb[5]],
             "n_boot": n_boot,
             "undefined_replicates": int(np.isnan(diff).sum()),
             "bootstrap": "independent per run",
         }
     return out
+
+
+def _difference_bracket(lv: list, dpar: list, ia: list, ib: list, xa: tuple, xb: tuple) -> tuple[list, list]:
+    """The difference's interval widened to cover B's interval minus A's (each widened to its bracket): when a run's
+    bootstrap cannot vary, the replicates' differences alone would give an interval of zero width."""
+    if None in (*lv, *ia, *ib):
+        return lv, dpar
+    lo, hi = min(lv[0], ib[0] - ia[1]), max(lv[1], ib[1] - ia[0])
+    ends = [_to_param(b, *xb) - _to_param(a, *xa) for a in ia for b in ib]
+    par = dpar if None in dpar else [min(dpar[0], *ends), max(dpar[1], *ends)]
+    return [float(lo), float(hi)], [float(v) for v in par]

@@ -276,7 +276,10 @@ def _eq_cell(v: dict) -> str:
     e = v.get("equivalence")
     if e is None or math.isnan(e["ci"][0]):
         return "—"
-    return f"{'yes' if e['equivalent'] else 'not shown'} [{pp(e['ci'][0])}, {pp(e['ci'][1])}]"
+    inside = -e["margin"] < e["ci"][0] and e["ci"][1] < e["margin"]
+    # the CI alone errs above α at ±M (docs/statistics.md §1): where it disagrees with the exact tests, say who decides
+    why = " (the exact tests decide, not the CI)" if inside != e["equivalent"] else ""
+    return f"{'yes' if e['equivalent'] else 'not shown'}{why} [{pp(e['ci'][0])}, {pp(e['ci'][1])}]"
 
 
 def render_vs_t0(present: list[tuple[str, dict]]) -> list[str]:

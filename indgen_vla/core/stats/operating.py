@@ -227,16 +227,20 @@ def series_fwer(levels: Sequence[float], n: int, steps: int, draws: int, seed: i
     for _ in range(draws):
         eff = rng.normal(0, checkpoint_sd, steps) if checkpoint_sd else np.zeros(steps)
         ps = 1 / (1 + np.exp(-(logit[None, :] + eff[:, None])))
-        s = rng.binomial(n, ps)
-        pvals = []
-        for k in range(len(levels)):
-            if s[:, k].min() == s[:, k].max():
-                continue
-            t = cochran_armitage(list(range(steps)), list(s[:, k]), [n] * steps)
-            pvals += [t.p_decreasing, 1 - t.p_decreasing]
-        pv = holm(pvals) if holm_on else pvals
-        hits += any(p < 0.05 for p in pv)
+        hits += series_flagged(rng.binomial(n, ps), n, holm_on)
     return hits / draws
+
+
+def series_flagged(counts: np.ndarray, n: int, holm_on: bool = True) -> bool:
+    """Whether ``indgen series``'s table flags a trend in one series (``counts``: checkpoints × levels, n episodes
+    each): Cochran–Armitage per level, a rise and a fall, every level in the family as
+    ``series_report._holm_trends`` has it (a level whose counts do not vary tests at p = 0.5 each way)."""
+    steps = counts.shape[0]
+    pvals = []
+    for k in range(counts.shape[1]):
+        t = cochran_armitage(list(range(steps)), [int(x) for x in counts[:, k]], [n] * steps)
+        pvals += [1 - t.p_decreasing, t.p_decreasing]
+    return any(p < 0.05 for p in (holm(pvals) if holm_on else pvals))
 
 
 def pooled_ood_size(

@@ -140,6 +140,10 @@ def test_the_printed_coverage_is_the_committed_held_out_runs():
         for r in rows
     )
     assert (HELDOUT["runs"], HELDOUT["covered"], HELDOUT["covered_unwidened"]) == (len(rows), inside, plain)
+    # a coverage of 16 runs is a rate: printed with its interval (16/16: Wilson lower end 16 / (16 + 1.96²) = 81 %)
+    from indgen_vla.app.studies.budget import _coverage
+
+    assert f"covered {inside} of {len(rows)} held-out runs (Wilson 95 % CI 81-100 %)" in _coverage()
 
 
 def test_a_rate_given_by_hand_claims_no_measured_coverage(capsys):

@@ -185,3 +185,34 @@ def test_plan_tries_the_drop_only_where_a_level_can_fall_by_2m(tmp_path, capsys)
     assert json.loads(capsys.readouterr().out)["drop_level_index"] is None
     assert main(["gate", "--plan", str(b.path), "--margin", "0.1"]) == 0
     assert "no level's rate is 20% or more, so no drop of 20 pp can be tried" in capsys.readouterr().out
+
+
+def test_a_level_line_says_when_its_interval_and_the_exact_test_disagree(tmp_path, capsys):
+    """12/25 against the same 12/25 (no discordant pair), M = 0.1: Newcombe's 90 % interval is about [−6, +6] pp,
+    inside the margin, but the exact test's p is 0.072 > α (the interval alone errs above α at the margin), so the
+    level is undecided; the line must not print a CI above −M beside "neither shown" without saying why."""
+    a, b = (make_run(tmp_path / s, {0: (12, 25)}, regime=s) for s in ("a", "b"))
+    res = gate(GateConfig(str(a.path), str(b.path), margin=0.1))
+    (r,) = res["levels"]
+    assert r["delta_ci"][0] > -0.1 and r["p_non_inferior"] > 0.05 and r["verdict"] == "undecided"
+    (line,) = [x for x in res["lines"] if x.startswith("pick_y L0")]
+    assert (
+        f"lower end ({100 * r['delta_ci'][0]:+.1f} pp) is above −10 pp" in line
+        and "exact test decides" in line
+    )
+    c, d = (make_run(tmp_path / f"{s}29", {0: (29, 29)}, regime=s) for s in ("a", "b"))  # agree: no note
+    assert "exact test decides" not in "\n".join(
+        gate(GateConfig(str(c.path), str(d.path), margin=0.1))["lines"]
+    )
+
+
+def test_past_the_exact_range_the_gate_names_the_asymptotic_test(tmp_path):
+    """Past ni.N_EXACT pairs the non-inferiority test is Tango's asymptotic score test (size 5.15 % at 1,500 pairs,
+    docs/statistics.md): the verdict line must not call it exact there, and does below."""
+    n = ni.N_EXACT + 1
+    a, b = (make_run(tmp_path / s, {0: (n - 10, n)}, regime=s) for s in ("a", "b"))
+    res = gate(GateConfig(str(a.path), str(b.path), margin=0.05))
+    assert res["levels"][0]["pairs"] == n and res["exit_code"] == 0
+    assert f"past {ni.N_EXACT} pairs its asymptotic score test" in res["lines"][-1]
+    c, d = (make_run(tmp_path / f"{s}29", {0: (29, 29)}, regime=s) for s in ("a", "b"))
+    assert "asymptotic" not in gate(GateConfig(str(c.path), str(d.path), margin=0.1))["lines"][-1]

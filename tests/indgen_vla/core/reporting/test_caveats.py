@@ -74,6 +74,17 @@ def test_axis_caveats_name_run_axis_n_ci_and_tasks():
     assert len(lines) == 2  # 10 pairs, one level: 2 * 0.5**10 < 0.05, the T0 test can answer
 
 
+def test_no_observed_break_gets_no_sentence_about_an_observed_k_star():
+    """10/10 at every level: no level can be decided broken at n = 10, but no k* was read off an observed rate
+    either (k* is "no break", every level intact), so the line must not say "the k* below is the first level whose
+    observed rate is under γ"."""
+    a = _axis(10, 10)
+    a["levels"][1].update(successes=10, rate=1.0, ci_low=0.7225, ci_high=1.0)
+    (line,) = [x for x in axis_caveats("A", "x", a, 0.2, "wilson") if x.startswith("**Too few episodes**")]
+    assert "first level whose observed rate" not in line and "n ≥ 16" in line
+    assert "had one fallen under γ, its break would only have been observed" in line
+
+
 def test_an_adaptive_axis_gets_no_wilson_break_caveat():
     """Under --adaptive the sequential rule decides a break (0/15 is "decided below γ by the sequential rule"): the
     line that no level can be decided broken at n < 16 was false there; the T0 lines stay."""

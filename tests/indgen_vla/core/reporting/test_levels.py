@@ -10,7 +10,10 @@ from indgen_vla.core.reporting.levels import (
     kstar_status_of,
     verdict_line,
 )
+from indgen_vla.core.reporting.summary import summarize
 from indgen_vla.core.stats.metrics import success_rate
+from indgen_vla.core.stats.sprt import make_rule, operating_characteristic, plan_entry
+from tests.indgen_vla.core.reporting.test_report import make_run
 
 
 def row(level, successes, n, decision, planned=None, insufficient=False, **extra):
@@ -54,8 +57,11 @@ def test_no_break_and_a_hole_before_the_break():
     assert (
         direction_verdict(rows[:1], None, 0.2)
         == "no break through 0: every level is significantly at or above γ = 0.2 (Wilson 95 % CI; chance of this "
-        "call at S = γ with n = 10: 3.3 % at the smallest level)"
+        "call at S = γ with n = 10: 3.3 %, the largest over its levels)"
     )
+    # levels of 6 and 8 episodes: the call at n = 8 errs 5.6 %, at n = 6 (the smallest) 1.7 %: the larger is quoted
+    mixed = [row(0, 6, 6, "intact"), row(1, 8, 8, "intact")]
+    assert "with n = 8: 5.6 %, the largest over its levels" in direction_verdict(mixed, None, 0.2)
     hole = [row(0, 10, 10, "intact"), row(1, 0, 1, "undetermined", planned=10, insufficient=True)]
     assert direction_verdict(hole, "undetermined", 0.2) == (
         "undetermined: level +1 has too little data (n = 1 of 10); finish it (re-run the same evaluate command: "
@@ -123,3 +129,22 @@ def test_a_decided_break_after_an_undecided_level_names_the_interval_of_kstar():
     )  # every level before the break intact: k* = +2, determined, nothing added
     assert axis_verdicts(rows, {"pos": 2}, 0.2, signed=False)["pos"].endswith("(Wilson 95 % CI; chance of this call "
                                                                                "at S = γ with n = 20: 1.2 %)")  # fmt: skip
+
+
+def test_a_sequential_break_prints_its_own_error_not_only_a_wilson_interval_that_reaches_gamma(tmp_path):
+    """Default rule: 1 success in 20 crosses the SPRT's bound (broken) while the level's Wilson interval [1, 25] %
+    still reaches γ = 0.2. The line quotes the rule's exact error at S = γ + δ (2.5 %, what it guarantees) and says
+    that inside [γ − δ, γ + δ] either call may come (at S = γ "broken" comes with chance 26 %)."""
+    rule = make_rule("kstar", 0.2, 0.1, 0.025, 5, 50)
+    run = make_run(tmp_path / "r", {0: (20, 20), 1: (1, 20)},
+                   plan={"episodes": 50, "adaptive": plan_entry("kstar", rule)})  # fmt: skip
+    ax = summarize(run.episodes(), run.manifest, gamma=0.2)["axes"]["pick_y"]
+    lv = {r["level"]: r for r in ax["levels"]}
+    assert lv[1]["decision"] == "broken" and lv[1]["ci_high"] > 0.2
+    assert lv[1]["sequential"]["error_at"]["broken"][1] == pytest.approx(
+        operating_characteristic(rule, 0.3).p_broken
+    )
+    assert ax["verdict"]["pos"].endswith(
+        "decided below γ = 0.2 by the sequential rule (chance of this call at S = 0.3: 2.5 %; between 0.1 and 0.3 "
+        "either call may come, and the interval is descriptive after stopping)"
+    )

@@ -263,3 +263,18 @@ def test_two_stage_bootstrap_over_seeds_then_tasks():
 )
 def test_kstar_spread_counts_each_tasks_break_and_its_median(ks, text):
     assert kstar_spread(ks, minus="−") == text
+
+
+def test_zero_one_rates_that_are_not_monotone_and_their_difference_get_the_bracket_too():
+    """0/5, 5/5, 0/5: the logistic slope has the wrong sign (so not "separated"), the isotonic crossing is 1.4, and
+    every rate is 0 or 1, so the episode bootstrap gave the 95 % interval [1.4, 1.4] of zero width. It covers the
+    bracketing levels [1, 2] now, and B − A against 5/5, 5/5, 0/5 (crossing 1.8, interval [1, 2]) covers [−1, +1],
+    not the zero-width [−0.4, −0.4] the independent bootstraps gave."""
+    a = [Cell(k, 0.5 * k, s, 5) for k, s in zip(range(3), [5, 5, 0], strict=True)]
+    b = [Cell(k, 0.5 * k, s, 5) for k, s in zip(range(3), [0, 5, 0], strict=True)]
+    bp = break_point(b, 0.2, n_boot=100)["pos"]
+    assert "wrong sign" in bp["why"] and bp["level"] == pytest.approx(1.4)
+    assert bp["ci"]["level"] == [1.0, 2.0] and bp["ci"]["param"] == [0.5, 1.0]
+    d = break_point_difference(a, b, 0.2, n_boot=100, seed=0)["pos"]
+    assert d["level"] == pytest.approx(-0.4)
+    assert d["ci"]["level"] == [-1.0, 1.0] and d["ci"]["param"] == [-0.5, 0.5]

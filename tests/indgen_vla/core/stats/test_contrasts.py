@@ -18,6 +18,7 @@ from indgen_vla.core.stats.contrasts import (
     paired_equivalence,
     t0_contrasts,
 )
+from tests.indgen_vla.core.reporting.test_report import make_run
 from tests.indgen_vla.core.runs.test_records import rec
 
 
@@ -318,3 +319,14 @@ def test_verdict_tells_levels_below_the_floor_from_no_pairs():
     one = {"p": 1.0, "p_holm": 1.0, "n_pairs": 5}  # one tested level: "1 level", not "1 levels"
     assert "(exact McNemar, Holm over 1 level, α = 0.05)" in t0_verdict([{"level": 1, "vs_t0": one}], None)
     assert "Holm over 2 levels" in t0_verdict([{"level": k, "vs_t0": one} for k in (1, 2)], None)
+
+
+def test_an_equivalence_cell_says_when_its_interval_and_the_exact_tests_disagree(tmp_path, capsys):
+    """12/25 at T0 and the same 12/25 at L1 (no discordant pair), ±10 pp: the 90 % Newcombe interval (about ±6 pp)
+    lies inside the margin, but the exact TOST cannot show equivalence with 25 pairs (0.9^25 > α), so "not shown"
+    beside that interval must say the exact tests decide, not the interval."""
+    run = make_run(tmp_path / "r", {0: (12, 25), 1: (12, 25)})
+    assert main(["report", str(run.path), "--margin", "0.1"]) == 0
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("L1: Δ vs T0")]
+    assert "within ±10 pp (90% CI): not shown (the exact tests decide, not the CI) [−6, +6]" in line
+    assert "not shown (the exact tests decide, not the CI)" in (run.path / "report.md").read_text()

@@ -1,12 +1,20 @@
 """Calibration of the decisions docs/statistics.md lists, asserted in the default suite (seconds): the verdicts at γ
 by exact enumeration, the printed real error of a Wilson verdict, the "N more episodes" claim, the CI recipe's pass
-chances, and the series table's family-wise error (seeded simulation). The gate's size: test_noninferiority."""
+chances, the series table's family-wise error (seeded simulation) and the size of compare's two tests. The gate's
+size: test_noninferiority."""
 
+from itertools import product
+
+import numpy as np
 import pytest
+from scipy.stats import binom
 
 from indgen_vla.core.comparison.gate_plan import plan_episodes
+from indgen_vla.core.comparison.series_report import _holm_trends, _trend
 from indgen_vla.core.reporting.levels import direction_verdict
 from indgen_vla.core.stats import operating as oc
+from indgen_vla.core.stats.breakpoint import kstar_status, verdict_from_ci
+from indgen_vla.core.stats.metrics import exact_2x2, mcnemar_exact, wilson_ci
 from indgen_vla.core.stats.noninferiority import pass_chance
 from indgen_vla.core.stats.sample_size import verdict_error
 
@@ -52,3 +60,70 @@ def test_the_series_table_is_holm_corrected():
     levels = (0.95, 0.9, 0.8, 0.6, 0.4, 0.3, 0.2)
     assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=False) > 0.35
     assert oc.series_fwer(levels, 50, 5, 300, 3, holm_on=True) <= 0.075
+
+
+def test_the_simulated_series_rule_is_the_one_series_runs():
+    """``series_flagged`` (what ``series_fwer`` counts) equals the flags of series_report's own ``_trend`` and
+    ``_holm_trends`` on 300 seeded series, null and trending, levels that do not vary included: the size above is
+    measured on the rule ``indgen series`` prints, not on a copy of it."""
+    rng = np.random.default_rng(5)
+    steps, n, seen = [1000, 2000, 3000, 4000, 5000], 20, set()
+    for i in range(300):
+        rates = np.clip(
+            rng.choice([0.0, 0.2, 0.5, 0.9, 1.0], 4) + (i % 2) * 0.04 * np.arange(5)[:, None], 0, 1
+        )
+        counts = rng.binomial(n, rates)
+        trend = {
+            str(k): _trend(steps, [{"successes": int(c), "n": n} for c in counts[:, k]]) for k in range(4)
+        }
+        _holm_trends(trend, list(trend))
+        real = any(t[f"{side}_holm"] < 0.05 for t in trend.values() for side in ("p_rising", "p_falling"))
+        assert oc.series_flagged(counts, n) == real, counts
+        seen.add(real)
+    assert seen == {True, False}
+
+
+@pytest.mark.parametrize(
+    ("n_a", "n_b", "alpha"), [(5, 5, 0.05), (10, 10, 0.05), (10, 10, 0.025), (6, 12, 0.05)]
+)
+def test_compares_unpaired_test_holds_its_size(n_a, n_b, alpha):
+    """compare's unpaired test (``metrics.exact_2x2``, scipy's Boschloo, whose supremum over the nuisance rate is
+    searched numerically) calls equal rates different with chance ≤ α at every common rate (exact sums over all
+    tables, 199 rates); Holm over L levels then errs ≤ α at every level's α / L. Measured: 4.2 % at 10 + 10."""
+    p = np.array([[exact_2x2(a, n_a, b, n_b) for b in range(n_b + 1)] for a in range(n_a + 1)])
+    size = max(float(np.outer(binom.pmf(range(n_a + 1), n_a, r), binom.pmf(range(n_b + 1), n_b, r))[p <= alpha].sum())
+               for r in np.linspace(0.005, 0.995, 199))  # fmt: skip
+    assert 0 < size <= alpha
+
+
+@pytest.mark.parametrize("pairs", [10, 20, 50])
+def test_compares_paired_test_holds_its_size(pairs):
+    """compare's paired test (exact McNemar, ``metrics.mcnemar_exact``) calls equal rates different with chance ≤ 5 %
+    whatever the chance d that a pair is discordant (exact sums over the discordant count and its split)."""
+    rej = [
+        sum(binom.pmf(a, m, 0.5) for a in range(m + 1) if mcnemar_exact(a, m - a) <= 0.05)
+        for m in range(pairs + 1)
+    ]
+    size = max(
+        float(binom.pmf(range(pairs + 1), pairs, d) @ np.array(rej)) for d in np.linspace(0.01, 1, 100)
+    )
+    assert 0 < size <= 0.05
+
+
+@pytest.mark.parametrize(
+    ("rates", "n"), [((0.9, 0.6, 0.2, 0.1), 8), ((0.9, 0.8, 0.7), 12), ((0.95, 0.21, 0.19), 10)]
+)
+def test_kstar_chances_are_the_sums_over_what_the_report_decides(rates, n):
+    """docs/results/statistics.md's k* table (``operating.kstar_wrong``) against brute force: every count of every
+    level, each level's verdict from its Wilson interval and k*'s status from ``kstar_status``, as the report has
+    them; a level at exactly γ is not a break."""
+    true_k = next((k for k, p in enumerate(rates) if p < 0.2), None)
+    got = {"right": 0.0, "wrong": 0.0, "undetermined": 0.0}
+    for counts in product(range(n + 1), repeat=len(rates)):
+        w = float(np.prod([binom.pmf(s, n, p) for s, p in zip(counts, rates, strict=True)]))
+        verdicts = {k: verdict_from_ci(*wilson_ci(s, n), 0.2) for k, s in enumerate(counts)}
+        st = kstar_status(verdicts, list(range(len(rates))))
+        key = "undetermined" if not st["determined"] else "right" if st["earliest"] == true_k else "wrong"
+        got[key] += w
+    want = oc.kstar_wrong(rates, n, 0.2, "wilson")
+    assert got == {k: pytest.approx(want[k], abs=1e-12) for k in got}

@@ -1,6 +1,7 @@
 import math
 import random
 
+import numpy as np
 import pytest
 
 from indgen_vla.core.errors import ConfigError
@@ -315,3 +316,21 @@ def test_until_failure_signed_directions_errors_and_rule_checks():
         plan_next(SequentialRule(), [0, 1], {}, "until-failure")
     with pytest.raises(ConfigError, match="gamma must be in"):
         UntilFailure(gamma=1.0)
+
+
+@pytest.mark.parametrize(
+    ("episodes", "round_size", "alpha"), [(50, 5, 0.025), (20, 5, 0.025), (100, 10, 0.05), (30, 1, 0.05)]
+)
+def test_the_calibrated_rule_keeps_its_errors_beyond_the_indifference_zone(episodes, round_size, alpha):
+    """adaptive.md: P(broken) ≤ α at every S ≥ γ + δ and P(intact) ≤ β at every S ≤ γ − δ, for the rule any
+    --episodes / --round-size / --adaptive-alpha gives (exact OC on a grid of 41 rates each side), and the calibrated
+    thresholds use most of α at the boundary where the episodes allow it."""
+    from indgen_vla.core.stats.sprt import make_rule
+
+    rule = make_rule("kstar", 0.2, 0.1, alpha, round_size, episodes)
+    for s in np.linspace(0.3, 1.0, 41):
+        assert operating_characteristic(rule, float(s)).p_broken <= alpha + 1e-12
+    for s in np.linspace(0.0, 0.1, 41):
+        assert operating_characteristic(rule, float(s)).p_intact <= alpha + 1e-12
+    if episodes >= 50:
+        assert operating_characteristic(rule, 0.3).p_broken > 0.8 * alpha
