@@ -32,10 +32,14 @@ main{padding:8px 24px 40px;max-width:1400px}
 section{margin:18px 0 26px}
 section>h2{font-size:17px;border-bottom:2px solid var(--line);padding-bottom:4px}
 h3{font-size:15px;margin:16px 0 6px}h4{font-size:14px;margin:14px 0 6px}
+header,main{overflow-wrap:break-word}
 table{border-collapse:collapse;margin:8px 0;font-size:13px}
+main table:not(.sortable){display:block;max-width:100%;overflow-x:auto}
+table.levels td{white-space:nowrap}
 th,td{border:1px solid var(--line);padding:3px 8px;text-align:left;vertical-align:top}
 th{background:var(--soft)}
 code{background:var(--soft);padding:0 3px;border-radius:3px}
+pre{max-width:100%;overflow-x:auto}
 .verdict{border-left:4px solid var(--acc);background:var(--soft);padding:8px 12px;margin:10px 0}
 .verdict p{margin:4px 0}
 .note{color:var(--muted)}
@@ -46,7 +50,7 @@ figure img{max-width:100%;border:1px solid var(--line)}
 figcaption{color:var(--muted);font-size:12px}
 video{width:256px;border:1px solid var(--line);background:#000}
 .tablebar{margin:8px 0}
-.tablebar input{width:360px;padding:4px 6px;font:inherit}
+.tablebar input{width:360px;max-width:100%;padding:4px 6px;font:inherit}
 table.sortable th{cursor:pointer;user-select:none;white-space:nowrap}
 table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}

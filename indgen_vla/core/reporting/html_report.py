@@ -60,7 +60,7 @@ def _level_rows(a: Mapping[str, Any]) -> str:
             ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
         cells = (r["level"], param, rate, ci, r["n"], r.get("errors", 0), r.get("decision") or "")
         rows.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>")
-    return f"<table>{head}</tr>{''.join(rows)}</table>"
+    return f'<table class="levels">{head}</tr>{"".join(rows)}</table>'
 
 
 def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str] = ()) -> Section:

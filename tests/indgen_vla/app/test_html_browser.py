@@ -84,3 +84,23 @@ def test_index_and_report_load_cleanly_in_chromium(tmp_path, browser):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_pages_fit_a_phone_wide_screen(tmp_path, browser):
+    """At 400 px the page never scrolls sideways: a long policy label wraps in the title, and the level, compare and
+    report.md tables scroll inside their own box."""
+    label = "lerobot:checkpoints/a_policy_name_far_too_long_for_one_phone_wide_line"
+    a = make_run(tmp_path / "a", {-1: (5, 6), 0: (6, 6), 1: (2, 6)}, policy=label)
+    b = make_run(tmp_path / "b", {-1: (6, 6), 0: (6, 6), 1: (6, 6)}, regime="h+mg")
+    assert main(["report", str(a.path)]) == 0
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "cmp")]) == 0
+    for page in (a.path / "report.html", tmp_path / "cmp" / "report.html"):
+        s = browser.open(page.as_uri())
+        browser.call(
+            "Emulation.setDeviceMetricsOverride", s, width=400, height=900, deviceScaleFactor=1, mobile=False
+        )
+        width = browser.evaluate(
+            s, "[document.documentElement.scrollWidth, document.documentElement.clientWidth]"
+        )
+        assert width == [400, 400], (page, width)
+        _shot(browser, s, f"narrow_{page.parent.name}.png")
