@@ -75,10 +75,16 @@ def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: S
                 continue
             who = f" — {esc(label)}" if len(summaries) > 1 else ""
             verdict = verdict_line(a["verdict"], a["signed"]) if "verdict" in a else "—"
+            # is k* decided? report.md's "k* status" row and the index's k* cell say so; so does the page
+            st = a.get("kstar_status") or {}
+            status = "; ".join(
+                f"{'+' if d == 'pos' else '−'}: {st[d]['text']}" for d in ("pos", "neg") if d in st
+            )
             body.append(
                 f'<div class="verdict"><h3>Axis <code>{esc(axis)}</code>{who}</h3>'
                 f"<p><b>k*</b> (first level with success &lt; γ = {esc(s['gamma'])}): {esc(kstar_text(a))}</p>"
-                f"<p><b>verdict</b>: {esc(verdict)}</p>"
+                + (f"<p><b>k* status</b>: {esc(status)}</p>" if status else "")
+                + f"<p><b>verdict</b>: {esc(verdict)}</p>"
                 f'<p class="note">{esc(pooled_text(a.get("pooled_tasks") or []))}; success with {esc(CI_NAMES.get(s["ci"], s["ci"]))} '
                 "95 % CI; n = finished episodes (errors counted beside it); one run: nothing is paired here "
                 "(indgen compare pairs runs).</p>"

@@ -90,6 +90,10 @@ def test_a_run_report_writes_a_self_contained_report_html(tmp_path):
     )
     summary = json.loads((run.path / "summary.json").read_text())
     assert summary["axes"]["pick_y"]["verdict"]["pos"] in verdicts.replace("&#x27;", "'")
+    status = summary["axes"]["pick_y"][
+        "kstar_status"
+    ]  # whether k* is decided: report.md's row, said here too
+    assert f"<b>k* status</b>: +: {status['pos']['text']}; −: {status['neg']['text']}" in verdicts
     assert "no_grasp" in text[text.index('id="failures"') :]
     preview = text[text.index('id="preview"') : text.index('id="videos"')]
     assert (
