@@ -118,6 +118,8 @@ def test_overlay_and_compare_pages_carry_their_verdicts(tmp_path):
     assert Page(text).sections == ["verdicts", "plots", "report"]
     assert result["verdict"].split(":")[0] in text and "paired episode by episode" in text
     verdicts = text[text.index('id="verdicts"') : text.index('id="plots"')]
+    # the verdict's "B − A" names its runs before the full report does
+    assert f"A = <code>{result['label_a']}</code>, B = <code>{result['label_b']}</code>" in verdicts
     assert (
         verdicts.count('class="caveat"') == len(result["caveats"]) >= 1
     )  # too few pairs: said first, in red
