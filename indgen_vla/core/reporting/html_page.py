@@ -50,7 +50,7 @@ figure img{max-width:100%;border:1px solid var(--line)}
 figcaption{color:var(--muted);font-size:12px}
 video{width:256px;border:1px solid var(--line);background:#000}
 .tablebar{margin:8px 0}
-.tablebar input{width:360px;max-width:100%;padding:4px 6px;font:inherit}
+.tablebar input{width:480px;max-width:100%;padding:4px 6px;font:inherit}
 table.sortable th{cursor:pointer;user-select:none;white-space:nowrap}
 table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
@@ -153,9 +153,11 @@ def table_html(
     *,
     links: Mapping[str, str] | None = None,
     filterable: bool = True,
+    example: str = "level=2 success=false",
 ) -> str:
     """A sortable (and with ``filterable`` filterable) table; ``links`` maps a column to the row key holding its
-    href (a relative path). Cells that read as numbers sort as numbers."""
+    href (a relative path). Cells that read as numbers sort as numbers. ``example``: a filter on this table's own
+    columns, shown in the empty box."""
     links = links or {}
     head = "".join(f"<th>{esc(c)}</th>" for c in columns)
     body = []
@@ -171,7 +173,7 @@ def table_html(
     if filterable:
         bar = (
             f'<div class="tablebar"><input id="{table_id}-filter" type="search" placeholder="filter: words, or '
-            f'column=value (e.g. level=2 success=false)"> <span id="{table_id}-count" class="note">{len(rows)} '
+            f'column=value (e.g. {esc(example)})"> <span id="{table_id}-count" class="note">{len(rows)} '
             "rows</span></div>"
         )
     return (

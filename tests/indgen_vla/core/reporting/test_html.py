@@ -208,3 +208,17 @@ def test_the_index_says_kstar_in_the_reports_words(tmp_path):
     cell = kstar_cell(s)
     assert cell == f"pick_y +: {a['kstar_status']['pos']['text']}; −: {a['kstar_status']['neg']['text']}"
     assert "+: k* = +2, determined" in cell and "−: k* ∈ [-2, -1]" in cell
+
+
+def test_the_index_row_of_a_comparison_names_its_tasks_and_filters_by_its_own_columns(tmp_path):
+    """A comparison's row says which tasks its verdict pools (compare.json), as a run's row does; the filter box's
+    example uses the index's columns, not the episodes table's level/success."""
+    a = make_run(tmp_path / "runs" / "a", {0: (6, 6), 1: (5, 6)})
+    b = make_run(tmp_path / "runs" / "b", {0: (6, 6), 1: (0, 6)}, regime="h+mg")
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "runs" / "cmp")]) == 0
+    rows = {r.run: r for r in find_rows(tmp_path / "runs")}
+    assert rows["cmp"].kind == "comparison" and rows["cmp"].tasks == "task t"
+    from indgen_vla.core.reporting.html_index import index_page
+
+    text = index_page(tmp_path / "runs", list(rows.values()))
+    assert "e.g. status=running scene=pick_place" in text and "level=2" not in text
