@@ -109,11 +109,16 @@ def plots_section(plots: Path, missing: str = "no plots yet") -> Section:
 
 
 def preview_section(run_path: Path, manifest: Mapping[str, Any], axes: Sequence[str]) -> Section:
-    """The level preview sheets of the run (what the policy sees at t = 0 per level), or the command that makes them."""
+    """The level preview sheets of the run (what the policy sees at t = 0 per level), or the command that makes them
+    (a real run: the operator's protocol instead; ``indgen preview`` renders simulated scenes only)."""
     sheets = sorted((run_path / PREVIEW_DIR).glob("*.png")) if (run_path / PREVIEW_DIR).is_dir() else []
     if sheets:
         return Section("preview", "Level preview", "".join(image_html(p, f"t = 0 at each level: {p.stem}")
                                                              for p in sheets))  # fmt: skip
+    if manifest.get("real"):
+        return Section("preview", "Level preview", '<p class="note">A real-robot run: each level\'s set-up is in '
+                       '<a href="protocol.md">protocol.md</a> (the operator\'s sheet); there is no simulated '
+                       "preview.</p>")  # fmt: skip
     levels = (manifest.get("plan") or {}).get("levels") or {}
     cmds = []
     for axis in axes:
@@ -126,8 +131,9 @@ def preview_section(run_path: Path, manifest: Mapping[str, Any], axes: Sequence[
                    f"policy), then re-run <code>indgen report {esc(run_path)}</code>:</p>{hint}")  # fmt: skip
 
 
-def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section:
-    """Example videos per axis and level, successes beside failures (runs made with --video)."""
+def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]], real: bool = False) -> Section:
+    """Example videos per axis and level, successes beside failures (runs made with --video; a real run's verdicts
+    recorded with a video)."""
     cells: dict[tuple, dict[bool, list]] = {}
     for r in rows:
         if r.get("video") and (run_path / str(r["video"])).is_file():
@@ -135,8 +141,9 @@ def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section
                 r
             )
     if not cells:
-        return Section("videos", "Example videos", '<p class="note">No videos in this run (evaluate with --video '
-                       "records some per level).</p>")  # fmt: skip
+        how = ("indgen real record --video PATH or --video-pattern attaches one to each verdict" if real else
+               "evaluate with --video records some per level")  # fmt: skip
+        return Section("videos", "Example videos", f'<p class="note">No videos in this run ({how}).</p>')
     head = "<tr><th>axis</th><th>level</th><th>success</th><th>failure</th></tr>"
     out = []
     for (axis, level), by in sorted(cells.items()):
@@ -150,8 +157,10 @@ def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section
     return Section("videos", "Example videos", f"<table>{head}{''.join(out)}</table>")
 
 
-def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str]) -> Section:
-    """Per run and axis, episodes per failure mode at each level (``none`` = success; modes that occur only)."""
+def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str],
+                     real: bool = False) -> Section:  # fmt: skip
+    """Per run and axis, episodes per failure mode at each level (``none`` = success; modes that occur only); who
+    classified them: the scene, or a real run's operator."""
     out = []
     for axis in order:
         for label, s in summaries:
@@ -169,8 +178,10 @@ def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: 
             who = f" — {esc(label)}" if len(summaries) > 1 else ""
             out.append(f"<h3>Axis <code>{esc(axis)}</code>{who}</h3><table>{head}{body}</table>")
     text = "".join(out) or '<p class="note">No failure modes classified in this run.</p>'
-    return Section("failures", "Failure modes", text + '<p class="note">Modes are classified by the scene from '
-                   "simulator state the policy never sees; <code>none</code> = success.</p>")  # fmt: skip
+    who = ("given by the operator with each verdict (<code>unclassified</code>: a failure without a mode)" if real
+           else "classified by the scene from simulator state the policy never sees")  # fmt: skip
+    return Section("failures", "Failure modes", f'{text}<p class="note">Modes are {who}; <code>none</code> = '
+                   "success.</p>")  # fmt: skip
 
 
 def episode_rows(episodes) -> list[dict[str, Any]]:
@@ -198,8 +209,8 @@ def run_page_sections(run_path: Path, manifest: Mapping[str, Any], summary: Mapp
         verdict_section(one, order),
         plots_section(run_path / "plots"),
         preview_section(run_path, manifest, order),
-        videos_section(run_path, rows),
-        failures_section(one, order),
+        videos_section(run_path, rows, bool(manifest.get("real"))),
+        failures_section(one, order, bool(manifest.get("real"))),
         episodes_section(rows),
         Section("report", "Full report (report.md)", markdown_html(markdown)),
     ]

@@ -222,3 +222,22 @@ def test_the_index_row_of_a_comparison_names_its_tasks_and_filters_by_its_own_co
 
     text = index_page(tmp_path / "runs", list(rows.values()))
     assert "e.g. status=running scene=pick_place" in text and "level=2" not in text
+
+
+def test_a_real_run_page_points_at_its_protocol_not_at_simulator_commands(tmp_path):
+    """A real-robot run (manifest "real"): no `indgen preview --scene real:...` hint (that command refuses real
+    scenes), the videos hint names `indgen real record --video`, and its failure modes are the operator's."""
+    run = make_run(
+        tmp_path / "real", {0: (4, 5), 1: (0, 5)}, scene="real:stack", real={"setup_name": "stack"}
+    )
+    assert main(["report", str(run.path)]) == 0
+    text = (run.path / "report.html").read_text()
+    preview = text[text.index('id="preview"') : text.index('id="videos"')]
+    assert "indgen preview" not in preview and '<a href="protocol.md">protocol.md</a>' in preview
+    assert "indgen real record --video" in text[text.index('id="videos"') : text.index('id="failures"')]
+    failures = text[text.index('id="failures"') : text.index('id="episodes"')]
+    assert "given by the operator" in failures and "simulator state" not in failures
+    sim = make_run(tmp_path / "sim", {0: (4, 5), 1: (0, 5)}, scene="pick_place")
+    assert main(["report", str(sim.path)]) == 0
+    text = (sim.path / "report.html").read_text()
+    assert "indgen preview --scene pick_place" in text and "evaluate with --video" in text
