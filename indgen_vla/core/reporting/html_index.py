@@ -121,7 +121,7 @@ def run_row(run: Path, root: Path, now: float) -> IndexRow:
     status = run_status(run, n, None if adaptive else planned, now)
     rel = run.relative_to(root).as_posix() if run != root else "."
     live = status == "running" or not (run / HTML_REPORT).exists()
-    href = f"/live/{rel}" if live else f"/{rel}/{HTML_REPORT}".replace("/./", "/")
+    href = f"/live/{rel}/".replace("/./", "/") if live else f"/{rel}/{HTML_REPORT}".replace("/./", "/")
     of = f" of {planned}" + (" max (adaptive)" if adaptive else "") if planned else ""
     regime = f" ({m['data_regime']})" if m.get("data_regime") else ""
     return IndexRow(run=rel, kind="run", policy=f"{m.get('policy', '')}{regime}", scene=str(m.get("scene", "")),

@@ -4,6 +4,7 @@ import dataclasses
 import json
 import threading
 import urllib.error
+import urllib.parse
 import urllib.request
 from html.parser import HTMLParser
 
@@ -145,7 +146,8 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
     live = RunDir.create_or_resume(tmp_path / "runs" / "deep" / "live",
                                    {"plan": {"axes": ["pick_y"], "tasks": ["t"]}, "policy": "standin:noop",
                                     "resolved": {"episodes": 10}, "axes": {"pick_y": {"signed": True}}})  # fmt: skip
-    live.append([rec(0, i) for i in range(3)])
+    write_mp4([np.full((16, 16, 3), 40 * i, np.uint8) for i in range(4)], live.path / "videos" / "a.mp4")
+    live.append([dataclasses.replace(rec(0, i), video="videos/a.mp4" if i == 0 else None) for i in range(3)])
     rows = {r.run: r for r in find_rows(tmp_path / "runs")}
     assert set(rows) == {"done", "deep/live"} and rows["deep/live"].status == "running"
     assert rows["deep/live"].n == "3 of 10"
@@ -165,12 +167,17 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
         index = Page(_get(base + "/"))
         assert index.rows["runs"] == 2 and not external(index.urls)
         assert {"http-equiv": "refresh", "content": "10"} in index.meta  # a run is running: the index reloads
-        assert "/done/report.html" in index.urls and "/live/deep/live" in index.urls
+        assert "/done/report.html" in index.urls and "/live/deep/live/" in index.urls
         assert Page(_get(base + "/done/report.html")).sections[0] == "verdicts"
-        live_page = Page(_get(base + "/live/deep/live"))
+        live_page = Page(_get(base + "/live/deep/live"))  # redirected to /live/deep/live/
         assert (
             live_page.rows["episodes"] == 3 and {"http-equiv": "refresh", "content": "10"} in live_page.meta
         )
+        # the live page's videos load: its relative links resolve inside the run (before: /live/videos/a.mp4, 404)
+        assert live_page.videos == ["videos/a.mp4"]
+        url = urllib.parse.urljoin(base + "/live/deep/live/", live_page.videos[0])
+        with urllib.request.urlopen(url, timeout=20) as r:
+            assert r.read() == (live.path / "videos" / "a.mp4").read_bytes()
         for bad in ("/live/../../etc", "/live/nothing", "/../../etc/passwd"):
             with pytest.raises(urllib.error.HTTPError) as e:
                 _get(base + bad)
