@@ -43,9 +43,12 @@ def kstar_text(a: Mapping[str, Any]) -> str:
     return f"+: {_kstar(b['pos'])}; −: {_kstar(b.get('neg'))}"
 
 
-def _level_rows(a: Mapping[str, Any]) -> str:
-    """One axis's levels: success with its 95 % CI and n (or why there is no rate), errors, the level's verdict."""
-    head = "<tr><th>level</th><th>param</th><th>success</th><th>95% CI</th><th>n</th><th>errors</th><th>verdict</th>"
+def _level_rows(a: Mapping[str, Any], unit: str = "") -> str:
+    """One axis's levels: the parameter (in ``unit``), success with its 95 % CI and n (or why there is no rate),
+    errors, the level's verdict."""
+    param_head = f"param ({esc(unit)})" if unit else "param"
+    head = (f"<tr><th>level</th><th>{param_head}</th><th>success</th><th>95% CI</th><th>n</th><th>errors</th>"
+            "<th>verdict</th>")  # fmt: skip
     rows = []
     for r in a["levels"]:
         param = "—" if r.get("param") is None else f"{r['param']:.4g}"
@@ -63,9 +66,11 @@ def _level_rows(a: Mapping[str, Any]) -> str:
     return f'<table class="levels">{head}</tr>{"".join(rows)}</table>'
 
 
-def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str] = ()) -> Section:
+def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str] = (),
+                    units: Mapping[str, str] | None = None) -> Section:  # fmt: skip
     """The page's first section: what the study cannot answer, then per run and axis k* per direction, the verdict
-    sentence, the tasks pooled and each level's rate with its CI and n (the claims report.md makes)."""
+    sentence, the tasks pooled and each level's rate with its CI and n (the claims report.md makes); ``units``: each
+    axis's parameter unit (the manifest's)."""
     body = [f'<div class="caveat">{markdown_html(c)}</div>' for c in report_caveats(list(summaries))]
     axes = list(order) or sorted({a for _, s in summaries for a in s["axes"]})
     for axis in axes:
@@ -88,7 +93,7 @@ def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: S
                 f'<p class="note">{esc(pooled_text(a.get("pooled_tasks") or []))}; success with {esc(CI_NAMES.get(s["ci"], s["ci"]))} '
                 "95 % CI; n = finished episodes (errors counted beside it); one run: nothing is paired here "
                 "(indgen compare pairs runs).</p>"
-                f"{_level_rows(a)}</div>"
+                f"{_level_rows(a, (units or {}).get(axis) or '')}</div>"
             )
     return Section("verdicts", "Verdicts", "".join(body))
 
@@ -205,8 +210,10 @@ def run_page_sections(run_path: Path, manifest: Mapping[str, Any], summary: Mapp
     """Every section of one run's page, verdicts first."""
     rows = episode_rows(episodes)
     one = [(label, summary)]
+    axes = manifest.get("axes") or {}
+    units = {ax: str(spec.get("unit") or "") for ax, spec in axes.items() if isinstance(spec, Mapping)}
     return [
-        verdict_section(one, order),
+        verdict_section(one, order, units),
         plots_section(run_path / "plots"),
         preview_section(run_path, manifest, order),
         videos_section(run_path, rows, bool(manifest.get("real"))),

@@ -234,11 +234,13 @@ def test_the_index_row_of_a_comparison_names_its_tasks_and_filters_by_its_own_co
 def test_a_real_run_page_points_at_its_protocol_not_at_simulator_commands(tmp_path):
     """A real-robot run (manifest "real"): no `indgen preview --scene real:...` hint (that command refuses real
     scenes), the videos hint names `indgen real record --video`, and its failure modes are the operator's."""
-    run = make_run(
-        tmp_path / "real", {0: (4, 5), 1: (0, 5)}, scene="real:stack", real={"setup_name": "stack"}
-    )
+    run = make_run(tmp_path / "real", {0: (4, 5), 1: (0, 5)}, scene="real:stack", real={"setup_name": "stack"},
+                   axes={"pick_y": {"signed": True, "unit": "in"}})  # fmt: skip
     assert main(["report", str(run.path)]) == 0
     text = (run.path / "report.html").read_text()
+    assert (
+        "<th>param (in)</th>" in text[: text.index('id="plots"')]
+    )  # the level table's parameter has its unit
     preview = text[text.index('id="preview"') : text.index('id="videos"')]
     assert "indgen preview" not in preview and '<a href="protocol.md">protocol.md</a>' in preview
     assert "indgen real record --video" in text[text.index('id="videos"') : text.index('id="failures"')]
