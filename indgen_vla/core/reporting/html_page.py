@@ -26,10 +26,11 @@ body{margin:0;font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-seri
 header{padding:14px 24px;border-bottom:1px solid var(--line);background:var(--soft)}
 header h1{margin:0;font-size:20px}
 header p{margin:4px 0 0;color:var(--muted)}
-nav{padding:6px 24px;border-bottom:1px solid var(--line);position:sticky;top:0;background:var(--bg);z-index:2}
+nav{padding:6px 24px;border-bottom:1px solid var(--line);position:sticky;top:0;background:var(--bg);z-index:2;
+white-space:nowrap;overflow-x:auto}
 nav a{margin-right:14px;color:var(--acc);text-decoration:none;font-size:13px}
 main{padding:8px 24px 40px;max-width:1400px}
-section{margin:18px 0 26px}
+section{margin:18px 0 26px;scroll-margin-top:44px}
 section>h2{font-size:17px;border-bottom:2px solid var(--line);padding-bottom:4px}
 h3{font-size:15px;margin:16px 0 6px}h4{font-size:14px;margin:14px 0 6px}
 header,main{overflow-wrap:break-word}
