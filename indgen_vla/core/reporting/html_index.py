@@ -12,6 +12,7 @@ from pathlib import Path
 
 from indgen_vla.core.reporting.html_page import HTML_REPORT, Section, esc, render_page, table_html
 from indgen_vla.core.runs.records import EPISODES, JOURNAL, MANIFEST, SUMMARY
+from indgen_vla.core.stats.metrics import pooled_text
 
 LIVE_S = 120.0  # a run whose episodes changed this recently counts as running
 REFRESH_S = 10  # the index and a live run's page reload this often while a run is running
@@ -154,7 +155,11 @@ def comparison_row(folder: Path, root: Path) -> IndexRow:
     )
     pair = " vs ".join(x for x in (c.get("label_a"), c.get("label_b")) if x)
     axes = c.get("axes") or {}  # the tasks each compared axis's rates pool (its verdict's claim)
-    tasks = [(a, x["tasks"]) for a, x in axes.items() if isinstance(x, dict) and x.get("tasks")]
+    tasks = [  # a two-run comparison's text ("task milk"); a group comparison's list
+        (a, x["tasks"] if isinstance(x["tasks"], str) else pooled_text(list(x["tasks"])))
+        for a, x in axes.items()
+        if isinstance(x, dict) and x.get("tasks")
+    ]
     pooled = tasks[0][1] if len(tasks) == 1 else "; ".join(f"{a}: {t}" for a, t in tasks)
     return IndexRow(run=rel, kind="comparison" if c else "overlay", policy=pair, scene="", axes=", ".join(c.get("axes") or []),
                     tasks=pooled, kstar="", n="", status=_clip(str(c.get("verdict", ""))), date=date,

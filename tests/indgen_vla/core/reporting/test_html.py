@@ -223,8 +223,10 @@ def test_the_index_row_of_a_comparison_names_its_tasks_and_filters_by_its_own_co
     a = make_run(tmp_path / "runs" / "a", {0: (6, 6), 1: (5, 6)})
     b = make_run(tmp_path / "runs" / "b", {0: (6, 6), 1: (0, 6)}, regime="h+mg")
     assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "runs" / "cmp")]) == 0
+    args = ["compare", "--a", str(a.path), "--b", str(b.path), "--out", str(tmp_path / "runs" / "groups")]
+    assert main(args) == 0  # a group comparison's compare.json lists its tasks: the same words
     rows = {r.run: r for r in find_rows(tmp_path / "runs")}
-    assert rows["cmp"].kind == "comparison" and rows["cmp"].tasks == "task t"
+    assert rows["cmp"].kind == "comparison" and rows["cmp"].tasks == "task t" == rows["groups"].tasks
     from indgen_vla.core.reporting.html_index import index_page
 
     text = index_page(tmp_path / "runs", list(rows.values()))
