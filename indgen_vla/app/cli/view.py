@@ -51,8 +51,20 @@ class _Handler(SimpleHTTPRequestHandler):
             return self._send(index_page(root, find_rows(root)))
         if path.startswith("/live/"):
             run = (root / path[len("/live/") :].strip("/")).resolve()
-            if (root != run and root not in run.parents) or not (run / "manifest.json").is_file():
+            inside, raw = root == run or root in run.parents, urlsplit(self.path).path  # raw: still quoted
+            # a file the live page links relatively (videos/, protocol.md) is the run's own: /RUN/...
+            if inside and run.is_file():
+                self.path = raw[len("/live") :]
+                return super().do_GET()
+            if not inside or not (run / "manifest.json").is_file():
                 return self.send_error(HTTPStatus.NOT_FOUND, "no run directory there")
+            # the page lives at /live/RUN/, so that its relative links (videos/x.mp4) stay inside the run
+            if not raw.endswith("/"):
+                self.send_response(HTTPStatus.MOVED_PERMANENTLY)
+                self.send_header("Location", raw + "/")
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return None
             try:
                 from indgen_vla.core.reporting.live_page import live_page  # lazy: start-up (numpy)
 

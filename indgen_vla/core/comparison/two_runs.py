@@ -372,7 +372,8 @@ def _write(out: Path, result: dict, plots: list[tuple[str, str, list]], gamma: f
         plot_progress(curves, axis, out / "plots" / f"{stem}_progress.png")
 
     pools = [f"Tasks pooled (`{a}`): {x['tasks']}" for a, x in result["axes"].items() if x.get("tasks")]
-    verdicts = [result["verdict"], f"Test: {pairing_note(result)}", *pools]
+    sides = f"A = `{result['label_a']}`, B = `{result['label_b']}` (B − A: B's rate minus A's)"
+    verdicts = [result["verdict"], sides, f"Test: {pairing_note(result)}", *pools]
     title = f"Comparison: {result['label_a']} vs {result['label_b']}"
     markdown_page(out, title, markdown(result), verdicts, out / "plots", caveats=result["caveats"])
 

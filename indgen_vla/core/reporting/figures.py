@@ -22,6 +22,9 @@ AXES_PLOT = (
 )
 PANELS_PER_ROW = 4  # the paper's Fig. 3/4 row; a report with more axes wraps onto further rows
 KSTAR_LABEL = "k* (first level below γ)"
+NO_RATE = (
+    "no level has enough data for a rate yet\n(every level is below the data floor: see the levels table)"
+)
 
 
 def _once(shown: set[str], label: str) -> str | None:
@@ -83,7 +86,13 @@ def draw_curves(
                 ax.plot([r["level"] for r in tr], [r["rate"] for r in tr], color=colour, alpha=0.25, lw=0.8,
                         zorder=1, label=f"{label}: single tasks ({len(per_task)})" if j == 0 else None)  # fmt: skip
     ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
-    _level_axis(ax, levels, signed)
+    if (
+        not levels
+    ):  # every level below the data floor: say so over the levels run, not over a blank ±0.04 axis
+        ax.text(
+            0.5, 0.5, NO_RATE, transform=ax.transAxes, ha="center", va="center", color="dimgrey", fontsize=8
+        )
+    _level_axis(ax, levels or sorted({r["level"] for _, a in curves for r in a["levels"]}), signed)
     return levels, signed
 
 

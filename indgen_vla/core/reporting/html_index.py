@@ -12,6 +12,7 @@ from pathlib import Path
 
 from indgen_vla.core.reporting.html_page import HTML_REPORT, Section, esc, render_page, table_html
 from indgen_vla.core.runs.records import EPISODES, JOURNAL, MANIFEST, SUMMARY
+from indgen_vla.core.stats.metrics import pooled_text
 
 LIVE_S = 120.0  # a run whose episodes changed this recently counts as running
 REFRESH_S = 10  # the index and a live run's page reload this often while a run is running
@@ -121,7 +122,7 @@ def run_row(run: Path, root: Path, now: float) -> IndexRow:
     status = run_status(run, n, None if adaptive else planned, now)
     rel = run.relative_to(root).as_posix() if run != root else "."
     live = status == "running" or not (run / HTML_REPORT).exists()
-    href = f"/live/{rel}" if live else f"/{rel}/{HTML_REPORT}".replace("/./", "/")
+    href = f"/live/{rel}/".replace("/./", "/") if live else f"/{rel}/{HTML_REPORT}".replace("/./", "/")
     of = f" of {planned}" + (" max (adaptive)" if adaptive else "") if planned else ""
     regime = f" ({m['data_regime']})" if m.get("data_regime") else ""
     return IndexRow(run=rel, kind="run", policy=f"{m.get('policy', '')}{regime}", scene=str(m.get("scene", "")),
@@ -153,8 +154,15 @@ def comparison_row(folder: Path, root: Path) -> IndexRow:
         "%Y-%m-%d %H:%M UTC", time.gmtime(_mtime(folder / HTML_REPORT, folder / "report.md"))
     )
     pair = " vs ".join(x for x in (c.get("label_a"), c.get("label_b")) if x)
+    axes = c.get("axes") or {}  # the tasks each compared axis's rates pool (its verdict's claim)
+    tasks = [  # a two-run comparison's text ("task milk"); a group comparison's list
+        (a, x["tasks"] if isinstance(x["tasks"], str) else pooled_text(list(x["tasks"])))
+        for a, x in axes.items()
+        if isinstance(x, dict) and x.get("tasks")
+    ]
+    pooled = tasks[0][1] if len(tasks) == 1 else "; ".join(f"{a}: {t}" for a, t in tasks)
     return IndexRow(run=rel, kind="comparison" if c else "overlay", policy=pair, scene="", axes=", ".join(c.get("axes") or []),
-                    tasks="", kstar="", n="", status=_clip(str(c.get("verdict", ""))), date=date,
+                    tasks=pooled, kstar="", n="", status=_clip(str(c.get("verdict", ""))), date=date,
                     href=f"/{rel}/{HTML_REPORT}")  # fmt: skip
 
 
@@ -180,7 +188,8 @@ def index_page(root: Path, rows: Sequence[IndexRow]) -> str:
             "its report.html (a running run, or one without a report yet, opens a live page built from its "
             f"episodes so far).{f' This page reloads every {REFRESH_S} s while a run is running.' if live else ''}"
             "</p>")  # fmt: skip
-    table = table_html("runs", COLUMNS, [r.cells() for r in rows], links={"run": "_href"}) if rows else (
+    table = table_html("runs", COLUMNS, [r.cells() for r in rows], links={"run": "_href"},
+                       example="status=running scene=pick_place") if rows else (
         '<p class="note">No run directories here yet (a run directory holds manifest.json).</p>')  # fmt: skip
     return render_page("indgen runs", [Section("runs", "Runs", note + table)], str(root),
                        REFRESH_S if live else None)  # fmt: skip

@@ -26,16 +26,21 @@ body{margin:0;font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-seri
 header{padding:14px 24px;border-bottom:1px solid var(--line);background:var(--soft)}
 header h1{margin:0;font-size:20px}
 header p{margin:4px 0 0;color:var(--muted)}
-nav{padding:6px 24px;border-bottom:1px solid var(--line);position:sticky;top:0;background:var(--bg);z-index:2}
+nav{padding:6px 24px;border-bottom:1px solid var(--line);position:sticky;top:0;background:var(--bg);z-index:2;
+white-space:nowrap;overflow-x:auto}
 nav a{margin-right:14px;color:var(--acc);text-decoration:none;font-size:13px}
 main{padding:8px 24px 40px;max-width:1400px}
-section{margin:18px 0 26px}
+section{margin:18px 0 26px;scroll-margin-top:44px}
 section>h2{font-size:17px;border-bottom:2px solid var(--line);padding-bottom:4px}
 h3{font-size:15px;margin:16px 0 6px}h4{font-size:14px;margin:14px 0 6px}
+header,main{overflow-wrap:break-word}
 table{border-collapse:collapse;margin:8px 0;font-size:13px}
+main table:not(.sortable){display:block;max-width:100%;overflow-x:auto}
+table.levels td{white-space:nowrap}
 th,td{border:1px solid var(--line);padding:3px 8px;text-align:left;vertical-align:top}
 th{background:var(--soft)}
 code{background:var(--soft);padding:0 3px;border-radius:3px}
+pre{max-width:100%;overflow-x:auto}
 .verdict{border-left:4px solid var(--acc);background:var(--soft);padding:8px 12px;margin:10px 0}
 .verdict p{margin:4px 0}
 .note{color:var(--muted)}
@@ -46,7 +51,7 @@ figure img{max-width:100%;border:1px solid var(--line)}
 figcaption{color:var(--muted);font-size:12px}
 video{width:256px;border:1px solid var(--line);background:#000}
 .tablebar{margin:8px 0}
-.tablebar input{width:360px;padding:4px 6px;font:inherit}
+.tablebar input{width:480px;max-width:100%;padding:4px 6px;font:inherit}
 table.sortable th{cursor:pointer;user-select:none;white-space:nowrap}
 table.sortable th[aria-sort=ascending]::after{content:" \\25B2"}
 table.sortable th[aria-sort=descending]::after{content:" \\25BC"}
@@ -149,9 +154,11 @@ def table_html(
     *,
     links: Mapping[str, str] | None = None,
     filterable: bool = True,
+    example: str = "level=2 success=false",
 ) -> str:
     """A sortable (and with ``filterable`` filterable) table; ``links`` maps a column to the row key holding its
-    href (a relative path). Cells that read as numbers sort as numbers."""
+    href (a relative path). Cells that read as numbers sort as numbers. ``example``: a filter on this table's own
+    columns, shown in the empty box."""
     links = links or {}
     head = "".join(f"<th>{esc(c)}</th>" for c in columns)
     body = []
@@ -167,7 +174,7 @@ def table_html(
     if filterable:
         bar = (
             f'<div class="tablebar"><input id="{table_id}-filter" type="search" placeholder="filter: words, or '
-            f'column=value (e.g. level=2 success=false)"> <span id="{table_id}-count" class="note">{len(rows)} '
+            f'column=value (e.g. {esc(example)})"> <span id="{table_id}-count" class="note">{len(rows)} '
             "rows</span></div>"
         )
     return (

@@ -43,9 +43,12 @@ def kstar_text(a: Mapping[str, Any]) -> str:
     return f"+: {_kstar(b['pos'])}; −: {_kstar(b.get('neg'))}"
 
 
-def _level_rows(a: Mapping[str, Any]) -> str:
-    """One axis's levels: success with its 95 % CI and n (or why there is no rate), errors, the level's verdict."""
-    head = "<tr><th>level</th><th>param</th><th>success</th><th>95% CI</th><th>n</th><th>errors</th><th>verdict</th>"
+def _level_rows(a: Mapping[str, Any], unit: str = "") -> str:
+    """One axis's levels: the parameter (in ``unit``), success with its 95 % CI and n (or why there is no rate),
+    errors, the level's verdict."""
+    param_head = f"param ({esc(unit)})" if unit else "param"
+    head = (f"<tr><th>level</th><th>{param_head}</th><th>success</th><th>95% CI</th><th>n</th><th>errors</th>"
+            "<th>verdict</th>")  # fmt: skip
     rows = []
     for r in a["levels"]:
         param = "—" if r.get("param") is None else f"{r['param']:.4g}"
@@ -60,12 +63,14 @@ def _level_rows(a: Mapping[str, Any]) -> str:
             ci = f"[{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]"
         cells = (r["level"], param, rate, ci, r["n"], r.get("errors", 0), r.get("decision") or "")
         rows.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>")
-    return f"<table>{head}</tr>{''.join(rows)}</table>"
+    return f'<table class="levels">{head}</tr>{"".join(rows)}</table>'
 
 
-def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str] = ()) -> Section:
+def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str] = (),
+                    units: Mapping[str, str] | None = None) -> Section:  # fmt: skip
     """The page's first section: what the study cannot answer, then per run and axis k* per direction, the verdict
-    sentence, the tasks pooled and each level's rate with its CI and n (the claims report.md makes)."""
+    sentence, the tasks pooled and each level's rate with its CI and n (the claims report.md makes); ``units``: each
+    axis's parameter unit (the manifest's)."""
     body = [f'<div class="caveat">{markdown_html(c)}</div>' for c in report_caveats(list(summaries))]
     axes = list(order) or sorted({a for _, s in summaries for a in s["axes"]})
     for axis in axes:
@@ -75,14 +80,20 @@ def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: S
                 continue
             who = f" — {esc(label)}" if len(summaries) > 1 else ""
             verdict = verdict_line(a["verdict"], a["signed"]) if "verdict" in a else "—"
+            # is k* decided? report.md's "k* status" row and the index's k* cell say so; so does the page
+            st = a.get("kstar_status") or {}
+            status = "; ".join(
+                f"{'+' if d == 'pos' else '−'}: {st[d]['text']}" for d in ("pos", "neg") if d in st
+            )
             body.append(
                 f'<div class="verdict"><h3>Axis <code>{esc(axis)}</code>{who}</h3>'
                 f"<p><b>k*</b> (first level with success &lt; γ = {esc(s['gamma'])}): {esc(kstar_text(a))}</p>"
-                f"<p><b>verdict</b>: {esc(verdict)}</p>"
+                + (f"<p><b>k* status</b>: {esc(status)}</p>" if status else "")
+                + f"<p><b>verdict</b>: {esc(verdict)}</p>"
                 f'<p class="note">{esc(pooled_text(a.get("pooled_tasks") or []))}; success with {esc(CI_NAMES.get(s["ci"], s["ci"]))} '
                 "95 % CI; n = finished episodes (errors counted beside it); one run: nothing is paired here "
                 "(indgen compare pairs runs).</p>"
-                f"{_level_rows(a)}</div>"
+                f"{_level_rows(a, (units or {}).get(axis) or '')}</div>"
             )
     return Section("verdicts", "Verdicts", "".join(body))
 
@@ -103,11 +114,16 @@ def plots_section(plots: Path, missing: str = "no plots yet") -> Section:
 
 
 def preview_section(run_path: Path, manifest: Mapping[str, Any], axes: Sequence[str]) -> Section:
-    """The level preview sheets of the run (what the policy sees at t = 0 per level), or the command that makes them."""
+    """The level preview sheets of the run (what the policy sees at t = 0 per level), or the command that makes them
+    (a real run: the operator's protocol instead; ``indgen preview`` renders simulated scenes only)."""
     sheets = sorted((run_path / PREVIEW_DIR).glob("*.png")) if (run_path / PREVIEW_DIR).is_dir() else []
     if sheets:
         return Section("preview", "Level preview", "".join(image_html(p, f"t = 0 at each level: {p.stem}")
                                                              for p in sheets))  # fmt: skip
+    if manifest.get("real"):
+        return Section("preview", "Level preview", '<p class="note">A real-robot run: each level\'s set-up is in '
+                       '<a href="protocol.md">protocol.md</a> (the operator\'s sheet); there is no simulated '
+                       "preview.</p>")  # fmt: skip
     levels = (manifest.get("plan") or {}).get("levels") or {}
     cmds = []
     for axis in axes:
@@ -120,8 +136,9 @@ def preview_section(run_path: Path, manifest: Mapping[str, Any], axes: Sequence[
                    f"policy), then re-run <code>indgen report {esc(run_path)}</code>:</p>{hint}")  # fmt: skip
 
 
-def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section:
-    """Example videos per axis and level, successes beside failures (runs made with --video)."""
+def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]], real: bool = False) -> Section:
+    """Example videos per axis and level, successes beside failures (runs made with --video; a real run's verdicts
+    recorded with a video)."""
     cells: dict[tuple, dict[bool, list]] = {}
     for r in rows:
         if r.get("video") and (run_path / str(r["video"])).is_file():
@@ -129,8 +146,9 @@ def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section
                 r
             )
     if not cells:
-        return Section("videos", "Example videos", '<p class="note">No videos in this run (evaluate with --video '
-                       "records some per level).</p>")  # fmt: skip
+        how = ("indgen real record --video PATH or --video-pattern attaches one to each verdict" if real else
+               "evaluate with --video records some per level")  # fmt: skip
+        return Section("videos", "Example videos", f'<p class="note">No videos in this run ({how}).</p>')
     head = "<tr><th>axis</th><th>level</th><th>success</th><th>failure</th></tr>"
     out = []
     for (axis, level), by in sorted(cells.items()):
@@ -144,8 +162,10 @@ def videos_section(run_path: Path, rows: Sequence[Mapping[str, Any]]) -> Section
     return Section("videos", "Example videos", f"<table>{head}{''.join(out)}</table>")
 
 
-def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str]) -> Section:
-    """Per run and axis, episodes per failure mode at each level (``none`` = success; modes that occur only)."""
+def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: Sequence[str],
+                     real: bool = False) -> Section:  # fmt: skip
+    """Per run and axis, episodes per failure mode at each level (``none`` = success; modes that occur only); who
+    classified them: the scene, or a real run's operator."""
     out = []
     for axis in order:
         for label, s in summaries:
@@ -163,8 +183,10 @@ def failures_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: 
             who = f" — {esc(label)}" if len(summaries) > 1 else ""
             out.append(f"<h3>Axis <code>{esc(axis)}</code>{who}</h3><table>{head}{body}</table>")
     text = "".join(out) or '<p class="note">No failure modes classified in this run.</p>'
-    return Section("failures", "Failure modes", text + '<p class="note">Modes are classified by the scene from '
-                   "simulator state the policy never sees; <code>none</code> = success.</p>")  # fmt: skip
+    who = ("given by the operator with each verdict (<code>unclassified</code>: a failure without a mode)" if real
+           else "classified by the scene from simulator state the policy never sees")  # fmt: skip
+    return Section("failures", "Failure modes", f'{text}<p class="note">Modes are {who}; <code>none</code> = '
+                   "success.</p>")  # fmt: skip
 
 
 def episode_rows(episodes) -> list[dict[str, Any]]:
@@ -188,12 +210,14 @@ def run_page_sections(run_path: Path, manifest: Mapping[str, Any], summary: Mapp
     """Every section of one run's page, verdicts first."""
     rows = episode_rows(episodes)
     one = [(label, summary)]
+    axes = manifest.get("axes") or {}
+    units = {ax: str(spec.get("unit") or "") for ax, spec in axes.items() if isinstance(spec, Mapping)}
     return [
-        verdict_section(one, order),
+        verdict_section(one, order, units),
         plots_section(run_path / "plots"),
         preview_section(run_path, manifest, order),
-        videos_section(run_path, rows),
-        failures_section(one, order),
+        videos_section(run_path, rows, bool(manifest.get("real"))),
+        failures_section(one, order, bool(manifest.get("real"))),
         episodes_section(rows),
         Section("report", "Full report (report.md)", markdown_html(markdown)),
     ]

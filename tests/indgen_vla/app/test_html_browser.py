@@ -84,3 +84,30 @@ def test_index_and_report_load_cleanly_in_chromium(tmp_path, browser):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_pages_fit_a_phone_wide_screen(tmp_path, browser):
+    """At 400 px the page never scrolls sideways: a long policy label wraps in the title, and the level, compare and
+    report.md tables scroll inside their own box; the nav bar's links land each heading below the bar."""
+    label = "lerobot:checkpoints/a_policy_name_far_too_long_for_one_phone_wide_line"
+    a = make_run(tmp_path / "a", {-1: (5, 6), 0: (6, 6), 1: (2, 6)}, policy=label)
+    b = make_run(tmp_path / "b", {-1: (6, 6), 0: (6, 6), 1: (6, 6)}, regime="h+mg")
+    assert main(["report", str(a.path)]) == 0
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "cmp")]) == 0
+    for page in (a.path / "report.html", tmp_path / "cmp" / "report.html"):
+        s = browser.open(page.as_uri())
+        browser.call(
+            "Emulation.setDeviceMetricsOverride", s, width=400, height=900, deviceScaleFactor=1, mobile=False
+        )
+        width = browser.evaluate(
+            s, "[document.documentElement.scrollWidth, document.documentElement.clientWidth]"
+        )
+        assert width == [400, 400], (page, width)
+        _shot(browser, s, f"narrow_{page.parent.name}.png")
+        # a nav link scrolls its section's heading into view below the sticky nav bar, not under it
+        covered = browser.evaluate(s, """(async () => { const out = [];
+          for (const a of document.querySelectorAll('nav a')) { a.click(); await new Promise(f => setTimeout(f, 50));
+            const h = document.querySelector(a.getAttribute('href') + ' > h2').getBoundingClientRect().top;
+            if (h < document.querySelector('nav').getBoundingClientRect().bottom) out.push(a.getAttribute('href')); }
+          return out; })()""")  # fmt: skip
+        assert covered == [], (page, covered)

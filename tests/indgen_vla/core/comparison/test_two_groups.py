@@ -137,6 +137,12 @@ def test_cli_compares_groups(tmp_path, capsys):
     assert res["test"] == "mcnemar_exact_stratified" and "h+mg" in res["verdicts"]["pick_y"]
     md = (tmp_path / "c" / "compare.md").read_text()
     assert "## Axis `pick_y`" in md and res["reads_observations"] == {"a": None, "b": False}
+    page = (tmp_path / "c" / "report.html").read_text()  # its verdicts name the run directories of each side
+    verdicts = page[page.index('id="verdicts"') : page.index('id="report"')]
+    assert (
+        f"A = <code>h-only</code>: <code>{a[0].path}</code>, <code>{a[1].path}</code>; B = <code>h+mg</code>"
+        in verdicts
+    )
     assert md.splitlines()[2].startswith(
         "**Cannot answer** (h+mg (B)): the policy declares it reads no observation"
     )

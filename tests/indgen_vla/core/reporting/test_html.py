@@ -4,6 +4,7 @@ import dataclasses
 import json
 import threading
 import urllib.error
+import urllib.parse
 import urllib.request
 from html.parser import HTMLParser
 
@@ -90,6 +91,10 @@ def test_a_run_report_writes_a_self_contained_report_html(tmp_path):
     )
     summary = json.loads((run.path / "summary.json").read_text())
     assert summary["axes"]["pick_y"]["verdict"]["pos"] in verdicts.replace("&#x27;", "'")
+    status = summary["axes"]["pick_y"][
+        "kstar_status"
+    ]  # whether k* is decided: report.md's row, said here too
+    assert f"<b>k* status</b>: +: {status['pos']['text']}; −: {status['neg']['text']}" in verdicts
     assert "no_grasp" in text[text.index('id="failures"') :]
     preview = text[text.index('id="preview"') : text.index('id="videos"')]
     assert (
@@ -114,6 +119,8 @@ def test_overlay_and_compare_pages_carry_their_verdicts(tmp_path):
     assert Page(text).sections == ["verdicts", "plots", "report"]
     assert result["verdict"].split(":")[0] in text and "paired episode by episode" in text
     verdicts = text[text.index('id="verdicts"') : text.index('id="plots"')]
+    # the verdict's "B − A" names its runs before the full report does
+    assert f"A = <code>{result['label_a']}</code>, B = <code>{result['label_b']}</code>" in verdicts
     assert (
         verdicts.count('class="caveat"') == len(result["caveats"]) >= 1
     )  # too few pairs: said first, in red
@@ -139,7 +146,8 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
     live = RunDir.create_or_resume(tmp_path / "runs" / "deep" / "live",
                                    {"plan": {"axes": ["pick_y"], "tasks": ["t"]}, "policy": "standin:noop",
                                     "resolved": {"episodes": 10}, "axes": {"pick_y": {"signed": True}}})  # fmt: skip
-    live.append([rec(0, i) for i in range(3)])
+    write_mp4([np.full((16, 16, 3), 40 * i, np.uint8) for i in range(4)], live.path / "videos" / "a.mp4")
+    live.append([dataclasses.replace(rec(0, i), video="videos/a.mp4" if i == 0 else None) for i in range(3)])
     rows = {r.run: r for r in find_rows(tmp_path / "runs")}
     assert set(rows) == {"done", "deep/live"} and rows["deep/live"].status == "running"
     assert rows["deep/live"].n == "3 of 10"
@@ -159,12 +167,17 @@ def test_view_serves_the_index_reports_and_live_runs_on_loopback_only(tmp_path, 
         index = Page(_get(base + "/"))
         assert index.rows["runs"] == 2 and not external(index.urls)
         assert {"http-equiv": "refresh", "content": "10"} in index.meta  # a run is running: the index reloads
-        assert "/done/report.html" in index.urls and "/live/deep/live" in index.urls
+        assert "/done/report.html" in index.urls and "/live/deep/live/" in index.urls
         assert Page(_get(base + "/done/report.html")).sections[0] == "verdicts"
-        live_page = Page(_get(base + "/live/deep/live"))
+        live_page = Page(_get(base + "/live/deep/live"))  # redirected to /live/deep/live/
         assert (
             live_page.rows["episodes"] == 3 and {"http-equiv": "refresh", "content": "10"} in live_page.meta
         )
+        # the live page's videos load: its relative links resolve inside the run (before: /live/videos/a.mp4, 404)
+        assert live_page.videos == ["videos/a.mp4"]
+        url = urllib.parse.urljoin(base + "/live/deep/live/", live_page.videos[0])
+        with urllib.request.urlopen(url, timeout=20) as r:
+            assert r.read() == (live.path / "videos" / "a.mp4").read_bytes()
         for bad in ("/live/../../etc", "/live/nothing", "/../../etc/passwd"):
             with pytest.raises(urllib.error.HTTPError) as e:
                 _get(base + bad)
@@ -202,3 +215,40 @@ def test_the_index_says_kstar_in_the_reports_words(tmp_path):
     cell = kstar_cell(s)
     assert cell == f"pick_y +: {a['kstar_status']['pos']['text']}; −: {a['kstar_status']['neg']['text']}"
     assert "+: k* = +2, determined" in cell and "−: k* ∈ [-2, -1]" in cell
+
+
+def test_the_index_row_of_a_comparison_names_its_tasks_and_filters_by_its_own_columns(tmp_path):
+    """A comparison's row says which tasks its verdict pools (compare.json), as a run's row does; the filter box's
+    example uses the index's columns, not the episodes table's level/success."""
+    a = make_run(tmp_path / "runs" / "a", {0: (6, 6), 1: (5, 6)})
+    b = make_run(tmp_path / "runs" / "b", {0: (6, 6), 1: (0, 6)}, regime="h+mg")
+    assert main(["compare", str(a.path), str(b.path), "--out", str(tmp_path / "runs" / "cmp")]) == 0
+    args = ["compare", "--a", str(a.path), "--b", str(b.path), "--out", str(tmp_path / "runs" / "groups")]
+    assert main(args) == 0  # a group comparison's compare.json lists its tasks: the same words
+    rows = {r.run: r for r in find_rows(tmp_path / "runs")}
+    assert rows["cmp"].kind == "comparison" and rows["cmp"].tasks == "task t" == rows["groups"].tasks
+    from indgen_vla.core.reporting.html_index import index_page
+
+    text = index_page(tmp_path / "runs", list(rows.values()))
+    assert "e.g. status=running scene=pick_place" in text and "level=2" not in text
+
+
+def test_a_real_run_page_points_at_its_protocol_not_at_simulator_commands(tmp_path):
+    """A real-robot run (manifest "real"): no `indgen preview --scene real:...` hint (that command refuses real
+    scenes), the videos hint names `indgen real record --video`, and its failure modes are the operator's."""
+    run = make_run(tmp_path / "real", {0: (4, 5), 1: (0, 5)}, scene="real:stack", real={"setup_name": "stack"},
+                   axes={"pick_y": {"signed": True, "unit": "in"}})  # fmt: skip
+    assert main(["report", str(run.path)]) == 0
+    text = (run.path / "report.html").read_text()
+    assert (
+        "<th>param (in)</th>" in text[: text.index('id="plots"')]
+    )  # the level table's parameter has its unit
+    preview = text[text.index('id="preview"') : text.index('id="videos"')]
+    assert "indgen preview" not in preview and '<a href="protocol.md">protocol.md</a>' in preview
+    assert "indgen real record --video" in text[text.index('id="videos"') : text.index('id="failures"')]
+    failures = text[text.index('id="failures"') : text.index('id="episodes"')]
+    assert "given by the operator" in failures and "simulator state" not in failures
+    sim = make_run(tmp_path / "sim", {0: (4, 5), 1: (0, 5)}, scene="pick_place")
+    assert main(["report", str(sim.path)]) == 0
+    text = (sim.path / "report.html").read_text()
+    assert "indgen preview --scene pick_place" in text and "evaluate with --video" in text

@@ -72,3 +72,48 @@ def test_series_plots_keep_their_legends_off_the_curves_and_say_n_per_point(tmp_
     _legend_clear(fig, [f"L{k}" for k in range(-3, 4)] + ["γ"])
     assert "n = 10 per point" in fig.axes[0].get_title()
     _legend_clear(fig2, ["k* (+)", "k* (−)"])
+
+
+def _axis(tmp_path, counts):
+    from indgen_vla.core.reporting.summary import summarize
+
+    run = make_run(tmp_path, counts)
+    return summarize(run.episodes(), run.manifest, 0.2)["axes"]["pick_y"]
+
+
+def test_a_run_without_a_rate_plots_its_levels_and_says_why_it_is_empty(tmp_path):
+    """Every level below the data floor (n = 3): the success plot's ticks are the levels run and its text says why
+    nothing is drawn, in the PNG and in the SVG (before: a blank axis ticked -0.04..0.04, and '0' alone)."""
+    from matplotlib.figure import Figure
+
+    from indgen_vla.core.reporting.figures import NO_RATE, draw_curves
+    from indgen_vla.core.reporting.svg_plot import axis_svg
+
+    a = _axis(tmp_path, {-1: (3, 3), 0: (3, 3), 1: (0, 3)})
+    ax = Figure().subplots()
+    assert draw_curves(ax, [("run", a)], 0.2)[0] == []
+    assert list(ax.get_xticks()) == [-1, 0, 1] and [t.get_text() for t in ax.texts] == [NO_RATE]
+    svg = axis_svg("run", a, "pick_y", 0.2)
+    assert all(f">{line}</text>" in svg for line in NO_RATE.split("\n"))
+    assert all(f'text-anchor="middle">{k}</text>' in svg for k in (-1, 0, 1))
+
+
+def test_the_svg_caption_wraps_a_long_label_inside_the_figure(tmp_path):
+    """The run's label, n and tasks, then the key: lines of at most CAPTION_CHARS that together hold the whole label,
+    each inside the figure (before: one 200-character line cut at both edges)."""
+    import re
+
+    from indgen_vla.core.reporting.svg_plot import CAPTION_CHARS, axis_svg
+
+    a = _axis(tmp_path, {-1: (5, 6), 0: (6, 6), 1: (1, 6)})
+    label = "h-only / lerobot:checkpoints/act_pick_place_human_trained_on_a_great_many_demonstrations_v2"
+    svg = axis_svg(label, a, "pick_y", 0.2, "wilson")
+    height = int(re.search(r'height="(\d+)"', svg).group(1))
+    caption = re.findall(
+        r'<text x="[\d.]+" y="([\d.]+)" text-anchor="middle" font-size="10">([^<]*)</text>', svg
+    )
+    assert len(caption) >= 3 and all(len(t) <= CAPTION_CHARS and float(y) < height - 3 for y, t in caption)
+    assert " ".join(t for _, t in caption).startswith(
+        f"{label} (n = 6 per level; task t) shaded: Wilson 95 % CI"
+    )
+    assert caption[-1][1].endswith("ringed: k* (first level below γ)")
