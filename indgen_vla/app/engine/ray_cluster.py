@@ -181,6 +181,10 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
     start = start or (lambda init: init())
     address = os.environ.get("RAY_ADDRESS", "").strip()
     if address:
+        if address.startswith(("http://", "https://")):  # Ray's own message ends in 'To fix this, either:'
+            raise ConfigError(f"RAY_ADDRESS={address} is the dashboard's (job API) address, which 'ray job submit "
+                              "--address' takes; indgen joins the head's GCS address HOST:PORT (6379 unless "
+                              "'ray start --head --port' said otherwise; docs/cluster.md)")  # fmt: skip
         if silent := unanswered(address):
             raise ConfigError(f"RAY_ADDRESS={address}: no Ray cluster answers there ({silent}); start one with "
                               "'ray start --head' (docs/cluster.md), or unset RAY_ADDRESS for a local Ray "

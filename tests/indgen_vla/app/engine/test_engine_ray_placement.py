@@ -157,3 +157,15 @@ def test_a_ray_address_where_no_cluster_answers_is_one_line_in_seconds(monkeypat
         s.listen()
         assert unanswered(f"127.0.0.1:{s.getsockname()[1]}") == ""
     assert unanswered("auto") == unanswered("http://127.0.0.1:8265") == ""
+
+
+def test_a_dashboard_ray_address_names_the_gcs_address_to_use_instead(monkeypatch):
+    """RAY_ADDRESS=http://HEAD:8265 (the job API's address, which 'ray job submit' takes): Ray's first line ended in
+    'To fix this, either:' with the fix on lines the error dropped; the line now says which address to give."""
+    from indgen_vla.app.engine.ray_cluster import join
+
+    monkeypatch.setenv("RAY_ADDRESS", "http://127.0.0.1:8265")
+    with pytest.raises(
+        ConfigError, match=r"dashboard's \(job API\) address.*the head's GCS address HOST:PORT"
+    ):
+        join(1)
