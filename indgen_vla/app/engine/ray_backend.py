@@ -35,7 +35,7 @@ from indgen_vla.app.engine.ray_channel import (
 )
 from indgen_vla.app.engine.ray_channel import connect as channel_connect
 from indgen_vla.app.engine.ray_cluster import Need, join, keeping_sigterm, local_cpus
-from indgen_vla.app.engine.ray_files import FileRoute, Scratch, sees
+from indgen_vla.app.engine.ray_files import FileRoute, Scratch, sees, shared_out
 from indgen_vla.app.engine.ray_files import route as files_route
 from indgen_vla.app.engine.ray_pool import Interrupted, Settings, Supervisor
 from indgen_vla.app.engine.rollout import EnvRunner, RunMeta, RunnerConfig, _describe, run_episode
@@ -75,8 +75,11 @@ def ray_knobs(environ=os.environ) -> dict[str, float]:
             name == "INDGEN_RAY_BATCH_WAIT_MS" and value > 10_000
         ):
             kind = "a number >= 0" if zero_ok else "a positive number"
+            if isinstance(default, int):  # int('1.5') fails: say so, not 'positive'
+                kind = "a positive whole number"
             raise ConfigError(f"{name}={raw!r}: {what} must be {kind} (default {default})")
         out[name] = value
+    shared_out(environ)  # checked here although only --video writes files: a bad value is never ignored
     return out
 
 

@@ -181,6 +181,14 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
     start = start or (lambda init: init())
     address = os.environ.get("RAY_ADDRESS", "").strip()
     if address:
+        if address.startswith(("http://", "https://")):  # Ray's own message ends in 'To fix this, either:'
+            raise ConfigError(f"RAY_ADDRESS={address} is the dashboard's (job API) address, which 'ray job submit "
+                              "--address' takes; indgen joins the head's GCS address HOST:PORT (6379 unless "
+                              "'ray start --head --port' said otherwise; docs/cluster.md)")  # fmt: skip
+        if silent := unanswered(address):
+            raise ConfigError(f"RAY_ADDRESS={address}: no Ray cluster answers there ({silent}); start one with "
+                              "'ray start --head' (docs/cluster.md), or unset RAY_ADDRESS for a local Ray "
+                              "instance")  # fmt: skip
         try:
             start(lambda: ray.init(address=address, log_to_driver=False))
         except (ConnectionError, RuntimeError, ValueError, TimeoutError) as e:
@@ -199,6 +207,22 @@ def join(local_cpus: int, start: Callable[[Callable[[], object]], None] | None =
         )
     )
     return True
+
+
+def unanswered(address: str, timeout_s: float = 5.0) -> str:
+    """Why nothing can be reached at a ``HOST:PORT`` (or ``ray://HOST:PORT``) address, '' when something does or the
+    address is another form (``auto``; Ray checks those): ``ray.init`` retries an address where no GCS answers
+    for many minutes (> 8 with Ray 2.60) instead of failing."""
+    import socket
+
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit() or "/" in host:
+        return ""
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as e:
+        return f"cannot connect to {host}:{port}: {e.strerror or e or type(e).__name__}"
+    return ""
 
 
 def local_cpus(workers: int | None, need: Need) -> int:

@@ -35,14 +35,19 @@ class FileRoute:
         return {"files": "shared", "shared_path": self.run_dir} if self.shared else {"files": "shipped"}
 
 
-def route(out: str | os.PathLike[str], environ=os.environ) -> FileRoute:
-    """The run's route from ``INDGEN_RAY_SHARED_OUT`` (unset or 0: shipped; 1: shared, checked on every node)."""
+def shared_out(environ=os.environ) -> bool:
+    """``INDGEN_RAY_SHARED_OUT`` checked (unset or 0: False; 1: True), whether or not the run writes files."""
     raw = environ.get(SHARED_ENV, "").strip()
     if raw not in ("", "0", "1"):
         raise ConfigError(
             f"{SHARED_ENV}={raw!r}: must be 1 (--out is on a file system every node mounts) or 0"
         )
-    return FileRoute(str(Path(out).resolve()), shared=raw == "1")
+    return raw == "1"
+
+
+def route(out: str | os.PathLike[str], environ=os.environ) -> FileRoute:
+    """The run's route from ``INDGEN_RAY_SHARED_OUT`` (unset or 0: shipped; 1: shared, checked on every node)."""
+    return FileRoute(str(Path(out).resolve()), shared=shared_out(environ))
 
 
 def write_probe(run_dir: str) -> str:

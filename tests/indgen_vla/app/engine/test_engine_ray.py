@@ -1,6 +1,7 @@
 """The Ray backend (simulator actors + one shared, batching policy actor) equals the local backend."""
 
 import importlib.util
+import re
 import threading
 import time
 from pathlib import Path
@@ -122,6 +123,27 @@ def test_ray_knobs_are_checked():
     for bad in ("2", "yes"):
         with pytest.raises(ConfigError, match=f"INDGEN_RAY_SOCKET='{bad}'.*0 or 1"):
             ray_knobs({"INDGEN_RAY_SOCKET": bad})
+
+
+def test_every_documented_ray_knob_is_checked_even_when_the_run_writes_no_files():
+    """INDGEN_RAY_SHARED_OUT=yes was checked only on a --video run (route), so a run without videos took it
+    silently; and INDGEN_RAY_MAX_BATCH=1.5 was told to be 'a positive number'. docs/cluster.md: a bad value of any
+    knob in its table is one error line naming the variable."""
+    with pytest.raises(ConfigError, match="^INDGEN_RAY_SHARED_OUT='yes': must be 1"):
+        ray_knobs({"INDGEN_RAY_SHARED_OUT": "yes"})
+    with pytest.raises(ConfigError, match="INDGEN_RAY_MAX_BATCH='1.5'.*a positive whole number"):
+        ray_knobs({"INDGEN_RAY_MAX_BATCH": "1.5"})
+    table = (
+        (Path(__file__).parents[4] / "docs" / "cluster.md")
+        .read_text()
+        .split("| variable |")[1]
+        .split("\n\n")[0]
+    )
+    documented = set(re.findall(r"^\| `(INDGEN_RAY_\w+)`", table, re.M))
+    assert len(documented) == 7
+    for name in documented:  # each documented knob is read and refused when bad
+        with pytest.raises(ConfigError, match=f"^{name}='-2'"):
+            ray_knobs({name: "-2"})
 
 
 def test_simulator_actors_carry_the_drivers_robocasa_split(monkeypatch):

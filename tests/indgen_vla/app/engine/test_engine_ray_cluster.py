@@ -120,7 +120,7 @@ def check_once(out: Path, planned: int) -> pd.DataFrame:
     return df
 
 
-@pytest.mark.slow  # ~50 s: a node added, then SIGKILLed mid-run; the driver-SIGKILL resume stays in the default suite
+@pytest.mark.slow  # ~50 s: a node added, then SIGKILLed mid-run; make test-cluster runs it
 def test_a_node_removed_mid_run_loses_no_episode_and_videos_reach_the_run_directory(joined, tmp_path):
     """The issue's 5-CPU cluster with --workers 4 runs (3 simulators fit; one line says so) instead of hanging; a
     worker node SIGKILLed after the first episodes takes its simulator and policy actor with it: the episodes they

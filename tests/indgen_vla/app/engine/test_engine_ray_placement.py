@@ -132,3 +132,40 @@ def test_episode_files_travel_home_and_a_shared_route_is_checked(tmp_path):
         line.startswith("INDGEN_RAY_SHARED_OUT=1 but node 10.0.0.7 (abcd1234) does not see")
         and "\n" not in line
     )
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("form", ["127.0.0.1:{port}", "ray://127.0.0.1:{port}", "nohost.invalid:{port}"])
+def test_a_ray_address_where_no_cluster_answers_is_one_line_in_seconds(monkeypatch, form):
+    """RAY_ADDRESS naming a port where nothing listens (a typo, a head that died): ray.init retried it for more than
+    8 minutes with Ray 2.60, the docs promise one error line; it is refused before ray.init is called."""
+    import socket
+
+    from indgen_vla.app.engine.ray_cluster import join, unanswered
+
+    with socket.socket() as s:  # a port that was free a moment ago
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = form.format(port=port)
+    monkeypatch.setenv("RAY_ADDRESS", address)
+    with pytest.raises(
+        ConfigError, match=rf"^RAY_ADDRESS={address}: no Ray cluster answers there \(cannot connect"
+    ):
+        join(1)
+    with socket.socket() as s:  # something that answers is left to ray.init; other forms are Ray's to check
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        assert unanswered(f"127.0.0.1:{s.getsockname()[1]}") == ""
+    assert unanswered("auto") == unanswered("http://127.0.0.1:8265") == ""
+
+
+def test_a_dashboard_ray_address_names_the_gcs_address_to_use_instead(monkeypatch):
+    """RAY_ADDRESS=http://HEAD:8265 (the job API's address, which 'ray job submit' takes): Ray's first line ended in
+    'To fix this, either:' with the fix on lines the error dropped; the line now says which address to give."""
+    from indgen_vla.app.engine.ray_cluster import join
+
+    monkeypatch.setenv("RAY_ADDRESS", "http://127.0.0.1:8265")
+    with pytest.raises(
+        ConfigError, match=r"dashboard's \(job API\) address.*the head's GCS address HOST:PORT"
+    ):
+        join(1)
