@@ -281,7 +281,7 @@ class LiberoSceneEnv(BaseSceneEnv):
         for robot in self._env.robots:
             robot.controller.use_delta = True
         self._raw, self._t, self._done = raw, 0, False
-        self._grasp_plan: tuple[np.ndarray, float] | None = None  # (offset, z), at the first privileged state
+        self._grasp_plan: tuple[np.ndarray, float | None] | None = None  # (offset, rim z), at the first state
         return self._observation(), {
             "success": False,
             "step": 0,
@@ -327,10 +327,12 @@ class LiberoSceneEnv(BaseSceneEnv):
     def _lowest(self, geoms: np.ndarray) -> float:
         return float(self._extent(geoms)[0][2])
 
-    def _clear_grasp(self, pick_pos: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
-        """The episode's grasp offset from the object's centre and grasp height (``scenes.libero.grasp_clearance``:
-        a clear point, or an open-topped object's rim), from the scene at the first privileged state (the object at
-        rest, the gripper open above it)."""
+    def _clear_grasp(
+        self, pick_pos: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    ) -> tuple[np.ndarray, float | None]:
+        """The episode's grasp offset from the object's centre (``scenes.libero.grasp_clearance``: a clear point, or
+        an open-topped object's rim) and, for a rim grasp, its height, from the scene at the first privileged state
+        (the object at rest, the gripper open above it); None: the height follows the object as v2's did."""
         if getattr(self, "_grasp_plan", None) is None:
             m, d = self._env.sim.model._model, self._env.sim.data._data
             eef = geom.grip_site(d, self._env.robots[0])[0]
@@ -350,7 +352,7 @@ class LiberoSceneEnv(BaseSceneEnv):
             else:
                 z = geom.grasp_height(float(lo[2]), float(hi[2]), 0.5)
                 centre = np.array([pick_pos[0], pick_pos[1], z])
-                self._grasp_plan = (grasp_offset(grip_lo, grip_hi, obs_lo, obs_hi, centre, half), z)
+                self._grasp_plan = (grasp_offset(grip_lo, grip_hi, obs_lo, obs_hi, centre, half), None)
         return self._grasp_plan
 
     def _corridor_top(self, start: np.ndarray, end: np.ndarray, margin: float) -> float:
@@ -482,7 +484,7 @@ class LiberoSceneEnv(BaseSceneEnv):
             float(ghi[2]), self._corridor_top(pick_pos[:2], place_xy, float(max(hi[:2] - lo[:2]) / 2) + 0.02)
         )
         eef_pos, eef_mat, gripper_qpos = geom.grip_site(d, self._env.robots[0])
-        grasp = self._clear_grasp(pick_pos, lo, hi)
+        grasp_dxy, rim_z = self._clear_grasp(pick_pos, lo, hi)
         return PrivilegedState(
             eef_pos=eef_pos,
             eef_mat=eef_mat,
@@ -503,9 +505,9 @@ class LiberoSceneEnv(BaseSceneEnv):
                 place_xy=np.array(place_xy),
                 place_bottom=floor + 0.012,
                 clear_z=clear,
-                grasp_z=grasp[1],
+                grasp_z=geom.grasp_height(bottom, top, 0.5) if rim_z is None else rim_z,
                 floor_z=floor,
-                grasp_xy=pick_pos[:2] + grasp[0],
+                grasp_xy=pick_pos[:2] + grasp_dxy,
             ),
             bddl_success=bool(self._env.check_success()),
         )
