@@ -313,11 +313,18 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
 
 
 def axis_verdicts(
-    rows: list[dict], break_level: dict, gamma: float, signed: bool, ci: str = "wilson"
+    rows: list[dict],
+    break_level: dict,
+    gamma: float,
+    signed: bool,
+    ci: str = "wilson",
+    status: dict | None = None,
 ) -> dict:
     """{"pos": sentence, "neg": sentence (signed axes)} for summary.json's human-readable ``verdict``; a decided
-    break with an undecided level before it says so, since k* may then be that earlier level."""
-    out, status = {}, kstar_status_of(rows, signed)
+    break with an undecided level before it says so, since k* may then be that earlier level. ``status``: the rows'
+    ``kstar_status_of``, when the caller has it."""
+    out = {}
+    status = kstar_status_of(rows, signed) if status is None else status
     for d, keep in (
         (("pos", lambda k: k >= 0), ("neg", lambda k: k <= 0)) if signed else (("pos", lambda k: True),)
     ):

@@ -103,9 +103,9 @@ def summarize(episodes, manifest: dict[str, Any], gamma: float = DEFAULT_GAMMA, 
         if design := design_text(adaptive, per_task):
             a["design"] = design
         a["condition2"] = condition2_validation(a["monotone"], a["regime"])  # None: vanilla (by construction)
-        a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci)
+        a["verdict"] = axis_verdicts(pooled, a["break_level"], gamma, signed, ci, a["kstar_status"])
         for e in task_entries.values():
-            e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci)
+            e["verdict"] = axis_verdicts(e["levels"], e["break_level"], gamma, signed, ci, e["kstar_status"])
         add_vs_t0(a, df, margin)
         if training:
             task_levels = {t: e["levels"] for t, e in task_entries.items()}

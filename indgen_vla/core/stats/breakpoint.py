@@ -272,7 +272,9 @@ def _direction_data(cells: Sequence[Cell], direction: str):
 
 def _boot_crossings(cells, direction, gamma, method, n_boot, rng):
     sign, x, params, clusters, s, n = _direction_data(cells, direction)
-    xc, used, why = crossing(x, s.sum(0), n.sum(0), gamma, method)
+    ss, nn = s.sum(0), n.sum(0)
+    xc, used, why = crossing(x, ss, nn, gamma, method)
+    flat = bool(((ss[nn > 0] == 0) | (ss[nn > 0] == nn[nn > 0])).all())  # every level at 0 % or 100 %
     w = _boot_weights(clusters, n_boot, rng)
     with np.errstate(invalid="ignore", divide="ignore"):
         p_hat = np.where(n > 0, s / np.maximum(n, 1), 0.0)
@@ -290,7 +292,7 @@ def _boot_crossings(cells, direction, gamma, method, n_boot, rng):
             continue
         boot[r] = isotonic_crossing(x[bn[r] > 0], bs[r][bn[r] > 0], bn[r][bn[r] > 0], gamma)
         n_iso += 1
-    return sign, x, params, clusters, xc, used, why, boot, n_iso, int(n.sum())
+    return sign, x, params, clusters, xc, used, why, boot, n_iso, int(n.sum()), flat
 
 
 def break_point(
@@ -321,7 +323,7 @@ def break_point(
     out = {}
     for direction in ("pos", "neg") if signed else ("pos",):
         try:
-            sign, x, params, clusters, xc, used, why, boot, n_iso, n_eps = _boot_crossings(
+            sign, x, params, clusters, xc, used, why, boot, n_iso, n_eps, flat = _boot_crossings(
                 cells, direction, gamma, method, n_boot, rng
             )
         except ConfigError as e:
@@ -336,7 +338,7 @@ def break_point(
                 "why": str(e),
             }
             continue
-        lv_ci = _widened(_interval(boot, conf), cells, direction, x, xc, why)
+        lv_ci = _widened(_interval(boot, conf), x, xc, "separated" in why or flat)
         par = [_to_param(v, x, params) if v is not None else None for v in lv_ci]
         lv_ci = [sign * v if v is not None else None for v in lv_ci]
         if sign < 0:
@@ -357,14 +359,11 @@ def break_point(
     return out
 
 
-def _widened(lv_ci: list, cells: Sequence[Cell], direction: str, x: np.ndarray, xc: float, why: str) -> list:
-    """Rates of 0 and 1 (separated, or not monotone like 0/5, 5/5, 0/5) give the episode bootstrap nothing to vary:
-    the data only place the crossing between the two adjacent levels around it, so the interval covers at least
-    that bracket (else a 95 % interval of zero width)."""
-    _, _, _, _, s, n = _direction_data(cells, direction)
-    s, n = s.sum(0), n.sum(0)
-    flat = bool(((s[n > 0] == 0) | (s[n > 0] == n[n > 0])).all())
-    if not (("separated" in why or flat) and math.isfinite(xc)):
+def _widened(lv_ci: list, x: np.ndarray, xc: float, fixed: bool) -> list:
+    """Rates of 0 and 1 (``fixed``: separated, or not monotone like 0/5, 5/5, 0/5) give the episode bootstrap
+    nothing to vary: the data only place the crossing between the two adjacent levels around it, so the interval
+    covers at least that bracket (else a 95 % interval of zero width)."""
+    if not (fixed and math.isfinite(xc)):
         return lv_ci
     i = max(int(np.searchsorted(x, xc, side="right")) - 1, 0)
     j = min(i + 1, len(x) - 1)
@@ -407,9 +406,10 @@ def break_point_difference(
         with np.errstate(invalid="ignore"):
             dparam = np.array(pb) - np.array(pa)
         lv, dpar = _interval(diff, conf), _interval(dparam, conf)
-        ia = _widened(_interval(ra[7], conf), cells_a, direction, x, ra[4], ra[6])
-        ib = _widened(_interval(rb[7], conf), cells_b, direction, rb[1], rb[4], rb[6])
-        if ia != _interval(ra[7], conf) or ib != _interval(rb[7], conf):  # a run the bootstrap cannot vary
+        own_a, own_b = _interval(ra[7], conf), _interval(rb[7], conf)
+        ia = _widened(own_a, x, ra[4], "separated" in ra[6] or ra[10])
+        ib = _widened(own_b, rb[1], rb[4], "separated" in rb[6] or rb[10])
+        if ia != own_a or ib != own_b:  # a run the bootstrap cannot vary
             lv, dpar = _difference_bracket(lv, dpar, ia, ib, (x, params), (rb[1], rb[2]))
         if sign < 0:
             lv = [-v if v is not None else None for v in lv[::-1]]
