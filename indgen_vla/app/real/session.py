@@ -320,13 +320,18 @@ def undo_line(rr: RealRun, seq: int, operator: str = "") -> tuple[Entry, Entry |
         return target, rec.state().counted.get((target.level, target.episode))
 
 
-def _saved(e: Entry) -> str:
+def _verdict_text(e: Entry) -> str:
+    """A verdict line's episode, outcome, note, video and command exit, as the operator reads it."""
     what = {"success": "success", "failure": f"failure ({e.failure or 'mode not given'})",
             "void": f"VOID ({e.reason}): re-queued"}[e.kind]  # fmt: skip
     extra = "".join(f"; {k} {v}" for k, v in (("note", e.note), ("video", e.video)) if v)
     if "command" in e.trigger:
         extra += f"; command exit {e.trigger['command']['exit_code']}"
-    return f"saved: level {e.level} episode {e.episode} {what}{extra} (journal line {e.seq})"
+    return f"level {e.level} episode {e.episode} {what}{extra}"
+
+
+def _saved(e: Entry) -> str:
+    return f"saved: {_verdict_text(e)} (journal line {e.seq})"
 
 
 def resume_line(entries: list[Entry]) -> str | None:
@@ -336,7 +341,7 @@ def resume_line(entries: list[Entry]) -> str | None:
         return None
     e = entries[-1]
     what = (f"undo of line {e.undo} (level {e.level} episode {e.episode})" if e.kind == "undo"
-            else _saved(e).removeprefix("saved: ").rpartition(" (journal line")[0])  # fmt: skip
+            else _verdict_text(e))  # fmt: skip
     return (f"resuming: the journal's last line is {e.seq}, {what}, at {e.time or 'an unknown time'}; a verdict "
             "typed after it and never shown as 'saved' was not recorded")  # fmt: skip
 
