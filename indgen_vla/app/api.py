@@ -73,9 +73,8 @@ def evaluate(
     if log is not None:
         tracker_module(log)  # a missing tracker is refused before any episode runs
     obj = None if policy is None or isinstance(policy, str | PolicyConfig) else policy
-    if (
-        obj is not None
-    ):  # the label: an EvalConfig's own "object:..." spec (a training step's), else the class
+    # the label: an EvalConfig's own "object:..." spec (a training step's), else the class
+    if obj is not None:
         labelled = isinstance(config, EvalConfig) and config.policy.spec.startswith("object:")
         policy = config.policy.spec if labelled else describe(obj)
     given = {

@@ -27,9 +27,8 @@ class PolicyCheck:
     def __init__(self, spec: str):
         self.spec = spec
         try:
-            self.policy = load_policy(
-                spec
-            )  # a remote family connects and shakes hands here: fails in one line
+            # a remote family connects and shakes hands here: fails in one line
+            self.policy = load_policy(spec)
         except ConfigError as e:  # a bad SPEC: name the option it came from
             raise ConfigError(f"--check-policy {spec}: {e}") from None
 

@@ -17,9 +17,8 @@ class IndgenParser(argparse.ArgumentParser):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(
-            r"^-\d"
-        )  # no flag starts with a digit: -3:3, -3..3 are values
+        # no flag starts with a digit: -3:3, -3..3 are values
+        self._negative_number_matcher = re.compile(r"^-\d")
 
     def error(self, message: str) -> None:  # type: ignore[override]
         import difflib

@@ -186,10 +186,8 @@ def _status(ns: argparse.Namespace) -> int:
     for r in s["levels"]:
         rate = f"{r['successes']}/{r['n']} = {100 * r['rate']:.0f} % [{100 * r['ci_low']:.0f}, {100 * r['ci_high']:.0f}]" if r["n"] else "no episodes"  # fmt: skip
         dec = f"  {_DECISION_TEXT.get(r['decision'], r['decision'])}" if r["decision"] else ""
-        if r["n"] and r["decision"] in (
-            "not reached",
-            "not needed",
-        ):  # only an undo below it leaves counts here
+        # only an undo below it leaves counts here
+        if r["n"] and r["decision"] in ("not reached", "not needed"):
             dec += f" ({r['n']} recorded before an undo re-opened a lower level)"
         print(
             f"  level {r['level']} ({r['param']:g} {r['unit']}): {rate}, n = {r['n']}, voids {r['voids']}{dec}"

@@ -282,10 +282,11 @@ def compare_run_groups(
     write_result(out, "compare", result, text)
 
     # report.html: the verdicts first
+    # which run directories each side pools
     groups = "; ".join(
         f"{side} = `{lbl}`: {', '.join(f'`{r}`' for r in result[f'runs_{side.lower()}'])}"
         for side, lbl in (("A", la), ("B", lb))
-    )  # which run directories each side pools
+    )
     markdown_page(out, f"Group comparison: {la} vs {lb}", text, [*result["verdicts"].values(), groups],
                   caveats=result["caveats"])  # fmt: skip
     return result

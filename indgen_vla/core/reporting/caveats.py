@@ -13,8 +13,8 @@ from indgen_vla.core.reporting.certification_view import (
 )
 from indgen_vla.core.reporting.oracle_states import states_lines
 from indgen_vla.core.stats.metrics import (
-    CI_NAMES,
     MIN_N,
+    ci_name,
     exact_2x2,
     mcnemar_exact,
     pooled_text,
@@ -77,7 +77,7 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
     t0 = next((r for r in usable_rows(a["levels"]) if r["level"] == 0), None)
     if t0 is not None and t0["rate"] < gamma:
         out.append(f"**Cannot answer** ({where}): T0 succeeds in {t0['successes']}/{t0['n']} "
-                   f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {CI_NAMES.get(ci, ci)} 95 % CI), "
+                   f"({100 * t0['rate']:.0f}% [{100 * t0['ci_low']:.0f}, {100 * t0['ci_high']:.0f}], {ci_name(ci)} 95 % CI), "
                    f"below γ = {gamma}: a policy that does not solve the base task (or acts blind to it) has no "
                    "generalization to measure; its k* is 0 by construction.")  # fmt: skip
     ran = [r["n"] for r in a["levels"] if r["n"] > 0]
@@ -86,9 +86,8 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                    f"level; a rate needs ≥ {MIN_N} finished episodes and half the planned ones), so no rate, no k* "
                    "and no test is given.")  # fmt: skip
     ns = [r["n"] for r in usable_rows(a["levels"])]
-    by_sprt = any(
-        r.get("sequential") for r in a["levels"]
-    )  # --adaptive: the SPRT decides a break, not the CI
+    # --adaptive: the SPRT decides a break, not the CI
+    by_sprt = any(r.get("sequential") for r in a["levels"])
     if ns and break_undecidable(max(ns), gamma, ci) and not by_sprt:
         need = needed_for_break(gamma, ci)
         # no level observed under γ: there is no observed k* to warn about, only that none could have been shown
@@ -96,7 +95,7 @@ def axis_caveats(label: str, axis: str, a: dict, gamma: float, ci: str, alpha: f
                 if any(r["rate"] < gamma for r in usable_rows(a["levels"])) else
                 "had one fallen under γ, its break would only have been observed, not statistically decided")  # fmt: skip
         out.append(f"**Too few episodes** ({where}): at most n = {max(ns)} a level; even 0/{max(ns)} leaves the "
-                   f"{CI_NAMES.get(ci, ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: {tail} "
+                   f"{ci_name(ci)} 95 % CI above γ = {gamma}, so no level can be decided broken: {tail} "
                    f"(that needs n ≥ {need} a level).")  # fmt: skip
     head = a.get("vs_t0") or {}
     m = len(head.get("holm_over") or [])

@@ -15,7 +15,7 @@ from typing import Any
 from indgen_vla.core.protocol.training_support import fully_trained
 from indgen_vla.core.runs.records import atomic_savefig
 from indgen_vla.core.stats.breakpoint import signed_level
-from indgen_vla.core.stats.metrics import CI_NAMES, difference_ci, pooled_text, usable_rows
+from indgen_vla.core.stats.metrics import ci_name, difference_ci, pooled_text, usable_rows
 
 AXES_PLOT = (
     "axes.png"  # plots/axes.png: every axis of a report in one figure, written when it covers >= 2 axes
@@ -86,9 +86,8 @@ def draw_curves(
                 ax.plot([r["level"] for r in tr], [r["rate"] for r in tr], color=colour, alpha=0.25, lw=0.8,
                         zorder=1, label=f"{label}: single tasks ({len(per_task)})" if j == 0 else None)  # fmt: skip
     ax.axhline(gamma, ls="--", color="grey", lw=1, label=f"γ = {gamma}")
-    if (
-        not levels
-    ):  # every level below the data floor: say so over the levels run, not over a blank ±0.04 axis
+    # every level below the data floor: say so over the levels run, not over a blank ±0.04 axis
+    if not levels:
         ax.text(
             0.5, 0.5, NO_RATE, transform=ax.transAxes, ha="center", va="center", color="dimgrey", fontsize=8
         )
@@ -136,7 +135,7 @@ def plot_axis(
     notes = {lbl: curve_note([a]) for lbl, a in curves}
     labels = [f"{lbl} ({notes[lbl]})" if notes.get(lbl) else lbl for lbl in labels]
     handles.append(Patch(color="grey", alpha=0.25, lw=0))
-    labels.append(f"{CI_NAMES.get(ci, ci) + ' ' if ci else ''}95 % CI (shaded)")
+    labels.append(f"{ci_name(ci) + ' ' if ci else ''}95 % CI (shaded)")
     ncol = 2 if len(labels) > 1 and max(map(len, labels)) <= 48 else 1
     fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=ncol, frameon=False)
     fig.tight_layout(rect=(0, 0.01 + 0.045 * -(-len(labels) // ncol), 1, 1))
@@ -242,7 +241,7 @@ def axes_figure(
     ci = summaries[0][1].get("ci", "wilson")
     handles = [Line2D([], [], color=c, marker="o", ms=4, label=_legend_label(lbl, s))
                for c, (lbl, s) in zip(colours, summaries, strict=True)]  # fmt: skip
-    handles += [Patch(color="grey", alpha=0.25, lw=0, label=f"{CI_NAMES.get(ci, ci)} 95 % CI"),
+    handles += [Patch(color="grey", alpha=0.25, lw=0, label=f"{ci_name(ci)} 95 % CI"),
                 Line2D([], [], ls="--", color="grey", lw=1, label=f"γ = {gamma}"),
                 Line2D([], [], ls="none", marker="o", ms=9, mfc="none", mec="dimgrey", mew=1.5, label=KSTAR_LABEL)]  # fmt: skip
     ncol = _legend_columns([h.get_label() for h in handles], ncols)
@@ -332,7 +331,7 @@ def overview_lines(summaries: Sequence[tuple[str, dict]], order: Sequence[str] |
     header = ["axis", *(["run"] if several else []), *(f"{signed_level(k, minus='−')}{' (T0)' * (k == 0)}" for k in levels),
               "largest drop from T0 (pp, 95 % CI)"]  # fmt: skip
     lines = ["## Overview: success per axis and level (the paper's Table 2)", "",
-             f"Each cell: success % [{CI_NAMES.get(summaries[0][1].get('ci', 'wilson'))} 95 % CI] n = finished episodes; – = level "
+             f"Each cell: success % [{ci_name(summaries[0][1].get('ci', 'wilson'))} 95 % CI] n = finished episodes; – = level "
              "not evaluated on that axis. Bold: the level with the largest drop from T0; its interval is paired over the "
              "episodes the two levels share (seeds; Newcombe) where the run pairs them, else unpaired (MOVER from the "
              f"two levels' CIs). {pooled}", "",

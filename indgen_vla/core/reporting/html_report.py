@@ -21,7 +21,7 @@ from indgen_vla.core.reporting.html_page import (
     write_page,
 )
 from indgen_vla.core.reporting.levels import verdict_line
-from indgen_vla.core.stats.metrics import CI_NAMES, UNDETERMINED, pooled_text
+from indgen_vla.core.stats.metrics import UNDETERMINED, ci_name, pooled_text
 
 PREVIEW_DIR = "preview"  # a run's level preview sheets (``indgen preview --out RUN/preview/AXIS.png``)
 EPISODE_COLUMNS = ("task", "axis", "level", "param", "episode", "seed", "success", "steps", "status", "failure",
@@ -90,7 +90,7 @@ def verdict_section(summaries: Sequence[tuple[str, Mapping[str, Any]]], order: S
                 f"<p><b>k*</b> (first level with success &lt; γ = {esc(s['gamma'])}): {esc(kstar_text(a))}</p>"
                 + (f"<p><b>k* status</b>: {esc(status)}</p>" if status else "")
                 + f"<p><b>verdict</b>: {esc(verdict)}</p>"
-                f'<p class="note">{esc(pooled_text(a.get("pooled_tasks") or []))}; success with {esc(CI_NAMES.get(s["ci"], s["ci"]))} '
+                f'<p class="note">{esc(pooled_text(a.get("pooled_tasks") or []))}; success with {esc(ci_name(s["ci"]))} '
                 "95 % CI; n = finished episodes (errors counted beside it); one run: nothing is paired here "
                 "(indgen compare pairs runs).</p>"
                 f"{_level_rows(a, (units or {}).get(axis) or '')}</div>"

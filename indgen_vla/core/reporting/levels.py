@@ -14,7 +14,7 @@ from indgen_vla.core.reporting.failures import failure_counts_by
 from indgen_vla.core.reporting.partial_credit import level_progress_by
 from indgen_vla.core.stats.breakpoint import kstar_status, signed_level, verdict_from_ci
 from indgen_vla.core.stats.frames import group_items, py
-from indgen_vla.core.stats.metrics import CI_NAMES, MIN_N, below_floor, break_levels, success_rate
+from indgen_vla.core.stats.metrics import MIN_N, below_floor, break_levels, ci_name, success_rate
 from indgen_vla.core.stats.sample_size import more_to_decide, verdict_error
 from indgen_vla.core.stats.sprt import (
     UNTIL_FAILURE,
@@ -231,7 +231,7 @@ def episodes_to_decide(successes: int, n: int, gamma: float, ci: str = "wilson")
 
 def _error_text(n: int, gamma: float, ci: str, verdict: str) -> str:
     """The real error of a level's verdict at its n, as computed exactly (nominal 2.5 % a side for a 95 % CI)."""
-    return f"{CI_NAMES.get(ci, ci)} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
+    return f"{ci_name(ci)} 95 % CI; chance of this call at S = γ with n = {n}: {100 * verdict_error(n, gamma, ci, verdict):.1f} %"
 
 
 def _seq_error_text(seq: dict, verdict: str) -> str:
@@ -280,9 +280,8 @@ def direction_verdict(rows: list[dict], k, gamma: float, ci: str = "wilson") -> 
             seq = next(r["sequential"] for r in rows if r.get("sequential"))
             return (f"no break through {last}: every level is decided at or above γ = {gamma:g} by the sequential "
                     f"rule{_seq_error_text(seq, 'intact')}")  # fmt: skip
-        if (
-            not open_
-        ):  # the error is not monotone in n (Wilson at γ = 0.2: 1.7 % at n = 6, 5.6 % at 8): the largest
+        # the error is not monotone in n (Wilson at γ = 0.2: 1.7 % at n = 6, 5.6 % at 8): the largest
+        if not open_:
             n = max((r["n"] for r in rows), key=lambda m: (verdict_error(m, gamma, ci, "intact"), -m))
             return (f"no break through {last}: every level is significantly at or above γ = {gamma:g} "
                     f"({_error_text(n, gamma, ci, 'intact')}, the largest over its levels)")  # fmt: skip

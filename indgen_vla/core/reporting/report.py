@@ -35,7 +35,7 @@ from indgen_vla.core.runs.records import (
 )
 from indgen_vla.core.stats.breakpoint import kstar_spread
 from indgen_vla.core.stats.contrasts import check_margin, render_vs_t0, t0_lines
-from indgen_vla.core.stats.metrics import CI_NAMES, DEFAULT_GAMMA, MIN_N, UNDETERMINED, pooled_text
+from indgen_vla.core.stats.metrics import DEFAULT_GAMMA, MIN_N, UNDETERMINED, ci_name, pooled_text
 
 
 def run_label(run: RunDir) -> str:
@@ -200,7 +200,7 @@ def render_markdown(
     gamma = s0["gamma"]
     caveats = report_caveats(summaries)  # what the study cannot answer comes first, before any rate
     lines = [f"# {title}", "", *[x for c in caveats for x in (c, "")],
-             f"Success rate with {CI_NAMES.get(s0['ci'], s0['ci'])} 95 % CI; n = finished episodes (episodes with status \"error\" are "
+             f"Success rate with {ci_name(s0['ci'])} 95 % CI; n = finished episodes (episodes with status \"error\" are "
              "excluded from n and counted beside it). Break level k* = first level with success < "
              f"γ = {gamma} (per direction for signed axes). A level with n < {s0.get('min_n', MIN_N)} or fewer "
              "than half its planned episodes finished shows \"insufficient data\": it gives no rate and no k* "

@@ -11,7 +11,7 @@ from xml.sax.saxutils import escape
 
 from indgen_vla.core.reporting.figures import NO_RATE, curve_note
 from indgen_vla.core.runs.records import atomic_write_text
-from indgen_vla.core.stats.metrics import CI_NAMES, usable_rows
+from indgen_vla.core.stats.metrics import ci_name, usable_rows
 
 W, H = 560, 360  # px; the plot area's margins below
 LEFT, RIGHT, TOP, BOTTOM = 52, 16, 40, 58
@@ -31,7 +31,7 @@ def axis_svg(label: str, a: Mapping[str, Any], axis: str, gamma: float, ci: str 
         lo, hi = min(levels) - 0.5, max(levels) + 0.5
     note = curve_note([a])
     caption = textwrap.wrap(f"{label} ({note})" if note else label, CAPTION_CHARS) + textwrap.wrap(
-        f"shaded: {CI_NAMES.get(ci, ci) + ' ' if ci else ''}95 % CI; dashed: γ = {gamma}; ringed: k* (first level "
+        f"shaded: {ci_name(ci) + ' ' if ci else ''}95 % CI; dashed: γ = {gamma}; ringed: k* (first level "
         "below γ)", CAPTION_CHARS)  # fmt: skip
     height = H + 13 * (len(caption) - 1)  # one line more per caption line: a long label wraps, never clips
     pw, ph = W - LEFT - RIGHT, H - TOP - BOTTOM

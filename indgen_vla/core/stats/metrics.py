@@ -62,6 +62,11 @@ CI_METHODS = {"wilson": wilson_ci, "clopper-pearson": clopper_pearson_ci}
 CI_NAMES = {"wilson": "Wilson", "clopper-pearson": "Clopper–Pearson"}  # as printed beside a rate
 
 
+def ci_name(ci: str) -> str:
+    """An interval method's printed name ("wilson" -> "Wilson"), every report and plot saying it one way."""
+    return CI_NAMES.get(ci, ci)
+
+
 @dataclass(frozen=True)
 class Rate:
     """Success rate of one level with its confidence interval."""
