@@ -2,19 +2,20 @@
 
 from __future__ import annotations
 
-import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 
+from tests.docs.fences import code_blocks
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _blocks() -> list[str]:
     """The page's Python blocks: its own policy, then its own scene."""
-    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "extending.md").read_text(), re.S)
+    blocks = code_blocks((ROOT / "docs" / "extending.md").read_text(), "python")
     assert len(blocks) == 2, len(blocks)
     return blocks
 

@@ -15,13 +15,15 @@ from pathlib import Path
 
 import pytest
 
+from tests.docs.fences import code_blocks
+
 ROOT = Path(__file__).resolve().parents[2]
 OURS = ("indgen_vla", "policy_wrappers", "scenes")
 PAGES = sorted(p for p in (ROOT / "docs").glob("*.md") if "```python" in p.read_text())
 
 
 def blocks(text: str) -> list[str]:
-    return re.findall(r"```python\n(.*?)```", text, re.S)
+    return code_blocks(text, "python")
 
 
 def _defined(trees: list[ast.Module]) -> dict[str, inspect.Signature]:

@@ -9,6 +9,7 @@ import yaml
 
 from indgen_vla.app.cli import build_parser
 from indgen_vla.core.runs.records import RunDir
+from tests.docs.fences import code_blocks
 
 pytestmark = pytest.mark.filterwarnings("ignore")
 ROOT = Path(__file__).resolve().parents[3]
@@ -16,7 +17,7 @@ DOC = (ROOT / "docs" / "loop.md").read_text()
 
 
 def blocks(lang: str) -> list[str]:
-    return re.findall(rf"```{lang}\n(.*?)```", DOC, flags=re.S)
+    return code_blocks(DOC, lang)
 
 
 @pytest.mark.slow  # 67 s of training and evaluating; the policy-object path itself is test_engine_objects'
